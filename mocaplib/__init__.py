@@ -1,0 +1,34 @@
+"""mocaplib: optical motion capture of walking people (C3D) to a validated motion library.
+
+Public names are imported lazily, so ``import mocaplib`` stays fast and a stage's heavy
+dependencies (pyvista, matplotlib) load only when that stage is used.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+_EXPORTS = {
+    "MocapError": "mocaplib.errors",
+    "C3DError": "mocaplib.errors",
+    "Trial": "mocaplib.trial",
+    "Event": "mocaplib.trial",
+    "Skeleton": "mocaplib.skeleton",
+    "Motion": "mocaplib.motion",
+    "read_c3d": "mocaplib.io.c3d",
+}
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mocaplib' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_EXPORTS))

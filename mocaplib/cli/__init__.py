@@ -1,0 +1,46 @@
+"""The ``mocaplib`` command line: a thin layer that parses options and calls the library.
+
+No algorithm lives here. Each sub-command is a module in this package with a
+``register(subparsers)`` function; errors a user can cause (:class:`MocapError`) are printed
+as one line without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .. import __version__
+from ..errors import MocapError
+
+#: Sub-command modules, in the order ``mocaplib --help`` lists them.
+COMMANDS = ("inspect",)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mocaplib",
+        description="Turn C3D captures of walking people into a validated motion library.")
+    parser.add_argument("--version", action="version", version=f"mocaplib {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code (also used by the console script)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except MocapError as exc:
+        print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("mocaplib: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Reading and writing files: C3D import, exports, atomic writes."""

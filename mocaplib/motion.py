@@ -1,0 +1,110 @@
+"""The :class:`Motion` container: a fitted capture (root pose and joint angles over time).
+
+Angles are radians, root translation metres, world frame Z up; time on axis 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .errors import MocapError
+from .skeleton import DOF_NAMES, Skeleton
+
+
+@dataclass
+class Motion:
+    """Joint angles of a subject-scaled skeleton fitted to a trial's markers.
+
+    Attributes
+    ----------
+    angles : DataFrame, shape (F, D)
+        One column per DOF in :data:`mocaplib.skeleton.DOF_NAMES` order (radians; ``pelvis_t*``
+        metres); index ``time_s``, seconds from the trial's first frame.
+    skeleton : Skeleton
+        The calibrated skeleton the angles drive.
+    rate : float
+        Frame rate, Hz.
+    marker_labels : list[str], length M
+        Labels of the markers used in the fit.
+    residuals : ndarray, shape (F, M)
+        Distance between each measured marker and its model position, metres; NaN when missing.
+    failed : ndarray of bool, shape (F,)
+        Frames that could not be fitted (too few markers, no convergence); their angles are
+        interpolated and should not be trusted.
+    locked_dofs : list[str]
+        DOFs held at zero because the protocol lacks the markers to see them.
+    marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
+        Each marker's segment index and its position in that segment's frame (metres).
+    source : str or None
+        The capture's file.
+    """
+
+    angles: pd.DataFrame
+    skeleton: Skeleton
+    rate: float
+    marker_labels: list[str] = field(default_factory=list)
+    residuals: np.ndarray | None = None
+    failed: np.ndarray | None = None
+    locked_dofs: list[str] = field(default_factory=list)
+    marker_segments: np.ndarray | None = None
+    marker_offsets: np.ndarray | None = None
+    source: str | None = None
+
+    def __post_init__(self):
+        if list(self.angles.columns) != list(DOF_NAMES):
+            raise MocapError("Motion.angles columns must be the skeleton's DOF_NAMES in order",
+                             path=self.source)
+        n = len(self.angles)
+        if self.residuals is None:
+            self.residuals = np.full((n, len(self.marker_labels)), np.nan)
+        if self.failed is None:
+            self.failed = np.zeros(n, dtype=bool)
+        if self.residuals.shape != (n, len(self.marker_labels)):
+            raise MocapError(f"residuals must have shape ({n}, {len(self.marker_labels)}), "
+                             f"got {self.residuals.shape}", path=self.source)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint coordinates as an array, shape (F, D)."""
+        return self.angles.to_numpy(dtype=np.float64)
+
+    @property
+    def time(self) -> np.ndarray:
+        """Seconds from the first frame, shape (F,)."""
+        return self.angles.index.to_numpy(dtype=np.float64)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.angles)
+
+    def frame_rms(self) -> np.ndarray:
+        """Root-mean-square marker residual of each frame, shape (F,), metres (NaN if none)."""
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.nanmean(self.residuals ** 2, axis=1))
+
+    def marker_rms(self) -> np.ndarray:
+        """Root-mean-square residual of each marker over the capture, shape (M,), metres."""
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.nanmean(self.residuals ** 2, axis=0))
+
+    def segment_transforms(self) -> np.ndarray:
+        """Segment-to-world transforms, shape (F, S, 4, 4)."""
+        return self.skeleton.forward(self.q)
+
+    def model_markers(self) -> np.ndarray:
+        """Model marker positions for the fitted angles, shape (F, M, 3), metres."""
+        if self.marker_segments is None or self.marker_offsets is None:
+            raise MocapError("this Motion carries no marker model", path=self.source)
+        return self.skeleton.points(self.q, self.marker_segments, self.marker_offsets)
+
+
+def angles_frame(q: np.ndarray, rate: float) -> pd.DataFrame:
+    """Wrap joint coordinates (F, D) as a DataFrame with DOF columns and a ``time_s`` index."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
+        raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
+    index = pd.Index(np.arange(q.shape[0]) / float(rate), name="time_s")
+    return pd.DataFrame(q, columns=list(DOF_NAMES), index=index)

@@ -1,0 +1,310 @@
+"""The fixed full-body skeleton: topology, degrees of freedom and forward kinematics.
+
+Frames and signs
+----------------
+Every segment frame, in the neutral pose (all DOFs zero, standing upright facing +X), is parallel
+to the world frame: **X forward, Y to the subject's left, Z up**. A joint's DOF rotations are
+applied in the order listed, each about its axis in the frame produced by the previous one
+(intrinsic), after the joint's fixed offset in the parent frame. Angles are radians.
+
+Signs follow the clinical (ISB-like) habit, *flexion positive*, whatever axis that needs:
+
+=====================  ====================================================================
+DOF                    positive means
+=====================  ====================================================================
+pelvis_tx/ty/tz        root translation in world X/Y/Z, metres (pelvis origin = mid hip centres)
+pelvis_rotation        heading, counter-clockwise about +Z (turning left); 0 faces +X
+pelvis_list            about +X: the right side drops
+pelvis_tilt            about +Y: anterior tilt (the front of the pelvis drops)
+trunk_flexion          trunk leans forward
+trunk_bending          trunk bends to the left
+trunk_rotation         trunk turns left (counter-clockwise seen from above)
+neck_flexion/bending/rotation   the same for the head on the trunk
+hip_flexion            thigh moves forward
+hip_adduction          thigh moves towards the midline
+hip_rotation           internal rotation
+knee_flexion           shank moves backward (0 = straight knee)
+ankle_dorsiflexion     toes move up
+ankle_inversion        the sole turns to face the midline
+shoulder_flexion       arm moves forward
+shoulder_abduction     arm moves away from the body sideways
+shoulder_rotation      internal rotation
+elbow_flexion          forearm moves forward/up (0 = straight elbow)
+=====================  ====================================================================
+
+Left and right DOFs are named ``<joint>_<dof>_l`` / ``_r`` (e.g. ``hip_flexion_r``). Mirror-image
+axes make the same number mean the same anatomical motion on both sides.
+
+Arrays: joint angles ``q`` have shape ``(F, D)`` in :data:`DOF_NAMES` order; segment
+transforms ``(F, S, 4, 4)`` in :data:`SEGMENT_NAMES` order map segment coordinates to world.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import MocapError
+
+X, Y, Z = np.eye(3)
+DEG = np.pi / 180.0
+
+
+@dataclass(frozen=True)
+class Dof:
+    """One degree of freedom: a rotation (radians) or translation (metres) about/along ``axis``."""
+
+    name: str
+    segment: str
+    axis: tuple[float, float, float]
+    lower: float
+    upper: float
+    translation: bool = False
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A rigid segment, its parent and the DOFs of the joint that attaches it to the parent."""
+
+    name: str
+    parent: str | None
+    dofs: tuple[str, ...]
+
+
+def _rot(name, segment, axis, lo_deg, hi_deg):
+    return Dof(name, segment, tuple(float(a) for a in axis), lo_deg * DEG, hi_deg * DEG)
+
+
+def _sided(side: str) -> float:
+    """+1 for right, -1 for left: mirrors axes so anatomical signs agree on both sides."""
+    return 1.0 if side == "r" else -1.0
+
+
+def _build_topology() -> tuple[tuple[Segment, ...], tuple[Dof, ...]]:
+    segs: list[Segment] = []
+    dofs: list[Dof] = []
+
+    def add(name, parent, new_dofs):
+        dofs.extend(new_dofs)
+        segs.append(Segment(name, parent, tuple(d.name for d in new_dofs)))
+
+    add("pelvis", None, [
+        Dof("pelvis_tx", "pelvis", (1.0, 0.0, 0.0), -1e3, 1e3, translation=True),
+        Dof("pelvis_ty", "pelvis", (0.0, 1.0, 0.0), -1e3, 1e3, translation=True),
+        Dof("pelvis_tz", "pelvis", (0.0, 0.0, 1.0), -1e3, 1e3, translation=True),
+        _rot("pelvis_rotation", "pelvis", Z, -np.inf, np.inf),
+        _rot("pelvis_list", "pelvis", X, -45, 45),
+        _rot("pelvis_tilt", "pelvis", Y, -45, 60),
+    ])
+    add("torso", "pelvis", [
+        _rot("trunk_flexion", "torso", Y, -40, 90),
+        _rot("trunk_bending", "torso", -X, -45, 45),
+        _rot("trunk_rotation", "torso", Z, -60, 60),
+    ])
+    add("head", "torso", [
+        _rot("neck_flexion", "head", Y, -60, 70),
+        _rot("neck_bending", "head", -X, -50, 50),
+        _rot("neck_rotation", "head", Z, -80, 80),
+    ])
+    for side in ("r", "l"):
+        s = _sided(side)
+        add(f"humerus_{side}", "torso", [
+            _rot(f"shoulder_flexion_{side}", f"humerus_{side}", -Y, -90, 180),
+            _rot(f"shoulder_abduction_{side}", f"humerus_{side}", -s * X, -30, 180),
+            _rot(f"shoulder_rotation_{side}", f"humerus_{side}", s * Z, -90, 90),
+        ])
+        add(f"forearm_{side}", f"humerus_{side}", [
+            _rot(f"elbow_flexion_{side}", f"forearm_{side}", -Y, -10, 160),
+        ])
+    for side in ("r", "l"):
+        s = _sided(side)
+        add(f"femur_{side}", "pelvis", [
+            _rot(f"hip_flexion_{side}", f"femur_{side}", -Y, -40, 130),
+            _rot(f"hip_adduction_{side}", f"femur_{side}", s * X, -50, 40),
+            _rot(f"hip_rotation_{side}", f"femur_{side}", s * Z, -60, 60),
+        ])
+        add(f"tibia_{side}", f"femur_{side}", [
+            _rot(f"knee_flexion_{side}", f"tibia_{side}", Y, -10, 150),
+        ])
+        add(f"foot_{side}", f"tibia_{side}", [
+            _rot(f"ankle_dorsiflexion_{side}", f"foot_{side}", -Y, -50, 40),
+            _rot(f"ankle_inversion_{side}", f"foot_{side}", s * X, -35, 40),
+        ])
+    return tuple(segs), tuple(dofs)
+
+
+SEGMENTS, DOFS = _build_topology()
+SEGMENT_NAMES: tuple[str, ...] = tuple(s.name for s in SEGMENTS)
+DOF_NAMES: tuple[str, ...] = tuple(d.name for d in DOFS)
+ROOT_TRANSLATION = ("pelvis_tx", "pelvis_ty", "pelvis_tz")
+
+#: Segment lengths as fractions of standing height (Winter 2009, Fig. 4.1; hip-centre width after
+#: Harrington 2007's adult mean). Keys are the names used by :meth:`Skeleton.joint_offsets`.
+HEIGHT_PROPORTIONS: dict[str, float] = {
+    "hip_width": 0.098,        # distance between hip joint centres
+    "hip_height": 0.520,       # floor to hip joint centres, standing
+    "lumbar_height": 0.060,    # hip-centre midpoint to the lumbar joint (L5/S1)
+    "torso_length": 0.250,     # lumbar joint to the neck joint (C7/T1)
+    "shoulder_drop": 0.032,    # neck joint down to the shoulder (glenohumeral) centres
+    "shoulder_width": 0.200,   # distance between the glenohumeral centres
+    "head_length": 0.160,      # neck joint to the vertex
+    "upper_arm": 0.186,        # shoulder to elbow centre
+    "forearm": 0.146,          # elbow to wrist centre
+    "hand": 0.108,             # wrist to finger tip
+    "thigh": 0.245,            # hip to knee centre
+    "shank": 0.246,            # knee to ankle centre
+    "ankle_height": 0.039,     # ankle centre above the sole
+    "foot_length": 0.152,      # heel to toe tip
+}
+
+
+@dataclass
+class Skeleton:
+    """The fixed topology with one subject's segment lengths (metres).
+
+    Attributes
+    ----------
+    lengths : dict[str, float]
+        Every key of :data:`HEIGHT_PROPORTIONS`, in metres.
+    """
+
+    lengths: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self):
+        missing = set(HEIGHT_PROPORTIONS) - set(self.lengths)
+        if missing:
+            raise MocapError(f"skeleton lengths missing: {', '.join(sorted(missing))}")
+        bad = {k: v for k, v in self.lengths.items() if not (np.isfinite(v) and v > 0)}
+        if bad:
+            raise MocapError(f"skeleton lengths must be finite and > 0, got {bad}")
+        self.lengths = {k: float(v) for k, v in self.lengths.items()}
+
+    @classmethod
+    def from_height(cls, height: float = 1.75) -> "Skeleton":
+        """A nominal skeleton scaled from standing height in metres."""
+        if not 0.5 < height < 2.6:
+            raise MocapError(f"standing height must be in (0.5, 2.6) m, got {height}")
+        return cls({k: f * height for k, f in HEIGHT_PROPORTIONS.items()})
+
+    # ----------------------------------------------------------------- topology
+    dof_names = DOF_NAMES
+    segment_names = SEGMENT_NAMES
+
+    @staticmethod
+    def dof_index(name: str) -> int:
+        try:
+            return DOF_NAMES.index(name)
+        except ValueError:
+            raise MocapError(f"unknown DOF {name!r}; DOFs are {', '.join(DOF_NAMES)}") from None
+
+    @staticmethod
+    def segment_index(name: str) -> int:
+        try:
+            return SEGMENT_NAMES.index(name)
+        except ValueError:
+            raise MocapError(
+                f"unknown segment {name!r}; segments are {', '.join(SEGMENT_NAMES)}") from None
+
+    @staticmethod
+    def bounds() -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper DOF limits, each shape (D,), radians or metres."""
+        return (np.array([d.lower for d in DOFS]), np.array([d.upper for d in DOFS]))
+
+    def joint_offsets(self) -> np.ndarray:
+        """Each segment's joint centre in its parent's frame, neutral pose, shape (S, 3), metres.
+
+        The root's row is zero (its position is the pelvis_t* DOFs).
+        """
+        L = self.lengths
+        off = {
+            "pelvis": (0.0, 0.0, 0.0),
+            "torso": (0.0, 0.0, L["lumbar_height"]),
+            "head": (0.0, 0.0, L["torso_length"]),
+            "humerus_r": (0.0, -L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
+            "humerus_l": (0.0, L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
+            "forearm_r": (0.0, 0.0, -L["upper_arm"]),
+            "forearm_l": (0.0, 0.0, -L["upper_arm"]),
+            "femur_r": (0.0, -L["hip_width"] / 2, 0.0),
+            "femur_l": (0.0, L["hip_width"] / 2, 0.0),
+            "tibia_r": (0.0, 0.0, -L["thigh"]),
+            "tibia_l": (0.0, 0.0, -L["thigh"]),
+            "foot_r": (0.0, 0.0, -L["shank"]),
+            "foot_l": (0.0, 0.0, -L["shank"]),
+        }
+        return np.array([off[name] for name in SEGMENT_NAMES])
+
+    def neutral_q(self, n_frames: int = 1) -> np.ndarray:
+        """All-zero pose standing on the floor at the origin, shape (F, D)."""
+        q = np.zeros((n_frames, len(DOF_NAMES)))
+        q[:, DOF_NAMES.index("pelvis_tz")] = (
+            self.lengths["thigh"] + self.lengths["shank"] + self.lengths["ankle_height"])
+        return q
+
+    # ----------------------------------------------------------------- kinematics
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Segment-to-world transforms for every frame.
+
+        Parameters
+        ----------
+        q : ndarray, shape (F, D) or (D,)
+            Joint coordinates in :data:`DOF_NAMES` order.
+
+        Returns
+        -------
+        ndarray, shape (F, S, 4, 4)
+        """
+        q = np.asarray(q, dtype=np.float64)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
+            raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
+        n = q.shape[0]
+        offsets = self.joint_offsets()
+        out = np.empty((n, len(SEGMENTS), 4, 4))
+        out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
+        for s, seg in enumerate(SEGMENTS):
+            R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+            p = np.broadcast_to(offsets[s], (n, 3)).copy()
+            for name in seg.dofs:
+                j = DOF_NAMES.index(name)
+                dof = DOFS[j]
+                if dof.translation:
+                    p = p + q[:, j, None] * np.asarray(dof.axis)
+                else:
+                    R = R @ axis_rotation(dof.axis, q[:, j])
+            if seg.parent is None:
+                out[:, s, :3, :3] = R
+                out[:, s, :3, 3] = p
+            else:
+                parent = out[:, SEGMENT_NAMES.index(seg.parent)]
+                out[:, s, :3, :3] = parent[:, :3, :3] @ R
+                out[:, s, :3, 3] = np.einsum("fij,fj->fi", parent[:, :3, :3], p) + parent[:, :3, 3]
+        return out
+
+    def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """World positions of points fixed in segments (markers, joint centres).
+
+        Parameters
+        ----------
+        q : ndarray, shape (F, D)
+        segments : int ndarray, shape (M,)
+            Segment index of each point.
+        offsets : ndarray, shape (M, 3)
+            Each point in its segment's frame, metres.
+
+        Returns
+        -------
+        ndarray, shape (F, M, 3), metres.
+        """
+        T = self.forward(q)[:, np.asarray(segments, dtype=int)]
+        return np.einsum("fmij,mj->fmi", T[..., :3, :3], np.asarray(offsets, float)) + T[..., :3, 3]
+
+
+def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices about a fixed unit ``axis`` (3,) by ``angle`` (F,) radians: (F, 3, 3)."""
+    a = np.asarray(axis, dtype=np.float64)
+    angle = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return (np.eye(3) + s[:, None, None] * K + (1.0 - c)[:, None, None] * (K @ K))

@@ -1,0 +1,180 @@
+"""The :class:`Trial` container: one capture's labelled marker cloud.
+
+Conventions (see DESIGN.md): SI units (metres, seconds), world frame right-handed with **Z up**,
+time on axis 0, markers ``(F, M, 3)`` float64 with NaN where a sample is missing (never 0).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import MocapError
+
+_PREFIX = re.compile(r"^.*:")
+_SEPARATORS = re.compile(r"[\s_\-\.]+")
+
+
+def normalise_label(label: str) -> str:
+    """Label as compared by protocols: subject prefix, NULs, spaces, ``_ - .`` removed, upper case.
+
+    >>> normalise_label("Bastian:L_Sho ")
+    'LSHO'
+    """
+    text = label.replace("\x00", "").strip()
+    text = _PREFIX.sub("", text)
+    return _SEPARATORS.sub("", text).upper()
+
+
+@dataclass(frozen=True)
+class Event:
+    """One gait event as stored in a C3D EVENT group (or detected).
+
+    ``context`` is the side as written by the lab ("Left", "Right", "General"); ``label`` the
+    event name ("Foot Strike", "Foot Off", ...); ``time_s`` seconds from the start of the
+    recording as the lab's software counts it (frame ``first_frame`` is at ``(first_frame-1)/rate``).
+    """
+
+    context: str
+    label: str
+    time_s: float
+
+
+@dataclass
+class Trial:
+    """One capture: labelled markers over time.
+
+    Attributes
+    ----------
+    markers : ndarray, shape (F, M, 3), float64
+        Marker positions in metres, world frame Z up; NaN where missing.
+    labels : list[str], length M
+        Labels as found in the file (NULs and padding stripped).
+    rate : float
+        Frame rate in Hz (> 0).
+    first_frame : int
+        Number of the first frame as stored in the file (usually 1).
+    units : str
+        POINT:UNITS as found in the file (``"mm"``, ``"m"``...), before conversion.
+    vertical_axis : str
+        The file's vertical axis as detected: ``"Z"`` or ``"Y"`` (``markers`` is always Z up).
+    events : list[Event]
+        Events from the file's EVENT group, sorted by time.
+    source : str or None
+        Path of the file the trial was read from.
+    warnings : list[str]
+        Things a technician should know (duplicate labels, dropped points, axis rotation...).
+    """
+
+    markers: np.ndarray
+    labels: list[str]
+    rate: float
+    first_frame: int = 1
+    units: str = "m"
+    vertical_axis: str = "Z"
+    events: list[Event] = field(default_factory=list)
+    source: str | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        where = self.source
+        markers = np.asarray(self.markers, dtype=np.float64)
+        if markers.ndim != 3 or markers.shape[2] != 3:
+            raise MocapError(f"markers must have shape (F, M, 3), got {markers.shape}", path=where)
+        self.labels = [str(label) for label in self.labels]
+        if len(self.labels) != markers.shape[1]:
+            raise MocapError(
+                f"{len(self.labels)} labels for {markers.shape[1]} markers", path=where)
+        if not np.isfinite(self.rate) or self.rate <= 0:
+            raise MocapError(f"frame rate must be > 0 Hz, got {self.rate}", path=where)
+        if self.vertical_axis not in ("Z", "Y"):
+            raise MocapError(f"vertical_axis must be 'Z' or 'Y', got {self.vertical_axis!r}",
+                             path=where)
+        if np.isinf(markers).any():
+            raise MocapError("markers contain infinite values; missing samples must be NaN",
+                             path=where)
+        self.markers = markers
+        self.rate = float(self.rate)
+        self.first_frame = int(self.first_frame)
+        self.events = sorted(self.events, key=lambda e: e.time_s)
+        if self.source is not None:
+            self.source = os.fspath(self.source)
+
+    # ----------------------------------------------------------------- shape and time
+    @property
+    def n_frames(self) -> int:
+        return self.markers.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        return self.markers.shape[1]
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last frame."""
+        return max(self.n_frames - 1, 0) / self.rate
+
+    @property
+    def time(self) -> np.ndarray:
+        """Time of each frame in seconds from the first frame of the trial, shape (F,)."""
+        return np.arange(self.n_frames) / self.rate
+
+    @property
+    def start_time(self) -> float:
+        """Time of the trial's first frame on the lab's clock (that of ``events``), seconds."""
+        return (self.first_frame - 1) / self.rate
+
+    # ----------------------------------------------------------------- labels
+    @property
+    def names(self) -> list[str]:
+        """Normalised labels (see :func:`normalise_label`), length M, not necessarily unique."""
+        return [normalise_label(label) for label in self.labels]
+
+    @property
+    def duplicate_labels(self) -> list[str]:
+        """Normalised labels that occur more than once, in order of first appearance."""
+        seen: dict[str, int] = {}
+        for name in self.names:
+            seen[name] = seen.get(name, 0) + 1
+        return [name for name, count in seen.items() if count > 1]
+
+    def index(self, label: str) -> int:
+        """Index of the first marker whose normalised label equals ``normalise_label(label)``."""
+        key = normalise_label(label)
+        try:
+            return self.names.index(key)
+        except ValueError:
+            raise MocapError(f"no marker labelled {label!r}", path=self.source,
+                             hint=f"labels are: {', '.join(self.labels[:40])}") from None
+
+    def marker(self, label: str) -> np.ndarray:
+        """Positions of one marker, shape (F, 3), metres."""
+        return self.markers[:, self.index(label), :]
+
+    def gap_fraction(self) -> np.ndarray:
+        """Fraction of frames each marker is missing, shape (M,)."""
+        if self.n_frames == 0:
+            return np.zeros(self.n_markers)
+        return np.isnan(self.markers[:, :, 0]).mean(axis=0)
+
+    def longest_gap(self) -> np.ndarray:
+        """Longest run of missing frames per marker, shape (M,), in frames."""
+        missing = np.isnan(self.markers[:, :, 0])
+        out = np.zeros(self.n_markers, dtype=int)
+        for m in range(self.n_markers):
+            padded = np.concatenate(([0], missing[:, m].astype(np.int8), [0]))
+            edges = np.flatnonzero(np.diff(padded))
+            if edges.size:
+                out[m] = int((edges[1::2] - edges[::2]).max())
+        return out
+
+    def select(self, indices) -> "Trial":
+        """A new trial holding only the markers at ``indices`` (same frames)."""
+        indices = list(indices)
+        return Trial(self.markers[:, indices, :], [self.labels[i] for i in indices], self.rate,
+                     first_frame=self.first_frame, units=self.units,
+                     vertical_axis=self.vertical_axis, events=list(self.events),
+                     source=self.source, warnings=list(self.warnings))
