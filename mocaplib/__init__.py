@@ -18,6 +18,7 @@ _EXPORTS = {
     "Skeleton": "mocaplib.skeleton",
     "Motion": "mocaplib.motion",
     "read_c3d": "mocaplib.io.c3d",
+    "load_library": "mocaplib.library",
 }
 
 
