@@ -1,0 +1,506 @@
+"""The library's control space: Delaunay tetrahedra of the entries' velocities, blending, coverage.
+
+Axes and normalisation
+----------------------
+Each entry is a point ``(v̂, ω̂, v̂_l)`` (m/s, rad/s, m/s; the paper's section III), or with
+``axes="frontal"`` ``(v̂_f, ω̂, v̂_l)``. Points are stored in SI units; the triangulation, the
+hull distances and the coverage distances use **normalised** coordinates ``x / scale`` with one
+scale per axis (:data:`DEFAULT_SCALE`, or the ``control_space.scale`` stored in the library), so
+that 1 normalised unit is "a lot" of each velocity: 1.5 m/s of walking speed, π/2 rad/s of
+turning, 0.5 m/s of side-stepping. Queries are normalised the same way. Barycentric weights are
+affine invariant, so they do not depend on the scales; which tetrahedra Delaunay chooses, the
+distances and the coverage figures do.
+
+Blending (Truong et al. 2010, equations (4)-(6))
+------------------------------------------------
+A query point inside the hull lies in one tetrahedron; its barycentric weights ``w`` (four,
+summing to 1, reproducing the point) blend the four entries' Fourier coefficients and periods:
+``a_d = Σ w_i a_i``, ``b_d = Σ w_i b_i``, ``T_d = Σ w_i T_i`` (entries with fewer harmonics are
+padded with zeros), and the joint angles are synthesised with the team's convention
+``q(t) = a_0 + Σ_k a_k cos(2πkt/T_d) + b_k sin(2πkt/T_d)``, ``t ∈ [0, T_d)``.
+
+Coverage
+--------
+A target :class:`Envelope` (the convex hull of a few points, SI units; by default the commanded
+velocities of a capture plan) is sampled on a regular grid; :func:`coverage` reports the
+fraction of those samples inside the library's hull, the largest hole (the sample farthest from
+every entry), sliver tetrahedra, entries per class and a greedy farthest-point "capture next" list.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.spatial import Delaunay, QhullError, cKDTree
+
+from .errors import LibraryError, MocapError
+from .skeleton import DOF_NAMES, DOFS
+
+#: Axis names of the two control-space variants.
+AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
+#: Units of each axis.
+AXIS_UNITS = {"v": "m/s", "v_f": "m/s", "omega": "rad/s", "v_l": "m/s"}
+#: Normalisation scale of each axis (normalised = SI / scale): brisk walking speed, a 90°/s
+#: turn, a brisk side-step.
+DEFAULT_SCALE = {"v": 1.5, "v_f": 1.5, "omega": np.pi / 2, "v_l": 0.5}
+#: Tetrahedra whose radius ratio 3·r_in/R_circ (1 = regular, 0 = flat) is below this are slivers.
+SLIVER_QUALITY = 0.1
+#: Rotational DOFs (joint-angle errors are computed on these; pelvis_t* are metres).
+ROTATIONAL = np.array([not d.translation for d in DOFS])
+#: Keys of an entry's ``root_drift``: the path frame's displacement over one cycle, in the frame
+#: at the cycle start (forward m, left m, counter-clockwise rad).
+DRIFT_KEYS = ("dx_m", "dy_m", "dheading_rad")
+
+
+def _number(value) -> float:
+    return float("nan") if value is None else float(value)
+
+
+# --------------------------------------------------------------------------- Fourier helpers
+def _stack_padded(arrays) -> np.ndarray:
+    """Coefficient arrays of shapes (D, N_i+1) stacked into (E, D, max N_i + 1), zero-padded
+    (a missing harmonic is a zero harmonic, so padding changes nothing)."""
+    arrays = [np.asarray(x, dtype=float) for x in arrays]
+    out = np.zeros((len(arrays), arrays[0].shape[0], max(x.shape[1] for x in arrays)))
+    for i, x in enumerate(arrays):
+        out[i, :, :x.shape[1]] = x
+    return out
+
+
+def synthesize(a: np.ndarray, b: np.ndarray, T: float, t: np.ndarray) -> np.ndarray:
+    """Joint angles ``q(t)`` (F, D) from coefficients ``a, b`` (D, N+1) and period ``T`` (s).
+
+    ``t`` (F,) is seconds from the cycle start (equation (6) of the paper, team convention).
+    """
+    t = np.asarray(t, dtype=float)
+    k = np.arange(a.shape[1])
+    phase = 2 * np.pi * np.outer(t, k) / T          # (F, N+1)
+    return np.cos(phase) @ a.T + np.sin(phase) @ b.T
+
+
+# --------------------------------------------------------------------------- geometry
+def _closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray):
+    """Closest points of triangles (H,) to points p (Q,): returns (Q, H, 3) points."""
+    n = np.cross(B - A, C - A)                       # (H, 3)
+    nn = np.einsum("hi,hi->h", n, n)
+    d = p[:, None, :] - A[None]                      # (Q, H, 3)
+    proj = p[:, None, :] - (np.einsum("qhi,hi->qh", d, n) / nn)[..., None] * n[None]
+    # Barycentric sign tests of the projection: inside when all three edge tests agree with n.
+    inside = np.ones(proj.shape[:2], bool)
+    for U, V in ((A, B), (B, C), (C, A)):
+        inside &= np.einsum("qhi,hi->qh", np.cross(V - U, proj - U[None]), n) >= 0
+    best = proj.copy()
+    best_d = np.where(inside, np.einsum("qhi,qhi->qh", p[:, None] - proj, p[:, None] - proj),
+                      np.inf)
+    for U, V in ((A, B), (B, C), (C, A)):
+        e = V - U
+        s = np.clip(np.einsum("qhi,hi->qh", p[:, None] - U[None], e)
+                    / np.einsum("hi,hi->h", e, e), 0.0, 1.0)
+        c = U[None] + s[..., None] * e[None]
+        dd = np.einsum("qhi,qhi->qh", p[:, None] - c, p[:, None] - c)
+        closer = (dd < best_d) & ~inside
+        best[closer] = c[closer]
+        best_d = np.where(closer, dd, best_d)
+    return best, best_d
+
+
+def tetra_quality(vertices: np.ndarray) -> np.ndarray:
+    """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
+    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
+    vol = np.abs(np.einsum("ti,ti->t", p1 - p0, np.cross(p2 - p0, p3 - p0))) / 6.0
+    faces = ((p1, p2, p3), (p0, p2, p3), (p0, p1, p3), (p0, p1, p2))
+    area = sum(np.linalg.norm(np.cross(b - a, c - a), axis=1) / 2 for a, b, c in faces)
+    r_in = 3 * vol / np.where(area > 0, area, np.inf)
+    # Circumradius from the products of opposite edge lengths (Crelle's formula).
+    aA = np.linalg.norm(p1 - p0, axis=1) * np.linalg.norm(p3 - p2, axis=1)
+    bB = np.linalg.norm(p2 - p0, axis=1) * np.linalg.norm(p3 - p1, axis=1)
+    cC = np.linalg.norm(p3 - p0, axis=1) * np.linalg.norm(p2 - p1, axis=1)
+    prod = (aA + bB + cC) * (aA + bB - cC) * (aA - bB + cC) * (-aA + bB + cC)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = np.sqrt(np.clip(prod, 0, None)) / (24 * vol)
+        q = np.where(vol > 0, 3 * r_in / R, 0.0)
+    return np.clip(np.nan_to_num(q), 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- results
+@dataclass
+class QueryResult:
+    """Answer to :meth:`ControlSpace.query` for Q points.
+
+    Attributes
+    ----------
+    points : (Q, 3) the query points, SI units.
+    inside : (Q,) bool, True when the point is inside the hull of the entries.
+    entries : (Q, 4) int, row numbers (in :attr:`ControlSpace.ids`) of the enclosing
+        tetrahedron's entries; -1 when outside.
+    weights : (Q, 4) barycentric weights (sum 1, reproduce the point); NaN when outside.
+    nearest : (Q, 3) nearest point on the hull, SI units (the point itself when inside).
+    distance : (Q,) normalised distance from the point to the hull (0 inside).
+    """
+
+    points: np.ndarray
+    inside: np.ndarray
+    entries: np.ndarray
+    weights: np.ndarray
+    nearest: np.ndarray
+    distance: np.ndarray
+
+
+@dataclass
+class Blend:
+    """Blended cycles (equation (5)): coefficients (Q, D, N+1), periods T (Q,) in seconds and,
+    when the entries have one, the blended root drift (Q, 3) (:data:`DRIFT_KEYS`)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    T: np.ndarray
+    drift: np.ndarray | None = None
+
+    def synthesize(self, i: int = 0, *, rate: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
+        """Blend ``i`` sampled at ``rate`` Hz over one cycle: times (F,) s and angles (F, D)."""
+        t = np.arange(int(np.ceil(self.T[i] * rate - 1e-9))) / rate
+        return t, synthesize(self.a[i], self.b[i], self.T[i], t)
+
+
+# --------------------------------------------------------------------------- control space
+class ControlSpace:
+    """Delaunay tetrahedralisation of library entries in the normalised control space.
+
+    Parameters
+    ----------
+    points : (E, 3) entries' velocities on ``axes``, SI units.
+    a, b : E Fourier coefficient arrays (D, N_i+1) (zero-padded to the largest N), or None.
+    T : (E,) periods, s, or None.
+    drift : (E, 3) root drift per cycle (:data:`DRIFT_KEYS`), or None.
+    ids : E entry ids; classes : E locomotion classes (None when unknown).
+    axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
+    scale : (3,) normalisation scales, default :data:`DEFAULT_SCALE` for those axes.
+    source : the library file, for error messages.
+
+    Raises
+    ------
+    LibraryError
+        Fewer than 4 distinct entries, or entries that span only a plane or a line.
+    """
+
+    def __init__(self, points, *, a=None, b=None, T=None, drift=None, ids=None, classes=None,
+                 axes: str = "tangential", scale=None, source=None):
+        if axes not in AXES:
+            raise MocapError(f"unknown control-space axes {axes!r}; use one of {', '.join(AXES)}")
+        self.variant = axes
+        self.axes = AXES[axes]
+        self.source = source
+        self.points = np.asarray(points, dtype=float).reshape(-1, 3)
+        n = len(self.points)
+        self.ids = [str(i) for i in (ids if ids is not None else range(n))]
+        self.classes = list(classes) if classes is not None else [None] * n
+        self.scale = (np.array([DEFAULT_SCALE[k] for k in self.axes]) if scale is None
+                      else np.asarray(scale, dtype=float))
+        self.a = None if a is None else _stack_padded(a)
+        self.b = None if b is None else _stack_padded(b)
+        self.T = None if T is None else np.asarray(T, dtype=float)
+        self.drift = None if drift is None else np.asarray(drift, dtype=float)
+        if not np.all(np.isfinite(self.points)):
+            raise LibraryError("control-space points must be finite", path=source,
+                               hint="drop entries without velocities before building")
+        self.tri = self._triangulate()
+
+    @classmethod
+    def from_library(cls, library, *, axes: str = "tangential", chosen_only: bool = True,
+                     source=None) -> "ControlSpace":
+        """Control space of a :class:`mocaplib.library.Library`.
+
+        Uses the entries with finite velocities and period (only those marked ``chosen`` when
+        ``chosen_only``), their Fourier coefficients and root drift, and the library's stored
+        ``control_space.scale`` (for the frontal variant the same scales, v̂_f taking v̂'s).
+        """
+        df = library.entries
+        cols = list(AXES[axes])
+        usable = df[cols + ["T"]].notna().all(axis=1).to_numpy()
+        if chosen_only:
+            usable &= df["chosen"].to_numpy(bool)
+        a, b = library.coefficient_arrays()
+        rows = [library.entry(i) for i in df.index[usable]]
+        drift = np.array([[_number(e["root_drift"].get(k)) for k in DRIFT_KEYS] for e in rows])
+        return cls(df.loc[usable, cols].to_numpy(float), a=a[usable], b=b[usable],
+                   T=df.loc[usable, "T"].to_numpy(float), drift=drift.reshape(-1, 3),
+                   ids=df.index[usable].tolist(),
+                   classes=df.loc[usable, "locomotion_class"].tolist(), axes=axes,
+                   scale=library.control_scale, source=source)
+
+    def normalise(self, x) -> np.ndarray:
+        """SI points (…, 3) to normalised coordinates."""
+        return np.asarray(x, dtype=float) / self.scale
+
+    def _triangulate(self) -> Delaunay:
+        x = self.normalise(self.points)
+        distinct = np.unique(np.round(x, 12), axis=0)
+        if len(distinct) < 4:
+            raise LibraryError(
+                f"the control space needs at least 4 entries with distinct velocities, "
+                f"got {len(distinct)}", path=self.source,
+                hint="add captures with other speeds, turns or side-steps")
+        sv = np.linalg.svd(distinct - distinct.mean(axis=0), compute_uv=False)
+        if sv[2] <= 1e-9 * max(sv[0], 1e-300):
+            kind = "a line" if sv[1] <= 1e-9 * sv[0] else "a plane"
+            raise LibraryError(
+                f"the control space is degenerate: the entries' ({', '.join(self.axes)}) "
+                f"lie on {kind}, so there are no tetrahedra", path=self.source,
+                hint="capture turning, side-stepping and different speeds so the entries "
+                     "span all three axes")
+        try:
+            return Delaunay(x)
+        except QhullError as exc:  # pragma: no cover - guarded by the rank test above
+            raise LibraryError(f"Delaunay triangulation failed: {exc}", path=self.source) from exc
+
+    # ----------------------------------------------------------------- queries
+    @property
+    def hull_facets(self) -> np.ndarray:
+        """Triangles of the hull, (H, 3) row numbers of entries."""
+        return self.tri.convex_hull
+
+    def query(self, points) -> QueryResult:
+        """Enclosing tetrahedra and barycentric weights (equation (4)) of points (Q, 3), SI."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise MocapError(f"query points must have shape (Q, 3), got {np.shape(points)}")
+        x = self.normalise(p)
+        simplex = self.tri.find_simplex(x, tol=1e-9)
+        inside = simplex >= 0
+        entries = np.full((len(p), 4), -1)
+        weights = np.full((len(p), 4), np.nan)
+        if inside.any():
+            s = simplex[inside]
+            T = self.tri.transform[s]
+            w3 = np.einsum("qij,qj->qi", T[:, :3, :], x[inside] - T[:, 3, :])
+            w = np.clip(np.column_stack([w3, 1.0 - w3.sum(axis=1)]), 0.0, None)
+            weights[inside] = w / w.sum(axis=1, keepdims=True)
+            entries[inside] = self.tri.simplices[s]
+        nearest = p.copy()
+        distance = np.zeros(len(p))
+        if (~inside).any():
+            near_x, dist = self._nearest_on_hull(x[~inside])
+            nearest[~inside] = near_x * self.scale
+            distance[~inside] = dist
+        return QueryResult(p, inside, entries, weights, nearest, distance)
+
+    def _nearest_on_hull(self, x: np.ndarray, chunk: int = 1024):
+        """Exact projection of normalised points (Q, 3) onto the hull's facets."""
+        pts = self.tri.points
+        A, B, C = (pts[self.hull_facets[:, i]] for i in range(3))
+        near = np.empty_like(x)
+        dist = np.empty(len(x))
+        for lo in range(0, len(x), chunk):
+            c, d = _closest_on_triangles(x[lo:lo + chunk], A, B, C)
+            j = np.argmin(d, axis=1)
+            rows = np.arange(len(j))
+            near[lo:lo + chunk] = c[rows, j]
+            dist[lo:lo + chunk] = np.sqrt(d[rows, j])
+        return near, dist
+
+    def contains(self, points) -> np.ndarray:
+        """(Q,) bool: SI points (Q, 3) inside the hull."""
+        return self.tri.find_simplex(self.normalise(np.atleast_2d(points)), tol=1e-9) >= 0
+
+    # ----------------------------------------------------------------- blending
+    def blend(self, result: QueryResult) -> Blend:
+        """Weighted coefficients and periods (equation (5)) of every inside query."""
+        if self.a is None or self.T is None:
+            raise MocapError("this control space has no Fourier coefficients to blend",
+                             path=self.source)
+        if not result.inside.all():
+            bad = np.flatnonzero(~result.inside)
+            raise MocapError(
+                f"{len(bad)} query point(s) are outside the control space, first "
+                f"{tuple(np.round(result.points[bad[0]], 4))}", path=self.source,
+                hint=f"the nearest point on the hull is "
+                     f"{tuple(np.round(result.nearest[bad[0]], 4))}")
+        e, w = result.entries, result.weights
+        return Blend(np.einsum("qk,qkdn->qdn", w, self.a[e]),
+                     np.einsum("qk,qkdn->qdn", w, self.b[e]),
+                     np.einsum("qk,qk->q", w, self.T[e]),
+                     None if self.drift is None else np.einsum("qk,qkj->qj", w, self.drift[e]))
+
+    def tetra_quality(self) -> np.ndarray:
+        """Radius ratio of every tetrahedron in normalised coordinates, shape (nsimplex,)."""
+        return tetra_quality(self.tri.points[self.tri.simplices])
+
+
+# --------------------------------------------------------------------------- leave-one-out
+def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
+    """Blending error of the library: each entry inside the hull of the others, rebuilt from them.
+
+    Both cycles are compared at ``n_phase`` equally spaced phases of their own period. Columns:
+    ``id``, ``class``, ``inside`` (False when the entry is on the hull of the others, or the
+    others are degenerate), ``neighbours`` (ids), ``weights``, ``rms_deg`` (joint-angle RMS over
+    rotational DOFs and phases, degrees), ``max_deg``, ``worst_dof``, ``T_error_s``.
+    """
+    if cs.a is None:
+        raise MocapError("leave-one-out needs Fourier coefficients", path=cs.source)
+    phase = np.arange(n_phase) / n_phase
+    rows = []
+    for i in range(len(cs.points)):
+        keep = np.arange(len(cs.points)) != i
+        row = {"id": cs.ids[i], "class": cs.classes[i], "inside": False, "neighbours": [],
+               "weights": [], "rms_deg": np.nan, "max_deg": np.nan, "worst_dof": None,
+               "T_error_s": np.nan}
+        try:
+            others = ControlSpace(cs.points[keep], a=cs.a[keep], b=cs.b[keep], T=cs.T[keep],
+                                  ids=[cs.ids[j] for j in np.flatnonzero(keep)],
+                                  axes=cs.variant, scale=cs.scale, source=cs.source)
+        except LibraryError:
+            rows.append(row)
+            continue
+        res = others.query(cs.points[i])
+        if res.inside[0]:
+            bl = others.blend(res)
+            truth = synthesize(cs.a[i], cs.b[i], 1.0, phase)[:, ROTATIONAL]
+            guess = synthesize(bl.a[0], bl.b[0], 1.0, phase)[:, ROTATIONAL]
+            err = np.degrees(guess - truth)
+            per_dof = np.sqrt(np.mean(err ** 2, axis=0))
+            row.update(inside=True, neighbours=[others.ids[j] for j in res.entries[0]],
+                       weights=res.weights[0].tolist(),
+                       rms_deg=float(np.sqrt(np.mean(err ** 2))),
+                       max_deg=float(np.abs(err).max()),
+                       worst_dof=np.asarray(DOF_NAMES)[ROTATIONAL][np.argmax(per_dof)],
+                       T_error_s=float(bl.T[0] - cs.T[i]))
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+# --------------------------------------------------------------------------- coverage
+@dataclass
+class Envelope:
+    """The target region of the control space: convex hull of ``vertices`` (P, 3), SI units.
+
+    Build one with :meth:`box`, :meth:`from_toml` or :meth:`from_commands`.
+    """
+
+    vertices: np.ndarray
+    axes: tuple[str, str, str] = AXES["tangential"]
+    source: str = "explicit"
+
+    @classmethod
+    def box(cls, ranges: dict[str, tuple[float, float]], *, source: str = "box") -> "Envelope":
+        """Axis-aligned box, e.g. ``{"v": (0, 1.8), "omega": (-1.5, 1.5), "v_l": (-.5, .5)}``."""
+        axes = AXES["frontal"] if "v_f" in ranges else AXES["tangential"]
+        missing = [k for k in axes if k not in ranges]
+        if missing:
+            raise MocapError(f"envelope box needs ranges for {', '.join(missing)}", path=source)
+        lo = np.array([min(ranges[k]) for k in axes], float)
+        hi = np.array([max(ranges[k]) for k in axes], float)
+        corners = np.array([[(lo, hi)[(c >> i) & 1][i] for i in range(3)] for c in range(8)])
+        return cls(corners, axes, source)
+
+    @classmethod
+    def from_commands(cls, commands: pd.DataFrame, *, source: str = "commands") -> "Envelope":
+        """Hull of commanded velocities: a DataFrame with columns v_f, omega, v_l (SI)."""
+        v = np.hypot(commands["v_f"].to_numpy(float), commands["v_l"].to_numpy(float))
+        pts = np.column_stack([v, commands["omega"].to_numpy(float),
+                               commands["v_l"].to_numpy(float)])
+        return cls(pts, AXES["tangential"], source)
+
+    @classmethod
+    def from_toml(cls, path) -> "Envelope":
+        """Read an ``[envelope]`` table: either ``points = [[v, omega, v_l], ...]`` (optionally
+        ``axes = ["v_f", "omega", "v_l"]``) or one ``[lo, hi]`` range per axis name."""
+        path = Path(path)
+        try:
+            table = tomllib.loads(path.read_text(encoding="utf-8")).get("envelope")
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise MocapError(f"cannot read envelope: {exc}", path=path,
+                             hint="give a TOML file with an [envelope] table") from exc
+        if not isinstance(table, dict):
+            raise MocapError("no [envelope] table", path=path,
+                             hint="add [envelope] with v/omega/v_l ranges or points")
+        try:
+            if "points" in table:
+                axes = tuple(table.get("axes", AXES["tangential"]))
+                if axes not in AXES.values():
+                    raise ValueError(f"axes must be one of {list(AXES.values())}")
+                pts = np.asarray(table["points"], dtype=float)
+                if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
+                    raise ValueError("points must be at least 4 triples")
+                return cls(pts, axes, str(path))
+            return cls.box({k: tuple(float(x) for x in v) for k, v in table.items()
+                            if k in AXIS_UNITS}, source=str(path))
+        except (ValueError, TypeError) as exc:
+            raise MocapError(f"bad [envelope] table: {exc}", path=path,
+                             hint="ranges are [lo, hi] in m/s or rad/s") from exc
+
+    def sample(self, scale: np.ndarray, *, n: int = 24) -> np.ndarray:
+        """Regular grid of about n³ cells over the bounding box, points inside the hull (S, 3)."""
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        axes = [np.linspace(a, b, n) if b > a else np.array([a]) for a, b in zip(lo, hi)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        x = self.vertices / scale
+        if np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9) < 3:
+            return grid  # a flat envelope: its bounding box is the envelope
+        return grid[Delaunay(x).find_simplex(grid / scale, tol=1e-9) >= 0]
+
+
+@dataclass
+class Coverage:
+    """Coverage of an :class:`Envelope` by a :class:`ControlSpace` (distances normalised).
+
+    Attributes
+    ----------
+    fraction_inside : share of envelope samples inside the hull of the entries.
+    n_samples : number of envelope samples.
+    largest_hole : (3,) the envelope sample farthest from every entry, SI.
+    largest_hole_distance : its normalised distance to the nearest entry.
+    slivers : DataFrame of tetrahedra with quality < threshold: ``entries`` (ids), ``quality``.
+    entries_per_class : counts of entries by locomotion class ("unknown" when None).
+    capture_next : DataFrame of suggested velocity triples (axes columns, SI) and the
+        normalised ``gap`` each one fills (greedy farthest point).
+    """
+
+    fraction_inside: float
+    n_samples: int
+    largest_hole: np.ndarray
+    largest_hole_distance: float
+    slivers: pd.DataFrame
+    entries_per_class: dict[str, int]
+    capture_next: pd.DataFrame
+    axes: tuple[str, str, str] = AXES["tangential"]
+    samples_inside: np.ndarray = field(default=None, repr=False)
+    samples: np.ndarray = field(default=None, repr=False)
+
+
+def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 24, n_next: int = 5,
+             sliver_quality: float = SLIVER_QUALITY) -> Coverage:
+    """How well the entries cover ``envelope`` (see :class:`Coverage`)."""
+    if tuple(envelope.axes) != tuple(cs.axes):
+        raise MocapError(f"envelope axes {envelope.axes} differ from the control space's "
+                         f"{cs.axes}", path=envelope.source)
+    samples = envelope.sample(cs.scale, n=n_grid)
+    inside = cs.contains(samples)
+    xs = cs.normalise(samples)
+    dist, _ = cKDTree(cs.normalise(cs.points)).query(xs)
+    hole = int(np.argmax(dist))
+    picks, gaps = [], []
+    d = dist.copy()
+    for _ in range(min(n_next, len(xs))):
+        j = int(np.argmax(d))
+        if d[j] <= 0:
+            break
+        picks.append(samples[j])
+        gaps.append(d[j])
+        d = np.minimum(d, np.linalg.norm(xs - xs[j], axis=1))
+    nxt = pd.DataFrame(np.reshape(picks, (-1, 3)), columns=list(cs.axes))
+    nxt["gap"] = gaps
+    quality = cs.tetra_quality()
+    bad = np.flatnonzero(quality < sliver_quality)
+    slivers = pd.DataFrame({"entries": [[cs.ids[k] for k in cs.tri.simplices[s]] for s in bad],
+                            "quality": quality[bad]})
+    classes = pd.Series([c if c is not None and c == c else "unknown" for c in cs.classes])
+    return Coverage(fraction_inside=float(inside.mean()) if len(inside) else float("nan"),
+                    n_samples=len(samples), largest_hole=samples[hole],
+                    largest_hole_distance=float(dist[hole]), slivers=slivers,
+                    entries_per_class={str(k): int(v) for k, v in
+                                       classes.value_counts().sort_index().items()},
+                    capture_next=nxt, axes=cs.axes, samples_inside=inside, samples=samples)
