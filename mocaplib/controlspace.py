@@ -115,13 +115,13 @@ def tetra_quality(vertices: np.ndarray) -> np.ndarray:
     faces = ((p1, p2, p3), (p0, p2, p3), (p0, p1, p3), (p0, p1, p2))
     area = sum(np.linalg.norm(np.cross(b - a, c - a), axis=1) / 2 for a, b, c in faces)
     r_in = 3 * vol / np.where(area > 0, area, np.inf)
-    # Circumradius from the products of opposite edge lengths (Crelle's formula).
-    aA = np.linalg.norm(p1 - p0, axis=1) * np.linalg.norm(p3 - p2, axis=1)
-    bB = np.linalg.norm(p2 - p0, axis=1) * np.linalg.norm(p3 - p1, axis=1)
-    cC = np.linalg.norm(p3 - p0, axis=1) * np.linalg.norm(p2 - p1, axis=1)
-    prod = (aA + bB + cC) * (aA + bB - cC) * (aA - bB + cC) * (-aA + bB + cC)
+    # Circumcentre relative to p0 in closed form (stable for nearly flat tetrahedra).
+    u, v, w = p1 - p0, p2 - p0, p3 - p0
+    num = (np.einsum("ti,ti->t", u, u)[:, None] * np.cross(v, w)
+           + np.einsum("ti,ti->t", v, v)[:, None] * np.cross(w, u)
+           + np.einsum("ti,ti->t", w, w)[:, None] * np.cross(u, v))
     with np.errstate(divide="ignore", invalid="ignore"):
-        R = np.sqrt(np.clip(prod, 0, None)) / (24 * vol)
+        R = np.linalg.norm(num, axis=1) / (12 * vol)
         q = np.where(vol > 0, 3 * r_in / R, 0.0)
     return np.clip(np.nan_to_num(q), 0.0, 1.0)
 
@@ -220,7 +220,7 @@ class ControlSpace:
         """
         df = library.entries
         cols = list(AXES[axes])
-        usable = df[cols + ["T"]].notna().all(axis=1).to_numpy()
+        usable = df[cols + ["T"]].notna().all(axis=1).to_numpy().copy()
         if chosen_only:
             usable &= df["chosen"].to_numpy(bool)
         a, b = library.coefficient_arrays()

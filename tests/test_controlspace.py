@@ -1,0 +1,262 @@
+"""Control space: barycentric queries, hull projection, blending, leave-one-out and coverage."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from mocaplib.controlspace import (DEFAULT_SCALE, ROTATIONAL, ControlSpace, Envelope, coverage, leave_one_out,
+                                   synthesize, tetra_quality)
+from mocaplib.errors import LibraryError, MocapError
+from mocaplib.library import assemble_library, make_entry
+from mocaplib.skeleton import DOF_NAMES
+
+D = len(DOF_NAMES)
+CUBE = np.array(list(itertools.product((0.0, 1.0), repeat=3)))
+
+
+def hand_library(points, *, a=None, b=None, T=None, classes=None, v_f=None):
+    """A real :class:`Library` assembled by hand from control points (E, 3) and coefficients."""
+    points = np.asarray(points, float)
+    n = len(points)
+    a = np.zeros((n, D, 3)) if a is None else a
+    b = np.zeros((n, D, 3)) if b is None else b
+    T = np.ones(n) if T is None else T
+    entries = []
+    for i, (v, w, vl) in enumerate(points):
+        entries.append(make_entry(
+            id=f"e{i:02d}", source_file=f"c{i}.c3d", source_sha256="0" * 64, cycle_index=0,
+            start_s=0.0, end_s=float(T[i]), T=float(T[i]), pattern={"type": "line"},
+            v=v, omega=w, v_l=vl, v_f=(v if v_f is None else v_f[i]), a=a[i], b=b[i],
+            root_drift={"dx_m": v * T[i], "dy_m": 0.0, "dheading_rad": w * T[i]}, qc={},
+            locomotion_class=None if classes is None else classes[i]))
+    return assemble_library(entries, settings={})
+
+
+def random_space(seed=0, n=40):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform([0.0, -1.5, -0.5], [2.0, 1.5, 0.5], (n, 3))
+    return ControlSpace(pts, a=rng.normal(size=(n, D, 4)), b=rng.normal(size=(n, D, 4)),
+                        T=rng.uniform(0.9, 1.3, n)), rng
+
+
+def test_barycentric_weights_sum_to_one_and_reproduce_the_point():
+    cs, rng = random_space()
+    q = rng.uniform([0.0, -1.5, -0.5], [2.0, 1.5, 0.5], (500, 3))
+    res = cs.query(q)
+    assert 100 < res.inside.sum() < 500  # random points: many inside, some outside
+    w, e = res.weights[res.inside], res.entries[res.inside]
+    # Weights come from one 3x3 affine solve in normalised units: float64 round-off only.
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
+    assert (w >= 0).all()
+    np.testing.assert_allclose(np.einsum("qk,qkj->qj", w, cs.points[e]), q[res.inside],
+                               atol=1e-12)
+    assert np.isnan(res.weights[~res.inside]).all() and (res.entries[~res.inside] == -1).all()
+
+
+def test_vertices_get_weight_one_on_themselves():
+    cs, _ = random_space(seed=1)
+    res = cs.query(cs.points)
+    assert res.inside.all()
+    rows = np.arange(len(cs.points))
+    best = np.argmax(res.weights, axis=1)
+    assert (res.entries[rows, best] == rows).all()
+    # Barycentric coordinates of a vertex: 1 up to round-off of the affine solve.
+    np.testing.assert_allclose(res.weights[rows, best], 1.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("point, nearest", [
+    ((2.0, 0.5, 0.5), (1.0, 0.5, 0.5)),      # in front of a face
+    ((2.0, 2.0, 0.5), (1.0, 1.0, 0.5)),      # beside an edge
+    ((2.0, 2.0, 2.0), (1.0, 1.0, 1.0)),      # beyond a corner
+    ((0.3, 0.6, -3.0), (0.3, 0.6, 0.0)),     # below the bottom face
+])
+def test_outside_queries_project_exactly_onto_the_hull(point, nearest):
+    cs = ControlSpace(np.vstack([CUBE, [[0.5, 0.5, 0.5]]]), scale=[1.0, 1.0, 1.0])
+    res = cs.query([point, (0.5, 0.4, 0.3)])
+    assert list(res.inside) == [False, True]
+    # The projection is closed-form per facet: exact to round-off.
+    np.testing.assert_allclose(res.nearest[0], nearest, atol=1e-12)
+    np.testing.assert_allclose(res.distance[0], np.linalg.norm(np.subtract(point, nearest)),
+                               atol=1e-12)
+    np.testing.assert_allclose(res.nearest[1], (0.5, 0.4, 0.3), atol=0)
+    assert res.distance[1] == 0
+
+
+def test_nearest_point_is_on_the_hull_and_closer_than_any_entry():
+    cs, rng = random_space(seed=2)
+    q = rng.uniform([-1.0, -3.0, -1.5], [3.0, 3.0, 1.5], (300, 3))
+    res = cs.query(q)
+    out = ~res.inside
+    assert out.sum() > 100
+    assert cs.contains(res.nearest[out]).all()
+    d_entries = np.linalg.norm(cs.normalise(q[out])[:, None] - cs.normalise(cs.points)[None],
+                               axis=2).min(axis=1)
+    assert (res.distance[out] <= d_entries + 1e-12).all()
+    # Distance is measured in normalised units between the point and its projection.
+    np.testing.assert_allclose(
+        res.distance[out], np.linalg.norm(cs.normalise(q[out] - res.nearest[out]), axis=1),
+        atol=1e-12)
+
+
+def test_blending_identical_entries_reproduces_them():
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=(D, 6)), rng.normal(size=(D, 6))
+    b[:, 0] = 0
+    pts = np.vstack([CUBE, [[0.4, 0.5, 0.6]]])
+    cs = ControlSpace(pts, a=[a] * 9, b=[b] * 9, T=np.full(9, 1.1), scale=[1, 1, 1])
+    bl = cs.blend(cs.query(rng.uniform(0, 1, (20, 3))))
+    # Weights sum to 1 within 1e-15, so the blend equals the entry to round-off.
+    np.testing.assert_allclose(bl.a, np.broadcast_to(a, bl.a.shape), atol=1e-12)
+    np.testing.assert_allclose(bl.b, np.broadcast_to(b, bl.b.shape), atol=1e-12)
+    np.testing.assert_allclose(bl.T, 1.1, atol=1e-12)
+
+
+def test_blend_pads_orders_and_weights_coefficients():
+    a1, a2 = np.zeros((D, 2)), np.zeros((D, 4))
+    a1[0, 1], a2[0, 3] = 1.0, 2.0
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    cs = ControlSpace(pts, a=[a1, a2, a2, a2], b=[np.zeros((D, 2))] + [np.zeros((D, 4))] * 3,
+                      T=[1.0, 2.0, 2.0, 2.0], scale=[1, 1, 1])
+    res = cs.query([0.25, 0.0, 0.0])  # weight 3/4 on entry 0, 1/4 on entry 1
+    bl = cs.blend(res)
+    assert bl.a.shape == (1, D, 4)
+    np.testing.assert_allclose(bl.a[0, 0], [0, 0.75, 0, 0.5], atol=1e-12)
+    np.testing.assert_allclose(bl.T, [1.25], atol=1e-12)
+    with pytest.raises(MocapError, match="outside the control space"):
+        cs.blend(cs.query([[5.0, 5.0, 5.0]]))
+
+
+def test_synthesis_matches_the_fourier_convention():
+    a, b = np.zeros((D, 3)), np.zeros((D, 3))
+    a[3, 0], a[3, 1], b[3, 2] = 0.1, 0.2, -0.3
+    T = 1.3
+    t = np.linspace(0, T, 50, endpoint=False)
+    q = synthesize(a, b, T, t)
+    expected = 0.1 + 0.2 * np.cos(2 * np.pi * t / T) - 0.3 * np.sin(2 * np.pi * 2 * t / T)
+    np.testing.assert_allclose(q[:, 3], expected, atol=1e-12)
+    assert np.count_nonzero(q[:, np.arange(D) != 3]) == 0
+    # The library's own evaluation of the same convention agrees.
+    pts = np.vstack([CUBE, [[0.5, 0.5, 0.5]]])
+    lib = hand_library(pts, a=np.stack([a] * 9), b=np.stack([b] * 9), T=np.full(9, T))
+    np.testing.assert_allclose(lib.angles("e00", t), q, atol=1e-12)
+    cs = ControlSpace.from_library(lib)
+    t_blend, q_blend = cs.blend(cs.query([[0.5, 0.5, 0.5]])).synthesize(0, rate=100.0)
+    assert len(t_blend) == 130  # 1.3 s at 100 Hz
+    np.testing.assert_allclose(q_blend, lib.angles("e00", t_blend), atol=1e-9)
+
+
+def test_leave_one_out_known_answer():
+    # Corners carry zero angles; the centre carries a constant 0.05 rad on one DOF. Corners lie
+    # on the hull of the others (not evaluated); the centre is rebuilt from corners as 0.
+    pts = np.vstack([CUBE, [[0.5, 0.5, 0.5]]])
+    a = np.zeros((9, D, 3))
+    k = DOF_NAMES.index("knee_flexion_r")
+    a[8, k, 0] = 0.05
+    T = np.array([1.0] * 8 + [1.2])
+    df = leave_one_out(ControlSpace.from_library(hand_library(pts, a=a, T=T)))
+    assert df["inside"].tolist() == [False] * 8 + [True]
+    row = df.iloc[8]
+    n_rot = int(ROTATIONAL.sum())
+    # Error 0.05 rad on 1 of the rotational DOFs, constant over the cycle.
+    np.testing.assert_allclose(row["max_deg"], np.degrees(0.05), atol=1e-9)
+    np.testing.assert_allclose(row["rms_deg"], np.degrees(0.05) / np.sqrt(n_rot), atol=1e-9)
+    assert row["worst_dof"] == "knee_flexion_r"
+    np.testing.assert_allclose(row["T_error_s"], -0.2, atol=1e-9)
+    np.testing.assert_allclose(sum(row["weights"]), 1.0, atol=1e-12)
+    assert set(row["neighbours"]) <= {f"e{i:02d}" for i in range(8)}
+
+
+def test_leave_one_out_is_exact_for_affine_coefficients():
+    # Barycentric blending reproduces any affine function of the control point exactly.
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(0, 1, (30, 3))
+    M, c = rng.normal(size=(D, 3, 3)), rng.normal(size=(D, 3))
+    a = np.einsum("dnj,ej->edn", M, pts) + c
+    cs = ControlSpace(pts, a=a, b=np.zeros_like(a), T=1 + pts[:, 0], scale=[1, 1, 1])
+    df = leave_one_out(cs)
+    assert df["inside"].sum() >= 5
+    # Round-off of the weights times coefficients of size ~3 rad: far below 1e-9 degrees.
+    np.testing.assert_allclose(df.loc[df["inside"], "rms_deg"], 0.0, atol=1e-9)
+    np.testing.assert_allclose(df.loc[df["inside"], "T_error_s"], 0.0, atol=1e-12)
+
+
+def test_coverage_of_a_cube_library_against_a_bigger_box():
+    pts = np.vstack([CUBE, [[0.5, 0.5, 0.5]]])
+    classes = ["walk"] * 4 + ["turn"] * 4 + [None]
+    cs = ControlSpace(pts, classes=classes, scale=[1.0, 1.0, 1.0])
+    env = Envelope.box({"v": (0, 2), "omega": (0, 2), "v_l": (0, 2)})
+    cov = coverage(cs, env, n_grid=21, n_next=3)
+    # Grid step 0.1 on [0, 2]^3: 21^3 samples, of which 11^3 lie in the closed unit cube.
+    assert cov.n_samples == 21 ** 3
+    np.testing.assert_allclose(cov.fraction_inside, 11 ** 3 / 21 ** 3, atol=1e-12)
+    np.testing.assert_allclose(cov.largest_hole, [2, 2, 2], atol=1e-12)
+    np.testing.assert_allclose(cov.largest_hole_distance, np.sqrt(3), atol=1e-12)
+    # Greedy farthest point: the far corner first, then the corners farthest from it and the
+    # cube ((2, 2, 0)-type corners at distance sqrt(2) from the cube... and 2 from (2,2,2)).
+    np.testing.assert_allclose(cov.capture_next.iloc[0][["v", "omega", "v_l"]], [2, 2, 2],
+                               atol=1e-12)
+    np.testing.assert_allclose(cov.capture_next["gap"].iloc[0], np.sqrt(3), atol=1e-12)
+    assert (np.diff(cov.capture_next["gap"]) <= 0).all()
+    assert cov.entries_per_class == {"turn": 4, "unknown": 1, "walk": 4}
+    # Cube + centre: 12 congruent tetrahedra (centre + half a face), none a sliver.
+    assert len(cs.tri.simplices) == 12 and cov.slivers.empty
+
+
+def test_tetra_quality_regular_and_flat():
+    regular = np.array([[[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1.0]]])
+    flat = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1e-9]]])
+    np.testing.assert_allclose(tetra_quality(regular), [1.0], atol=1e-12)
+    assert tetra_quality(flat)[0] < 1e-6
+    # The classic sliver: a square with corners lifted alternately by ±1 cm, under an apex
+    # outside its circumsphere, so Delaunay keeps the flat tetrahedron of the four corners.
+    square = [[0, 0, 0.01], [1, 0, -0.01], [1, 1, 0.01], [0, 1, -0.01], [0.5, 0.5, 1.0]]
+    sliver_space = ControlSpace(square, scale=[1, 1, 1])
+    cov = coverage(sliver_space, Envelope.box({"v": (0, 1), "omega": (0, 1), "v_l": (0, 1)}))
+    assert len(cov.slivers) >= 1 and (cov.slivers["quality"] < 0.1).all()
+
+
+def test_degenerate_and_tiny_libraries_are_refused():
+    flat = np.column_stack([np.linspace(0, 2, 6), np.linspace(-1, 1, 6) ** 2, np.zeros(6)])
+    with pytest.raises(LibraryError, match="degenerate.*plane"):
+        ControlSpace(flat)
+    with pytest.raises(LibraryError, match="at least 4 entries"):
+        ControlSpace(CUBE[:3])
+    with pytest.raises(MocapError, match="axes"):
+        ControlSpace(CUBE, axes="polar")
+
+
+def test_from_library_uses_stored_scale_and_frontal_variant():
+    pts = np.vstack([CUBE * [2.0, 1.0, 0.5], [[1.0, 0.5, 0.25]]])
+    lib = hand_library(pts, v_f=pts[:, 0] * 0.9, classes=["walk"] * 9)
+    cs = ControlSpace.from_library(lib)
+    np.testing.assert_allclose(cs.scale, lib.control_scale)
+    np.testing.assert_allclose(cs.scale, [DEFAULT_SCALE[k] for k in ("v", "omega", "v_l")])
+    assert cs.ids == [f"e{i:02d}" for i in range(9)]
+    front = ControlSpace.from_library(lib, axes="frontal")
+    assert front.axes == ("v_f", "omega", "v_l")
+    np.testing.assert_allclose(front.points[:, 0], pts[:, 0] * 0.9)
+    bl = cs.blend(cs.query([[1.0, 0.5, 0.25]]))
+    np.testing.assert_allclose(bl.drift[0], [1.0, 0.0, 0.5], atol=1e-12)
+
+
+def test_envelope_from_toml(tmp_path):
+    box = tmp_path / "box.toml"
+    box.write_text("[envelope]\nv = [0.0, 1.8]\nomega = [-1.5, 1.5]\nv_l = [-0.5, 0.5]\n")
+    env = Envelope.from_toml(box)
+    np.testing.assert_allclose(env.vertices.min(axis=0), [0, -1.5, -0.5])
+    np.testing.assert_allclose(env.vertices.max(axis=0), [1.8, 1.5, 0.5])
+    pts = tmp_path / "pts.toml"
+    pts.write_text("[envelope]\naxes = ['v_f', 'omega', 'v_l']\n"
+                   "points = [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]\n")
+    env = Envelope.from_toml(pts)
+    assert env.axes == ("v_f", "omega", "v_l") and len(env.sample(np.ones(3), n=11)) == 286
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[envelope]\nv = [0.0, 1.8]\n")
+    with pytest.raises(MocapError, match="bad.toml.*omega, v_l"):
+        Envelope.from_toml(bad)
+    with pytest.raises(MocapError, match="no \\[envelope\\] table"):
+        (tmp_path / "none.toml").write_text("x = 1\n")
+        Envelope.from_toml(tmp_path / "none.toml")
