@@ -1,0 +1,453 @@
+"""Read the markers of a C3D file into a :class:`~mocaplib.trial.Trial` (metres, Z up, NaN = missing).
+
+What :func:`read_c3d` does
+    * Header and parameters: the ``c3d`` package, through a small adapter (:class:`_Reader`)
+      for two kinds of valid real-world files it refuses:
+
+      - a parameter defined twice in one group (e.g. a Vicon subject's ``BODYMASS``): the first
+        definition is kept, later ones are moved aside to an unused group before parsing;
+      - an ANALOG rate inconsistent with the header (CMU files): the package's consistency
+        assertions are about analog data, which mocaplib does not read, so they are skipped.
+        The point layout is validated here instead, against the file size.
+
+    * POINT data: decoded as whole numpy arrays (one ``np.frombuffer``), integer storage
+      (POINT:SCALE > 0, coordinates = int16 x SCALE) or float storage (SCALE < 0), for Intel,
+      DEC (VAX F-float, converted vectorised) and SGI/MIPS (big-endian) processor types.
+      A sample is missing (NaN) when its residual word is negative, when a coordinate is not
+      finite, or when all three coordinates are exactly 0 (how Vicon/CMU files store a missing
+      sample with a non-negative residual; a real marker never sits exactly at the origin).
+    * Labels from POINT:LABELS, LABELS2, LABELS3... (files with more than 255 points), NULs and
+      padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``.
+    * Points the file itself declares as model outputs (labels listed in POINT:ANGLES, FORCES,
+      MOMENTS, POWERS, SCALARS, REACTIONS) are dropped, with one warning giving the count.
+    * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
+    * Vertical axis: see :func:`detect_vertical_axis`; Y-up files are rotated +90 degrees about X
+      (x, y, z) -> (x, -z, y), a proper rotation, so the Trial is Z up and right-handed.
+    * Events from the EVENT group (CONTEXTS, LABELS, TIMES as minutes/seconds) in seconds on the
+      lab clock (frame ``first_frame`` is at ``(first_frame - 1) / rate``).
+
+Bad input (not a C3D, empty, truncated, sizes or counts that cannot be right) raises
+:class:`~mocaplib.errors.C3DError` naming the file: every size is checked against the file size
+before anything is allocated, and the ``c3d`` package's exceptions are wrapped.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import struct
+import warnings
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import C3DError
+from ..trial import Event, Trial
+
+PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
+UNITS_TO_METRES = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0}
+#: POINT parameters listing the labels of model outputs (not marker positions).
+MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "REACTIONS")
+_LABEL_PARAMS = 100          # LABELS, LABELS2 ... LABELS99: far beyond any real file
+_AXIS_SAMPLE_FRAMES = 60     # frames looked at to detect the vertical axis
+_AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by this factor
+
+
+def read_c3d(path: str | os.PathLike, /) -> Trial:
+    """Read the markers of the C3D file ``path``: a :class:`Trial` in metres, Z up, NaN = missing.
+
+    Raises :class:`C3DError` (naming the file and the problem) when the file cannot be read.
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    _check_header(data, path)
+    reader = _parse_parameters(data, path)
+    layout = _point_layout(reader, len(data), path)
+    notes: list[str] = []
+
+    labels = _point_labels(reader, layout.count, path, notes)
+    units, to_metres = _point_units(reader, path, notes)
+    markers = decode_points(data, layout, factor=to_metres)
+
+    dropped = _model_outputs(reader, path)
+    if dropped:
+        keep = [i for i, label in enumerate(labels) if label not in dropped]
+        notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
+                     f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
+        labels = [labels[i] for i in keep]
+        markers = markers[:, keep, :]
+
+    duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
+    if duplicates:
+        notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
+
+    screen = _screen_up_axis(reader)
+    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
+    notes.extend(axis_notes)
+    if axis == "Y":
+        markers = y_up_to_z_up(markers)
+
+    return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
+                 vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
+                 warnings=notes)
+
+
+# ----------------------------------------------------------------------------- file and header
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise C3DError("no such file", path=path, hint="check the path") from None
+    except IsADirectoryError:
+        raise C3DError("is a folder, not a C3D file", path=path) from None
+    except OSError as exc:
+        raise C3DError(f"cannot read the file: {exc.strerror}", path=path) from None
+
+
+def _check_header(data: bytes, path: Path) -> None:
+    """The checks the ``c3d`` package would fail on with an unhelpful exception."""
+    if len(data) == 0:
+        raise C3DError("the file is empty", path=path, hint="re-export it from the capture software")
+    if len(data) < 512:
+        raise C3DError(f"only {len(data)} bytes: too short for a C3D file (header is 512 bytes)",
+                       path=path, hint="the file is truncated or not a C3D file")
+    if data[1] != 0x50:
+        raise C3DError(f"not a C3D file (byte 2 is 0x{data[1]:02x}, a C3D file has 0x50)",
+                       path=path)
+    start = (data[0] - 1) * 512
+    if data[0] < 2 or start + 4 > len(data):
+        raise C3DError(f"the header points to a parameter section at block {data[0]}, beyond the "
+                       f"end of the file ({len(data)} bytes)", path=path,
+                       hint="the file is truncated or corrupt")
+    processor = data[start + 3]
+    if processor not in PROCESSORS:
+        raise C3DError(f"unknown processor type {processor} (expected 84 Intel, 85 DEC or 86 MIPS)",
+                       path=path, hint="the file is corrupt")
+
+
+# ----------------------------------------------------------------------------- parameters
+def _c3d_reader_class():
+    import c3d
+
+    class _Reader(c3d.Reader):
+        """``c3d.Reader`` without its analog/point consistency assertions (see module doc)."""
+
+        def _check_metadata(self):
+            pass
+
+    return _Reader
+
+
+def _parse_parameters(data: bytes, path: Path):
+    """Header and parameters through the ``c3d`` package (with the adapter for its refusals)."""
+    reader_class = _c3d_reader_class()
+    for attempt in range(2):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return reader_class(io.BytesIO(data))
+        except KeyError as exc:
+            if attempt == 0 and "already exists" in str(exc):
+                data = move_duplicate_parameters(data)
+                continue
+            raise C3DError(f"corrupt parameter section ({exc})", path=path) from None
+        except Exception as exc:  # the package raises assorted exceptions on corrupt input
+            raise C3DError(f"corrupt header or parameter section "
+                           f"({type(exc).__name__}: {exc})", path=path,
+                           hint="the file is truncated or corrupt") from None
+    raise AssertionError("unreachable")
+
+
+def move_duplicate_parameters(data: bytes) -> bytes:
+    """``data`` with every repeated definition of a parameter in a group moved to an unused group.
+
+    C3D parameter records are ``[name length: int8][group id: int8][name][offset to next: int16]``;
+    the n-th repeat of a (group, name) gets its group id changed to the n-th id no group uses,
+    so the first definition is the one read. Other bytes are unchanged.
+    """
+    out = bytearray(data)
+    start = (data[0] - 1) * 512 + 4
+    end = min(len(data), start - 4 + 512 * data[start - 2])
+    endian = ">" if data[start - 1] == 86 else "<"
+    records: list[tuple[int, int, bytes]] = []
+    position = start
+    while position + 4 <= end:
+        length, group = struct.unpack_from("bb", data, position)
+        name_end = position + 2 + abs(length)
+        if length == 0 or group == 0 or name_end + 2 > end:
+            break
+        records.append((position, group, bytes(data[position + 2:name_end]).upper()))
+        offset, = struct.unpack_from(endian + "h", data, name_end)
+        if offset <= 0:
+            break
+        position = name_end + offset
+    used = {abs(group) for _, group, _ in records}
+    spares = [g for g in range(127, 0, -1) if g not in used]
+    seen: Counter = Counter()
+    for position, group, name in records:
+        repeat = seen[group, name]
+        if group > 0 and 0 < repeat <= len(spares):  # the n-th repeat goes to the n-th spare
+            out[position + 1] = spares[repeat - 1]
+        seen[group, name] += 1
+    return bytes(out)
+
+
+def _strings(param, path: Path, key: str) -> list[str]:
+    """A string parameter as a list of stripped strings (validated before slicing)."""
+    if param is None:
+        return []
+    dims = [int(d) for d in param.dimensions]
+    if param.bytes_per_element != -1:
+        raise C3DError(f"parameter {key} should hold text", path=path)
+    if not dims:
+        return [_clean(param.bytes)]
+    width = dims[0]
+    count = int(np.prod(dims[1:])) if len(dims) > 1 else 1
+    if width * count > len(param.bytes):
+        raise C3DError(f"parameter {key} declares {count} strings of {width} characters but "
+                       f"holds {len(param.bytes)} bytes", path=path, hint="the file is corrupt")
+    raw = param.bytes
+    return [_clean(raw[i * width:(i + 1) * width]) for i in range(count)]
+
+
+def _clean(raw: bytes) -> str:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    return text.replace("\x00", "").strip()
+
+
+def _number(reader, key: str, kind: str, default=None):
+    """One numeric parameter value (``kind`` 'float' or 'uint16'), or ``default`` when absent."""
+    param = reader.get(key)
+    if param is None:
+        return default
+    size = 4 if kind == "float" else 2
+    if len(param.bytes) < size:
+        return default
+    if kind == "float":
+        return float(param.float_value) if param.bytes_per_element == 4 else default
+    return int(param.uint16_value) if abs(param.bytes_per_element) == 2 else default
+
+
+# ----------------------------------------------------------------------------- point data
+@dataclass(frozen=True)
+class PointLayout:
+    """Where and how the POINT data sit in the file."""
+
+    processor: str      # "INTEL", "DEC" or "MIPS"
+    start: int          # byte offset of the first frame
+    frames: int
+    count: int          # points per frame
+    words: int          # words per frame (4 per point + analog samples)
+    scale: float        # POINT:SCALE (< 0: float storage)
+    rate: float         # Hz
+    first_frame: int
+
+
+def _point_layout(reader, file_size: int, path: Path) -> PointLayout:
+    header = reader.header
+    try:
+        processor = reader.proc_type
+        count = _number(reader, "POINT:USED", "uint16", int(header.point_count))
+        scale = _number(reader, "POINT:SCALE", "float", float(header.scale_factor))
+        rate = _number(reader, "POINT:RATE", "float", None) or float(header.frame_rate)
+        first_frame = int(reader.first_frame)
+        last_frame = int(reader.last_frame)
+    except Exception as exc:  # corrupt parameter values the package cannot convert
+        raise C3DError(f"corrupt POINT parameters ({type(exc).__name__}: {exc})",
+                       path=path) from None
+    if not (np.isfinite(rate) and 0 < rate < 1e6):
+        raise C3DError(f"nonsense frame rate {rate} Hz", path=path, hint="the file is corrupt")
+    if not np.isfinite(scale) or scale == 0:
+        raise C3DError(f"nonsense POINT:SCALE {scale}", path=path, hint="the file is corrupt")
+    frames = last_frame - first_frame + 1
+    if frames <= 0:
+        raise C3DError(f"no frames (first frame {first_frame}, last frame {last_frame})",
+                       path=path, hint="the capture is empty or the header is corrupt")
+    start = (int(header.data_block) - 1) * 512
+    if start < 512:
+        raise C3DError(f"nonsense data block number {int(header.data_block)}", path=path)
+    words = 4 * count + int(header.analog_count)
+    needed = start + frames * words * (4 if scale < 0 else 2)
+    if needed > file_size:
+        raise C3DError(f"truncated: {frames} frames of {count} points need {needed} bytes, the "
+                       f"file has {file_size}", path=path,
+                       hint="copy the file again or re-export it")
+    return PointLayout(processor, start, frames, count, words, float(scale), float(rate),
+                       first_frame)
+
+
+def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -> np.ndarray:
+    """Markers ``(F, M, 3)`` float64: file coordinates times ``factor``, NaN where invalid."""
+    is_float = layout.scale < 0
+    endian = ">" if layout.processor == "MIPS" else "<"
+    if is_float:
+        dtype = np.dtype(endian + ("u4" if layout.processor == "DEC" else "f4"))
+    else:
+        dtype = np.dtype(endian + "i2")
+    block = np.frombuffer(data, dtype=dtype, count=layout.frames * layout.words,
+                          offset=layout.start).reshape(layout.frames, layout.words)
+    block = block[:, :4 * layout.count].reshape(layout.frames, layout.count, 4)
+    if is_float and layout.processor == "DEC":
+        block = dec_to_ieee(block)
+    markers = block[..., :3].astype(np.float64)
+    markers *= factor if is_float else factor * layout.scale
+    x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
+    with np.errstate(invalid="ignore"):
+        valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
+    markers[~valid] = np.nan
+    return markers
+
+
+def dec_to_ieee(words: np.ndarray) -> np.ndarray:
+    """DEC (VAX F-float) 32-bit words, read as little-endian uint32, to IEEE float32 values.
+
+    A VAX F-float keeps sign, 8-bit exponent (bias 128) and the high mantissa bits in its first
+    16-bit word, the low mantissa bits in the second, with a hidden bit worth 0.5: swapping the two
+    halves gives the IEEE bit layout of 4 x the value. Exponents >= 3 are divided by 4 exactly by
+    lowering the exponent by 2; smaller ones (|x| < 1e-38) are divided in floating point.
+    DEC zero (exponent 0) maps to 0.
+    """
+    words = np.asarray(words, dtype=np.uint32)
+    swapped = (words >> np.uint32(16)) | (words << np.uint32(16))
+    exponent = (swapped >> np.uint32(23)) & np.uint32(0xFF)
+    lowered = np.where(exponent >= 3, swapped - np.uint32(2 << 23), swapped).view(np.float32)
+    tiny = swapped.view(np.float32) / np.float32(4.0)
+    return np.where(exponent >= 3, lowered, np.where(exponent == 0, np.float32(0.0), tiny))
+
+
+# ----------------------------------------------------------------------------- labels, units
+def _point_labels(reader, count: int, path: Path, notes: list[str]) -> list[str]:
+    labels: list[str] = []
+    for number in range(1, _LABEL_PARAMS):
+        key = "POINT:LABELS" if number == 1 else f"POINT:LABELS{number}"
+        param = reader.get(key)
+        if param is None or len(labels) >= count:
+            break
+        labels.extend(_strings(param, path, key))
+    if len(labels) < count:
+        notes.append(f"{count - len(labels)} points have no label; named POINT{len(labels) + 1}...")
+        labels.extend(f"POINT{i + 1}" for i in range(len(labels), count))
+    return labels[:count]
+
+
+def _point_units(reader, path: Path, notes: list[str]) -> tuple[str, float]:
+    found = _strings(reader.get("POINT:UNITS"), path, "POINT:UNITS")
+    units = found[0] if found else ""
+    if not units:
+        notes.append("POINT:UNITS missing: assumed mm")
+        return "mm", UNITS_TO_METRES["mm"]
+    factor = UNITS_TO_METRES.get(units.lower())
+    if factor is None:
+        raise C3DError(f"unknown POINT:UNITS {units!r}", path=path,
+                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}")
+    return units, factor
+
+
+def _model_outputs(reader, path: Path) -> set[str]:
+    """Labels the file declares as model outputs (angles, forces...), as stripped strings."""
+    declared: set[str] = set()
+    for name in MODEL_OUTPUT_PARAMETERS:
+        key = f"POINT:{name}"
+        param = reader.get(key)
+        if param is not None and param.bytes_per_element == -1:
+            declared.update(_strings(param, path, key))
+    declared.discard("")
+    return declared
+
+
+def _events(reader, path: Path, notes: list[str]) -> list[Event]:
+    """The EVENT group as events; a malformed group is reported in ``notes`` and skipped."""
+    if reader.get("EVENT") is None:
+        return []
+    try:
+        count = _number(reader, "EVENT:USED", "uint16", 0)
+        if count == 0:
+            return []
+        labels = _strings(reader.get("EVENT:LABELS"), path, "EVENT:LABELS")
+        contexts = _strings(reader.get("EVENT:CONTEXTS"), path, "EVENT:CONTEXTS")
+        times = reader.get("EVENT:TIMES")
+        if times is None or times.bytes_per_element != 4:
+            raise C3DError("EVENT:TIMES missing or not float", path=path)
+        # (minutes, seconds) pairs: 2 x N as the standard says, or flat 2N (BTK, some Vicon)
+        values = np.asarray(times.float_array, dtype=np.float64).reshape(-1)
+        values = values[:values.size // 2 * 2].reshape(-1, 2)
+        if len(values) < count or len(labels) < count:
+            raise C3DError(f"EVENT:USED is {count} but fewer events are stored", path=path)
+        contexts = contexts + ["General"] * (count - len(contexts))
+        seconds = values[:count, 0] * 60.0 + values[:count, 1]
+        if not np.isfinite(seconds).all():
+            raise C3DError("EVENT:TIMES holds non-finite times", path=path)
+        return [Event(contexts[i] or "General", labels[i], float(seconds[i]))
+                for i in range(count)]
+    except Exception as exc:
+        reason = exc.message if isinstance(exc, C3DError) else f"{type(exc).__name__}: {exc}"
+        notes.append(f"EVENT group ignored: {reason}")
+        return []
+
+
+# ----------------------------------------------------------------------------- vertical axis
+def _screen_up_axis(reader) -> str | None:
+    """The axis POINT:Y_SCREEN shows upwards ('X', 'Y' or 'Z'), when the file says."""
+    param = reader.get("POINT:Y_SCREEN")
+    if param is None or param.bytes_per_element != -1:
+        return None
+    text = _clean(param.bytes[:8]).upper()
+    return text[-1] if text[-1:] in ("X", "Y", "Z") else None
+
+
+def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None
+                         ) -> tuple[str, list[str]]:
+    """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)``; and notes.
+
+    Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames each
+    marker is taken relative to the frame's median marker; the axis with the widest spread of
+    those offsets (10th to 90th percentile) is the body's long axis, i.e. vertical. It must beat
+    the next axis by 25 %; otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides,
+    and Z without it. When POINT:Y_SCREEN names another axis than the data, the data win and a
+    note says so. Only Y and Z are supported as vertical axes.
+    """
+    notes: list[str] = []
+    frames = markers.shape[0]
+    sample = markers[np.unique(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
+                               .astype(int))]
+    seen = np.isfinite(sample[..., 0])
+    counts = seen.sum(axis=1)
+    sample = sample[counts >= 3]
+    spread = np.zeros(3)
+    if len(sample):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            offsets = (sample - np.nanmedian(sample, axis=1, keepdims=True)).reshape(-1, 3)
+        offsets = offsets[np.isfinite(offsets).all(axis=1)]
+        if len(offsets) >= 10:
+            low, high = np.percentile(offsets, [10, 90], axis=0)
+            spread = high - low
+    order = np.argsort(spread)[::-1]
+    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
+    if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
+        notes.append(f"vertical axis unclear from the markers; {fallback} assumed"
+                     + (" (POINT:Y_SCREEN)" if screen_axis in ("Y", "Z") else ""))
+        return fallback, notes
+    axis = "XYZ"[order[0]]
+    if axis == "X":
+        notes.append(f"the markers look vertical along X, which is not supported; "
+                     f"{fallback} assumed")
+        return fallback, notes
+    if screen_axis in ("X", "Y", "Z") and screen_axis != axis:
+        notes.append(f"POINT:Y_SCREEN shows {screen_axis} up but the markers are vertical "
+                     f"along {axis}; {axis} used")
+    return axis, notes
+
+
+def y_up_to_z_up(markers: np.ndarray, /) -> np.ndarray:
+    """Rotate Y-up points ``(..., 3)`` by +90 degrees about X: (x, y, z) -> (x, -z, y)."""
+    out = np.empty_like(markers)
+    out[..., 0] = markers[..., 0]
+    out[..., 1] = -markers[..., 2]
+    out[..., 2] = markers[..., 1]
+    return out

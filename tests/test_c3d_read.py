@@ -1,0 +1,388 @@
+"""read_c3d: every real file equals ezc3d's reading; quirks; bad input only ever raises C3DError."""
+
+from __future__ import annotations
+
+import struct
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mocaplib.errors import C3DError
+from mocaplib.io.c3d import (MODEL_OUTPUT_PARAMETERS, PointLayout, dec_to_ieee, decode_points,
+                             detect_vertical_axis, read_c3d, y_up_to_z_up)
+from mocaplib.io.c3d_write import c3d_bytes
+from mocaplib.trial import Event, Trial
+
+from conftest import SHARED_C3D, real_file, real_files
+
+Y_UP = {"motonms_unipd/Static1.c3d", "motonms_unipd/Walking1.c3d", "motonms_unipd/Walking3.c3d",
+        "ezc3d_testfiles/BTS.c3d", "ezc3d_testfiles/FP_Type1.c3d"}
+REAL = [path.relative_to(SHARED_C3D).as_posix() for path in real_files()]
+
+
+def ezc3d_reference(path: Path, units: str):
+    """ezc3d's labels (LABELS + LABELS2...), markers (F, M, 3) in metres, as stored (not rotated)."""
+    ezc3d = pytest.importorskip("ezc3d")
+    c3d = ezc3d.c3d(str(path))
+    point = c3d["parameters"]["POINT"]
+    labels, number = list(point["LABELS"]["value"]), 2
+    while f"LABELS{number}" in point:
+        labels += point[f"LABELS{number}"]["value"]
+        number += 1
+    declared = set()
+    for name in MODEL_OUTPUT_PARAMETERS:
+        declared.update(point.get(name, {"value": []})["value"])
+    keep = [i for i, label in enumerate(labels) if label not in declared]
+    markers = c3d["data"]["points"][:3].transpose(2, 1, 0)[:, keep]
+    return [labels[i] for i in keep], markers * (1.0 if units == "m" else 1e-3), c3d
+
+
+@pytest.mark.parametrize("relative", REAL)
+def test_real_file_equals_ezc3d(relative):
+    path = real_file(relative)
+    trial = read_c3d(path)
+    labels, reference, c3d = ezc3d_reference(path, trial.units)
+
+    assert trial.labels == labels
+    assert trial.rate == c3d["parameters"]["POINT"]["RATE"]["value"][0]
+    assert trial.units == c3d["parameters"]["POINT"]["UNITS"]["value"][0].strip("\x00 ")
+    assert trial.units in ("mm", "m")
+    assert trial.first_frame == c3d["header"]["points"]["first_frame"] + 1  # ezc3d counts from 0
+    assert trial.vertical_axis == ("Y" if relative in Y_UP else "Z")
+    if trial.vertical_axis == "Y":
+        reference = y_up_to_z_up(reference)
+    # ezc3d's valid mask is "residual >= 0"; mocaplib also drops samples stored as exactly
+    # (0, 0, 0) (CMU files store missing markers that way; see test_all_zero_samples_are_missing).
+    reference = np.where((reference == 0).all(axis=2, keepdims=True), np.nan, reference)
+    np.testing.assert_array_equal(np.isnan(trial.markers), np.isnan(reference))
+    # Both decode the same float32 / int16 x SCALE words to float64: 1e-6 m is the issue's bar.
+    np.testing.assert_allclose(trial.markers, reference, atol=1e-6, rtol=0, equal_nan=True)
+
+
+def test_all_zero_samples_are_missing():
+    path = real_file("cmu/07_12.c3d")
+    trial = read_c3d(path)
+    _, reference, _ = ezc3d_reference(path, trial.units)
+    zero = (reference == 0).all(axis=2)
+    assert zero.sum() > 0, "this CMU file stores some missing samples as (0, 0, 0)"
+    assert np.isnan(trial.markers[zero]).all()
+    assert not np.isnan(trial.markers[~zero & ~np.isnan(reference[..., 0])]).any()
+
+
+def test_labels2_beyond_255_points():
+    trial = read_c3d(real_file("biomechzoo/HC030A01.c3d"))
+    ezc3d = pytest.importorskip("ezc3d")
+    point = ezc3d.c3d(str(real_file("biomechzoo/HC030A01.c3d")))["parameters"]["POINT"]
+    assert point["USED"]["value"][0] > 255
+    beyond = [label for label in point["LABELS2"]["value"] if label in trial.labels]
+    assert beyond, "some kept markers come from POINT:LABELS2"
+    assert any("dropped" in note and "model outputs" in note for note in trial.warnings)
+
+
+def test_model_outputs_are_dropped_with_one_warning():
+    trial = read_c3d(real_file("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    notes = [note for note in trial.warnings if "model outputs" in note]
+    assert notes == ["dropped 80 model outputs stored as points "
+                     "(POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS, REACTIONS)"]
+    assert trial.n_markers == 193 - 80
+    assert not any(label.endswith(("Angles", "Force", "Moment", "Power")) for label in trial.labels)
+    assert {"LSHO", "RSHO", "LHEE", "RHEE"} <= set(trial.names)
+
+
+def test_dec_file_with_nul_padded_units():
+    trial = read_c3d(real_file("btkdata/Gait.c3d"))
+    assert trial.units == "mm"  # stored as 'mm\x00\x00'
+    assert trial.n_frames == 487 and trial.rate == 100.0
+    heel = np.nanmedian(trial.marker("RHEE")[:, 2])
+    shoulder = np.nanmedian(trial.marker("RSHO")[:, 2])
+    assert 0.0 < heel < 0.15 and 1.2 < shoulder < 1.7
+
+
+def test_duplicate_labels_are_kept_and_flagged():
+    trial = read_c3d(real_file("btkdata/Gait.c3d"))
+    assert trial.n_markers == 33
+    assert trial.labels.count("RKNE") == 2
+    assert trial.duplicate_labels == ["RKNE", "RANK", "LKNE", "LANK", "RFOO", "LFOO"] or \
+        set(trial.duplicate_labels) == {"RKNE", "RANK", "LKNE", "LANK", "RFOO", "LFOO"}
+    assert ("duplicate labels kept as separate markers: LANK, LFOO, LKNE, RANK, RFOO, RKNE"
+            in trial.warnings)
+    first, second = [i for i, label in enumerate(trial.labels) if label == "RKNE"]
+    assert not np.allclose(trial.markers[:, first], trial.markers[:, second], equal_nan=True)
+
+
+def test_units_in_metres():
+    trial = read_c3d(real_file("ezc3d_testfiles/FP_Type1.c3d"))
+    assert trial.units == "m"
+    assert 1.3 < np.nanmedian(trial.marker("c7")[:, 2]) < 1.7  # not scaled by 1e-3
+
+
+@pytest.mark.parametrize("relative, head, heel", [
+    ("motonms_unipd/Walking1.c3d", "C7", "RCA"),
+    ("motonms_unipd/Static1.c3d", "C7", "LCA"),
+    ("ezc3d_testfiles/BTS.c3d", "c7", "r heel"),
+    ("ezc3d_testfiles/FP_Type1.c3d", "c7", "l heel"),
+])
+def test_y_up_files_end_up_z_up(relative, head, heel):
+    trial = read_c3d(real_file(relative))
+    assert trial.vertical_axis == "Y"
+    assert np.nanmedian(trial.marker(heel)[:, 2]) < 0.12     # heel on the floor
+    assert np.nanmedian(trial.marker(head)[:, 2]) > 1.2      # C7 above
+
+
+@pytest.mark.parametrize("relative, right, left, root", [
+    ("motonms_unipd/Walking1.c3d", "RASIS", "LASIS", "L5"),
+    ("ezc3d_testfiles/BTS.c3d", "r asis", "l asis", "sacrum"),
+    ("cmu/07_01.c3d", "RFWT", "LFWT", "RBWT"),
+])
+def test_world_frame_is_right_handed(relative, right, left, root):
+    """The left pelvis marker lies on the walker's left: +Z x walking direction."""
+    trial = read_c3d(real_file(relative))
+    path = trial.marker(root)
+    seen = np.flatnonzero(np.isfinite(path[:, 0]))
+    forward = path[seen[-1], :2] - path[seen[0], :2]
+    assert np.linalg.norm(forward) > 1.0, "the subject walks"
+    leftward = np.array([-forward[1], forward[0]])
+    across = np.nanmedian(trial.marker(left)[:, :2] - trial.marker(right)[:, :2], axis=0)
+    assert across @ leftward > 0
+
+
+@pytest.mark.parametrize("relative, count", [
+    ("biomechzoo/HC030A05.c3d", 8), ("ezc3d_testfiles/Qualisys.c3d", 7),
+    ("btkdata/PiG_Motion-FlatFoot-Full.c3d", 12), ("motonms_unipd/Walking1.c3d", 2),
+])
+def test_events_match_the_event_group(relative, count):
+    path = real_file(relative)
+    trial = read_c3d(path)
+    ezc3d = pytest.importorskip("ezc3d")
+    event = ezc3d.c3d(str(path))["parameters"]["EVENT"]
+    times = np.asarray(event["TIMES"]["value"], dtype=float).reshape(-1, 2, order="C") \
+        if np.ndim(event["TIMES"]["value"]) == 1 else np.asarray(event["TIMES"]["value"]).T
+    expected = sorted(zip(times[:, 0] * 60 + times[:, 1], event["LABELS"]["value"]))
+    assert len(trial.events) == count
+    # float32 seconds: 1e-6 s is far below a frame.
+    np.testing.assert_allclose([e.time_s for e in trial.events], [t for t, _ in expected],
+                               atol=1e-6)
+    assert sorted(e.label for e in trial.events) == sorted(event["LABELS"]["value"])
+    contexts = event.get("CONTEXTS", {"value": []})["value"]
+    assert sorted(e.context for e in trial.events) == sorted(contexts or ["General"] * count)
+
+
+def test_files_the_c3d_package_refuses_are_read():
+    c3d = pytest.importorskip("c3d")
+    for relative, refusal in [("btkdata/PiG_Calibration-FlatFoot-One.c3d", KeyError),
+                              ("cmu/16_07.c3d", AssertionError)]:
+        path = real_file(relative)
+        with open(path, "rb") as handle, pytest.raises(refusal):
+            c3d.Reader(handle)
+        trial = read_c3d(path)
+        assert trial.n_frames > 0 and trial.n_markers > 0
+
+
+# ----------------------------------------------------------------------------- data decoding
+def ieee_to_dec_words(values: np.ndarray) -> np.ndarray:
+    """Test-side encoder: IEEE float32 -> DEC F-float words (value x 4, 16-bit halves swapped)."""
+    bits = (np.asarray(values, dtype=np.float32) * np.float32(4.0)).view(np.uint32)
+    return (bits >> np.uint32(16)) | (bits << np.uint32(16))
+
+
+def test_dec_to_ieee_known_values_and_c3d_package():
+    # VAX F-float 1.0 is stored as bytes 80 40 00 00, -2.5 as 20 C1 00 00, 0 as 00 00 00 00.
+    words = np.frombuffer(bytes.fromhex("80400000" "20c10000" "00000000"), dtype="<u4")
+    np.testing.assert_array_equal(dec_to_ieee(words), [1.0, -2.5, 0.0])
+    c3d = pytest.importorskip("c3d")
+    rng = np.random.default_rng(3)
+    values = rng.normal(scale=1e3, size=200).astype(np.float32)
+    words = ieee_to_dec_words(values)
+    expected = [c3d.c3d.DEC_to_IEEE(int(word)) for word in words]
+    np.testing.assert_array_equal(dec_to_ieee(words), expected)
+    np.testing.assert_array_equal(dec_to_ieee(words), values)
+
+
+def layout(processor, scale, frames=3, count=2, analog=2):
+    return PointLayout(processor, 512, frames, count, 4 * count + analog, scale, 100.0, 1)
+
+
+def point_words(frames=3, count=2, analog=2):
+    """Coordinates (F, M, 3), residual words (F, M) with one invalid sample, analog padding."""
+    rng = np.random.default_rng(4)
+    xyz = rng.integers(-3000, 3000, size=(frames, count, 3)).astype(np.float32)
+    residual = np.zeros((frames, count), dtype=np.float32)
+    residual[1, 0] = -1.0
+    words = np.concatenate([np.dstack([xyz, residual]).reshape(frames, -1),
+                            np.full((frames, analog), 7.0, np.float32)], axis=1)
+    expected = xyz.astype(np.float64)
+    expected[1, 0] = np.nan
+    return words, expected
+
+
+@pytest.mark.parametrize("processor, encode", [
+    ("INTEL", lambda w: w.astype("<f4").tobytes()),
+    ("MIPS", lambda w: w.astype(">f4").tobytes()),
+    ("DEC", lambda w: ieee_to_dec_words(w).astype("<u4").tobytes()),
+])
+def test_decode_float_storage_for_each_processor(processor, encode):
+    words, expected = point_words()
+    data = bytes(512) + encode(words)
+    got = decode_points(data, layout(processor, -0.1), factor=1e-3)
+    np.testing.assert_array_equal(got, expected * 1e-3)
+
+
+@pytest.mark.parametrize("processor, dtype", [("INTEL", "<i2"), ("DEC", "<i2"), ("MIPS", ">i2")])
+def test_decode_integer_storage_for_each_processor(processor, dtype):
+    words, expected = point_words()
+    data = bytes(512) + words.astype(dtype).tobytes()
+    got = decode_points(data, layout(processor, 0.5))
+    np.testing.assert_array_equal(got, expected * 0.5)  # exact: int16 x power of two
+
+
+# ----------------------------------------------------------------------------- vertical axis
+def standing_person(frames=50, seed=5):
+    """A crude 1.7 m person walking along +X, Z up: (F, 20, 3) metres."""
+    rng = np.random.default_rng(seed)
+    heights = np.linspace(0.05, 1.7, 20)
+    body = np.column_stack([rng.normal(0, 0.08, 20), rng.normal(0, 0.15, 20), heights])
+    travel = np.linspace(0, 2.0, frames)[:, None, None] * np.array([1.0, 0, 0])
+    return body[None] + travel
+
+
+def test_detect_vertical_axis_both_ways():
+    person = standing_person()
+    assert detect_vertical_axis(person) == ("Z", [])
+    as_y_up = np.stack([person[..., 0], person[..., 2], -person[..., 1]], axis=-1)
+    assert detect_vertical_axis(as_y_up) == ("Y", [])
+    np.testing.assert_allclose(y_up_to_z_up(as_y_up), person, atol=0)  # exact permutation
+
+
+def test_vertical_axis_unclear_falls_back_to_screen_axis():
+    ball = np.random.default_rng(6).normal(size=(30, 20, 3))
+    axis, notes = detect_vertical_axis(ball, screen_axis="Y")
+    assert axis == "Y" and "unclear" in notes[0]
+    assert detect_vertical_axis(ball)[0] == "Z"
+
+
+def test_screen_axis_disagreeing_with_data_is_noted():
+    axis, notes = detect_vertical_axis(standing_person(), screen_axis="Y")
+    assert axis == "Z" and "Y_SCREEN shows Y up" in notes[0]
+
+
+# ----------------------------------------------------------------------------- bad input
+def small_file_bytes() -> bytes:
+    markers = standing_person(frames=12)
+    markers[4:6, 3] = np.nan
+    return c3d_bytes(markers, [f"M{i}" for i in range(20)], 100.0,
+                     events=[Event("Left", "Foot Strike", 0.05)])
+
+
+SMALL = small_file_bytes()
+
+
+def test_small_file_reads(tmp_path):
+    path = tmp_path / "small.c3d"
+    path.write_bytes(SMALL)
+    trial = read_c3d(path)
+    assert isinstance(trial, Trial) and trial.n_frames == 12 and trial.vertical_axis == "Z"
+    assert np.isnan(trial.markers[4:6, 3]).all()
+
+
+@pytest.mark.parametrize("content, match", [
+    (b"", "the file is empty"),
+    (b"hello", "only 5 bytes"),
+    (b"PK\x03\x04" + bytes(600), "not a C3D file"),
+    (bytes([200, 0x50]) + bytes(1000), "parameter section at block 200"),
+])
+def test_not_a_c3d(tmp_path, content, match):
+    path = tmp_path / "bad.c3d"
+    path.write_bytes(content)
+    with pytest.raises(C3DError, match=match) as info:
+        read_c3d(path)
+    assert str(path) in str(info.value)
+
+
+def test_missing_file_and_folder(tmp_path):
+    with pytest.raises(C3DError, match="no such file"):
+        read_c3d(tmp_path / "absent.c3d")
+    with pytest.raises(C3DError, match="is a folder"):
+        read_c3d(tmp_path)
+
+
+SMALL_DATA_END = (struct.unpack_from("<H", SMALL, 16)[0] - 1) * 512 + 12 * 20 * 4 * 4
+
+
+@pytest.mark.parametrize("cut", [513, 1024, SMALL_DATA_END - 700, SMALL_DATA_END - 1])
+def test_truncated_file(tmp_path, cut):
+    path = tmp_path / "cut.c3d"
+    path.write_bytes(SMALL[:cut])
+    with pytest.raises(C3DError, match="truncated"):
+        read_c3d(path)
+
+
+def test_cut_in_the_final_padding_still_reads(tmp_path):
+    """Every frame is there: only zero padding after the last frame is missing."""
+    assert SMALL_DATA_END < len(SMALL)
+    path = tmp_path / "padding.c3d"
+    path.write_bytes(SMALL[:SMALL_DATA_END])
+    assert read_c3d(path).n_frames == 12
+
+
+def test_sizes_that_would_need_gigabytes(tmp_path):
+    """Header frame numbers claiming 65535 frames: refused from the file size, nothing allocated."""
+    data = bytearray(SMALL)
+    struct.pack_into("<H", data, 8, 65535)    # header word 5: last frame
+    path = tmp_path / "huge.c3d"
+    path.write_bytes(bytes(data))
+    with pytest.raises(C3DError, match="truncated: 65535 frames"):
+        read_c3d(path)
+
+
+def test_wrong_processor_byte(tmp_path):
+    data = bytearray(SMALL)
+    data[(data[0] - 1) * 512 + 3] = 99
+    path = tmp_path / "proc.c3d"
+    path.write_bytes(bytes(data))
+    with pytest.raises(C3DError, match="unknown processor type 99"):
+        read_c3d(path)
+
+
+# ----------------------------------------------------------------------------- fuzzing
+def read_or_c3derror(data: bytes) -> None:
+    """The only outcomes allowed: a Trial or a C3DError."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "fuzz.c3d"
+        path.write_bytes(data)
+        try:
+            assert isinstance(read_c3d(path), Trial)
+        except C3DError as error:
+            assert str(path) in str(error)
+
+
+def mutate(data: bytes, draw, header_bias: int) -> bytes:
+    """Truncate ``data`` or overwrite a few bytes, mostly in the header and parameter section."""
+    if draw(st.booleans()):
+        return data[:draw(st.integers(0, len(data) - 1))]
+    out = bytearray(data)
+    for _ in range(draw(st.integers(1, 8))):
+        limit = header_bias if draw(st.booleans()) else len(out) - 1
+        out[draw(st.integers(0, min(limit, len(out) - 1)))] = draw(st.integers(0, 255))
+    return bytes(out)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_fuzz_small_written_file(data):
+    read_or_c3derror(mutate(SMALL, data.draw, header_bias=(SMALL[0] + 1) * 512))
+
+
+FUZZ_REAL = ["btkdata/PiG_Calibration-FlatFoot-One.c3d", "btkdata/Gait.c3d", "cmu/07_12.c3d"]
+
+
+@pytest.mark.skipif(not all((SHARED_C3D / name).is_file() for name in FUZZ_REAL),
+                    reason="real C3D files not available")
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_fuzz_real_files(data):
+    original = (SHARED_C3D / data.draw(st.sampled_from(FUZZ_REAL))).read_bytes()
+    read_or_c3derror(mutate(original, data.draw, header_bias=(original[0] + 12) * 512))
