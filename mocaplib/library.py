@@ -133,8 +133,8 @@ def assemble_library(entries: list[dict], *, settings: dict,
 
     The header's segment lengths are the per-length median over entries (or the nominal
     1.75 m skeleton's when no entry carries lengths); the Fourier order N is the largest
-    entry order and smaller orders are zero-padded (exact); control-space scales are each
-    axis's range over the entries (1 where the range is zero).
+    entry order and smaller orders are zero-padded (exact); control-space scales are
+    :func:`control_scale`.
     """
     from .skeleton import Skeleton
 
@@ -162,7 +162,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
                     "n_harmonics": n_max, "coefficient_shape": "D x (N+1)",
                     "root_drift": ROOT_DRIFT_TEXT},
         "control_space": {"axes": list(CONTROL_AXES), "units": list(CONTROL_UNITS),
-                          "scale": control_scale(entries), "normalised": "x / scale",
+                          "scale": control_scale(), "normalised": "x / scale",
                           "alternative_axes": ["v_f", "omega", "v_l"]},
         "qc_thresholds": dict(DEFAULT_QC_THRESHOLDS if qc_thresholds is None else qc_thresholds),
         "entries": entries,
@@ -170,14 +170,15 @@ def assemble_library(entries: list[dict], *, settings: dict,
     return Library(to_json_data(doc))
 
 
-def control_scale(entries: list[dict]) -> list[float]:
-    """Per-axis normalisation scale of (v, omega, v_l): the range over entries, 1 when zero."""
-    scale = []
-    for column in _control_points(entries).T:
-        column = column[np.isfinite(column)]
-        spread = float(column.max() - column.min()) if column.size else 0.0
-        scale.append(spread if spread > 0 else 1.0)
-    return scale
+def control_scale() -> list[float]:
+    """Normalisation scales of (v, omega, v_l): :data:`mocaplib.controlspace.DEFAULT_SCALE`.
+
+    Fixed, not derived from the entries, so adding a capture does not re-shape the
+    triangulation of the others.
+    """
+    from .controlspace import DEFAULT_SCALE
+
+    return [float(DEFAULT_SCALE[axis]) for axis in CONTROL_AXES]
 
 
 def _control_points(entries: list[dict]) -> np.ndarray:

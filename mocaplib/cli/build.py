@@ -1,0 +1,75 @@
+"""``mocaplib build``: captures to a validated motion library (and optionally its HTML report)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ._common import warn
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "build", help="build a motion library from C3D captures",
+        description="Process every capture (import, calibrate, fit, events, cycles, "
+                    "velocities, Fourier) and write the library JSON plus its diagnostics "
+                    "sidecar. A failing capture is reported and the build goes on. "
+                    "Exit 0 when every capture succeeded, 1 when some failed, 2 on usage errors.")
+    parser.add_argument("inputs", nargs="+", metavar="INPUT",
+                        help="C3D files or folders (searched recursively for *.c3d)")
+    parser.add_argument("-o", "--output", required=True, metavar="LIBRARY.json",
+                        help="library file to write")
+    parser.add_argument("--protocol", default="auto",
+                        help="marker-set protocol name or TOML file, or 'auto' (default)")
+    parser.add_argument("--static", metavar="FILE",
+                        help="static calibration capture (default: calibrate from each capture)")
+    parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
+    parser.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
+                        help="worker processes (default 1)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
+    parser.add_argument("--all-cycles", action="store_true",
+                        help="keep every complete cycle, not only the one chosen per capture")
+    parser.add_argument("--qc", choices=("drop", "waive"), default="drop",
+                        help="cycles failing a QC threshold: leave out (default) or keep with "
+                             "a recorded waiver")
+    cache = parser.add_mutually_exclusive_group()
+    cache.add_argument("--cache-dir", metavar="DIR",
+                       help="per-capture result cache (default: .mocaplib-cache beside the "
+                            "library)")
+    cache.add_argument("--no-cache", action="store_true", help="process every capture afresh")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..library import validate_library
+    from ..pipeline import BuildSettings, build
+
+    output = Path(args.output)
+    settings = BuildSettings(protocol=args.protocol, static=args.static,
+                             all_cycles=args.all_cycles, qc_policy=args.qc)
+    cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
+    result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,
+                   cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())
+    library_path, sidecar = result.write(output)
+    print(result.summary_text())
+    print(f"wrote {library_path} ({len(result.library)} entries) and {sidecar}")
+    for problem in validate_library(result.library):
+        warn(f"library: {problem}")
+    if args.report:
+        from ..report import write_report
+
+        print(f"report: {write_report(library_path, args.report)}")
+    return 0 if result.ok else 1

@@ -1,0 +1,251 @@
+"""The batch pipeline: parallelism, cache, failure isolation, determinism, diagnostics, CLI.
+
+Orchestration is tested with a small per-capture function (``fake_process``) reading tiny
+JSON "captures", so these tests are fast and do not depend on the fitting stages; the real
+``process_capture`` is exercised on bad files here and on the samples in the last tests.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocaplib import pipeline
+from mocaplib.cli import main
+from mocaplib.errors import MocapError
+from mocaplib.library import load_library, make_entry, validate_library
+from mocaplib.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
+                               file_sha256, find_captures, process_capture)
+from mocaplib.skeleton import DOF_NAMES
+
+TRIPLES = [(1.2, 0.0, 0.0), (0.6, 0.5, 0.0), (0.3, 0.0, 0.4), (0.8, -0.4, -0.2), (0.0, 1.0, 0.0)]
+
+
+def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
+    """A stand-in for process_capture: a capture file holds JSON {"v", "omega", "v_l"}.
+
+    Appends the file name to ``calls.log`` beside it, so tests can count how often a capture
+    was processed (also from worker processes). ``{"fail": ...}`` fails the capture like a
+    stage would; ``{"crash": ...}`` raises like a bug would.
+    """
+    path = Path(path)
+    with open(path.parent / "calls.log", "a") as log:
+        log.write(path.name + "\n")
+    data = json.loads(path.read_text())
+    result = CaptureResult(source=str(path), sha256=file_sha256(path))
+    if "crash" in data:
+        raise RuntimeError(data["crash"])
+    if "fail" in data:
+        result.ok, result.stage, result.error = False, "import", f"{path}: {data['fail']}"
+        return result
+    n = 2
+    rng = np.random.default_rng(int(data["v"] * 1000 + data["omega"] * 100 + data["v_l"] * 10))
+    a = rng.normal(size=(len(DOF_NAMES), n + 1))
+    b = rng.normal(size=(len(DOF_NAMES), n + 1))
+    b[:, 0] = 0
+    entry_id = f"{path.stem}_c0"
+    result.entries = [make_entry(
+        id=entry_id, source_file=path.name, source_sha256=result.sha256, cycle_index=0,
+        start_s=0.2, end_s=1.3, T=1.1, pattern={"type": "line", "parameters": {},
+                                                "residual_m": 0.01, "arc_angle_rad": 0.0},
+        v=data["v"], omega=data["omega"], v_l=data["v_l"], v_f=data["v"], a=a, b=b,
+        root_drift={"dx_m": 1.0, "dy_m": 0.0, "dheading_rad": 0.0},
+        qc={"marker_rms_m": 0.01})]
+    result.diagnostics = {"rate_hz": 100.0, "time_s": [0.0, 0.01],
+                          "cycles": [{"start_s": 0.2, "end_s": 1.3, "chosen": True,
+                                      "entry_id": entry_id, "pattern": {"type": "line"}}]}
+    result.n_cycles, result.n_frames = 1, 150
+    result.warnings = data.get("warnings", [])
+    return result
+
+
+def write_captures(folder: Path, triples=TRIPLES, prefix="walk") -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, (v, w, vl) in enumerate(triples):
+        path = folder / f"{prefix}{i:02d}.c3d"
+        path.write_text(json.dumps({"v": v, "omega": w, "v_l": vl}))
+        paths.append(path)
+    return paths
+
+
+def calls(folder: Path) -> list[str]:
+    log = folder / "calls.log"
+    return log.read_text().split() if log.exists() else []
+
+
+def build_bytes(result, folder: Path) -> tuple[bytes, bytes]:
+    library, sidecar = result.write(folder / "lib.json")
+    return library.read_bytes(), sidecar.read_bytes()
+
+
+def test_serial_build_gives_a_valid_library_and_diagnostics(tmp_path):
+    write_captures(tmp_path / "caps")
+    result = build([tmp_path / "caps"], progress=False, process=fake_process)
+    assert result.ok and len(result.library) == 5
+    library_path, sidecar = result.write(tmp_path / "out" / "lib.json")
+    assert sidecar == tmp_path / "out" / "lib.diagnostics.json"
+    assert validate_library(library_path) == []
+    diag = json.loads(sidecar.read_text())
+    assert diag["format"] == "mocaplib-diagnostics" and diag["version"] == 1
+    assert [c["source"] for c in diag["captures"]] == [f"walk{i:02d}.c3d" for i in range(5)]
+    assert diag["captures"][0]["cycles"][0]["entry_id"] == "walk00_c0"
+    assert set(diag["captures"][0]) >= {"source", "ok", "error", "stage", "rate_hz", "time_s",
+                                         "shoulder_mid_xy", "frame_rms_m", "events", "cycles",
+                                         "angles", "warnings"}
+    assert result.summary()["entries"] == 5 and result.summary()["failed"] == 0
+
+
+def test_a_failing_and_a_crashing_capture_do_not_stop_the_build(tmp_path):
+    folder = tmp_path / "caps"
+    write_captures(folder)
+    (folder / "walk90.c3d").write_text(json.dumps({"fail": "truncated file"}))
+    (folder / "walk91.c3d").write_text(json.dumps({"crash": "boom"}))
+    result = build([folder], progress=False, process=fake_process)
+    assert not result.ok and len(result.library) == 5
+    failures = {Path(f["file"]).name: f for f in result.summary()["failures"]}
+    assert failures["walk90.c3d"]["stage"] == "import"
+    assert "truncated file" in failures["walk90.c3d"]["reason"]
+    assert failures["walk91.c3d"]["stage"] == "worker"
+    assert "RuntimeError: boom" in failures["walk91.c3d"]["reason"]
+    text = result.summary_text()
+    assert "failed 2" in text and "walk90.c3d [import]" in text
+
+
+def test_cache_processes_only_new_or_changed_captures(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:4])
+    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert sorted(calls(folder)) == [f"walk{i:02d}.c3d" for i in range(4)]
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert len(calls(folder)) == 4, "nothing should be re-processed"
+    assert all(c.from_cache for c in again.captures)
+    assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
+
+    write_captures(folder, TRIPLES)  # adds walk04 (walk00-03 rewritten with the same bytes)
+    grown = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert calls(folder)[4:] == ["walk04.c3d"]
+    assert len(grown.library) == 5 and grown.summary()["from_cache"] == 4
+
+    (folder / "walk01.c3d").write_text(json.dumps({"v": 0.7, "omega": 0.5, "v_l": 0.0}))
+    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert calls(folder)[5:] == ["walk01.c3d"], "changed content must be re-processed"
+
+    build([folder], BuildSettings(all_cycles=True), cache_dir=cache, progress=False,
+          process=fake_process)
+    assert len(calls(folder)) == 6 + 5, "other settings must re-process everything"
+
+
+def test_failures_are_cached_but_crashes_are_not(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    folder.mkdir()
+    (folder / "bad.c3d").write_text(json.dumps({"fail": "not a C3D"}))
+    (folder / "bug.c3d").write_text(json.dumps({"crash": "bug"}))
+    for _ in range(2):
+        build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert sorted(calls(folder)) == ["bad.c3d", "bug.c3d", "bug.c3d"]
+
+
+def test_two_jobs_give_the_same_bytes_as_one(tmp_path):
+    write_captures(tmp_path / "caps")
+    one = build([tmp_path / "caps"], jobs=1, progress=False, process=fake_process)
+    two = build([tmp_path / "caps"], jobs=2, progress=False, process=fake_process)
+    assert build_bytes(one, tmp_path / "one") == build_bytes(two, tmp_path / "two")
+
+
+def test_dask_local_cluster_gives_the_same_bytes(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    write_captures(tmp_path / "caps")
+    serial = build([tmp_path / "caps"], progress=False, process=fake_process)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        dask = build([tmp_path / "caps"], scheduler=cluster.scheduler_address, progress=False,
+                     process=fake_process)
+    assert build_bytes(serial, tmp_path / "s") == build_bytes(dask, tmp_path / "d")
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setattr(pipeline, "SCHEDULER_TIMEOUT_S", 1)
+    write_captures(tmp_path / "caps", TRIPLES[:1])
+    with pytest.raises(MocapError, match="cannot connect to the Dask scheduler"):
+        build([tmp_path / "caps"], scheduler="tcp://127.0.0.1:1", progress=False,
+              process=fake_process)
+
+
+def test_same_file_name_in_two_folders_gets_unique_ids(tmp_path):
+    write_captures(tmp_path / "day1", TRIPLES[:3])
+    # day2/walk00 and walk01 are byte copies of day1/walk01 and walk02; day2/walk02 is new.
+    write_captures(tmp_path / "day2", TRIPLES[1:4])
+    result = build([tmp_path / "day1", tmp_path / "day2"], progress=False, process=fake_process)
+    ids = list(result.library.entries.index)
+    assert len(ids) == len(set(ids)) == 4, ids
+    assert sorted(i.split("@")[0] for i in ids if "@" in i) == ["walk02_c0", "walk02_c0"]
+    for copy in result.captures[3:5]:
+        assert not copy.entries and "same content as" in copy.warnings[0]
+        assert copy.diagnostics["cycles"][0]["entry_id"] is None
+
+
+def test_find_captures_recurses_sorts_and_dedupes(tmp_path):
+    paths = write_captures(tmp_path / "a" / "b", TRIPLES[:2])
+    (tmp_path / "a" / "notes.txt").write_text("x")
+    (tmp_path / "empty").mkdir()
+    found = find_captures([tmp_path / "a", paths[0]])
+    assert [p.name for p in found] == ["walk00.c3d", "walk01.c3d"]
+    with pytest.raises(MocapError, match="no such file or folder"):
+        find_captures([tmp_path / "missing"])
+    with pytest.raises(MocapError, match="no C3D captures found"):
+        build([(tmp_path / "empty")], progress=False, process=fake_process)
+
+
+def test_progress_bar_reports_captures_on_stderr(tmp_path, capsys):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    build([tmp_path / "caps"], progress=True, process=fake_process)
+    assert "2/2" in capsys.readouterr().err
+
+
+def test_process_capture_returns_errors_instead_of_raising(tmp_path):
+    missing = process_capture(tmp_path / "absent.c3d", BuildSettings())
+    assert not missing.ok and missing.stage == "read" and "absent.c3d" in missing.error
+    truncated = tmp_path / "truncated.c3d"
+    truncated.write_bytes(b"\x02\x50" + bytes(300))
+    result = process_capture(truncated, BuildSettings())
+    assert not result.ok and result.stage == "import"
+    assert "truncated.c3d" in result.error and "internal error" not in result.error
+    assert result.to_dict()["ok"] is False  # JSON-ready for the cache
+
+
+# --------------------------------------------------------------------------- CLI
+def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(pipeline, "process_capture", fake_process)
+    folder = tmp_path / "caps"
+    write_captures(folder)
+    out = tmp_path / "lib.json"
+    assert main(["build", str(folder), "-o", str(out), "--no-cache", "-q"]) == 0
+    assert "entries 5" in capsys.readouterr().out
+    assert main(["validate", str(out)]) == 0
+
+    (folder / "bad.c3d").write_text(json.dumps({"fail": "truncated"}))
+    assert main(["build", str(folder), "-o", str(out), "--no-cache", "-q"]) == 1
+    assert "bad.c3d [import]" in capsys.readouterr().out
+    assert len(load_library(out)) == 5, "the good captures still make the library"
+
+    for usage in (["build", str(folder)], ["build", str(folder), "-o", str(out), "-j", "0"],
+                  ["build", str(folder), "-o", str(out), "--no-cache", "--cache-dir", "x"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main(usage)
+        assert exit_info.value.code == 2
+
+
+def test_cli_validate_prints_problems(tmp_path, capsys):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    path, _ = build([tmp_path / "caps"], progress=False, process=fake_process).write(
+        tmp_path / "small")
+    assert main(["validate", str(path)]) == 1
+    assert "needs at least 4" in capsys.readouterr().out
+    assert main(["validate", str(path), "--json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["valid"] is False and report["problems"][0]["where"] == "control_space"
+    assert main(["validate", str(tmp_path / "absent")]) == 1
