@@ -38,6 +38,7 @@ import pandas as pd
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
+from .fourier import RootDrift, root_drift, synthesize
 from .skeleton import DOF_NAMES, DOFS
 
 #: Axis names of the two control-space variants.
@@ -51,13 +52,23 @@ DEFAULT_SCALE = {"v": 1.5, "v_f": 1.5, "omega": np.pi / 2, "v_l": 0.5}
 SLIVER_QUALITY = 0.1
 #: Rotational DOFs (joint-angle errors are computed on these; pelvis_t* are metres).
 ROTATIONAL = np.array([not d.translation for d in DOFS])
-#: Keys of an entry's ``root_drift``: the path frame's displacement over one cycle, in the frame
-#: at the cycle start (forward m, left m, counter-clockwise rad).
-DRIFT_KEYS = ("dx_m", "dy_m", "dheading_rad")
+#: The root drift of a cycle as blended here: the path frame's constant velocity in its own axes
+#: (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
+DRIFT_KEYS = ("u_f", "u_l", "omega")
 
 
-def _number(value) -> float:
-    return float("nan") if value is None else float(value)
+def drift_velocities(drift: dict, period: float) -> np.ndarray:
+    """(u_f, u_l, omega) of an entry's ``root_drift``: given as velocities (:data:`DRIFT_KEYS`)
+    or as the displacement per cycle ``dx_m, dy_m, dheading_rad``; NaN when neither."""
+    if all(drift.get(k) is not None for k in DRIFT_KEYS):
+        return np.array([float(drift[k]) for k in DRIFT_KEYS])
+    if all(drift.get(k) is not None for k in ("dx_m", "dy_m", "dheading_rad")):
+        end = np.zeros(len(DOF_NAMES))
+        end[[DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_rotation")]] = (
+            drift["dx_m"], drift["dy_m"], drift["dheading_rad"])
+        d = root_drift(np.zeros(len(DOF_NAMES)), end, period)
+        return np.array([d.u_f, d.u_l, d.omega])
+    return np.full(3, np.nan)
 
 
 # --------------------------------------------------------------------------- Fourier helpers
@@ -69,17 +80,6 @@ def _stack_padded(arrays) -> np.ndarray:
     for i, x in enumerate(arrays):
         out[i, :, :x.shape[1]] = x
     return out
-
-
-def synthesize(a: np.ndarray, b: np.ndarray, T: float, t: np.ndarray) -> np.ndarray:
-    """Joint angles ``q(t)`` (F, D) from coefficients ``a, b`` (D, N+1) and period ``T`` (s).
-
-    ``t`` (F,) is seconds from the cycle start (equation (6) of the paper, team convention).
-    """
-    t = np.asarray(t, dtype=float)
-    k = np.arange(a.shape[1])
-    phase = 2 * np.pi * np.outer(t, k) / T          # (F, N+1)
-    return np.cos(phase) @ a.T + np.sin(phase) @ b.T
 
 
 # --------------------------------------------------------------------------- geometry
@@ -153,17 +153,41 @@ class QueryResult:
 @dataclass
 class Blend:
     """Blended cycles (equation (5)): coefficients (Q, D, N+1), periods T (Q,) in seconds and,
-    when the entries have one, the blended root drift (Q, 3) (:data:`DRIFT_KEYS`)."""
+    when the entries have one, the blended root drift velocities (Q, 3) (:data:`DRIFT_KEYS`)."""
 
     a: np.ndarray
     b: np.ndarray
     T: np.ndarray
     drift: np.ndarray | None = None
 
-    def synthesize(self, i: int = 0, *, rate: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
-        """Blend ``i`` sampled at ``rate`` Hz over one cycle: times (F,) s and angles (F, D)."""
-        t = np.arange(int(np.ceil(self.T[i] * rate - 1e-9))) / rate
+    def synthesize(self, i: int = 0, *, rate: float = 100.0,
+                   cycles: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Blend ``i`` sampled at ``rate`` Hz over ``cycles`` cycles: times (F,) s, angles (F, D).
+
+        Root channels are in the path frame, as stored in the library (see :meth:`world`).
+        """
+        t = np.arange(int(np.ceil(cycles * self.T[i] * rate - 1e-9))) / rate
         return t, synthesize(self.a[i], self.b[i], self.T[i], t)
+
+    def world(self, i: int = 0, *, rate: float = 100.0,
+              cycles: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Like :meth:`synthesize` with the root moved into the world frame by the blended drift.
+
+        The path frame starts at the origin facing +X and moves with the blended constant
+        velocity and turn rate (:class:`mocaplib.fourier.RootDrift`: a line or circular arc);
+        ``pelvis_tx/ty`` and ``pelvis_rotation`` are composed with it. Without drift, the same
+        as :meth:`synthesize` (the cycle stays in place).
+        """
+        t, q = self.synthesize(i, rate=rate, cycles=cycles)
+        if self.drift is None:
+            return t, q
+        x, y, heading = RootDrift(0.0, 0.0, 0.0, *(float(v) for v in self.drift[i])).frame(t)
+        tx, ty, rot = (DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_rotation"))
+        lx, ly = q[:, tx].copy(), q[:, ty].copy()
+        q[:, tx] = x + np.cos(heading) * lx - np.sin(heading) * ly
+        q[:, ty] = y + np.sin(heading) * lx + np.cos(heading) * ly
+        q[:, rot] += heading
+        return t, q
 
 
 # --------------------------------------------------------------------------- control space
@@ -175,7 +199,7 @@ class ControlSpace:
     points : (E, 3) entries' velocities on ``axes``, SI units.
     a, b : E Fourier coefficient arrays (D, N_i+1) (zero-padded to the largest N), or None.
     T : (E,) periods, s, or None.
-    drift : (E, 3) root drift per cycle (:data:`DRIFT_KEYS`), or None.
+    drift : (E, 3) root drift velocities (:data:`DRIFT_KEYS`), or None.
     ids : E entry ids; classes : E locomotion classes (None when unknown).
     axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
     scale : (3,) normalisation scales, default :data:`DEFAULT_SCALE` for those axes.
@@ -225,9 +249,10 @@ class ControlSpace:
             usable &= df["chosen"].to_numpy(bool)
         a, b = library.coefficient_arrays()
         rows = [library.entry(i) for i in df.index[usable]]
-        drift = np.array([[_number(e["root_drift"].get(k)) for k in DRIFT_KEYS] for e in rows])
+        drift = np.array([drift_velocities(e["root_drift"], float(e["T"])) for e in rows])
         return cls(df.loc[usable, cols].to_numpy(float), a=a[usable], b=b[usable],
-                   T=df.loc[usable, "T"].to_numpy(float), drift=drift.reshape(-1, 3),
+                   T=df.loc[usable, "T"].to_numpy(float),
+                   drift=drift.reshape(-1, 3) if np.isfinite(drift).all() else None,
                    ids=df.index[usable].tolist(),
                    classes=df.loc[usable, "locomotion_class"].tolist(), axes=axes,
                    scale=library.control_scale, source=source)

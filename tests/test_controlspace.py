@@ -7,9 +7,10 @@ import itertools
 import numpy as np
 import pytest
 
-from mocaplib.controlspace import (DEFAULT_SCALE, ROTATIONAL, ControlSpace, Envelope, coverage, leave_one_out,
-                                   synthesize, tetra_quality)
+from mocaplib.controlspace import (DEFAULT_SCALE, ROTATIONAL, Blend, ControlSpace, Envelope,
+                                   coverage, drift_velocities, leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
+from mocaplib.fourier import synthesize
 from mocaplib.library import assemble_library, make_entry
 from mocaplib.skeleton import DOF_NAMES
 
@@ -30,7 +31,7 @@ def hand_library(points, *, a=None, b=None, T=None, classes=None, v_f=None):
             id=f"e{i:02d}", source_file=f"c{i}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=float(T[i]), T=float(T[i]), pattern={"type": "line"},
             v=v, omega=w, v_l=vl, v_f=(v if v_f is None else v_f[i]), a=a[i], b=b[i],
-            root_drift={"dx_m": v * T[i], "dy_m": 0.0, "dheading_rad": w * T[i]}, qc={},
+            root_drift={"u_f": v, "u_l": vl, "omega": w}, qc={},
             locomotion_class=None if classes is None else classes[i]))
     return assemble_library(entries, settings={})
 
@@ -239,7 +240,26 @@ def test_from_library_uses_stored_scale_and_frontal_variant():
     assert front.axes == ("v_f", "omega", "v_l")
     np.testing.assert_allclose(front.points[:, 0], pts[:, 0] * 0.9)
     bl = cs.blend(cs.query([[1.0, 0.5, 0.25]]))
-    np.testing.assert_allclose(bl.drift[0], [1.0, 0.0, 0.5], atol=1e-12)
+    # Drift velocities (u_f, u_l, omega) = (v, v_l, omega) here: affine, so blended exactly.
+    np.testing.assert_allclose(bl.drift[0], [1.0, 0.25, 0.5], atol=1e-12)
+
+
+@pytest.mark.parametrize("dx, dy, dth", [(1.2, 0.0, 0.0), (0.8, 0.3, 0.6), (0.0, 0.0, -1.1)])
+def test_world_cycle_reaches_the_drift_displacement(dx, dy, dth):
+    T = 1.1
+    u = drift_velocities({"dx_m": dx, "dy_m": dy, "dheading_rad": dth}, T)
+    a = np.zeros((1, D, 2))
+    a[0, DOF_NAMES.index("pelvis_tx"), 1] = 0.02  # the pelvis sways in the path frame
+    bl = Blend(a, np.zeros_like(a), np.array([T]), u[None])
+    t, q = bl.world(0, rate=1000.0, cycles=2)
+    # Over one cycle the root (zero in the path frame) moves by the stored displacement;
+    # t = T is sample 1100 of the 2-cycle series. Closed-form frame motion: round-off only.
+    # At t = T the local pose is the start pose (0.02 m forward), seen from the turned frame.
+    i = np.argmin(np.abs(t - T))
+    root = [DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_rotation")]
+    expected = [dx + 0.02 * np.cos(dth), dy + 0.02 * np.sin(dth), dth]
+    np.testing.assert_allclose(q[i, root], expected, atol=1e-9)
+    assert len(t) == 2200
 
 
 def test_envelope_from_toml(tmp_path):

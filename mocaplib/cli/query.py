@@ -1,0 +1,97 @@
+"""``mocaplib query``: which entries and weights blend a velocity command; optional BVH cycle."""
+
+from __future__ import annotations
+
+import math
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "query", help="blend weights of a velocity command (and its cycle as BVH)",
+        description="Find the library tetrahedron enclosing (V, OMEGA, VL) and print its four "
+                    "entries with their barycentric weights; outside the control space, print "
+                    "the nearest point on its hull. Exit 0 when answered (inside or outside).")
+    parser.add_argument("library", help="library JSON file")
+    parser.add_argument("v", type=float, metavar="V",
+                        help="tangential speed v̂, m/s (v̂_f with --axes frontal)")
+    parser.add_argument("omega", type=float, metavar="OMEGA",
+                        help="turn rate ω̂, rad/s (> 0 turns left)")
+    parser.add_argument("v_l", type=float, metavar="VL",
+                        help="lateral speed v̂_l, m/s (> 0 moves left)")
+    parser.add_argument("--axes", choices=("tangential", "frontal"), default="tangential",
+                        help="control space (v, ω, v_l) or (v_f, ω, v_l) (default tangential)")
+    parser.add_argument("--json", action="store_true",
+                        help="print {inside, entries, weights, point, nearest, distance, T_s}")
+    parser.add_argument("--bvh", metavar="OUT.bvh",
+                        help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
+    parser.add_argument("--cycles", type=int, default=1,
+                        help="cycles written to the BVH (default 1)")
+    parser.add_argument("--rate", type=float, default=100.0,
+                        help="BVH frame rate, Hz (default 100)")
+    parser.add_argument("--clamp", action="store_true",
+                        help="outside the hull, blend at the nearest point on the hull instead")
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..controlspace import ControlSpace
+    from ..errors import MocapError
+    from ..library import load_library
+    from ..skeleton import Skeleton
+    from ._common import print_json
+
+    if args.cycles < 1 or not args.rate > 0:
+        raise MocapError("--cycles must be >= 1 and --rate > 0",
+                         hint=f"got --cycles {args.cycles} --rate {args.rate}")
+    library = load_library(args.library)
+    cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
+    res = cs.query([[args.v, args.omega, args.v_l]])
+    blended = res
+    if not res.inside[0] and args.clamp:
+        blended = cs.query(res.nearest)
+    answer = {"inside": bool(res.inside[0]), "point": res.points[0].tolist(),
+              "axes": list(cs.axes), "entries": [], "weights": []}
+    if blended.inside[0]:
+        answer["entries"] = [cs.ids[k] for k in blended.entries[0]]
+        answer["weights"] = blended.weights[0].tolist()
+        answer["T_s"] = float(cs.blend(blended).T[0])
+    if not res.inside[0]:
+        answer["nearest"] = res.nearest[0].tolist()
+        answer["distance"] = float(res.distance[0])
+        answer["clamped"] = bool(args.clamp)
+    if args.bvh:
+        if not blended.inside[0]:
+            raise MocapError(
+                "cannot write a BVH: the command is outside the control space",
+                path=args.library, hint=f"the nearest point on the hull is "
+                f"{_triple(res.nearest[0])}; query it, or add --clamp")
+        from ..io.bvh import write_bvh
+
+        _, q = cs.blend(blended).world(0, rate=args.rate, cycles=args.cycles)
+        skeleton = Skeleton(library.document["skeleton"]["segment_lengths_m"])
+        answer["bvh"] = str(write_bvh(args.bvh, q, skeleton, rate=args.rate))
+    if args.json:
+        print_json(answer)
+        return 0
+    names = ", ".join(cs.axes)
+    where = "inside" if res.inside[0] else "OUTSIDE"
+    print(f"({names}) = {_triple(res.points[0])}: {where} the control space")
+    if not res.inside[0]:
+        print(f"  nearest point on the hull: {_triple(res.nearest[0])} "
+              f"(normalised distance {res.distance[0]:.3f})")
+        if args.clamp:
+            print("  blending at that point (--clamp)")
+    if answer["entries"]:
+        width = max(len(e) for e in answer["entries"])
+        print(f"  {'entry':<{width}}  weight")
+        for entry, weight in zip(answer["entries"], answer["weights"]):
+            print(f"  {entry:<{width}}  {weight:.4f}")
+        print(f"  blended period T_d = {answer['T_s']:.3f} s")
+    if args.bvh:
+        print(f"  BVH: {answer['bvh']}")
+    return 0
+
+
+def _triple(p) -> str:
+    """A control point for people: m/s, rad/s with degrees per second, m/s."""
+    return f"({p[0]:.3f} m/s, {p[1]:.3f} rad/s = {math.degrees(p[1]):.1f}°/s, {p[2]:.3f} m/s)"

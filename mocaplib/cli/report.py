@@ -1,0 +1,30 @@
+"""``mocaplib report``: the self-contained HTML coverage report of a library."""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "report", help="write the HTML coverage and quality report of a library",
+        description="Write one self-contained HTML file (opens offline) with the control "
+                    "space, its coverage of the target envelope, what to capture next, the "
+                    "leave-one-out blending error and per-capture quality plots (from the "
+                    "library's <stem>.diagnostics.json sidecar when present).")
+    parser.add_argument("library", help="library JSON file")
+    parser.add_argument("-o", "--output", metavar="DIR", default="reports",
+                        help="folder for the report (default: reports)")
+    parser.add_argument("--envelope", metavar="FILE.toml",
+                        help="target envelope: a TOML file with an [envelope] table, or a "
+                             "capture plan (default: the capture plan in protocols/)")
+    parser.add_argument("--no-opengl", action="store_true",
+                        help="draw the 3-D view with matplotlib instead of pyvista/VTK")
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..report import write_report
+
+    path = write_report(args.library, args.output, envelope=args.envelope,
+                        renderer="matplotlib" if args.no_opengl else "auto")
+    print(f"report: {path}")
+    return 0
