@@ -109,3 +109,44 @@ def test_bad_input_raises_c3derror(tmp_path, markers, labels, kwargs, match):
 def test_bad_rate_raises_c3derror(tmp_path):
     with pytest.raises(C3DError, match="frame rate must be > 0"):
         write_c3d(tmp_path / "bad.c3d", np.zeros((2, 1, 3)), ["A"], 0.0)
+
+
+def person_walking(frames=30, count=300):
+    """Markers (F, M, 3) metres, Z up, spread like a 1.7 m person walking along +X, with gaps."""
+    rng = np.random.default_rng(7)
+    body = np.column_stack([rng.normal(0, 0.1, count), rng.normal(0, 0.15, count),
+                            rng.uniform(0.05, 1.7, count)])
+    markers = body[None] + np.linspace(0, 1.5, frames)[:, None, None] * np.array([1.0, 0, 0])
+    markers[5:9, 10] = np.nan
+    markers[:, 299 % count] = np.nan   # a marker never seen
+    return markers
+
+
+@pytest.mark.parametrize("integer, units", [(False, "mm"), (True, "mm"), (False, "m")])
+def test_round_trip_through_read_c3d(tmp_path, integer, units):
+    from mocaplib.io.c3d import read_c3d
+
+    markers = person_walking()
+    labels = [f"Walker:M{i}" for i in range(markers.shape[1])]
+    path = write_c3d(tmp_path / "rt.c3d", markers, labels, 150.0, events=EVENTS, units=units,
+                     integer=integer, first_frame=42)
+    trial = read_c3d(path)
+    assert trial.labels == labels                       # 255 in LABELS + 45 in LABELS2
+    assert (trial.rate, trial.first_frame, trial.units) == (150.0, 42, units)
+    assert trial.vertical_axis == "Z"
+    assert trial.events == sorted(EVENTS, key=lambda e: e.time_s)
+    np.testing.assert_array_equal(np.isnan(trial.markers), np.isnan(markers))
+    # integer: half of the power-of-two SCALE (<= 1700 mm / 32767) in metres; float: float32.
+    atol = 3.2e-5 if integer else 2e-7
+    np.testing.assert_allclose(trial.markers, markers, atol=atol, equal_nan=True)
+
+
+def test_y_up_file_reads_back_z_up(tmp_path):
+    from mocaplib.io.c3d import read_c3d
+
+    markers = person_walking(count=25)
+    y_up = np.stack([markers[..., 0], markers[..., 2], -markers[..., 1]], axis=-1)
+    path = write_c3d(tmp_path / "yup.c3d", y_up, [f"M{i}" for i in range(25)], 100.0)
+    trial = read_c3d(path)
+    assert trial.vertical_axis == "Y"
+    np.testing.assert_allclose(trial.markers, markers, atol=2e-7, equal_nan=True)  # float32

@@ -204,7 +204,9 @@ def _strings(param, path: Path, key: str) -> list[str]:
     if not dims:
         return [_clean(param.bytes)]
     width = dims[0]
-    count = int(np.prod(dims[1:])) if len(dims) > 1 else 1
+    count = int(np.prod(dims[1:], dtype=np.int64)) if len(dims) > 1 else 1
+    if width == 0:  # zero-width strings: nothing stored, whatever the count says
+        return []
     if width * count > len(param.bytes):
         raise C3DError(f"parameter {key} declares {count} strings of {width} characters but "
                        f"holds {len(param.bytes)} bytes", path=path, hint="the file is corrupt")
@@ -294,10 +296,10 @@ def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -
     block = block[:, :4 * layout.count].reshape(layout.frames, layout.count, 4)
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
-    markers = block[..., :3].astype(np.float64)
-    markers *= factor if is_float else factor * layout.scale
-    x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # corrupt words: NaN/inf, masked below
+        markers = block[..., :3].astype(np.float64)
+        markers *= factor if is_float else factor * layout.scale
+        x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
     markers[~valid] = np.nan
     return markers
