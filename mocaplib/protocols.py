@@ -13,13 +13,25 @@ subject, left side; the right side mirrors y). ``protocols/<name>.toml`` is one 
 Labels are compared after :func:`mocaplib.trial.normalise_label` (case, subject prefixes,
 spaces, ``_ - .`` ignored). The folder is found at ``$MOCAPLIB_PROTOCOLS`` if set, otherwise the
 copy installed with the package.
+
+Two optional keys extend the format: ``extends = "plugin_gait"`` starts from another protocol's
+markers (an entry with the same label replaces the inherited one), and an ``[any_of]`` table
+names groups of labels of which at least one must be present (``pelvis_back = ["LPSI",
+"RPSI", "SACR"]``), for sets where either of two markers does the job.
+
+Matching (:func:`match_protocol`) maps each protocol marker to the first trial marker with the
+same normalised label (repeats are flagged), sets aside model outputs stored as points (the
+regular expressions of ``model_outputs.toml``), lists the remaining unknown labels, and checks
+that left-labelled shoulder and pelvis markers lie on the subject's left
+(:func:`find_side_swaps`). :func:`detect_protocol` picks the best shipped protocol.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -69,12 +81,17 @@ class ProtocolMarker:
 
 @dataclass(frozen=True)
 class Protocol:
-    """A marker set: name, description, markers (in file order) and the file it came from."""
+    """A marker set: name, description, markers (in file order) and the file it came from.
+
+    ``any_of`` holds ``(group name, labels)`` pairs: at least one label of each group must be
+    present for a trial to be usable, on top of the ``required`` markers.
+    """
 
     name: str
     description: str
     markers: tuple[ProtocolMarker, ...]
     path: str
+    any_of: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def labels(self) -> list[str]:
@@ -147,33 +164,95 @@ def list_protocols() -> list[str]:
 
 def load_protocol(name_or_path: str | os.PathLike) -> Protocol:
     """Load a protocol by shipped name (``plugin_gait``) or by path to a TOML file."""
+    return _load_protocol(_protocol_path(name_or_path), ())
+
+
+def _protocol_path(name_or_path: str | os.PathLike) -> Path:
     path = Path(name_or_path)
-    if path.suffix != ".toml":
-        path = protocols_dir() / f"{name_or_path}.toml"
-        if not path.is_file():
-            raise ProtocolError(f"unknown protocol {os.fspath(name_or_path)!r}",
-                                hint=f"shipped protocols: {', '.join(list_protocols())}")
+    if path.suffix == ".toml":
+        return path
+    path = protocols_dir() / f"{name_or_path}.toml"
+    if not path.is_file() or "markers" not in _read_toml(os.fspath(path)):
+        raise ProtocolError(f"unknown protocol {os.fspath(name_or_path)!r}",
+                            hint=f"shipped protocols: {', '.join(list_protocols())}; "
+                                 "or give the path of a .toml file")
+    return path
+
+
+def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
+    key = os.fspath(path.resolve())
+    if key in parents:
+        raise ProtocolError("'extends' loops back to this file", path=path)
     data = _read_toml(os.fspath(path))
-    landmarks = load_landmarks()
     table = data.get("markers")
     if not isinstance(table, dict) or not table:
         raise ProtocolError("no [markers] table", path=path,
                             hint="map each label to a landmark: LASI = { landmark = \"L_ASIS\" }")
-    markers = []
+    markers: dict[str, ProtocolMarker] = {}
+    groups: dict[str, tuple[str, ...]] = {}
+    if "extends" in data:
+        base = data["extends"]
+        if not isinstance(base, str):
+            raise ProtocolError("'extends' must be a protocol name or path", path=path)
+        parent = _load_protocol(_protocol_path(base), parents + (key,))
+        markers = {m.label: m for m in parent.markers}
+        groups = dict(parent.any_of)
+    landmarks = load_landmarks()
     for label, spec in table.items():
-        spec = {"landmark": spec} if isinstance(spec, str) else spec
-        name = spec.get("landmark") if isinstance(spec, dict) else None
-        if name not in landmarks:
-            raise ProtocolError(f"marker {label!r}: unknown landmark {name!r}", path=path,
-                                hint="landmarks are listed in protocols/landmarks.toml")
-        markers.append(ProtocolMarker(label, landmarks[name], bool(spec.get("required", False)),
-                                      tuple(str(a) for a in spec.get("aliases", ()))))
-    keys = [k for m in markers for k in m.keys]
+        markers[label] = _protocol_marker(label, spec, landmarks, path)
+    for group, labels in _table(data, "any_of", path).items():
+        if (not isinstance(labels, list) or not labels
+                or any(label not in markers for label in labels)):
+            raise ProtocolError(f"[any_of] {group!r} must list labels of this protocol's markers",
+                                path=path, hint=f"got {labels!r}")
+        groups[group] = tuple(labels)
+    keys = [k for m in markers.values() for k in m.keys]
     clashes = sorted({k for k in keys if keys.count(k) > 1})
     if clashes:
         raise ProtocolError(f"labels or aliases used twice: {', '.join(clashes)}", path=path)
     return Protocol(str(data.get("name", path.stem)), str(data.get("description", "")),
-                    tuple(markers), os.fspath(path))
+                    tuple(markers.values()), os.fspath(path), tuple(groups.items()))
+
+
+def _table(data: dict, name: str, path: Path) -> dict:
+    table = data.get(name, {})
+    if not isinstance(table, dict):
+        raise ProtocolError(f"{name!r} must be a table ([{name}])", path=path)
+    return table
+
+
+def _protocol_marker(label: str, spec, landmarks: dict[str, Landmark], path: Path
+                     ) -> ProtocolMarker:
+    spec = {"landmark": spec} if isinstance(spec, str) else spec
+    name = spec.get("landmark") if isinstance(spec, dict) else None
+    if name not in landmarks:
+        raise ProtocolError(f"marker {label!r}: unknown landmark {name!r}", path=path,
+                            hint="landmarks are listed in protocols/landmarks.toml")
+    aliases = spec.get("aliases", ())
+    if isinstance(aliases, str) or not all(isinstance(a, str) for a in aliases):
+        raise ProtocolError(f"marker {label!r}: aliases must be a list of strings", path=path)
+    required = spec.get("required", False)
+    if not isinstance(required, bool):
+        raise ProtocolError(f"marker {label!r}: required must be true or false", path=path)
+    return ProtocolMarker(label, landmarks[name], required, tuple(aliases))
+
+
+@lru_cache(maxsize=None)
+def _model_output_regex(path: str) -> re.Pattern:
+    patterns = _read_toml(path).get("patterns")
+    if not isinstance(patterns, list) or not all(isinstance(p, str) for p in patterns):
+        raise ProtocolError("needs patterns = [\"REGEX\", ...]", path=path)
+    try:
+        return re.compile("|".join(f"(?:{p})" for p in patterns))
+    except re.error as exc:
+        raise ProtocolError(f"invalid regular expression: {exc}", path=path) from None
+
+
+def is_model_output(label: str) -> bool:
+    """True when ``label`` names a model output stored as a point (``LHipAngles``, ``PELO``,
+    ``*12``...), after normalisation, by the patterns of ``model_outputs.toml``."""
+    regex = _model_output_regex(os.fspath(protocols_dir() / "model_outputs.toml"))
+    return regex.fullmatch(normalise_label(label)) is not None
 
 
 @dataclass(frozen=True)
@@ -181,16 +260,39 @@ class ProtocolMatch:
     """How a trial's markers map onto a protocol.
 
     ``indices[j]`` is the trial marker index of protocol marker ``j`` or -1 when absent.
+    ``missing_any_of`` names the ``[any_of]`` groups with no label present. ``ignored`` holds
+    the trial labels set aside as model outputs, ``unknown`` the labels that are neither in the
+    protocol nor model outputs, ``duplicates`` the protocol labels found more than once (the
+    first occurrence is used). ``warnings`` says all of that, plus left/right swaps, in words.
     """
 
     protocol: Protocol
     indices: tuple[int, ...]
     missing: tuple[str, ...]
     missing_required: tuple[str, ...]
+    missing_any_of: tuple[str, ...] = ()
+    ignored: tuple[str, ...] = ()
+    unknown: tuple[str, ...] = ()
+    duplicates: tuple[str, ...] = ()
+    swaps: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     @property
     def found(self) -> int:
         return sum(i >= 0 for i in self.indices)
+
+    @property
+    def complete(self) -> bool:
+        """True when every required marker and one marker of each ``any_of`` group is present."""
+        return not self.missing_required and not self.missing_any_of
+
+    @property
+    def missing_landmarks(self) -> list[str]:
+        """Missing required landmarks by name (``L_ACROMION``); an empty group as ``A|B|C``."""
+        by_label = {m.label: m.landmark.name for m in self.protocol.markers}
+        groups = dict(self.protocol.any_of)
+        return ([by_label[label] for label in self.missing_required]
+                + ["|".join(by_label[label] for label in groups[g]) for g in self.missing_any_of])
 
     def markers(self, trial: Trial) -> np.ndarray:
         """The trial's markers in protocol order, shape (F, P, 3), NaN for absent ones."""
@@ -206,16 +308,163 @@ class ProtocolMatch:
         return trial.markers[:, i] if i >= 0 else np.full((trial.n_frames, 3), np.nan)
 
 
-def match_protocol(trial: Trial, protocol: Protocol) -> ProtocolMatch:
-    """Map ``protocol``'s markers to ``trial``'s by normalised label (first occurrence wins)."""
+def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
+                   ) -> ProtocolMatch:
+    """Map ``protocol``'s markers to ``trial``'s by normalised label (first occurrence wins).
+
+    Labels the protocol does not list are either model outputs (ignored) or unknown. With
+    ``check_swaps``, left/right label swaps of the shoulder and pelvis markers are looked for
+    (:func:`find_side_swaps`) and reported in ``swaps`` and ``warnings``, never corrected.
+    """
+    names = trial.names
     first: dict[str, int] = {}
-    for i, name in enumerate(trial.names):
+    for i, name in enumerate(names):
         first.setdefault(name, i)
-    indices = []
-    for m in protocol.markers:
-        hit = next((first[k] for k in m.keys if k in first), -1)
-        indices.append(hit)
+    indices = tuple(next((first[k] for k in m.keys if k in first), -1) for m in protocol.markers)
     missing = tuple(m.label for m, i in zip(protocol.markers, indices) if i < 0)
     missing_required = tuple(m.label for m, i in zip(protocol.markers, indices)
                              if i < 0 and m.required)
-    return ProtocolMatch(protocol, tuple(indices), missing, missing_required)
+    present = {m.label for m, i in zip(protocol.markers, indices) if i >= 0}
+    missing_any_of = tuple(g for g, labels in protocol.any_of if not present & set(labels))
+    claimed = {k for m in protocol.markers for k in m.keys}
+    ignored, unknown = [], []
+    for label, name in zip(trial.labels, names):
+        if name not in claimed:
+            (ignored if is_model_output(label) else unknown).append(label)
+    counts = {name: names.count(name) for name in claimed if name in first}
+    duplicates = tuple(trial.labels[first[k]] for m in protocol.markers for k in m.keys
+                       if counts.get(k, 0) > 1)
+    match = ProtocolMatch(protocol, indices, missing, missing_required, missing_any_of,
+                          tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates)
+    swaps = find_side_swaps(trial, match) if check_swaps else ()
+    return replace(match, swaps=swaps, warnings=_match_warnings(match, swaps))
+
+
+def _match_warnings(match: ProtocolMatch, swaps: tuple[str, ...]) -> tuple[str, ...]:
+    out = list(swaps)
+    if match.duplicates:
+        out.append(f"duplicate labels {', '.join(match.duplicates)}: the first occurrence of "
+                   "each is used, the repeats are ignored")
+    if match.ignored:
+        out.append(f"ignored {len(match.ignored)} model-output points ({_few(match.ignored)})")
+    if match.unknown:
+        out.append(f"{len(match.unknown)} labels not in protocol {match.protocol.name} "
+                   f"({_few(match.unknown)})")
+    if match.missing_landmarks:
+        out.append(f"missing required landmarks for {match.protocol.name}: "
+                   f"{', '.join(match.missing_landmarks)}")
+    return tuple(out)
+
+
+def _few(labels, limit: int = 8) -> str:
+    labels = list(labels)
+    more = f", ... {len(labels) - limit} more" if len(labels) > limit else ""
+    return ", ".join(labels[:limit]) + more
+
+
+def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
+                    ) -> ProtocolMatch:
+    """The best match of ``trial`` among ``protocols`` (default: every shipped protocol).
+
+    Ranking: protocols with every required marker (and one of each ``any_of`` group) present
+    come first; then the most markers found; then the largest fraction of the protocol's
+    markers found (so a 30-marker subset beats the 42-marker set it is part of when both find
+    the same 30); then the name, alphabetically. Raises :class:`ProtocolError` when no
+    protocol matches a single label.
+    """
+    if protocols is None:
+        protocols = [load_protocol(name) for name in list_protocols()]
+    matches = [match_protocol(trial, p, check_swaps=False) for p in protocols]
+    if not matches:
+        raise ProtocolError("no protocols to choose from", path=trial.source)
+    best = min(matches, key=lambda m: (not m.complete, -m.found,
+                                       -m.found / len(m.indices), m.protocol.name))
+    if best.found == 0:
+        raise ProtocolError(
+            "no protocol matches any marker label", path=trial.source,
+            hint=f"labels are {_few(trial.labels)}; write a protocol for this marker set "
+                 "(see the README, 'Marker-set protocols') and pass it with --protocol")
+    return match_protocol(trial, best.protocol)
+
+
+#: Sided landmarks whose left/right labels are checked for swaps.
+SWAP_CHECKED = ("ACROMION", "ASIS", "PSIS")
+#: Anterior and posterior landmarks giving the subject's forward direction, in order of trust.
+#: A side is usable in a frame when its central landmark or both sided ones are present.
+_FORWARD_CUES = (
+    (("L_ASIS", "R_ASIS"), ("L_PSIS", "R_PSIS", "SACRUM")),
+    (("CLAV", "STRN"), ("C7", "T2", "T6", "T8", "T10", "T12")),
+    (("L_FRONT_HEAD", "R_FRONT_HEAD"), ("L_BACK_HEAD", "R_BACK_HEAD")),
+)
+#: Lateral distance (m) beyond which a left marker found on the right is called a swap:
+#: well above skin-marker noise, well below shoulder (>= 0.1 m) or ASIS (>= 0.2 m) widths.
+SWAP_MARGIN = 0.02
+
+
+def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
+    """Warnings for left-labelled shoulder/pelvis markers that lie on the subject's right.
+
+    The subject's right is taken per frame from a direction the swap cannot corrupt: forward
+    = mean of the anterior markers minus mean of the posterior ones (ASIS vs PSIS/sacrum,
+    else sternum vs spine, else front vs back of the head; a left/right swap leaves both means
+    unchanged), up = +Z, right = forward x up. So it works whichever way the subject faces,
+    turns or walks, and on standing trials. A pair is called swapped when the median, over
+    frames where both markers and the forward direction are known, of (left - right) along
+    the subject's left is below ``-SWAP_MARGIN``.
+    """
+    by_landmark: dict[str, np.ndarray] = {}
+    for m, i in zip(match.protocol.markers, match.indices):
+        if i >= 0:
+            by_landmark.setdefault(m.landmark.name, trial.markers[:, i])
+    forward = _forward_direction(by_landmark, trial.n_frames)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # up x forward, horizontal
+    label_of = {m.landmark.name: m.label for m, i in zip(match.protocol.markers, match.indices)
+                if i >= 0}
+    out = []
+    for name in SWAP_CHECKED:
+        lm, rm = f"L_{name}", f"R_{name}"
+        if lm not in by_landmark or rm not in by_landmark:
+            continue
+        lateral = np.einsum("fi,fi->f", by_landmark[lm][:, :2] - by_landmark[rm][:, :2], left)
+        lateral = lateral[np.isfinite(lateral)]
+        if lateral.size and np.median(lateral) < -SWAP_MARGIN:
+            out.append(f"left/right swap suspected: {label_of[lm]} (labelled left) lies "
+                       f"{-np.median(lateral) * 100:.0f} cm to the subject's RIGHT of "
+                       f"{label_of[rm]} in {np.mean(lateral < 0):.0%} of {lateral.size} frames; "
+                       "check the labelling (not corrected)")
+    return tuple(out)
+
+
+def _forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
+    """Unit horizontal forward direction per frame, shape (F, 2), NaN where unknown."""
+    forward = np.full((n_frames, 2), np.nan)
+    for anterior, posterior in _FORWARD_CUES:
+        front, back = _side_mean(by_landmark, anterior), _side_mean(by_landmark, posterior)
+        if front is None or back is None:
+            continue
+        cue = (front - back)[:, :2]
+        norm = np.linalg.norm(cue, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cue = np.where(norm > 1e-3, cue / norm, np.nan)
+        todo = np.isnan(forward[:, 0])
+        forward[todo] = cue[todo]
+    return forward
+
+
+def _side_mean(by_landmark: dict[str, np.ndarray], names: tuple[str, ...]) -> np.ndarray | None:
+    """Per-frame mean of balanced landmarks (each central one, or both of a sided pair)."""
+    parts = []
+    for name in names:
+        if name.startswith("L_"):
+            pair = [by_landmark.get(name), by_landmark.get("R_" + name[2:])]
+            if all(p is not None for p in pair):
+                parts.append((pair[0] + pair[1]) / 2)
+        elif not name.startswith("R_") and name in by_landmark:
+            parts.append(by_landmark[name])
+    if not parts:
+        return None
+    stack = np.stack(parts)
+    count = np.isfinite(stack[..., 0]).sum(axis=0)
+    mean = np.nansum(stack, axis=0) / np.maximum(count, 1)[:, None]
+    mean[count == 0] = np.nan
+    return mean
