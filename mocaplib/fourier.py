@@ -1,0 +1,249 @@
+"""Fourier encoding of one cycle's joint coordinates (the paper's equation (3)).
+
+Convention (fixed for the whole library)::
+
+    q_d(t) = a[d, 0] + Σ_{k=1..N} ( a[d, k]·cos(2πkt/T) + b[d, k]·sin(2πkt/T) ),   t ∈ [0, T)
+
+with t measured from the cycle's start (a left toe-off) and ``b[:, 0] = 0``. The paper prints
+``kπt/T``; with that argument the first harmonic has period 2T, so a series of it is not
+T-periodic and a blended cycle would not join its own start. ``2πkt/T`` makes T the base period,
+so every stored channel repeats exactly each cycle, which is what blending and looping need.
+
+Periodic channels: every angle is unwrapped over the cycle. The root's horizontal pose
+(``pelvis_tx``, ``pelvis_ty``, ``pelvis_rotation``) drifts over a cycle, so it is stored in a frame
+moving along the cycle's path (see :class:`RootDrift`): what is encoded is the root pose relative
+to that frame, which is periodic; the drift itself (start pose and the frame's constant
+body-frame velocity and turn rate) is stored apart and :meth:`RootDrift.restore` puts it back.
+
+Order N is chosen by tolerance: the smallest N with reconstruction RMS at the samples within
+``tol_angle`` (0.5° by default) for every rotational DOF and ``tol_length`` for translations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import FitError
+from .skeleton import DOF_NAMES
+
+#: Root channels re-expressed in the moving frame (indices into :data:`DOF_NAMES`).
+ROOT_X, ROOT_Y, ROOT_HEADING = (DOF_NAMES.index(n) for n in
+                                ("pelvis_tx", "pelvis_ty", "pelvis_rotation"))
+TRANSLATIONS = np.array([n in ("pelvis_tx", "pelvis_ty", "pelvis_tz") for n in DOF_NAMES])
+
+
+@dataclass(frozen=True)
+class FourierSeries:
+    """Truncated Fourier series of D channels over one period.
+
+    Attributes
+    ----------
+    a, b : ndarray, shape (D, N+1)
+        Cosine and sine coefficients; ``b[:, 0] == 0``. Units of the channels (rad or m).
+    period : float
+        T, seconds.
+    rms : ndarray, shape (D,)
+        Reconstruction RMS at the fitted samples, channel units.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    period: float
+    rms: np.ndarray
+
+    @property
+    def order(self) -> int:
+        """N, the number of harmonics."""
+        return self.a.shape[1] - 1
+
+    def __call__(self, t) -> np.ndarray:
+        """Values at times ``t`` (s from the cycle start), shape ``(*t.shape, D)``."""
+        return synthesize(self.a, self.b, self.period, t)
+
+
+def synthesize(a: np.ndarray, b: np.ndarray, period, t) -> np.ndarray:
+    """Evaluate the series at times ``t``: vectorised over times and channels.
+
+    ``a``, ``b``: (D, N+1); ``period``: T in seconds (> 0); ``t``: any shape, seconds from the
+    cycle start (values outside [0, T) wrap around). Returns ``(*t.shape, D)``.
+    """
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if a.ndim != 2 or a.shape != b.shape:
+        raise FitError(f"a and b must have the same shape (D, N+1), got {a.shape} and {b.shape}")
+    if not np.all(np.asarray(period) > 0):
+        raise FitError(f"the period must be > 0 s, got {period}")
+    phase = 2 * np.pi * t[..., None] * np.arange(a.shape[1]) / period  # (*t, N+1)
+    return np.cos(phase) @ a.T + np.sin(phase) @ b.T
+
+
+def fit_series(values: np.ndarray, time_s: np.ndarray, period: float, order: int, /) -> FourierSeries:
+    """Least-squares series of fixed ``order`` through samples ``values`` (n, D) at ``time_s`` (n,)."""
+    values = np.asarray(values, dtype=np.float64)
+    time_s = np.asarray(time_s, dtype=np.float64)
+    phase = 2 * np.pi * np.outer(time_s, np.arange(1, order + 1)) / period
+    design = np.column_stack([np.ones_like(time_s), np.cos(phase), np.sin(phase)])
+    coef, *_ = np.linalg.lstsq(design, values, rcond=None)
+    d = values.shape[1]
+    a = np.vstack([coef[:1], coef[1:order + 1]]).T
+    b = np.column_stack([np.zeros(d), coef[order + 1:].T])
+    rms = np.sqrt(np.mean((design @ coef - values) ** 2, axis=0))
+    return FourierSeries(a.reshape(d, order + 1), b.reshape(d, order + 1), float(period), rms)
+
+
+def encode(values: np.ndarray, time_s: np.ndarray, period: float, /, *, tolerance,
+           max_order: int = 20) -> FourierSeries:
+    """Series of the smallest order N whose RMS is within ``tolerance`` for every channel.
+
+    ``values`` (n, D) sampled at ``time_s`` (n,) in [0, period); ``tolerance`` scalar or (D,) in
+    channel units. N is capped by ``max_order`` and by the samples ((2N+1) <= n); if no order
+    meets the tolerance the capped one is returned and its ``rms`` shows by how much.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    time_s = np.asarray(time_s, dtype=np.float64)
+    if values.ndim != 2 or len(values) != len(time_s):
+        raise FitError(f"values must have shape (n, D) with n = len(time_s) = {len(time_s)}, "
+                       f"got {values.shape}")
+    if not np.isfinite(values).all():
+        raise FitError("values to encode contain NaN or infinite samples")
+    if not period > 0:
+        raise FitError(f"the period must be > 0 s, got {period}")
+    limit = max(0, min(max_order, (len(time_s) - 1) // 2))
+    tolerance = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), values.shape[1:])
+    for order in range(limit + 1):
+        series = fit_series(values, time_s, period, order)
+        if np.all(series.rms <= tolerance):
+            return series
+    return series
+
+
+# ----------------------------------------------------------------------------------- root drift
+@dataclass(frozen=True)
+class RootDrift:
+    """The per-cycle drift of the root's horizontal pose, taken out before encoding.
+
+    The moving frame starts at the root's pose at t = 0 (``x0``, ``y0`` metres, heading ``psi0``
+    rad = ``pelvis_rotation``) and moves with constant velocity ``(u_f, u_l)`` m/s in its own
+    axes (forward, left) and constant turn rate ``omega`` rad/s (model (2) of the paper), chosen
+    so that it reaches the root's pose at t = T exactly: a line or circular arc through the
+    cycle's start and end. Encoded root channels are the root pose in that frame:
+    ``pelvis_tx``/``ty`` the position relative to the frame's origin in the frame's axes,
+    ``pelvis_rotation`` the heading minus the frame's heading.
+    """
+
+    x0: float
+    y0: float
+    psi0: float
+    u_f: float
+    u_l: float
+    omega: float
+
+    def frame(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Moving frame's origin x, y (m) and heading (rad) at times ``t`` (s), each ``t.shape``."""
+        t = np.asarray(t, dtype=np.float64)
+        psi = self.psi0 + self.omega * t
+        turned = self.omega * t
+        # ∫0^t R(psi0 + ω s) ds, in closed form and stable as ω -> 0
+        sinc = np.sinc(turned / np.pi)
+        versine = np.where(np.abs(turned) < 1e-8, turned / 2,
+                           (1 - np.cos(turned)) / np.where(turned == 0, 1, turned))
+        fx = t * (sinc * self.u_f - versine * self.u_l)
+        fy = t * (versine * self.u_f + sinc * self.u_l)
+        c, s = np.cos(self.psi0), np.sin(self.psi0)
+        return self.x0 + c * fx - s * fy, self.y0 + s * fx + c * fy, psi
+
+    def remove(self, q: np.ndarray, time_s: np.ndarray) -> np.ndarray:
+        """Joint coordinates (n, D) with the root pose expressed in the moving frame."""
+        out = np.array(q, dtype=np.float64)
+        x, y, psi = self.frame(time_s)
+        dx, dy = out[:, ROOT_X] - x, out[:, ROOT_Y] - y
+        out[:, ROOT_X] = np.cos(psi) * dx + np.sin(psi) * dy
+        out[:, ROOT_Y] = -np.sin(psi) * dx + np.cos(psi) * dy
+        out[:, ROOT_HEADING] -= psi
+        return out
+
+    def restore(self, q_local: np.ndarray, time_s: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`remove`: world root pose from moving-frame coordinates (n, D)."""
+        out = np.array(q_local, dtype=np.float64)
+        x, y, psi = self.frame(time_s)
+        lx, ly = out[:, ROOT_X].copy(), out[:, ROOT_Y].copy()
+        out[:, ROOT_X] = x + np.cos(psi) * lx - np.sin(psi) * ly
+        out[:, ROOT_Y] = y + np.sin(psi) * lx + np.cos(psi) * ly
+        out[:, ROOT_HEADING] += psi
+        return out
+
+    def to_dict(self) -> dict:
+        return {k: float(getattr(self, k)) for k in ("x0", "y0", "psi0", "u_f", "u_l", "omega")}
+
+
+def root_drift(q_start: np.ndarray, q_end: np.ndarray, period: float, /) -> RootDrift:
+    """The moving frame carrying the root pose ``q_start`` (D,) to ``q_end`` (D,) in ``period`` s.
+
+    Headings must be unwrapped (``q_end``'s ``pelvis_rotation`` continuous with ``q_start``'s).
+    """
+    x0, y0, psi0 = (float(q_start[i]) for i in (ROOT_X, ROOT_Y, ROOT_HEADING))
+    turned = float(q_end[ROOT_HEADING]) - psi0
+    c, s = np.cos(psi0), np.sin(psi0)
+    dx, dy = float(q_end[ROOT_X]) - x0, float(q_end[ROOT_Y]) - y0
+    fx, fy = c * dx + s * dy, -s * dx + c * dy   # displacement in the start frame
+    sinc = float(np.sinc(turned / np.pi))
+    versine = turned / 2 if abs(turned) < 1e-8 else (1 - np.cos(turned)) / turned
+    # [fx, fy] = T·[[sinc, -versine], [versine, sinc]]·[u_f, u_l]
+    det = sinc ** 2 + versine ** 2
+    u_f = (sinc * fx + versine * fy) / det / period
+    u_l = (-versine * fx + sinc * fy) / det / period
+    return RootDrift(x0, y0, psi0, float(u_f), float(u_l), turned / period)
+
+
+@dataclass(frozen=True)
+class CycleEncoding:
+    """Fourier encoding of one cycle of a fitted motion.
+
+    ``series`` holds the periodic channels (D = len(DOF_NAMES)), root in the moving frame;
+    ``drift`` the root drift; ``worst_dof`` the DOF with the largest RMS relative to its
+    tolerance and ``worst_rms`` its RMS (rad or m).
+    """
+
+    series: FourierSeries
+    drift: RootDrift
+    worst_dof: str
+    worst_rms: float
+
+    @property
+    def order(self) -> int:
+        return self.series.order
+
+    @property
+    def rms_deg(self) -> float:
+        """Largest reconstruction RMS over the rotational DOFs, degrees."""
+        return float(np.rad2deg(self.series.rms[~TRANSLATIONS].max()))
+
+    def synthesize_world(self, t) -> np.ndarray:
+        """Joint coordinates (n, D) at times ``t`` (n,) in [0, T], drift put back (world frame)."""
+        t = np.asarray(t, dtype=np.float64)
+        return self.drift.restore(self.series(t), t)
+
+
+def encode_cycle(q: np.ndarray, time_s: np.ndarray, period: float, q_end: np.ndarray, /, *,
+                 tol_angle: float = np.deg2rad(0.5), tol_length: float = 0.002,
+                 max_order: int = 20) -> CycleEncoding:
+    """Encode one cycle of joint coordinates.
+
+    ``q`` (n, D) in :data:`DOF_NAMES` order (rad; ``pelvis_t*`` m) at ``time_s`` (n,) seconds
+    from the cycle start, all in [0, period); ``q_end`` (D,) the coordinates at t = period (the
+    next cycle's start), which fixes the drift. Angles are unwrapped here.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
+        raise FitError(f"q must have shape (n, {len(DOF_NAMES)}), got {q.shape}")
+    both = np.unwrap(np.vstack([q, np.asarray(q_end, dtype=np.float64)[None]]), axis=0)
+    both[:, TRANSLATIONS] = np.vstack([q, q_end[None]])[:, TRANSLATIONS]
+    drift = root_drift(both[0], both[-1], period)
+    local = drift.remove(both[:-1], time_s)
+    tolerance = np.where(TRANSLATIONS, tol_length, tol_angle)
+    series = encode(local, time_s, period, tolerance=tolerance, max_order=max_order)
+    worst = int(np.argmax(series.rms / tolerance))
+    return CycleEncoding(series, drift, DOF_NAMES[worst], float(series.rms[worst]))
