@@ -18,6 +18,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
@@ -27,8 +28,10 @@ from pathlib import Path
 from . import __version__
 from .errors import LibraryError, MocapError
 from .io.atomic import atomic_write_text
-from .library import (DEFAULT_QC_THRESHOLDS, Library, assemble_library, json_text,
-                      to_json_data)
+import numpy as np
+
+from .library import (DEFAULT_QC_THRESHOLDS, Library, assemble_library, json_text, make_entry,
+                      qc_failures, to_json_data)
 
 DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 DIAGNOSTICS_VERSION = 1
@@ -171,13 +174,210 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
+    """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
+    Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture)."""
+    from .calibrate import calibrate, choose_protocol
+    from .cycles import analyse_cycles
+    from .events import detect_events
+    from .ik import fit
     from .io.c3d import read_c3d
 
     with clock.stage("import"):
         trial = read_c3d(path)
+        static = read_c3d(settings.static) if settings.static else None
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
-    raise MocapError("later stages not wired yet", path=path)
+    with clock.stage("protocol"):
+        protocol = choose_protocol(trial, settings.protocol)
+    with clock.stage("calibrate"):
+        model = calibrate(trial, protocol=protocol, static=static)
+    with clock.stage("fit"):
+        motion = fit(trial, model)
+    if motion.locked_dofs:
+        result.warnings.append(f"protocol {protocol.name!r} cannot see "
+                               f"{len(motion.locked_dofs)} DOFs, held at 0: "
+                               f"{', '.join(motion.locked_dofs)}")
+    if motion.failed.any():
+        result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
+                               "(interpolated)")
+    with clock.stage("events"):
+        track = _landmark_tracks(trial, model, motion)
+        events = detect_events({"left": (track["L_HEEL"], track["L_TOE"]),
+                                "right": (track["R_HEEL"], track["R_TOE"])},
+                               trial.rate, source=path)
+    with clock.stage("cycles"):
+        cycles = analyse_cycles(events, track["L_ACROMION"], track["R_ACROMION"], trial.rate,
+                                q=motion.q, source=path)
+    with clock.stage("entries"):
+        result.n_cycles = sum(not c.rest for c in cycles)
+        kept = [c for c in cycles if c.chosen or settings.all_cycles]
+        result.entries = _entries(path, result, kept, motion, settings)
+        result.diagnostics = _diagnostics(trial, motion, track, events, cycles,
+                                          {e["cycle_index"]: e["id"] for e in result.entries})
+
+
+def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
+    """Heels, toes and acromions (F, 3) m: the markers where measured, else the fitted model's.
+
+    A landmark the protocol lacks is placed at its catalogue position on its segment, scaled
+    to the subject's leg length.
+    """
+    from .protocols import REFERENCE_HEIGHT, load_landmarks
+    from .skeleton import HEIGHT_PROPORTIONS, SEGMENT_NAMES
+
+    catalogue = load_landmarks()
+    landmark_of = {m.label: m.landmark.name for m in model.protocol.markers}
+    legs = ("thigh", "shank")
+    height = (sum(model.skeleton.lengths[k] for k in legs)
+              / sum(HEIGHT_PROPORTIONS[k] for k in legs))
+    measured = model_markers_of(trial, model)
+    names = ("L_HEEL", "L_TOE", "R_HEEL", "R_TOE", "L_ACROMION", "R_ACROMION")
+    segments, offsets, columns = [], [], []
+    for name in names:
+        index = next((i for i, label in enumerate(model.labels) if landmark_of[label] == name),
+                     None)
+        if index is None:
+            segments.append(SEGMENT_NAMES.index(catalogue[name].segment))
+            offsets.append(np.asarray(catalogue[name].position) * height / REFERENCE_HEIGHT)
+        else:
+            segments.append(model.marker_segments[index])
+            offsets.append(model.marker_offsets[index])
+        columns.append(index)
+    modelled = motion.skeleton.points(motion.q, np.array(segments), np.array(offsets))
+    tracks = {}
+    for k, (name, index) in enumerate(zip(names, columns)):
+        track = modelled[:, k].copy()
+        if index is not None:
+            seen = np.isfinite(measured[:, index]).all(axis=1)
+            track[seen] = measured[seen, index]
+        tracks[name] = track
+    return tracks
+
+
+def model_markers_of(trial, model) -> np.ndarray:
+    """The trial's markers in the calibrated model's order, (F, M, 3) m, NaN where absent."""
+    from .ik import model_markers
+
+    return model_markers(trial, model)
+
+
+def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):
+    """Library entries of the kept cycles; cycles failing QC are dropped or waived."""
+    entries = []
+    for cycle in cycles:
+        qc = cycle_qc(cycle, motion)
+        failures = qc_failures(qc, settings.qc_thresholds)
+        where = f"cycle {cycle.index} ({cycle.start_s:.2f}-{cycle.end_s:.2f} s)"
+        waived = {}
+        if failures and settings.qc_policy == "drop":
+            result.warnings.append(f"{where} left out of the library: {'; '.join(failures)}")
+            continue
+        if failures:
+            waived = {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
+                      for f in failures}
+            result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
+        vel, enc = cycle.velocities, cycle.encoding
+        entries.append(make_entry(
+            id=f"{path.stem}_c{cycle.index}", source_file=path.name,
+            source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
+            start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
+            pattern=_pattern(vel.pattern), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
+            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift, cycle.period),
+            qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
+            segment_lengths_m=motion.skeleton.lengths))
+    return entries
+
+
+def _pattern(pattern) -> dict:
+    data = pattern.to_dict()
+    parameters = dict(data["params"], length=data["length"])
+    return {"type": data["type"], "parameters": parameters, "residual_m": data["residual"],
+            "arc_angle_rad": data["arc_angle"]}
+
+
+def _drift(drift, period: float) -> dict:
+    """Displacement of the moving frame over one cycle in the start frame, and its rates."""
+    x, y, psi = drift.frame(np.array([period]))
+    c, s = np.cos(drift.psi0), np.sin(drift.psi0)
+    dx, dy = float(x[0]) - drift.x0, float(y[0]) - drift.y0
+    return {"dx_m": c * dx + s * dy, "dy_m": -s * dx + c * dy,
+            "dheading_rad": float(psi[0]) - drift.psi0,
+            "u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
+
+
+def cycle_qc(cycle, motion) -> dict:
+    """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
+
+    marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
+    marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
+    DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
+    over the rotational DOFs except the heading (rad); jerk: RMS over frames and those DOFs of
+    the third time derivative of the fitted angles (rad/s^3, finite differences).
+    """
+    from .fourier import TRANSLATIONS
+
+    frames = np.arange(motion.n_frames) / motion.rate
+    inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
+    residuals = motion.residuals[inside]
+    joints = ~TRANSLATIONS & (np.asarray(motion.angles.columns) != "pelvis_rotation")
+    q = np.unwrap(motion.q[:, joints], axis=0)
+    ends = np.array([[np.interp(t, frames, q[:, d]) for d in range(q.shape[1])]
+                     for t in (cycle.start_s, cycle.end_s)])
+    jerk = np.diff(q[inside], n=3, axis=0) * motion.rate ** 3
+    with np.errstate(invalid="ignore"):
+        return {
+            "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),
+            "marker_max_m": float(np.nanmax(residuals)),
+            "gap_fraction": float(np.isnan(residuals).mean()),
+            "event_quality": float(cycle.event_quality),
+            "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATIONS].max()),
+            "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
+            "jerk_rms_rad_s3": float(np.sqrt(np.mean(jerk ** 2))) if jerk.size else None,
+        }
+
+
+def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
+    """This capture's record of the diagnostics sidecar (series downsampled)."""
+    from .patterns import cycle_times
+
+    every = downsample(trial.n_frames)
+    with warnings.catch_warnings():  # frames without any marker have no RMS: NaN, said so
+        warnings.simplefilter("ignore", RuntimeWarning)
+        frame_rms = motion.frame_rms()
+    mid = 0.5 * (track["L_ACROMION"] + track["R_ACROMION"])
+    chosen = next(c for c in cycles if c.chosen)
+    times = cycle_times(chosen.start_s, chosen.end_s, trial.rate)[:-1]
+    frames = np.arange(motion.n_frames) / motion.rate
+    q = np.column_stack([np.interp(times, frames, column) for column in
+                         np.unwrap(motion.q, axis=0).T])
+    local = chosen.encoding.drift.remove(q, times - chosen.start_s)
+    pick = downsample(len(times))
+    angles = {"time_s": times[pick] - chosen.start_s}
+    angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
+    return to_json_data({
+        "rate_hz": trial.rate,
+        "time_s": trial.time[every],
+        "shoulder_mid_xy": mid[every, :2],
+        "frame_rms_m": frame_rms[every],
+        "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
+        "cycles": [{"index": c.index, "start_s": c.start_s, "end_s": c.end_s,
+                    "chosen": c.chosen, "rest": c.rest, "entry_id": entry_ids.get(c.index),
+                    "pattern": _pattern(c.velocities.pattern), "v": c.velocities.v,
+                    "omega": c.velocities.omega, "v_l": c.velocities.v_l,
+                    "v_f": c.velocities.v_f, "unsteadiness": c.unsteadiness,
+                    "event_quality": c.event_quality,
+                    "fourier_n": c.encoding.order if c.encoding else None}
+                   for c in cycles],
+        "angles": angles,
+    })
+
+
+def locomotion_class(path: Path, rest: bool) -> str | None:
+    """The capture's locomotion class, if known: ``rest`` for a standing capture, otherwise
+    from the truth sidecar ``<stem>.truth.json`` written by :mod:`mocaplib.synth`, else None."""
+    if rest:
+        return "rest"
+    return None
 
 
 def _fail(result: CaptureResult, stage: str | None, reason: str) -> None:
