@@ -138,6 +138,23 @@ SEGMENTS, DOFS = _build_topology()
 SEGMENT_NAMES: tuple[str, ...] = tuple(s.name for s in SEGMENTS)
 DOF_NAMES: tuple[str, ...] = tuple(d.name for d in DOFS)
 ROOT_TRANSLATION = ("pelvis_tx", "pelvis_ty", "pelvis_tz")
+_SEGMENT_INDEX = {name: i for i, name in enumerate(SEGMENT_NAMES)}
+_DOF_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
+_TRANSLATION = np.array([d.translation for d in DOFS])
+
+
+def _moves() -> np.ndarray:
+    """(S, D) bool: DOF ``j`` moves segment ``s`` (it belongs to ``s`` or to an ancestor)."""
+    out = np.zeros((len(SEGMENTS), len(DOFS)), dtype=bool)
+    for s, seg in enumerate(SEGMENTS):
+        while seg is not None:
+            out[s, [_DOF_INDEX[n] for n in seg.dofs]] = True
+            seg = SEGMENTS[_SEGMENT_INDEX[seg.parent]] if seg.parent else None
+    return out
+
+
+#: ``MOVES[s, j]``: DOF ``j`` moves segment ``s`` (shape (S, D), bool).
+MOVES = _moves()
 
 #: Segment lengths as fractions of standing height (Winter 2009, Fig. 4.1; hip-centre width after
 #: Harrington 2007's adult mean). Keys are the names used by :meth:`Skeleton.joint_offsets`.
@@ -254,6 +271,14 @@ class Skeleton:
         -------
         ndarray, shape (F, S, 4, 4)
         """
+        return self._chain(q)[0]
+
+    def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Transforms (F, S, 4, 4) plus each DOF's world axis (F, D, 3) and pivot (F, D, 3).
+
+        A DOF's axis is its unit axis in the frame reached after the joint's earlier DOFs; its
+        pivot is the joint centre (for translations, the pivot is unused and set to zero).
+        """
         q = np.asarray(q, dtype=np.float64)
         if q.ndim == 1:
             q = q[None, :]
@@ -263,24 +288,59 @@ class Skeleton:
         offsets = self.joint_offsets()
         out = np.empty((n, len(SEGMENTS), 4, 4))
         out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
+        axes = np.zeros((n, len(DOFS), 3))
+        pivots = np.zeros((n, len(DOFS), 3))
         for s, seg in enumerate(SEGMENTS):
-            R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-            p = np.broadcast_to(offsets[s], (n, 3)).copy()
-            for name in seg.dofs:
-                j = DOF_NAMES.index(name)
-                dof = DOFS[j]
-                if dof.translation:
-                    p = p + q[:, j, None] * np.asarray(dof.axis)
-                else:
-                    R = R @ axis_rotation(dof.axis, q[:, j])
             if seg.parent is None:
-                out[:, s, :3, :3] = R
-                out[:, s, :3, 3] = p
+                R_parent = np.broadcast_to(np.eye(3), (n, 3, 3))
+                p = np.broadcast_to(offsets[s], (n, 3)).copy()
             else:
-                parent = out[:, SEGMENT_NAMES.index(seg.parent)]
-                out[:, s, :3, :3] = parent[:, :3, :3] @ R
-                out[:, s, :3, 3] = np.einsum("fij,fj->fi", parent[:, :3, :3], p) + parent[:, :3, 3]
-        return out
+                parent = out[:, _SEGMENT_INDEX[seg.parent]]
+                R_parent = parent[:, :3, :3]
+                p = R_parent @ offsets[s] + parent[:, :3, 3]
+            R = R_parent.copy()
+            for name in seg.dofs:
+                j = _DOF_INDEX[name]
+                axis = np.asarray(DOFS[j].axis)
+                axes[:, j] = R @ axis
+                if DOFS[j].translation:
+                    p = p + q[:, j, None] * axes[:, j]
+                else:
+                    R = R @ axis_rotation(axis, q[:, j])
+            for name in seg.dofs:
+                if not DOFS[_DOF_INDEX[name]].translation:
+                    pivots[:, _DOF_INDEX[name]] = p
+            out[:, s, :3, :3] = R
+            out[:, s, :3, 3] = p
+        return out, axes, pivots
+
+    def marker_jacobian(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Points fixed in segments and their analytic Jacobian with respect to ``q``.
+
+        Parameters
+        ----------
+        q : ndarray, shape (F, D)
+        segments : int ndarray, shape (M,)
+        offsets : ndarray, shape (M, 3), metres in each segment's frame.
+
+        Returns
+        -------
+        points : ndarray, shape (F, M, 3), metres (as :meth:`points`).
+        jacobian : ndarray, shape (F, M, 3, D): d point / d q, metres per radian (or per metre
+            for ``pelvis_t*``). A rotation DOF moves the points of its segment and descendants
+            by ``axis x (point - pivot)``; a translation DOF by its axis.
+        """
+        segments = np.asarray(segments, dtype=int)
+        T, axes, pivots = self._chain(q)
+        Ts = T[:, segments]
+        pts = np.einsum("fmij,mj->fmi", Ts[..., :3, :3], np.asarray(offsets, float)) + Ts[..., :3, 3]
+        # axis x (point - pivot) = point x (-axis) - axis x pivot, as one batched matmul
+        moment = np.cross(axes, pivots)                                          # (F, D, 3)
+        jac = _skew(pts) @ -axes.transpose(0, 2, 1)[:, None] - moment.transpose(0, 2, 1)[:, None]
+        jac[..., _TRANSLATION] = axes[:, None, _TRANSLATION].transpose(0, 1, 3, 2)
+        jac *= MOVES[segments][None, :, None, :]
+        return pts, jac
 
     def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """World positions of points fixed in segments (markers, joint centres).
@@ -299,6 +359,14 @@ class Skeleton:
         """
         T = self.forward(q)[:, np.asarray(segments, dtype=int)]
         return np.einsum("fmij,mj->fmi", T[..., :3, :3], np.asarray(offsets, float)) + T[..., :3, 3]
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices of vectors (..., 3): shape (..., 3, 3), ``_skew(a) @ b = a x b``."""
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
 
 
 def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:

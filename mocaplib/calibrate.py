@@ -1,0 +1,409 @@
+"""Subject calibration: one subject's fixed skeleton and marker offsets from a trial.
+
+Steps (all in metres, world Z up):
+
+1. **Markers and locks.** The protocol's markers seen in at least 10 % of the trial's frames are
+   used. A joint whose segment and descendants carry too few markers to be seen (none; or one
+   for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
+   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error.
+2. **Height and nominal model.** Height is estimated from distances between markers on the
+   same segment against the landmark catalogue's nominal ones (``protocols/landmarks.toml``),
+   unless given; the nominal skeleton (:meth:`Skeleton.from_height`) and nominal offsets are
+   fitted to up to ``n_frames`` calibration frames.
+3. **Anatomical joint centres.** Hip: Harrington et al. (2007, J Biomech 40:595) regression
+   from pelvis width PW (ASIS–ASIS) and depth PD (mid-ASIS to mid-PSIS, or sacrum), in the
+   ASIS pelvis frame: x = −0.24 PD − 9.9 mm, y = ±(0.33 PW + 7.3 mm), z = −0.30 PW − 10.9 mm.
+   Knee, ankle, elbow: the midpoint of lateral and medial landmarks when both exist, otherwise
+   the lateral landmark moved by its documented offset from the joint in the catalogue (knee
+   50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by
+   the nominal fit's segment orientation. Shoulder: the acromion moved by the catalogue offset
+   (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
+   Segment lengths are the median distances between those centres.
+4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
+   markers); each marker's offset is re-registered as the least-squares (mean) position in its
+   segment's frame over those poses.
+5. **Refinement.** Alternate: fit poses to the markers alone; re-register offsets; solve the
+   segment lengths by linear least squares (marker positions are affine in the lengths for
+   fixed poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop
+   when the marker RMS falls by less than 1 %; the best model is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import protocols as _protocols
+from .errors import CalibrationError
+from .ik import solve_poses
+from .protocols import Protocol, list_protocols, load_protocol, match_protocol
+from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from .trial import Trial
+
+#: Markers seen in fewer than this fraction of frames are not used.
+MIN_PRESENCE = 0.10
+#: Prior standard deviation of segment lengths around the anatomical estimate, metres.
+LENGTH_PRIOR = 0.015
+#: Typical marker residual (soft tissue + noise), metres: scales the length prior.
+MARKER_SIGMA = 0.005
+#: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
+CENTRE_WEIGHT = 10.0
+
+#: Joint centres from landmarks: child segment (its origin is the joint) and its landmarks
+#: (lateral, medial); the lateral one alone is used with its catalogue offset.
+_LANDMARK_JOINTS = {
+    "tibia": ("KNEE_LAT", "KNEE_MED"),
+    "foot": ("ANKLE_LAT", "ANKLE_MED"),
+    "humerus": ("ACROMION", None),
+    "forearm": ("ELBOW_LAT", "ELBOW_MED"),
+}
+
+
+@dataclass
+class SubjectModel:
+    """One subject's calibrated model, what :func:`mocaplib.ik.fit` needs.
+
+    Attributes
+    ----------
+    skeleton : Skeleton with this subject's segment lengths (metres).
+    protocol : Protocol the labels come from.
+    labels : list[str], length M. Protocol labels of the markers used, in model order.
+    marker_segments : int ndarray, shape (M,). Segment index of each marker.
+    marker_offsets : ndarray, shape (M, 3). Each marker in its segment's frame, metres.
+    locked_dofs : list[str]. DOFs held at 0 because too few markers see them.
+    left_out : list[str]. Segments with no marker on them or below them.
+    rms : float. Marker RMS of the calibration fit, metres.
+    history : list[float]. Marker RMS after each refinement round, metres.
+    source : str or None. The calibration trial's file.
+    """
+
+    skeleton: Skeleton
+    protocol: Protocol
+    labels: list[str]
+    marker_segments: np.ndarray
+    marker_offsets: np.ndarray
+    locked_dofs: list[str] = field(default_factory=list)
+    left_out: list[str] = field(default_factory=list)
+    rms: float = float("nan")
+    history: list[float] = field(default_factory=list)
+    source: str | None = None
+
+    @property
+    def free(self) -> np.ndarray:
+        """DOFs the fit may move, bool (D,)."""
+        return np.array([name not in self.locked_dofs for name in DOF_NAMES])
+
+
+def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
+    """The protocol to use: the one given (object, shipped name or TOML path), else detected.
+
+    Detection uses :func:`mocaplib.protocols.detect_protocol` when available, otherwise the
+    shipped protocol matching the most labels.
+    """
+    if isinstance(protocol, Protocol):
+        return protocol
+    if protocol not in (None, "auto"):
+        return load_protocol(protocol)
+    detect = getattr(_protocols, "detect_protocol", None)
+    if detect is not None:
+        found = detect(trial)
+        return getattr(found, "protocol", found)
+    candidates = [load_protocol(name) for name in list_protocols()]
+    best = max(candidates, key=lambda p: match_protocol(trial, p).found, default=None)
+    if best is None or match_protocol(trial, best).found == 0:
+        raise CalibrationError("no shipped protocol matches the trial's labels",
+                               path=trial.source, hint="pass --protocol with a TOML file")
+    return best
+
+
+def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
+              static: Trial | None = None, height: float | None = None, n_frames: int = 60,
+              max_rounds: int = 8) -> SubjectModel:
+    """Calibrate the subject's skeleton and marker offsets.
+
+    Parameters
+    ----------
+    trial : the motion trial; used for calibration when ``static`` is None.
+    protocol : Protocol, shipped name, TOML path, or None / "auto" to detect it.
+    static : a static standing trial of the same subject, preferred when given.
+    height : standing height, metres; estimated from the markers when None.
+    n_frames : calibration frames (the most complete ones, spread over the trial).
+    max_rounds : refinement rounds at most (step 5).
+
+    Returns
+    -------
+    SubjectModel
+    """
+    cal = static if static is not None else trial
+    proto = choose_protocol(cal, protocol)
+    X_all = match_protocol(cal, proto).markers(cal)
+    seen = np.isfinite(X_all[..., 0]).mean(axis=0) if cal.n_frames else np.zeros(len(proto.labels))
+    used = np.flatnonzero(seen >= MIN_PRESENCE)
+    markers = [proto.markers[j] for j in used]
+    labels = [m.label for m in markers]
+    segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in markers], dtype=int)
+    n_pelvis = int((segments == SEGMENT_NAMES.index("pelvis")).sum())
+    if n_pelvis < 3:
+        raise CalibrationError(
+            f"only {n_pelvis} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
+            "3 are needed to place the pelvis", path=cal.source,
+            hint="check the labels against the protocol, or pass --protocol")
+    locked, left_out = locked_dofs(segments)
+    free = np.array([name not in locked for name in DOF_NAMES])
+    X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
+    nominal = np.array([m.landmark.position for m in markers])
+    landmarks = [m.landmark.name for m in markers]
+    if height is None:
+        height = estimate_height(X, segments, nominal)
+    scale = height / _protocols.REFERENCE_HEIGHT
+    skeleton = Skeleton.from_height(height)
+    nominal_scaled = nominal * scale
+    offsets = nominal_scaled
+
+    # step 3: anatomical joint centres from a nominal fit
+    first = solve_poses(skeleton, X, segments, offsets, free=free)
+    centres = joint_centres(X, landmarks, skeleton, first.q, scale=scale)
+    anatomical = _lengths_from_centres(skeleton, first.q, centres)
+    skeleton = Skeleton(anatomical)
+    # step 4: poses with the joint centres as stiff virtual markers, then offsets
+    v_seg, v_off, v_pos = _virtual_markers(skeleton, centres)
+    poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
+                        np.concatenate([segments, v_seg]), np.vstack([offsets, v_off]),
+                        free=free, weights=np.r_[np.ones(len(labels)),
+                                                 np.full(len(v_seg), CENTRE_WEIGHT)]).q
+    offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+
+    # step 5: alternate poses, offsets, lengths while the RMS keeps falling
+    best, history = None, []
+    for _ in range(max_rounds):
+        fit = solve_poses(skeleton, X, segments, offsets, q0=poses, free=free)
+        rms = float(np.sqrt(np.nanmean(fit.residuals ** 2)))
+        history.append(rms)
+        if best is not None and rms >= best.rms:
+            break
+        best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
+                            rms, [], cal.source)
+        if len(history) > 1 and rms > 0.99 * history[-2]:
+            break
+        poses = fit.q
+        offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+        skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical)
+    best.history = history
+    return best
+
+
+# ----------------------------------------------------------------------------- pieces
+def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
+    """DOFs too few markers can see, and segments with no marker on or below them.
+
+    ``segments`` (M,) are the markers' segment indices. A joint is locked when its segment and
+    descendants carry no marker, or a single marker for a 3-DOF joint (a marker and the joint
+    centre leave the rotation about their line free).
+    """
+    counts = np.bincount(np.asarray(segments, int), minlength=len(SEGMENTS))
+    below = counts.copy()
+    for s in reversed(range(len(SEGMENTS))):          # children come after their parents
+        parent = SEGMENTS[s].parent
+        if parent is not None:
+            below[SEGMENT_NAMES.index(parent)] += below[s]
+    locked, left_out = [], []
+    for s, seg in enumerate(SEGMENTS):
+        if seg.parent is None:
+            continue
+        if below[s] == 0:
+            left_out.append(seg.name)
+        if below[s] == 0 or (len(seg.dofs) == 3 and below[s] < 2):
+            locked.extend(seg.dofs)
+    return locked, left_out
+
+
+def _calibration_frames(X: np.ndarray, n_frames: int) -> np.ndarray:
+    """Indices of up to ``n_frames`` frames among the most complete, spread evenly in time."""
+    count = np.isfinite(X[..., 0]).sum(axis=1)
+    if count.size == 0 or count.max() == 0:
+        return np.arange(0)
+    good = np.flatnonzero(count >= count.max() - max(1, X.shape[1] // 10))
+    pick = np.linspace(0, len(good) - 1, min(n_frames, len(good))).round().astype(int)
+    return good[np.unique(pick)]
+
+
+def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray) -> float:
+    """Standing height, metres, from marker distances within segments vs nominal (1.75 m).
+
+    X (F, M, 3) markers; segments (M,); nominal (M, 3) catalogue positions for 1.75 m. Falls
+    back to 1.75 m when no segment carries two markers seen together.
+    """
+    ratios = []
+    for s in np.unique(segments):
+        idx = np.flatnonzero(segments == s)
+        for a in range(len(idx)):
+            for b in range(a + 1, len(idx)):
+                ref = np.linalg.norm(nominal[idx[a]] - nominal[idx[b]])
+                d = np.nanmedian(np.linalg.norm(X[:, idx[a]] - X[:, idx[b]], axis=1)) \
+                    if np.isfinite(X[:, [idx[a], idx[b]], 0]).all(axis=1).any() else np.nan
+                if ref > 0.05 and np.isfinite(d):
+                    ratios.append(d / ref)
+    if not ratios:
+        return _protocols.REFERENCE_HEIGHT
+    return float(np.clip(np.median(ratios) * _protocols.REFERENCE_HEIGHT, 0.8, 2.3))
+
+
+def harrington_hips(lasi, rasi, back) -> tuple[np.ndarray, np.ndarray]:
+    """Left and right hip centres (F, 3) from ASIS (F, 3) and mid-PSIS or sacrum ``back`` (F, 3).
+
+    Harrington et al. 2007: in the frame at mid-ASIS with Y to the left ASIS, X forward (from
+    ``back`` to mid-ASIS, made orthogonal to Y) and Z up, a hip centre is at
+    x = −0.24 PD − 9.9 mm, |y| = 0.33 PW + 7.3 mm, z = −0.30 PW − 10.9 mm.
+    """
+    origin = 0.5 * (lasi + rasi)
+    y = _unit(lasi - rasi)
+    fwd = origin - back
+    x = _unit(fwd - (fwd * y).sum(axis=1, keepdims=True) * y)
+    z = np.cross(x, y)
+    pw = np.linalg.norm(lasi - rasi, axis=1)[:, None]
+    pd = np.linalg.norm(fwd, axis=1)[:, None]
+    ax, ay, az = -0.24 * pd - 0.0099, 0.33 * pw + 0.0073, -0.30 * pw - 0.0109
+    left = origin + ax * x + ay * y + az * z
+    right = origin + ax * x - ay * y + az * z
+    return left, right
+
+
+def joint_centres(X: np.ndarray, landmarks: list[str], skeleton: Skeleton, q: np.ndarray, *,
+                  scale: float) -> dict[tuple[str, float], np.ndarray]:
+    """Anatomical joint centres per frame, world (F, 3) metres.
+
+    Keys are ``(segment, z)``: the point ``(0, 0, z)`` of that segment's frame (z = 0: its
+    joint; the wrist is the forearm's end). ``q`` (F, D) is a nominal fit giving the segments'
+    orientation for single-landmark offsets; ``scale`` = height / 1.75 scales catalogue offsets.
+    """
+    where = {name: X[:, i] for i, name in enumerate(landmarks)}
+    catalogue = _protocols.load_landmarks()
+    T = skeleton.forward(q)
+    joints = skeleton.joint_offsets()
+    out: dict[tuple[str, float], np.ndarray] = {}
+    back = _mean_of(where, ["L_PSIS", "R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= set(where) \
+        else where.get("SACRUM")
+    if {"L_ASIS", "R_ASIS"} <= set(where) and back is not None:
+        out[("femur_l", 0.0)], out[("femur_r", 0.0)] = harrington_hips(
+            where["L_ASIS"], where["R_ASIS"], back)
+    for side in ("L", "R"):
+        suffix = "_" + side.lower()
+        for child, (lateral, medial) in _LANDMARK_JOINTS.items():
+            lat, med = f"{side}_{lateral}", f"{side}_{medial}"
+            if lat in where and med in where:
+                out[(child + suffix, 0.0)] = 0.5 * (where[lat] + where[med])
+            elif lat in where:
+                mark = catalogue[lat]
+                s = SEGMENT_NAMES.index(mark.segment)
+                local = np.asarray(mark.position) * scale - joints[SEGMENT_NAMES.index(child + suffix)]
+                out[(child + suffix, 0.0)] = where[lat] - T[:, s, :3, :3] @ local
+        rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
+        if rad in where and uln in where:
+            out[("forearm" + suffix, -skeleton.lengths["forearm"])] = 0.5 * (where[rad] + where[uln])
+    return out
+
+
+def _lengths_from_centres(skeleton: Skeleton, q: np.ndarray,
+                          centres: dict[tuple[str, float], np.ndarray]) -> dict[str, float]:
+    """Segment lengths (metres): median distances between joint centres, else the nominal."""
+    lengths = dict(skeleton.lengths)
+    c = {seg: pos for (seg, z), pos in centres.items() if z == 0.0}
+    wrist = {seg: pos for (seg, z), pos in centres.items() if z != 0.0}
+
+    def dist(a, b):
+        return np.nanmedian(np.linalg.norm(a - b, axis=1))
+
+    def both_sides(key, a, b, table_b=c):
+        values = [dist(c[a + s], table_b[b + s]) for s in ("_l", "_r")
+                  if a + s in c and b + s in table_b]
+        values = [v for v in values if np.isfinite(v)]
+        if values:
+            lengths[key] = float(np.mean(values))
+
+    if "femur_l" in c and "femur_r" in c:
+        lengths["hip_width"] = float(dist(c["femur_l"], c["femur_r"]))
+    both_sides("thigh", "femur", "tibia")
+    both_sides("shank", "tibia", "foot")
+    both_sides("upper_arm", "humerus", "forearm")
+    both_sides("forearm", "forearm", "forearm", wrist)
+    if "humerus_l" in c and "humerus_r" in c:
+        lengths["shoulder_width"] = float(dist(c["humerus_l"], c["humerus_r"]))
+    return {k: (v if np.isfinite(v) and v > 0.01 else skeleton.lengths[k])
+            for k, v in lengths.items()}
+
+
+def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.ndarray]):
+    """Joint centres as markers: segment indices (V,), offsets (V, 3), positions (F, V, 3)."""
+    keys = list(centres)
+    segs = np.array([SEGMENT_NAMES.index(seg) for seg, _ in keys], dtype=int)
+    offs = np.array([(0.0, 0.0, z) for _, z in keys]).reshape(-1, 3)
+    pos = np.stack([centres[k] for k in keys], axis=1) if keys else None
+    return segs, offs, pos if pos is not None else np.zeros((0, 0, 3))
+
+
+def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
+                     nominal: np.ndarray) -> np.ndarray:
+    """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
+
+    Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
+    where the marker is seen (never seen: ``nominal``). Offsets fix a segment's markers but not
+    its frame: a constant rotation of the frame could be absorbed by the offsets. So each
+    segment's offsets are then turned about their centroid by the rotation that best aligns
+    them with the catalogue layout ``nominal`` (M, 3) (Kabsch; with two markers the segment
+    origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame is thus anatomical: zero angles put the markers in the
+    catalogue's layout, as the DOF sign table describes.
+    """
+    T = skeleton.forward(q)[:, segments]
+    local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
+    with np.errstate(invalid="ignore"):
+        mean = np.nanmean(local, axis=0) if len(q) else nominal
+    out = np.where(np.isfinite(mean), mean, nominal)
+    for s in np.unique(segments):
+        idx = np.flatnonzero(segments == s)
+        if len(idx) == 1:
+            out[idx] = _unit(nominal[idx]) * np.linalg.norm(out[idx], axis=1, keepdims=True)
+            continue
+        reg, nom = out[idx], nominal[idx]
+        if len(idx) == 2:                          # the origin fixes the turn about their line
+            reg, nom = np.vstack([reg, np.zeros(3)]), np.vstack([nom, np.zeros(3)])
+        c_reg, c_nom = reg.mean(axis=0), nom.mean(axis=0)
+        U, _, Vt = np.linalg.svd((reg - c_reg).T @ (nom - c_nom))
+        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+        R = U @ D @ Vt                              # rotation taking nominal to registered
+        out[idx] = c_reg + (out[idx] - c_reg) @ R
+    return out
+
+
+def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,
+                   offsets: np.ndarray, *, prior: dict[str, float]) -> Skeleton:
+    """Segment lengths by linear least squares for fixed poses q (F, D) and offsets (M, 3).
+
+    Marker positions are affine in the lengths (joint offsets are linear in them), so one
+    solve is exact: minimise Σ ||x − p(L)||² / σ_m² + Σ (L − prior)² / σ_L² with
+    σ_m = :data:`MARKER_SIGMA`, σ_L = :data:`LENGTH_PRIOR`.
+    """
+    keys = list(HEIGHT_PROPORTIONS)
+    L0 = np.array([skeleton.lengths[k] for k in keys])
+    base = skeleton.points(q, segments, offsets)
+    valid = np.isfinite(X).all(axis=2)
+    G = np.empty(base.shape + (len(keys),))
+    for i, key in enumerate(keys):
+        moved = Skeleton({**skeleton.lengths, key: skeleton.lengths[key] + 1.0})
+        G[..., i] = moved.points(q, segments, offsets) - base
+    G = G[valid].reshape(-1, len(keys))
+    r = (X - base)[valid].reshape(-1)
+    prior_vec = np.array([prior[k] for k in keys])
+    A = G.T @ G / MARKER_SIGMA ** 2 + np.eye(len(keys)) / LENGTH_PRIOR ** 2
+    b = G.T @ r / MARKER_SIGMA ** 2 + (prior_vec - L0) / LENGTH_PRIOR ** 2
+    L = L0 + np.linalg.solve(A, b)
+    L = np.maximum(L, 0.2 * prior_vec)
+    return Skeleton(dict(zip(keys, L.tolist())))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _mean_of(where: dict[str, np.ndarray], names: list[str]) -> np.ndarray:
+    return np.mean([where[n] for n in names], axis=0)

@@ -1,0 +1,333 @@
+"""Joint-angle fitting: batched, robust, bounded Levenberg–Marquardt over many frames at once.
+
+Per frame ``f`` the fit minimises
+
+    Σ_m ρ(||x_fm − p_m(q_f)||) + μ² ||q_f − q̄_f||²
+
+where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.calibrate`), ρ the
+soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale ``c``, linear above, so one
+bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current solution
+(a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is kept
+within :meth:`mocaplib.skeleton.Skeleton.bounds` by projection. Missing markers (NaN) drop out.
+
+All frames of a chunk are solved together: the analytic Jacobians
+(:meth:`~mocaplib.skeleton.Skeleton.marker_jacobian`, shape (F, M, 3, D)) give the (F, D, D)
+normal equations, solved as one batched ``numpy.linalg.solve``; each frame keeps its own damping
+and stops when its cost stops falling. The start is a per-segment rigid fit (weighted Kabsch on
+the segment's markers and its joint centre), decomposed into the joint's DOFs.
+
+Units: metres and radians. Arrays: time on axis 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .errors import FitError
+from .motion import Motion, angles_frame
+from .protocols import match_protocol
+from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+
+if TYPE_CHECKING:
+    from .calibrate import SubjectModel
+    from .trial import Trial
+
+#: Soft-L1 scale c, metres: residuals above it count linearly (soft-tissue artefact is ~5-10 mm).
+ROBUST_SCALE = 0.01
+#: Continuity weight μ, metres per radian (per metre for translations).
+SMOOTHING = 0.01
+#: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
+CHUNK = 1000
+
+_LOWER, _UPPER = Skeleton.bounds()
+_ROOT = SEGMENT_NAMES.index("pelvis")
+
+
+@dataclass
+class PoseFit:
+    """Result of :func:`solve_poses` for F frames and M markers.
+
+    q (F, D); residuals (F, M) metres, NaN where missing; converged (F,) bool;
+    iterations run (int).
+    """
+
+    q: np.ndarray
+    residuals: np.ndarray
+    converged: np.ndarray
+    iterations: int
+
+
+def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
+                offsets: np.ndarray, /, *, q0: np.ndarray | None = None,
+                free: np.ndarray | None = None, weights: np.ndarray | None = None,
+                robust_scale: float = ROBUST_SCALE, smoothing: float = SMOOTHING,
+                max_iter: int = 40, tol: float = 1e-7) -> PoseFit:
+    """Fit joint coordinates to markers for every frame at once.
+
+    Parameters
+    ----------
+    markers : ndarray, shape (F, M, 3), metres, NaN where missing.
+    segments, offsets : shapes (M,), (M, 3): each marker's segment index and position in it.
+    q0 : ndarray, shape (F, D), optional. Start; default :func:`initial_pose`.
+    free : bool ndarray, shape (D,), optional. DOFs to fit; the others stay at ``q0`` (default
+        all free).
+    weights : ndarray, shape (M,) or (F, M), optional. Marker weights (default 1).
+    robust_scale : soft-L1 scale c, metres (``np.inf`` for plain least squares).
+    smoothing : continuity weight μ (0 switches it off).
+    max_iter, tol : iteration limit; a frame has converged when its cost falls by less than
+        ``tol`` (relative) and its step is below 1e-6.
+    """
+    markers = np.asarray(markers, dtype=np.float64)
+    n_frames, n_markers = markers.shape[:2]
+    segments = np.asarray(segments, dtype=int)
+    offsets = np.asarray(offsets, dtype=np.float64)
+    free = np.ones(len(DOF_NAMES), bool) if free is None else np.asarray(free, bool)
+    valid = np.isfinite(markers).all(axis=2)
+    target = np.where(valid[..., None], markers, 0.0)
+    w_marker = np.ones((n_frames, n_markers)) if weights is None else np.broadcast_to(
+        np.asarray(weights, float), (n_frames, n_markers))
+    w_marker = np.where(valid, w_marker, 0.0)
+    q = initial_pose(skeleton, markers, segments, offsets) if q0 is None else np.array(q0, float)
+    q = np.clip(q, _LOWER, _UPPER)
+    fidx = np.flatnonzero(free)
+    lam = np.full(n_frames, 1e-3)
+    active = np.ones(n_frames, dtype=bool)
+    mu2 = smoothing ** 2
+
+    def cost(q_rows, rows, q_ref):
+        d = np.linalg.norm(target[rows] - skeleton.points(q_rows, segments, offsets), axis=2)
+        return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
+            (q_rows[:, fidx] - q_ref[:, fidx]) ** 2).sum(axis=1)
+
+    iterations = 0
+    for iterations in range(1, max_iter + 1):
+        rows = np.flatnonzero(active)
+        if rows.size == 0:
+            break
+        q_ref = _neighbour_mean(q)[rows]
+        qa = q[rows]
+        pts, jac = skeleton.marker_jacobian(qa, segments, offsets)
+        r = target[rows] - pts
+        d = np.linalg.norm(r, axis=2)
+        w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
+        Jf = jac[..., fidx].reshape(rows.size, n_markers * 3, fidx.size)
+        wr = np.repeat(w, 3, axis=1)
+        JtW = Jf.transpose(0, 2, 1) * wr[:, None, :]
+        A = JtW @ Jf
+        g = (JtW @ r.reshape(rows.size, -1, 1))[..., 0] - mu2 * (qa[:, fidx] - q_ref[:, fidx])
+        A[:, np.arange(fidx.size), np.arange(fidx.size)] += mu2
+        diag = np.einsum("fii->fi", A)
+        c0 = (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
+            (qa[:, fidx] - q_ref[:, fidx]) ** 2).sum(axis=1)
+        # a few damping trials per iteration: frames whose step fails raise their damping
+        todo = np.ones(rows.size, dtype=bool)
+        for _ in range(4):
+            k = np.flatnonzero(todo)
+            if k.size == 0:
+                break
+            Ak = A[k].copy()
+            Ak[:, np.arange(fidx.size), np.arange(fidx.size)] += lam[rows[k], None] * (
+                diag[k] + 1e-9)
+            step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
+            trial_q = qa[k].copy()
+            trial_q[:, fidx] = np.clip(trial_q[:, fidx] + step, _LOWER[fidx], _UPPER[fidx])
+            c1 = cost(trial_q, rows[k], q_ref[k])
+            better = c1 <= c0[k]
+            good = k[better]
+            moved = np.abs(trial_q[better] - qa[good]).max(axis=1)
+            q[rows[good]] = trial_q[better]
+            lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-7)
+            done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < 1e-6)
+            active[rows[good[done]]] = False
+            lam[rows[k[~better]]] *= 4.0
+            todo[good] = False
+            stuck = k[~better][lam[rows[k[~better]]] > 1e8]
+            active[rows[stuck]] = False                       # no descent left: a minimum
+            todo[stuck] = False
+    residuals = np.linalg.norm(markers - skeleton.points(q, segments, offsets), axis=2)
+    return PoseFit(q, residuals, ~active, iterations)
+
+
+def _soft_l1(d: np.ndarray, c: float) -> np.ndarray:
+    """Soft-L1 loss of distances d (metres): d² for d ≪ c, ≈ 2c·d for d ≫ c."""
+    if not np.isfinite(c):
+        return d ** 2
+    return 2.0 * c ** 2 * (np.sqrt(1.0 + (d / c) ** 2) - 1.0)
+
+
+def _soft_l1_weight(d: np.ndarray, c: float) -> np.ndarray:
+    """IRLS weight ρ'(d) / (2d) of the soft-L1 loss, in (0, 1]."""
+    if not np.isfinite(c):
+        return np.ones_like(d)
+    return 1.0 / np.sqrt(1.0 + (d / c) ** 2)
+
+
+def _neighbour_mean(q: np.ndarray) -> np.ndarray:
+    """Mean of each frame's previous and next frame (one neighbour at the ends), shape (F, D)."""
+    if len(q) < 2:
+        return q.copy()
+    out = np.empty_like(q)
+    out[1:-1] = 0.5 * (q[:-2] + q[2:])
+    out[0], out[-1] = q[1], q[-2]
+    return out
+
+
+# ----------------------------------------------------------------------------- initial pose
+def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
+                 offsets: np.ndarray) -> np.ndarray:
+    """Start pose from per-segment rigid fits, shape (F, D).
+
+    Segments are visited root first. Each segment's rotation is the weighted Kabsch fit of its
+    markers (model offsets → measured) plus its joint centre placed by the parent; the rotation
+    relative to the parent is decomposed into the joint's DOFs. Frames or segments with fewer
+    than three points get the value interpolated over time (0 when never seen). The heading is
+    unwrapped over time.
+    """
+    n_frames = markers.shape[0]
+    q = np.zeros((n_frames, len(DOF_NAMES)))
+    q[:, :] = skeleton.neutral_q(1)
+    joint = skeleton.joint_offsets()
+    for s, seg in enumerate(SEGMENTS):
+        own = np.flatnonzero(segments == s)
+        local = offsets[own]
+        world = markers[:, own]
+        if seg.parent is not None:
+            parent = skeleton.forward(q)[:, SEGMENT_NAMES.index(seg.parent)]
+            centre = parent[:, :3, :3] @ joint[s] + parent[:, :3, 3]
+            local = np.vstack([local, np.zeros((1, 3))])
+            world = np.concatenate([world, centre[:, None]], axis=1)
+        R, t, ok = _kabsch(local, world)
+        cols = [DOF_NAMES.index(n) for n in seg.dofs]
+        if seg.parent is None:
+            rel = R
+            trans = [c for c in cols if DOFS[c].translation]
+            q[:, trans] = t
+        else:
+            rel = np.swapaxes(parent[:, :3, :3], 1, 2) @ R
+        rot = [c for c in cols if not DOFS[c].translation]
+        q[:, rot] = _joint_angles(rel, [DOFS[c].axis for c in rot])
+        q[np.ix_(~ok, cols)] = np.nan
+        q[:, cols] = _fill_gaps(q[:, cols])
+    q[:, DOF_NAMES.index("pelvis_rotation")] = np.unwrap(q[:, DOF_NAMES.index("pelvis_rotation")])
+    return np.clip(q, _LOWER, _UPPER)
+
+
+def _kabsch(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rigid fits ``world ≈ R @ local + t`` per frame over the finite points.
+
+    local (N, 3); world (F, N, 3) with NaN where missing. Returns R (F, 3, 3), t (F, 3) and
+    ok (F,): at least three points and a non-degenerate spread.
+    """
+    n_frames = world.shape[0]
+    valid = np.isfinite(world).all(axis=2)
+    w = valid.astype(float)
+    count = w.sum(axis=1)
+    Y = np.where(valid[..., None], world, 0.0)
+    safe = np.maximum(count, 1.0)[:, None]
+    cp = (w @ local) / safe
+    cy = (w[..., None] * Y).sum(axis=1) / safe
+    P = (local[None] - cp[:, None]) * w[..., None]
+    H = np.einsum("fni,fnj->fij", P, Y - cy[:, None])
+    U, S, Vt = np.linalg.svd(H)
+    sign = np.sign(np.linalg.det(Vt.transpose(0, 2, 1) @ U.transpose(0, 2, 1)))
+    sign[sign == 0] = 1.0
+    D = np.zeros((n_frames, 3, 3))
+    D[:, 0, 0], D[:, 1, 1], D[:, 2, 2] = 1.0, 1.0, sign
+    R = Vt.transpose(0, 2, 1) @ D @ U.transpose(0, 2, 1)
+    t = cy - np.einsum("fij,fj->fi", R, cp)
+    ok = (count >= 3) & (S[:, 1] > 1e-6)
+    return R, t, ok
+
+
+def _joint_angles(R: np.ndarray, axes: list[tuple[float, float, float]]) -> np.ndarray:
+    """Angles about the signed unit ``axes`` (1-3 of ±X/±Y/±Z, intrinsic order) closest to R."""
+    letters, signs = [], []
+    for axis in axes:
+        k = int(np.argmax(np.abs(axis)))
+        letters.append("XYZ"[k])
+        signs.append(float(np.sign(axis[k])))
+    order = "".join(letters) + "".join(c for c in "XYZ" if c not in letters)
+    angles = Rotation.from_matrix(R).as_euler(order[:3])
+    return angles[:, :len(axes)] * np.array(signs)
+
+
+def _fill_gaps(values: np.ndarray) -> np.ndarray:
+    """Linearly interpolate NaN rows over time per column (0 where a column is all NaN)."""
+    out = values.copy()
+    idx = np.arange(len(values))
+    for c in range(values.shape[1]):
+        good = np.isfinite(values[:, c])
+        if not good.any():
+            out[:, c] = 0.0
+        elif not good.all():
+            out[~good, c] = np.interp(idx[~good], idx[good], values[good, c])
+    return out
+
+
+# ----------------------------------------------------------------------------- the fit
+def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUST_SCALE,
+        smoothing: float = SMOOTHING, max_iter: int = 40, chunk: int = CHUNK) -> Motion:
+    """Fit the calibrated model's joint angles to every frame of ``trial``.
+
+    Parameters
+    ----------
+    trial : Trial with the model's protocol labels (matched as :func:`match_protocol` does).
+    model : SubjectModel from :func:`mocaplib.calibrate.calibrate`.
+    robust_scale : soft-L1 scale, metres; ``np.inf`` for plain least squares.
+    smoothing : continuity weight μ (metres per radian); 0 switches it off.
+    max_iter : LM iterations per chunk of frames.
+    chunk : frames solved together.
+
+    Returns
+    -------
+    Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than 3 pelvis
+    markers, or no convergence) whose angles are interpolated from their neighbours, and the
+    model's locked DOFs (held at 0).
+    """
+    markers = model_markers(trial, model)
+    n_frames = trial.n_frames
+    if n_frames == 0:
+        raise FitError("the trial has no frames", path=trial.source)
+    free = np.array([name not in model.locked_dofs for name in DOF_NAMES])
+    q = np.zeros((n_frames, len(DOF_NAMES)))
+    residuals = np.full((n_frames, len(model.labels)), np.nan)
+    converged = np.zeros(n_frames, dtype=bool)
+    for start in range(0, n_frames, chunk):
+        part = slice(start, min(start + chunk, n_frames))
+        q0 = initial_pose(model.skeleton, markers[part], model.marker_segments,
+                          model.marker_offsets)
+        q0[:, ~free] = 0.0
+        res = solve_poses(model.skeleton, markers[part], model.marker_segments,
+                          model.marker_offsets, q0=q0, free=free, robust_scale=robust_scale,
+                          smoothing=smoothing, max_iter=max_iter)
+        q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
+    pelvis_seen = np.isfinite(markers[:, model.marker_segments == _ROOT, 0]).sum(axis=1)
+    failed = (pelvis_seen < 3) | ~converged
+    if failed.all():
+        raise FitError("no frame could be fitted (fewer than 3 pelvis markers everywhere)",
+                       path=trial.source, hint="check the protocol matches the labels")
+    if failed.any():
+        q[failed] = np.nan
+        q = _fill_gaps(q)
+        q[:, ~free] = 0.0
+    return Motion(angles_frame(q, trial.rate), model.skeleton, trial.rate,
+                  marker_labels=list(model.labels), residuals=residuals, failed=failed,
+                  locked_dofs=list(model.locked_dofs),
+                  marker_segments=np.array(model.marker_segments),
+                  marker_offsets=np.array(model.marker_offsets), source=trial.source)
+
+
+def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
+    """The trial's markers in the model's order, shape (F, M, 3), NaN where absent."""
+    match = match_protocol(trial, model.protocol)
+    order = [model.protocol.labels.index(label) for label in model.labels]
+    found = sum(match.indices[j] >= 0 for j in order)
+    if found == 0:
+        raise FitError(f"none of the model's markers ({', '.join(model.labels[:8])}...) is in "
+                       "the trial", path=trial.source,
+                       hint=f"calibrate with the trial's protocol, not {model.protocol.name!r}")
+    return match.markers(trial)[:, order]
