@@ -41,6 +41,7 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+import c3d
 import numpy as np
 
 from ..errors import C3DError
@@ -88,6 +89,7 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
     notes.extend(axis_notes)
     if axis == "Y":
         markers = y_up_to_z_up(markers)
+        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
 
     return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
                  vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
@@ -128,36 +130,37 @@ def _check_header(data: bytes, path: Path) -> None:
 
 
 # ----------------------------------------------------------------------------- parameters
-def _c3d_reader_class():
-    import c3d
+class _Reader(c3d.Reader):
+    """``c3d.Reader`` without its analog/point consistency assertions (see the module doc)."""
 
-    class _Reader(c3d.Reader):
-        """``c3d.Reader`` without its analog/point consistency assertions (see module doc)."""
-
-        def _check_metadata(self):
-            pass
-
-    return _Reader
+    def _check_metadata(self):
+        pass
 
 
-def _parse_parameters(data: bytes, path: Path):
+def _parse_parameters(data: bytes, path: Path) -> _Reader:
     """Header and parameters through the ``c3d`` package (with the adapter for its refusals)."""
-    reader_class = _c3d_reader_class()
-    for attempt in range(2):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                return reader_class(io.BytesIO(data))
-        except KeyError as exc:
-            if attempt == 0 and "already exists" in str(exc):
-                data = move_duplicate_parameters(data)
-                continue
-            raise C3DError(f"corrupt parameter section ({exc})", path=path) from None
-        except Exception as exc:  # the package raises assorted exceptions on corrupt input
-            raise C3DError(f"corrupt header or parameter section "
-                           f"({type(exc).__name__}: {exc})", path=path,
-                           hint="the file is truncated or corrupt") from None
-    raise AssertionError("unreachable")
+    try:
+        return _new_reader(data)
+    except KeyError as exc:
+        if "already exists" not in str(exc):
+            raise _corrupt(exc, path) from None
+    except Exception as exc:  # the package raises assorted exceptions on corrupt input
+        raise _corrupt(exc, path) from None
+    try:
+        return _new_reader(move_duplicate_parameters(data))
+    except Exception as exc:
+        raise _corrupt(exc, path) from None
+
+
+def _new_reader(data: bytes) -> _Reader:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the package warns about files it reads fine
+        return _Reader(io.BytesIO(data))
+
+
+def _corrupt(exc: Exception, path: Path) -> C3DError:
+    return C3DError(f"corrupt header or parameter section ({type(exc).__name__}: {exc})",
+                    path=path, hint="the file is truncated or corrupt")
 
 
 def move_duplicate_parameters(data: bytes) -> bytes:
