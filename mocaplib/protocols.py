@@ -194,7 +194,12 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
         base = data["extends"]
         if not isinstance(base, str):
             raise ProtocolError("'extends' must be a protocol name or path", path=path)
-        parent = _load_protocol(_protocol_path(base), parents + (key,))
+        try:
+            parent_path = _protocol_path(base)
+        except ProtocolError as exc:
+            raise ProtocolError(f"extends {base!r}: {exc.message}", path=path,
+                                hint=exc.hint) from None
+        parent = _load_protocol(parent_path, parents + (key,))
         markers = {m.label: m for m in parent.markers}
         groups = dict(parent.any_of)
     landmarks = load_landmarks()

@@ -1,0 +1,57 @@
+"""``mocaplib inspect``: what is in each C3D file (frames, rate, protocol, gaps, events, warnings).
+
+Only parses options and formats: the per-file work is :func:`mocaplib.inspection.inspect_c3d`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "inspect", help="summarise C3D files: frames, rate, units, protocol, gaps, events",
+        description="For each C3D file (folders are searched for *.c3d): frames, rate, "
+                    "duration, units, vertical axis, the marker-set protocol matched and its "
+                    "missing required landmarks, each marker's gap percentage and longest gap, "
+                    "events, and warnings (left/right swaps, duplicate labels, model outputs). "
+                    "Exit 0 when every file was read, 1 when some could not be, 2 on usage "
+                    "errors (including an unknown or malformed --protocol).")
+    parser.add_argument("inputs", nargs="+", metavar="FILE", help="C3D files or folders")
+    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
+                             "(default: the best shipped protocol for each file)")
+    parser.add_argument("--json", action="store_true",
+                        help="print a JSON list, one object per file, instead of tables")
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..errors import MocapError, ProtocolError
+    from ..inspection import failed_summary, format_summary, inspect_c3d
+    from ..protocols import load_protocol
+    from ._common import expand_inputs, print_json
+
+    protocol = args.protocol
+    if protocol != "auto":
+        try:
+            protocol = load_protocol(protocol)
+        except ProtocolError as exc:
+            print(f"mocaplib inspect: error: --protocol: {exc}", file=sys.stderr)
+            return 2
+    summaries = []
+    for item in args.inputs:
+        try:
+            files = expand_inputs([item])
+        except MocapError as exc:
+            summaries.append(failed_summary(item, exc))
+            continue
+        summaries.extend(inspect_c3d(path, protocol=protocol) for path in files)
+    if args.json:
+        print_json(summaries)
+    else:
+        print("\n\n".join(format_summary(s) for s in summaries))
+    failed = [s for s in summaries if not s["ok"]]
+    for s in failed:
+        print(f"mocaplib inspect: {s['error']}", file=sys.stderr)
+    return 1 if failed else 0

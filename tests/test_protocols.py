@@ -1,0 +1,221 @@
+"""Marker-set protocols: loading, matching, model outputs, detection and left/right swaps."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+
+from conftest import real_file, real_files, SHARED_C3D
+from protocol_trials import walker_trial
+
+from mocaplib.errors import ProtocolError
+from mocaplib.io.c3d import read_c3d
+from mocaplib.protocols import (detect_protocol, find_side_swaps, is_model_output,
+                                list_protocols, load_protocol, match_protocol)
+from mocaplib.trial import Trial
+
+#: The protocol each real file must be detected as (see protocols/*.toml and SOURCES.md).
+EXPECTED = {
+    "biomechzoo/HC030A01.c3d": "plugin_gait_ofm",
+    "biomechzoo/HC030A05.c3d": "plugin_gait_ofm",
+    "biomechzoo/HC030A22.c3d": "plugin_gait_ofm",
+    "btkdata/Gait.c3d": "helen_hayes",
+    "btkdata/PiG_Calibration-FlatFoot-One.c3d": "plugin_gait",
+    "btkdata/PiG_Calibration2-NoOption.c3d": "plugin_gait",
+    "btkdata/PiG_Motion-FlatFoot-Full.c3d": "plugin_gait",
+    "c3dviewer_examples/running.c3d": "pig_running30",
+    "cmu/07_01.c3d": "plugin_gait",
+    "cmu/07_12.c3d": "plugin_gait",
+    "cmu/16_07.c3d": "plugin_gait",
+    "ezc3d_testfiles/BTS.c3d": "bts_cluster",
+    "ezc3d_testfiles/FP_Type1.c3d": "bts_davis",
+    "ezc3d_testfiles/Qualisys.c3d": "qualisys_cast",
+    "motonms_unipd/Static1.c3d": "padova30",
+    "motonms_unipd/Walking1.c3d": "padova30",
+    "motonms_unipd/Walking3.c3d": "padova30",
+}
+
+
+@lru_cache(maxsize=None)
+def _real(relative: str) -> Trial:
+    return read_c3d(real_file(relative))
+
+
+# ---------------------------------------------------------------- shipped files
+def test_every_shipped_protocol_loads_and_every_required_landmark_set_is_usable():
+    names = list_protocols()
+    assert set(EXPECTED.values()) | {"fullbody38"} == set(names)
+    for name in names:
+        protocol = load_protocol(name)
+        assert protocol.name == name
+        sides = {m.landmark.name[:2] for m in protocol.markers if m.required}
+        # the pipeline needs both sides: shoulders, pelvis, knee, heel on L_ and R_
+        assert {"L_", "R_"} <= sides, name
+        required = {m.landmark.name for m in protocol.markers if m.required}
+        assert {"L_ACROMION", "R_ACROMION", "L_KNEE_LAT", "R_KNEE_LAT", "L_HEEL",
+                "R_HEEL"} <= required, name
+
+
+def test_extends_inherits_and_overrides():
+    ofm, pig = load_protocol("plugin_gait_ofm"), load_protocol("plugin_gait")
+    assert set(pig.labels) <= set(ofm.labels)
+    assert dict(ofm.any_of)["pelvis_back"] == ("LPSI", "RPSI", "SACR")
+    # OFM has its own shin marker, so the overriding LTIB entry drops PiG's LSHN alias
+    assert "LSHN" in pig.marker("LTIB").keys and ofm.marker("LTIB").aliases == ()
+    assert ofm.marker("LSHN").landmark.name == "L_SHIN"
+
+
+# ---------------------------------------------------------------- real files
+def test_every_real_file_has_an_expected_protocol():
+    found = {p.relative_to(SHARED_C3D).as_posix() for p in real_files()}
+    if not found:
+        pytest.skip("real C3D files absent")
+    assert found == set(EXPECTED)
+
+
+@pytest.mark.parametrize("relative", sorted(EXPECTED))
+def test_real_file_detects_its_protocol_with_all_required_landmarks(relative):
+    trial = _real(relative)
+    match = detect_protocol(trial)
+    assert match.protocol.name == EXPECTED[relative]
+    assert match.complete, match.missing_landmarks
+    assert match.missing_landmarks == []
+    if relative == "motonms_unipd/Walking3.c3d":
+        assert len(match.swaps) == 1 and match.swaps[0].startswith(
+            "left/right swap suspected: LA (labelled left)")
+    else:
+        assert match.swaps == (), match.swaps
+
+
+def test_walking3_swap_is_reported_not_fixed():
+    trial = _real("motonms_unipd/Walking3.c3d")
+    before = trial.markers.copy()
+    match = detect_protocol(trial)
+    assert any("LA (labelled left)" in w and "RA" in w for w in match.warnings)
+    # LA is still the marker labelled LA in the file
+    assert match.protocol.labels.index("LA") >= 0
+    np.testing.assert_array_equal(match.marker(trial, "LA"), before[:, trial.index("LA")])
+    np.testing.assert_array_equal(trial.markers, before)
+
+
+def test_pig_model_outputs_are_ignored_not_unknown():
+    trial = _real("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+    match = detect_protocol(trial)
+    for label in ("PELO", "PELA", "LFEO", "TRXP", "CentreOfMass"):
+        assert label in match.ignored
+    assert match.unknown == ()
+    zoo = detect_protocol(_real("biomechzoo/HC030A22.c3d"))
+    assert {"*179", "LHJC", "LHLX0", "LTIB1", "CentreOfMassFloor"} <= set(zoo.ignored)
+    assert zoo.unknown == ("JUG",)  # a label we cannot classify stays visible
+
+
+def test_duplicates_flagged_and_first_occurrence_used():
+    trial = _real("btkdata/Gait.c3d")
+    match = detect_protocol(trial)
+    assert set(match.duplicates) == {"RKNE", "RANK", "LKNE", "LANK", "RFOO", "LFOO"}
+    rkne = [i for i, label in enumerate(trial.labels) if label == "RKNE"]
+    assert match.indices[match.protocol.labels.index("RKNE")] == rkne[0] < rkne[1]
+    # LFOO is a real marker in this set even though PiG uses the name for a model output
+    assert "LFOO" not in match.ignored
+    assert any("duplicate labels" in w for w in match.warnings)
+
+
+def test_cmu_subject_prefix_and_aliases():
+    match = detect_protocol(_real("cmu/07_12.c3d"))
+    assert match.protocol.name == "plugin_gait" and match.found == 41
+    assert match.unknown == ("liu:RWRB-1",)
+
+
+# ---------------------------------------------------------------- synthetic trials
+def test_labels_match_across_prefixes_spaces_and_case():
+    protocol = load_protocol("bts_davis")
+    labels = [f"Subject 1:{label.upper().replace(' ', '_')}" for label in protocol.labels]
+    match = match_protocol(walker_trial(protocol, labels=labels), protocol)
+    assert match.found == len(protocol.markers) and match.complete
+
+
+@pytest.mark.parametrize("heading", [0.0, 2.5, -1.2, np.pi])
+def test_swap_found_whichever_way_the_subject_faces(heading):
+    protocol = load_protocol("plugin_gait")
+    assert find_side_swaps(walker_trial(protocol, heading=heading),
+                           match_protocol(walker_trial(protocol), protocol)) == ()
+    for left, right in (("LSHO", "RSHO"), ("LASI", "RASI"), ("LPSI", "RPSI")):
+        labels = protocol.labels
+        i, j = labels.index(left), labels.index(right)
+        labels[i], labels[j] = labels[j], labels[i]
+        match = match_protocol(walker_trial(protocol, heading=heading, labels=labels), protocol)
+        assert len(match.swaps) == 1 and f"{left} (labelled left)" in match.swaps[0]
+
+
+def test_no_false_swap_when_standing_still_or_walking_backwards():
+    protocol = load_protocol("fullbody38")
+    for speed in (0.0, -1.0):
+        match = match_protocol(walker_trial(protocol, heading=1.0, speed=speed), protocol)
+        assert match.swaps == ()
+
+
+def test_detection_prefers_the_complete_then_tighter_protocol():
+    # fullbody38's 38 labels are all in plugin_gait too: the tie goes to the full match
+    assert detect_protocol(walker_trial(load_protocol("fullbody38"))).protocol.name == "fullbody38"
+    running = load_protocol("pig_running30")
+    assert detect_protocol(walker_trial(running)).protocol.name == "pig_running30"
+    # without the shoulders no protocol is complete; the best is still returned, flagged
+    pig = load_protocol("plugin_gait")
+    keep = [i for i, label in enumerate(pig.labels) if label not in ("LSHO", "RSHO")]
+    match = detect_protocol(walker_trial(pig).select(keep))
+    assert not match.complete and set(match.missing_landmarks) >= {"L_ACROMION", "R_ACROMION"}
+
+
+def test_model_output_patterns():
+    for label in ("LHipAngles", "Bastian:RKneeMoment", "LGroundReactionForce", "PELO", "HEDA",
+                  "*12", "CentreOfMass", "LHJC", "Justin_Nancy:LFEM12", "RNormalisedGRF"):
+        assert is_model_output(label), label
+    for label in ("LASI", "T10", "C7", "L_FM1", "r bar 1", "RFHD", "SCR1", "LA", "LFIN"):
+        assert not is_model_output(label), label
+
+
+def test_no_protocol_matches_raises():
+    trial = Trial(np.zeros((2, 2, 3)), ["foo", "bar"], 100.0, source="x.c3d")
+    with pytest.raises(ProtocolError, match=r"x\.c3d: no protocol matches any marker label"):
+        detect_protocol(trial)
+
+
+# ---------------------------------------------------------------- malformed protocol files
+@pytest.mark.parametrize("text, message", [
+    ("[markers\nLASI = 1", "not valid TOML"),
+    ('name = "x"\n', r"no \[markers\] table"),
+    ('[markers]\nLASI = { landmark = "L_NOPE" }\n', "unknown landmark 'L_NOPE'"),
+    ('[markers]\nLASI = { landmark = "L_ASIS", required = "yes" }\n', "required must be"),
+    ('[markers]\nLASI = { landmark = "L_ASIS", aliases = "RASI" }\n', "aliases must be"),
+    ('[markers]\nLASI = "L_ASIS"\nRASI = { landmark = "R_ASIS", aliases = ["lasi"] }\n',
+     "used twice: LASI"),
+    ('[markers]\nLASI = "L_ASIS"\n[any_of]\nback = ["LPSI"]\n', r"\[any_of\] 'back'"),
+    ('extends = "nope"\n[markers]\nLASI = "L_ASIS"\n', "extends 'nope': unknown protocol"),
+])
+def test_malformed_protocol_names_the_file(tmp_path, text, message):
+    path = tmp_path / "lab_set.toml"
+    path.write_text(text)
+    with pytest.raises(ProtocolError, match=message) as info:
+        load_protocol(path)
+    assert str(info.value).startswith(str(path))
+
+
+def test_extends_loop_is_an_error(tmp_path):
+    (tmp_path / "a.toml").write_text(f'extends = "{tmp_path / "b.toml"}"\n[markers]\nC7 = "C7"\n')
+    (tmp_path / "b.toml").write_text(f'extends = "{tmp_path / "a.toml"}"\n[markers]\nT10 = "T10"\n')
+    with pytest.raises(ProtocolError, match="loops back"):
+        load_protocol(tmp_path / "a.toml")
+
+
+def test_a_technicians_protocol_file(tmp_path):
+    path = tmp_path / "mylab.toml"
+    path.write_text('name = "mylab"\n[markers]\n'
+                    'LSHOULDER = { landmark = "L_ACROMION", required = true }\n'
+                    'RSHOULDER = { landmark = "R_ACROMION", required = true }\n'
+                    'LHIP = { landmark = "L_ASIS", required = true, aliases = ["LASI"] }\n')
+    protocol = load_protocol(path)
+    trial = walker_trial(protocol, labels=["lab:L_Shoulder", "lab:R shoulder", "LASI"])
+    match = match_protocol(trial, protocol)
+    assert match.complete and match.found == 3 and match.swaps == ()
