@@ -248,6 +248,64 @@ def test_decode_integer_storage_for_each_processor(processor, dtype):
     np.testing.assert_array_equal(got, expected * 0.5)  # exact: int16 x power of two
 
 
+def convert_processor(data: bytes, processor: str) -> bytes:
+    """Test-side converter of an Intel float C3D (as written by write_c3d) to DEC or MIPS.
+
+    MIPS swaps the bytes of every 16-bit integer and 32-bit float; DEC keeps integers and
+    re-encodes floats as VAX F-floats. Header, parameter records and the data block are walked.
+    """
+    out = bytearray(data)
+
+    def floats(at: int, count: int) -> None:
+        values = np.frombuffer(data, "<f4", count, at)
+        encoded = values.astype(">f4") if processor == "MIPS" else ieee_to_dec_words(values)
+        out[at:at + 4 * count] = encoded.astype(">f4" if processor == "MIPS" else "<u4").tobytes()
+
+    def ints(at: int, count: int) -> None:
+        if processor == "MIPS":
+            out[at:at + 2 * count] = np.frombuffer(data, "<i2", count, at).astype(">i2").tobytes()
+
+    ints(2, 5), floats(12, 1), ints(16, 2), floats(20, 1), ints(298, 3)
+    start = (data[0] - 1) * 512
+    out[start + 3] = {"MIPS": 86, "DEC": 85}[processor]
+    position = start + 4
+    while data[position] != 0:
+        length, group = struct.unpack_from("bb", data, position)
+        offset_at = position + 2 + abs(length)
+        offset, = struct.unpack_from("<h", data, offset_at)
+        ints(offset_at, 1)
+        if group > 0:
+            element, dims = struct.unpack_from("bB", data, offset_at + 2)
+            count = int(np.prod(list(data[offset_at + 4:offset_at + 4 + dims])))
+            body = offset_at + 4 + dims
+            if element == 2:
+                ints(body, count)
+            elif element == 4:
+                floats(body, count)
+        if offset <= 0:
+            break
+        position = offset_at + offset
+    data_start = (struct.unpack_from("<H", data, 16)[0] - 1) * 512
+    floats(data_start, (len(data) - data_start) // 4)
+    return bytes(out)
+
+
+@pytest.mark.parametrize("processor", ["DEC", "MIPS"])
+def test_whole_file_in_other_processor_formats(tmp_path, processor):
+    intel, other = tmp_path / "intel.c3d", tmp_path / f"{processor}.c3d"
+    intel.write_bytes(SMALL)
+    other.write_bytes(convert_processor(SMALL, processor))
+    expected, got = read_c3d(intel), read_c3d(other)
+    assert (got.labels, got.rate, got.first_frame, got.units) == \
+        (expected.labels, expected.rate, expected.first_frame, expected.units)
+    assert got.events == expected.events
+    np.testing.assert_array_equal(got.markers, expected.markers)  # same float32 values
+    if processor == "DEC":  # ezc3d reads DEC (not MIPS): an independent check of the converter
+        ezc3d = pytest.importorskip("ezc3d")
+        points = ezc3d.c3d(str(other))["data"]["points"][:3].transpose(2, 1, 0) * 1e-3
+        np.testing.assert_allclose(got.markers, points, atol=1e-12, equal_nan=True)
+
+
 # ----------------------------------------------------------------------------- vertical axis
 def standing_person(frames=50, seed=5):
     """A crude 1.7 m person walking along +X, Z up: (F, 20, 3) metres."""

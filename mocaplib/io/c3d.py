@@ -265,7 +265,7 @@ def _point_layout(reader, file_size: int, path: Path) -> PointLayout:
     except Exception as exc:  # corrupt parameter values the package cannot convert
         raise C3DError(f"corrupt POINT parameters ({type(exc).__name__}: {exc})",
                        path=path) from None
-    if not (np.isfinite(rate) and 0 < rate < 1e6):
+    if not (np.isfinite(rate) and 0.1 <= rate < 1e6):
         raise C3DError(f"nonsense frame rate {rate} Hz", path=path, hint="the file is corrupt")
     if not np.isfinite(scale) or scale == 0:
         raise C3DError(f"nonsense POINT:SCALE {scale}", path=path, hint="the file is corrupt")

@@ -84,7 +84,7 @@ def c3d_bytes(markers, labels: Sequence[str], rate: float, /, *, events: Sequenc
     point.add_str("DESCRIPTIONS", "Point descriptions", " " * descriptions, 1, descriptions)
     writer.set_start_frame(first_frame)
     if events:
-        _add_event_group(writer, events)
+        _add_event_group(writer, events, path)
 
     frames = np.zeros(markers.shape[:2] + (5,))
     frames[..., :3] = np.where(valid[..., None], values, 0.0)
@@ -149,10 +149,11 @@ def _add_string_param(group, name: str, desc: str, texts: Sequence[str]) -> None
                     dimensions=[width, len(texts)])
 
 
-def _add_event_group(writer, events: Sequence[Event]) -> None:
+def _add_event_group(writer, events: Sequence[Event], path) -> None:
     events = sorted(events, key=lambda e: (e.time_s, e.context, e.label))
     if len(events) > 255:
-        raise C3DError(f"a C3D EVENT group holds at most 255 events, got {len(events)}")
+        raise C3DError(f"a C3D EVENT group holds at most 255 events, got {len(events)}",
+                       path=path)
     count = len(events)
     styles = [_EVENT_STYLE.get(e.label.strip().lower(), (0, 1, "")) for e in events]
     group = writer.add_group(writer.numeric_key_next, "EVENT", "Event group")
