@@ -1,0 +1,130 @@
+"""``mocaplib inspect``: per-file summary (library) and the command line (JSON, table, exit codes)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import real_file
+from protocol_trials import walker_trial
+
+from mocaplib.cli import main
+from mocaplib.inspection import SUMMARY_KEYS, inspect_c3d, inspect_trial
+from mocaplib.io.c3d_write import write_c3d
+from mocaplib.protocols import load_protocol
+from mocaplib.trial import Event
+
+REQUIRED_KEYS = {"file", "ok", "error", "frames", "rate_hz", "units", "vertical_axis", "labels",
+                 "protocol", "missing_landmarks", "warnings", "events"}
+
+
+@pytest.fixture
+def capture(tmp_path):
+    """A 60-frame plugin_gait capture with a 12-frame hole in LTOE and two events."""
+    trial = walker_trial(load_protocol("plugin_gait"), n_frames=60)
+    markers = trial.markers.copy()
+    markers[20:32, trial.index("LTOE")] = np.nan
+    markers[5:8, trial.index("C7")] = np.nan
+    events = [Event("Left", "Foot Off", 0.10), Event("Right", "Foot Strike", 0.25)]
+    return write_c3d(tmp_path / "walk.c3d", markers, trial.labels, 100.0, events=events)
+
+
+def _cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    return code, out, err
+
+
+def test_summary_of_a_written_capture(capture):
+    summary = inspect_c3d(capture)
+    assert tuple(summary) == SUMMARY_KEYS and REQUIRED_KEYS <= set(summary)
+    assert summary["ok"] and summary["error"] is None
+    assert (summary["frames"], summary["rate_hz"], summary["units"]) == (60, 100.0, "mm")
+    assert summary["protocol"] == "plugin_gait" and summary["missing_landmarks"] == []
+    gaps = {m["label"]: m for m in summary["markers"]}
+    assert gaps["LTOE"]["longest_gap_frames"] == 12 and gaps["C7"]["longest_gap_frames"] == 3
+    # 12 of 60 frames missing is 20 %; 1e-9 only absorbs float rounding
+    np.testing.assert_allclose(gaps["LTOE"]["gap_pct"], 20.0, atol=1e-9)
+    np.testing.assert_allclose(gaps["LTOE"]["longest_gap_s"], 0.12, atol=1e-9)
+    assert gaps["LASI"]["gap_pct"] == 0.0 and gaps["LASI"]["landmark"] == "L_ASIS"
+    assert [(e["context"], e["label"]) for e in summary["events"]] == [
+        ("Left", "Foot Off"), ("Right", "Foot Strike")]
+    # event times go through the file as float32: 1e-6 s is far below a frame (10 ms)
+    np.testing.assert_allclose([e["time_s"] for e in summary["events"]], [0.10, 0.25], atol=1e-6)
+
+
+def test_json_output_and_exit_0(capsys, capture):
+    code, out, _ = _cli(capsys, "inspect", "--json", str(capture))
+    assert code == 0
+    (entry,) = json.loads(out)
+    assert REQUIRED_KEYS <= set(entry) and entry["ok"] is True
+    assert entry["protocol"] == "plugin_gait"
+
+
+def test_bad_file_exit_1_with_reason_and_no_traceback(capsys, capture, tmp_path):
+    bad = tmp_path / "notes.c3d"
+    bad.write_text("this is not a C3D file, just some notes from the session\n" * 20)
+    code, out, err = _cli(capsys, "inspect", "--json", str(capture), str(bad),
+                          str(tmp_path / "missing.c3d"))
+    assert code == 1
+    good, broken, missing = json.loads(out)
+    assert good["ok"] and not broken["ok"] and not missing["ok"]
+    assert REQUIRED_KEYS <= set(broken) and broken["frames"] is None
+    assert "notes.c3d" in broken["error"] and "missing.c3d" in missing["error"]
+    assert "notes.c3d" in err
+    code, out, err = _cli(capsys, "inspect", str(bad))
+    assert code == 1 and "FAILED" in out
+
+
+def test_usage_errors_exit_2(capsys, capture, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main(["inspect"])
+    assert info.value.code == 2
+    code, _, err = _cli(capsys, "inspect", "--protocol", "no_such_set", str(capture))
+    assert code == 2 and "unknown protocol 'no_such_set'" in err
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[markers]\nLASI = { landmark = 'L_ASIS' \n")
+    code, _, err = _cli(capsys, "inspect", "--protocol", str(broken), str(capture))
+    assert code == 2 and "broken.toml" in err
+
+
+def test_explicit_protocol_and_table(capsys, capture, tmp_path):
+    code, out, _ = _cli(capsys, "inspect", "--protocol", "fullbody38", str(capture))
+    assert code == 0
+    assert "protocol fullbody38: 38/38 markers; missing required landmarks: none" in out
+    assert "LTOE" in out and "0.12 s (12 frames)" in out
+    assert "4 labels not in protocol fullbody38" in out  # RBAK LFIN RFIN SACR
+
+
+def test_swap_and_model_outputs_reach_the_warnings():
+    protocol = load_protocol("plugin_gait")
+    labels = protocol.labels
+    i, j = labels.index("LSHO"), labels.index("RSHO")
+    labels[i], labels[j] = "RSHO", "LSHO"
+    trial = walker_trial(protocol, labels=labels)
+    markers = np.concatenate([trial.markers, trial.markers[:, :2]], axis=1)
+    trial = type(trial)(markers, labels + ["LHipAngles", "PELO"], trial.rate)
+    summary = inspect_trial(trial)
+    assert summary["swaps"] and "LSHO (labelled left)" in summary["swaps"][0]
+    assert summary["ignored_points"] == ["LHipAngles", "PELO"]
+    assert {m["label"] for m in summary["markers"]}.isdisjoint({"LHipAngles", "PELO"})
+    assert any("model-output" in w for w in summary["warnings"])
+
+
+def test_real_files_walking3_and_gait(capsys):
+    walking3 = real_file("motonms_unipd/Walking3.c3d")
+    gait = real_file("btkdata/Gait.c3d")
+    code, out, _ = _cli(capsys, "inspect", "--json", str(walking3), str(gait))
+    assert code == 0
+    w3, g = json.loads(out)
+    assert (w3["protocol"], w3["vertical_axis"], w3["frames"]) == ("padova30", "Y", 294)
+    assert any("LA (labelled left)" in w for w in w3["warnings"])
+    assert w3["events"][0] == {"context": "Right", "label": "Foot Strike",
+                               "time_s": pytest.approx(2.25, abs=1e-6)}
+    assert g["protocol"] == "helen_hayes" and set(g["duplicates"]) >= {"RKNE", "LFOO"}
+    # shoulders valid in 40 % of frames (SOURCES.md): at least 55 % missing
+    rsho = next(m for m in g["markers"] if m["label"] == "RSHO")
+    assert rsho["gap_pct"] > 55
