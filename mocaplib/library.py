@@ -462,17 +462,16 @@ def _control_space_problems(doc: dict) -> list[Problem]:
 
 
 # --------------------------------------------------------------------------- JSON text
-def to_json_data(obj):
-    """``obj`` with numpy values as Python ones and floats rounded to 10 significant digits.
-
-    Non-finite floats become None (JSON null). Dict keys become strings.
+def to_json_data(obj, digits: int = _SIGNIFICANT):
+    """``obj`` with numpy values as Python ones and floats rounded to ``digits`` significant
+    digits (10 by default). Non-finite floats become None (JSON null). Dict keys become strings.
     """
     if isinstance(obj, dict):
-        return {str(k): to_json_data(v) for k, v in obj.items()}
+        return {str(k): to_json_data(v, digits) for k, v in obj.items()}
     if isinstance(obj, np.ndarray):
-        return to_json_data(obj.tolist())
+        return to_json_data(obj.tolist(), digits)
     if isinstance(obj, (list, tuple)):
-        return [to_json_data(v) for v in obj]
+        return [to_json_data(v, digits) for v in obj]
     if isinstance(obj, (bool, np.bool_)):
         return bool(obj)
     if isinstance(obj, (int, np.integer)):
@@ -481,7 +480,7 @@ def to_json_data(obj):
         value = float(obj)
         if not math.isfinite(value):
             return None
-        return float(format(value, f".{_SIGNIFICANT}g"))
+        return float(format(value, f".{digits}g"))
     if obj is None or isinstance(obj, str):
         return obj
     raise LibraryError(f"cannot store a {type(obj).__name__} in a library file")

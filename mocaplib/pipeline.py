@@ -37,6 +37,8 @@ DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 DIAGNOSTICS_VERSION = 1
 #: Long series in the diagnostics are downsampled to at most this many points.
 MAX_SERIES_POINTS = 300
+#: Significant digits of the diagnostics' numbers (plots need no more).
+DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 20
 
@@ -369,7 +371,7 @@ def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
                     "fourier_n": c.encoding.order if c.encoding else None}
                    for c in cycles],
         "angles": angles,
-    })
+    }, DIAGNOSTICS_DIGITS)
 
 
 def locomotion_class(path: Path, rest: bool) -> str | None:
@@ -445,7 +447,7 @@ class BuildResult:
                            "warnings": list(c.warnings)})
             records.append(record)
         return to_json_data({"format": DIAGNOSTICS_FORMAT, "version": DIAGNOSTICS_VERSION,
-                             "library": library_name, "captures": records})
+                             "library": library_name, "captures": records}, DIAGNOSTICS_DIGITS)
 
     def write(self, path: str | os.PathLike) -> tuple[Path, Path]:
         """Write the library and ``<stem>.diagnostics.json`` beside it (both atomically)."""
