@@ -72,9 +72,9 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
     units, to_metres = _point_units(reader, path, notes)
     markers = decode_points(data, layout, factor=to_metres)
 
-    dropped = _model_outputs(reader, path)
-    if dropped:
-        keep = [i for i, label in enumerate(labels) if label not in dropped]
+    declared = _model_outputs(reader, path)
+    keep = [i for i, label in enumerate(labels) if label not in declared]
+    if len(keep) < len(labels):
         notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
                      f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
         labels = [labels[i] for i in keep]
@@ -410,7 +410,7 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)``; and notes.
 
     Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames each
-    marker is taken relative to the frame's median marker; the axis with the widest spread of
+    marker is taken relative to the frame's mean marker; the axis with the widest spread of
     those offsets (10th to 90th percentile) is the body's long axis, i.e. vertical. It must beat
     the next axis by 25 %; otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides,
     and Z without it. When POINT:Y_SCREEN names another axis than the data, the data win and a
@@ -427,7 +427,7 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     if len(sample):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            offsets = (sample - np.nanmedian(sample, axis=1, keepdims=True)).reshape(-1, 3)
+            offsets = (sample - np.nanmean(sample, axis=1, keepdims=True)).reshape(-1, 3)
         offsets = offsets[np.isfinite(offsets).all(axis=1)]
         if len(offsets) >= 10:
             low, high = np.percentile(offsets, [10, 90], axis=0)
