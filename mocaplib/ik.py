@@ -65,7 +65,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 offsets: np.ndarray, /, *, q0: np.ndarray | None = None,
                 free: np.ndarray | None = None, weights: np.ndarray | None = None,
                 robust_scale: float = ROBUST_SCALE, smoothing: float = SMOOTHING,
-                max_iter: int = 40, tol: float = 1e-7) -> PoseFit:
+                max_iter: int = 40, tol: float = 1e-5, step_tol: float = 1e-4) -> PoseFit:
     """Fit joint coordinates to markers for every frame at once.
 
     Parameters
@@ -78,8 +78,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     weights : ndarray, shape (M,) or (F, M), optional. Marker weights (default 1).
     robust_scale : soft-L1 scale c, metres (``np.inf`` for plain least squares).
     smoothing : continuity weight μ (0 switches it off).
-    max_iter, tol : iteration limit; a frame has converged when its cost falls by less than
-        ``tol`` (relative) and its step is below 1e-6.
+    max_iter, tol, step_tol : iteration limit; a frame has converged when its cost falls by
+        less than ``tol`` (relative) or its largest step is below ``step_tol`` (rad or m).
     """
     markers = np.asarray(markers, dtype=np.float64)
     n_frames, n_markers = markers.shape[:2]
@@ -141,7 +141,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             moved = np.abs(trial_q[better] - qa[good]).max(axis=1)
             q[rows[good]] = trial_q[better]
             lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-7)
-            done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < 1e-6)
+            done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < step_tol)
             active[rows[good[done]]] = False
             lam[rows[k[~better]]] *= 4.0
             todo[good] = False

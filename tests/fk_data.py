@@ -9,6 +9,8 @@ follow the motion of the joint driving the segment) and white measurement noise.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from mocaplib.protocols import load_protocol
@@ -57,10 +59,21 @@ def gait_angles(n_frames: int, rate: float, *, speed: float = 1.2, cadence_hz: f
     return q
 
 
+@dataclass
+class FKCapture:
+    """A synthetic trial and its truth: q (F, D), skeleton, marker segments (M,), offsets (M, 3)."""
+
+    trial: Trial
+    q: np.ndarray
+    skeleton: Skeleton
+    segments: np.ndarray
+    offsets: np.ndarray
+
+
 def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float = 100.0,
              height: float = 1.70, placement_mm: float = 4.0, sta_mm: float = 6.0,
              noise_mm: float = 1.0, seed: int = 0):
-    """A Trial of noisy FK markers, the true q (F, D) and the true skeleton.
+    """An FKCapture: a Trial of noisy FK markers and the truth that made it.
 
     placement_mm: SD of each marker's fixed placement error; sta_mm: amplitude of the
     soft-tissue artefact; noise_mm: SD of white noise per coordinate.
@@ -84,4 +97,4 @@ def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float =
     X = np.einsum("fmij,fmj->fmi", T[..., :3, :3], local) + T[..., :3, 3]
     X = X + rng.normal(0, noise_mm / 1000, X.shape)
     trial = Trial(X, proto.labels, rate, source=f"fk_{protocol}_{seed}.c3d")
-    return trial, q, skeleton
+    return FKCapture(trial, q, skeleton, segments, offsets)

@@ -1,0 +1,155 @@
+"""Joint-angle fitting on forward-kinematics markers with known angles."""
+
+import numpy as np
+import pytest
+from fk_data import fk_trial
+
+from mocaplib.calibrate import SubjectModel, locked_dofs
+from mocaplib.errors import FitError
+from mocaplib.ik import fit, initial_pose, solve_poses
+from mocaplib.protocols import load_protocol
+from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.trial import Trial
+
+DEG = np.pi / 180
+ROT = np.array([not n.startswith("pelvis_t") for n in DOF_NAMES])
+
+
+def _true_model(cap, *, locked=()):
+    """The model that generated ``cap`` (exact skeleton and offsets), as calibrate returns."""
+    proto = load_protocol("fullbody38")
+    return SubjectModel(cap.skeleton, proto, proto.labels, cap.segments, cap.offsets,
+                        locked_dofs=list(locked))
+
+
+def _angle_rms(q, truth):
+    return np.sqrt(((q - truth)[:, ROT] ** 2).mean(axis=0))
+
+
+def test_exact_markers_give_exact_angles():
+    cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0)
+    motion = fit(cap.trial, _true_model(cap), smoothing=0.0)
+    # noise-free markers from the same model: only round-off and the stopping rule remain
+    np.testing.assert_allclose(motion.q, cap.q, atol=1e-4)
+    assert np.nanmax(motion.residuals) < 1e-5
+    assert not motion.failed.any()
+    assert list(motion.angles.columns) == list(DOF_NAMES)
+
+
+def test_noisy_markers_recover_angles_within_a_degree():
+    cap = fk_trial(n_frames=150, placement_mm=0, sta_mm=0, noise_mm=1.0, seed=1)
+    motion = fit(cap.trial, _true_model(cap))
+    rms = _angle_rms(motion.q, cap.q)
+    # 1 mm noise on markers 5-40 cm from the joints: ~0.1-1 deg per DOF; the foot's
+    # inversion rests on markers ~4 cm from its axis, so it gets the widest bound
+    assert rms.max() < 1.5 * DEG, dict(zip(np.array(DOF_NAMES)[ROT], np.round(rms / DEG, 2)))
+    assert np.median(rms) < 0.5 * DEG
+    # marker RMS near the noise level: sqrt(3) x 1 mm per marker, less the fitted DOFs' share
+    assert 1.0e-3 < np.sqrt(np.nanmean(motion.residuals ** 2)) < 1.8e-3
+
+
+def test_missing_markers_drop_out():
+    cap = fk_trial(n_frames=80, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=2)
+    markers = cap.trial.markers.copy()
+    rng = np.random.default_rng(0)
+    markers[rng.random(markers.shape[:2]) < 0.2] = np.nan          # 20 % of samples missing
+    trial = Trial(markers, cap.trial.labels, cap.trial.rate)
+    motion = fit(trial, _true_model(cap))
+    assert np.isnan(motion.residuals[np.isnan(markers[..., 0])]).all()
+    rms = _angle_rms(motion.q, cap.q)
+    # fewer markers per frame: same bound as with all markers but for the 20 % loss
+    assert rms.max() < 2.0 * DEG and np.median(rms) < 0.5 * DEG
+
+
+def test_a_bad_marker_does_not_drag_the_pose():
+    cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=3)
+    markers = cap.trial.markers.copy()
+    knee = cap.trial.labels.index("RKNE")
+    markers[:, knee] += (0.0, 0.08, 0.05)                          # 9 cm off in every frame
+    trial = Trial(markers, cap.trial.labels, cap.trial.rate)
+    robust = fit(trial, _true_model(cap))
+    plain = fit(trial, _true_model(cap), robust_scale=np.inf)
+    hip = DOF_NAMES.index("hip_adduction_r")
+    err_robust = np.abs(robust.q[:, hip] - cap.q[:, hip]).mean()
+    err_plain = np.abs(plain.q[:, hip] - cap.q[:, hip]).mean()
+    assert err_robust < 0.5 * err_plain, (err_robust / DEG, err_plain / DEG)
+    assert err_robust < 2 * DEG
+    # the bad marker is the one left with a large residual
+    assert np.nanmedian(robust.residuals[:, knee]) > 0.05
+
+
+def test_joint_ranges_are_respected():
+    cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0, seed=4)
+    q = cap.q.copy()
+    knee = DOF_NAMES.index("knee_flexion_l")
+    q[:, knee] = -25 * DEG                                  # hyper-extension beyond -10 deg
+    markers = cap.skeleton.points(q, cap.segments, cap.offsets)
+    motion = fit(Trial(markers, cap.trial.labels, 100.0), _true_model(cap))
+    lower, upper = Skeleton.bounds()
+    assert (motion.q >= lower - 1e-12).all() and (motion.q <= upper + 1e-12).all()
+    np.testing.assert_allclose(motion.q[:, knee], lower[knee], atol=1e-9)  # held at the bound
+
+
+def test_segments_without_markers_are_locked_at_zero_and_reported():
+    cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=5)
+    proto = load_protocol("fullbody38")
+    keep = [i for i, m in enumerate(proto.markers)
+            if not m.landmark.segment.startswith(("humerus", "forearm"))]
+    locked, left_out = locked_dofs(cap.segments[keep])
+    model = SubjectModel(cap.skeleton, proto, [proto.labels[i] for i in keep],
+                         cap.segments[keep], cap.offsets[keep], locked_dofs=locked,
+                         left_out=left_out)
+    motion = fit(cap.trial, model)
+    arms = [n for n in DOF_NAMES if n.startswith(("shoulder", "elbow"))]
+    assert sorted(motion.locked_dofs) == sorted(arms)
+    assert (motion.q[:, [DOF_NAMES.index(n) for n in arms]] == 0).all()
+    legs = [DOF_NAMES.index(n) for n in DOF_NAMES if n.startswith(("hip", "knee"))]
+    # the legs do not depend on the arms: 0.5 mm noise keeps them within a degree
+    assert np.abs(motion.q[:, legs] - cap.q[:, legs]).max() < 1 * DEG
+
+
+def test_frames_without_pelvis_are_flagged_and_interpolated():
+    cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=6)
+    markers = cap.trial.markers.copy()
+    pelvis = [cap.trial.labels.index(x) for x in ("LASI", "RASI", "LPSI")]
+    markers[20:25][:, pelvis] = np.nan
+    motion = fit(Trial(markers, cap.trial.labels, 100.0), _true_model(cap))
+    assert motion.failed.tolist() == [20 <= f < 25 for f in range(60)]
+    assert np.isfinite(motion.q).all()
+
+
+def test_initial_pose_is_exact_on_exact_markers():
+    cap = fk_trial(n_frames=30, placement_mm=0, sta_mm=0, noise_mm=0, seed=7)
+    q0 = initial_pose(cap.skeleton, cap.trial.markers, cap.segments, cap.offsets)
+    # rigid fits of exact points, decomposed exactly: round-off only
+    np.testing.assert_allclose(q0, cap.q, atol=1e-9)
+
+
+def test_solve_poses_many_frames_at_once_matches_one_by_one():
+    cap = fk_trial(n_frames=6, placement_mm=0, sta_mm=0, noise_mm=2.0, seed=8)
+    args = (cap.skeleton, cap.trial.markers, cap.segments, cap.offsets)
+    batch = solve_poses(*args, smoothing=0.0)
+    single = [solve_poses(cap.skeleton, cap.trial.markers[f:f + 1], cap.segments, cap.offsets,
+                          smoothing=0.0).q[0] for f in range(6)]
+    # same minimum per frame; both stop within the 1e-4 rad step tolerance
+    np.testing.assert_allclose(batch.q, np.array(single), atol=2e-4)
+
+
+def test_trial_without_model_markers_is_refused():
+    cap = fk_trial(n_frames=5)
+    other = Trial(cap.trial.markers, [f"X{i}" for i in range(cap.trial.n_markers)], 100.0,
+                  source="other.c3d")
+    with pytest.raises(FitError, match="other.c3d: none of the model's markers"):
+        fit(other, _true_model(cap))
+
+
+def test_locked_dofs_rule():
+    proto = load_protocol("fullbody38")
+    segments, _ = proto.nominal_offsets()
+    assert locked_dofs(segments) == ([], [])
+    no_arms = segments[[i for i, m in enumerate(proto.markers)
+                        if "humerus" not in m.landmark.segment
+                        and "forearm" not in m.landmark.segment]]
+    locked, left_out = locked_dofs(no_arms)
+    assert left_out == ["humerus_r", "forearm_r", "humerus_l", "forearm_l"]
+    assert set(locked) == {n for n in DOF_NAMES if n.startswith(("shoulder", "elbow"))}

@@ -1,0 +1,115 @@
+"""The fixed skeleton: forward-kinematics signs as the docstring table states, and Jacobians."""
+
+import numpy as np
+import pytest
+
+from mocaplib.errors import MocapError
+from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton
+
+SK = Skeleton.from_height(1.75)
+
+
+def _pose(**angles):
+    q = SK.neutral_q(1)
+    for name, value in angles.items():
+        q[0, DOF_NAMES.index(name)] = value
+    return q
+
+
+def _point(q, segment, offset):
+    """World position (3,) of one point fixed in ``segment``."""
+    return SK.points(q, np.array([SEGMENT_NAMES.index(segment)]), np.array([offset]))[0, 0]
+
+
+def _delta(dof, segment, offset, angle=0.3):
+    """Displacement (3,) of a segment point when ``dof`` goes from 0 to ``angle``."""
+    return _point(_pose(**{dof: angle}), segment, offset) - _point(_pose(), segment, offset)
+
+
+FOOT_TIP = (0.15, 0.0, -0.05)      # forward of the ankle
+DOWN = (0.0, 0.0, -0.3)            # along a limb, below its joint
+UP = (0.0, 0.0, 0.3)               # above the lumbar or neck joint
+
+
+@pytest.mark.parametrize("dof,segment,offset,axis,sign", [
+    # "positive means" column of the module docstring, one row each, both sides
+    ("trunk_flexion", "torso", UP, 0, +1),          # leans forward: top moves +X
+    ("trunk_bending", "torso", UP, 1, +1),          # bends to the left: top moves +Y
+    ("neck_flexion", "head", UP, 0, +1),
+    ("neck_bending", "head", UP, 1, +1),
+    ("hip_flexion_r", "femur_r", DOWN, 0, +1),      # thigh forward: knee moves +X
+    ("hip_flexion_l", "femur_l", DOWN, 0, +1),
+    ("hip_adduction_r", "femur_r", DOWN, 1, +1),    # right thigh to the midline: +Y
+    ("hip_adduction_l", "femur_l", DOWN, 1, -1),    # left thigh to the midline: -Y
+    ("knee_flexion_r", "tibia_r", DOWN, 0, -1),     # shank backward: ankle moves -X
+    ("knee_flexion_l", "tibia_l", DOWN, 0, -1),
+    ("ankle_dorsiflexion_r", "foot_r", FOOT_TIP, 2, +1),   # toes up
+    ("ankle_dorsiflexion_l", "foot_l", FOOT_TIP, 2, +1),
+    ("shoulder_flexion_r", "humerus_r", DOWN, 0, +1),      # arm forward
+    ("shoulder_flexion_l", "humerus_l", DOWN, 0, +1),
+    ("shoulder_abduction_r", "humerus_r", DOWN, 1, -1),    # right arm out to the right: -Y
+    ("shoulder_abduction_l", "humerus_l", DOWN, 1, +1),
+    ("elbow_flexion_r", "forearm_r", DOWN, 0, +1),         # forearm forward/up
+    ("elbow_flexion_l", "forearm_l", DOWN, 0, +1),
+    ("pelvis_list", "femur_r", (0, 0, 0), 2, -1),          # the right side drops
+    ("pelvis_tilt", "pelvis", (0.1, 0, 0), 2, -1),         # anterior tilt: the front drops
+])
+def test_positive_angles_move_as_documented(dof, segment, offset, axis, sign):
+    d = _delta(dof, segment, offset)
+    assert np.sign(d[axis]) == sign, f"{dof}: displacement {d} should be {sign:+d} on axis {axis}"
+
+
+def test_rotations_turn_left_and_inward():
+    # trunk/neck/pelvis rotation and heading: counter-clockwise seen from above
+    front = (0.2, 0.0, 0.0)
+    assert _delta("pelvis_rotation", "pelvis", front)[1] > 0
+    assert _delta("trunk_rotation", "torso", front)[1] > 0
+    assert _delta("neck_rotation", "head", front)[1] > 0
+    # internal rotation turns the front of the limb (and the foot) towards the midline
+    assert _delta("hip_rotation_r", "foot_r", FOOT_TIP)[1] > 0
+    assert _delta("hip_rotation_l", "foot_l", FOOT_TIP)[1] < 0
+    # inversion: the sole faces the midline, so a point under the foot moves medially
+    sole = (0.0, 0.0, -0.05)
+    assert _delta("ankle_inversion_r", "foot_r", sole)[1] > 0
+    assert _delta("ankle_inversion_l", "foot_l", sole)[1] < 0
+
+
+def test_neutral_pose_stands_on_the_floor_facing_x():
+    T = SK.forward(SK.neutral_q(1))[0]
+    np.testing.assert_allclose(T[:, :3, :3], np.broadcast_to(np.eye(3), (len(SEGMENT_NAMES), 3, 3)),
+                               atol=1e-12)  # exact: every rotation is the identity
+    ankle = T[SEGMENT_NAMES.index("foot_r"), :3, 3]
+    np.testing.assert_allclose(ankle[2], SK.lengths["ankle_height"], atol=1e-12)
+
+
+def test_marker_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(3)
+    q = SK.neutral_q(5) + rng.normal(0, 0.4, (5, len(DOF_NAMES)))
+    segments = rng.integers(0, len(SEGMENT_NAMES), 30)
+    offsets = rng.normal(0, 0.1, (30, 3))
+    points, jac = SK.marker_jacobian(q, segments, offsets)
+    np.testing.assert_allclose(points, SK.points(q, segments, offsets), atol=1e-12)
+    numeric = np.empty_like(jac)
+    h = 1e-6
+    for j in range(len(DOF_NAMES)):
+        dq = np.zeros(len(DOF_NAMES))
+        dq[j] = h
+        numeric[..., j] = (SK.points(q + dq, segments, offsets)
+                           - SK.points(q - dq, segments, offsets)) / (2 * h)
+    # central differences with h = 1e-6 on ~1 m lever arms: truncation ~h² and rounding
+    # ~1e-16/h, both far below 1e-8
+    np.testing.assert_allclose(jac, numeric, atol=1e-8)
+
+
+def test_jacobian_is_zero_for_dofs_that_do_not_move_a_segment():
+    segments = np.arange(len(SEGMENT_NAMES))
+    _, jac = SK.marker_jacobian(SK.neutral_q(1), segments, np.full((len(segments), 3), 0.1))
+    moving = np.abs(jac[0]).max(axis=1) > 0          # (S, D)
+    assert not (moving & ~MOVES).any()
+    assert MOVES[SEGMENT_NAMES.index("foot_l"), DOF_NAMES.index("hip_flexion_l")]
+    assert not MOVES[SEGMENT_NAMES.index("foot_l"), DOF_NAMES.index("hip_flexion_r")]
+
+
+def test_bad_q_shape_is_reported():
+    with pytest.raises(MocapError, match=r"q must have shape \(F, 32\)"):
+        SK.forward(np.zeros((3, 5)))
