@@ -102,15 +102,19 @@ def format_summary(summary: dict) -> str:
         lines.append(f"  protocol {summary['protocol']}: {summary['markers_found']}/"
                      f"{summary['protocol_markers']} markers; missing required landmarks: "
                      f"{missing}")
+        if summary["missing_labels"]:
+            lines.append(f"  not found: {', '.join(summary['missing_labels'])}")
     events = summary["events"]
     lines.append("  events: " + (", ".join(
         f"{e['context']} {e['label']} {e['time_s']:.3f} s".strip() for e in events) or "none"))
-    lines.append(f"  {'marker':<14} {'landmark':<20} {'gap %':>6}  longest gap")
-    for m in summary["markers"]:
-        gap = (f"{m['longest_gap_s']:.2f} s ({m['longest_gap_frames']} frames)"
-               if m["longest_gap_frames"] else "-")
-        lines.append(f"  {m['label']:<14} {m['landmark'] or '(not in protocol)':<20} "
-                     f"{m['gap_pct']:6.1f}  {gap}")
+    rows = [(m["label"], m["landmark"] or "(not in protocol)", f"{m['gap_pct']:.1f}",
+             f"{m['longest_gap_s']:.2f} s ({m['longest_gap_frames']} frames)"
+             if m["longest_gap_frames"] else "-") for m in summary["markers"]]
+    widths = [max(len(r[k]) for r in rows + [("marker", "landmark", "gap %", "")])
+              for k in range(3)]
+    for label, landmark, gap, longest in [("marker", "landmark", "gap %", "longest gap")] + rows:
+        lines.append(f"  {label:<{widths[0]}}  {landmark:<{widths[1]}}  {gap:>{widths[2]}}  "
+                     f"{longest}")
     if summary["warnings"]:
         lines.append("  warnings:")
         lines.extend(f"    - {w}" for w in summary["warnings"])

@@ -7,7 +7,7 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from conftest import real_file, real_files, SHARED_C3D
+from conftest import REPO, real_file, real_files, SHARED_C3D
 from protocol_trials import walker_trial
 
 from mocaplib.errors import ProtocolError
@@ -219,3 +219,18 @@ def test_a_technicians_protocol_file(tmp_path):
     trial = walker_trial(protocol, labels=["lab:L_Shoulder", "lab:R shoulder", "LASI"])
     match = match_protocol(trial, protocol)
     assert match.complete and match.found == 3 and match.swaps == ()
+
+
+def test_readme_protocol_example_matches_its_capture(tmp_path):
+    readme = (REPO / "README.md").read_text()
+    block = readme.split("<!-- protocol-example -->", 1)[1].split("```toml\n", 1)[1]
+    path = tmp_path / "mylab_lower16.toml"
+    path.write_text(block.split("```", 1)[0])
+    protocol = load_protocol(path)
+    labels = ["Anna:" + label.replace(" ", "_").upper() for label in protocol.labels]
+    labels[labels.index("Anna:SACRUM")] = "Anna:S1"
+    trial = walker_trial(protocol, labels=labels)
+    keep = [i for i, label in enumerate(labels) if label != "Anna:L_PSIS"]
+    match = detect_protocol(trial.select(keep), protocols=[protocol, load_protocol("plugin_gait")])
+    assert match.protocol.name == "mylab_lower16" and match.complete
+    assert match.missing == ("L PSIS",) and match.found == 15

@@ -46,6 +46,8 @@ def _run(args) -> int:
         except MocapError as exc:
             summaries.append(failed_summary(item, exc))
             continue
+        if not files:
+            summaries.append(failed_summary(item, f"{item}: no *.c3d files in this folder"))
         summaries.extend(inspect_c3d(path, protocol=protocol) for path in files)
     if args.json:
         print_json(summaries)
