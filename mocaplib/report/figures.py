@@ -1,0 +1,283 @@
+"""Matplotlib figures of the report, returned as PNG bytes (no pyplot, no global state).
+
+Control-space figures take SI points and show ω in degrees per second, for people.
+Per-capture figures read one record of the diagnostics sidecar (see ``docs/library-format.md``).
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+#: Joint angles drawn per capture (the ones a gait lab reads first).
+CAPTURE_DOFS = ("hip_flexion_r", "knee_flexion_r", "ankle_dorsiflexion_r", "trunk_rotation")
+DPI = 80
+UNKNOWN_CLASS = "unknown"
+
+
+def class_colours(classes) -> dict[str, tuple[float, float, float]]:
+    """A stable colour per class name (tab10 in sorted order; grey for unknown)."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10"]
+    names = sorted({c for c in classes if c != UNKNOWN_CLASS})
+    colours = {name: tuple(float(x) for x in cmap(i % 10)[:3]) for i, name in enumerate(names)}
+    colours[UNKNOWN_CLASS] = (0.5, 0.5, 0.5)
+    return colours
+
+
+def _figure(width: float, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def png_bytes(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return buf.getvalue()
+
+
+def _display(points: np.ndarray, axes: tuple[str, ...]) -> np.ndarray:
+    """SI points (…, 3) with ω converted to degrees per second."""
+    out = np.array(points, dtype=float, copy=True)
+    out[..., axes.index("omega")] = np.degrees(out[..., axes.index("omega")])
+    return out
+
+
+def axis_label(name: str) -> str:
+    return {"v": "v̂ (m/s)", "v_f": "v̂_f (m/s)", "omega": "ω̂ (°/s, > 0 left)",
+            "v_l": "v̂_l (m/s, > 0 left)"}[name]
+
+
+def projections(points, classes, axes, *, envelope=None, hull_points=None, holes=None,
+                suggestions=None) -> bytes:
+    """The paper's Fig. 9: ω–v and v_l–v planes. Entries coloured by class; the envelope's and
+    the library hull's outlines; envelope samples outside the hull (holes) as faint crosses;
+    "capture next" suggestions as numbered stars. All arrays SI, shape (…, 3)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    colours = class_colours(classes)
+    fig = _figure(11, 4.6)
+    panels = fig.subplots(1, 2)
+    for ax, (i, j) in zip(panels, ((0, 1), (0, 2))):
+        for outline, style, label in ((envelope, dict(color="tab:red", ls="--"), "envelope"),
+                                      (hull_points, dict(color="0.2", ls="-"), "library hull")):
+            if outline is None or len(outline) < 3:
+                continue
+            xy = _display(outline, axes)[:, [i, j]]
+            try:
+                ring = xy[ConvexHull(xy).vertices]
+            except QhullError:
+                continue
+            ring = np.vstack([ring, ring[:1]])
+            ax.plot(ring[:, 0], ring[:, 1], lw=1.2, label=label, **style)
+        if holes is not None and len(holes):
+            h = _display(holes, axes)
+            ax.scatter(h[:, i], h[:, j], marker="x", s=8, color="tab:red", alpha=0.15,
+                       linewidths=0.6, label="envelope not covered")
+        p = _display(points, axes)
+        for name in sorted(set(classes)):
+            sel = np.array([c == name for c in classes])
+            ax.scatter(p[sel, i], p[sel, j], s=36, color=colours[name], edgecolor="k",
+                       linewidths=0.5, label=name, zorder=3)
+        if suggestions is not None and len(suggestions):
+            s = _display(suggestions, axes)
+            ax.scatter(s[:, i], s[:, j], marker="*", s=160, color="gold", edgecolor="k",
+                       zorder=4, label="capture next")
+            for n, (x, y) in enumerate(s[:, [i, j]], 1):
+                ax.annotate(str(n), (x, y), xytext=(5, 4), textcoords="offset points",
+                            fontsize=9, weight="bold")
+        ax.set_xlabel(axis_label(axes[i]))
+        ax.set_ylabel(axis_label(axes[j]))
+        ax.grid(alpha=0.3)
+    handles, labels = panels[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+    return png_bytes(fig)
+
+
+def control_space_3d(points, classes, axes, *, edges=(), envelope=None) -> bytes:
+    """Matplotlib 3-D view of the control space (the fallback without OpenGL).
+
+    ``points`` SI (E, 3); ``edges`` (K, 2) row pairs of Delaunay edges; ``envelope`` SI (P, 3)
+    vertices drawn as their convex hull's edges."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    colours = class_colours(classes)
+    fig = _figure(8, 6.5)
+    ax = fig.add_subplot(projection="3d")
+    p = _display(points, axes)
+    for a, b in edges:
+        ax.plot(*p[[a, b]].T, color="0.6", lw=0.6)
+    if envelope is not None and len(envelope) >= 4:
+        e = _display(envelope, axes)
+        try:
+            for tri in ConvexHull(e).simplices:
+                ring = e[np.r_[tri, tri[:1]]]
+                ax.plot(*ring.T, color="tab:red", lw=0.5, ls="--", alpha=0.5)
+        except QhullError:
+            pass
+    for name in sorted(set(classes)):
+        sel = np.array([c == name for c in classes])
+        ax.scatter(*p[sel].T, s=40, color=colours[name], edgecolor="k", label=name,
+                   depthshade=False)
+    ax.set_xlabel(axis_label(axes[0]))
+    ax.set_ylabel(axis_label(axes[1]))
+    ax.set_zlabel(axis_label(axes[2]))
+    ax.legend(fontsize=8, loc="upper left")
+    return png_bytes(fig)
+
+
+# --------------------------------------------------------------------------- per capture
+def capture_figure(record: dict, reconstructions: dict[str, tuple[np.ndarray, np.ndarray]]
+                   ) -> bytes:
+    """Quality panels of one capture: shoulder path (top view) with the fitted pattern and cycle
+    bounds; marker RMS over time; gait events; joint angles with their Fourier reconstruction.
+
+    ``record``: one capture of the diagnostics sidecar. ``reconstructions``: DOF name ->
+    (times s, angles rad) of the library entries' Fourier series, placed on the capture's time.
+    """
+    fig = _figure(11, 6.4)
+    (ax_path, ax_rms), (ax_events, ax_angles) = fig.subplots(2, 2)
+    cycles = record.get("cycles") or []
+    _path_panel(ax_path, record, cycles)
+    _rms_panel(ax_rms, record, cycles)
+    _events_panel(ax_events, record, cycles)
+    _angles_panel(ax_angles, record, reconstructions)
+    return png_bytes(fig)
+
+
+def _shade_cycles(ax, cycles):
+    for c in cycles:
+        ax.axvspan(c["start_s"], c["end_s"], color="tab:green" if c.get("chosen") else "0.85",
+                   alpha=0.15, lw=0)
+
+
+def _path_panel(ax, record, cycles):
+    xy = np.asarray(record.get("shoulder_mid_xy") or np.zeros((0, 2)), dtype=float).reshape(-1, 2)
+    t = np.asarray(record.get("time_s") or [], dtype=float)
+    ax.set_title("shoulder midpoint, top view", fontsize=10)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    if not len(xy):
+        ax.text(0.5, 0.5, "no shoulder path", ha="center", transform=ax.transAxes)
+        return
+    ax.plot(xy[:, 0], xy[:, 1], color="0.4", lw=1, label="path")
+    ax.plot(*xy[0], "o", color="0.4", ms=4)
+    for c in cycles:
+        inside = (t >= c["start_s"]) & (t <= c["end_s"]) if len(t) == len(xy) else slice(None)
+        seg = xy[inside]
+        if not len(seg):
+            continue
+        colour = "tab:green" if c.get("chosen") else "tab:blue"
+        ax.plot(*seg[[0, -1]].T, "|", color=colour, ms=14, mew=2)
+        fitted = pattern_curve(c.get("pattern") or {}, seg)
+        if fitted is not None:
+            ax.plot(fitted[:, 0], fitted[:, 1], color=colour, lw=2.2, alpha=0.7,
+                    label=f"{(c.get('pattern') or {}).get('type', '?')} fit")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    ax.legend(unique.values(), unique.keys(), fontsize=7)
+
+
+def pattern_curve(pattern: dict, seg: np.ndarray) -> np.ndarray | None:
+    """Points (K, 2) of a fitted pattern over the stretch of path ``seg`` (n, 2) it was fitted to.
+
+    ``pattern``: ``type`` line (``point``, ``direction``), arc (``centre``, ``radius``) or point
+    (``point``), parameters under ``params`` or ``parameters`` (or at the top level); None when
+    the parameters are missing."""
+    p = pattern.get("params") or pattern.get("parameters") or pattern
+    kind = pattern.get("type")
+    try:
+        if kind == "line":
+            o, u = np.asarray(p["point"], float), np.asarray(p["direction"], float)
+            u = u / np.linalg.norm(u)
+            s = (seg - o) @ u
+            return o + np.outer([s.min(), s.max()], u)
+        if kind == "arc":
+            c, r = np.asarray(p["centre"], float), float(p["radius"])
+            phi = np.unwrap(np.arctan2(seg[:, 1] - c[1], seg[:, 0] - c[0]))
+            ang = np.linspace(phi[0], phi[-1], 100)
+            return c + r * np.column_stack([np.cos(ang), np.sin(ang)])
+        if kind == "point":
+            return np.asarray(p["point"], float).reshape(1, 2)
+    except (KeyError, TypeError, ValueError):
+        return None
+    return None
+
+
+def _rms_panel(ax, record, cycles):
+    t = np.asarray(record.get("time_s") or [], dtype=float)
+    rms = np.asarray(record.get("frame_rms_m") or [], dtype=float)
+    ax.set_title("marker residual (RMS over markers)", fontsize=10)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("RMS (mm)")
+    _shade_cycles(ax, cycles)
+    if len(rms) and len(rms) == len(t):
+        ax.plot(t, rms * 1000, color="tab:purple", lw=1)
+        ax.axhline(20, color="tab:red", ls="--", lw=1, label="20 mm (OpenSim best practice)")
+        ax.set_ylim(0, max(25, float(np.nanmax(rms * 1000)) * 1.1 if np.isfinite(rms).any()
+                           else 25))
+        ax.legend(fontsize=7, loc="upper right")
+    else:
+        ax.text(0.5, 0.5, "no residuals", ha="center", transform=ax.transAxes)
+    ax.grid(alpha=0.3)
+
+
+def _events_panel(ax, record, cycles):
+    events = record.get("events") or []
+    ax.set_title("gait events", fontsize=10)
+    ax.set_xlabel("time (s)")
+    _shade_cycles(ax, cycles)
+    kinds = sorted({str(e.get("kind")) for e in events})
+    markers = dict(zip(kinds, "^ov*sD"))
+    rows = {"left": 1, "right": 0}
+    for kind in kinds:
+        for side, row in rows.items():
+            times = [e["time_s"] for e in events
+                     if str(e.get("kind")) == kind and str(e.get("side", "")).lower().startswith(
+                         side[0])]
+            if times:
+                ax.scatter(times, np.full(len(times), row), marker=markers[kind], s=50,
+                           color="tab:blue" if side == "left" else "tab:orange",
+                           edgecolor="k", label=f"{side} {kind}")
+    t = record.get("time_s") or []
+    if len(t):
+        ax.set_xlim(t[0], t[-1])
+    ax.set_yticks([0, 1], ["right", "left"])
+    ax.set_ylim(-0.6, 1.6)
+    if events:
+        ax.legend(fontsize=7, ncol=2, loc="upper right")
+    else:
+        ax.text(0.5, 0.5, "no events", ha="center", transform=ax.transAxes)
+    ax.grid(alpha=0.3, axis="x")
+
+
+def _angles_panel(ax, record, reconstructions):
+    angles = record.get("angles") or {}
+    t = np.asarray(angles.get("time_s") or [], dtype=float)
+    ax.set_title("joint angles (solid) and Fourier series (dashed)", fontsize=10)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("angle (°)")
+    drawn = False
+    for k, dof in enumerate(CAPTURE_DOFS):
+        colour = f"C{k}"
+        values = angles.get(dof)
+        if values is not None and len(values) == len(t):
+            ax.plot(t, np.degrees(np.asarray(values, dtype=float)), color=colour, lw=1.2,
+                    label=dof)
+            drawn = True
+        if dof in reconstructions:
+            rt, rq = reconstructions[dof]
+            ax.plot(rt, np.degrees(rq), color=colour, lw=1.6, ls="--")
+    if drawn:
+        ax.legend(fontsize=7, ncol=2, loc="upper right")
+    else:
+        ax.text(0.5, 0.5, "no joint angles", ha="center", transform=ax.transAxes)
+    ax.grid(alpha=0.3)

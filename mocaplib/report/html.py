@@ -1,0 +1,319 @@
+"""Assemble the report: numbers from the control space, figures, one self-contained HTML file.
+
+Everything the page needs is inside it: images are base64 ``data:`` URIs, the interactive 3-D
+view is a small canvas script with its data inline, there are no external links or fonts, so
+the file opens offline and can be mailed. Text from captures (file names, labels, warnings) is
+untrusted: the jinja2 environment auto-escapes every value, and the viewer's JSON is written
+with ``tojson`` (which escapes ``<``, ``>``, ``&`` and quotes).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..controlspace import AXIS_UNITS, ControlSpace, Envelope, coverage, leave_one_out
+from ..errors import LibraryError, MocapError
+from ..io.atomic import atomic_write_text
+from ..library import load_library, validate_library
+from . import figures
+from .plan import default_envelope, planned_status
+from .scene3d import render_control_space
+
+#: Captures drawn in detail; beyond this the rest are listed without figures (keeps the file
+#: small enough to mail; the library's own numbers are still all in the tables).
+MAX_CAPTURE_FIGURES = 80
+
+
+def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
+                 envelope=None, renderer: str = "auto") -> Path:
+    """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
+
+    ``envelope``: an :class:`~mocaplib.controlspace.Envelope`, a TOML file (an ``[envelope]``
+    table, or a capture plan), or None for the capture plan found in ``protocols/`` (see
+    :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
+    back to matplotlib without OpenGL) or ``"matplotlib"``. Reads the diagnostics sidecar
+    ``<stem>.diagnostics.json`` beside the library when it exists.
+    """
+    library_path = Path(library_path)
+    library = load_library(library_path)
+    diagnostics, diag_warning = _read_diagnostics(library_path)
+    context = build_context(library, library_path, diagnostics, envelope=envelope,
+                            renderer=renderer)
+    if diag_warning:
+        context["warnings"].insert(0, diag_warning)
+    html = render_html(context)
+    return atomic_write_text(Path(out_dir) / f"{library_path.stem}-report.html", html)
+
+
+def render_html(context: dict) -> str:
+    """The report's HTML from a context made by :func:`build_context`."""
+    import jinja2
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("mocaplib.report", "templates"),
+        autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
+        lstrip_blocks=True)
+    env.filters["fmt"] = _fmt
+    template = env.get_template("report.html.j2")
+    return template.render(**context, viewer_js=env.loader.get_source(env, "viewer.js")[0],
+                           css=env.loader.get_source(env, "report.css")[0])
+
+
+def _fmt(value, spec: str = ".3g") -> str:
+    """A number for people; '—' for None/NaN."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    return format(value, spec)
+
+
+def _data_uri(png: bytes) -> str:
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+
+
+def _read_diagnostics(library_path: Path) -> tuple[dict | None, str | None]:
+    from ..pipeline import diagnostics_path
+
+    path = diagnostics_path(library_path)
+    if not path.is_file():
+        return None, (f"no diagnostics sidecar {path.name}: per-capture plots are not shown "
+                      f"(`mocaplib build` writes it beside the library)")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("format") != "mocaplib-diagnostics" or not isinstance(
+                data.get("captures"), list):
+            raise ValueError("not a mocaplib-diagnostics file")
+    except (OSError, ValueError, AttributeError) as exc:
+        return None, f"diagnostics sidecar {path.name} unreadable ({exc}); per-capture plots skipped"
+    return data, None
+
+
+# --------------------------------------------------------------------------- context
+def build_context(library, library_path: Path, diagnostics: dict | None, *, envelope=None,
+                  renderer: str = "auto") -> dict:
+    """Every number, table and figure of the report (values still unescaped)."""
+    df = library.entries
+    warnings = [f"library check: {p}" for p in validate_library(library)]
+    classes_all = [c if isinstance(c, str) else figures.UNKNOWN_CLASS
+                   for c in df["locomotion_class"]]
+    env, env_note = _resolve_envelope(envelope)
+    cs, cs_error = None, None
+    try:
+        cs = ControlSpace.from_library(library, source=library_path)
+    except MocapError as exc:
+        cs_error = str(exc)
+        warnings.append(f"control space: {exc}")
+    context = {
+        "title": library_path.name, "version": __version__,
+        "summary": _summary(library, df, diagnostics, cs),
+        "warnings": warnings, "cs_error": cs_error, "envelope_note": env_note,
+        "axes": [{"name": n, "unit": AXIS_UNITS[n]} for n in
+                 (cs.axes if cs else ("v", "omega", "v_l"))],
+        "entries": _entry_rows(df),
+        "coverage": None, "loo": None, "three_d": None, "viewer": None, "projections": None,
+        "planned": planned_status(env_note.get("plan"), df, diagnostics),
+        "captures": _captures(diagnostics, library),
+    }
+    for capture in context["captures"]:
+        warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
+    finite = df[["v", "omega", "v_l"]].notna().all(axis=1).to_numpy()
+    points = df.loc[finite, ["v", "omega", "v_l"]].to_numpy(float)
+    point_classes = [c for c, ok in zip(classes_all, finite) if ok]
+    if cs is None:
+        if len(points):
+            context["projections"] = _data_uri(figures.projections(
+                points, point_classes, ("v", "omega", "v_l"),
+                envelope=env.vertices if env else None))
+        return context
+    cov = coverage(cs, env) if env is not None else None
+    holes = cov.samples[~cov.samples_inside] if cov is not None else None
+    suggestions = cov.capture_next[list(cs.axes)].to_numpy() if cov is not None else None
+    cs_classes = [c if isinstance(c, str) else figures.UNKNOWN_CLASS for c in cs.classes]
+    context["projections"] = _data_uri(figures.projections(
+        cs.points, cs_classes, cs.axes, envelope=env.vertices if env else None,
+        hull_points=cs.points, holes=holes, suggestions=suggestions))
+    if cov is not None:
+        context["coverage"] = _coverage_context(cov, cs)
+    context["loo"] = _loo_context(leave_one_out(cs))
+    context["three_d"], context["viewer"] = _three_d(cs, cs_classes, env, renderer)
+    if context["three_d"]["fallback_reason"]:
+        warnings.append("3-D view drawn with matplotlib: "
+                        + context["three_d"]["fallback_reason"])
+    return context
+
+
+def _resolve_envelope(envelope) -> tuple[Envelope | None, dict]:
+    if isinstance(envelope, Envelope):
+        return envelope, {"text": f"given by the caller ({envelope.source})", "plan": None}
+    if envelope is not None:
+        path = Path(envelope)
+        text = path.read_text(encoding="utf-8") if path.is_file() else ""
+        if "[envelope]" in text:
+            return Envelope.from_toml(path), {"text": f"from {path.name}", "plan": None}
+        return default_envelope(path)
+    return default_envelope(None)
+
+
+def _summary(library, df, diagnostics, cs) -> dict:
+    captures = (diagnostics or {}).get("captures") or []
+    failed = [c for c in captures if not c.get("ok", True)]
+    return {
+        "entries": len(df), "in_control_space": len(cs.points) if cs else 0,
+        "captures": len(captures) if captures else len(set(df["source_file"])),
+        "failed": len(failed), "fourier_n": library.n_harmonics,
+        "scale": [] if cs is None else [
+            {"axis": a, "scale": s, "unit": AXIS_UNITS[a]} for a, s in zip(cs.axes, cs.scale)],
+        "tetrahedra": 0 if cs is None else len(cs.tri.simplices),
+    }
+
+
+def _entry_rows(df) -> list[dict]:
+    rows = []
+    for entry_id, r in df.iterrows():
+        rows.append({"id": entry_id, "class": r["locomotion_class"] or "unknown",
+                     "source": r["source_file"], "chosen": bool(r["chosen"]),
+                     "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
+                     else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
+                     "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
+                     "fourier_deg": math.degrees(r["qc_fourier_rms_rad"])
+                     if r["qc_fourier_rms_rad"] == r["qc_fourier_rms_rad"] else None})
+    return rows
+
+
+def _coverage_context(cov, cs) -> dict:
+    next_rows = []
+    for n, row in enumerate(cov.capture_next.itertuples(index=False), 1):
+        values = dict(zip(cs.axes, row[:3]))
+        next_rows.append({"n": n, "values": values, "omega_deg": math.degrees(values["omega"]),
+                          "gap": row[3], "describe": describe_command(values)})
+    hole = dict(zip(cs.axes, cov.largest_hole))
+    return {
+        "fraction": cov.fraction_inside, "n_samples": cov.n_samples,
+        "hole": hole, "hole_omega_deg": math.degrees(hole["omega"]),
+        "hole_distance": cov.largest_hole_distance,
+        "per_class": cov.entries_per_class,
+        "slivers": [{"entries": ", ".join(r.entries), "quality": r.quality}
+                    for r in cov.slivers.itertuples(index=False)],
+        "n_tetra": len(cs.tri.simplices), "next": next_rows,
+    }
+
+
+def describe_command(values: dict) -> str:
+    """A velocity triple in words, for the "capture next" list."""
+    v = values.get("v", values.get("v_f", 0.0))
+    w, vl = values["omega"], values["v_l"]
+    parts = []
+    if abs(v) < 0.05 and abs(w) >= 0.05:
+        return f"turn on the spot to the {'left' if w > 0 else 'right'} at {abs(math.degrees(w)):.0f}°/s"
+    if abs(v) < 0.05:
+        return "stand still"
+    if abs(vl) > 0.2 * abs(v):
+        direction = math.degrees(math.asin(max(-1.0, min(1.0, vl / v)))) if v else 0.0
+        side = "left" if vl > 0 else "right"
+        parts.append(f"walk at {v:.2f} m/s heading {abs(direction):.0f}° to the {side} of "
+                     f"the body")
+    else:
+        parts.append(f"walk forward at {v:.2f} m/s")
+    if abs(w) >= 0.05:
+        parts.append(f"turning {'left' if w > 0 else 'right'} (radius {abs(v / w):.1f} m)")
+    return ", ".join(parts)
+
+
+def _loo_context(df) -> dict:
+    inside = df[df["inside"]]
+    rows = [{"id": r["id"], "class": r["class"] or "unknown", "inside": bool(r["inside"]),
+             "neighbours": ", ".join(r["neighbours"]),
+             "weights": ", ".join(f"{w:.2f}" for w in r["weights"]),
+             "rms_deg": r["rms_deg"], "max_deg": r["max_deg"], "worst_dof": r["worst_dof"],
+             "T_error_s": r["T_error_s"]} for _, r in df.iterrows()]
+    return {"rows": rows, "n_inside": len(inside), "n": len(df),
+            "median_rms": float(inside["rms_deg"].median()) if len(inside) else None,
+            "max_rms": float(inside["rms_deg"].max()) if len(inside) else None}
+
+
+def _three_d(cs: ControlSpace, classes, env, renderer) -> tuple[dict, dict]:
+    """The static 3-D picture (pyvista or matplotlib) and the interactive viewer's data."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    colours = figures.class_colours(classes)
+    x = cs.normalise(cs.points)
+    simplices = cs.tri.simplices
+    edges = np.unique(np.sort(np.vstack([simplices[:, [i, j]] for i in range(4)
+                                         for j in range(i + 1, 4)]), axis=1), axis=0)
+    env_x, env_tris = None, None
+    if env is not None:
+        env_x = cs.normalise(env.vertices)
+        try:
+            env_tris = ConvexHull(env_x).simplices
+        except QhullError:
+            env_tris = None
+    titles = [f"{a} (1 = {s:.3g} {AXIS_UNITS[a]})" for a, s in zip(cs.axes, cs.scale)]
+    rendered = render_control_space(
+        x, [colours[c] for c in classes], classes, titles, edges=edges,
+        hull_triangles=cs.hull_facets, envelope_points=env_x, envelope_triangles=env_tris,
+        renderer=renderer,
+        fallback=lambda: figures.control_space_3d(cs.points, classes, cs.axes, edges=edges,
+                                                  envelope=env.vertices if env else None))
+    env_edges = []
+    if env_tris is not None:
+        env_edges = np.unique(np.sort(np.vstack([env_tris[:, [i, j]] for i, j in
+                                                 ((0, 1), (1, 2), (0, 2))]), axis=1),
+                              axis=0).tolist()
+    viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
+              "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
+                          for k, v in colours.items()},
+              "edges": edges.tolist(), "axes": titles,
+              "envelope": {"points": [] if env_x is None else np.round(env_x, 5).tolist(),
+                           "edges": env_edges}}
+    return ({"png": _data_uri(rendered.png), "renderer": rendered.renderer,
+             "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def _captures(diagnostics: dict | None, library) -> list[dict]:
+    """Per-capture sections: status, warnings and the quality figure."""
+    if not diagnostics:
+        return []
+    out = []
+    known = set(library.entries.index)
+    for k, record in enumerate(diagnostics.get("captures") or []):
+        item = {"source": str(record.get("source", f"capture {k + 1}")),
+                "ok": bool(record.get("ok", True)), "error": record.get("error"),
+                "stage": record.get("stage"),
+                "warnings": [str(w) for w in record.get("warnings") or []],
+                "cycles": [{"start": c.get("start_s"), "end": c.get("end_s"),
+                            "chosen": bool(c.get("chosen")), "entry": c.get("entry_id"),
+                            "pattern": (c.get("pattern") or {}).get("type")}
+                           for c in record.get("cycles") or []],
+                "figure": None, "anchor": f"capture-{k + 1}"}
+        if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
+            item["figure"] = _data_uri(figures.capture_figure(
+                record, _reconstructions(record, library, known)))
+        out.append(item)
+    return out
+
+
+def _reconstructions(record: dict, library, known: set) -> dict:
+    """Fourier series of the capture's cycles that became entries, on the capture's time axis.
+
+    Root channels are stored in the path frame, so only the joint DOFs drawn are rebuilt."""
+    out: dict[str, list] = {}
+    for cycle in record.get("cycles") or []:
+        entry_id = cycle.get("entry_id")
+        if entry_id not in known:
+            continue
+        T = library.entries.loc[entry_id, "T"]
+        t = np.linspace(0.0, T, 120)
+        q = library.angles(entry_id, t)
+        for dof in figures.CAPTURE_DOFS:
+            j = library.dof_names.index(dof)
+            out.setdefault(dof, []).append((t + cycle["start_s"], q[:, j]))
+    # Several cycles: joined with NaN gaps so each DOF is one dashed line.
+    return {dof: (np.concatenate([np.append(t, np.nan) for t, _ in parts]),
+                  np.concatenate([np.append(q, np.nan) for _, q in parts]))
+            for dof, parts in out.items()}

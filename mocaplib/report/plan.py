@@ -1,0 +1,121 @@
+"""The report's target envelope and planned-capture bookkeeping, from a capture plan.
+
+Envelope definition (documented, overridable)
+---------------------------------------------
+The target region of the control space is the **convex hull of the commanded velocities of the
+captures in the capture plan** (``protocols/*plan*.toml``): each planned capture's command
+``(v_f, v_l, ω)`` becomes the point ``(v̂ = hypot(v_f, v_l), ω̂, v̂_l)``. A plan (or any TOML
+file) may instead carry an explicit ``[envelope]`` table, which wins (see
+:meth:`mocaplib.controlspace.Envelope.from_toml`). Without any plan the report uses
+:data:`FALLBACK_ENVELOPE`, a small hand-written set of the same locomotion types, and says so.
+
+Planned captures are matched to the library by file stem: capture ``name`` in the plan,
+``<name>.c3d`` in the library (``source_file``) or in the diagnostics sidecar (``source``).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..controlspace import Envelope
+from ..errors import MocapError
+
+#: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
+#: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
+#: 0.5 m/s and 60° diagonals at 1.0 m/s, both sides.
+FALLBACK_ENVELOPE = np.array([
+    [0.0, 0.0, 0.0], [0.0, 1.05, 0.0], [0.0, -1.05, 0.0], [1.8, 0.0, 0.0],
+    [1.2, 1.2, 0.0], [1.2, -1.2, 0.0], [1.8, 0.9, 0.0], [1.8, -0.9, 0.0],
+    [0.5, 0.0, 0.5], [0.5, 0.0, -0.5], [1.0, 0.0, 0.866], [1.0, 0.0, -0.866],
+])
+
+
+def plan_search_path() -> list[Path]:
+    """Folders searched for ``*plan*.toml``: ./protocols, then the source tree's protocols/."""
+    return [Path.cwd() / "protocols", Path(__file__).resolve().parents[2] / "protocols"]
+
+
+def find_plan() -> Path | None:
+    """The first capture plan found on :func:`plan_search_path`, or None."""
+    for folder in plan_search_path():
+        plans = sorted(folder.glob("*plan*.toml")) if folder.is_dir() else []
+        if plans:
+            return plans[0]
+    return None
+
+
+def plan_commands(path: str | Path) -> pd.DataFrame:
+    """Planned captures of a plan file: columns ``name, v_f, v_l, omega`` (SI).
+
+    Each ``[[captures]]`` table has a ``name`` and either ``v_f``/``v_l``/``omega`` or the
+    locomotion ``kind`` with ``speed``/``radius``/``direction``/``side`` as
+    :meth:`mocaplib.synth.command.Command.from_kind` reads them.
+    """
+    from ..synth.command import Command
+
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise MocapError(f"cannot read capture plan: {exc}", path=path) from exc
+    tables = doc.get("captures", doc.get("capture", []))
+    rows = []
+    for i, t in enumerate(tables if isinstance(tables, list) else []):
+        if not isinstance(t, dict):
+            continue
+        name = str(t.get("name", f"capture{i + 1}"))
+        if "kind" in t:
+            kwargs = {k: t[k] for k in ("speed", "radius", "direction", "side") if k in t}
+            c = Command.from_kind(t["kind"], **kwargs)
+            rows.append((name, c.v_f, c.v_l, c.omega))
+        else:
+            rows.append((name, float(t.get("v_f", 0.0)), float(t.get("v_l", 0.0)),
+                         float(t.get("omega", 0.0))))
+    if not rows:
+        raise MocapError("the capture plan lists no captures", path=path,
+                         hint="a plan has [[captures]] tables with a name and a command")
+    return pd.DataFrame(rows, columns=["name", "v_f", "v_l", "omega"])
+
+
+def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
+    """The envelope from ``plan`` (or the plan :func:`find_plan` finds, or the fallback).
+
+    Returns the envelope and a note ``{"text": how it was made, "plan": planned captures
+    DataFrame or None}`` for the report.
+    """
+    plan = plan if plan is not None else find_plan()
+    if plan is None:
+        return (Envelope(FALLBACK_ENVELOPE, source="built-in"),
+                {"text": "built-in default (no capture plan found in protocols/): hull of "
+                         "rest, spot turns, straight, curved, side and diagonal walking",
+                 "plan": None})
+    text = Path(plan).read_text(encoding="utf-8") if Path(plan).is_file() else ""
+    commands = plan_commands(plan)
+    if "[envelope]" in text:
+        env, how = Envelope.from_toml(plan), f"[envelope] table of {Path(plan).name}"
+    else:
+        env = Envelope.from_commands(commands, source=str(plan))
+        how = (f"convex hull of the {len(commands)} commanded velocities of the capture plan "
+               f"{Path(plan).name}")
+    return env, {"text": how, "plan": commands}
+
+
+def planned_status(plan: pd.DataFrame | None, entries: pd.DataFrame,
+                   diagnostics: dict | None) -> dict | None:
+    """Planned captures missing from the library or failed in the build; None without a plan."""
+    if plan is None:
+        return None
+    in_library = {Path(s).stem for s in entries["source_file"]}
+    failed = {}
+    for record in (diagnostics or {}).get("captures") or []:
+        if not record.get("ok", True):
+            failed[Path(str(record.get("source", ""))).stem] = (
+                f"{record.get('stage') or '?'}: {record.get('error') or 'failed'}")
+    rows_failed = [{"name": n, "reason": failed[n]} for n in plan["name"] if n in failed]
+    missing = [n for n in plan["name"] if n not in in_library and n not in failed]
+    return {"n_planned": len(plan), "n_in_library": int(plan["name"].isin(in_library).sum()),
+            "missing": missing, "failed": rows_failed}

@@ -1,0 +1,138 @@
+"""The 3-D control-space picture: pyvista/VTK off-screen, or matplotlib when OpenGL fails.
+
+VTK can abort the whole process when no OpenGL context can be made, so the pyvista render runs
+in a child process (``python -m mocaplib.report.scene3d SCENE.npz OUT.png``); a crash, a
+time-out or a blank image there makes :func:`render_control_space` fall back to matplotlib and
+say why. ``MOCAPLIB_NO_OPENGL=1`` (or ``renderer="matplotlib"``) skips pyvista altogether.
+
+Coordinates drawn are the normalised ones the triangulation uses (SI / scale), so the three
+axes have comparable lengths; axis titles give the scale.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Seconds the pyvista child process may take before the matplotlib fallback is used.
+RENDER_TIMEOUT_S = 120
+NO_OPENGL_ENV = "MOCAPLIB_NO_OPENGL"
+
+
+@dataclass
+class Rendered:
+    """A 3-D picture: PNG bytes, which renderer made it and, after a fallback, why."""
+
+    png: bytes
+    renderer: str
+    fallback_reason: str | None = None
+
+
+def render_control_space(points, colours, labels, axes_titles, *, edges, hull_triangles,
+                         envelope_triangles=None, envelope_points=None, classes=None,
+                         renderer: str = "auto", fallback=None) -> Rendered:
+    """Render the scene; ``fallback()`` -> PNG bytes is the matplotlib picture.
+
+    points (E, 3) normalised; colours (E, 3) RGB 0-1; labels (E,) class per point (legend);
+    edges (K, 2); hull_triangles (H, 3) rows of points; envelope_points (P, 3) normalised with
+    envelope_triangles (G, 3). renderer: "auto" (pyvista, matplotlib if that fails), or
+    "matplotlib".
+    """
+    if renderer not in ("auto", "matplotlib"):
+        raise ValueError(f"renderer must be 'auto' or 'matplotlib', got {renderer!r}")
+    if renderer == "matplotlib":
+        return Rendered(fallback(), "matplotlib", "matplotlib was requested (--no-opengl)")
+    if os.environ.get(NO_OPENGL_ENV, "") not in ("", "0"):
+        return Rendered(fallback(), "matplotlib", f"{NO_OPENGL_ENV} is set")
+    with tempfile.TemporaryDirectory(prefix="mocaplib-scene-") as tmp:
+        scene, out = Path(tmp) / "scene.npz", Path(tmp) / "scene.png"
+        np.savez(scene, points=np.asarray(points, float), colours=np.asarray(colours, float),
+                 labels=np.asarray(labels, dtype=str), titles=np.asarray(axes_titles, dtype=str),
+                 edges=np.asarray(edges, int).reshape(-1, 2),
+                 hull=np.asarray(hull_triangles, int).reshape(-1, 3),
+                 env_points=np.asarray(envelope_points if envelope_points is not None
+                                       else np.zeros((0, 3)), float),
+                 env_tris=np.asarray(envelope_triangles if envelope_triangles is not None
+                                     else np.zeros((0, 3)), int).reshape(-1, 3))
+        reason = _run_renderer(scene, out)
+        if reason is None:
+            png = out.read_bytes()
+            if not _blank(png):
+                return Rendered(png, "pyvista")
+            reason = "pyvista produced a blank image"
+    return Rendered(fallback(), "matplotlib", reason)
+
+
+def _run_renderer(scene: Path, out: Path) -> str | None:
+    """Render in a child process; None on success, else why it failed."""
+    env = dict(os.environ)
+    package_root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "mocaplib.report.scene3d", str(scene),
+                               str(out)], capture_output=True, text=True, env=env,
+                              timeout=RENDER_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return f"pyvista did not finish within {RENDER_TIMEOUT_S} s"
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["no message"])[-1][:200]
+        how = (f"crashed (signal {-proc.returncode})" if proc.returncode < 0
+               else f"failed (exit {proc.returncode})")
+        return f"pyvista/OpenGL rendering {how}: {last}"
+    if not out.is_file():
+        return "pyvista wrote no image"
+    return None
+
+
+def _blank(png: bytes) -> bool:
+    """True when an image has (almost) a single colour."""
+    import io
+
+    from matplotlib.image import imread
+
+    img = imread(io.BytesIO(png))
+    return float(np.asarray(img)[..., :3].std()) < 1e-3
+
+
+def _render_pyvista(scene_path: str, out_path: str) -> None:
+    """Child-process body: draw the scene with pyvista off-screen and save a PNG."""
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    s = np.load(scene_path)
+    pts, colours = s["points"], s["colours"]
+    plotter = pv.Plotter(off_screen=True, window_size=(1000, 800))
+    plotter.set_background("white")
+    if len(s["hull"]):
+        faces = np.hstack([np.full((len(s["hull"]), 1), 3), s["hull"]]).ravel()
+        plotter.add_mesh(pv.PolyData(pts, faces), color="lightsteelblue", opacity=0.18,
+                         show_edges=False)
+    if len(s["edges"]):
+        lines = np.hstack([np.full((len(s["edges"]), 1), 2), s["edges"]]).ravel()
+        plotter.add_mesh(pv.PolyData(pts, lines=lines), color="grey", line_width=1.2)
+    if len(s["env_tris"]):
+        faces = np.hstack([np.full((len(s["env_tris"]), 1), 3), s["env_tris"]]).ravel()
+        plotter.add_mesh(pv.PolyData(s["env_points"], faces), color="red", style="wireframe",
+                         opacity=0.35, line_width=1)
+    for name in sorted(set(s["labels"].tolist())):
+        sel = s["labels"] == name
+        plotter.add_points(pts[sel], color=tuple(colours[sel][0]), point_size=16,
+                           render_points_as_spheres=True, label=str(name))
+    plotter.add_legend(bcolor="white", size=(0.2, 0.25), face="circle")
+    titles = s["titles"].tolist()
+    plotter.show_grid(xtitle=titles[0], ytitle=titles[1], ztitle=titles[2], color="black",
+                      font_size=10)
+    plotter.view_isometric()
+    plotter.camera.zoom(0.9)
+    plotter.screenshot(out_path)
+    plotter.close()
+
+
+if __name__ == "__main__":  # the child process of _run_renderer
+    _render_pyvista(sys.argv[1], sys.argv[2])

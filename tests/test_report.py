@@ -1,0 +1,252 @@
+"""HTML report: self-contained, escaped, fallback without OpenGL, looked at in headless Chromium."""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import io
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocaplib.library import assemble_library, make_entry
+from mocaplib.skeleton import DOF_NAMES
+
+D = len(DOF_NAMES)
+EVIL = "<script>alert('x')</script>"
+HIP = DOF_NAMES.index("hip_flexion_r")
+KNEE = DOF_NAMES.index("knee_flexion_r")
+
+# (class, v, omega, v_l) of a small hand library covering the usual locomotion types.
+ENTRIES = [
+    ("straight", 0.6, 0.0, 0.0), ("straight", 1.2, 0.02, 0.0), ("straight", 1.8, -0.02, 0.0),
+    ("curve_left", 1.2, 0.6, 0.05), ("curve_left", 1.2, 1.2, 0.1), ("curve_right", 1.2, -0.6, -0.05),
+    ("curve_right", 1.2, -1.2, -0.1), ("spot_turn", 0.02, 1.0, 0.0), ("spot_turn", 0.02, -1.0, 0.0),
+    ("sidestep", 0.4, 0.0, 0.4), ("sidestep", 0.4, 0.0, -0.4), ("diagonal", 1.0, 0.0, 0.7),
+    ("diagonal", 1.0, 0.0, -0.7), ("straight", 1.2, 0.3, 0.2), (None, 0.9, -0.3, -0.2),
+]
+
+
+def _coefficients(v: float, omega: float, n: int = 4):
+    """Gait-like Fourier coefficients whose amplitude grows with speed."""
+    a, b = np.zeros((D, n + 1)), np.zeros((D, n + 1))
+    a[HIP, 0], a[HIP, 1], b[HIP, 1] = 0.15, 0.3 * (0.3 + v), 0.1
+    a[KNEE, 0], a[KNEE, 2], b[KNEE, 1] = 0.35, 0.25 * (0.3 + v), 0.4 * (0.2 + v)
+    a[DOF_NAMES.index("trunk_rotation"), 1] = 0.05 + 0.03 * omega
+    return a, b
+
+
+def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
+                 diagnostics: bool = True) -> Path:
+    """A hand-assembled library (and its diagnostics sidecar) in ``folder``."""
+    entries = []
+    for i, (cls, v, w, vl) in enumerate(ENTRIES):
+        a, b = _coefficients(v, w)
+        T = 1.1 - 0.15 * v
+        source = source_name if i == 0 else f"cap{i:02d}.c3d"
+        entries.append(make_entry(
+            id=f"{Path(source).stem}#0", source_file=source, source_sha256="0" * 64,
+            cycle_index=0, start_s=0.5, end_s=0.5 + T, T=T,
+            pattern={"type": "arc" if w else "line", "parameters": {}}, v=v, omega=w, v_l=vl,
+            v_f=float(np.sqrt(max(v * v - vl * vl, 0.0))), a=a, b=b,
+            root_drift={"u_f": v, "u_l": vl, "omega": w},
+            qc={"marker_rms_m": 0.006, "fourier_rms_rad": 0.002}, locomotion_class=cls))
+    lib = assemble_library(entries, settings={})
+    path = folder / "lib.json"
+    lib.write(path)
+    if diagnostics:
+        _write_diagnostics(folder / "lib.diagnostics.json", lib, source_name)
+    return path
+
+
+def _write_diagnostics(path: Path, lib, source_name: str) -> None:
+    rate, T = 100.0, float(lib.entries.iloc[0]["T"])
+    t = np.arange(0, 3.0, 1 / rate)
+    R, w = 2.0, 0.6                          # walking an arc of radius 2 m
+    xy = np.column_stack([R * np.sin(w * t), R - R * np.cos(w * t)])
+    entry_id = f"{Path(source_name).stem}#0"
+    q = lib.angles(entry_id, t - 0.5)
+    record = {
+        "source": source_name, "ok": True, "error": None, "stage": None, "rate_hz": rate,
+        "time_s": t.tolist(), "shoulder_mid_xy": xy.tolist(),
+        "frame_rms_m": (0.006 + 0.002 * np.sin(3 * t)).tolist(),
+        "events": [{"side": s, "kind": k, "time_s": float(x)}
+                   for s, k, x in (("left", "toe_off", 0.5), ("right", "heel_strike", 0.6),
+                                   ("right", "toe_off", 1.0), ("left", "heel_strike", 1.1),
+                                   ("left", "toe_off", 0.5 + T))],
+        "cycles": [{"start_s": 0.5, "end_s": 0.5 + T, "chosen": True, "entry_id": entry_id,
+                    "pattern": {"type": "arc", "params": {"centre": [0.0, R], "radius": R,
+                                                          "turn": 1}}}],
+        "angles": {"time_s": t.tolist(),
+                   **{n: q[:, j].tolist() for j, n in enumerate(DOF_NAMES)}},
+        "warnings": [f"label {EVIL} renamed"],
+    }
+    failed = {"source": "cap99.c3d", "ok": False, "error": "no left toe-off found",
+              "stage": "events", "warnings": []}
+    path.write_text(json.dumps({"format": "mocaplib-diagnostics", "version": 1,
+                                "captures": [record, failed]}))
+
+
+def _images(html: str) -> list[np.ndarray]:
+    from matplotlib.image import imread
+
+    return [imread(io.BytesIO(base64.b64decode(m))) for m in
+            re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)]
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    """One report with the pyvista renderer (auto), shared by the checks below."""
+    from mocaplib.report import write_report
+
+    folder = tmp_path_factory.mktemp("rep")
+    lib = make_library(folder, source_name=f"walk{EVIL}.c3d")
+    out = write_report(lib, folder / "out")
+    return out, out.read_text(encoding="utf-8")
+
+
+def test_report_is_self_contained(report):
+    path, html = report
+    assert path.name == "lib-report.html"
+    # No external resources: every src is a data URI, no http(s) links or stylesheets.
+    assert not re.search(r'(src|href)="(?!data:|#)', html)
+    assert "http://" not in html and "https://" not in html
+    images = _images(html)
+    assert len(images) >= 3  # projections, 3-D view, one capture figure
+    for img in images:
+        assert img.ndim == 3 and img.shape[0] > 200 and img[..., :3].std() > 0.05
+
+
+def test_report_escapes_untrusted_names(report):
+    _, html = report
+    assert EVIL not in html
+    assert "&lt;script&gt;alert(" in html  # shown as text in the capture heading and warnings
+    # The only <script> elements are the viewer's data and code.
+    assert len(re.findall(r"<script\b", html)) == 2
+
+
+def test_report_contents(report):
+    _, html = report
+    for text in ("Capture next", "largest hole", "Blending error", "sliver tetrahedra",
+                 "cap99.c3d", "no left toe-off found", "Interactive view", 'id="cs-data"'):
+        assert text in html, text
+    data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
+                                html, re.S).group(1))
+    assert len(data["points"]) == len(ENTRIES) and len(data["edges"]) > len(ENTRIES)
+
+
+def test_report_falls_back_without_opengl(tmp_path, monkeypatch):
+    from mocaplib.report import write_report
+
+    lib = make_library(tmp_path, diagnostics=False)
+    monkeypatch.setenv("MOCAPLIB_NO_OPENGL", "1")
+    html = write_report(lib, tmp_path / "a").read_text()
+    assert "rendered with <b>matplotlib</b>" in html and "MOCAPLIB_NO_OPENGL is set" in html
+    assert "no diagnostics sidecar" in html
+    assert all(img[..., :3].std() > 0.05 for img in _images(html))
+
+
+def test_report_detects_a_crashing_renderer(tmp_path, monkeypatch):
+    from mocaplib.report import scene3d, write_report
+
+    lib = make_library(tmp_path, diagnostics=False)
+    monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
+    # What _run_renderer reports when the VTK child process dies on a signal.
+    monkeypatch.setattr(scene3d, "_run_renderer",
+                        lambda scene, out: "pyvista/OpenGL rendering crashed (signal 11): "
+                                           "Segmentation fault")
+    html = write_report(lib, tmp_path / "b").read_text()
+    assert "rendered with <b>matplotlib</b>" in html and "crashed (signal 11)" in html
+
+
+def test_renderer_child_failure_is_reported(tmp_path, monkeypatch):
+    from mocaplib.report import scene3d
+
+    # A child process that cannot even start Python's module: non-zero exit, message kept.
+    monkeypatch.setattr(scene3d.sys, "executable", "/bin/false")
+    reason = scene3d._run_renderer(tmp_path / "s.npz", tmp_path / "s.png")
+    assert reason is not None and "failed (exit 1)" in reason
+
+
+def test_report_of_a_degenerate_library_still_builds(tmp_path):
+    from mocaplib.report import write_report
+
+    entries = []
+    for i, v in enumerate((0.6, 0.9, 1.2, 1.5, 1.8)):  # straight walking only: a line
+        a, b = _coefficients(v, 0.0)
+        entries.append(make_entry(
+            id=f"s{i}", source_file=f"s{i}.c3d", source_sha256="0" * 64, cycle_index=0,
+            start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=v, omega=0.0, v_l=0.0,
+            v_f=v, a=a, b=b, root_drift={}, qc={}))
+    path = tmp_path / "line.json"
+    assemble_library(entries, settings={}).write(path)
+    html = write_report(path, tmp_path, renderer="matplotlib").read_text()
+    assert "degenerate" in html and "No 3-D view" in html
+    assert len(_images(html)) == 1  # the projections still show the entries
+
+
+def test_report_command(tmp_path, capsys):
+    from mocaplib.cli import report as report_cmd
+
+    lib = make_library(tmp_path, diagnostics=False)
+    parser = argparse.ArgumentParser()
+    report_cmd.register(parser.add_subparsers())
+    args = parser.parse_args(["report", str(lib), "-o", str(tmp_path / "r"), "--no-opengl"])
+    assert args.run(args) == 0
+    assert (tmp_path / "r" / "lib-report.html").is_file()
+    assert "lib-report.html" in capsys.readouterr().out
+
+
+def test_envelope_override(tmp_path):
+    from mocaplib.report import write_report
+
+    lib = make_library(tmp_path, diagnostics=False)
+    env = tmp_path / "env.toml"
+    env.write_text("[envelope]\nv = [0.0, 1.0]\nomega = [-0.5, 0.5]\nv_l = [-0.2, 0.2]\n")
+    html = write_report(lib, tmp_path, envelope=env, renderer="matplotlib").read_text()
+    assert "Target envelope: from env.toml." in html
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def _chromium(url: str, tmp: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+         "--no-first-run", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", f"--user-data-dir={tmp / 'profile'}", *extra, url],
+        capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+def test_report_in_headless_chromium(report, tmp_path):
+    from matplotlib.image import imread
+
+    path, html = report
+    shot = tmp_path / "report.png"
+    _chromium(path.resolve().as_uri(), tmp_path, f"--screenshot={shot}",
+              "--window-size=1280,4000")
+    assert shot.is_file(), "chromium wrote no screenshot"
+    img = imread(str(shot))[..., :3]
+    assert img.shape[:2] == (4000, 1280)
+    # A rendered page: not blank, many colours (figures), not just text on white.
+    assert img.std() > 0.1
+    assert len(np.unique((img.reshape(-1, 3) * 255).astype(np.uint8), axis=0)) > 500
+    # Images decoded, and the interactive viewer drew every entry (the DOM after scripts ran).
+    probe = tmp_path / "probe.html"
+    probe.write_text(html.replace("</body>", "<script>window.addEventListener('load', () => "
+                                  "{document.title = 'IMAGES:' + [...document.images].filter("
+                                  "i => i.complete && i.naturalWidth > 0).length + '/' + "
+                                  "document.images.length + ' DRAWN:' + document.getElementById"
+                                  "('cs-viewer').getAttribute('data-drawn');});</script></body>"),
+                     encoding="utf-8")
+    dom = _chromium(probe.resolve().as_uri(), tmp_path, "--dump-dom",
+                    "--virtual-time-budget=5000").stdout
+    n = len(_images(html))
+    assert f"IMAGES:{n}/{n}" in dom
+    assert f"DRAWN:{len(ENTRIES)}" in dom
