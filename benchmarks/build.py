@@ -1,0 +1,93 @@
+"""Benchmark `mocaplib build`: captures/s with 1 and 2 jobs, time per stage, growth with data.
+
+Usage (from the repository root)::
+
+    python benchmarks/build.py [SAMPLES] [--growth-captures N] [--repeat R]
+
+1. Builds every capture in SAMPLES (default ``sample_c3d/``) with 1 job and with 2 jobs, cache
+   off, and prints wall time, captures/s and the speed-up (ratio of the two wall times).
+2. Prints the time spent in each stage, summed over captures (from the 1-job build).
+3. Builds 1x, 2x and 4x the data — N captures (default: all of them) copied 1, 2 and 4 times
+   into a temporary folder — with 2 jobs, and prints the wall time against the total number of
+   frames, and the time per 1000 frames (flat means linear growth).
+
+Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from mocaplib.pipeline import BuildSettings, build, find_captures  # noqa: E402
+
+STAGES = ("read", "import", "protocol", "calibrate", "fit", "events", "cycles", "entries")
+
+
+def timed_build(inputs, jobs: int, repeat: int):
+    """Best wall time of ``repeat`` uncached builds, and the result of the last one."""
+    best, result = float("inf"), None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = build(inputs, BuildSettings(), jobs=jobs, cache_dir=None, progress=False)
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("samples", nargs="?", default=str(REPO / "sample_c3d"))
+    parser.add_argument("--growth-captures", type=int, default=None,
+                        help="captures used for the 1x/2x/4x growth runs (default: all)")
+    parser.add_argument("--repeat", type=int, default=1)
+    args = parser.parse_args()
+
+    captures = find_captures([args.samples])
+    if not captures:
+        print(f"no captures in {args.samples}; generate the samples first", file=sys.stderr)
+        return 1
+    print(f"{len(captures)} captures in {args.samples}")
+
+    one, result = timed_build([args.samples], 1, args.repeat)
+    two, result2 = timed_build([args.samples], 2, args.repeat)
+    assert result.library.to_json() == result2.library.to_json(), "jobs=2 changed the library"
+    n = len(captures)
+    print(f"\njobs  wall_s  captures/s   (ok {sum(c.ok for c in result.captures)}, "
+          f"entries {len(result.library)})")
+    print(f"1     {one:6.1f}  {n / one:10.2f}")
+    print(f"2     {two:6.1f}  {n / two:10.2f}")
+    print(f"speed-up jobs=2 / jobs=1: {one / two:.2f}x")
+
+    totals = {s: sum(c.stage_times.get(s, 0.0) for c in result.captures) for s in STAGES}
+    frames = sum(c.n_frames for c in result.captures)
+    print(f"\nstage      seconds  share   (1 job, {frames} frames in total)")
+    for stage, seconds in totals.items():
+        print(f"{stage:<10} {seconds:7.2f}  {seconds / max(sum(totals.values()), 1e-9):5.1%}")
+
+    subset = captures[:args.growth_captures] if args.growth_captures else captures
+    print(f"\ngrowth (2 jobs, {len(subset)} captures copied k times)")
+    print("data  captures  frames   wall_s  s/1000 frames")
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in (1, 2, 4):
+            folder = Path(tmp) / f"x{k}"
+            for copy in range(k):
+                target = folder / f"copy{copy}"
+                target.mkdir(parents=True)
+                for path in subset:
+                    shutil.copy2(path, target / path.name)
+            wall, grown = timed_build([folder], 2, args.repeat)
+            total = sum(c.n_frames for c in grown.captures)
+            print(f"{k}x    {len(grown.captures):8d}  {total:6d}  {wall:7.1f}  "
+                  f"{1000 * wall / total:13.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
