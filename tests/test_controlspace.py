@@ -280,3 +280,58 @@ def test_envelope_from_toml(tmp_path):
     with pytest.raises(MocapError, match="no \\[envelope\\] table"):
         (tmp_path / "none.toml").write_text("x = 1\n")
         Envelope.from_toml(tmp_path / "none.toml")
+
+
+# --------------------------------------------------------------------------- mocaplib query
+def _query(argv):
+    """Run ``mocaplib query ARGV`` through its own parser (no other sub-command needed)."""
+    import argparse
+
+    from mocaplib.cli import query
+
+    parser = argparse.ArgumentParser()
+    query.register(parser.add_subparsers())
+    args = parser.parse_args(["query", *map(str, argv)])
+    return args.run(args)
+
+
+@pytest.fixture
+def cube_library(tmp_path):
+    pts = np.vstack([CUBE * [1.5, 1.0, 0.5], [[0.75, 0.5, 0.25]]])
+    path = tmp_path / "lib.json"
+    hand_library(pts, T=np.linspace(1.0, 1.2, 9)).write(path)
+    return path
+
+
+def test_query_command_json_inside_and_outside(cube_library, capsys):
+    import json
+
+    assert _query([cube_library, 0.7, 0.4, 0.2, "--json"]) == 0
+    inside = json.loads(capsys.readouterr().out)
+    assert inside["inside"] is True and len(inside["entries"]) == 4
+    np.testing.assert_allclose(sum(inside["weights"]), 1.0, atol=1e-12)
+    assert 1.0 <= inside["T_s"] <= 1.2
+    assert _query([cube_library, 3.0, 0.5, 0.25, "--json"]) == 0
+    outside = json.loads(capsys.readouterr().out)
+    assert outside["inside"] is False and outside["entries"] == []
+    # Beyond the v = 1.5 face: the nearest hull point keeps omega and v_l (exact projection).
+    np.testing.assert_allclose(outside["nearest"], [1.5, 0.5, 0.25], atol=1e-12)
+    np.testing.assert_allclose(outside["distance"], 1.5 / 1.5, atol=1e-12)  # v scale 1.5 m/s
+
+
+def test_query_command_bvh(cube_library, tmp_path, capsys):
+    out = tmp_path / "blend.bvh"
+    import json
+
+    assert _query([cube_library, 0.7, 0.4, 0.2, "--bvh", out, "--rate", 50, "--cycles", 2,
+                   "--json"]) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["bvh"] == str(out)
+    frames = int(out.read_text().split("Frames:")[1].split()[0])
+    assert frames == int(np.ceil(2 * answer["T_s"] * 50))  # two blended cycles at 50 Hz
+    assert _query([cube_library, 0.7, 0.4, 0.2]) == 0
+    assert "inside the control space" in capsys.readouterr().out
+    with pytest.raises(MocapError, match="outside the control space.*--clamp"):
+        _query([cube_library, 3.0, 0.5, 0.25, "--bvh", out])
+    assert _query([cube_library, 3.0, 0.5, 0.25, "--bvh", out, "--clamp"]) == 0
+    assert "blending at that point (--clamp)" in capsys.readouterr().out
