@@ -19,6 +19,8 @@ _EXPORTS = {
     "Motion": "mocaplib.motion",
     "read_c3d": "mocaplib.io.c3d",
     "load_library": "mocaplib.library",
+    "ControlSpace": "mocaplib.controlspace",
+    "write_report": "mocaplib.report",
 }
 
 
