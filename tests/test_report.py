@@ -250,3 +250,48 @@ def test_report_in_headless_chromium(report, tmp_path):
     n = len(_images(html))
     assert f"IMAGES:{n}/{n}" in dom
     assert f"DRAWN:{len(ENTRIES)}" in dom
+
+
+def test_envelope_and_planned_captures_from_a_capture_plan(tmp_path):
+    from mocaplib.report import write_report
+    from mocaplib.report.plan import default_envelope
+
+    plan = tmp_path / "mini_plan.toml"
+    plan.write_text("""name = "mini"
+[[capture]]
+name = "cap01"
+class = "nonholonomic"
+command = { kind = "straight", speed = 1.2 }
+duration = 2.0
+seed = 1
+[[capture]]
+name = "cap99"
+class = "nonholonomic"
+command = { kind = "curve", speed = 1.2, radius = 1.0, side = "left" }
+duration = 2.0
+seed = 2
+[[capture]]
+name = "never_done"
+class = "holonomic"
+command = { kind = "sidestep", speed = 0.4, side = "right" }
+duration = 2.0
+seed = 3
+[[capture]]
+name = "turn"
+class = "nonholonomic"
+command = { kind = "spot_turn", speed = 1.0, side = "right" }
+duration = 2.0
+seed = 4
+""")
+    env, note = default_envelope(plan)
+    # Hull vertices are the commands as (hypot(v_f, v_l), omega, v_l).
+    np.testing.assert_allclose(env.vertices, [[1.2, 0, 0], [1.2, 1.2, 0], [0.4, 0, -0.4],
+                                              [0, -1.0, 0]], atol=1e-12)
+    assert list(note["plan"]["name"]) == ["cap01", "cap99", "never_done", "turn"]
+    lib = make_library(tmp_path)  # its diagnostics mark cap99.c3d failed in "events"
+    html = write_report(lib, tmp_path / "r", envelope=plan, renderer="matplotlib").read_text()
+    assert "convex hull of the 4 commanded velocities of the capture plan mini_plan.toml" in html
+    assert "1 of 4 planned captures are in the library" in html
+    assert "cap99 — events: no left toe-off found" in html
+    missing = html.split("Missing (never captured")[1].split("</ul>")[0]
+    assert "never_done" in missing and "turn" in missing and "cap01" not in missing

@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import __version__
 from ..controlspace import AXIS_UNITS, ControlSpace, Envelope, coverage, leave_one_out
-from ..errors import LibraryError, MocapError
+from ..errors import MocapError
 from ..io.atomic import atomic_write_text
 from ..library import load_library, validate_library
 from . import figures

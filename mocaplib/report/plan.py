@@ -15,14 +15,12 @@ Planned captures are matched to the library by file stem: capture ``name`` in th
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..controlspace import Envelope
-from ..errors import MocapError
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
@@ -49,36 +47,14 @@ def find_plan() -> Path | None:
 
 
 def plan_commands(path: str | Path) -> pd.DataFrame:
-    """Planned captures of a plan file: columns ``name, v_f, v_l, omega`` (SI).
+    """Planned captures of a plan file (:func:`mocaplib.synth.plan.load_plan`): columns
+    ``name, class, v_f, v_l, omega`` (SI)."""
+    from ..synth.plan import load_plan
 
-    Each ``[[captures]]`` table has a ``name`` and either ``v_f``/``v_l``/``omega`` or the
-    locomotion ``kind`` with ``speed``/``radius``/``direction``/``side`` as
-    :meth:`mocaplib.synth.command.Command.from_kind` reads them.
-    """
-    from ..synth.command import Command
-
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise MocapError(f"cannot read capture plan: {exc}", path=path) from exc
-    tables = doc.get("captures", doc.get("capture", []))
-    rows = []
-    for i, t in enumerate(tables if isinstance(tables, list) else []):
-        if not isinstance(t, dict):
-            continue
-        name = str(t.get("name", f"capture{i + 1}"))
-        if "kind" in t:
-            kwargs = {k: t[k] for k in ("speed", "radius", "direction", "side") if k in t}
-            c = Command.from_kind(t["kind"], **kwargs)
-            rows.append((name, c.v_f, c.v_l, c.omega))
-        else:
-            rows.append((name, float(t.get("v_f", 0.0)), float(t.get("v_l", 0.0)),
-                         float(t.get("omega", 0.0))))
-    if not rows:
-        raise MocapError("the capture plan lists no captures", path=path,
-                         hint="a plan has [[captures]] tables with a name and a command")
-    return pd.DataFrame(rows, columns=["name", "v_f", "v_l", "omega"])
+    plan = load_plan(path)
+    return pd.DataFrame([(c.name, c.cls, c.command.v_f, c.command.v_l, c.command.omega)
+                         for c in plan.captures],
+                        columns=["name", "class", "v_f", "v_l", "omega"])
 
 
 def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
