@@ -321,6 +321,29 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
 
 
+def fit_quality(motion: Motion) -> dict:
+    """Fit quality in millimetres, as the CLI prints it.
+
+    ``marker_rms_mm``: mean over frames of each frame's marker RMS (OpenSim's "marker error
+    RMS", averaged); ``max_marker_error_mm``: the largest residual of any marker in any frame;
+    ``per_marker_rms_mm``: each marker's RMS over the capture; ``locked_dofs``;
+    ``failed_frames``: indices of frames that could not be fitted.
+    """
+    seen = np.isfinite(motion.residuals)
+    squares = np.where(seen, motion.residuals, 0.0) ** 2
+    frame_rms = np.sqrt(squares.sum(axis=1)[seen.any(axis=1)] / seen.sum(axis=1)[seen.any(axis=1)])
+    marker_rms = np.sqrt(squares.sum(axis=0) / np.maximum(seen.sum(axis=0), 1))
+    marker_rms[~seen.any(axis=0)] = np.nan
+    return {
+        "marker_rms_mm": float(np.mean(frame_rms) * 1000),
+        "max_marker_error_mm": float(np.nanmax(motion.residuals) * 1000),
+        "per_marker_rms_mm": {label: float(v * 1000)
+                              for label, v in zip(motion.marker_labels, marker_rms)},
+        "locked_dofs": list(motion.locked_dofs),
+        "failed_frames": np.flatnonzero(motion.failed).tolist(),
+    }
+
+
 def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's markers in the model's order, shape (F, M, 3), NaN where absent."""
     match = match_protocol(trial, model.protocol)

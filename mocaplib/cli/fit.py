@@ -1,0 +1,64 @@
+"""``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
+
+Only parses options and writes outputs: the work is :func:`mocaplib.calibrate.calibrate` and
+:func:`mocaplib.ik.fit`.
+"""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fit", help="fit the skeleton's joint angles to a C3D capture",
+        description="Calibrate the subject's skeleton (from --static when given, otherwise from "
+                    "the capture), fit every frame's joint angles by robust least squares and "
+                    "write them as CSV: a time_s column and one column per DOF (radians; "
+                    "pelvis_t* metres). Exit 0 on success, 1 when the capture cannot be fitted, "
+                    "2 on usage errors.")
+    parser.add_argument("input", metavar="FILE", help="C3D capture")
+    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
+                             "(default: detected from the labels)")
+    parser.add_argument("--static", metavar="FILE", help="static standing C3D for calibration")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.csv",
+                        help="joint angles as CSV")
+    parser.add_argument("--mot", metavar="OUT.mot", help="also write the angles as OpenSim .mot")
+    parser.add_argument("--osim", metavar="OUT.osim",
+                        help="also write the calibrated model as OpenSim .osim")
+    parser.add_argument("--json", action="store_true",
+                        help="print the fit quality as JSON: marker_rms_mm, max_marker_error_mm, "
+                             "per_marker_rms_mm, locked_dofs, failed_frames")
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..calibrate import calibrate
+    from ..ik import fit, fit_quality
+    from ..io.atomic import atomic_write_text
+    from ..io.c3d import read_c3d
+    from ..io.opensim import write_mot, write_osim
+    from ._common import print_json, warn
+
+    trial = read_c3d(args.input)
+    static = read_c3d(args.static) if args.static else None
+    model = calibrate(trial, protocol=args.protocol, static=static)
+    motion = fit(trial, model)
+    atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
+    if args.mot:
+        write_mot(motion, args.mot)
+    if args.osim:
+        write_osim(model, args.osim)
+    quality = fit_quality(motion)
+    if model.left_out:
+        warn(f"{args.input}: no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
+    if quality["failed_frames"]:
+        warn(f"{args.input}: {len(quality['failed_frames'])} frames could not be fitted "
+             "(interpolated)")
+    if args.json:
+        print_json({"file": args.input, "protocol": model.protocol.name, **quality})
+    else:
+        print(f"{args.input}: protocol {model.protocol.name}, {motion.n_frames} frames, "
+              f"marker RMS {quality['marker_rms_mm']:.1f} mm, "
+              f"max {quality['max_marker_error_mm']:.1f} mm -> {args.output}")
+    return 0
+
