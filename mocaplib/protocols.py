@@ -353,7 +353,8 @@ def _match_warnings(match: ProtocolMatch, swaps: tuple[str, ...]) -> tuple[str, 
     if match.ignored:
         out.append(f"ignored {len(match.ignored)} model-output points ({_few(match.ignored)})")
     if match.unknown:
-        out.append(f"{len(match.unknown)} labels not in protocol {match.protocol.name} "
+        plural = "s" if len(match.unknown) > 1 else ""
+        out.append(f"{len(match.unknown)} label{plural} not in protocol {match.protocol.name} "
                    f"({_few(match.unknown)})")
     if match.missing_landmarks:
         out.append(f"missing required landmarks for {match.protocol.name}: "

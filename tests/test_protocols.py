@@ -46,7 +46,7 @@ def _real(relative: str) -> Trial:
 # ---------------------------------------------------------------- shipped files
 def test_every_shipped_protocol_loads_and_every_required_landmark_set_is_usable():
     names = list_protocols()
-    assert set(EXPECTED.values()) | {"fullbody38"} == set(names)
+    assert set(EXPECTED.values()) | {"fullbody38"} <= set(names)
     for name in names:
         protocol = load_protocol(name)
         assert protocol.name == name
