@@ -194,8 +194,8 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
         base = data["extends"]
         if not isinstance(base, str):
             raise ProtocolError("'extends' must be a protocol name or path", path=path)
-        try:
-            parent_path = _protocol_path(base)
+        try:  # a relative .toml path is relative to this file's folder
+            parent_path = _protocol_path(path.parent / base if base.endswith(".toml") else base)
         except ProtocolError as exc:
             raise ProtocolError(f"extends {base!r}: {exc.message}", path=path,
                                 hint=exc.hint) from None
@@ -230,11 +230,11 @@ def _protocol_marker(label: str, spec, landmarks: dict[str, Landmark], path: Pat
                      ) -> ProtocolMarker:
     spec = {"landmark": spec} if isinstance(spec, str) else spec
     name = spec.get("landmark") if isinstance(spec, dict) else None
-    if name not in landmarks:
+    if not isinstance(name, str) or name not in landmarks:
         raise ProtocolError(f"marker {label!r}: unknown landmark {name!r}", path=path,
                             hint="landmarks are listed in protocols/landmarks.toml")
     aliases = spec.get("aliases", ())
-    if isinstance(aliases, str) or not all(isinstance(a, str) for a in aliases):
+    if not isinstance(aliases, (list, tuple)) or not all(isinstance(a, str) for a in aliases):
         raise ProtocolError(f"marker {label!r}: aliases must be a list of strings", path=path)
     required = spec.get("required", False)
     if not isinstance(required, bool):

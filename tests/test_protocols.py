@@ -189,6 +189,8 @@ def test_no_protocol_matches_raises():
     ('[markers]\nLASI = { landmark = "L_NOPE" }\n', "unknown landmark 'L_NOPE'"),
     ('[markers]\nLASI = { landmark = "L_ASIS", required = "yes" }\n', "required must be"),
     ('[markers]\nLASI = { landmark = "L_ASIS", aliases = "RASI" }\n', "aliases must be"),
+    ('[markers]\nLASI = { landmark = "L_ASIS", aliases = 3 }\n', "aliases must be"),
+    ('[markers]\nLASI = { landmark = [1, 2] }\n', "unknown landmark"),
     ('[markers]\nLASI = "L_ASIS"\nRASI = { landmark = "R_ASIS", aliases = ["lasi"] }\n',
      "used twice: LASI"),
     ('[markers]\nLASI = "L_ASIS"\n[any_of]\nback = ["LPSI"]\n', r"\[any_of\] 'back'"),
@@ -203,8 +205,8 @@ def test_malformed_protocol_names_the_file(tmp_path, text, message):
 
 
 def test_extends_loop_is_an_error(tmp_path):
-    (tmp_path / "a.toml").write_text(f'extends = "{tmp_path / "b.toml"}"\n[markers]\nC7 = "C7"\n')
-    (tmp_path / "b.toml").write_text(f'extends = "{tmp_path / "a.toml"}"\n[markers]\nT10 = "T10"\n')
+    (tmp_path / "a.toml").write_text('extends = "b.toml"\n[markers]\nC7 = "C7"\n')
+    (tmp_path / "b.toml").write_text('extends = "a.toml"\n[markers]\nT10 = "T10"\n')
     with pytest.raises(ProtocolError, match="loops back"):
         load_protocol(tmp_path / "a.toml")
 
