@@ -86,7 +86,7 @@ def foot(t, *, period=1.1, duty=0.62, offset=0.0, step=1.3, direction=0.0, groun
     end_tip = base[swing] + step * u + FOOT * (
         np.cos(land_pitch) * u + np.sin(land_pitch) * up)
     moving_tip = tip[swing] + (3 * s ** 2 - 2 * s ** 3)[:, None] * (end_tip - tip[swing])
-    moving_tip[:, 2] += lift * np.sin(np.pi * s) ** 2
+    moving_tip[:, 2] += lift * np.sin(np.pi * (s + 0.3 * s * (1 - s)))  # leaves the floor briskly
     sole_heel[swing] = moving_tip - FOOT * along[swing]
     sole_heel[:, 2] += ground
     heel = sole_heel + HEEL_Z * normal

@@ -1,0 +1,356 @@
+"""Gait events: left/right toe-off and heel-strike from heel and toe point trajectories.
+
+The detector uses only features that need no direction of progression, so it works for
+straight walking at any speed, curves, turning on the spot, side-steps, diagonal steps and
+running, overground or on a treadmill:
+
+1. **Gaps.** Missing samples (NaN) are filled linearly over gaps up to ``max_gap_s``; longer
+   gaps stay missing and no event is placed in or next to them.
+2. **Floor.** Heights are taken above the floor each point stands on: a plane (one offset per
+   point, one slope) fitted to the lower envelope of the points' lowest samples, so tilted lab
+   floors (the CMU walkway rises ~2.5 cm per stride) and raised treadmill belts (the running
+   file's heels never go below 0.24 m) need no setting.
+3. **Swings.** On low-passed points (2nd-order Butterworth, forwards and backwards, ``cutoff_hz``),
+   the foot is in contact when its lowest point is within ``min_clearance`` of the floor *and*
+   its centre moves slower than ``still_speed`` relative to the ground (the ground's velocity is
+   the foot's median horizontal velocity while low: zero overground, the belt on a treadmill).
+   A swing is a run of at least ``min_swing_s`` out of contact. No swing (standing) = no
+   events = rest.
+4. **Coarse times.** Toe-off: the peak upward velocity of the foot centre (mean of heel and toe)
+   just before the swing (O'Connor et al. 2007, *Gait & Posture* 25:469). Heel-strike: where the
+   speed of the point that touches first (heel, or toe when landing toe-first or walking
+   backwards) stops falling: the knot of a two-line fit to its speed after the swing.
+5. **Refinement.** Both times move to the *kink* of the unfiltered positions within
+   ``±refine_s``: the knot of a curve quadratic on each side and continuous at the knot (the
+   foot centre's 3-D position for toe-off; the touching point's height for heel-strike, as a
+   landing foot rocks onto its sole and moves its heel marker sideways a moment later). A rigid foot
+   leaving or hitting the floor has a velocity jump there; for smooth real data the knot lands
+   where the acceleration changes most, which is the velocity peak. Sub-frame, and free of the
+   low-pass filter's smearing (which alone shifts events by 2-3 frames).
+
+Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import butter, filtfilt
+
+from .errors import EventError
+
+SIDES = ("left", "right")
+KINDS = ("toe_off", "heel_strike")
+
+
+@dataclass(frozen=True)
+class GaitEvent:
+    """One detected gait event.
+
+    Attributes
+    ----------
+    side : ``"left"`` or ``"right"``
+    kind : ``"toe_off"`` or ``"heel_strike"``
+    time_s : float
+        Seconds from the capture's first frame, with sub-frame precision.
+    frame : int
+        Nearest frame index (0-based).
+    quality : float
+        Fraction (0..1) of the heel and toe samples within 50 ms of the event that were measured
+        rather than gap-filled.
+    """
+
+    side: str
+    kind: str
+    time_s: float
+    frame: int
+    quality: float
+
+
+def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
+                  cutoff_hz: float = 12.0, min_clearance: float = 0.02,
+                  min_swing_s: float = 0.08, still_speed: float = 0.5,
+                  refine_s: float = 0.08, max_gap_s: float = 0.25,
+                  source: str | os.PathLike | None = None) -> list[GaitEvent]:
+    """Toe-offs and heel-strikes of both feet, sorted by time.
+
+    Parameters
+    ----------
+    feet
+        ``{"left": (heel, toe), "right": (heel, toe)}``, each point an array (F, 3) in metres,
+        Z up, NaN where missing. A side may be left out.
+    rate
+        Frame rate, Hz.
+    cutoff_hz, min_clearance, min_swing_s, still_speed, refine_s, max_gap_s
+        See the module docstring (Hz, m, s, m/s, s, s).
+    source
+        The capture's file, named in errors.
+    """
+    unknown = set(feet) - set(SIDES)
+    if unknown:
+        raise EventError(f"unknown foot side(s) {sorted(unknown)}; use 'left' and 'right'",
+                         path=source)
+    events: list[GaitEvent] = []
+    for side in SIDES:
+        if side in feet:
+            heel, toe = feet[side]
+            events += foot_events(heel, toe, rate, side=side, cutoff_hz=cutoff_hz,
+                                  min_clearance=min_clearance, min_swing_s=min_swing_s,
+                                  still_speed=still_speed, refine_s=refine_s,
+                                  max_gap_s=max_gap_s, source=source)
+    return sorted(events, key=lambda e: (e.time_s, e.side))
+
+
+def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
+                cutoff_hz: float = 12.0, min_clearance: float = 0.02,
+                min_swing_s: float = 0.08, still_speed: float = 0.5,
+                refine_s: float = 0.08, max_gap_s: float = 0.25,
+                source: str | os.PathLike | None = None) -> list[GaitEvent]:
+    """Toe-offs and heel-strikes of one foot from its heel and toe points (F, 3), metres."""
+    heel, toe = _checked_points(heel, toe, rate, side, source)
+    measured = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
+    raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])  # (2, F, 3)
+    points = np.stack([_smooth(p, rate, cutoff_hz) for p in raw])
+    heights = _heights_above_floor(points, rate)
+    clearance = heights.min(axis=0)
+    velocity = np.gradient(points, axis=1) * rate if points.shape[1] > 1 else 0 * points
+    centre_velocity = velocity.mean(axis=0)
+    ground = np.zeros(3)
+    with np.errstate(invalid="ignore"):
+        low = clearance < min_clearance
+    moving_floor = low & np.isfinite(centre_velocity[:, 0])
+    if np.any(moving_floor):
+        ground[:2] = np.median(centre_velocity[moving_floor, :2], axis=0)
+    speeds = np.linalg.norm(velocity - ground, axis=2)                          # (2, F)
+    centre_speed = np.linalg.norm(centre_velocity - ground, axis=1)
+    with np.errstate(invalid="ignore"):
+        contact = low & (centre_speed < still_speed)
+
+    events: list[GaitEvent] = []
+    swings = _swings(contact, clearance, max(1, round(min_swing_s * rate)))
+    window = max(3, round(0.15 * rate))
+    half = max(3, round(refine_s * rate))
+    for n, (start, end) in enumerate(swings):
+        before = swings[n - 1][1] if n else 0
+        after = swings[n + 1][0] if n + 1 < len(swings) else len(clearance)
+        top = start + int(np.nanargmax(clearance[start:end]))
+        if start > 0 and np.isfinite(clearance[start - 1]):
+            t = _peak_time(centre_velocity[:, 2], max(before, start - window), top + 1)
+            if t is not None:
+                t = _refined(raw.mean(axis=0), t, half)
+                events.append(_event(side, "toe_off", t / rate, measured, rate))
+        if end < len(clearance) and np.isfinite(clearance[end]):
+            first = int(np.argmin(heights[:, end]))  # the point that touched first
+            t = _arrival_time(speeds[first], top, end, min(after, end + window), window)
+            if t is not None:
+                t = _refined(raw[first, :, 2], t, half)
+                events.append(_event(side, "heel_strike", t / rate, measured, rate))
+    return events
+
+
+def _checked_points(heel, toe, rate, side, source):
+    if side not in SIDES:
+        raise EventError(f"side must be 'left' or 'right', got {side!r}", path=source)
+    if not np.isfinite(rate) or rate <= 0:
+        raise EventError(f"frame rate must be > 0 Hz, got {rate}", path=source)
+    heel = np.asarray(heel, dtype=np.float64)
+    toe = np.asarray(toe, dtype=np.float64)
+    for name, points in (("heel", heel), ("toe", toe)):
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise EventError(f"{side} {name} must have shape (F, 3), got {points.shape}",
+                             path=source)
+    if heel.shape != toe.shape:
+        raise EventError(f"{side} heel {heel.shape} and toe {toe.shape} differ in length",
+                         path=source)
+    if not np.isfinite(heel[:, 2]).any() or not np.isfinite(toe[:, 2]).any():
+        raise EventError(f"{side} heel or toe is missing in every frame", path=source,
+                         hint="check the protocol matched the foot markers")
+    return heel, toe
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) of each run of True in a 1-D boolean array."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _fill_gaps(points: np.ndarray, max_gap: int) -> np.ndarray:
+    """Linear interpolation over interior NaN runs of at most ``max_gap`` frames (F, 3)."""
+    out = points.copy()
+    missing = ~np.isfinite(points).all(axis=1)
+    frames = np.arange(len(points))
+    for start, end in _runs(missing):
+        if start > 0 and end < len(points) and end - start <= max_gap:
+            for axis in range(3):
+                out[start:end, axis] = np.interp(frames[start:end], [start - 1, end],
+                                                 points[[start - 1, end], axis])
+    return out
+
+
+def _smooth(points: np.ndarray, rate: float, cutoff_hz: float) -> np.ndarray:
+    """Zero-lag Butterworth low-pass of each finite stretch (F, 3); short stretches unchanged."""
+    if cutoff_hz >= 0.5 * rate:
+        return points
+    b, a = butter(2, cutoff_hz / (0.5 * rate))
+    out = points.copy()
+    for start, end in _runs(np.isfinite(points).all(axis=1)):
+        if end - start > 3 * max(len(a), len(b)):
+            out[start:end] = filtfilt(b, a, points[start:end], axis=0)
+    return out
+
+
+def _heights_above_floor(points: np.ndarray, rate: float, *, window_s: float = 0.4,
+                         min_extent: float = 0.5) -> np.ndarray:
+    """Height (2, F) of heel and toe above the floor they stand on, metres.
+
+    The floor is a plane ``z = a_p + b·x + c·y`` (an offset per point, one slope) fitted to the
+    lowest sample of each point in every ``window_s`` window, keeping the lower envelope: samples
+    more than 1 cm above the plane (swing) are dropped and the plane refitted. Lab floors and
+    calibrations tilt by a degree or so (2-3 cm over a stride, as in the CMU files) and treadmill
+    belts are raised; a percentile of the raw height would mistake either for swing. When the
+    lowest samples span less than ``min_extent`` metres horizontally (standing, turning on the
+    spot) the slope is not observable and the floor is level.
+    """
+    n_points, n_frames, _ = points.shape
+    step = max(1, round(window_s * rate))
+    rows, offsets = [], []
+    for p in range(n_points):
+        z = points[p, :, 2]
+        for lo in range(0, n_frames, step):
+            chunk = z[lo:lo + step]
+            if np.isfinite(chunk).any():
+                i = lo + int(np.nanargmin(chunk))
+                rows.append(points[p, i])
+                offsets.append(p)
+    lowest = np.array(rows)
+    owner = np.array(offsets)
+    extent = np.ptp(lowest[:, :2], axis=0).max() if len(lowest) else 0.0
+    design = np.column_stack([owner[:, None] == np.arange(n_points)] +
+                             ([lowest[:, :2]] if extent >= min_extent else [])).astype(float)
+    keep = np.ones(len(lowest), dtype=bool)
+    for _ in range(5):
+        coef, *_ = np.linalg.lstsq(design[keep], lowest[keep, 2], rcond=None)
+        new_keep = lowest[:, 2] - design @ coef < 0.01
+        if np.array_equal(new_keep, keep) or new_keep.sum() <= design.shape[1]:
+            break
+        keep = new_keep
+    slope = coef[n_points:] if extent >= min_extent else np.zeros(2)
+    floor = coef[:n_points, None] + points[:, :, :2] @ slope
+    return points[:, :, 2] - floor
+
+
+def _swings(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
+    """[start, end) of each run of at least ``min_frames`` measured frames out of contact."""
+    return [(s, e) for s, e in _runs(~contact & np.isfinite(clearance)) if e - s >= min_frames]
+
+
+def _peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
+    """Sub-frame time (frames) of the maximum of ``signal[lo:hi]`` by a parabola; None if none."""
+    window = signal[lo:hi]
+    if window.size == 0 or not np.isfinite(window).any():
+        return None
+    i = lo + int(np.nanargmax(window))
+    if 0 < i < len(signal) - 1 and np.isfinite(signal[i - 1:i + 2]).all():
+        y0, y1, y2 = signal[i - 1:i + 2]
+        curvature = y0 - 2 * y1 + y2
+        if curvature < 0:
+            return i + 0.5 * (y0 - y2) / curvature
+    return float(i)
+
+
+def _arrival_time(speed, top, end, hi, window, rise=0.3) -> float | None:
+    """When a contact point stops: the knot where its speed ceases to fall (mirror image)."""
+    peak = top + int(np.nanargmax(speed[top:end + 1]))
+    rest = peak + int(np.nanargmin(speed[peak:hi]))
+    lo = rest - int(np.argmax(speed[peak:rest + 1][::-1] > rise * speed[peak]))
+    return _knot(speed, lo, min(hi, lo + window + 1))
+
+
+def _knot(signal: np.ndarray, lo: int, hi: int, step: float = 0.05) -> float | None:
+    """Sub-frame knot (frames) of the best continuous two-line fit to ``signal[lo:hi]`` whose
+    slope increases at the knot (a speed starting to rise, or ceasing to fall); None if the
+    window is too short or holds missing samples."""
+    hi = min(hi, len(signal))
+    y = signal[lo:hi]
+    if len(y) < 5 or not np.isfinite(y).all():
+        return None
+    x = np.arange(lo, hi, dtype=np.float64)
+    knots = np.arange(lo + 1, hi - 2 + step / 2, step)
+    design = np.stack([np.ones((len(knots), len(x))), x - knots[:, None],
+                       np.maximum(x - knots[:, None], 0.0)], axis=2)         # (K, n, 3)
+    gram = design.transpose(0, 2, 1) @ design
+    coef = np.linalg.solve(gram, (design.transpose(0, 2, 1) @ y)[:, :, None])  # (K, 3, 1)
+    cost = np.sum(((design @ coef)[:, :, 0] - y) ** 2, axis=1)
+    coef = coef[:, :, 0]
+    cost[coef[:, 2] <= 0] = np.inf
+    best = int(np.argmin(cost))
+    return float(knots[best]) if np.isfinite(cost[best]) else None
+
+
+def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> float | None:
+    """Sub-frame time (frames) of the best kink in ``values`` (F,) or (F, C) near ``centre``.
+
+    Fits, over ``centre ± half`` frames of the *unfiltered* samples, a curve that is quadratic
+    on each side of a knot and continuous there (so its velocity and acceleration may jump), for
+    every knot on a ``step`` grid within ``centre ± half/2``, and returns the knot of least
+    squared error: where a foot point's velocity jumps (lift-off or landing of a rigid foot) or,
+    for smooth data, where its acceleration changes most.
+    """
+    values = values.reshape(len(values), -1)
+    lo, hi = int(np.floor(centre)) - half, int(np.ceil(centre)) + half + 1
+    if lo < 0 or hi > len(values):
+        return None
+    y = values[lo:hi]
+    if not np.isfinite(y).all():
+        return None
+    x = np.arange(lo, hi, dtype=np.float64)
+    knots = np.arange(centre - half / 2, centre + half / 2 + step / 2, step)
+    d = x - knots[:, None]                                                   # (K, n)
+    after = np.maximum(d, 0.0)
+    design = np.stack([np.ones_like(d), d, d * d, after, after * after], axis=2)  # (K, n, 5)
+    gram = design.transpose(0, 2, 1) @ design
+    coef = np.linalg.solve(gram, design.transpose(0, 2, 1) @ y)             # (K, 5, C)
+    cost = np.sum((design @ coef - y) ** 2, axis=(1, 2))
+    return float(knots[int(np.argmin(cost))])
+
+
+def _refined(values: np.ndarray, coarse: float, half: int) -> float:
+    """``coarse`` (frames) moved to the kink of the unfiltered ``values`` when one is found."""
+    fine = _kink(values, coarse, half)
+    return coarse if fine is None else fine
+
+
+def _event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float) -> GaitEvent:
+    frame = int(np.clip(round(time_s * rate), 0, len(measured) - 1))
+    half = max(1, round(0.05 * rate))
+    quality = float(measured[max(0, frame - half):frame + half + 1].mean())
+    return GaitEvent(side, kind, float(time_s), frame, quality)
+
+
+#: Landmarks used as each foot's heel and toe point, the toe by preference order.
+FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
+                  "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}
+
+
+def feet_of(trial, match, /) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``{"left": (heel, toe), "right": ...}`` (F, 3) m from a trial's protocol-matched markers.
+
+    ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the first present of
+    :data:`FOOT_LANDMARKS`. Raises :class:`EventError` naming the missing landmark.
+    """
+    present = {m.landmark.name: m.label for j, m in enumerate(match.protocol.markers)
+               if match.indices[j] >= 0}
+    feet = {}
+    for side, (heel, toes) in FOOT_LANDMARKS.items():
+        toe = next((name for name in toes if name in present), None)
+        for name in (heel, toe):
+            if name is None or name not in present:
+                raise EventError(f"no {side} {'heel' if name == heel else 'toe'} marker "
+                                 f"({heel if name == heel else '/'.join(toes)}) in protocol "
+                                 f"{match.protocol.name!r}", path=trial.source,
+                                 hint="gait events need a heel and a toe marker on each foot")
+        feet[side] = (match.marker(trial, present[heel]), match.marker(trial, present[toe]))
+    return feet

@@ -1,0 +1,146 @@
+"""Gait events on analytic feet (known times), invariances, bad input, real lab events."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocaplib.errors import EventError
+from mocaplib.events import GaitEvent, detect_events, feet_of, foot_events
+
+from conftest import real_file
+from gait_model import foot
+
+RATE = 100.0
+TIME = np.arange(0, 5.0, 1 / RATE)
+
+# name -> foot-model settings (one foot; the other is half a period later)
+GAITS = {
+    "normal walk": {},
+    "fast walk": dict(period=0.95, duty=0.6, step=1.8),
+    "slow walk": dict(period=1.6, step=0.8),
+    "run, raised belt": dict(period=0.8, duty=0.4, step=2.4, lift=0.2, ground=0.24),
+    "side-step left": dict(direction=np.pi / 2, step=0.5, lift=0.08),
+    "side-step right": dict(direction=-np.pi / 2, step=0.5, lift=0.08),
+    "diagonal": dict(direction=2.4, step=0.8),
+    "backwards": dict(direction=np.pi, step=0.6),
+    "on the spot": dict(step=0.0, lift=0.06, period=1.2),
+}
+
+
+def errors(events, truth, kind):
+    """Detected minus true time of each true event (s); +inf when none is near."""
+    found = np.array([e.time_s for e in events if e.kind == kind])
+    return np.array([min(found - t, key=abs) if found.size else np.inf for t in truth])
+
+
+@pytest.mark.parametrize("gait", GAITS)
+def test_events_within_one_frame_of_truth(gait):
+    heel, toe, offs, strikes = foot(TIME, noise=0.0007, **GAITS[gait])
+    events = foot_events(heel, toe, RATE, side="left")
+    # the issue's target: |error| <= 1 frame for toe-offs, with 0.7 mm marker noise
+    assert np.all(np.abs(errors(events, offs, "toe_off")) <= 1 / RATE), gait
+    assert np.all(np.abs(errors(events, strikes, "heel_strike")) <= 1 / RATE), gait
+    assert len(events) == len(offs) + len(strikes)  # nothing spurious
+
+
+def test_direction_and_floor_invariance():
+    heel, toe, *_ = foot(TIME, noise=0.0007, direction=0.7)
+    base = foot_events(heel, toe, RATE, side="right")
+    angle = 2.1
+    rot = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0],
+                    [0, 0, 1]])
+    shift = np.array([3.0, -7.0, 0.5])   # also lifts the floor by 0.5 m
+    moved = foot_events(heel @ rot.T + shift, toe @ rot.T + shift, RATE, side="right")
+    assert [e.kind for e in moved] == [e.kind for e in base]
+    # the detector uses only rotation-invariant features: same times up to rounding
+    np.testing.assert_allclose([e.time_s for e in moved], [e.time_s for e in base], atol=1e-6)
+
+
+def test_tilted_floor():
+    heel, toe, offs, _ = foot(TIME, noise=0.0007)
+    slope = np.tan(np.deg2rad(1.5))  # the floor rises along the walk (as in the CMU files)
+    heel[:, 2] += slope * heel[:, 0]
+    toe[:, 2] += slope * toe[:, 0]
+    events = foot_events(heel, toe, RATE, side="left")
+    assert np.all(np.abs(errors(events, offs, "toe_off")) <= 1 / RATE)
+
+
+def test_both_feet_sorted_and_standing_is_rest():
+    lh, lt, *_ = foot(TIME)
+    rh, rt, *_ = foot(TIME, offset=0.55)
+    events = detect_events({"left": (lh, lt), "right": (rh, rt)}, RATE)
+    assert all(isinstance(e, GaitEvent) for e in events)
+    assert [e.time_s for e in events] == sorted(e.time_s for e in events)
+    assert {e.side for e in events} == {"left", "right"}
+    assert all(e.frame == round(e.time_s * RATE) and e.quality == 1.0 for e in events)
+    still = np.tile([0.1, 0.2, 0.03], (len(TIME), 1))
+    noise = np.random.default_rng(0).normal(0, 0.001, still.shape)
+    assert detect_events({"left": (still + noise, still + [0.2, 0, 0])}, RATE) == []
+
+
+def test_gaps_filled_short_skipped_long():
+    heel, toe, offs, _ = foot(TIME, noise=0.0007)
+    heel[100:110] = np.nan                       # 0.1 s gap in stance: filled
+    events = foot_events(heel, toe, RATE, side="left")
+    assert np.all(np.abs(errors(events, offs, "toe_off")) <= 1 / RATE)
+    assert min(e.quality for e in events) < 1.0  # the filled samples lower the quality
+    toe[150:300] = np.nan                        # 1.5 s gap: no event inside it
+    events = foot_events(heel, toe, RATE, side="left")
+    assert not [e for e in events if 1.5 <= e.time_s <= 3.0]
+    assert len(events) >= 2
+
+
+def test_bad_input_names_the_file():
+    heel, toe, *_ = foot(TIME)
+    with pytest.raises(EventError, match=r"walk\.c3d: left heel must have shape \(F, 3\)"):
+        foot_events(heel[:, :2], toe, RATE, side="left", source="walk.c3d")
+    with pytest.raises(EventError, match="differ in length"):
+        foot_events(heel[:-1], toe, RATE, side="left")
+    with pytest.raises(EventError, match="missing in every frame"):
+        foot_events(np.full_like(heel, np.nan), toe, RATE, side="left")
+    with pytest.raises(EventError, match="unknown foot side"):
+        detect_events({"middle": (heel, toe)}, RATE)
+    with pytest.raises(EventError, match="frame rate"):
+        foot_events(heel, toe, 0.0, side="left")
+
+
+LAB_FILES = ["biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
+             "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d"]
+LAB_NAMES = {"Foot Off": "toe_off", "Foot Strike": "heel_strike",
+             "LTO": "toe_off", "RTO": "toe_off", "LHS": "heel_strike", "RHS": "heel_strike"}
+
+
+def lab_differences(kind):
+    """Detected minus lab event time (s) for every lab event of ``kind`` in the 4 files."""
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+
+    out = []
+    for name in LAB_FILES:
+        trial = read_c3d(real_file(name))
+        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate)
+        for lab in trial.events:
+            if LAB_NAMES.get(lab.label) != kind:
+                continue
+            side = "left" if (lab.context + lab.label)[0].upper() == "L" else "right"
+            found = [e.time_s + trial.start_time - lab.time_s for e in events
+                     if e.side == side and e.kind == kind]
+            if found and min(map(abs, found)) < 0.1:  # lab events at the trial's edges
+                out.append(min(found, key=abs))
+    return np.array(out)
+
+
+def test_real_toe_offs_match_lab_foot_off():
+    diff = lab_differences("toe_off")
+    assert len(diff) >= 18  # 21 lab Foot Off events in the four files, a few at the edges
+    # the issue's target: median |difference| <= 10 ms against the lab's Foot Off
+    assert np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
+
+
+def test_real_heel_strikes_match_lab_foot_strike():
+    diff = lab_differences("heel_strike")
+    assert len(diff) >= 18
+    # no target in the issue; measured 14 ms (kinematic heel contact precedes the force
+    # plate's threshold crossing); 20 ms catches a regression
+    assert np.median(np.abs(diff)) <= 0.020, np.round(diff * 1000)
