@@ -128,3 +128,12 @@ def test_real_files_walking3_and_gait(capsys):
     # shoulders valid in 40 % of frames (SOURCES.md): at least 55 % missing
     rsho = next(m for m in g["markers"] if m["label"] == "RSHO")
     assert rsho["gap_pct"] > 55
+
+
+def test_truncated_capture_is_a_failed_entry(capsys, capture, tmp_path):
+    cut = tmp_path / "cut.c3d"
+    cut.write_bytes(capture.read_bytes()[:1500])
+    code, out, err = _cli(capsys, "inspect", "--json", "--protocol", "auto", str(cut))
+    (entry,) = json.loads(out)
+    assert code == 1 and entry["ok"] is False and entry["error"].startswith(str(cut))
+    assert entry["labels"] == [] and entry["protocol"] is None
