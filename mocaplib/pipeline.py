@@ -37,6 +37,8 @@ DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 DIAGNOSTICS_VERSION = 1
 #: Long series in the diagnostics are downsampled to at most this many points.
 MAX_SERIES_POINTS = 300
+#: The chosen cycle's angles are downsampled to at most this many points per DOF.
+MAX_CYCLE_POINTS = 100
 #: Significant digits of the diagnostics' numbers (plots need no more).
 DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
@@ -353,7 +355,7 @@ def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
     q = np.column_stack([np.interp(times, frames, column) for column in
                          np.unwrap(motion.q, axis=0).T])
     local = chosen.encoding.drift.remove(q, times - chosen.start_s)
-    pick = downsample(len(times))
+    pick = downsample(len(times), MAX_CYCLE_POINTS)
     angles = {"time_s": times[pick] - chosen.start_s}
     angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
     return to_json_data({
@@ -429,7 +431,9 @@ class BuildResult:
                  f"({s['seconds']:.1f} s)"]
         if s["failures"]:
             lines.append("failures:")
-            lines += [f"  {f['file']} [{f['stage']}]: {f['reason']}" for f in s["failures"]]
+            lines += [f"  {f['file']} [{f['stage']}]: "
+                      f"{(f['reason'] or '').removeprefix(f['file'] + ': ')}"
+                      for f in s["failures"]]
         if s["warnings"]:
             lines.append(f"warnings ({len(s['warnings'])}):")
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
