@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, SEGMENTS, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
+_LIMBS = {"femur": "thigh", "tibia": "shank", "humerus": "upper_arm", "forearm": "forearm"}
 
 
 def gait_angles(n_frames: int, rate: float, *, speed: float = 1.2, cadence_hz: float = 0.9,
@@ -72,7 +73,7 @@ class FKCapture:
 
 def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float = 100.0,
              height: float = 1.70, placement_mm: float = 4.0, sta_mm: float = 6.0,
-             noise_mm: float = 1.0, seed: int = 0):
+             noise_mm: float = 1.0, seed: int = 0, static: bool = False):
     """An FKCapture: a Trial of noisy FK markers and the truth that made it.
 
     placement_mm: SD of each marker's fixed placement error; sta_mm: amplitude of the
@@ -83,7 +84,15 @@ def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float =
     nominal = Skeleton.from_height(height)
     skeleton = Skeleton({k: v * rng.uniform(0.96, 1.04) for k, v in nominal.lengths.items()})
     q = gait_angles(n_frames, rate, seed=seed)
+    if static:
+        sway = np.random.default_rng(seed + 1).normal(0, 0.2 * DEG, (n_frames, len(DOF_NAMES)))
+        q = skeleton.neutral_q(n_frames) + sway
     segments, offsets = proto.nominal_offsets(height)
+    # landmarks on a long bone scale with that bone (the malleolus stays at the ankle)
+    for segment, length in _LIMBS.items():
+        for side in ("_l", "_r"):
+            on = segments == SEGMENT_NAMES.index(segment + side)
+            offsets[on] *= skeleton.lengths[length] / nominal.lengths[length]
     offsets = offsets + rng.normal(0, placement_mm / 1000, offsets.shape)
     # soft tissue: a displacement in the segment frame driven by the last DOF of its joint
     driver = np.array([DOF_NAMES.index(SEGMENTS[s].dofs[-1]) for s in segments])
