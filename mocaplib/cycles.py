@@ -1,0 +1,221 @@
+"""Locomotion cycles: cut at consecutive left toe-offs, measured, encoded, and one chosen.
+
+A cycle runs from a left toe-off to the next left toe-off (DESIGN.md). For each complete cycle
+this module measures the pattern and velocities (:mod:`mocaplib.patterns`), optionally encodes
+the joint coordinates (:mod:`mocaplib.fourier`), and rates how steady it is.
+
+**Choice of one cycle per capture (documented rule).** A steady cycle repeats itself: its two
+halves (about one step each) have the same speed and turn rate. The *unsteadiness* of a cycle is
+
+    |v₂ − v₁| + r·|ω₂ − ω₁|       (m/s),  r = 0.2 m (about half a shoulder width)
+
+where v₁, v₂ are the mean horizontal speeds of the shoulder midpoint (chord / (T/2)) over the
+first and second half of the cycle and ω₁, ω₂ the mean rates of θ_S; ``r·Δω`` is the speed
+difference the shoulders feel from a change of turn rate. Gait initiation and termination,
+stumbles and turns that start mid-cycle all raise it. The chosen cycle is the one with the
+lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
+if none qualifies); ties go to the earlier cycle. Every cycle is returned, with ``chosen`` set
+on one, so callers keep all of them on request (``--all-cycles``).
+
+**Rest.** A capture with no gait event at all (standing) gives one rest entry: v̂ = ω̂ = v̂_l =
+v̂_f = 0, pattern ``point``, nominal period :data:`REST_PERIOD` (1.0 s, about the stride time
+of normal walking, so rest blends with slow walking on a comparable time base), starting at the
+capture's first frame; its Fourier encoding is order 0 (the mean posture over that second).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import EventError
+from .events import GaitEvent
+from .fourier import TRANSLATIONS, CycleEncoding, encode_cycle
+from .patterns import CycleVelocities, Pattern, cycle_times, cycle_velocities, sample_shoulders
+
+#: Nominal period of the rest entry, seconds.
+REST_PERIOD = 1.0
+#: Lever arm converting a turn-rate difference into a shoulder speed difference, metres.
+STEADINESS_RADIUS = 0.2
+#: Cycles bounded by toe-offs of lower quality are chosen only when no other qualifies.
+MIN_EVENT_QUALITY = 0.5
+
+
+@dataclass
+class Cycle:
+    """One locomotion cycle (or the rest entry) of a capture.
+
+    Attributes
+    ----------
+    index : int
+        Position among the capture's cycles (0-based).
+    start_s, end_s : float
+        Bounds, seconds from the capture's first frame (the two left toe-offs).
+    velocities : CycleVelocities
+        Pattern, v̂ (m/s), ω̂ (rad/s), v̂_l, v̂_f (m/s).
+    unsteadiness : float
+        See the module docstring, m/s (0 for rest).
+    event_quality : float
+        Smaller quality of the two bounding toe-offs (1 for rest).
+    encoding : CycleEncoding or None
+        Fourier encoding of the joint coordinates, when they were given.
+    rest : bool
+        True for the rest entry of a standing capture.
+    chosen : bool
+        True for the cycle chosen for the library.
+    """
+
+    index: int
+    start_s: float
+    end_s: float
+    velocities: CycleVelocities
+    unsteadiness: float
+    event_quality: float
+    encoding: CycleEncoding | None = None
+    rest: bool = False
+    chosen: bool = False
+
+    @property
+    def period(self) -> float:
+        """T, seconds."""
+        return self.end_s - self.start_s
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (SI units; ``fourier_rms_deg`` in degrees)."""
+        vel = self.velocities
+        out = {"index": self.index, "start_s": self.start_s, "end_s": self.end_s,
+               "T": self.period, "pattern": vel.pattern.to_dict(), "v": vel.v,
+               "omega": vel.omega, "v_l": vel.v_l, "v_f": vel.v_f,
+               "fourier_n": None, "fourier_rms_deg": None, "fourier_worst_dof": None,
+               "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
+               "rest": self.rest, "chosen": self.chosen}
+        if self.encoding is not None:
+            out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
+                       fourier_worst_dof=self.encoding.worst_dof)
+        return out
+
+
+def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]]:
+    """Pairs of consecutive left toe-offs, in time order."""
+    offs = sorted((e for e in events if e.side == "left" and e.kind == "toe_off"),
+                  key=lambda e: e.time_s)
+    return list(zip(offs[:-1], offs[1:]))
+
+
+def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
+                   right_shoulder: np.ndarray, rate: float, /, *, q: np.ndarray | None = None,
+                   tol_angle: float = np.deg2rad(0.5), tol_length: float = 0.002,
+                   point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0),
+                   source: str | os.PathLike | None = None) -> list[Cycle]:
+    """Every complete cycle of a capture, measured and rated, one of them ``chosen``.
+
+    Parameters
+    ----------
+    events
+        The capture's gait events (:func:`mocaplib.events.detect_events`).
+    left_shoulder, right_shoulder
+        (F, 3) metres, Z up, NaN where missing.
+    rate
+        Frame rate, Hz.
+    q
+        Optional joint coordinates (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order; when
+        given each cycle gets its Fourier encoding (tolerances ``tol_angle`` rad,
+        ``tol_length`` m).
+    point_radius, min_arc_angle
+        Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
+
+    Raises :class:`EventError` when there are events but fewer than two left toe-offs.
+    """
+    n_frames = len(np.asarray(left_shoulder))
+    if q is not None:
+        q = _unwrapped(np.asarray(q, dtype=np.float64), n_frames, source)
+    if not events:
+        return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source)]
+    pairs = cycle_bounds(events)
+    if not pairs:
+        raise EventError("no complete cycle: fewer than two left toe-offs were found",
+                         path=source,
+                         hint="a cycle runs from one left toe-off to the next; capture at "
+                              "least two full strides")
+    cycles = []
+    for index, (first, last) in enumerate(pairs):
+        start, end = first.time_s, last.time_s
+        velocities = cycle_velocities(left_shoulder, right_shoulder, rate, start, end,
+                                      point_radius=point_radius, min_arc_angle=min_arc_angle,
+                                      source=source)
+        encoding = None
+        if q is not None:
+            times = cycle_times(start, end, rate)
+            samples = _interpolate(q, rate, times)
+            encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
+                                    tol_angle=tol_angle, tol_length=tol_length)
+        cycles.append(Cycle(index, start, end, velocities,
+                            _unsteadiness(left_shoulder, right_shoulder, rate, start, end, source),
+                            min(first.quality, last.quality), encoding))
+    choose_cycle(cycles)
+    return cycles
+
+
+def choose_cycle(cycles: list[Cycle], /) -> Cycle:
+    """Mark and return the steadiest cycle (module docstring's rule); clears other marks."""
+    if not cycles:
+        raise EventError("no cycle to choose from")
+    good = [c for c in cycles if c.event_quality >= MIN_EVENT_QUALITY] or cycles
+    best = min(good, key=lambda c: (c.unsteadiness, c.index))
+    for cycle in cycles:
+        cycle.chosen = cycle is best
+    return best
+
+
+def _unsteadiness(left, right, rate, start, end, source) -> float:
+    times = cycle_times(start, end, rate)
+    mid, heading = sample_shoulders(left, right, rate, times, source=source)
+    half = int(np.argmin(np.abs(times - 0.5 * (start + end))))
+    v1 = np.hypot(*(mid[half, :2] - mid[0, :2])) / (times[half] - times[0])
+    v2 = np.hypot(*(mid[-1, :2] - mid[half, :2])) / (times[-1] - times[half])
+    w1 = (heading[half] - heading[0]) / (times[half] - times[0])
+    w2 = (heading[-1] - heading[half]) / (times[-1] - times[half])
+    return float(abs(v2 - v1) + STEADINESS_RADIUS * abs(w2 - w1))
+
+
+def _rest_entry(left, right, rate, q, n_frames, source) -> Cycle:
+    if n_frames < 2:
+        raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry", path=source,
+                         hint="capture at least a second of standing")
+    times = cycle_times(0.0, min(REST_PERIOD, (n_frames - 1) / rate), rate)
+    mid, _ = sample_shoulders(left, right, rate, times, source=source)
+    pattern = Pattern("point", {"point": mid[:, :2].mean(axis=0)})
+    velocities = CycleVelocities(pattern, REST_PERIOD, 0.0, 0.0, 0.0, 0.0)
+    encoding = None
+    if q is not None:
+        samples = _interpolate(q, rate, times)
+        inside = times < REST_PERIOD
+        encoding = encode_cycle(samples[inside], times[inside], REST_PERIOD, samples[0],
+                                tol_angle=np.inf, tol_length=np.inf, max_order=0)
+    return Cycle(0, 0.0, REST_PERIOD, velocities, 0.0, 1.0, encoding, rest=True, chosen=True)
+
+
+def _unwrapped(q: np.ndarray, n_frames: int, source) -> np.ndarray:
+    if q.ndim != 2 or len(q) != n_frames or q.shape[1] != len(TRANSLATIONS):
+        raise EventError(f"q must have shape ({n_frames}, {len(TRANSLATIONS)}), got {q.shape}",
+                         path=source)
+    out = q.copy()
+    rotations = ~TRANSLATIONS
+    for d in np.flatnonzero(rotations):
+        valid = np.isfinite(q[:, d])
+        out[valid, d] = np.unwrap(q[valid, d])
+    return out
+
+
+def _interpolate(q: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
+    """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
+    frames = np.arange(len(q)) / rate
+    out = np.empty((len(times), q.shape[1]))
+    for d in range(q.shape[1]):
+        valid = np.isfinite(q[:, d])
+        if not valid.any():
+            raise EventError(f"joint coordinate {d} is missing in every frame")
+        out[:, d] = np.interp(times, frames[valid], q[valid, d])
+    return out

@@ -1,0 +1,107 @@
+"""Cycles: cut at left toe-offs, velocities per cycle, the steadiest chosen, rest entries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocaplib.cycles import REST_PERIOD, analyse_cycles, choose_cycle, cycle_bounds
+from mocaplib.errors import EventError
+from mocaplib.events import GaitEvent
+from mocaplib.skeleton import DOF_NAMES
+
+from gait_model import shoulders
+
+RATE = 100.0
+PERIOD = 1.1
+TIME = np.arange(0, 5.0, 1 / RATE)
+
+
+def events(first=0.31, n=4, quality=1.0):
+    """Left toe-offs every PERIOD from ``first`` and right toe-offs/heel-strikes between."""
+    out = []
+    for k in range(n):
+        t = first + k * PERIOD
+        out += [GaitEvent("left", "toe_off", t, round(t * RATE), quality),
+                GaitEvent("right", "heel_strike", t + 0.1, round((t + 0.1) * RATE), 1.0),
+                GaitEvent("right", "toe_off", t + 0.55, round((t + 0.55) * RATE), 1.0)]
+    return out
+
+
+def test_bounds_are_consecutive_left_toe_offs():
+    pairs = cycle_bounds(events(n=4))
+    np.testing.assert_allclose([(a.time_s, b.time_s) for a, b in pairs],
+                               [(0.31 + k * PERIOD, 0.31 + (k + 1) * PERIOD) for k in range(3)],
+                               atol=1e-12)  # the events' own times
+    assert all(a.side == b.side == "left" and a.kind == b.kind == "toe_off" for a, b in pairs)
+
+
+def test_every_cycle_measured_one_chosen():
+    left, right = shoulders(TIME, v_f=1.0, omega=0.4, period=PERIOD, noise=0.001)
+    cycles = analyse_cycles(events(), left, right, RATE)
+    assert len(cycles) == 3 and sum(c.chosen for c in cycles) == 1
+    for c in cycles:
+        # steady left curve of radius 2.5 m: issue targets (2 %, 0.02 rad/s, 0.02 m/s)
+        np.testing.assert_allclose(c.velocities.v, 1.0, rtol=0.02)
+        np.testing.assert_allclose(c.velocities.omega, 0.4, atol=0.02)
+        np.testing.assert_allclose(c.velocities.v_l, 0.0, atol=0.02)
+        np.testing.assert_allclose(c.period, PERIOD, atol=1e-12)
+        assert c.velocities.pattern.kind == "arc" and not c.rest
+    data = cycles[0].to_dict()
+    for key in ("start_s", "end_s", "T", "pattern", "v", "omega", "v_l", "v_f",
+                "fourier_n", "fourier_rms_deg", "chosen"):
+        assert key in data
+    assert data["pattern"]["type"] == "arc" and data["pattern"]["arc_angle"] > 0
+
+
+def test_steadiest_cycle_is_chosen_not_gait_initiation():
+    # speeding up from 0.4 to 1.2 m/s during the first cycle, steady afterwards
+    speed = np.clip(0.4 + 0.8 * (TIME - 0.31) / PERIOD, 0.4, 1.2)
+    x = np.concatenate([[0.0], np.cumsum(speed[1:] / RATE)])
+    left = np.column_stack([x, np.full_like(x, 0.18), np.full_like(x, 1.4)])
+    right = left - [0.0, 0.36, 0.0]
+    cycles = analyse_cycles(events(), left, right, RATE)
+    assert cycles[0].unsteadiness > 0.3  # |v2 - v1| ~ 0.4 m/s while accelerating
+    assert not cycles[0].chosen and max(c.unsteadiness for c in cycles[1:]) < 0.01
+
+
+def test_low_quality_events_are_avoided_when_possible():
+    left, right = shoulders(TIME, period=PERIOD)
+    evs = events()
+    evs[3] = GaitEvent("left", "toe_off", evs[3].time_s, evs[3].frame, 0.2)  # 2nd toe-off
+    cycles = analyse_cycles(evs, left, right, RATE)
+    assert cycles[2].chosen  # cycles 0 and 1 touch the poor toe-off
+    for c in cycles:
+        c.unsteadiness = 0.0
+    assert choose_cycle(cycles) is cycles[2]
+
+
+def test_standing_gives_one_rest_entry():
+    left, right = shoulders(TIME, v_f=0.0, sway=0.0, noise=0.001)
+    q = np.zeros((len(TIME), len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("knee_flexion_r")] = 0.05 + 0.002 * np.sin(TIME)
+    (rest,) = analyse_cycles([], left, right, RATE, q=q)
+    assert rest.rest and rest.chosen and rest.period == REST_PERIOD
+    assert (rest.velocities.v, rest.velocities.omega, rest.velocities.v_l) == (0, 0, 0)
+    assert rest.encoding.order == 0
+    # order 0 holds the mean posture over the nominal period
+    np.testing.assert_allclose(rest.encoding.series.a[DOF_NAMES.index("knee_flexion_r"), 0],
+                               0.05 + 0.002 * np.mean(np.sin(TIME[TIME < REST_PERIOD])),
+                               atol=1e-9)
+
+
+def test_cycles_with_fourier():
+    left, right = shoulders(TIME, v_f=1.2, period=PERIOD)
+    q = np.zeros((len(TIME), len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("hip_flexion_l")] = 0.4 * np.sin(2 * np.pi * TIME / PERIOD)
+    q[:, DOF_NAMES.index("pelvis_tx")] = 1.2 * TIME
+    cycles = analyse_cycles(events(), left, right, RATE, q=q)
+    for c in cycles:
+        assert c.encoding.order == 1   # one harmonic reproduces a pure sine exactly
+        assert c.to_dict()["fourier_rms_deg"] < 0.01
+
+
+def test_no_complete_cycle_is_an_error():
+    left, right = shoulders(TIME)
+    with pytest.raises(EventError, match="walk.c3d: no complete cycle"):
+        analyse_cycles(events(n=1), left, right, RATE, source="walk.c3d")
