@@ -106,6 +106,12 @@ def test_bad_input_raises_c3derror(tmp_path, markers, labels, kwargs, match):
     assert not (tmp_path / "bad.c3d").exists()
 
 
+def test_event_label_too_long_raises_c3derror(tmp_path):
+    with pytest.raises(C3DError, match="EVENT:LABELS: a text is longer than 255 bytes"):
+        write_c3d(tmp_path / "bad.c3d", np.zeros((2, 1, 3)), ["A"], 100.0,
+                  events=[Event("Left", "x" * 256, 0.0)])
+
+
 def test_bad_rate_raises_c3derror(tmp_path):
     with pytest.raises(C3DError, match="frame rate must be > 0"):
         write_c3d(tmp_path / "bad.c3d", np.zeros((2, 1, 3)), ["A"], 0.0)

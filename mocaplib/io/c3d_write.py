@@ -27,6 +27,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
+import c3d
 import numpy as np
 
 from ..errors import C3DError
@@ -49,7 +50,7 @@ def write_c3d(path: str | os.PathLike, markers, labels: Sequence[str], rate: flo
               first_frame: int = 1) -> Path:
     """Write markers ``(F, M, 3)`` (metres, Z up, NaN = missing) to the C3D file ``path``.
 
-    ``labels`` has length M (at most 255 characters each); ``rate`` is in Hz; ``units`` is
+    ``labels`` has length M (at most 255 bytes each); ``rate`` is in Hz; ``units`` is
     POINT:UNITS (``"mm"``, ``"cm"`` or ``"m"``); ``events`` go into the EVENT group with their
     ``time_s`` on the lab clock (frame ``first_frame`` at ``(first_frame - 1) / rate``).
     Returns the path written. Raises :class:`C3DError` for input a C3D file cannot hold.
@@ -63,8 +64,6 @@ def c3d_bytes(markers, labels: Sequence[str], rate: float, /, *, events: Sequenc
               units: str = "mm", integer: bool = False, first_frame: int = 1,
               path: str | os.PathLike | None = None) -> bytes:
     """The bytes :func:`write_c3d` writes (``path`` only names the file in errors)."""
-    import c3d
-
     markers = np.asarray(markers, dtype=np.float64)
     labels = [str(label) for label in labels]
     _check_input(markers, labels, rate, units, first_frame, path)
@@ -75,11 +74,9 @@ def c3d_bytes(markers, labels: Sequence[str], rate: float, /, *, events: Sequenc
     writer = c3d.Writer(point_rate=float(rate), point_scale=scale, point_units=units)
     point = writer.point_group
     for number, start in enumerate(range(0, len(labels), _LABELS_PER_PARAM), start=1):
-        chunk = labels[start:start + _LABELS_PER_PARAM]
-        width = max(1, max(len(label.encode("utf-8")) for label in chunk))
         name = "LABELS" if number == 1 else f"LABELS{number}"
-        point.add_param(name, desc="Point labels", bytes_per_element=-1,
-                        bytes=_pack_strings(chunk, width), dimensions=[width, len(chunk)])
+        _add_string_param(point, name, "Point labels", labels[start:start + _LABELS_PER_PARAM],
+                          path)
     descriptions = min(len(labels), _LABELS_PER_PARAM)
     point.add_str("DESCRIPTIONS", "Point descriptions", " " * descriptions, 1, descriptions)
     writer.set_start_frame(first_frame)
@@ -143,8 +140,11 @@ def _pack_strings(texts: Sequence[str], width: int) -> bytes:
     return b"".join(text.encode("utf-8").ljust(width, b" ") for text in texts)
 
 
-def _add_string_param(group, name: str, desc: str, texts: Sequence[str]) -> None:
+def _add_string_param(group, name: str, desc: str, texts: Sequence[str], path) -> None:
+    """A C3D string array (at most 255 strings of at most 255 bytes) padded with spaces."""
     width = max(1, max(len(text.encode("utf-8")) for text in texts))
+    if width > 255:
+        raise C3DError(f"{group.name}:{name}: a text is longer than 255 bytes", path=path)
     group.add_param(name, desc=desc, bytes_per_element=-1, bytes=_pack_strings(texts, width),
                     dimensions=[width, len(texts)])
 
@@ -158,10 +158,10 @@ def _add_event_group(writer, events: Sequence[Event], path) -> None:
     styles = [_EVENT_STYLE.get(e.label.strip().lower(), (0, 1, "")) for e in events]
     group = writer.add_group(writer.numeric_key_next, "EVENT", "Event group")
     group.add("USED", "Number of events", 2, "<h", count)
-    _add_string_param(group, "CONTEXTS", "Context", [e.context for e in events])
-    _add_string_param(group, "LABELS", "Label", [e.label for e in events])
-    _add_string_param(group, "DESCRIPTIONS", "Description", [s[2] for s in styles])
-    _add_string_param(group, "SUBJECTS", "Subject", [""] * count)
+    _add_string_param(group, "CONTEXTS", "Context", [e.context for e in events], path)
+    _add_string_param(group, "LABELS", "Label", [e.label for e in events], path)
+    _add_string_param(group, "DESCRIPTIONS", "Description", [s[2] for s in styles], path)
+    _add_string_param(group, "SUBJECTS", "Subject", [""] * count, path)
     minutes = [math.floor(e.time_s / 60.0) for e in events]
     times = [value for e, m in zip(events, minutes) for value in (m, e.time_s - 60.0 * m)]
     group.add("TIMES", "Time (minutes, seconds)", 4, None,
