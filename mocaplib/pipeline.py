@@ -22,6 +22,7 @@ import warnings
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
+from functools import lru_cache
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
@@ -309,15 +310,23 @@ def _drift(drift, period: float) -> dict:
             "u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
+#: Low-pass cut-off applied to the fitted angles before the jerk QC, Hz (Winter 2009's usual
+#: cut-off for gait kinematics): the jerk of unfiltered angles measures fit noise only.
+JERK_CUTOFF_HZ = 6.0
+
+
 def cycle_qc(cycle, motion) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
     marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
     DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
-    over the rotational DOFs except the heading (rad); jerk: RMS over frames and those DOFs of
-    the third time derivative of the fitted angles (rad/s^3, finite differences).
+    over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
+    those DOFs of the third time derivative of the fitted angles low-passed at
+    :data:`JERK_CUTOFF_HZ` (rad/s^3).
     """
+    from scipy.signal import butter, filtfilt
+
     from .fourier import TRANSLATIONS
 
     frames = np.arange(motion.n_frames) / motion.rate
@@ -327,7 +336,11 @@ def cycle_qc(cycle, motion) -> dict:
     q = np.unwrap(motion.q[:, joints], axis=0)
     ends = np.array([[np.interp(t, frames, q[:, d]) for d in range(q.shape[1])]
                      for t in (cycle.start_s, cycle.end_s)])
-    jerk = np.diff(q[inside], n=3, axis=0) * motion.rate ** 3
+    jerk = None
+    if motion.n_frames > 12 and motion.rate > 2 * JERK_CUTOFF_HZ:
+        b, a = butter(2, JERK_CUTOFF_HZ / (motion.rate / 2))
+        third = np.diff(filtfilt(b, a, q, axis=0), n=3, axis=0) * motion.rate ** 3
+        jerk = float(np.sqrt(np.mean(third[inside[3:]] ** 2)))
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),
@@ -336,7 +349,7 @@ def cycle_qc(cycle, motion) -> dict:
             "event_quality": float(cycle.event_quality),
             "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATIONS].max()),
             "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
-            "jerk_rms_rad_s3": float(np.sqrt(np.mean(jerk ** 2))) if jerk.size else None,
+            "jerk_rms_rad_s3": jerk,
         }
 
 
@@ -377,11 +390,41 @@ def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
 
 
 def locomotion_class(path: Path, rest: bool) -> str | None:
-    """The capture's locomotion class, if known: ``rest`` for a standing capture, otherwise
-    from the truth sidecar ``<stem>.truth.json`` written by :mod:`mocaplib.synth`, else None."""
-    if rest:
-        return "rest"
-    return None
+    """The capture's locomotion class, if known, else None.
+
+    In order: the ``class`` of its truth sidecar ``<stem>.truth.json`` (written by
+    :mod:`mocaplib.synth`); the class of the capture named like the file in a shipped capture
+    plan (``protocols/*plan*.toml``); ``"rest"`` for a standing capture.
+    """
+    truth = path.with_name(f"{path.stem}.truth.json")
+    if truth.is_file():
+        try:
+            found = json.loads(truth.read_text(encoding="utf-8")).get("class")
+        except (OSError, ValueError, AttributeError):
+            found = None
+        if isinstance(found, str) and found:
+            return found
+    planned = _planned_classes().get(path.stem)
+    if planned:
+        return planned
+    return "rest" if rest else None
+
+
+@lru_cache(maxsize=1)
+def _planned_classes() -> dict[str, str]:
+    """Capture name -> class over the shipped capture plans."""
+    from .protocols import protocols_dir
+    from .synth.plan import load_plan
+
+    classes: dict[str, str] = {}
+    for plan_path in sorted(protocols_dir().glob("*plan*.toml")):
+        try:
+            plan = load_plan(plan_path)
+        except MocapError:
+            continue  # a broken plan does not stop a build; `mocaplib synth` reports it
+        for capture in plan.captures:
+            classes.setdefault(capture.name, capture.cls)
+    return classes
 
 
 def _fail(result: CaptureResult, stage: str | None, reason: str) -> None:
