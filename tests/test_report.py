@@ -70,7 +70,8 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
     R, w = 2.0, 0.6                          # walking an arc of radius 2 m
     xy = np.column_stack([R * np.sin(w * t), R - R * np.cos(w * t)])
     entry_id = f"{Path(source_name).stem}#0"
-    q = lib.angles(entry_id, t - 0.5)
+    t_cycle = np.arange(0, T, 1 / rate)  # the chosen cycle's angles, timed from its start
+    q = lib.angles(entry_id, t_cycle)
     record = {
         "source": source_name, "ok": True, "error": None, "stage": None, "rate_hz": rate,
         "time_s": t.tolist(), "shoulder_mid_xy": xy.tolist(),
@@ -82,7 +83,7 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
         "cycles": [{"start_s": 0.5, "end_s": 0.5 + T, "chosen": True, "entry_id": entry_id,
                     "pattern": {"type": "arc", "params": {"centre": [0.0, R], "radius": R,
                                                           "turn": 1}}}],
-        "angles": {"time_s": t.tolist(),
+        "angles": {"time_s": t_cycle.tolist(),
                    **{n: q[:, j].tolist() for j, n in enumerate(DOF_NAMES)}},
         "warnings": [f"label {EVIL} renamed"],
     }

@@ -260,8 +260,12 @@ def _events_panel(ax, record, cycles):
 
 
 def _angles_panel(ax, record, reconstructions):
+    """The sidecar's angles are the chosen cycle's, timed from its start: shifted onto the
+    capture's time axis here, where the other panels and the reconstructions are."""
     angles = record.get("angles") or {}
+    chosen = [c for c in record.get("cycles") or [] if c.get("chosen")]
     t = np.asarray(angles.get("time_s") or [], dtype=float)
+    t = t + (chosen[0]["start_s"] if chosen else 0.0)
     ax.set_title("joint angles (solid) and Fourier series (dashed)", fontsize=10)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("angle (°)")

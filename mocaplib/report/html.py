@@ -70,7 +70,8 @@ def _fmt(value, spec: str = ".3g") -> str:
     """A number for people; '—' for None/NaN."""
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
-    return format(value, spec)
+    text = format(value, spec)
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text  # no "-0"
 
 
 def _data_uri(png: bytes) -> str:
@@ -100,12 +101,13 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     """Every number, table and figure of the report (values still unescaped)."""
     df = library.entries
     warnings = [f"library check: {p}" for p in validate_library(library)]
-    classes_all = [c if isinstance(c, str) else figures.UNKNOWN_CLASS
-                   for c in df["locomotion_class"]]
     env, env_note = _resolve_envelope(envelope)
+    label = _class_labeller(df, env_note["plan"])
+    classes_all = [label(i) for i in df.index]
     cs, cs_error = None, None
     try:
         cs = ControlSpace.from_library(library, source=library_path)
+        cs.classes = [label(i) for i in cs.ids]
     except MocapError as exc:
         cs_error = str(exc)
         warnings.append(f"control space: {exc}")
@@ -115,7 +117,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         "warnings": warnings, "cs_error": cs_error, "envelope_note": env_note,
         "axes": [{"name": n, "unit": AXIS_UNITS[n]} for n in
                  (cs.axes if cs else ("v", "omega", "v_l"))],
-        "entries": _entry_rows(df),
+        "entries": _entry_rows(df, label),
         "coverage": None, "loo": None, "three_d": None, "viewer": None, "projections": None,
         "planned": planned_status(env_note.get("plan"), df, diagnostics),
         "captures": _captures(diagnostics, library),
@@ -134,7 +136,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     cov = coverage(cs, env) if env is not None else None
     holes = cov.samples[~cov.samples_inside] if cov is not None else None
     suggestions = cov.capture_next[list(cs.axes)].to_numpy() if cov is not None else None
-    cs_classes = [c if isinstance(c, str) else figures.UNKNOWN_CLASS for c in cs.classes]
+    cs_classes = cs.classes
     context["projections"] = _data_uri(figures.projections(
         cs.points, cs_classes, cs.axes, envelope=env.vertices if env else None,
         hull_points=cs.points, holes=holes, suggestions=suggestions))
@@ -146,6 +148,20 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         warnings.append("3-D view drawn with matplotlib: "
                         + context["three_d"]["fallback_reason"])
     return context
+
+
+def _class_labeller(df, plan):
+    """Entry id -> its locomotion class; entries without one take their capture's class in the
+    plan (matched by file stem), else "unknown"."""
+    from_plan = {} if plan is None else dict(zip(plan["name"], plan["class"]))
+
+    def label(entry_id):
+        cls = df.loc[entry_id, "locomotion_class"]
+        if isinstance(cls, str):
+            return cls
+        return from_plan.get(Path(str(df.loc[entry_id, "source_file"])).stem,
+                             figures.UNKNOWN_CLASS)
+    return label
 
 
 def _resolve_envelope(envelope) -> tuple[Envelope | None, dict]:
@@ -173,10 +189,10 @@ def _summary(library, df, diagnostics, cs) -> dict:
     }
 
 
-def _entry_rows(df) -> list[dict]:
+def _entry_rows(df, label) -> list[dict]:
     rows = []
     for entry_id, r in df.iterrows():
-        rows.append({"id": entry_id, "class": r["locomotion_class"] or "unknown",
+        rows.append({"id": entry_id, "class": label(entry_id),
                      "source": r["source_file"], "chosen": bool(r["chosen"]),
                      "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
                      else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
