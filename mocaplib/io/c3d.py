@@ -34,6 +34,7 @@ before anything is allocated, and the ``c3d`` package's exceptions are wrapped.
 from __future__ import annotations
 
 import io
+import math
 import os
 import struct
 import warnings
@@ -207,7 +208,7 @@ def _strings(param, path: Path, key: str) -> list[str]:
     if not dims:
         return [_clean(param.bytes)]
     width = dims[0]
-    count = int(np.prod(dims[1:], dtype=np.int64)) if len(dims) > 1 else 1
+    count = math.prod(dims[1:])
     if width == 0:  # zero-width strings: nothing stored, whatever the count says
         return []
     if width * count > len(param.bytes):
@@ -430,7 +431,7 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
             offsets = (sample - np.nanmean(sample, axis=1, keepdims=True)).reshape(-1, 3)
         offsets = offsets[np.isfinite(offsets).all(axis=1)]
         if len(offsets) >= 10:
-            low, high = np.percentile(offsets, [10, 90], axis=0)
+            low, high = np.percentile(np.ascontiguousarray(offsets.T), [10, 90], axis=1)
             spread = high - low
     order = np.argsort(spread)[::-1]
     fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
