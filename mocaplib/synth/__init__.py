@@ -1,0 +1,15 @@
+"""Synthetic captures with exact ground truth: a procedural walker that writes C3D files.
+
+Stages, one module each: :mod:`.command` (the locomotion command and its reference path),
+:mod:`.gait` (timing, footprints, feet), :mod:`.body` (pelvis, trunk, arms, leg inverse
+kinematics), :mod:`.markers` (skin markers and artefacts), :mod:`.capture` (one capture, its
+truth, writing), :mod:`.plan` (capture plans).
+"""
+
+from .capture import Subject, SynthCapture, min_duration, synthesize, write_capture
+from .command import Command
+from .markers import MarkerSettings
+from .plan import Plan, PlannedCapture, generate_plan, load_plan
+
+__all__ = ["Command", "MarkerSettings", "Plan", "PlannedCapture", "Subject", "SynthCapture",
+           "generate_plan", "load_plan", "min_duration", "synthesize", "write_capture"]

@@ -1,0 +1,217 @@
+"""One synthetic capture: markers as a :class:`~mocaplib.trial.Trial` plus its exact truth.
+
+:func:`synthesize` runs the generator (command → gait → body → skin markers);
+:func:`write_capture` writes ``<name>.c3d`` (with the true Foot Strike / Foot Off events in the
+EVENT group) and ``<name>.truth.json``. Everything is a function of the arguments and the seed:
+the same call writes byte-identical files.
+
+Per-cycle truth (shoulder midpoint, the paper's definitions, signs of DESIGN.md)
+    A cycle runs from a left toe-off to the next, T = one stride. Over the cycle, on 400 evenly
+    spaced instants, the generated glenohumeral centres (L, R) give the midpoint M and
+    θ_S = direction(L → R) + π/2 (unwrapped). ω̂ = (θ_S(end) − θ_S(start)) / T. The pattern is
+    the path of the cycle-average of M taken in the commanded frame (an arc of radius v̂/|ω̂|,
+    a line when ω = 0, a point on the spot); v̂ = its length over the cycle / T; θ_T its tangent
+    along the motion; v̂_l = mean of v̂ sin(θ_T − θ_S) and v̂_f = mean of v̂ cos(θ_T − θ_S).
+    Because the body's oscillations are periodic in the commanded frame and the pelvis is
+    placed so that M averages to the commanded point, v̂ and ω̂ equal the command and v̂_l, v̂_f
+    differ from it only by the trunk's yaw oscillation (second order, < 0.3 %).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SynthError
+from ..io.atomic import atomic_write_text
+from ..io.c3d_write import write_c3d
+from ..protocols import load_protocol
+from ..skeleton import DOF_NAMES, Skeleton
+from ..trial import Event, Trial
+from .body import BodyMotion, body_motion
+from .command import Command, world_to_frame
+from .gait import LEAD_S, GaitParameters, gait_parameters
+from .markers import MarkerSettings, skin_markers
+
+TRUTH_FORMAT = "mocaplib-synth-truth/1"
+#: Steady cycles every moving capture must hold.
+MIN_CYCLES = 2
+_SIDE_NAME = {"l": "Left", "r": "Right"}
+
+
+@dataclass(frozen=True)
+class Subject:
+    """Anthropometry: standing height (m; segment lengths by Skeleton.from_height), mass (kg)."""
+
+    height: float = 1.75
+    mass: float = 70.0
+
+
+@dataclass
+class SynthCapture:
+    """A generated capture: the trial (markers, labels, rate, events), the truth dictionary
+    written to the sidecar, and the generator's body and skeleton for inspection."""
+
+    trial: Trial
+    truth: dict
+    body: BodyMotion
+    skeleton: Skeleton
+    params: GaitParameters
+    command: Command
+
+
+def min_duration(command: Command, subject: Subject = Subject()) -> float:
+    """Shortest duration (s) holding :data:`MIN_CYCLES` steady cycles after the lead-in."""
+    params = gait_parameters(command, subject.height)
+    return 0.0 if command.gait == "stand" else LEAD_S + MIN_CYCLES * params.stride
+
+
+def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subject = Subject(),
+               rate: float = 100.0, protocol: str = "fullbody38",
+               markers: MarkerSettings = MarkerSettings(), name: str = "synthetic"
+               ) -> SynthCapture:
+    """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``."""
+    if not (np.isfinite(rate) and rate > 0):
+        raise SynthError(f"frame rate must be > 0 Hz, got {rate}")
+    need = min_duration(command, subject)
+    if not np.isfinite(duration) or duration < max(need, 1.0 / rate):
+        raise SynthError(f"duration {duration} s is too short",
+                         hint=f"this command needs at least {need:.2f} s for {MIN_CYCLES} cycles")
+    skeleton = Skeleton.from_height(subject.height)
+    params = gait_parameters(command, subject.height)
+    prot = load_protocol(protocol)
+    t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
+    t_mid = float(t[-1]) / 2
+    body = body_motion(command, params, skeleton, subject.height, t, t_mid=t_mid)
+    rng = np.random.default_rng(seed)
+    xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
+                                       rate=rate)
+    events = _events(body, t[-1])
+    trial = Trial(xyz, labels, rate, events=[Event(_SIDE_NAME[s], lab, tm)
+                                             for s, lab, tm in events], source=name)
+    cycles = [_cycle_truth(command, params, skeleton, subject.height, start, t_mid)
+              for start in _cycle_starts(params, t[-1])]
+    truth = {
+        "format": TRUTH_FORMAT,
+        "name": name,
+        "command": {**command.as_dict(), "speed": command.speed,
+                    "direction": command.direction,
+                    "radius": None if not np.isfinite(command.radius) else command.radius},
+        "subject": asdict(subject),
+        "seed": seed,
+        "rate_hz": rate,
+        "frames": len(t),
+        "first_frame": 1,
+        "protocol": prot.name,
+        "labels": labels,
+        "generator": {"gait": {k: v for k, v in asdict(params).items()},
+                      "cadence_steps_per_min": params.cadence if command.gait != "stand" else 0.0,
+                      "lead_s": LEAD_S, "markers": markers.as_dict(), **record},
+        "events": [{"side": {"l": "left", "r": "right"}[s],
+                    "kind": "heel_strike" if lab == "Foot Strike" else "toe_off",
+                    "context": _SIDE_NAME[s], "label": lab, "time_s": tm, "frame": tm * rate}
+                   for s, lab, tm in events],
+        "cycles": cycles,
+        "segment_lengths": skeleton.lengths,
+        "angles": {"dof_names": list(DOF_NAMES),
+                   "units": "rad; pelvis_tx/ty/tz in m",
+                   "mapping": "exact values of the fitting skeleton's DOFs; the generator's toe "
+                              "joint, wrists and shoulder girdle are not in them",
+                   "values": body.q},
+    }
+    return SynthCapture(trial, truth, body, skeleton, params, command)
+
+
+def _events(body: BodyMotion, t_end: float) -> list[tuple[str, str, float]]:
+    """(side, label, time) of every heel strike and toe-off inside [0, t_end]."""
+    out = []
+    for side, fp in body.footprints.items():
+        for label, times in (("Foot Strike", fp.heel_strike), ("Foot Off", fp.toe_off)):
+            out += [(side, label, float(x)) for x in times if 0.0 <= x <= t_end]
+    return sorted(out, key=lambda e: (e[2], e[0], e[1]))
+
+
+def _cycle_starts(params: GaitParameters, t_end: float) -> list[float]:
+    if params.gait == "stand":
+        return []
+    starts = LEAD_S + params.stride * np.arange(int((t_end - LEAD_S) / params.stride) + 1)
+    return [float(s) for s in starts if s + params.stride <= t_end + 1e-9]
+
+
+def cycle_velocities(body: BodyMotion, command: Command) -> dict:
+    """The paper's per-cycle v̂, ω̂, v̂_l, v̂_f and pattern from a body sampled evenly over one
+    cycle, endpoints included (see the module docstring)."""
+    t = body.time
+    period = t[-1] - t[0]
+    left, right = body.shoulders[:, 0, :2], body.shoulders[:, 1, :2]
+    mid = 0.5 * (left + right)
+    lr = right - left
+    theta_s = np.unwrap(np.arctan2(lr[:, 1], lr[:, 0]) + np.pi / 2)
+    omega = (theta_s[-1] - theta_s[0]) / period
+    xy, theta = body.reference
+    dbar = world_to_frame(xy, theta, mid)[:-1].mean(axis=0)
+    w = command.omega
+    u = np.array([command.v_f - w * dbar[1], command.v_l + w * dbar[0]])
+    v = float(np.hypot(*u))
+    c, s = np.cos(theta[0]), np.sin(theta[0])
+    start = xy[0] + np.array([c * dbar[0] - s * dbar[1], s * dbar[0] + c * dbar[1]])
+    if v < 1e-9:
+        v_l = v_f = 0.0
+        pattern = {"type": "point", "point": start.tolist()}
+    else:
+        rel = theta[:-1] + np.arctan2(u[1], u[0]) - theta_s[:-1]
+        v_l, v_f = float(v * np.mean(np.sin(rel))), float(v * np.mean(np.cos(rel)))
+        tangent = theta[0] + np.arctan2(u[1], u[0])
+        if w == 0:
+            pattern = {"type": "line", "point": start.tolist(), "direction": float(tangent)}
+        else:
+            centre = start + (v / w) * np.array([-np.sin(tangent), np.cos(tangent)])
+            pattern = {"type": "arc", "centre": centre.tolist(), "radius": v / abs(w),
+                       "arc_angle": abs(w) * period}
+    return {"v": v, "omega": float(omega), "v_l": v_l, "v_f": v_f, "pattern": pattern}
+
+
+def _cycle_truth(command, params, skeleton, height, start, t_mid) -> dict:
+    grid = start + params.stride * np.arange(401) / 400
+    body = body_motion(command, params, skeleton, height, grid, t_mid=t_mid)
+    return {"start_s": start, "end_s": start + params.stride, "T": params.stride,
+            **cycle_velocities(body, command)}
+
+
+def _json_ready(obj, digits: int = 6):
+    """Floats rounded to ``digits`` decimals (µm, µrad), arrays as lists, NaN as null."""
+    if isinstance(obj, dict):
+        return {k: _json_ready(v, digits) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_ready(v, digits) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _json_ready(obj.tolist(), digits)
+    if isinstance(obj, (float, np.floating)):
+        value = float(obj)
+        return None if not np.isfinite(value) else round(value, digits) + 0.0
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def write_capture(capture: SynthCapture, directory: str | os.PathLike, name: str, *,
+                  integer: bool = True, extra: dict | None = None) -> tuple[Path, Path]:
+    """Write ``<name>.c3d`` and ``<name>.truth.json`` in ``directory``; returns both paths.
+
+    ``integer`` stores coordinates as 16-bit integers with a power-of-two scale (at most
+    0.125 mm per step for a capture within ±4 m; half the size of float storage).
+    ``extra`` entries (plan name, class...) are added to the truth.
+    """
+    directory = Path(directory)
+    trial = capture.trial
+    c3d_path = write_c3d(directory / f"{name}.c3d", trial.markers, trial.labels, trial.rate,
+                         events=trial.events, units="mm", integer=integer)
+    truth = {**capture.truth, "name": name, **(extra or {}),
+             "storage": "int16" if integer else "float32"}
+    text = json.dumps(_json_ready(truth), indent=None, separators=(",", ":"), allow_nan=False)
+    json_path = atomic_write_text(directory / f"{name}.truth.json", text + "\n")
+    return c3d_path, json_path

@@ -1,0 +1,141 @@
+"""Skin markers on the synthetic body, with the artefacts of a real capture.
+
+Each protocol marker sits at its landmark's nominal offset (``Protocol.nominal_offsets``,
+scaled by height) on its segment, then, each switchable through :class:`MarkerSettings`:
+
+placement
+    A per-capture offset from nominal, normal with ``placement_sd`` (default 3 mm) per axis,
+    clipped at 2.5 sd, in the segment frame: technicians never put markers exactly on the atlas.
+soft tissue
+    A displacement in the segment frame that follows the nearby joints (a thigh marker moves
+    with hip and knee flexion...): ``gain x sum_j c_j (q_j - mean q_j)`` with random unit-scale
+    vectors ``c_j`` fixed per capture and gains of 1-12 mm/rad by segment (thigh largest, head
+    least), i.e. several millimetres, as measured by bone-pin studies (Leardini et al. 2005).
+    ``soft_tissue`` scales the gains (default 1; 0 turns it off).
+richer body
+    Markers feel the joints the fitting skeleton lacks: the hallux marker the toe joint, the
+    finger marker the wrist, arm and acromion markers the shoulder girdle.
+noise
+    White measurement noise, ``noise_sd`` (default 0.7 mm) per coordinate.
+gaps
+    ``gaps`` occlusions (default 0): random markers missing (NaN) for random stretches of up to
+    ``max_gap_s`` seconds.
+swap
+    ``swap`` (default off): one left/right pair exchanges its labels for the whole capture.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..protocols import Protocol
+from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
+from .body import BodyMotion
+from .gait import FootGeometry
+
+_Q = {name: j for j, name in enumerate(DOF_NAMES)}
+#: Soft-tissue gain (m/rad) and the joints that drive it, by segment ("{s}": the marker's side).
+SOFT_TISSUE = {
+    "pelvis": (0.006, ("hip_flexion_{s}",)),
+    "torso": (0.004, ("shoulder_flexion_{s}", "trunk_rotation")),
+    "head": (0.001, ("neck_rotation",)),
+    "humerus": (0.010, ("shoulder_flexion_{s}", "elbow_flexion_{s}")),
+    "forearm": (0.005, ("elbow_flexion_{s}",)),
+    "femur": (0.012, ("hip_flexion_{s}", "knee_flexion_{s}")),
+    "tibia": (0.006, ("knee_flexion_{s}", "ankle_dorsiflexion_{s}")),
+    "foot": (0.003, ("ankle_dorsiflexion_{s}",)),
+}
+
+
+@dataclass(frozen=True)
+class MarkerSettings:
+    """Which artefacts to add, and how much (metres, seconds). Defaults are documented above."""
+
+    placement_sd: float = 0.003
+    soft_tissue: float = 1.0
+    noise_sd: float = 0.0007
+    gaps: int = 0
+    max_gap_s: float = 0.3
+    swap: bool = False
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _side(landmark: str) -> tuple[str, ...]:
+    if landmark.startswith("L_"):
+        return ("l",)
+    if landmark.startswith("R_"):
+        return ("r",)
+    return ("l", "r")
+
+
+def _rotate_about_y(points: np.ndarray, centre: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Points (F, 3) rotated by ``angle`` (F,) about the -Y axis through ``centre`` (3,)."""
+    d = points - centre
+    c, s = np.cos(angle), np.sin(angle)
+    return centre + np.stack([c * d[:, 0] - s * d[:, 2], d[:, 1], s * d[:, 0] + c * d[:, 2]], 1)
+
+
+def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, height: float,
+                 settings: MarkerSettings, rng: np.random.Generator, *, rate: float
+                 ) -> tuple[np.ndarray, list[str], dict]:
+    """Marker positions (F, M, 3) m (NaN in gaps), labels (M,) and a record of what was done
+    (``{"gaps": [...], "swap": [a, b] or None}``)."""
+    q = body.q
+    n = len(q)
+    segments, nominal = protocol.nominal_offsets(height)
+    names = [m.landmark.name for m in protocol.markers]
+    labels = list(protocol.labels)
+    sd = settings.placement_sd
+    placed = nominal + np.clip(rng.normal(0.0, sd, nominal.shape), -2.5 * sd, 2.5 * sd)
+    local = np.broadcast_to(placed, (n,) + placed.shape).copy()
+    geom = FootGeometry.from_skeleton(skeleton)
+    forearm = skeleton.lengths["forearm"]
+    centred = q - q.mean(axis=0)
+    for m, (name, seg) in enumerate(zip(names, segments)):
+        seg_name = SEGMENT_NAMES[seg]
+        sides = _side(name)
+        col = 0 if sides == ("l",) else 1
+        if name.endswith("_FINGER"):
+            local[:, m] = _rotate_about_y(local[:, m], np.array([0, 0, -forearm]),
+                                          body.wrist[:, col])
+        elif name.endswith("_HALLUX"):
+            local[:, m] = _rotate_about_y(local[:, m], np.array([geom.mtp, 0, -geom.ankle_height]),
+                                          body.toe[:, col])
+        gain, dofs = SOFT_TISSUE[seg_name.rsplit("_", 1)[0]]
+        for dof in dofs:
+            for side in (sides if "{s}" in dof else ("",)):
+                j = _Q[dof.format(s=side)]
+                direction = rng.normal(0.0, 1.0 / np.sqrt(3.0), 3)
+                local[:, m] += settings.soft_tissue * gain * centred[:, j, None] * direction
+    transforms = skeleton.forward(q)
+    T = transforms[:, segments]
+    world = np.einsum("fmij,fmj->fmi", T[..., :3, :3], local) + T[..., :3, 3]
+    torso = transforms[:, SEGMENT_NAMES.index("torso"), :3, :3]
+    for m, (name, seg) in enumerate(zip(names, segments)):
+        seg_name = SEGMENT_NAMES[seg]
+        if seg_name.startswith(("humerus", "forearm")) or name.endswith("_ACROMION"):
+            col = 0 if _side(name) == ("l",) else 1
+            world[:, m] += np.einsum("fij,fj->fi", torso, body.girdle[:, col])
+    world += rng.normal(0.0, settings.noise_sd, world.shape)
+
+    record: dict = {"gaps": [], "swap": None}
+    for _ in range(settings.gaps):
+        m = int(rng.integers(len(labels)))
+        length = int(rng.integers(2, max(3, int(settings.max_gap_s * rate) + 1)))
+        start = int(rng.integers(0, max(1, n - length)))
+        world[start:start + length, m] = np.nan
+        record["gaps"].append({"label": labels[m], "start_frame": start + 1,
+                               "end_frame": min(start + length, n)})
+    if settings.swap:
+        pairs = [(a, labels.index("R" + a[1:])) for a in labels
+                 if a.startswith("L") and "R" + a[1:] in labels]
+        if pairs:
+            left, right = pairs[int(rng.integers(len(pairs)))]
+            i = labels.index(left)
+            labels[i], labels[right] = labels[right], labels[i]
+            record["swap"] = [left, labels[i]]
+    return world, labels, record

@@ -1,0 +1,163 @@
+"""Capture plans: a TOML list of synthetic captures, and generating one into a folder.
+
+A plan file (``protocols/paper_plan.toml``) has no ``[markers]`` table, so the protocol lister
+ignores it. Layout::
+
+    name = "paper"
+    [defaults]                      # optional; any capture may override these
+    protocol = "fullbody38"
+    rate = 100.0
+    height = 1.75
+    mass = 70.0
+    markers = { noise_sd = 0.0007 } # MarkerSettings fields
+
+    [[capture]]
+    name = "walk_straight_normal"
+    class = "nonholonomic"
+    command = { kind = "straight", speed = 1.2 }   # or { v_f = 1.2, v_l = 0, omega = 0 }
+    duration = 2.6
+    seed = 3
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tomllib
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from ..errors import MocapError, SynthError
+from .capture import Subject, synthesize, write_capture
+from .command import Command
+from .markers import MarkerSettings
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+_COMMAND_KEYS = {"v_f", "v_l", "omega", "gait"}
+_KIND_KEYS = {"kind", "speed", "radius", "direction", "side"}
+
+
+@dataclass(frozen=True)
+class PlannedCapture:
+    """One entry of a plan: what to generate and how."""
+
+    name: str
+    cls: str
+    command: Command
+    duration: float
+    seed: int
+    subject: Subject
+    rate: float
+    protocol: str
+    markers: MarkerSettings
+
+
+@dataclass(frozen=True)
+class Plan:
+    name: str
+    description: str
+    captures: tuple[PlannedCapture, ...]
+    path: str
+
+
+def _command(spec, where: str, path: str) -> Command:
+    if not isinstance(spec, dict):
+        raise SynthError(f"{where}: command must be a table", path=path)
+    keys = set(spec)
+    try:
+        if keys <= _COMMAND_KEYS:
+            return Command(**{k: (v if k == "gait" else float(v)) for k, v in spec.items()})
+        if "kind" in keys and keys <= _KIND_KEYS:
+            kind = spec["kind"]
+            options = {k: (v if k == "side" else float(v)) for k, v in spec.items()
+                       if k != "kind"}
+            return Command.from_kind(kind, **options)
+    except SynthError as exc:
+        raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
+    except (TypeError, ValueError) as exc:
+        raise SynthError(f"{where}: bad command value ({exc})", path=path) from None
+    raise SynthError(f"{where}: command keys {sorted(keys)} mix or miss the two forms", path=path,
+                     hint="use { kind, speed, radius|direction, side } or { v_f, v_l, omega, gait }")
+
+
+def _markers(spec, where: str, path: str) -> MarkerSettings:
+    names = {f.name for f in fields(MarkerSettings)}
+    unknown = set(spec) - names
+    if unknown:
+        raise SynthError(f"{where}: unknown marker settings {sorted(unknown)}", path=path,
+                         hint=f"settings are {', '.join(sorted(names))}")
+    return MarkerSettings(**spec)
+
+
+def load_plan(path: str | os.PathLike) -> Plan:
+    """Read and check a plan file; raises :class:`SynthError` naming the file and capture."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as handle:
+            data = tomllib.load(handle)
+    except FileNotFoundError:
+        raise SynthError("plan file not found", path=path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SynthError(f"not valid TOML: {exc}", path=path) from None
+    defaults = data.get("defaults", {})
+    entries = data.get("capture")
+    if not isinstance(entries, list) or not entries:
+        raise SynthError("no [[capture]] entries", path=path,
+                         hint="each capture needs name, class, command, duration, seed")
+    captures, seen = [], set()
+    for i, entry in enumerate(entries):
+        name = entry.get("name")
+        where = f"capture {name!r}" if name else f"capture #{i + 1}"
+        if not isinstance(name, str) or not _NAME.match(name):
+            raise SynthError(f"{where}: name must be letters, digits, _ . - (a file name)",
+                             path=path)
+        if name in seen:
+            raise SynthError(f"{where}: name used twice", path=path)
+        seen.add(name)
+        missing = {"class", "command", "duration", "seed"} - set(entry)
+        if missing:
+            raise SynthError(f"{where}: missing {', '.join(sorted(missing))}", path=path)
+        get = lambda key, default: entry.get(key, defaults.get(key, default))  # noqa: E731
+        try:
+            subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
+            captures.append(PlannedCapture(
+                name, str(entry["class"]), _command(entry["command"], where, path),
+                float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
+                str(get("protocol", "fullbody38")),
+                _markers({**defaults.get("markers", {}), **entry.get("markers", {})}, where,
+                         path)))
+        except (TypeError, ValueError) as exc:
+            raise SynthError(f"{where}: bad value ({exc})", path=path) from None
+    return Plan(str(data.get("name", Path(path).stem)), str(data.get("description", "")),
+                tuple(captures), path)
+
+
+def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
+                  only: list[str] | None = None, protocol: str | None = None,
+                  progress: bool = False) -> list[Path]:
+    """Generate the plan's captures (or the ``only`` ones) into ``directory``.
+
+    ``protocol`` overrides every capture's marker set. Returns the paths written (C3D and truth
+    of each capture). A capture that cannot be generated raises :class:`SynthError` naming it.
+    """
+    chosen = list(plan.captures)
+    if only:
+        unknown = sorted(set(only) - {c.name for c in chosen})
+        if unknown:
+            raise SynthError(f"not in the plan: {', '.join(unknown)}", path=plan.path)
+        chosen = [c for c in chosen if c.name in set(only)]
+    if progress:
+        from tqdm import tqdm
+        chosen = tqdm(chosen, desc="synth", unit="capture")
+    written: list[Path] = []
+    for entry in chosen:
+        try:
+            capture = synthesize(entry.command, duration=entry.duration, seed=entry.seed,
+                                 subject=entry.subject, rate=entry.rate,
+                                 protocol=protocol or entry.protocol, markers=entry.markers,
+                                 name=entry.name)
+            written += write_capture(capture, directory, entry.name,
+                                     extra={"plan": plan.name, "class": entry.cls})
+        except MocapError as exc:
+            raise SynthError(f"capture {entry.name!r}: {exc}", path=plan.path) from None
+    return written
