@@ -359,7 +359,8 @@ def test_small_file_reads(tmp_path):
     (b"", "the file is empty"),
     (b"hello", "only 5 bytes"),
     (b"PK\x03\x04" + bytes(600), "not a C3D file"),
-    (bytes([200, 0x50]) + bytes(1000), "parameter section at block 200"),
+    (bytes([200, 0x50]) + bytes(1000), "parameter section at block 200, beyond the end"),
+    (bytes([1, 0x50]) + bytes(1000), "parameter section at block 1, inside the header"),
 ])
 def test_not_a_c3d(tmp_path, content, match):
     path = tmp_path / "bad.c3d"

@@ -120,7 +120,10 @@ def _check_header(data: bytes, path: Path) -> None:
         raise C3DError(f"not a C3D file (byte 2 is 0x{data[1]:02x}, a C3D file has 0x50)",
                        path=path)
     start = (data[0] - 1) * 512
-    if data[0] < 2 or start + 4 > len(data):
+    if data[0] < 2:
+        raise C3DError(f"the header points to a parameter section at block {data[0]}, inside the "
+                       f"header", path=path, hint="the file is corrupt")
+    if start + 4 > len(data):
         raise C3DError(f"the header points to a parameter section at block {data[0]}, beyond the "
                        f"end of the file ({len(data)} bytes)", path=path,
                        hint="the file is truncated or corrupt")
