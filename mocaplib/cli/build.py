@@ -53,10 +53,29 @@ def register(subparsers) -> None:
     parser.set_defaults(run=_run)
 
 
+def _usage_problem(args) -> str | None:
+    """What is wrong with --protocol or --static before any capture is processed."""
+    from ..errors import ProtocolError
+    from ..protocols import load_protocol
+
+    if args.protocol != "auto":
+        try:
+            load_protocol(args.protocol)
+        except ProtocolError as exc:
+            return f"--protocol: {exc}"
+    if args.static and not Path(args.static).is_file():
+        return f"--static: no such file: {args.static}"
+    return None
+
+
 def _run(args) -> int:
     from ..library import validate_library
     from ..pipeline import BuildSettings, build
 
+    problem = _usage_problem(args)
+    if problem:
+        print(f"mocaplib build: error: {problem}", file=sys.stderr)
+        return 2
     output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              all_cycles=args.all_cycles, qc_policy=args.qc)
