@@ -22,6 +22,7 @@ Units: metres and radians. Arrays: time on axis 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,7 +31,7 @@ from scipy.spatial.transform import Rotation
 from .errors import FitError
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, axis_rotation
 
 if TYPE_CHECKING:
     from .calibrate import SubjectModel
@@ -40,6 +41,11 @@ if TYPE_CHECKING:
 ROBUST_SCALE = 0.01
 #: Continuity weight μ, metres per radian (per metre for translations).
 SMOOTHING = 0.01
+#: A frame with fewer markers on the pelvis, or in all, is flagged as failed.
+MIN_PELVIS_MARKERS = 2
+MIN_MARKERS = 6
+#: Frames with a marker RMS above this many times the median are re-solved from neighbours.
+RESTART_FACTOR = 3.0
 #: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
 CHUNK = 1000
 
@@ -120,7 +126,13 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         A = JtW @ Jf
         g = (JtW @ r.reshape(rows.size, -1, 1))[..., 0] - mu2 * (qa[:, fidx] - q_ref[:, fidx])
         A[:, np.arange(fidx.size), np.arange(fidx.size)] += mu2
-        diag = np.einsum("fii->fi", A)
+        # DOFs on a bound whose gradient points outwards leave the step (active set)
+        held = (((qa[:, fidx] <= _LOWER[fidx] + 1e-12) & (g < 0))
+                | ((qa[:, fidx] >= _UPPER[fidx] - 1e-12) & (g > 0)))
+        A *= ~held[:, :, None] & ~held[:, None, :]
+        A[:, np.arange(fidx.size), np.arange(fidx.size)] += held
+        g[held] = 0.0
+        diag = np.einsum("fii->fi", A).copy()
         c0 = (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
             (qa[:, fidx] - q_ref[:, fidx]) ** 2).sum(axis=1)
         # a few damping trials per iteration: frames whose step fails raise their damping
@@ -189,30 +201,35 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     """
     n_frames = markers.shape[0]
     q = np.zeros((n_frames, len(DOF_NAMES)))
-    q[:, :] = skeleton.neutral_q(1)
     joint = skeleton.joint_offsets()
+    rot = np.empty((n_frames, len(SEGMENTS), 3, 3))         # segment-to-world, built root first
+    pos = np.empty((n_frames, len(SEGMENTS), 3))
     for s, seg in enumerate(SEGMENTS):
         own = np.flatnonzero(segments == s)
-        local = offsets[own]
-        world = markers[:, own]
-        if seg.parent is not None:
-            parent = skeleton.forward(q)[:, SEGMENT_NAMES.index(seg.parent)]
-            centre = parent[:, :3, :3] @ joint[s] + parent[:, :3, 3]
-            local = np.vstack([local, np.zeros((1, 3))])
-            world = np.concatenate([world, centre[:, None]], axis=1)
-        R, t, ok = _kabsch(local, world)
+        local, world = offsets[own], markers[:, own]
         cols = [DOF_NAMES.index(n) for n in seg.dofs]
+        rot_cols = [c for c in cols if not DOFS[c].translation]
         if seg.parent is None:
-            rel = R
-            trans = [c for c in cols if DOFS[c].translation]
-            q[:, trans] = t
+            R, t, ok = _kabsch(local, world)
+            rel, R_parent = R, np.broadcast_to(np.eye(3), (n_frames, 3, 3))
+            q[:, [c for c in cols if DOFS[c].translation]] = t
         else:
-            rel = np.swapaxes(parent[:, :3, :3], 1, 2) @ R
-        rot = [c for c in cols if not DOFS[c].translation]
-        q[:, rot] = _joint_angles(rel, [DOFS[c].axis for c in rot])
+            p = SEGMENT_NAMES.index(seg.parent)
+            R_parent = rot[:, p]
+            centre = R_parent @ joint[s] + pos[:, p]
+            R, _, ok = _kabsch(np.vstack([local, np.zeros((1, 3))]),
+                               np.concatenate([world, centre[:, None]], axis=1))
+            rel = np.swapaxes(R_parent, 1, 2) @ R
+        q[:, rot_cols] = _joint_angles(rel, [DOFS[c].axis for c in rot_cols])
         q[np.ix_(~ok, cols)] = np.nan
         q[:, cols] = _fill_gaps(q[:, cols])
-    q[:, DOF_NAMES.index("pelvis_rotation")] = np.unwrap(q[:, DOF_NAMES.index("pelvis_rotation")])
+        R = R_parent.copy()
+        for c in rot_cols:
+            R = R @ axis_rotation(DOFS[c].axis, q[:, c])
+        rot[:, s] = R
+        pos[:, s] = q[:, cols[:3]] if seg.parent is None else centre
+    heading = DOF_NAMES.index("pelvis_rotation")
+    q[:, heading] = np.unwrap(q[:, heading])
     return np.clip(q, _LOWER, _UPPER)
 
 
@@ -284,9 +301,10 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
 
     Returns
     -------
-    Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than 3 pelvis
-    markers, or no convergence) whose angles are interpolated from their neighbours, and the
-    model's locked DOFs (held at 0).
+    Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than
+    :data:`MIN_PELVIS_MARKERS` pelvis markers or :data:`MIN_MARKERS` markers, or no
+    convergence) whose angles are interpolated from their neighbours and whose residuals are
+    NaN, and the model's locked DOFs (held at 0).
     """
     markers = model_markers(trial, model)
     n_frames = trial.n_frames
@@ -301,16 +319,20 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         q0 = initial_pose(model.skeleton, markers[part], model.marker_segments,
                           model.marker_offsets)
         q0[:, ~free] = 0.0
-        res = solve_poses(model.skeleton, markers[part], model.marker_segments,
-                          model.marker_offsets, q0=q0, free=free, robust_scale=robust_scale,
-                          smoothing=smoothing, max_iter=max_iter)
+        solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
+                        model.marker_offsets, free=free, robust_scale=robust_scale,
+                        smoothing=smoothing, max_iter=max_iter)
+        res = _restart_outliers(solve, solve(q0=q0))
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
-    pelvis_seen = np.isfinite(markers[:, model.marker_segments == _ROOT, 0]).sum(axis=1)
-    failed = (pelvis_seen < 3) | ~converged
+    seen = np.isfinite(markers[..., 0])
+    failed = ((seen[:, model.marker_segments == _ROOT].sum(axis=1) < MIN_PELVIS_MARKERS)
+              | (seen.sum(axis=1) < MIN_MARKERS) | ~converged)
     if failed.all():
-        raise FitError("no frame could be fitted (fewer than 3 pelvis markers everywhere)",
-                       path=trial.source, hint="check the protocol matches the labels")
+        raise FitError(f"no frame could be fitted (each has fewer than {MIN_PELVIS_MARKERS} "
+                       f"pelvis markers or {MIN_MARKERS} markers in all)", path=trial.source,
+                       hint="check the protocol matches the labels")
     if failed.any():
+        residuals[failed] = np.nan
         q[failed] = np.nan
         q = _fill_gaps(q)
         q[:, ~free] = 0.0
@@ -319,6 +341,34 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   locked_dofs=list(model.locked_dofs),
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
+
+
+def _restart_outliers(solve, first: PoseFit) -> PoseFit:
+    """Re-solve frames stuck in a wrong minimum, starting from their neighbours' solution.
+
+    A frame whose marker RMS exceeds :data:`RESTART_FACTOR` times the median (and 15 mm) gets
+    the pose interpolated from the other frames as a new start; each frame keeps whichever
+    solution has the smaller marker RMS.
+    """
+    rms = _frame_rms(first.residuals)
+    suspect = rms > max(RESTART_FACTOR * np.nanmedian(rms), 0.015)
+    if not suspect.any() or suspect.all():
+        return first
+    start = first.q.copy()
+    start[suspect] = np.nan
+    second = solve(q0=_fill_gaps(start))
+    better = _frame_rms(second.residuals) < rms
+    for name in ("q", "residuals", "converged"):
+        getattr(first, name)[better] = getattr(second, name)[better]
+    return first
+
+
+def _frame_rms(residuals: np.ndarray) -> np.ndarray:
+    """Marker RMS per frame (F,), +inf where no marker is seen."""
+    seen = np.isfinite(residuals)
+    total = np.where(seen, residuals, 0.0) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(seen.any(axis=1), np.sqrt(total.sum(axis=1) / seen.sum(axis=1)), np.inf)
 
 
 def fit_quality(motion: Motion) -> dict:

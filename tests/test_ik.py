@@ -115,6 +115,7 @@ def test_frames_without_pelvis_are_flagged_and_interpolated():
     markers[20:25][:, pelvis] = np.nan
     motion = fit(Trial(markers, cap.trial.labels, 100.0), _true_model(cap))
     assert motion.failed.tolist() == [20 <= f < 25 for f in range(60)]
+    assert np.isnan(motion.residuals[20:25]).all()
     assert np.isfinite(motion.q).all()
 
 

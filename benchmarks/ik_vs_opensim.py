@@ -1,0 +1,143 @@
+"""mocaplib's joint-angle fit vs OpenSim 4.6's InverseKinematicsTool, same model and markers.
+
+One run: calibrate the subject with mocaplib, export the model (.osim) and the markers (.trc),
+then solve every frame with OpenSim's IK (all markers weight 1, coordinate ranges clamped,
+accuracy 1e-5) and with ``mocaplib.ik.fit``; print each one's frames/s, the speed ratio and
+both joint-angle RMS errors against the truth.
+
+Data: a synthetic capture with ground truth (``--c3d FILE`` with ``FILE.truth.json`` beside it,
+as mocaplib.synth writes them), or by default the tests' forward-kinematics walk (gait-like
+angles, 6 mm soft-tissue artefact, 1 mm noise; ``--frames`` long).
+
+    /work/venv/bin/python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE]
+
+Needs the bench extra (``pip install ".[bench]"``: opensim).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+from mocaplib.calibrate import calibrate  # noqa: E402
+from mocaplib.ik import fit  # noqa: E402
+from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
+
+ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
+FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
+           if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]
+
+
+def load_capture(args):
+    """(trial, true q (F, D) or None) from --c3d, else the forward-kinematics walk."""
+    if args.c3d:
+        from mocaplib.io.c3d import read_c3d
+
+        trial = read_c3d(args.c3d)
+        truth_path = Path(args.c3d).with_suffix(".truth.json")
+        truth = json.loads(truth_path.read_text()) if truth_path.exists() else None
+        q = None
+        if truth is not None and "angles" in truth:
+            angles = truth["angles"]
+            q = np.column_stack([np.asarray(angles[name], float) for name in DOF_NAMES])
+        return trial, q
+    from fk_data import fk_trial
+
+    cap = fk_trial(n_frames=args.frames, placement_mm=0, sta_mm=6, noise_mm=1, seed=args.seed)
+    return cap.trial, cap.q
+
+
+def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path):
+    """OpenSim IK on the exported files; returns (seconds, q (F, D) radians)."""
+    import opensim
+
+    opensim.Logger.setLevelString("error")
+    model = opensim.Model(str(osim_path))
+    tool = opensim.InverseKinematicsTool()
+    tool.setModel(model)
+    tool.setMarkerDataFileName(str(trc_path))
+    tool.setStartTime(0.0)
+    tool.setEndTime(t_end)
+    tool.set_accuracy(1e-5)
+    tool.set_report_errors(False)
+    tool.setOutputMotionFileName(str(out))
+    tasks = tool.getIKTaskSet()
+    for label in labels:
+        task = opensim.IKMarkerTask()
+        task.setName(label)
+        task.setWeight(1.0)
+        task.setApply(True)
+        tasks.cloneAndAppend(task)
+    start = time.perf_counter()
+    tool.run()
+    seconds = time.perf_counter() - start
+    return seconds, read_mot(out)
+
+
+def read_mot(path: Path) -> np.ndarray:
+    """Coordinates (F, D) in radians/metres from an OpenSim .mot (degrees converted)."""
+    lines = path.read_text().splitlines()
+    end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
+    degrees = any(line.strip().lower() == "indegrees=yes" for line in lines[:end])
+    names = lines[end + 1].split("\t")
+    data = np.array([[float(v) for v in line.split("\t")] for line in lines[end + 2:] if line])
+    q = np.column_stack([data[:, names.index(name)] for name in DOF_NAMES])
+    if degrees:
+        q[:, ROTATIONS] = np.radians(q[:, ROTATIONS])
+    return q
+
+
+def angle_errors(q, truth) -> tuple[float, float, float]:
+    """(mean, max) RMS error over rotational DOFs and the max over flexions, degrees."""
+    rms = np.degrees(np.sqrt(((q - truth) ** 2).mean(axis=0)))
+    return float(rms[ROTATIONS].mean()), float(rms[ROTATIONS].max()), float(rms[FLEXION].max())
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--c3d", help="synthetic capture with a .truth.json beside it")
+    args = parser.parse_args()
+
+    trial, truth = load_capture(args)
+    model = calibrate(trial)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        from mocaplib.ik import model_markers
+
+        write_osim(model, tmp / "model.osim")
+        write_trc(model_markers(trial, model), model.labels, trial.rate, tmp / "markers.trc")
+        t_osim, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc", model.labels,
+                                     trial.duration, tmp / "ik.mot")
+    start = time.perf_counter()
+    motion = fit(trial, model)
+    t_ours = time.perf_counter() - start
+    n = trial.n_frames
+    print(f"capture: {trial.source}  frames: {n}  markers: {len(model.labels)}  "
+          f"protocol: {model.protocol.name}")
+    print(f"{'':10s}{'frames/s':>10s}{'mean RMS deg':>14s}{'max RMS deg':>13s}"
+          f"{'max flexion':>13s}")
+    for name, seconds, q in (("OpenSim", t_osim, q_osim), ("mocaplib", t_ours, motion.q)):
+        if truth is not None and len(q) == len(truth):
+            mean, worst, flex = angle_errors(q, truth)
+            errors = f"{mean:14.2f}{worst:13.2f}{flex:13.2f}"
+        else:
+            errors = f"{'(no truth)':>14s}"
+        print(f"{name:10s}{n / seconds:10.0f}{errors}")
+    print(f"speed ratio mocaplib / OpenSim: {t_osim / t_ours:.1f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
