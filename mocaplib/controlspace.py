@@ -108,6 +108,36 @@ def _closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.nda
     return best, best_d
 
 
+def locate(tri: Delaunay, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
+    """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
+
+    Plain numpy, closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex,
+    which can stall for a second on a busy multi-threaded BLAS); brute force over simplices,
+    fine for libraries of hundreds of entries. A point within ``tol`` of a face counts inside;
+    the simplex with the largest smallest weight is chosen.
+    """
+    pts = tri.points[tri.simplices]                        # (S, 4, 3)
+    a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
+    rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (S, 3, 3)
+    det = np.einsum("si,si->s", a, rows[:, 0])
+    ok = np.abs(det) > 1e-12 * np.max(np.abs(det), initial=0.0)
+    inv = rows[ok] / det[ok, None, None]                   # rows of the inverse of [a b c]
+    origin = pts[ok, 3]
+    where = np.flatnonzero(ok)
+    simplex = np.full(len(x), -1)
+    weights = np.full((len(x), 4), np.nan)
+    for lo in range(0, len(x), chunk):
+        w3 = np.einsum("sij,qsj->qsi", inv, x[lo:lo + chunk, None, :] - origin[None])
+        w = np.concatenate([w3, 1.0 - w3.sum(axis=2, keepdims=True)], axis=2)  # (q, S, 4)
+        worst = w.min(axis=2)
+        best = np.argmax(worst, axis=1)
+        q = np.arange(len(best))
+        hit = worst[q, best] >= -tol
+        simplex[lo:lo + chunk] = np.where(hit, where[best], -1)
+        weights[lo:lo + chunk][hit] = w[q[hit], best[hit]]
+    return simplex, weights
+
+
 def tetra_quality(vertices: np.ndarray) -> np.ndarray:
     """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
     p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
@@ -294,17 +324,14 @@ class ControlSpace:
         if p.ndim != 2 or p.shape[1] != 3:
             raise MocapError(f"query points must have shape (Q, 3), got {np.shape(points)}")
         x = self.normalise(p)
-        simplex = self.tri.find_simplex(x, tol=1e-9)
+        simplex, w = locate(self.tri, x)
         inside = simplex >= 0
         entries = np.full((len(p), 4), -1)
         weights = np.full((len(p), 4), np.nan)
         if inside.any():
-            s = simplex[inside]
-            T = self.tri.transform[s]
-            w3 = np.einsum("qij,qj->qi", T[:, :3, :], x[inside] - T[:, 3, :])
-            w = np.clip(np.column_stack([w3, 1.0 - w3.sum(axis=1)]), 0.0, None)
+            w = np.clip(w[inside], 0.0, None)
             weights[inside] = w / w.sum(axis=1, keepdims=True)
-            entries[inside] = self.tri.simplices[s]
+            entries[inside] = self.tri.simplices[simplex[inside]]
         nearest = p.copy()
         distance = np.zeros(len(p))
         if (~inside).any():
@@ -329,7 +356,7 @@ class ControlSpace:
 
     def contains(self, points) -> np.ndarray:
         """(Q,) bool: SI points (Q, 3) inside the hull."""
-        return self.tri.find_simplex(self.normalise(np.atleast_2d(points)), tol=1e-9) >= 0
+        return locate(self.tri, self.normalise(np.atleast_2d(points)))[0] >= 0
 
     # ----------------------------------------------------------------- blending
     def blend(self, result: QueryResult) -> Blend:
@@ -465,7 +492,7 @@ class Envelope:
         x = self.vertices / scale
         if np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9) < 3:
             return grid  # a flat envelope: its bounding box is the envelope
-        return grid[Delaunay(x).find_simplex(grid / scale, tol=1e-9) >= 0]
+        return grid[locate(Delaunay(x), grid / scale)[0] >= 0]
 
 
 @dataclass
