@@ -38,7 +38,7 @@ import pandas as pd
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
-from .fourier import RootDrift, root_drift, synthesize
+from .fourier import RootDrift, synthesize
 from .skeleton import DOF_NAMES, DOFS
 
 #: Axis names of the two control-space variants.
@@ -52,26 +52,16 @@ DEFAULT_SCALE = {"v": 1.5, "v_f": 1.5, "omega": np.pi / 2, "v_l": 0.5}
 SLIVER_QUALITY = 0.1
 #: Rotational DOFs (joint-angle errors are computed on these; pelvis_t* are metres).
 ROTATIONAL = np.array([not d.translation for d in DOFS])
-#: The root drift of a cycle as blended here: the path frame's constant velocity in its own axes
-#: (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
-DRIFT_KEYS = ("u_f", "u_l", "omega")
+#: Keys of an entry's ``root_drift`` blended here: the path frame's constant velocity in its own
+#: axes (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
+DRIFT_KEYS = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
 
 
-def drift_velocities(drift: dict, period: float) -> np.ndarray:
-    """(u_f, u_l, omega) of an entry's ``root_drift``: given as velocities (:data:`DRIFT_KEYS`)
-    or as the displacement per cycle ``dx_m, dy_m, dheading_rad``; NaN when neither."""
-    if all(drift.get(k) is not None for k in DRIFT_KEYS):
-        return np.array([float(drift[k]) for k in DRIFT_KEYS])
-    if all(drift.get(k) is not None for k in ("dx_m", "dy_m", "dheading_rad")):
-        end = np.zeros(len(DOF_NAMES))
-        end[[DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_rotation")]] = (
-            drift["dx_m"], drift["dy_m"], drift["dheading_rad"])
-        d = root_drift(np.zeros(len(DOF_NAMES)), end, period)
-        return np.array([d.u_f, d.u_l, d.omega])
-    return np.full(3, np.nan)
+def drift_velocities(drift: dict) -> np.ndarray:
+    """(u_f, u_l, omega) of an entry's ``root_drift`` (:data:`DRIFT_KEYS`), NaN when absent."""
+    return np.array([np.nan if drift.get(k) is None else float(drift[k]) for k in DRIFT_KEYS])
 
 
-# --------------------------------------------------------------------------- Fourier helpers
 def _stack_padded(arrays) -> np.ndarray:
     """Coefficient arrays of shapes (D, N_i+1) stacked into (E, D, max N_i + 1), zero-padded
     (a missing harmonic is a zero harmonic, so padding changes nothing)."""
@@ -279,7 +269,7 @@ class ControlSpace:
             usable &= df["chosen"].to_numpy(bool)
         a, b = library.coefficient_arrays()
         rows = [library.entry(i) for i in df.index[usable]]
-        drift = np.array([drift_velocities(e["root_drift"], float(e["T"])) for e in rows])
+        drift = np.array([drift_velocities(e["root_drift"]) for e in rows])
         return cls(df.loc[usable, cols].to_numpy(float), a=a[usable], b=b[usable],
                    T=df.loc[usable, "T"].to_numpy(float),
                    drift=drift.reshape(-1, 3) if np.isfinite(drift).all() else None,

@@ -10,7 +10,7 @@ import pytest
 from mocaplib.controlspace import (DEFAULT_SCALE, ROTATIONAL, Blend, ControlSpace, Envelope,
                                    coverage, drift_velocities, leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.fourier import synthesize
+from mocaplib.fourier import root_drift, synthesize
 from mocaplib.library import assemble_library, make_entry
 from mocaplib.skeleton import DOF_NAMES
 
@@ -31,7 +31,7 @@ def hand_library(points, *, a=None, b=None, T=None, classes=None, v_f=None):
             id=f"e{i:02d}", source_file=f"c{i}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=float(T[i]), T=float(T[i]), pattern={"type": "line"},
             v=v, omega=w, v_l=vl, v_f=(v if v_f is None else v_f[i]), a=a[i], b=b[i],
-            root_drift={"u_f": v, "u_l": vl, "omega": w}, qc={},
+            root_drift={"u_f_m_s": v, "u_l_m_s": vl, "omega_rad_s": w}, qc={},
             locomotion_class=None if classes is None else classes[i]))
     return assemble_library(entries, settings={})
 
@@ -247,7 +247,10 @@ def test_from_library_uses_stored_scale_and_frontal_variant():
 @pytest.mark.parametrize("dx, dy, dth", [(1.2, 0.0, 0.0), (0.8, 0.3, 0.6), (0.0, 0.0, -1.1)])
 def test_world_cycle_reaches_the_drift_displacement(dx, dy, dth):
     T = 1.1
-    u = drift_velocities({"dx_m": dx, "dy_m": dy, "dheading_rad": dth}, T)
+    end = np.zeros(D)
+    end[[0, 1, 3]] = dx, dy, dth  # pelvis_tx, pelvis_ty, pelvis_rotation after one cycle
+    d = root_drift(np.zeros(D), end, T)  # the library's drift velocities for that displacement
+    u = drift_velocities({"u_f_m_s": d.u_f, "u_l_m_s": d.u_l, "omega_rad_s": d.omega})
     a = np.zeros((1, D, 2))
     a[0, DOF_NAMES.index("pelvis_tx"), 1] = 0.02  # the pelvis sways in the path frame
     bl = Blend(a, np.zeros_like(a), np.array([T]), u[None])

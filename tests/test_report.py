@@ -54,7 +54,7 @@ def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
             cycle_index=0, start_s=0.5, end_s=0.5 + T, T=T,
             pattern={"type": "arc" if w else "line", "parameters": {}}, v=v, omega=w, v_l=vl,
             v_f=float(np.sqrt(max(v * v - vl * vl, 0.0))), a=a, b=b,
-            root_drift={"u_f": v, "u_l": vl, "omega": w},
+            root_drift={"u_f_m_s": v, "u_l_m_s": vl, "omega_rad_s": w},
             qc={"marker_rms_m": 0.006, "fourier_rms_rad": 0.002}, locomotion_class=cls))
     lib = assemble_library(entries, settings={})
     path = folder / "lib.json"
