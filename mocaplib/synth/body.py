@@ -235,6 +235,7 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
         gap = (feet[side][0] - hips[side])[n:][stance]
         lift = min(lift, float(np.min(np.sqrt((REACH * leg) ** 2 - (gap[:, :2] ** 2).sum(1))
                                       + gap[:, 2])))
+    lift -= 2e-4   # the stride grid samples the reach limit; keep 0.2 mm in hand between samples
     q[:, _Q["pelvis_tz"]] += lift
     for side in SIDES:
         hip = hips[side] + np.array([0.0, 0.0, lift])

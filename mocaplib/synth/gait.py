@@ -156,9 +156,9 @@ def gait_parameters(command: Command, height: float) -> GaitParameters:
             heel_pitch=0.0, toe_pitch=0.0, loading=0.0, heel_rise=1.0, plant=0.5, clearance=0.0,
             bounce=0.0, sway=0.004 * scale, pelvis_rotation=0.0, pelvis_list=0.0,
             lean=2 * DEG, thorax_rotation=0.0, arm_swing=0.0, elbow=12 * DEG)
-    # walking: cadence from the step-length relation, at least that of turning on the spot
-    turning = 90.0 + 20.0 * abs(command.omega)
-    sideways = 95.0 + 50.0 * abs(command.v_l)     # short, quick steps when stepping sideways
+    # walking: cadence from the step-length relation, raised when turning or stepping sideways
+    turning = 80.0 + 30.0 * abs(command.omega)
+    sideways = 80.0 + 75.0 * abs(command.v_l)     # short, quick steps when stepping sideways
     walking = 60.0 * v / step_length_walk(v, height) if v > 0 else 0.0
     cadence = float(np.clip(max(walking, turning, sideways), 80.0, 140.0))
     stride = 120.0 / cadence

@@ -1,0 +1,107 @@
+"""The shipped samples: the plan, byte-identical regeneration, readers agree, the CLI."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from conftest import REPO, SAMPLES
+from mocaplib.cli import main
+from mocaplib.errors import SynthError
+from mocaplib.synth import generate_plan, load_plan, min_duration
+
+PLAN = REPO / "protocols" / "paper_plan.toml"
+#: One capture of each class that moves differently (regenerating all 68 takes ~15 s).
+REGENERATED = ["walk_curve_r1_left_fast", "side_right_normal", "side_left_curve_right_r2",
+               "run_3p5", "rest"]
+
+
+def test_paper_plan_has_the_68_captures():
+    plan = load_plan(PLAN)
+    assert len(plan.captures) == 68
+    assert Counter(c.cls for c in plan.captures) == {
+        "nonholonomic": 27, "holonomic": 24, "mixed": 12, "running": 4, "rest": 1}
+    for c in plan.captures:
+        assert c.duration >= min_duration(c.command, c.subject)
+    radii = {round(c.command.radius, 6) for c in plan.captures if c.cls == "nonholonomic"}
+    assert radii == {0.0, 1.0, 2.0, 3.0, np.inf}
+    directions = {round(np.degrees(c.command.direction)) for c in plan.captures
+                  if c.cls == "holonomic"}
+    assert directions == {60, 90, 120, 150, -60, -90, -120, -150}
+
+
+def test_plan_is_not_listed_as_a_protocol():
+    from mocaplib.protocols import list_protocols
+    assert "paper_plan" not in list_protocols()
+
+
+def test_samples_hold_the_whole_plan_and_stay_small():
+    names = {c.name for c in load_plan(PLAN).captures}
+    assert {p.name[:-len(".c3d")] for p in SAMPLES.glob("*.c3d")} == names
+    assert {p.name[:-len(".truth.json")] for p in SAMPLES.glob("*.truth.json")} == names
+    size = sum(p.stat().st_size for p in SAMPLES.iterdir())
+    assert size < 20e6
+
+
+def test_regenerated_samples_are_byte_identical(tmp_path):
+    written = generate_plan(load_plan(PLAN), tmp_path, only=REGENERATED)
+    assert len(written) == 2 * len(REGENERATED)
+    for path in written:
+        assert path.read_bytes() == (SAMPLES / path.name).read_bytes(), path.name
+
+
+@pytest.mark.parametrize("name", REGENERATED)
+def test_sample_reads_the_same_in_ezc3d_and_mocaplib(name):
+    ezc3d = pytest.importorskip("ezc3d")
+    io = pytest.importorskip("mocaplib.io.c3d")
+    path = SAMPLES / f"{name}.c3d"
+    trial = io.read_c3d(path)
+    ref = ezc3d.c3d(str(path))
+    points = ref["data"]["points"][:3].transpose(2, 1, 0) / 1000.0
+    # same file, same numbers: only float round-off between the two readers
+    np.testing.assert_allclose(trial.markers, points, atol=1e-9)
+    assert trial.labels == ref["parameters"]["POINT"]["LABELS"]["value"]
+    truth = json.loads((SAMPLES / f"{name}.truth.json").read_text())
+    assert trial.labels == truth["labels"] and trial.n_frames == truth["frames"]
+    got = [(e.context, e.label) for e in trial.events]
+    assert got == [(e["context"], e["label"]) for e in truth["events"]]
+    # EVENT:TIMES is float32 in C3D: 1e-6 s
+    np.testing.assert_allclose([e.time_s for e in trial.events],
+                               [e["time_s"] for e in truth["events"]], atol=1e-6)
+
+
+def test_truth_file_layout():
+    truth = json.loads((SAMPLES / "walk_curve_r1_left_fast.truth.json").read_text())
+    angles = np.array(truth["angles"]["values"])
+    assert angles.shape == (truth["frames"], len(truth["angles"]["dof_names"]))
+    assert truth["class"] == "nonholonomic" and truth["seed"] > 0
+    cyc = truth["cycles"][0]
+    assert {"start_s", "end_s", "T", "v", "omega", "v_l", "v_f", "pattern"} <= set(cyc)
+    assert cyc["pattern"]["type"] == "arc"
+    np.testing.assert_allclose(cyc["pattern"]["radius"], 1.0, atol=1e-6)
+    kinds = Counter((e["side"], e["kind"]) for e in truth["events"])
+    assert all(kinds[(s, k)] >= 2 for s in ("left", "right") for k in ("heel_strike", "toe_off"))
+
+
+def test_cli_generates_and_reports_bad_plans(tmp_path, capsys):
+    assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest",
+                 "--protocol", "plugin_gait", "--no-progress"]) == 0
+    truth = json.loads((tmp_path / "rest.truth.json").read_text())
+    assert truth["protocol"] == "plugin_gait" and "LFIN" in truth["labels"]
+    assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "nope", "--no-progress"]) == 1
+    assert "not in the plan: nope" in capsys.readouterr().err
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[capture]]\nname = "short"\nclass = "x"\n'
+                   'command = { kind = "straight", speed = 1.2 }\nduration = 0.5\nseed = 1\n')
+    with pytest.raises(SynthError, match="capture 'short'.*too short"):
+        generate_plan(load_plan(bad), tmp_path)
+    assert main(["synth", str(bad), "-o", str(tmp_path), "--no-progress"]) == 1
+    assert "capture 'short'" in capsys.readouterr().err
+    bad.write_text('[[capture]]\nname = "odd"\nclass = "x"\ncommand = { kind = "curve", '
+                   'speed = 1.0 }\nduration = 3\nseed = 1\n')
+    with pytest.raises(SynthError, match="capture 'odd': a curve needs a radius"):
+        load_plan(bad)
