@@ -244,14 +244,14 @@ class ControlSpace:
         self.classes = list(classes) if classes is not None else [None] * n
         self.scale = (np.array([DEFAULT_SCALE[k] for k in self.axes]) if scale is None
                       else np.asarray(scale, dtype=float))
-        self.a = None if a is None else _stack_padded(a)
-        self.b = None if b is None else _stack_padded(b)
-        self.T = None if T is None else np.asarray(T, dtype=float)
-        self.drift = None if drift is None else np.asarray(drift, dtype=float)
         if not np.all(np.isfinite(self.points)):
             raise LibraryError("control-space points must be finite", path=source,
                                hint="drop entries without velocities before building")
         self.tri = self._triangulate()
+        self.a = None if a is None else _stack_padded(a)
+        self.b = None if b is None else _stack_padded(b)
+        self.T = None if T is None else np.asarray(T, dtype=float)
+        self.drift = None if drift is None else np.asarray(drift, dtype=float)
 
     @classmethod
     def from_library(cls, library, *, axes: str = "tangential", chosen_only: bool = True,

@@ -191,6 +191,31 @@ def test_report_of_a_degenerate_library_still_builds(tmp_path):
     assert len(_images(html)) == 1  # the projections still show the entries
 
 
+def test_report_of_an_empty_library(tmp_path):
+    from mocaplib.report import write_report
+
+    path = tmp_path / "empty.json"
+    assemble_library([], settings={}).write(path)
+    html = write_report(path, tmp_path, renderer="matplotlib").read_text()
+    assert "at least 4 entries" in html and "No 3-D view" in html
+
+
+def test_a_broken_plan_found_in_protocols_falls_back(tmp_path, monkeypatch):
+    from mocaplib.errors import MocapError
+    from mocaplib.report import plan as plan_module
+
+    (tmp_path / "protocols").mkdir()
+    broken = tmp_path / "protocols" / "lab_plan.toml"
+    broken.write_text("[[capture]]\nname = 'x'\n")  # no class, command, duration, seed
+    monkeypatch.chdir(tmp_path)
+    assert plan_module.find_plan() == broken
+    env, note = plan_module.default_envelope(None)
+    assert "could not be read" in note["text"] and note["plan"] is None
+    assert len(env.vertices) == len(plan_module.FALLBACK_ENVELOPE)
+    with pytest.raises(MocapError, match="lab_plan.toml"):
+        plan_module.default_envelope(broken)  # named explicitly: an error, not a fallback
+
+
 def test_report_command(tmp_path, capsys):
     from mocaplib.cli import report as report_cmd
 

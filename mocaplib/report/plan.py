@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..controlspace import Envelope
+from ..errors import MocapError
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
@@ -63,14 +64,22 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
     Returns the envelope and a note ``{"text": how it was made, "plan": planned captures
     DataFrame or None}`` for the report.
     """
+    found = plan is None
     plan = plan if plan is not None else find_plan()
-    if plan is None:
+    why = "no capture plan found in protocols/"
+    commands = None
+    if plan is not None:
+        try:
+            commands = plan_commands(plan)
+        except MocapError as exc:
+            if not found:
+                raise
+            why = f"the capture plan found could not be read: {exc}"
+    if commands is None:
         return (Envelope(FALLBACK_ENVELOPE, source="built-in"),
-                {"text": "built-in default (no capture plan found in protocols/): hull of "
-                         "rest, spot turns, straight, curved, side and diagonal walking",
-                 "plan": None})
-    text = Path(plan).read_text(encoding="utf-8") if Path(plan).is_file() else ""
-    commands = plan_commands(plan)
+                {"text": f"built-in default ({why}): hull of rest, spot turns, straight, "
+                         "curved, side and diagonal walking", "plan": None})
+    text = Path(plan).read_text(encoding="utf-8")
     if "[envelope]" in text:
         env, how = Envelope.from_toml(plan), f"[envelope] table of {Path(plan).name}"
     else:
