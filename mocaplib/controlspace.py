@@ -74,7 +74,11 @@ def _stack_padded(arrays) -> np.ndarray:
 
 # --------------------------------------------------------------------------- geometry
 def _closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray):
-    """Closest points of triangles (H,) to points p (Q,): returns (Q, H, 3) points."""
+    """Closest point of each triangle (A, B, C each (H, 3)) to each point p (Q, 3).
+
+    Returns the points (Q, H, 3) and their squared distances (Q, H): the projection onto the
+    triangle's plane when it falls inside the triangle, else the closest point of its edges.
+    """
     n = np.cross(B - A, C - A)                       # (H, 3)
     nn = np.einsum("hi,hi->h", n, n)
     d = p[:, None, :] - A[None]                      # (Q, H, 3)
@@ -201,13 +205,7 @@ class Blend:
         t, q = self.synthesize(i, rate=rate, cycles=cycles)
         if self.drift is None:
             return t, q
-        x, y, heading = RootDrift(0.0, 0.0, 0.0, *(float(v) for v in self.drift[i])).frame(t)
-        tx, ty, rot = (DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_rotation"))
-        lx, ly = q[:, tx].copy(), q[:, ty].copy()
-        q[:, tx] = x + np.cos(heading) * lx - np.sin(heading) * ly
-        q[:, ty] = y + np.sin(heading) * lx + np.cos(heading) * ly
-        q[:, rot] += heading
-        return t, q
+        return t, RootDrift(0.0, 0.0, 0.0, *(float(v) for v in self.drift[i])).restore(q, t)
 
 
 # --------------------------------------------------------------------------- control space
@@ -499,6 +497,8 @@ class Coverage:
     entries_per_class : counts of entries by locomotion class ("unknown" when None).
     capture_next : DataFrame of suggested velocity triples (axes columns, SI) and the
         normalised ``gap`` each one fills (greedy farthest point).
+    axes : the control-space axes of every triple above.
+    samples : (S, 3) the envelope samples, SI; samples_inside : (S,) bool, inside the hull.
     """
 
     fraction_inside: float

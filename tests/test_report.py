@@ -33,11 +33,12 @@ ENTRIES = [
 
 
 def _coefficients(v: float, omega: float, n: int = 4):
-    """Gait-like Fourier coefficients whose amplitude grows with speed."""
+    """Gait-like Fourier coefficients whose amplitude grows with speed (not linearly, so
+    blending has an error to show)."""
     a, b = np.zeros((D, n + 1)), np.zeros((D, n + 1))
-    a[HIP, 0], a[HIP, 1], b[HIP, 1] = 0.15, 0.3 * (0.3 + v), 0.1
-    a[KNEE, 0], a[KNEE, 2], b[KNEE, 1] = 0.35, 0.25 * (0.3 + v), 0.4 * (0.2 + v)
-    a[DOF_NAMES.index("trunk_rotation"), 1] = 0.05 + 0.03 * omega
+    a[HIP, 0], a[HIP, 1], b[HIP, 1] = 0.15, 0.3 * (0.3 + v) ** 2, 0.1
+    a[KNEE, 0], a[KNEE, 2], b[KNEE, 1] = 0.35, 0.25 * (0.3 + v), 0.4 * (0.2 + v) ** 2
+    a[DOF_NAMES.index("trunk_rotation"), 1] = 0.05 + 0.03 * omega ** 2
     return a, b
 
 
