@@ -285,32 +285,14 @@ def test_envelope_and_planned_captures_from_a_capture_plan(tmp_path):
     from mocaplib.report.plan import default_envelope
 
     plan = tmp_path / "mini_plan.toml"
-    plan.write_text("""name = "mini"
-[[capture]]
-name = "cap01"
-class = "nonholonomic"
-command = { kind = "straight", speed = 1.2 }
-duration = 2.0
-seed = 1
-[[capture]]
-name = "cap99"
-class = "nonholonomic"
-command = { kind = "curve", speed = 1.2, radius = 1.0, side = "left" }
-duration = 2.0
-seed = 2
-[[capture]]
-name = "never_done"
-class = "holonomic"
-command = { kind = "sidestep", speed = 0.4, side = "right" }
-duration = 2.0
-seed = 3
-[[capture]]
-name = "turn"
-class = "nonholonomic"
-command = { kind = "spot_turn", speed = 1.0, side = "right" }
-duration = 2.0
-seed = 4
-""")
+    captures = [("cap01", "nonholonomic", '{ kind = "straight", speed = 1.2 }'),
+                ("cap99", "nonholonomic",
+                 '{ kind = "curve", speed = 1.2, radius = 1.0, side = "left" }'),
+                ("never_done", "holonomic", '{ kind = "sidestep", speed = 0.4, side = "right" }'),
+                ("turn", "nonholonomic", '{ kind = "spot_turn", speed = 1.0, side = "right" }')]
+    plan.write_text('name = "mini"\n' + "".join(
+        f'[[capture]]\nname = "{name}"\nclass = "{cls}"\ncommand = {command}\n'
+        f"duration = 2.0\nseed = {seed}\n" for seed, (name, cls, command) in enumerate(captures)))
     env, note = default_envelope(plan)
     # Hull vertices are the commands as (hypot(v_f, v_l), omega, v_l).
     np.testing.assert_allclose(env.vertices, [[1.2, 0, 0], [1.2, 1.2, 0], [0.4, 0, -0.4],
