@@ -50,6 +50,11 @@ MARKER_SIGMA = 0.005
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
 
+#: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
+#: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
+#: hinge axes become functional ones.
+ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
+
 #: Joint centres from landmarks: child segment (its origin is the joint) and its landmarks
 #: (lateral, medial); the lateral one alone is used with its catalogue offset.
 _LANDMARK_JOINTS = {
@@ -187,7 +192,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
-        offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+        offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
+                                   align=ALIGNED_IN_REFINEMENT)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical)
     best.history = history
     return best
@@ -343,7 +349,7 @@ def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.nda
 
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
-                     nominal: np.ndarray) -> np.ndarray:
+                     nominal: np.ndarray, align=SEGMENT_NAMES) -> np.ndarray:
     """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
 
     Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
@@ -352,7 +358,8 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     segment's offsets are then turned about their centroid by the rotation that best aligns
     them with the catalogue layout ``nominal`` (M, 3) (Kabsch; with two markers the segment
     origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame is thus anatomical: zero angles put the markers in the
-    catalogue's layout, as the DOF sign table describes.
+    catalogue's layout, as the DOF sign table describes. Only segments named in ``align`` are
+    turned.
     """
     T = skeleton.forward(q)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
@@ -361,6 +368,8 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     out = np.where(np.isfinite(mean), mean, nominal)
     for s in np.unique(segments):
         idx = np.flatnonzero(segments == s)
+        if SEGMENT_NAMES[s] not in align:
+            continue
         if len(idx) == 1:
             out[idx] = _unit(nominal[idx]) * np.linalg.norm(out[idx], axis=1, keepdims=True)
             continue

@@ -5,7 +5,7 @@ Per frame ``f`` the fit minimises
     Σ_m ρ(||x_fm − p_m(q_f)||) + μ² ||q_f − q̄_f||²
 
 where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.calibrate`), ρ the
-soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale ``c``, linear above, so one
+soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale ``c`` (20 mm), linear above, so one
 bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current solution
 (a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is kept
 within :meth:`mocaplib.skeleton.Skeleton.bounds` by projection. Missing markers (NaN) drop out.
@@ -37,8 +37,8 @@ if TYPE_CHECKING:
     from .calibrate import SubjectModel
     from .trial import Trial
 
-#: Soft-L1 scale c, metres: residuals above it count linearly (soft-tissue artefact is ~5-10 mm).
-ROBUST_SCALE = 0.01
+#: Soft-L1 scale c, metres: residuals above it count linearly (soft tissue moves markers 5-20 mm).
+ROBUST_SCALE = 0.02
 #: Continuity weight μ, metres per radian (per metre for translations).
 SMOOTHING = 0.01
 #: A frame with fewer markers on the pelvis, or in all, is flagged as failed.

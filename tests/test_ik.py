@@ -73,7 +73,7 @@ def test_a_bad_marker_does_not_drag_the_pose():
     err_robust = np.abs(robust.q[:, hip] - cap.q[:, hip]).mean()
     err_plain = np.abs(plain.q[:, hip] - cap.q[:, hip]).mean()
     assert err_robust < 0.5 * err_plain, (err_robust / DEG, err_plain / DEG)
-    assert err_robust < 2 * DEG
+    assert err_robust < 2.5 * DEG
     # the bad marker is the one left with a large residual
     assert np.nanmedian(robust.residuals[:, knee]) > 0.05
 
