@@ -270,3 +270,19 @@ def test_bad_commands_and_durations_raise_synth_error():
         Command.from_kind("curve", speed=1.0)
     with pytest.raises(SynthError, match="unknown locomotion kind"):
         Command.from_kind("moonwalk", speed=1.0)
+
+
+def test_soft_tissue_artefact_grows_with_body_mass():
+    from mocaplib.synth import Subject
+    quiet = MarkerSettings(placement_sd=0.0, noise_sd=0.0)
+    sizes = []
+    for mass in (60.0, 100.0):
+        cap = synthesize(TYPES["straight_normal"], duration=2.6, seed=3, markers=quiet,
+                         subject=Subject(1.75, mass))
+        segments, offsets = _protocol_offsets(cap)
+        fk = cap.skeleton.points(cap.body.q, segments, offsets)
+        thigh = [i for i, s in enumerate(segments) if SEGMENT_NAMES[s].startswith("femur")]
+        sizes.append(np.linalg.norm(cap.trial.markers[:, thigh] - fk[:, thigh], axis=-1).max())
+    # same seed, same directions: the displacement scales with BMI (100/60 = 1.67)
+    np.testing.assert_allclose(sizes[1] / sizes[0], 100.0 / 60.0, rtol=1e-6)
+    assert 0.003 < sizes[0] < 0.03, "thigh artefact of a lean subject: several mm"

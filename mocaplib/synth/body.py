@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
+from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton, axis_rotation
 from .command import Command, frame_to_world, reference_path, world_to_frame
 from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, Footprints, GaitParameters,
                    foot_rotation, foot_trajectory, plan_footprints)
@@ -166,11 +166,7 @@ def _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side):
     z = u[:, 1:] * e - u[:, :1] * w
     femur = np.stack([x, y, z], axis=2)
     hip_angles = Rotation.from_matrix(pelvis_R.transpose(0, 2, 1) @ femur).as_euler("YXZ")
-    c, sk = np.cos(knee), np.sin(knee)
-    knee_R = np.zeros((len(knee), 3, 3))
-    knee_R[:, 0, 0], knee_R[:, 0, 2], knee_R[:, 2, 0], knee_R[:, 2, 2] = c, sk, -sk, c
-    knee_R[:, 1, 1] = 1.0
-    tibia = femur @ knee_R
+    tibia = femur @ axis_rotation((0.0, 1.0, 0.0), knee)
     ankle_angles = Rotation.from_matrix(tibia.transpose(0, 2, 1) @ foot_R).as_euler("YXZ")
     return (-hip_angles[:, 0], s * hip_angles[:, 1], s * hip_angles[:, 2], knee,
             -ankle_angles[:, 0], s * ankle_angles[:, 1])

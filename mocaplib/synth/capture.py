@@ -89,7 +89,7 @@ def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subj
     body = body_motion(command, params, skeleton, subject.height, t, t_mid=t_mid)
     rng = np.random.default_rng(seed)
     xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
-                                       rate=rate)
+                                       rate=rate, mass=subject.mass)
     events = _events(body, t[-1])
     trial = Trial(xyz, labels, rate, events=[Event(_SIDE_NAME[s], lab, tm)
                                              for s, lab, tm in events], source=name)

@@ -30,10 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..skeleton import Skeleton
+from ..skeleton import Skeleton, axis_rotation
 from .command import Command, frame_to_world
 
 DEG = np.pi / 180.0
+Y_AXIS, Z_AXIS = (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
 SIDES = ("l", "r")
 #: Where the first left toe-off falls, seconds after the first frame.
 LEAD_S = 0.25
@@ -206,25 +207,13 @@ def plan_footprints(params: GaitParameters, frame: Frame, side: str, t0: float, 
 
 
 # ------------------------------------------------------------------------ foot motion
-def _rot_z(angle: np.ndarray) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.zeros(np.shape(angle) + (3, 3))
-    out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1] = c, -s, s, c
-    out[..., 2, 2] = 1.0
-    return out
-
-
-def _rot_y(angle: np.ndarray) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.zeros(np.shape(angle) + (3, 3))
-    out[..., 0, 0], out[..., 0, 2], out[..., 2, 0], out[..., 2, 2] = c, s, -s, c
-    out[..., 1, 1] = 1.0
-    return out
+def _about(axis, angle) -> np.ndarray:
+    return axis_rotation(axis, np.atleast_1d(angle))
 
 
 def foot_rotation(heading: np.ndarray, pitch: np.ndarray) -> np.ndarray:
     """Rear-foot orientation (F, 3, 3): heading about +Z, then ``pitch`` > 0 toes up."""
-    return _rot_z(heading) @ _rot_y(-np.asarray(pitch))
+    return _about(Z_AXIS, heading) @ _about(Y_AXIS, -np.asarray(pitch))
 
 
 def _stance(fp: Footprints, k: np.ndarray, t: np.ndarray, params: GaitParameters,
@@ -246,11 +235,11 @@ def _stance(fp: Footprints, k: np.ndarray, t: np.ndarray, params: GaitParameters
     pivot[:, 0] = np.where(u < a, geom.heel, geom.mtp)
     pivot[:, 2] = -geom.ankle_height
     heading = fp.heading[k]
-    rotated = np.einsum("fij,fj->fi", _rot_y(-pitch), pivot)
+    rotated = np.einsum("fij,fj->fi", _about(Y_AXIS, -pitch), pivot)
     ankle = np.zeros(t.shape + (3,))
     ankle[:, :2] = fp.position[k]
     ankle[:, 2] = geom.ankle_height
-    ankle += np.einsum("fij,fj->fi", _rot_z(heading), pivot - rotated)
+    ankle += np.einsum("fij,fj->fi", _about(Z_AXIS, heading), pivot - rotated)
     toe = np.maximum(-pitch, 0.0) * (state == TOE_CONTACT)
     return ankle, heading, pitch, toe, rate, state
 
@@ -299,7 +288,7 @@ def foot_trajectory(fp: Footprints, t: np.ndarray, params: GaitParameters, geom:
         tq = params.toe_pitch * (1.0 - release ** 2 * (3 - 2 * release))
         skew = s + (0.8 if params.gait == "run" else 0.3) * s * (1 - s)
         lift = params.clearance * np.sin(np.pi * skew)
-        sole = np.einsum("fij,fkj->fki", _rot_y(-p), geom.sole_points(tq))
+        sole = np.einsum("fij,fkj->fki", _about(Y_AXIS, -p), geom.sole_points(tq))
         ankle[sw, :2] = xy
         ankle[sw, 2] = lift - sole[..., 2].min(axis=1)
         heading[sw], pitch[sw], toe[sw], state[sw] = hd, p, tq, SWING

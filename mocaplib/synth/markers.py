@@ -11,7 +11,8 @@ soft tissue
     with hip and knee flexion...): ``gain x sum_j c_j (q_j - mean q_j)`` with random unit-scale
     vectors ``c_j`` fixed per capture and gains of 1-12 mm/rad by segment (thigh largest, head
     least), i.e. several millimetres, as measured by bone-pin studies (Leardini et al. 2005).
-    ``soft_tissue`` scales the gains (default 1; 0 turns it off).
+    ``soft_tissue`` scales the gains (default 1; 0 turns it off); they also scale with the
+    subject's body-mass index relative to 22.9 kg/m² (more soft tissue, more artefact).
 richer body
     Markers feel the joints the fitting skeleton lacks: the hallux marker the toe joint, the
     finger marker the wrist, arm and acromion markers the shoulder girdle.
@@ -36,6 +37,7 @@ from .body import BodyMotion
 from .gait import FootGeometry
 
 _Q = {name: j for j, name in enumerate(DOF_NAMES)}
+REFERENCE_BMI = 70.0 / 1.75 ** 2
 #: Soft-tissue gain (m/rad) and the joints that drive it, by segment ("{s}": the marker's side).
 SOFT_TISSUE = {
     "pelvis": (0.006, ("hip_flexion_{s}",)),
@@ -80,10 +82,11 @@ def _rotate_about_y(points: np.ndarray, centre: np.ndarray, angle: np.ndarray) -
 
 
 def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, height: float,
-                 settings: MarkerSettings, rng: np.random.Generator, *, rate: float
-                 ) -> tuple[np.ndarray, list[str], dict]:
+                 settings: MarkerSettings, rng: np.random.Generator, *, rate: float,
+                 mass: float = 70.0) -> tuple[np.ndarray, list[str], dict]:
     """Marker positions (F, M, 3) m (NaN in gaps), labels (M,) and a record of what was done
-    (``{"gaps": [...], "swap": [a, b] or None}``)."""
+    (``{"gaps": [...], "swap": [a, b] or None}``). Soft-tissue gains grow with the body-mass
+    index (``mass`` kg / ``height``² relative to 22.9 kg/m², that of 70 kg at 1.75 m)."""
     q = body.q
     n = len(q)
     segments, nominal = protocol.nominal_offsets(height)
@@ -95,6 +98,7 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
     geom = FootGeometry.from_skeleton(skeleton)
     forearm = skeleton.lengths["forearm"]
     centred = q - q.mean(axis=0)
+    tissue = settings.soft_tissue * mass / height ** 2 / REFERENCE_BMI
     for m, (name, seg) in enumerate(zip(names, segments)):
         seg_name = SEGMENT_NAMES[seg]
         sides = _side(name)
@@ -110,7 +114,7 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
             for side in (sides if "{s}" in dof else ("",)):
                 j = _Q[dof.format(s=side)]
                 direction = rng.normal(0.0, 1.0 / np.sqrt(3.0), 3)
-                local[:, m] += settings.soft_tissue * gain * centred[:, j, None] * direction
+                local[:, m] += tissue * gain * centred[:, j, None] * direction
     transforms = skeleton.forward(q)
     T = transforms[:, segments]
     world = np.einsum("fmij,fmj->fmi", T[..., :3, :3], local) + T[..., :3, 3]
