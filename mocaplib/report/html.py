@@ -130,20 +130,16 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     if cs is None:
         if len(points):
             context["projections"] = _data_uri(figures.projections(
-                points, point_classes, ("v", "omega", "v_l"),
-                envelope=env.vertices if env else None))
+                points, point_classes, ("v", "omega", "v_l"), envelope=env.vertices))
         return context
-    cov = coverage(cs, env) if env is not None else None
-    holes = cov.samples[~cov.samples_inside] if cov is not None else None
-    suggestions = cov.capture_next[list(cs.axes)].to_numpy() if cov is not None else None
-    cs_classes = cs.classes
+    cov = coverage(cs, env)
     context["projections"] = _data_uri(figures.projections(
-        cs.points, cs_classes, cs.axes, envelope=env.vertices if env else None,
-        hull_points=cs.points, holes=holes, suggestions=suggestions))
-    if cov is not None:
-        context["coverage"] = _coverage_context(cov, cs)
+        cs.points, cs.classes, cs.axes, envelope=env.vertices, hull_points=cs.points,
+        holes=cov.samples[~cov.samples_inside],
+        suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
+    context["coverage"] = _coverage_context(cov, cs)
     context["loo"] = _loo_context(leave_one_out(cs))
-    context["three_d"], context["viewer"] = _three_d(cs, cs_classes, env, renderer)
+    context["three_d"], context["viewer"] = _three_d(cs, env, renderer)
     if context["three_d"]["fallback_reason"]:
         warnings.append("3-D view drawn with matplotlib: "
                         + context["three_d"]["fallback_reason"])
@@ -164,7 +160,7 @@ def _class_labeller(df, plan):
     return label
 
 
-def _resolve_envelope(envelope) -> tuple[Envelope | None, dict]:
+def _resolve_envelope(envelope) -> tuple[Envelope, dict]:
     if isinstance(envelope, Envelope):
         return envelope, {"text": f"given by the caller ({envelope.source})", "plan": None}
     if envelope is not None:
@@ -253,42 +249,41 @@ def _loo_context(df) -> dict:
             "max_rms": float(inside["rms_deg"].max()) if len(inside) else None}
 
 
-def _three_d(cs: ControlSpace, classes, env, renderer) -> tuple[dict, dict]:
+def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict]:
     """The static 3-D picture (pyvista or matplotlib) and the interactive viewer's data."""
     from scipy.spatial import ConvexHull, QhullError
 
+    classes = cs.classes
     colours = figures.class_colours(classes)
     x = cs.normalise(cs.points)
-    simplices = cs.tri.simplices
-    edges = np.unique(np.sort(np.vstack([simplices[:, [i, j]] for i in range(4)
-                                         for j in range(i + 1, 4)]), axis=1), axis=0)
-    env_x, env_tris = None, None
-    if env is not None:
-        env_x = cs.normalise(env.vertices)
-        try:
-            env_tris = ConvexHull(env_x).simplices
-        except QhullError:
-            env_tris = None
+    edges = _unique_edges(cs.tri.simplices)
+    env_x = cs.normalise(env.vertices)
+    try:
+        env_tris = ConvexHull(env_x).simplices
+    except QhullError:  # a flat envelope: drawn as its vertices only
+        env_tris = np.zeros((0, 3), int)
     titles = [f"{a} (1 = {s:.3g} {AXIS_UNITS[a]})" for a, s in zip(cs.axes, cs.scale)]
     rendered = render_control_space(
         x, [colours[c] for c in classes], classes, titles, edges=edges,
         hull_triangles=cs.hull_facets, envelope_points=env_x, envelope_triangles=env_tris,
         renderer=renderer,
         fallback=lambda: figures.control_space_3d(cs.points, classes, cs.axes, edges=edges,
-                                                  envelope=env.vertices if env else None))
-    env_edges = []
-    if env_tris is not None:
-        env_edges = np.unique(np.sort(np.vstack([env_tris[:, [i, j]] for i, j in
-                                                 ((0, 1), (1, 2), (0, 2))]), axis=1),
-                              axis=0).tolist()
+                                                  envelope=env.vertices))
     viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
               "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
                           for k, v in colours.items()},
               "edges": edges.tolist(), "axes": titles,
-              "envelope": {"points": [] if env_x is None else np.round(env_x, 5).tolist(),
-                           "edges": env_edges}}
+              "envelope": {"points": np.round(env_x, 5).tolist(),
+                           "edges": _unique_edges(env_tris).tolist()}}
     return ({"png": _data_uri(rendered.png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def _unique_edges(cells: np.ndarray) -> np.ndarray:
+    """Distinct vertex pairs (K, 2) of cells (n, k) (tetrahedra or triangles)."""
+    k = cells.shape[1]
+    pairs = [cells[:, [i, j]] for i in range(k) for j in range(i + 1, k)]
+    return np.unique(np.sort(np.vstack(pairs), axis=1), axis=0).reshape(-1, 2)
 
 
 def _captures(diagnostics: dict | None, library) -> list[dict]:
