@@ -286,3 +286,24 @@ def test_soft_tissue_artefact_grows_with_body_mass():
     # same seed, same directions: the displacement scales with BMI (100/60 = 1.67)
     np.testing.assert_allclose(sizes[1] / sizes[0], 100.0 / 60.0, rtol=1e-6)
     assert 0.003 < sizes[0] < 0.03, "thigh artefact of a lean subject: several mm"
+
+
+def _closest(a0, a1, b0, b1, samples: int = 15) -> np.ndarray:
+    """Smallest distance (F,) between segments a0-a1 and b0-b1 (F, 3 each), sampled."""
+    s = np.linspace(0.0, 1.0, samples)[None, :, None]
+    a, b = a0[:, None] + (a1 - a0)[:, None] * s, b0[:, None] + (b1 - b0)[:, None] * s
+    return np.linalg.norm(a[:, :, None] - b[:, None], axis=-1).min(axis=(1, 2))
+
+
+@pytest.mark.parametrize("name", sorted(TYPES))
+def test_legs_do_not_pass_through_each_other(name):
+    cap = capture(name)
+    T = cap.skeleton.forward(cap.body.q)
+    knee = {s: T[:, SEGMENT_NAMES.index(f"tibia_{s}"), :3, 3] for s in "lr"}
+    ankle = {s: T[:, SEGMENT_NAMES.index(f"foot_{s}"), :3, 3] for s in "lr"}
+    soles = {s: _soles(cap, s) for s in "lr"}
+    # shank axes at least 5 cm apart (two shanks ~10 cm thick may brush, not cross) and the
+    # soles' heel-to-metatarsal lines at least 3 cm apart
+    assert _closest(knee["l"], ankle["l"], knee["r"], ankle["r"]).min() > 0.05
+    assert _closest(soles["l"][:, 0], soles["l"][:, 1], soles["r"][:, 0],
+                    soles["r"][:, 1]).min() > 0.03

@@ -16,7 +16,8 @@ Feet
     toes-up about the heel contact point, lies flat (not moving at all) from ``loading`` to
     ``heel_rise`` of the stance, then rotates about the metatarsal heads while the toe joint
     (a joint the fitting skeleton does not have) keeps the toes flat, until toe-off. In swing
-    the ankle follows a cubic Hermite curve between the toe-off and heel-strike poses, and is
+    the ankle follows a cubic Hermite curve, drawn in the moving body frame, between the
+    toe-off and heel-strike poses, and is
     lifted so that the lowest sole point (heel, metatarsal heads or toe tip) follows a
     clearance profile.
 
@@ -31,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..skeleton import Skeleton, axis_rotation
-from .command import Command, frame_to_world
+from .command import Command, frame_to_world, world_to_frame
 
 DEG = np.pi / 180.0
 Y_AXIS, Z_AXIS = (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -166,8 +167,9 @@ def gait_parameters(command: Command, height: float) -> GaitParameters:
     roll = 0.3 + 0.7 * forward             # heel-to-toe roll only when moving forwards
     return GaitParameters(
         "walk", stride, duty=0.62 - 0.03 * max(v - 0.6, 0.0),
-        # turning on the spot, the feet stand wider apart so they do not overlap as they pivot
-        step_width=0.065 * height + 0.12 * abs(command.omega) * max(0.0, 1.0 - v / 0.6),
+        # turning, the feet stand wider apart so they do not overlap as they pivot (on the spot)
+        # and the swing leg clears the stance leg (on tight curves)
+        step_width=0.065 * height + abs(command.omega) * (0.12 - 0.07 * min(v / 0.6, 1.0)),
         lateral_shift=abs(command.v_l) * stride / 4.0,
         toe_out=7 * DEG, heel_pitch=(10 + 8 * v) * DEG * roll,
         toe_pitch=(25 + 12 * v) * DEG * roll, loading=0.2, heel_rise=0.55, plant=0.44,
@@ -182,13 +184,15 @@ def gait_parameters(command: Command, height: float) -> GaitParameters:
 @dataclass(frozen=True)
 class Footprints:
     """One foot's stances: heel-strike and toe-off times (K,), flat-foot ankle ground point
-    (K, 2) m and heading (K,) rad."""
+    (K, 2) m and heading (K,) rad, and the body frame ``frame(t) -> (xy, heading)`` they were
+    planned in (swings are drawn in it)."""
 
     side: str
     heel_strike: np.ndarray
     toe_off: np.ndarray
     position: np.ndarray
     heading: np.ndarray
+    frame: "Frame"
 
 
 Frame = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -203,7 +207,7 @@ def plan_footprints(params: GaitParameters, frame: Frame, side: str, t0: float, 
     sign = 1.0 if side == "l" else -1.0
     offset = np.array([0.0, sign * (0.5 * params.step_width + params.lateral_shift)])
     position = frame_to_world(xy, theta, np.broadcast_to(offset, xy.shape))
-    return Footprints(side, hs, hs + stance, position, theta - sign * params.toe_out)
+    return Footprints(side, hs, hs + stance, position, theta - sign * params.toe_out, frame)
 
 
 # ------------------------------------------------------------------------ foot motion
@@ -253,6 +257,15 @@ def _hermite(p0, v0, p1, v1, s, duration):
             + expand(h11 * duration) * v1)
 
 
+def _in_frame(fp: Footprints, k: np.ndarray, t: np.ndarray, h: float, params, geom):
+    """Horizontal ankle position of stances ``k`` at ``t`` and ``t + h`` in the body frame."""
+    out = []
+    for when in (t, t + h):
+        xy, theta = fp.frame(when)
+        out.append(world_to_frame(xy, theta, _stance(fp, k, when, params, geom)[0][:, :2]))
+    return out
+
+
 def foot_trajectory(fp: Footprints, t: np.ndarray, params: GaitParameters, geom: FootGeometry
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Rear-foot pose of one foot at times ``t`` (F,).
@@ -274,15 +287,20 @@ def foot_trajectory(fp: Footprints, t: np.ndarray, params: GaitParameters, geom:
         duration = t1 - t0
         s = (ts - t0) / duration
         h = 1e-4
+        # the swing is drawn in the moving body frame, so the foot keeps its side of the body
+        # on curves and turns instead of cutting across the other leg
         a0, hd0, p0, _, r0, _ = _stance(fp, ks, t0, params, geom)
-        a0b = _stance(fp, ks, t0 - h, params, geom)[0]
         a1, hd1, p1, _, r1, _ = _stance(fp, ks + 1, t1, params, geom)
-        a1b = _stance(fp, ks + 1, t1 + h, params, geom)[0]
+        b0, b0h = _in_frame(fp, ks, t0, -h, params, geom)
+        b1, b1h = _in_frame(fp, ks + 1, t1, h, params, geom)
         # the foot still moves (a quarter of its mean swing speed) when the heel strikes
-        arrive = (a1b - a1)[:, :2] / h + 0.25 * (a1 - a0)[:, :2] / duration[:, None]
-        xy = _hermite(a0[:, :2], (a0 - a0b)[:, :2] / h, a1[:, :2], arrive, s, duration)
-        turn = np.angle(np.exp(1j * (hd1 - hd0)))
-        hd = hd0 + turn * (3 * s ** 2 - 2 * s ** 3)
+        arrive = (b1h - b1) / h + 0.25 * (b1 - b0) / duration[:, None]
+        local = _hermite(b0, (b0 - b0h) / h, b1, arrive, s, duration)
+        fxy, fth = fp.frame(ts)
+        xy = frame_to_world(fxy, fth, local)
+        rel0, rel1 = hd0 - fp.frame(t0)[1], hd1 - fp.frame(t1)[1]
+        turn = np.angle(np.exp(1j * (rel1 - rel0)))
+        hd = fth + rel0 + turn * (3 * s ** 2 - 2 * s ** 3)
         p = _hermite(p0, 0.3 * r0, p1, r1, s, duration)   # the push-off spin fades fast
         release = np.clip(s / 0.35, 0.0, 1.0)
         tq = params.toe_pitch * (1.0 - release ** 2 * (3 - 2 * release))
