@@ -2,10 +2,12 @@
 
 Steps (all in metres, world Z up):
 
-1. **Markers and locks.** The protocol's markers seen in at least 10 % of the trial's frames are
+1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames are
    used. A joint whose segment and descendants carry too few markers to be seen (none; or one
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
-   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error.
+   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. A left/right
+   pair whose labels are exchanged (each marker far from its model position, near the other's
+   after the nominal fit of step 2) is exchanged back, and listed in ``swapped``.
 2. **Height and nominal model.** Height is estimated from distances between markers on the
    same segment against the landmark catalogue's nominal ones (``protocols/landmarks.toml``),
    unless given; the nominal skeleton (:meth:`Skeleton.from_height`) and nominal offsets are
@@ -50,6 +52,9 @@ MARKER_SIGMA = 0.005
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
 
+#: Residual (m) above which a left/right pair is checked for exchanged labels.
+SWAP_RESIDUAL = 0.03
+
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
 #: hinge axes become functional ones.
@@ -81,6 +86,8 @@ class SubjectModel:
     rms : float. Marker RMS of the calibration fit, metres.
     history : list[float]. Marker RMS after each refinement round, metres.
     source : str or None. The calibration trial's file.
+    swapped : list of (label, label). Left/right pairs whose labels the trial exchanges; their
+        data are exchanged back when fitting (:func:`mocaplib.ik.model_markers`).
     """
 
     skeleton: Skeleton
@@ -93,6 +100,7 @@ class SubjectModel:
     rms: float = float("nan")
     history: list[float] = field(default_factory=list)
     source: str | None = None
+    swapped: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def free(self) -> np.ndarray:
@@ -168,6 +176,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
     # step 3: anatomical joint centres from a nominal fit
     first = solve_poses(skeleton, X, segments, offsets, free=free)
+    def fit_without(i, j):
+        Xij = X.copy()
+        Xij[:, [i, j]] = np.nan
+        return skeleton.points(solve_poses(skeleton, Xij, segments, offsets, free=free).q,
+                               segments, offsets)
+
+    swapped = find_swaps(fit_without, first.residuals, X, labels, landmarks)
+    if swapped:
+        X = exchange(X, labels, swapped)
+        first = solve_poses(skeleton, X, segments, offsets, free=free)
     centres = joint_centres(X, landmarks, skeleton, first.q, scale=scale)
     anatomical = _lengths_from_centres(skeleton, first.q, centres)
     skeleton = Skeleton(anatomical)
@@ -188,7 +206,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if best is not None and rms >= best.rms:
             break
         best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
-                            rms, [], cal.source)
+                            rms, [], cal.source, swapped)
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
@@ -200,6 +218,40 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
 
 # ----------------------------------------------------------------------------- pieces
+def find_swaps(fit_without, residuals: np.ndarray, X: np.ndarray, labels: list[str],
+               landmarks: list[str]) -> list[tuple[str, str]]:
+    """Left/right marker pairs whose labels are exchanged in the trial.
+
+    ``residuals`` (F, M) of a fit of markers ``X`` (F, M, 3). A pair ``L_x``/``R_x`` whose
+    residuals exceed :data:`SWAP_RESIDUAL` is refitted without its two markers
+    (``fit_without(i, j)`` returns the model markers (F, M, 3) of that fit); it is called
+    swapped when each marker lies nearer the other's model position than its own, by half.
+    """
+    index = {name: i for i, name in enumerate(landmarks)}
+    out = []
+    for name, i in index.items():
+        j = index.get("R_" + name[2:]) if name.startswith("L_") else None
+        if j is None or np.nanmedian(residuals[:, [i, j]]) < SWAP_RESIDUAL:
+            continue
+        model = fit_without(i, j)
+
+        def gap(a, b):
+            return np.nanmedian(np.linalg.norm(X[:, a] - model[:, b], axis=1))
+
+        if gap(i, j) + gap(j, i) < 0.5 * (gap(i, i) + gap(j, j)):
+            out.append((labels[i], labels[j]))
+    return out
+
+
+def exchange(X: np.ndarray, labels: list[str], pairs: list[tuple[str, str]]) -> np.ndarray:
+    """Markers (F, M, 3) with the columns of each labelled pair exchanged (a copy)."""
+    X = X.copy()
+    for a, b in pairs:
+        i, j = labels.index(a), labels.index(b)
+        X[:, [i, j]] = X[:, [j, i]]
+    return X
+
+
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
     """DOFs too few markers can see, and segments with no marker on or below them.
 

@@ -395,7 +395,10 @@ def fit_quality(motion: Motion) -> dict:
 
 
 def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
-    """The trial's markers in the model's order, shape (F, M, 3), NaN where absent."""
+    """The trial's markers in the model's order, shape (F, M, 3), NaN where absent.
+
+    Pairs the calibration found with exchanged left/right labels are exchanged back.
+    """
     match = match_protocol(trial, model.protocol)
     order = [model.protocol.labels.index(label) for label in model.labels]
     found = sum(match.indices[j] >= 0 for j in order)
@@ -403,4 +406,9 @@ def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
         raise FitError(f"none of the model's markers ({', '.join(model.labels[:8])}...) is in "
                        "the trial", path=trial.source,
                        hint=f"calibrate with the trial's protocol, not {model.protocol.name!r}")
-    return match.markers(trial)[:, order]
+    markers = match.markers(trial)[:, order]
+    if model.swapped:
+        from .calibrate import exchange
+
+        markers = exchange(markers, model.labels, model.swapped)
+    return markers

@@ -1,0 +1,120 @@
+"""Accuracy of calibrate + fit: synthetic captures against their truth, real files' residuals.
+
+    /work/venv/bin/python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR]
+
+Synthetic (every ``*.c3d`` with a ``.truth.json`` beside it): per capture, calibrated from the
+capture itself, each DOF's joint-angle RMS error against the truth, in degrees, summarised per
+locomotion class for the flexions (hip, knee, ankle) and the other rotations; "tracking" is the
+same after removing each capture's mean error (the constant offset a placement error of the
+markers leaves; see the README). Real files (the walking captures in ``../shared/data/c3d``):
+protocol, markers, fitted/failed frames, mean per-frame marker RMS, largest marker error and the
+marker holding it. Prints Markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mocaplib.calibrate import calibrate  # noqa: E402
+from mocaplib.errors import MocapError  # noqa: E402
+from mocaplib.ik import fit, fit_quality  # noqa: E402
+from mocaplib.io.c3d import read_c3d  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES  # noqa: E402
+
+FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
+           if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]
+OTHER = [j for j, n in enumerate(DOF_NAMES) if j not in FLEXION and not n.startswith("pelvis_t")]
+#: The real captures of people walking (or jogging) in ../shared/data/c3d.
+WALKING = ["cmu/07_01.c3d", "cmu/07_12.c3d", "biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
+           "motonms_unipd/Walking1.c3d", "motonms_unipd/Walking3.c3d",
+           "btkdata/PiG_Motion-FlatFoot-Full.c3d", "btkdata/Gait.c3d",
+           "ezc3d_testfiles/Qualisys.c3d", "ezc3d_testfiles/BTS.c3d",
+           "c3dviewer_examples/running.c3d"]
+
+
+def synthetic(folder: Path) -> None:
+    rows = defaultdict(list)
+    worst: dict[str, tuple[float, str]] = {}
+    for path in sorted(folder.glob("*.c3d")):
+        truth_path = path.with_suffix(".truth.json")
+        if not truth_path.exists():
+            continue
+        truth = json.loads(truth_path.read_text())
+        trial = read_c3d(path)
+        motion = fit(trial, calibrate(trial))
+        error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
+        rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
+        tracking = np.degrees(error.std(axis=0))
+        rows[truth.get("class", "?")].append(
+            (rms[FLEXION], rms[OTHER], tracking[FLEXION], tracking[OTHER],
+             fit_quality(motion)["marker_rms_mm"]))
+        for j in FLEXION + OTHER:
+            if rms[j] > worst.get(DOF_NAMES[j], (0.0, ""))[0]:
+                worst[DOF_NAMES[j]] = (rms[j], path.stem)
+    print("| class | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
+          "| flexion tracking max | other tracking max | marker RMS (mm) |")
+    print("|---|---|---|---|---|---|---|")
+    every = [r for group in rows.values() for r in group]
+    for name, group in sorted(rows.items()) + [("all", every)]:
+        f, o, tf, to, mk = (np.array([r[k] for r in group]) for k in range(5))
+        print(f"| {name} | {len(group)} | {f.mean():.2f} / {f.max():.2f} | {o.mean():.2f} / "
+              f"{o.max():.2f} | {tf.max():.2f} | {to.max():.2f} | {mk.mean():.1f} |")
+    print("\nMean RMS error per DOF over all captures (deg):")
+    means = np.mean([np.r_[r[0], r[1]] for r in every], axis=0)
+    for j, value in zip(FLEXION + OTHER, means):
+        print(f"  {DOF_NAMES[j]:22s} {value:5.2f}   worst {worst[DOF_NAMES[j]][0]:5.2f} "
+              f"({worst[DOF_NAMES[j]][1]})")
+
+
+def real(folder: Path) -> None:
+    print("| file | protocol | markers | frames fitted / failed | marker RMS (mm) "
+          "| max error (mm) | at marker | seconds |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in WALKING:
+        path = folder / name
+        if not path.exists():
+            continue
+        start = time.perf_counter()
+        try:
+            trial = read_c3d(path)
+            model = calibrate(trial)
+            motion = fit(trial, model)
+        except MocapError as exc:
+            print(f"| {name} | error: {exc} |")
+            continue
+        quality = fit_quality(motion)
+        worst = int(np.nanargmax(np.nanmax(motion.residuals, axis=0)))
+        fitted = int((~motion.failed & np.isfinite(motion.residuals).any(axis=1)).sum())
+        print(f"| {name} | {model.protocol.name} | {len(model.labels)} | {fitted} / "
+              f"{len(quality['failed_frames'])} | {quality['marker_rms_mm']:.1f} | "
+              f"{quality['max_marker_error_mm']:.1f} | {model.labels[worst]} | "
+              f"{time.perf_counter() - start:.1f} |")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--synth", default=str(ROOT / "sample_c3d"))
+    parser.add_argument("--real", default=str(ROOT.parent / "shared" / "data" / "c3d"))
+    args = parser.parse_args()
+    warnings.simplefilter("ignore", RuntimeWarning)
+    if Path(args.synth).is_dir():
+        synthetic(Path(args.synth))
+        print()
+    if Path(args.real).is_dir():
+        real(Path(args.real))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
