@@ -166,6 +166,23 @@ def test_report_detects_a_crashing_renderer(tmp_path, monkeypatch):
     assert "rendered with <b>matplotlib</b>" in html and "crashed (signal 11)" in html
 
 
+def test_a_blank_render_falls_back(monkeypatch):
+    from matplotlib.image import imsave
+
+    from mocaplib.report import scene3d
+
+    def blank(scene, out):  # a renderer that "succeeds" with an all-white picture
+        imsave(out, np.ones((50, 60, 3)))
+
+    monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
+    monkeypatch.setattr(scene3d, "_run_renderer", blank)
+    got = scene3d.render_control_space(np.eye(3), np.eye(3), ["a", "b", "c"], ["x", "y", "z"],
+                                       edges=[[0, 1]], hull_triangles=[],
+                                       fallback=lambda: b"fallback png")
+    assert got.renderer == "matplotlib" and got.png == b"fallback png"
+    assert got.fallback_reason == "pyvista produced a blank image"
+
+
 def test_renderer_child_failure_is_reported(tmp_path, monkeypatch):
     from mocaplib.report import scene3d
 
