@@ -307,3 +307,17 @@ def test_legs_do_not_pass_through_each_other(name):
     assert _closest(knee["l"], ankle["l"], knee["r"], ankle["r"]).min() > 0.05
     assert _closest(soles["l"][:, 0], soles["l"][:, 1], soles["r"][:, 0],
                     soles["r"][:, 1]).min() > 0.03
+
+
+@pytest.mark.parametrize("name", sorted(TYPES) + ["rest"])
+def test_toes_and_markers_stay_above_the_floor(name):
+    cap = capture(name)
+    g = FootGeometry.from_skeleton(cap.skeleton)
+    for col, side in enumerate("lr"):
+        foot = cap.skeleton.forward(cap.body.q)[:, SEGMENT_NAMES.index(f"foot_{side}")]
+        # toe tip through the toe joint (dorsiflexed by the generator's toe angle)
+        tip = g.sole_points(cap.body.toe[:, col])[:, 2]
+        z = np.einsum("fj,fj->f", foot[:, 2, :3], tip) + foot[:, 2, 3]
+        assert z.min() > -1e-6
+    # skin markers sit on top of the skin: never below the floor, even with noise
+    assert np.nanmin(cap.trial.markers[..., 2]) > 0.005
