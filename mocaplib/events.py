@@ -20,13 +20,28 @@ running, overground or on a treadmill:
    just before the swing (O'Connor et al. 2007, *Gait & Posture* 25:469). Heel-strike: where the
    speed of the point that touches first (heel, or toe when landing toe-first or walking
    backwards) stops falling: the knot of a two-line fit to its speed after the swing.
-5. **Refinement.** Both times move to the *kink* of the unfiltered positions within
-   ``±refine_s``: the knot of a curve quadratic on each side and continuous at the knot (the
-   foot centre's 3-D position for toe-off; the touching point's height for heel-strike, as a
-   landing foot rocks onto its sole and moves its heel marker sideways a moment later). A rigid foot
-   leaving or hitting the floor has a velocity jump there; for smooth real data the knot lands
-   where the acceleration changes most, which is the velocity peak. Sub-frame, and free of the
-   low-pass filter's smearing (which alone shifts events by 2-3 frames).
+5. **Refinement.** Both times move to the *kink* of the unfiltered positions: the knot of a
+   curve quadratic on each side and continuous at the knot (velocity and acceleration may jump
+   there), fitted on a window around the coarse time and re-centred until it stays put.
+   Sub-frame, and free of the low-pass filter's smearing (2-3 frames). Heel-strike uses the
+   touching point's height (a landing foot rocks onto its sole and moves its heel marker
+   sideways a moment later). Toe-off takes the median of three kinks: of the last point to
+   leave (usually the toe) in 3-D, of its height alone, and of heel and toe together (the rear
+   foot leaves as one body); each alone is thrown off now and then (a turning foot's horizontal
+   path has kinks of its own; the heel accelerates on its own schedule), their median is not.
+
+**Two definitions of toe-off** (``toe_off=``). A real foot leaves the floor in two steps: the
+forefoot (where the toe marker sits, on the metatarsal heads) lifts first, the toes ~40 ms later
+(toe roll); a force plate's Foot Off is the second. The foot-centre velocity peak marks the
+second; the first kink of the toe marker marks the first.
+
+* ``"lift"`` (default): the kink searched up to ``refine_s`` before the velocity peak, i.e. the
+  instant the toe marker lifts. Exact for a rigid foot that leaves the floor at once, as the
+  synthetic walker's does (its truth is that instant); on real feet it comes before the force
+  plate's Foot Off by the toe-roll time (measured in the README).
+* ``"foot_velocity"``: the kink searched only within ``refine_s/2`` of the velocity peak,
+  which stays on the toes' release: within a few ms of force-plate Foot Off on the real files,
+  but late on the synthetic rigid foot (whose velocity peak follows its lift-off).
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """
@@ -43,6 +58,9 @@ from scipy.signal import butter, filtfilt
 from .errors import EventError
 
 SIDES = ("left", "right")
+#: Toe-off definitions (see the module docstring) and how far before the coarse time (in
+#: units of ``refine_s``) each searches for the kink.
+TOE_OFF_SEARCH = {"lift": 1.0, "foot_velocity": 0.5}
 KINDS = ("toe_off", "heel_strike")
 
 
@@ -71,7 +89,7 @@ class GaitEvent:
 
 
 def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
-                  cutoff_hz: float = 12.0, min_clearance: float = 0.02,
+                  toe_off: str = "lift", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
                   min_swing_s: float = 0.08, still_speed: float = 0.5,
                   refine_s: float = 0.08, max_gap_s: float = 0.25,
                   source: str | os.PathLike | None = None) -> list[GaitEvent]:
@@ -84,6 +102,9 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
         Z up, NaN where missing. A side may be left out.
     rate
         Frame rate, Hz.
+    toe_off
+        ``"lift"`` (kinematic lift-off) or ``"foot_velocity"`` (force-plate-like), see the
+        module docstring.
     cutoff_hz, min_clearance, min_swing_s, still_speed, refine_s, max_gap_s
         See the module docstring (Hz, m, s, m/s, s, s).
     source
@@ -97,7 +118,8 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
     for side in SIDES:
         if side in feet:
             heel, toe = feet[side]
-            events += foot_events(heel, toe, rate, side=side, cutoff_hz=cutoff_hz,
+            events += foot_events(heel, toe, rate, side=side, toe_off=toe_off,
+                                  cutoff_hz=cutoff_hz,
                                   min_clearance=min_clearance, min_swing_s=min_swing_s,
                                   still_speed=still_speed, refine_s=refine_s,
                                   max_gap_s=max_gap_s, source=source)
@@ -105,11 +127,14 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
 
 
 def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
-                cutoff_hz: float = 12.0, min_clearance: float = 0.02,
+                toe_off: str = "lift", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
                 min_swing_s: float = 0.08, still_speed: float = 0.5,
                 refine_s: float = 0.08, max_gap_s: float = 0.25,
                 source: str | os.PathLike | None = None) -> list[GaitEvent]:
     """Toe-offs and heel-strikes of one foot from its heel and toe points (F, 3), metres."""
+    if toe_off not in TOE_OFF_SEARCH:
+        raise EventError(f"toe_off must be one of {', '.join(TOE_OFF_SEARCH)}, got {toe_off!r}",
+                         path=source)
     heel, toe = _checked_points(heel, toe, rate, side, source)
     measured = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
     raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])  # (2, F, 3)
@@ -140,14 +165,16 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
         if start > 0 and np.isfinite(clearance[start - 1]):
             t = _peak_time(centre_velocity[:, 2], max(before, start - window), top + 1)
             if t is not None:
-                t = _refined(raw.mean(axis=0), t, half)
+                last = int(np.argmin(heights[:, start]))  # the point that left last
+                early = TOE_OFF_SEARCH[toe_off]
+                t = float(np.median([_refined(signal, t, half, early=early) for signal in
+                                     (raw[last], raw[last, :, 2], raw.transpose(1, 0, 2))]))
                 events.append(_event(side, "toe_off", t / rate, measured, rate))
         if end < len(clearance) and np.isfinite(clearance[end]):
             first = int(np.argmin(heights[:, end]))  # the point that touched first
             t = _arrival_time(speeds[first], top, end, min(after, end + window), window)
-            if t is not None:
-                t = _refined(raw[first, :, 2], t, half)
-                events.append(_event(side, "heel_strike", t / rate, measured, rate))
+            t = _refined(raw[first, :, 2], float(end) if t is None else t, half)
+            events.append(_event(side, "heel_strike", t / rate, measured, rate))
     return events
 
 
@@ -211,8 +238,9 @@ def _heights_above_floor(points: np.ndarray, rate: float, *, window_s: float = 0
     more than 1 cm above the plane (swing) are dropped and the plane refitted. Lab floors and
     calibrations tilt by a degree or so (2-3 cm over a stride, as in the CMU files) and treadmill
     belts are raised; a percentile of the raw height would mistake either for swing. When the
-    lowest samples span less than ``min_extent`` metres horizontally (standing, turning on the
-    spot) the slope is not observable and the floor is level.
+    lowest samples span less than ``min_extent`` metres along a horizontal direction (standing,
+    turning on the spot; sideways on a straight walk) the slope along it is not observable and
+    taken as zero.
     """
     n_points, n_frames, _ = points.shape
     step = max(1, round(window_s * rate))
@@ -227,9 +255,14 @@ def _heights_above_floor(points: np.ndarray, rate: float, *, window_s: float = 0
                 offsets.append(p)
     lowest = np.array(rows)
     owner = np.array(offsets)
-    extent = np.ptp(lowest[:, :2], axis=0).max() if len(lowest) else 0.0
-    design = np.column_stack([owner[:, None] == np.arange(n_points)] +
-                             ([lowest[:, :2]] if extent >= min_extent else [])).astype(float)
+    # slope only along horizontal directions the lowest samples span (a straight walk spans
+    # one: its sideways extent of a few cm would let a slope fit the noise)
+    centre = lowest[:, :2].mean(axis=0)
+    _, _, axes = np.linalg.svd(lowest[:, :2] - centre, full_matrices=False)
+    along = (lowest[:, :2] - centre) @ axes.T
+    axes = axes[np.ptp(along, axis=0) >= min_extent]
+    design = np.column_stack([owner[:, None] == np.arange(n_points),
+                              (lowest[:, :2] - centre) @ axes.T]).astype(float)
     keep = np.ones(len(lowest), dtype=bool)
     for _ in range(5):
         coef, *_ = np.linalg.lstsq(design[keep], lowest[keep, 2], rcond=None)
@@ -237,14 +270,15 @@ def _heights_above_floor(points: np.ndarray, rate: float, *, window_s: float = 0
         if np.array_equal(new_keep, keep) or new_keep.sum() <= design.shape[1]:
             break
         keep = new_keep
-    slope = coef[n_points:] if extent >= min_extent else np.zeros(2)
-    floor = coef[:n_points, None] + points[:, :, :2] @ slope
+    floor = coef[:n_points, None] + (points[:, :, :2] - centre) @ axes.T @ coef[n_points:]
     return points[:, :, 2] - floor
 
 
 def _swings(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
-    """[start, end) of each run of at least ``min_frames`` measured frames out of contact."""
-    return [(s, e) for s, e in _runs(~contact & np.isfinite(clearance)) if e - s >= min_frames]
+    """[start, end) of each run of at least ``min_frames`` measured frames out of contact; a
+    run cut short by the end of the capture needs only 3 (its toe-off is still seen)."""
+    runs = _runs(~contact & np.isfinite(clearance))
+    return [(s, e) for s, e in runs if e - s >= min_frames or (e == len(contact) and e - s >= 3)]
 
 
 def _peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
@@ -290,7 +324,8 @@ def _knot(signal: np.ndarray, lo: int, hi: int, step: float = 0.05) -> float | N
     return float(knots[best]) if np.isfinite(cost[best]) else None
 
 
-def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> float | None:
+def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05, early: float = 0.5
+          ) -> float | None:
     """Sub-frame time (frames) of the best kink in ``values`` (F,) or (F, C) near ``centre``.
 
     Fits, over ``centre ± half`` frames of the *unfiltered* samples, a curve that is quadratic
@@ -300,14 +335,16 @@ def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> f
     for smooth data, where its acceleration changes most.
     """
     values = values.reshape(len(values), -1)
-    lo, hi = int(np.floor(centre)) - half, int(np.ceil(centre)) + half + 1
-    if lo < 0 or hi > len(values):
-        return None
+    lo = max(0, int(np.floor(centre - early * half)) - half // 2)
+    hi = min(len(values), int(np.ceil(centre)) + half + 1)
     y = values[lo:hi]
-    if not np.isfinite(y).all():
+    if hi - lo < 2 * half // 2 + 6 or not np.isfinite(y).all():
         return None
     x = np.arange(lo, hi, dtype=np.float64)
-    knots = np.arange(centre - half / 2, centre + half / 2 + step / 2, step)
+    knots = np.arange(max(centre - early * half, lo + 2), min(centre + half / 2, hi - 3) + step / 2,
+                      step)
+    if knots.size == 0:
+        return None
     d = x - knots[:, None]                                                   # (K, n)
     after = np.maximum(d, 0.0)
     design = np.stack([np.ones_like(d), d, d * d, after, after * after], axis=2)  # (K, n, 5)
@@ -317,10 +354,17 @@ def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> f
     return float(knots[int(np.argmin(cost))])
 
 
-def _refined(values: np.ndarray, coarse: float, half: int) -> float:
-    """``coarse`` (frames) moved to the kink of the unfiltered ``values`` when one is found."""
-    fine = _kink(values, coarse, half)
-    return coarse if fine is None else fine
+def _refined(values: np.ndarray, coarse: float, half: int, rounds: int = 4,
+             early: float = 0.5) -> float:
+    """``coarse`` (frames) moved to the kink of the unfiltered ``values``: the search window is
+    re-centred on each kink found until it stays put (at most ``rounds`` times)."""
+    time = coarse
+    for _ in range(rounds):
+        fine = _kink(values, time, half, early=early)
+        if fine is None or abs(fine - time) < 0.5:
+            return time if fine is None else fine
+        time = fine
+    return time
 
 
 def _event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float) -> GaitEvent:

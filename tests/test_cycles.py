@@ -105,3 +105,59 @@ def test_no_complete_cycle_is_an_error():
     left, right = shoulders(TIME)
     with pytest.raises(EventError, match="walk.c3d: no complete cycle"):
         analyse_cycles(events(n=1), left, right, RATE, source="walk.c3d")
+
+
+def shoulder_centres(truth):
+    """Glenohumeral centres (F, 3) x 2 from the truth's angles and segment lengths."""
+    from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
+
+    frames = Skeleton(truth["segment_lengths"]).forward(np.array(truth["angles"]["values"]))
+    return (frames[:, SEGMENT_NAMES.index("humerus_l"), :3, 3],
+            frames[:, SEGMENT_NAMES.index("humerus_r"), :3, 3])
+
+
+def test_synthetic_truth_shoulders_give_the_true_velocities():
+    from mocaplib.patterns import cycle_velocities
+
+    from sample_captures import samples
+
+    for name, trial, _, _, truth in samples():
+        left, right = shoulder_centres(truth)
+        for true in truth["cycles"]:
+            got = cycle_velocities(left, right, trial.rate, true["start_s"], true["end_s"])
+            # the issue's targets: v 2 % (0.02 m/s near 0), omega 0.02 rad/s, v_l 0.02 m/s
+            np.testing.assert_allclose(got.v, true["v"], atol=max(0.02 * true["v"], 0.02),
+                                       err_msg=name)
+            np.testing.assert_allclose(got.omega, true["omega"], atol=0.02, err_msg=name)
+            np.testing.assert_allclose(got.v_l, true["v_l"], atol=0.02, err_msg=name)
+            assert got.pattern.kind == true["pattern"]["type"] or (
+                true["pattern"]["type"] == "arc" and abs(true["pattern"]["arc_angle"]) < 0.35
+            ), name  # an arc turning < 20° over a cycle may be chosen as a line
+
+
+def test_synthetic_captures_from_markers():
+    from sample_captures import samples
+
+    checked = 0
+    for name, trial, match, events, truth in samples():
+        label = {m.landmark.name: m.label for m in match.protocol.markers}
+        cycles = analyse_cycles(events, match.marker(trial, label["L_ACROMION"]),
+                                match.marker(trial, label["R_ACROMION"]), trial.rate,
+                                source=name)
+        assert sum(c.chosen for c in cycles) == 1, name
+        if not truth["cycles"]:
+            assert cycles[0].rest, name
+            continue
+        for cycle in cycles:
+            true = min(truth["cycles"], key=lambda c: abs(c["start_s"] - cycle.start_s))
+            assert abs(true["start_s"] - cycle.start_s) < 0.02, name  # cut at the toe-offs
+            vel = cycle.velocities
+            np.testing.assert_allclose(vel.v, true["v"], atol=max(0.02 * true["v"], 0.02),
+                                       err_msg=name)
+            np.testing.assert_allclose(vel.omega, true["omega"], atol=0.02, err_msg=name)
+            # v_l from skin markers carries their placement error (3 mm per marker yaws the
+            # shoulder line by up to ~1°: 0.07 m/s at 3.5 m/s); the README reports it
+            np.testing.assert_allclose(vel.v_l, true["v_l"], atol=0.02 + 0.02 * true["v"],
+                                       err_msg=name)
+            checked += 1
+    assert checked >= 100

@@ -111,7 +111,7 @@ LAB_NAMES = {"Foot Off": "toe_off", "Foot Strike": "heel_strike",
              "LTO": "toe_off", "RTO": "toe_off", "LHS": "heel_strike", "RHS": "heel_strike"}
 
 
-def lab_differences(kind):
+def lab_differences(kind, toe_off="lift"):
     """Detected minus lab event time (s) for every lab event of ``kind`` in the 4 files."""
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
@@ -119,7 +119,8 @@ def lab_differences(kind):
     out = []
     for name in LAB_FILES:
         trial = read_c3d(real_file(name))
-        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate)
+        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
+                               toe_off=toe_off)
         for lab in trial.events:
             if LAB_NAMES.get(lab.label) != kind:
                 continue
@@ -132,10 +133,17 @@ def lab_differences(kind):
 
 
 def test_real_toe_offs_match_lab_foot_off():
-    diff = lab_differences("toe_off")
+    diff = lab_differences("toe_off", toe_off="foot_velocity")
     assert len(diff) >= 18  # 21 lab Foot Off events in the four files, a few at the edges
     # the issue's target: median |difference| <= 10 ms against the lab's Foot Off
     assert np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
+
+
+def test_real_forefoot_lift_precedes_foot_off_by_the_toe_roll():
+    diff = lab_differences("toe_off")  # default "lift": the toe marker leaves first
+    # measured median -36 ms: the toes stay on the plate for a few tens of ms after the
+    # forefoot lifts; the window checks the sign and the order of magnitude
+    assert -0.060 <= np.median(diff) <= -0.015, np.round(diff * 1000)
 
 
 def test_real_heel_strikes_match_lab_foot_strike():
@@ -144,3 +152,25 @@ def test_real_heel_strikes_match_lab_foot_strike():
     # no target in the issue; measured 14 ms (kinematic heel contact precedes the force
     # plate's threshold crossing); 20 ms catches a regression
     assert np.median(np.abs(diff)) <= 0.020, np.round(diff * 1000)
+
+
+def test_synthetic_captures_toe_offs_within_one_frame():
+    from sample_captures import locomotion_type, samples
+
+    by_type: dict[str, list[float]] = {}
+    for name, trial, _, events, truth in samples():
+        for true in truth["events"]:
+            if true["kind"] != "toe_off":
+                continue
+            found = [e.time_s - true["time_s"] for e in events
+                     if e.side == true["side"] and e.kind == "toe_off"]
+            error = min(map(abs, found)) * trial.rate if found else np.inf
+            by_type.setdefault(locomotion_type(name), []).append(error)
+    within = {kind: np.mean(np.array(errs) <= 1.0) for kind, errs in by_type.items()}
+    everything = np.concatenate([np.array(e) for e in by_type.values()])
+    # the issue's target over all synthetic toe-offs: >= 95 % within one frame
+    assert np.mean(everything <= 1.0) >= 0.95, within
+    # per locomotion type the README reports the figures; slow on-the-spot steps (small lift
+    # velocity) are the weakest: none may fall below 70 %, and none may be missed entirely
+    assert min(within.values()) >= 0.70, within
+    assert np.all(np.isfinite(everything))

@@ -1,0 +1,42 @@
+"""The shipped synthetic captures (sample_c3d/*.c3d + *.truth.json), read once per session."""
+
+from __future__ import annotations
+
+import json
+import re
+from functools import lru_cache
+
+import pytest
+
+from conftest import SAMPLES
+
+
+def locomotion_type(name: str) -> str:
+    """``walk_curve_r2_left_fast`` -> ``walk_curve_left``: the name without speed and size."""
+    return re.sub(r"_(slow|normal|fast|r\d|\d+p\d|\d+)(?=_|$)", "", name)
+
+
+@lru_cache(maxsize=1)
+def _load():
+    from mocaplib.events import detect_events, feet_of
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+
+    out = []
+    for path in sorted(SAMPLES.glob("*.c3d")):
+        truth_path = path.with_suffix(".truth.json")
+        if not truth_path.is_file():
+            continue
+        trial = read_c3d(path)
+        match = detect_protocol(trial)
+        events = detect_events(feet_of(trial, match), trial.rate)
+        out.append((path.stem, trial, match, events, json.loads(truth_path.read_text())))
+    return out
+
+
+def samples():
+    """[(name, trial, protocol match, detected events, truth dict)]; skips when none exist."""
+    found = _load()
+    if not found:
+        pytest.skip(f"no synthetic captures with truth in {SAMPLES}")
+    return found
