@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton, axis_rotation
 from .command import Command, frame_to_world, reference_path, world_to_frame
-from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, Footprints, GaitParameters,
+from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, GaitParameters,
                    foot_rotation, foot_trajectory, plan_footprints)
 
 _Q = {name: j for j, name in enumerate(DOF_NAMES)}

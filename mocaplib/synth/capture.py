@@ -14,7 +14,8 @@ Per-cycle truth (shoulder midpoint, the paper's definitions, signs of DESIGN.md)
     along the motion; v̂_l = mean of v̂ sin(θ_T − θ_S) and v̂_f = mean of v̂ cos(θ_T − θ_S).
     Because the body's oscillations are periodic in the commanded frame and the pelvis is
     placed so that M averages to the commanded point, v̂ and ω̂ equal the command and v̂_l, v̂_f
-    differ from it only by the trunk's yaw oscillation (second order, < 0.3 %).
+    differ from it only by the trunk's yaw oscillation (second order: at most 0.7 % of v̂ over
+    the paper plan, when running).
 """
 
 from __future__ import annotations
@@ -108,7 +109,7 @@ def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subj
         "first_frame": 1,
         "protocol": prot.name,
         "labels": labels,
-        "generator": {"gait": {k: v for k, v in asdict(params).items()},
+        "generator": {"gait": asdict(params),
                       "cadence_steps_per_min": params.cadence if command.gait != "stand" else 0.0,
                       "lead_s": LEAD_S, "markers": markers.as_dict(), **record},
         "events": [{"side": {"l": "left", "r": "right"}[s],

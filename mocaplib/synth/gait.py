@@ -9,8 +9,9 @@ Timing
     on a lab walkway).
 Footprints
     Each stance's flat-foot pose (ankle centre over the floor, heading) is the pelvis' nominal
-    frame at the moment ``plant`` of the stance (a little before mid-stance), shifted sideways by half the step width (plus a quarter of the stride's
-    lateral displacement, so side-steps open and close without crossing the feet) and toed out.
+    frame at the moment ``plant`` of the stance (a little before mid-stance), shifted sideways
+    by half the step width (plus a quarter of the stride's lateral displacement, so side-steps
+    open and close without crossing the feet) and toed out.
 Feet
     The rear foot (the fitting skeleton's ``foot`` segment) rolls heel to toe: it lands pitched
     toes-up about the heel contact point, lies flat (not moving at all) from ``loading`` to
@@ -143,13 +144,14 @@ def gait_parameters(command: Command, height: float) -> GaitParameters:
     scale = height / 1.75
     forward = max(command.v_f, 0.0) / v if v > 0 else 0.0   # 1 straight ahead, 0 sideways
     if command.gait == "run":
-        cadence = 150.0 + 6.0 * v          # 162-171 steps/min at 2-3.5 m/s (Cavanagh 1990)
+        cadence = 150.0 + 6.0 * v          # 162-171 steps/min at 2-3.5 m/s (Cavanagh & Kram 1989)
         stride = 120.0 / cadence
         duty = 0.40 - 0.05 * (v - 2.0)      # stance 0.30-0.23 s: a flight phase each step
         return GaitParameters(
             "run", stride, duty, step_width=0.04 * height, lateral_shift=0.0,
             toe_out=5 * DEG, heel_pitch=8 * DEG, toe_pitch=40 * DEG, loading=0.2,
-            heel_rise=0.45, plant=0.42, clearance=(0.11 + 0.02 * (v - 2.5)) * scale, bounce=0.015 * scale,
+            heel_rise=0.45, plant=0.42, clearance=(0.11 + 0.02 * (v - 2.5)) * scale,
+            bounce=0.015 * scale,
             sway=0.01 * scale, pelvis_rotation=7 * DEG, pelvis_list=5 * DEG, lean=9 * DEG,
             thorax_rotation=6 * DEG, arm_swing=30 * DEG, elbow=85 * DEG)
     if command.gait == "stand":

@@ -76,8 +76,9 @@ def _command(spec, where: str, path: str) -> Command:
         raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
     except (TypeError, ValueError) as exc:
         raise SynthError(f"{where}: bad command value ({exc})", path=path) from None
-    raise SynthError(f"{where}: command keys {sorted(keys)} mix or miss the two forms", path=path,
-                     hint="use { kind, speed, radius|direction, side } or { v_f, v_l, omega, gait }")
+    raise SynthError(f"{where}: command keys {sorted(keys)} mix or miss the two forms",
+                     path=path, hint="use { kind, speed, radius|direction, side } or "
+                                     "{ v_f, v_l, omega, gait }")
 
 
 def _markers(spec, where: str, path: str) -> MarkerSettings:
