@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import EventError
-from .events import GaitEvent
+from .events import GaitEvent, landmark_labels
 from .fourier import TRANSLATIONS, CycleEncoding, encode_cycle
 from .patterns import CycleVelocities, Pattern, cycle_times, cycle_velocities, sample_shoulders
 
@@ -97,6 +97,18 @@ class Cycle:
         return out
 
 
+def shoulders_of(trial, match, /) -> tuple[np.ndarray, np.ndarray]:
+    """Left and right acromion markers (F, 3) m of a trial's protocol match (ProtocolMatch)."""
+    present = landmark_labels(match)
+    missing = [name for name in ("L_ACROMION", "R_ACROMION") if name not in present]
+    if missing:
+        raise EventError(f"no {' or '.join(missing)} marker in protocol "
+                         f"{match.protocol.name!r}", path=trial.source,
+                         hint="patterns and velocities need both shoulder (acromion) markers")
+    return (match.marker(trial, present["L_ACROMION"]),
+            match.marker(trial, present["R_ACROMION"]))
+
+
 def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]]:
     """Pairs of consecutive left toe-offs, in time order."""
     offs = sorted((e for e in events if e.side == "left" and e.kind == "toe_off"),
@@ -132,7 +144,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     if q is not None:
         q = _unwrapped(np.asarray(q, dtype=np.float64), n_frames, source)
     if not events:
-        return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source)]
+        return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source,
+                            tol_angle, tol_length)]
     pairs = cycle_bounds(events)
     if not pairs:
         raise EventError("no complete cycle: fewer than two left toe-offs were found",
@@ -180,7 +193,7 @@ def _unsteadiness(left, right, rate, start, end, source) -> float:
     return float(abs(v2 - v1) + STEADINESS_RADIUS * abs(w2 - w1))
 
 
-def _rest_entry(left, right, rate, q, n_frames, source) -> Cycle:
+def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -> Cycle:
     if n_frames < 2:
         raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry", path=source,
                          hint="capture at least a second of standing")
@@ -193,7 +206,7 @@ def _rest_entry(left, right, rate, q, n_frames, source) -> Cycle:
         samples = _interpolate(q, rate, times)
         inside = times < REST_PERIOD
         encoding = encode_cycle(samples[inside], times[inside], REST_PERIOD, samples[0],
-                                tol_angle=np.inf, tol_length=np.inf, max_order=0)
+                                tol_angle=tol_angle, tol_length=tol_length, max_order=0)
     return Cycle(0, 0.0, REST_PERIOD, velocities, 0.0, 1.0, encoding, rest=True, chosen=True)
 
 

@@ -379,22 +379,26 @@ FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
                   "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}
 
 
+def landmark_labels(match, /) -> dict[str, str]:
+    """``{landmark name: trial label}`` of the markers a protocol match found in the trial."""
+    return {m.landmark.name: m.label for j, m in enumerate(match.protocol.markers)
+            if match.indices[j] >= 0}
+
+
 def feet_of(trial, match, /) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{"left": (heel, toe), "right": ...}`` (F, 3) m from a trial's protocol-matched markers.
 
     ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the first present of
     :data:`FOOT_LANDMARKS`. Raises :class:`EventError` naming the missing landmark.
     """
-    present = {m.landmark.name: m.label for j, m in enumerate(match.protocol.markers)
-               if match.indices[j] >= 0}
+    present = landmark_labels(match)
     feet = {}
     for side, (heel, toes) in FOOT_LANDMARKS.items():
         toe = next((name for name in toes if name in present), None)
-        for name in (heel, toe):
-            if name is None or name not in present:
-                raise EventError(f"no {side} {'heel' if name == heel else 'toe'} marker "
-                                 f"({heel if name == heel else '/'.join(toes)}) in protocol "
-                                 f"{match.protocol.name!r}", path=trial.source,
-                                 hint="gait events need a heel and a toe marker on each foot")
+        if heel not in present or toe is None:
+            what = f"heel ({heel})" if heel not in present else f"toe ({'/'.join(toes)})"
+            raise EventError(f"no {side} {what} marker in protocol {match.protocol.name!r}",
+                             path=trial.source,
+                             hint="gait events need a heel and a toe marker on each foot")
         feet[side] = (match.marker(trial, present[heel]), match.marker(trial, present[toe]))
     return feet

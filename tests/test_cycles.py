@@ -161,3 +161,24 @@ def test_synthetic_captures_from_markers():
                                        err_msg=name)
             checked += 1
     assert checked >= 100
+
+
+def test_cli_cycles_json(capsys):
+    import json
+
+    from conftest import SAMPLES
+    from mocaplib.cli import main
+
+    path = SAMPLES / "walk_curve_r2_left_normal.c3d"
+    if not path.is_file():
+        pytest.skip(f"sample capture {path} not found")
+    assert main(["cycles", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["file"] == str(path) and len(out["cycles"]) >= 2
+    for row in out["cycles"]:
+        assert {"start_s", "end_s", "T", "pattern", "v", "omega", "v_l", "v_f", "fourier_n",
+                "fourier_rms_deg", "chosen"} <= set(row)
+        assert row["pattern"]["type"] == "arc" and row["pattern"]["arc_angle"] > 0
+        np.testing.assert_allclose(row["omega"], 0.5, atol=0.02)  # 1.0 m/s on a 2 m radius
+        assert row["fourier_n"] >= 1
+    assert sum(row["chosen"] for row in out["cycles"]) == 1

@@ -174,3 +174,42 @@ def test_synthetic_captures_toe_offs_within_one_frame():
     # velocity) are the weakest: none may fall below 70 %, and none may be missed entirely
     assert min(within.values()) >= 0.70, within
     assert np.all(np.isfinite(everything))
+
+
+def sample_file(name):
+    from conftest import SAMPLES
+
+    path = SAMPLES / f"{name}.c3d"
+    if not path.is_file():
+        pytest.skip(f"sample capture {path} not found")
+    return path
+
+
+def test_cli_events_json(capsys):
+    import json
+
+    from mocaplib.cli import main
+
+    path = sample_file("side_left_normal")
+    assert main(["events", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"file", "events"}
+    assert all(set(e) == {"side", "kind", "time_s", "frame"} for e in out["events"])
+    truth = json.loads(path.with_suffix(".truth.json").read_text())
+    offs = [e["time_s"] for e in out["events"] if e["side"] == "left" and e["kind"] == "toe_off"]
+    true = [e["time_s"] for e in truth["events"] if e["side"] == "left" and e["kind"] == "toe_off"]
+    # same toe-offs as the truth, within 2 frames at 100 Hz each
+    np.testing.assert_allclose(offs, true, atol=0.02)
+
+
+def test_cli_events_errors(tmp_path, capsys):
+    from mocaplib.cli import main
+
+    bad = tmp_path / "not.c3d"
+    bad.write_bytes(b"hello")
+    assert main(["events", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "not.c3d" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(SystemExit) as exit_info:
+        main(["events", str(bad), "--toe-off", "sometime"])
+    assert exit_info.value.code == 2

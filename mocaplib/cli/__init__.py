@@ -16,7 +16,7 @@ from .. import __version__
 from ..errors import MocapError
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
-COMMANDS = ("inspect", "fit", "build", "validate", "query", "report", "synth")
+COMMANDS = ("inspect", "fit", "events", "cycles", "build", "validate", "query", "report", "synth")
 
 
 def build_parser() -> argparse.ArgumentParser:

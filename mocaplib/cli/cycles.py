@@ -1,0 +1,59 @@
+"""``mocaplib cycles FILE``: every cycle (left toe-off to left toe-off) with its pattern,
+velocities and Fourier order, and the one chosen for the library.
+
+Parses options and formats; the work is done by the stages: import, protocol, calibration, fit
+(:mod:`mocaplib.calibrate`, :mod:`mocaplib.ik`), events (as ``mocaplib events``) and
+:func:`mocaplib.cycles.analyse_cycles`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .events import add_common_options
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "cycles", help="cut a capture into cycles: pattern, v, omega, v_l, Fourier order",
+        description="Cut a capture at consecutive left toe-offs; for every cycle fit a line or "
+                    "arc to the shoulder-midpoint path, measure v, omega, v_l, v_f, encode the "
+                    "fitted joint angles as Fourier series, and mark the steadiest cycle as "
+                    "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
+                    "the capture cannot be processed, 2 on usage errors.")
+    add_common_options(parser)
+    parser.add_argument("--static", metavar="FILE",
+                        help="static standing trial of the same subject, for calibration")
+    parser.add_argument("--json", action="store_true",
+                        help='print {"file", "cycles": [...]} (SI units, angles in radians; '
+                             '"fourier_rms_deg" in degrees)')
+    parser.set_defaults(run=_run)
+
+
+def _run(args) -> int:
+    from ..calibrate import calibrate
+    from ..cycles import analyse_cycles, shoulders_of
+    from ..ik import fit
+    from ..io.c3d import read_c3d
+    from ._common import print_json
+    from .events import detect
+
+    trial, match, events = detect(args)
+    model = calibrate(trial, protocol=match.protocol,
+                      static=read_c3d(args.static) if args.static else None)
+    motion = fit(trial, model)
+    left, right = shoulders_of(trial, match)
+    cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q, source=args.file)
+    rows = [c.to_dict() for c in cycles]
+    if args.json:
+        print_json({"file": args.file, "cycles": rows})
+        return 0
+    print(f"{args.file}: {len(rows)} cycle(s), protocol {match.protocol.name}")
+    print("  #   start     T    pattern  arc°    v m/s  ω °/s   v_l m/s  v_f m/s  N  rms°  worst")
+    for r in rows:
+        print(f"{'*' if r['chosen'] else ' '} {r['index']:<2d} {r['start_s']:6.2f} "
+              f"{r['T']:5.2f}  {r['pattern']['type']:6s} {np.rad2deg(r['pattern']['arc_angle']):6.1f}"
+              f"  {r['v']:6.3f} {np.rad2deg(r['omega']):6.1f}  {r['v_l']:7.3f}  {r['v_f']:7.3f}"
+              f"  {r['fourier_n']:2d} {r['fourier_rms_deg']:5.2f}  {r['fourier_worst_dof']}")
+    print("  (* = chosen for the library: the steadiest cycle)")
+    return 0

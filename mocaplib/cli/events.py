@@ -1,0 +1,64 @@
+"""``mocaplib events FILE``: left/right toe-offs and heel-strikes detected from the foot markers.
+
+Parses options and formats; the work is :func:`mocaplib.events.detect_events` on the heel and toe
+markers the protocol names (:func:`mocaplib.events.feet_of`).
+"""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "events", help="detect toe-offs and heel-strikes from the foot markers",
+        description="Detect left/right toe-off and heel-strike from the heel and toe markers "
+                    "(any direction of travel, running, treadmills). Times are seconds from "
+                    "the file's first frame. Exit 0 on success, 1 when the file cannot be "
+                    "read or has no foot markers, 2 on usage errors.")
+    add_common_options(parser)
+    parser.add_argument("--json", action="store_true",
+                        help='print {"file", "events": [{"side", "kind", "time_s", "frame"}]}')
+    parser.set_defaults(run=_run)
+
+
+def add_common_options(parser) -> None:
+    """FILE, --protocol and --toe-off, shared with ``mocaplib cycles``."""
+    parser.add_argument("file", metavar="FILE", help="a C3D file")
+    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
+                             "(default: the best shipped protocol)")
+    parser.add_argument("--toe-off", choices=("lift", "foot_velocity"), default="lift",
+                        help="toe-off definition: 'lift' (the toe marker leaves the floor; "
+                             "default) or 'foot_velocity' (the foot's upward-velocity peak, "
+                             "close to a force plate's Foot Off)")
+
+
+def detect(args):
+    """(trial, protocol match, events) of ``args.file`` with the options of
+    :func:`add_common_options`."""
+    from ..events import detect_events, feet_of
+    from ..io.c3d import read_c3d
+    from ..protocols import detect_protocol, load_protocol, match_protocol
+
+    trial = read_c3d(args.file)
+    match = (detect_protocol(trial) if args.protocol == "auto"
+             else match_protocol(trial, load_protocol(args.protocol)))
+    events = detect_events(feet_of(trial, match), trial.rate, toe_off=args.toe_off,
+                           source=args.file)
+    return trial, match, events
+
+
+def _run(args) -> int:
+    from ._common import print_json
+
+    trial, match, events = detect(args)
+    if args.json:
+        print_json({"file": args.file,
+                    "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
+                                "frame": e.frame} for e in events]})
+        return 0
+    print(f"{args.file}: {len(events)} events ({match.protocol.name}, {trial.rate:g} Hz)"
+          + ("; none: standing still (rest)" if not events else ""))
+    for e in events:
+        print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"
+              f"  quality {e.quality:.2f}")
+    return 0
