@@ -7,13 +7,14 @@ running, overground or on a treadmill:
 1. **Gaps.** Missing samples (NaN) are filled linearly over gaps up to ``max_gap_s``; longer
    gaps stay missing and no event is placed in or next to them.
 2. **Floor.** Heights are taken above the floor each point stands on: a plane (one offset per
-   point, one slope) fitted to the lower envelope of the points' lowest samples, so tilted lab
-   floors (the CMU walkway rises ~2.5 cm per stride) and raised treadmill belts (the running
-   file's heels never go below 0.24 m) need no setting.
+   point, one slope) fitted to the samples where the point stands still relative to the ground,
+   so tilted lab floors (the CMU walkway rises ~2.5 cm per stride) and raised treadmill belts
+   (the running file's heels never go below 0.24 m) need no setting. The ground's velocity
+   (zero overground, the belt's on a treadmill) is the foot's median horizontal velocity while
+   low.
 3. **Swings.** On low-passed points (2nd-order Butterworth, forwards and backwards, ``cutoff_hz``),
    the foot is in contact when its lowest point is within ``min_clearance`` of the floor *and*
-   its centre moves slower than ``still_speed`` relative to the ground (the ground's velocity is
-   the foot's median horizontal velocity while low: zero overground, the belt on a treadmill).
+   its centre moves slower than ``still_speed`` relative to the ground.
    A swing is a run of at least ``min_swing_s`` out of contact. No swing (standing) = no
    events = rest.
 4. **Coarse times.** Toe-off: the peak upward velocity of the foot centre (mean of heel and toe)
@@ -139,20 +140,14 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
     measured = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
     raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])  # (2, F, 3)
     points = np.stack([_smooth(p, rate, cutoff_hz) for p in raw])
-    heights = _heights_above_floor(points, rate)
-    clearance = heights.min(axis=0)
     velocity = np.gradient(points, axis=1) * rate if points.shape[1] > 1 else 0 * points
+    heights, ground = _floor(points, velocity)
+    clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
-    ground = np.zeros(3)
-    with np.errstate(invalid="ignore"):
-        low = clearance < min_clearance
-    moving_floor = low & np.isfinite(centre_velocity[:, 0])
-    if np.any(moving_floor):
-        ground[:2] = np.median(centre_velocity[moving_floor, :2], axis=0)
     speeds = np.linalg.norm(velocity - ground, axis=2)                          # (2, F)
     centre_speed = np.linalg.norm(centre_velocity - ground, axis=1)
     with np.errstate(invalid="ignore"):
-        contact = low & (centre_speed < still_speed)
+        contact = (clearance < min_clearance) & (centre_speed < still_speed)
 
     events: list[GaitEvent] = []
     swings = _swings(contact, clearance, max(1, round(min_swing_s * rate)))
@@ -229,56 +224,62 @@ def _smooth(points: np.ndarray, rate: float, cutoff_hz: float) -> np.ndarray:
     return out
 
 
-def _heights_above_floor(points: np.ndarray, rate: float, *, window_s: float = 0.4,
-                         min_extent: float = 0.5) -> np.ndarray:
-    """Height (2, F) of heel and toe above the floor they stand on, metres.
+def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2,
+           min_extent: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Heights (2, F) of heel and toe above the floor they stand on (m), and the floor's
+    horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill).
 
-    The floor is a plane ``z = a_p + b·x + c·y`` (an offset per point, one slope) fitted to the
-    lowest sample of each point in every ``window_s`` window, keeping the lower envelope: samples
-    more than 1 cm above the plane (swing) are dropped and the plane refitted. Lab floors and
-    calibrations tilt by a degree or so (2-3 cm over a stride, as in the CMU files) and treadmill
-    belts are raised; a percentile of the raw height would mistake either for swing. When the
-    lowest samples span less than ``min_extent`` metres along a horizontal direction (standing,
-    turning on the spot; sideways on a straight walk) the slope along it is not observable and
-    taken as zero.
+    The ground velocity is the median horizontal velocity of the foot over the frames where
+    its lowest point is within 3 cm of its lowest height. Samples where a point moves slower
+    than ``still_speed`` relative to the ground are standing on the floor; the floor is the
+    plane ``z = a_p + slope·xy`` (an offset per point, one slope) fitted to them by least
+    squares, dropping samples more than 1 cm off and refitting. Lab floors and calibrations
+    tilt by a degree or so (2-3 cm over a stride in the CMU files) and treadmill belts are
+    raised (0.24 m in the running file); a percentile of the raw height would take either for
+    swing. The slope is fitted only along horizontal directions the standing samples span by
+    ``min_extent`` or more (none when standing or turning on the spot, one on a straight walk).
     """
-    n_points, n_frames, _ = points.shape
-    step = max(1, round(window_s * rate))
-    rows, offsets = [], []
-    for p in range(n_points):
-        z = points[p, :, 2]
-        for lo in range(0, n_frames, step):
-            chunk = z[lo:lo + step]
-            if np.isfinite(chunk).any():
-                i = lo + int(np.nanargmin(chunk))
-                rows.append(points[p, i])
-                offsets.append(p)
-    lowest = np.array(rows)
-    owner = np.array(offsets)
-    # slope only along horizontal directions the lowest samples span (a straight walk spans
-    # one: its sideways extent of a few cm would let a slope fit the noise)
-    centre = lowest[:, :2].mean(axis=0)
-    _, _, axes = np.linalg.svd(lowest[:, :2] - centre, full_matrices=False)
-    along = (lowest[:, :2] - centre) @ axes.T
-    axes = axes[np.ptp(along, axis=0) >= min_extent]
-    design = np.column_stack([owner[:, None] == np.arange(n_points),
-                              (lowest[:, :2] - centre) @ axes.T]).astype(float)
-    keep = np.ones(len(lowest), dtype=bool)
+    z = points[:, :, 2]
+    rough = z - np.nanpercentile(z, 5, axis=1)[:, None]
+    centre_velocity = velocity.mean(axis=0)
+    with np.errstate(invalid="ignore"):
+        near = (rough.min(axis=0) < 0.03) & np.isfinite(centre_velocity[:, 0])
+    ground = np.zeros(3)
+    if near.any():
+        ground[:2] = np.median(centre_velocity[near, :2], axis=0)
+    with np.errstate(invalid="ignore"):
+        still = np.linalg.norm(velocity - ground, axis=2) < still_speed
+    still &= np.isfinite(z)
+    if still.sum() < 10:  # never still (odd data): the lowest tenth of each point's samples
+        with np.errstate(invalid="ignore"):
+            still = rough < np.nanpercentile(rough, 10, axis=1)[:, None]
+    owner, frame = np.nonzero(still)
+    if len(owner) <= len(points):  # too few samples for a floor: heights above the lowest
+        return rough, ground
+    xy = points[owner, frame, :2]
+    centre = xy.mean(axis=0)
+    _, _, axes = np.linalg.svd(xy - centre, full_matrices=False)
+    axes = axes[np.ptp((xy - centre) @ axes.T, axis=0) >= min_extent]
+    design = np.column_stack([owner[:, None] == np.arange(len(points)),
+                              (xy - centre) @ axes.T]).astype(float)
+    target = z[owner, frame]
+    keep = np.ones(len(target), dtype=bool)
     for _ in range(5):
-        coef, *_ = np.linalg.lstsq(design[keep], lowest[keep, 2], rcond=None)
-        new_keep = lowest[:, 2] - design @ coef < 0.01
+        coef, *_ = np.linalg.lstsq(design[keep], target[keep], rcond=None)
+        new_keep = np.abs(target - design @ coef) < 0.01
         if np.array_equal(new_keep, keep) or new_keep.sum() <= design.shape[1]:
             break
         keep = new_keep
-    floor = coef[:n_points, None] + (points[:, :, :2] - centre) @ axes.T @ coef[n_points:]
-    return points[:, :, 2] - floor
+    floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
+    return z - floor, ground
 
 
 def _swings(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
     """[start, end) of each run of at least ``min_frames`` measured frames out of contact; a
-    run cut short by the end of the capture needs only 3 (its toe-off is still seen)."""
+    run cut short by either end of the capture needs only 3 (its one visible event is seen)."""
     runs = _runs(~contact & np.isfinite(clearance))
-    return [(s, e) for s, e in runs if e - s >= min_frames or (e == len(contact) and e - s >= 3)]
+    return [(s, e) for s, e in runs
+            if e - s >= min_frames or ((s == 0 or e == len(contact)) and e - s >= 3)]
 
 
 def _peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
