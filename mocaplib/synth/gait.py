@@ -175,7 +175,7 @@ def gait_parameters(command: Command, height: float) -> GaitParameters:
         lateral_shift=abs(command.v_l) * stride / 4.0,
         toe_out=7 * DEG, heel_pitch=(10 + 8 * v) * DEG * roll,
         toe_pitch=(35 + 12 * v) * DEG * roll, loading=0.2, heel_rise=0.55, plant=0.44,
-        clearance=(0.02 + 0.015 * v) * scale, bounce=(0.006 + 0.012 * v * forward) * scale,
+        clearance=(0.03 + 0.01 * v) * scale, bounce=(0.006 + 0.012 * v * forward) * scale,
         sway=(0.012 + 0.01 * forward * (1.0 - v / 3.0)) * scale,
         pelvis_rotation=(1.5 + 3.0 * v * forward) * DEG, pelvis_list=(2.0 + 2.0 * v) * DEG,
         lean=(2.0 + 2.0 * v * forward) * DEG, thorax_rotation=(1.0 + 2.0 * v * forward) * DEG,
