@@ -321,3 +321,35 @@ def test_toes_and_markers_stay_above_the_floor(name):
         assert z.min() > -1e-6
     # skin markers sit on top of the skin: never below the floor, even with noise
     assert np.nanmin(cap.trial.markers[..., 2]) > 0.005
+
+
+@pytest.mark.parametrize("name", sorted(TYPES))
+def test_swing_foot_clears_the_floor(name):
+    """Mid-swing (the middle half of each swing, judged from the true events), the lowest sole
+    point is at least 1 cm up: the foot is carried, not dragged."""
+    cap = capture(name)
+    time = cap.trial.time
+    for side, context in (("l", "Left"), ("r", "Right")):
+        low = _soles(cap, side)[..., 2].min(axis=1)
+        offs = [e.time_s for e in cap.trial.events if e.context == context
+                and e.label == "Foot Off"]
+        strikes = [e.time_s for e in cap.trial.events if e.context == context
+                   and e.label == "Foot Strike"]
+        for off in offs:
+            after = [s for s in strikes if s > off]
+            if not after:
+                continue
+            span = after[0] - off
+            mid = (time > off + span / 4) & (time < after[0] - span / 4)
+            assert low[mid].min() > 0.01, f"{name}: {side} foot drags in swing"
+
+
+def test_running_joint_patterns_are_human():
+    """Running at 3 m/s (Novacheck 1998): swing knee flexion ~90-110°, stance knee ~35-55°."""
+    cap = capture("run")
+    q = cap.body.q / DEG
+    for col, side in enumerate("lr"):
+        knee = q[:, DOF_NAMES.index(f"knee_flexion_{side}")]
+        stance = cap.body.contact[:, col] != 0
+        assert 80 <= knee.max() <= 130
+        assert 30 <= knee[stance].max() <= 60
