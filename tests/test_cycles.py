@@ -180,5 +180,7 @@ def test_cli_cycles_json(capsys):
                 "fourier_rms_deg", "chosen"} <= set(row)
         assert row["pattern"]["type"] == "arc" and row["pattern"]["arc_angle"] > 0
         np.testing.assert_allclose(row["omega"], 0.5, atol=0.02)  # 1.0 m/s on a 2 m radius
+        # fitted shoulder centres: the 0.02 m/s on v_l (truth 0 to 1e-3)
+        np.testing.assert_allclose(row["v_l"], 0.0, atol=0.02)
         assert row["fourier_n"] >= 1
     assert sum(row["chosen"] for row in out["cycles"]) == 1

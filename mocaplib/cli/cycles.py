@@ -17,7 +17,8 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "cycles", help="cut a capture into cycles: pattern, v, omega, v_l, Fourier order",
         description="Cut a capture at consecutive left toe-offs; for every cycle fit a line or "
-                    "arc to the shoulder-midpoint path, measure v, omega, v_l, v_f, encode the "
+                    "arc to the path of the midpoint of the fitted shoulder joint centres, "
+                    "measure v, omega, v_l, v_f, encode the "
                     "fitted joint angles as Fourier series, and mark the steadiest cycle as "
                     "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
                     "the capture cannot be processed, 2 on usage errors.")
@@ -32,7 +33,7 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..calibrate import calibrate
-    from ..cycles import analyse_cycles, shoulders_of
+    from ..cycles import analyse_cycles, shoulder_centres
     from ..ik import fit
     from ..io.c3d import read_c3d
     from ._common import print_json
@@ -42,7 +43,7 @@ def _run(args) -> int:
     model = calibrate(trial, protocol=match.protocol,
                       static=read_c3d(args.static) if args.static else None)
     motion = fit(trial, model)
-    left, right = shoulders_of(trial, match)
+    left, right = shoulder_centres(motion)
     cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q, source=args.file)
     rows = [c.to_dict() for c in cycles]
     if args.json:
