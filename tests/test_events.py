@@ -170,10 +170,10 @@ def test_synthetic_captures_toe_offs_within_one_frame():
     everything = np.concatenate([np.array(e) for e in by_type.values()])
     # the target over all synthetic toe-offs: >= 95 % within one frame
     assert np.mean(everything <= 1.0) >= 0.95, within
-    # per locomotion type the README reports the figures; slow on-the-spot steps (small lift
-    # velocity) are the weakest: none may fall below 70 %, and none may be missed entirely
-    assert min(within.values()) >= 0.70, within
-    assert np.all(np.isfinite(everything))
+    # per locomotion type (15-45 toe-offs each) the README reports the figures (measured
+    # 93-100 %); 85 % leaves room for one unlucky event per type as the samples are remade
+    assert min(within.values()) >= 0.85, within
+    assert everything.max() <= 3.0  # none missed, none far off
 
 
 def sample_file(name):
