@@ -353,3 +353,11 @@ def test_running_joint_patterns_are_human():
         stance = cap.body.contact[:, col] != 0
         assert 80 <= knee.max() <= 130
         assert 30 <= knee[stance].max() <= 60
+
+
+def test_bad_settings_raise_synth_error():
+    from mocaplib.synth import Subject
+    with pytest.raises(SynthError, match="marker settings must be >= 0"):
+        MarkerSettings(noise_sd=-0.001)
+    with pytest.raises(SynthError, match="out of range"):
+        Subject(height=1.75, mass=-3.0)

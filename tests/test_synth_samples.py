@@ -105,3 +105,18 @@ def test_cli_generates_and_reports_bad_plans(tmp_path, capsys):
                    'speed = 1.0 }\nduration = 3\nseed = 1\n')
     with pytest.raises(SynthError, match="capture 'odd': a curve needs a radius"):
         load_plan(bad)
+
+
+@pytest.mark.parametrize("entry, message", [
+    ('command = { v_f = 1.0, speed = 2 }', "capture 'x': command keys .* mix or miss"),
+    ('command = { kind = "straight", speed = 1.2 }\nmarkers = { noise = 1 }',
+     "capture 'x': unknown marker settings"),
+    ('command = { kind = "straight", speed = 1.2 }\nmarkers = { gaps = -1 }',
+     "capture 'x': marker settings must be >= 0"),
+    ('command = { kind = "straight", speed = "fast" }', "capture 'x': bad value"),
+])
+def test_plan_errors_name_the_capture(tmp_path, entry, message):
+    bad = tmp_path / "plan.toml"
+    bad.write_text(f'[[capture]]\nname = "x"\nclass = "c"\nduration = 3\nseed = 1\n{entry}\n')
+    with pytest.raises(SynthError, match=message):
+        load_plan(bad)

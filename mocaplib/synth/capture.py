@@ -51,6 +51,11 @@ class Subject:
     height: float = 1.75
     mass: float = 70.0
 
+    def __post_init__(self):
+        if not (0.5 < self.height < 2.6 and 10.0 < self.mass < 400.0):
+            raise SynthError(f"subject height {self.height} m / mass {self.mass} kg out of range",
+                             hint="height in (0.5, 2.6) m, mass in (10, 400) kg")
+
 
 @dataclass
 class SynthCapture:

@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..errors import SynthError
 from ..protocols import Protocol
 from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from .body import BodyMotion
@@ -61,6 +62,12 @@ class MarkerSettings:
     gaps: int = 0
     max_gap_s: float = 0.3
     swap: bool = False
+
+    def __post_init__(self):
+        values = asdict(self)
+        bad = {k: v for k, v in values.items() if k != "swap" and not (v >= 0)}
+        if bad or not isinstance(self.gaps, int):
+            raise SynthError(f"marker settings must be >= 0 (gaps a whole number), got {bad}")
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -60,32 +60,26 @@ class Plan:
     path: str
 
 
-def _command(spec, where: str, path: str) -> Command:
+def _command(spec) -> Command:
+    """A command from a plan's inline table (either form); raises SynthError."""
     if not isinstance(spec, dict):
-        raise SynthError(f"{where}: command must be a table", path=path)
+        raise SynthError("command must be a table")
     keys = set(spec)
-    try:
-        if keys <= _COMMAND_KEYS:
-            return Command(**{k: (v if k == "gait" else float(v)) for k, v in spec.items()})
-        if "kind" in keys and keys <= _KIND_KEYS:
-            kind = spec["kind"]
-            options = {k: (v if k == "side" else float(v)) for k, v in spec.items()
-                       if k != "kind"}
-            return Command.from_kind(kind, **options)
-    except SynthError as exc:
-        raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
-    except (TypeError, ValueError) as exc:
-        raise SynthError(f"{where}: bad command value ({exc})", path=path) from None
-    raise SynthError(f"{where}: command keys {sorted(keys)} mix or miss the two forms",
-                     path=path, hint="use { kind, speed, radius|direction, side } or "
-                                     "{ v_f, v_l, omega, gait }")
+    if keys <= _COMMAND_KEYS:
+        return Command(**{k: (v if k == "gait" else float(v)) for k, v in spec.items()})
+    if "kind" in keys and keys <= _KIND_KEYS:
+        options = {k: (v if k == "side" else float(v)) for k, v in spec.items() if k != "kind"}
+        return Command.from_kind(spec["kind"], **options)
+    raise SynthError(f"command keys {sorted(keys)} mix or miss the two forms",
+                     hint="use { kind, speed, radius|direction, side } or "
+                          "{ v_f, v_l, omega, gait }")
 
 
-def _markers(spec, where: str, path: str) -> MarkerSettings:
+def _markers(spec) -> MarkerSettings:
     names = {f.name for f in fields(MarkerSettings)}
     unknown = set(spec) - names
     if unknown:
-        raise SynthError(f"{where}: unknown marker settings {sorted(unknown)}", path=path,
+        raise SynthError(f"unknown marker settings {sorted(unknown)}",
                          hint=f"settings are {', '.join(sorted(names))}")
     return MarkerSettings(**spec)
 
@@ -122,11 +116,12 @@ def load_plan(path: str | os.PathLike) -> Plan:
         try:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
             captures.append(PlannedCapture(
-                name, str(entry["class"]), _command(entry["command"], where, path),
+                name, str(entry["class"]), _command(entry["command"]),
                 float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
                 str(get("protocol", "fullbody38")),
-                _markers({**defaults.get("markers", {}), **entry.get("markers", {})}, where,
-                         path)))
+                _markers({**defaults.get("markers", {}), **entry.get("markers", {})})))
+        except SynthError as exc:
+            raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
         except (TypeError, ValueError) as exc:
             raise SynthError(f"{where}: bad value ({exc})", path=path) from None
     return Plan(str(data.get("name", Path(path).stem)), str(data.get("description", "")),
