@@ -45,6 +45,8 @@ _LEG_DOFS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion",
 #: Shoulder-girdle motion of the glenohumeral centre in the torso frame, metres for a 1.75 m
 #: subject: forward per unit sin(shoulder flexion), up per unit sin(shoulder abduction).
 GIRDLE_PROTRACTION, GIRDLE_ELEVATION = 0.02, 0.012
+#: Period of the postural sway of a standing subject, s.
+SWAY_PERIOD_S = 4.5
 
 
 @dataclass
@@ -75,7 +77,7 @@ class BodyMotion:
 
 def _phase(params: GaitParameters, t: np.ndarray) -> np.ndarray:
     if params.gait == "stand":
-        return 2 * np.pi * t / 4.5                      # slow postural sway
+        return 2 * np.pi * t / SWAY_PERIOD_S
     return 2 * np.pi * (t - params.t_left) / params.stride
 
 
@@ -175,7 +177,7 @@ def _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side):
 def _stride_grid(params: GaitParameters, samples: int = 200) -> np.ndarray:
     """Times covering one period of the motion uniformly (one stride; the sway when standing)."""
     if params.gait == "stand":
-        return 4.5 * np.arange(samples) / samples
+        return SWAY_PERIOD_S * np.arange(samples) / samples
     return params.t_left + params.stride * np.arange(samples) / samples
 
 
