@@ -119,7 +119,8 @@ def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subj
                       "lead_s": LEAD_S, "markers": markers.as_dict(), **record},
         "events": [{"side": {"l": "left", "r": "right"}[s],
                     "kind": "heel_strike" if lab == "Foot Strike" else "toe_off",
-                    "context": _SIDE_NAME[s], "label": lab, "time_s": tm, "frame": tm * rate}
+                    "context": _SIDE_NAME[s], "label": lab, "time_s": tm,
+                    "frame": int(round(tm * rate))}
                    for s, lab, tm in events],
         "cycles": cycles,
         "segment_lengths": skeleton.lengths,
