@@ -57,13 +57,13 @@ def main() -> int:
 
     one, result = timed_build([args.samples], 1, args.repeat)
     two, result2 = timed_build([args.samples], 2, args.repeat)
-    assert result.library.to_json() == result2.library.to_json(), "jobs=2 changed the library"
+    same = result.library.to_json() == result2.library.to_json()
     n = len(captures)
     print(f"\njobs  wall_s  captures/s   (ok {sum(c.ok for c in result.captures)}, "
           f"entries {len(result.library)})")
     print(f"1     {one:6.1f}  {n / one:10.2f}")
     print(f"2     {two:6.1f}  {n / two:10.2f}")
-    print(f"speed-up jobs=2 / jobs=1: {one / two:.2f}x")
+    print(f"speed-up jobs=2 / jobs=1: {one / two:.2f}x; byte-identical libraries: {same}")
 
     totals = {s: sum(c.stage_times.get(s, 0.0) for c in result.captures) for s in STAGES}
     frames = sum(c.n_frames for c in result.captures)
