@@ -2,6 +2,8 @@
 
     /work/venv/bin/python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR]
 
+Forward kinematics: the tests' gait-like walk (``tests/fk_data.py``) with markers on the
+catalogue landmarks, 6 mm soft-tissue artefact and 1 mm noise, ``--fk-seeds`` subjects.
 Synthetic (every ``*.c3d`` with a ``.truth.json`` beside it): per capture, calibrated from the
 capture itself, each DOF's joint-angle RMS error against the truth, in degrees, summarised per
 locomotion class for the flexions (hip, knee, ankle) and the other rotations; "tracking" is the
@@ -77,6 +79,24 @@ def synthetic(folder: Path) -> None:
               f"({worst[DOF_NAMES[j]][1]})")
 
 
+def forward_kinematics(seeds: int) -> None:
+    """The tests' FK walk (markers on the landmarks, 6 mm soft tissue, 1 mm noise), 300 frames."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from fk_data import fk_trial
+
+    flex, other, marker = [], [], []
+    for seed in range(seeds):
+        cap = fk_trial(n_frames=300, placement_mm=0, sta_mm=6, noise_mm=1, seed=seed)
+        motion = fit(cap.trial, calibrate(cap.trial))
+        rms = np.degrees(np.sqrt(((motion.q - cap.q) ** 2).mean(axis=0)))
+        flex.append(rms[FLEXION])
+        other.append(rms[OTHER])
+        marker.append(fit_quality(motion)["marker_rms_mm"])
+    flex, other = np.array(flex), np.array(other)
+    print(f"| forward-kinematics walk | {seeds} | {flex.mean():.2f} / {flex.max():.2f} | "
+          f"{other.mean():.2f} / {other.max():.2f} | {np.mean(marker):.1f} |")
+
+
 def real(folder: Path) -> None:
     print("| file | protocol | markers | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | seconds |")
@@ -106,8 +126,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--synth", default=str(ROOT / "sample_c3d"))
     parser.add_argument("--real", default=str(ROOT.parent / "shared" / "data" / "c3d"))
+    parser.add_argument("--fk-seeds", type=int, default=5)
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
+    print("| data | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
+          "| marker RMS (mm) |\n|---|---|---|---|---|")
+    forward_kinematics(args.fk_seeds)
+    print()
     if Path(args.synth).is_dir():
         synthetic(Path(args.synth))
         print()

@@ -2,8 +2,10 @@
 
 One run: calibrate the subject with mocaplib, export the model (.osim) and the markers (.trc),
 then solve every frame with OpenSim's IK (all markers weight 1, coordinate ranges clamped,
-accuracy 1e-5) and with ``mocaplib.ik.fit``; print each one's frames/s, the speed ratio and
-both joint-angle RMS errors against the truth.
+accuracy 1e-5) and with ``mocaplib.ik.fit``, alternately ``--repeat`` times each on one thread
+(fastest CPU time of the solve, so that other jobs on a shared machine do not skew the ratio);
+print each one's frames/s, the speed ratio and both joint-angle RMS errors
+against the truth.
 
 Data: a synthetic capture with ground truth (``--c3d FILE`` with ``FILE.truth.json`` beside it,
 as mocaplib.synth writes them), or by default the tests' forward-kinematics walk (gait-like
@@ -18,12 +20,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+# one core each: OpenSim's IK is single-threaded, and BLAS threads only fight on a busy machine
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
@@ -47,9 +54,10 @@ def load_capture(args):
         truth_path = Path(args.c3d).with_suffix(".truth.json")
         truth = json.loads(truth_path.read_text()) if truth_path.exists() else None
         q = None
-        if truth is not None and "angles" in truth:
+        if truth is not None:
             angles = truth["angles"]
-            q = np.column_stack([np.asarray(angles[name], float) for name in DOF_NAMES])
+            values = np.asarray(angles["values"], dtype=float)
+            q = values[:, [angles["dof_names"].index(name) for name in DOF_NAMES]]
         return trial, q
     from fk_data import fk_trial
 
@@ -78,9 +86,9 @@ def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path
         task.setWeight(1.0)
         task.setApply(True)
         tasks.cloneAndAppend(task)
-    start = time.perf_counter()
+    start = time.process_time()
     tool.run()
-    seconds = time.perf_counter() - start
+    seconds = time.process_time() - start
     return seconds, read_mot(out)
 
 
@@ -108,21 +116,26 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--c3d", help="synthetic capture with a .truth.json beside it")
+    parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
 
     trial, truth = load_capture(args)
     model = calibrate(trial)
+    osim_times, our_times = [], []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         from mocaplib.ik import model_markers
 
         write_osim(model, tmp / "model.osim")
         write_trc(model_markers(trial, model), model.labels, trial.rate, tmp / "markers.trc")
-        t_osim, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc", model.labels,
-                                     trial.duration, tmp / "ik.mot")
-    start = time.perf_counter()
-    motion = fit(trial, model)
-    t_ours = time.perf_counter() - start
+        for _ in range(args.repeat):
+            seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc",
+                                          model.labels, trial.duration, tmp / "ik.mot")
+            osim_times.append(seconds)
+            start = time.process_time()
+            motion = fit(trial, model)
+            our_times.append(time.process_time() - start)
+    t_osim, t_ours = min(osim_times), min(our_times)
     n = trial.n_frames
     print(f"capture: {trial.source}  frames: {n}  markers: {len(model.labels)}  "
           f"protocol: {model.protocol.name}")

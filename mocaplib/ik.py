@@ -26,7 +26,6 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .errors import FitError
 from .motion import Motion, angles_frame
@@ -71,7 +70,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 offsets: np.ndarray, /, *, q0: np.ndarray | None = None,
                 free: np.ndarray | None = None, weights: np.ndarray | None = None,
                 robust_scale: float = ROBUST_SCALE, smoothing: float = SMOOTHING,
-                max_iter: int = 40, tol: float = 1e-5, step_tol: float = 1e-4) -> PoseFit:
+                max_iter: int = 40, tol: float = 1e-4, step_tol: float = 5e-4) -> PoseFit:
     """Fit joint coordinates to markers for every frame at once.
 
     Parameters
@@ -99,7 +98,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     w_marker = np.where(valid, w_marker, 0.0)
     q = initial_pose(skeleton, markers, segments, offsets) if q0 is None else np.array(q0, float)
     q = np.clip(q, _LOWER, _UPPER)
-    fidx = np.flatnonzero(free)
+    n_dofs = len(DOF_NAMES)
+    diagonal = (slice(None), np.arange(n_dofs), np.arange(n_dofs))
     lam = np.full(n_frames, 1e-3)
     active = np.ones(n_frames, dtype=bool)
     mu2 = smoothing ** 2
@@ -107,7 +107,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     def cost(q_rows, rows, q_ref):
         d = np.linalg.norm(target[rows] - skeleton.points(q_rows, segments, offsets), axis=2)
         return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            (q_rows[:, fidx] - q_ref[:, fidx]) ** 2).sum(axis=1)
+            ((q_rows - q_ref) * free) ** 2).sum(axis=1)
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -119,34 +119,31 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         pts, jac = skeleton.marker_jacobian(qa, segments, offsets)
         r = target[rows] - pts
         d = np.linalg.norm(r, axis=2)
-        w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
-        Jf = jac[..., fidx].reshape(rows.size, n_markers * 3, fidx.size)
-        wr = np.repeat(w, 3, axis=1)
-        JtW = Jf.transpose(0, 2, 1) * wr[:, None, :]
-        A = JtW @ Jf
-        g = (JtW @ r.reshape(rows.size, -1, 1))[..., 0] - mu2 * (qa[:, fidx] - q_ref[:, fidx])
-        A[:, np.arange(fidx.size), np.arange(fidx.size)] += mu2
-        # DOFs on a bound whose gradient points outwards leave the step (active set)
-        held = (((qa[:, fidx] <= _LOWER[fidx] + 1e-12) & (g < 0))
-                | ((qa[:, fidx] >= _UPPER[fidx] - 1e-12) & (g > 0)))
+        sqrt_w = np.sqrt(w_marker[rows] * _soft_l1_weight(d, robust_scale))   # IRLS weights
+        Jw = (jac * sqrt_w[:, :, None, None]).reshape(rows.size, n_markers * 3, n_dofs)
+        JwT = Jw.transpose(0, 2, 1)
+        A = JwT @ Jw
+        g = (JwT @ (r * sqrt_w[..., None]).reshape(rows.size, -1, 1))[..., 0] \
+            - mu2 * (qa - q_ref)
+        A[diagonal] += mu2
+        # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
+        held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))
         A *= ~held[:, :, None] & ~held[:, None, :]
-        A[:, np.arange(fidx.size), np.arange(fidx.size)] += held
+        A[diagonal] += held
         g[held] = 0.0
-        diag = np.einsum("fii->fi", A).copy()
+        diag = A[diagonal].copy()
         c0 = (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            (qa[:, fidx] - q_ref[:, fidx]) ** 2).sum(axis=1)
+            ((qa - q_ref) * free) ** 2).sum(axis=1)
         # a few damping trials per iteration: frames whose step fails raise their damping
         todo = np.ones(rows.size, dtype=bool)
         for _ in range(4):
             k = np.flatnonzero(todo)
             if k.size == 0:
                 break
-            Ak = A[k].copy()
-            Ak[:, np.arange(fidx.size), np.arange(fidx.size)] += lam[rows[k], None] * (
-                diag[k] + 1e-9)
+            Ak = A[k]
+            Ak[diagonal] += lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
-            trial_q = qa[k].copy()
-            trial_q[:, fidx] = np.clip(trial_q[:, fidx] + step, _LOWER[fidx], _UPPER[fidx])
+            trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
             c1 = cost(trial_q, rows[k], q_ref[k])
             better = c1 <= c0[k]
             good = k[better]
@@ -261,15 +258,20 @@ def _kabsch(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _joint_angles(R: np.ndarray, axes: list[tuple[float, float, float]]) -> np.ndarray:
-    """Angles about the signed unit ``axes`` (1-3 of ±X/±Y/±Z, intrinsic order) closest to R."""
-    letters, signs = [], []
-    for axis in axes:
-        k = int(np.argmax(np.abs(axis)))
-        letters.append("XYZ"[k])
-        signs.append(float(np.sign(axis[k])))
-    order = "".join(letters) + "".join(c for c in "XYZ" if c not in letters)
-    angles = Rotation.from_matrix(R).as_euler(order[:3])
-    return angles[:, :len(axes)] * np.array(signs)
+    """Angles about the signed unit ``axes`` (1-3 of ±X/±Y/±Z, intrinsic order) closest to R.
+
+    R (F, 3, 3) is read as the Tait-Bryan sequence R_i(a) R_j(b) R_k(c) over the axes' letters
+    (completed with the unused ones): with e = +1 for a cyclic order (XYZ, YZX, ZXY), else -1,
+    b = asin(e R_ik), a = atan2(-e R_jk, R_kk), c = atan2(-e R_ij, R_ii). Returns (F, len(axes)).
+    """
+    letters = [int(np.argmax(np.abs(axis))) for axis in axes]
+    signs = np.array([float(np.sign(axis[k])) for axis, k in zip(axes, letters)])
+    i, j, k = letters + [c for c in range(3) if c not in letters][:3 - len(letters)]
+    e = 1.0 if (j - i) % 3 == 1 else -1.0
+    b = np.arcsin(np.clip(e * R[:, i, k], -1.0, 1.0))
+    a = np.arctan2(-e * R[:, j, k], R[:, k, k])
+    c = np.arctan2(-e * R[:, i, j], R[:, i, i])
+    return np.column_stack([a, b, c])[:, :len(axes)] * signs
 
 
 def _fill_gaps(values: np.ndarray) -> np.ndarray:

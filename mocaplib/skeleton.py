@@ -334,12 +334,19 @@ class Skeleton:
         segments = np.asarray(segments, dtype=int)
         T, axes, pivots = self._chain(q)
         Ts = T[:, segments]
-        pts = np.einsum("fmij,mj->fmi", Ts[..., :3, :3], np.asarray(offsets, float)) + Ts[..., :3, 3]
-        # axis x (point - pivot) = point x (-axis) - axis x pivot, as one batched matmul
-        moment = np.cross(axes, pivots)                                          # (F, D, 3)
-        jac = _skew(pts) @ -axes.transpose(0, 2, 1)[:, None] - moment.transpose(0, 2, 1)[:, None]
-        jac[..., _TRANSLATION] = axes[:, None, _TRANSLATION].transpose(0, 1, 3, 2)
-        jac *= MOVES[segments][None, :, None, :]
+        pts = (Ts[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + Ts[..., :3, 3]
+        # a DOF moves the points of its segment's subtree by axis x (point - pivot) (rotation)
+        # or along its axis (translation); the other entries are zero
+        jac = np.zeros(pts.shape[:2] + (3, axes.shape[1]))
+        for s in np.unique(segments):
+            rows = np.flatnonzero(segments == s)
+            rot = np.flatnonzero(MOVES[s] & ~_TRANSLATION)
+            trans = np.flatnonzero(MOVES[s] & _TRANSLATION)
+            lever = pts[:, rows, None, :] - pivots[:, None, rot, :]             # (F, m, d, 3)
+            block = np.cross(axes[:, None, rot, :], lever)
+            # (advanced indices first: the assigned block is laid out (m, d, F, 3))
+            jac[:, rows[:, None], :, rot[None, :]] = block.transpose(1, 2, 0, 3)
+            jac[:, rows[:, None], :, trans[None, :]] = axes[None, :, trans, :].transpose(0, 2, 1, 3)
         return pts, jac
 
     def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -358,15 +365,7 @@ class Skeleton:
         ndarray, shape (F, M, 3), metres.
         """
         T = self.forward(q)[:, np.asarray(segments, dtype=int)]
-        return np.einsum("fmij,mj->fmi", T[..., :3, :3], np.asarray(offsets, float)) + T[..., :3, 3]
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices of vectors (..., 3): shape (..., 3, 3), ``_skew(a) @ b = a x b``."""
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return out
+        return (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
 
 
 def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:
