@@ -361,3 +361,18 @@ def test_bad_settings_raise_synth_error():
         MarkerSettings(noise_sd=-0.001)
     with pytest.raises(SynthError, match="out of range"):
         Subject(height=1.75, mass=-3.0)
+
+
+def test_toe_markers_bend_with_the_toe_joint_the_fit_does_not_have():
+    from mocaplib.protocols import load_protocol
+    protocol = load_protocol("plugin_gait_ofm")
+    cap = synthesize(TYPES["straight_normal"], duration=2.6, seed=2, protocol="plugin_gait_ofm",
+                     markers=MarkerSettings(placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0))
+    segments, offsets = protocol.nominal_offsets(1.75)
+    fk = cap.skeleton.points(cap.body.q, segments, offsets)
+    hallux = cap.trial.labels.index("LHLX")
+    gap = np.linalg.norm(cap.trial.markers[:, hallux] - fk[:, hallux], axis=1)
+    toe = cap.body.toe[:, 0]
+    assert gap[toe == 0].max() < 1e-9          # toes straight: the rigid foot's point
+    assert gap[toe > 0.3].min() > 0.01         # toes bent at push-off: centimetres away
+    assert cap.trial.markers[:, hallux, 2].min() > 0.0

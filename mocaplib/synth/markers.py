@@ -14,8 +14,9 @@ soft tissue
     ``soft_tissue`` scales the gains (default 1; 0 turns it off); they also scale with the
     subject's body-mass index relative to 22.9 kg/m² (more soft tissue, more artefact).
 richer body
-    Markers feel the joints the fitting skeleton lacks: the hallux marker the toe joint, the
-    finger marker the wrist, arm and acromion markers the shoulder girdle.
+    Markers feel the joints the fitting skeleton lacks: markers on the toes (past the
+    metatarsal heads: hallux, 2nd toe) the toe joint, the finger marker the wrist, arm and
+    acromion markers the shoulder girdle.
 noise
     White measurement noise, ``noise_sd`` (default 0.7 mm) per coordinate.
 gaps
@@ -113,7 +114,7 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
         if name.endswith("_FINGER"):
             local[:, m] = _rotate_about_y(local[:, m], np.array([0, 0, -forearm]),
                                           body.wrist[:, col])
-        elif name.endswith("_HALLUX"):
+        elif seg_name.startswith("foot") and nominal[m, 0] > geom.mtp + 0.01:   # on the toes
             local[:, m] = _rotate_about_y(local[:, m], np.array([geom.mtp, 0, -geom.ankle_height]),
                                           body.toe[:, col])
         gain, dofs = SOFT_TISSUE[seg_name.rsplit("_", 1)[0]]
