@@ -24,12 +24,11 @@ running, overground or on a treadmill:
 5. **Refinement.** Both times move to the *kink* of the unfiltered positions: the knot of a
    curve quadratic on each side and continuous at the knot (velocity and acceleration may jump
    there), fitted on a window around the coarse time and re-centred until it stays put.
-   Sub-frame, and free of the low-pass filter's smearing (2-3 frames). Heel-strike uses the
-   touching point's height (a landing foot rocks onto its sole and moves its heel marker
-   sideways a moment later). Toe-off takes the median of three kinks: of the last point to
-   leave (usually the toe) in 3-D, of its height alone, and of heel and toe together (the rear
-   foot leaves as one body); each alone is thrown off now and then (a turning foot's horizontal
-   path has kinks of its own; the heel accelerates on its own schedule), their median is not.
+   Sub-frame, and free of the low-pass filter's smearing (2-3 frames). Each time is the median
+   of three kinks: of the point that left last (toe-off) or touched first (heel-strike) in
+   3-D, of its height alone, and of heel and toe together (the rear foot moves as one body);
+   each alone is thrown off now and then (a turning foot's horizontal path has kinks of its
+   own; a landing foot rocks its markers onto the sole a moment later), their median is not.
 
 **Two definitions of toe-off** (``toe_off=``). A real foot leaves the floor in two steps: the
 forefoot (where the toe marker sits, on the metatarsal heads) lifts first, the toes ~40 ms later
@@ -161,14 +160,12 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
             t = _peak_time(centre_velocity[:, 2], max(before, start - window), top + 1)
             if t is not None:
                 last = int(np.argmin(heights[:, start]))  # the point that left last
-                early = TOE_OFF_SEARCH[toe_off]
-                t = float(np.median([_refined(signal, t, half, early=early) for signal in
-                                     (raw[last], raw[last, :, 2], raw.transpose(1, 0, 2))]))
+                t = _median_kink(raw, last, t, half, early=TOE_OFF_SEARCH[toe_off])
                 events.append(_event(side, "toe_off", t / rate, measured, rate))
         if end < len(clearance) and np.isfinite(clearance[end]):
             first = int(np.argmin(heights[:, end]))  # the point that touched first
             t = _arrival_time(speeds[first], top, end, min(after, end + window), window)
-            t = _refined(raw[first, :, 2], float(end) if t is None else t, half)
+            t = _median_kink(raw, first, float(end) if t is None else t, half)
             events.append(_event(side, "heel_strike", t / rate, measured, rate))
     return events
 
@@ -366,6 +363,14 @@ def _refined(values: np.ndarray, coarse: float, half: int, rounds: int = 4,
             return time if fine is None else fine
         time = fine
     return time
+
+
+def _median_kink(raw: np.ndarray, point: int, coarse: float, half: int, *,
+                 early: float = 0.5) -> float:
+    """Median of the refined times (frames) from ``raw[point]`` (F, 3), its height, and both
+    points together; ``raw`` is (2, F, 3) unfiltered heel and toe."""
+    return float(np.median([_refined(signal, coarse, half, early=early) for signal in
+                            (raw[point], raw[point, :, 2], raw.transpose(1, 0, 2))]))
 
 
 def _event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float) -> GaitEvent:
