@@ -391,13 +391,24 @@ def landmark_labels(match, /) -> dict[str, str]:
             if match.indices[j] >= 0}
 
 
-def feet_of(trial, match, /) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{"left": (heel, toe), "right": ...}`` (F, 3) m from a trial's protocol-matched markers.
 
     ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the first present of
-    :data:`FOOT_LANDMARKS`. Raises :class:`EventError` naming the missing landmark.
+    :data:`FOOT_LANDMARKS`. With a fitted ``motion`` (:class:`mocaplib.Motion`), samples where a
+    marker is missing are taken from the fitted skeleton's position of that marker. Raises
+    :class:`EventError` naming the missing landmark.
     """
     present = landmark_labels(match)
+    modelled = motion.model_markers() if motion is not None else None
+
+    def track(label):
+        points = match.marker(trial, label)
+        if modelled is not None and label in motion.marker_labels:
+            model_points = modelled[:, motion.marker_labels.index(label)]
+            points = np.where(np.isnan(points), model_points, points)
+        return points
+
     feet = {}
     for side, (heel, toes) in FOOT_LANDMARKS.items():
         toe = next((name for name in toes if name in present), None)
@@ -406,5 +417,5 @@ def feet_of(trial, match, /) -> dict[str, tuple[np.ndarray, np.ndarray]]:
             raise EventError(f"no {side} {what} marker in protocol {match.protocol.name!r}",
                              path=trial.source,
                              hint="gait events need a heel and a toe marker on each foot")
-        feet[side] = (match.marker(trial, present[heel]), match.marker(trial, present[toe]))
+        feet[side] = (track(present[heel]), track(present[toe]))
     return feet

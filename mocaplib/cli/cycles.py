@@ -2,8 +2,9 @@
 velocities and Fourier order, and the one chosen for the library.
 
 Parses options and formats; the work is done by the stages: import, protocol, calibration, fit
-(:mod:`mocaplib.calibrate`, :mod:`mocaplib.ik`), events (as ``mocaplib events``) and
-:func:`mocaplib.cycles.analyse_cycles`.
+(:mod:`mocaplib.calibrate`, :mod:`mocaplib.ik`), events (as ``mocaplib events``, with missing
+foot-marker samples taken from the fitted skeleton) and :func:`mocaplib.cycles.analyse_cycles`
+on the fitted shoulder joint centres.
 """
 
 from __future__ import annotations
@@ -37,12 +38,13 @@ def _run(args) -> int:
     from ..ik import fit
     from ..io.c3d import read_c3d
     from ._common import print_json
-    from .events import detect
+    from .events import detect, load
 
-    trial, match, events = detect(args)
+    trial, match = load(args)
     model = calibrate(trial, protocol=match.protocol,
                       static=read_c3d(args.static) if args.static else None)
     motion = fit(trial, model)
+    events = detect(args, trial, match, motion)
     left, right = shoulder_centres(motion)
     cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q, source=args.file)
     rows = [c.to_dict() for c in cycles]

@@ -32,25 +32,30 @@ def add_common_options(parser) -> None:
                              "close to a force plate's Foot Off)")
 
 
-def detect(args):
-    """(trial, protocol match, events) of ``args.file`` with the options of
-    :func:`add_common_options`."""
-    from ..events import detect_events, feet_of
+def load(args):
+    """(trial, protocol match) of ``args.file`` with ``args.protocol``."""
     from ..io.c3d import read_c3d
     from ..protocols import detect_protocol, load_protocol, match_protocol
 
     trial = read_c3d(args.file)
     match = (detect_protocol(trial) if args.protocol == "auto"
              else match_protocol(trial, load_protocol(args.protocol)))
-    events = detect_events(feet_of(trial, match), trial.rate, toe_off=args.toe_off,
-                           source=args.file)
-    return trial, match, events
+    return trial, match
+
+
+def detect(args, trial, match, motion=None):
+    """Events of ``trial`` from its foot markers (gaps filled from ``motion`` when given)."""
+    from ..events import detect_events, feet_of
+
+    return detect_events(feet_of(trial, match, motion=motion), trial.rate,
+                         toe_off=args.toe_off, source=args.file)
 
 
 def _run(args) -> int:
     from ._common import print_json
 
-    trial, match, events = detect(args)
+    trial, match = load(args)
+    events = detect(args, trial, match)
     if args.json:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
