@@ -45,6 +45,9 @@ MIN_PELVIS_MARKERS = 2
 MIN_MARKERS = 6
 #: Frames with a marker RMS above this many times the median are re-solved from neighbours.
 RESTART_FACTOR = 3.0
+#: A marker this far (m) from its model position is taken as mislabelled in that frame: the
+#: frame is fitted again without it (its residual is still reported).
+GROSS_ERROR = 0.08
 #: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
 CHUNK = 1000
 
@@ -301,6 +304,10 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     max_iter : LM iterations per chunk of frames.
     chunk : frames solved together.
 
+    Frames are solved together from per-segment rigid fits; frames left with an outlying
+    marker RMS are re-solved from their neighbours' poses, and markers further than
+    :data:`GROSS_ERROR` from the model are dropped from their frame's fit.
+
     Returns
     -------
     Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than
@@ -325,6 +332,17 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                         model.marker_offsets, free=free, robust_scale=robust_scale,
                         smoothing=smoothing, max_iter=max_iter)
         res = _restart_outliers(solve, solve(q0=q0))
+        gross = res.residuals > GROSS_ERROR
+        if gross.any():         # a mislabelled or ghost marker: fit those frames without it
+            kept = np.where(gross[..., None], np.nan, markers[part])
+            again = solve_poses(model.skeleton, kept, model.marker_segments, model.marker_offsets,
+                                q0=res.q, free=free, robust_scale=robust_scale,
+                                smoothing=smoothing, max_iter=max_iter)
+            rows = gross.any(axis=1)
+            res.q[rows], res.converged[rows] = again.q[rows], again.converged[rows]
+            res.residuals[rows] = np.linalg.norm(
+                markers[part][rows] - model.skeleton.points(
+                    res.q[rows], model.marker_segments, model.marker_offsets), axis=2)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
     seen = np.isfinite(markers[..., 0])
     failed = ((seen[:, model.marker_segments == _ROOT].sum(axis=1) < MIN_PELVIS_MARKERS)
