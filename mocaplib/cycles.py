@@ -175,7 +175,7 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         encoding = None
         if q is not None:
             times = cycle_times(start, end, rate)
-            samples = _interpolate(q, rate, times)
+            samples = _interpolate(q, rate, times, source)
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
                                     tol_angle=tol_angle, tol_length=tol_length)
         cycles.append(Cycle(index, start, end, velocities,
@@ -217,7 +217,7 @@ def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -
     velocities = CycleVelocities(pattern, REST_PERIOD, 0.0, 0.0, 0.0, 0.0)
     encoding = None
     if q is not None:
-        samples = _interpolate(q, rate, times)
+        samples = _interpolate(q, rate, times, source)
         inside = times < REST_PERIOD
         encoding = encode_cycle(samples[inside], times[inside], REST_PERIOD, samples[0],
                                 tol_angle=tol_angle, tol_length=tol_length, max_order=0)
@@ -236,13 +236,16 @@ def _unwrapped(q: np.ndarray, n_frames: int, source) -> np.ndarray:
     return out
 
 
-def _interpolate(q: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
+def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> np.ndarray:
     """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
+    from .skeleton import DOF_NAMES
+
     frames = np.arange(len(q)) / rate
     out = np.empty((len(times), q.shape[1]))
     for d in range(q.shape[1]):
         valid = np.isfinite(q[:, d])
         if not valid.any():
-            raise EventError(f"joint coordinate {d} is missing in every frame")
+            raise EventError(f"joint coordinate {DOF_NAMES[d]} is missing in every frame",
+                             path=source, hint="check the fit: this DOF was never fitted")
         out[:, d] = np.interp(times, frames[valid], q[valid, d])
     return out

@@ -200,3 +200,13 @@ def test_cli_cycles_real_file_with_marker_gaps(capsys):
     assert len(cycles) >= 3
     for row in cycles:
         assert 1.2 <= row["v"] <= 1.6 and abs(row["omega"]) < 0.1
+
+
+def test_unfitted_dof_is_named():
+    left, right = shoulders(TIME, period=PERIOD)
+    q = np.zeros((len(TIME), len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("knee_flexion_r")] = np.nan
+    with pytest.raises(EventError, match="walk.c3d: joint coordinate knee_flexion_r is missing"):
+        analyse_cycles(events(), left, right, RATE, q=q, source="walk.c3d")
+    with pytest.raises(EventError, match=r"q must have shape \(500, 32\)"):
+        analyse_cycles(events(), left, right, RATE, q=q[:, :5])
