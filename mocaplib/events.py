@@ -61,7 +61,6 @@ SIDES = ("left", "right")
 #: Toe-off definitions (see the module docstring) and how far before the coarse time (in
 #: units of ``refine_s``) each searches for the kink.
 TOE_OFF_SEARCH = {"lift": 1.0, "foot_velocity": 0.5}
-KINDS = ("toe_off", "heel_strike")
 
 
 @dataclass(frozen=True)
