@@ -643,10 +643,28 @@ def _run(process, work: list[tuple[int, Path]], settings: BuildSettings, jobs: i
 
         # "spawn" rather than fork: the parent may hold threads (progress bar, BLAS).
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(jobs, len(work)), mp_context=context) as pool:
+        with _single_threaded_workers(), ProcessPoolExecutor(
+                max_workers=min(jobs, len(work)), mp_context=context) as pool:
             futures = {pool.submit(process, os.fspath(path), settings): i for i, path in work}
             for future in as_completed(futures):
                 yield futures[future], _collect(future.result, work, futures[future])
+
+
+#: Thread-count variables of the BLAS/OpenMP libraries numpy and scipy may use.
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextmanager
+def _single_threaded_workers():
+    """Worker processes started inside get one BLAS thread each (unless the user chose a
+    number): with one process per core, more threads only compete for the same cores."""
+    unset = [name for name in _THREAD_VARIABLES if name not in os.environ]
+    os.environ.update({name: "1" for name in unset})
+    try:
+        yield
+    finally:
+        for name in unset:
+            os.environ.pop(name, None)
 
 
 def _run_dask(process, work, settings, address: str):

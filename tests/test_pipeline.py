@@ -8,6 +8,7 @@ JSON "captures", so these tests are fast and do not depend on the fitting stages
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -321,3 +322,17 @@ def test_real_capture_failing_qc_is_dropped_or_waived(tmp_path):
     assert dropped.ok and dropped.entries == [] and dropped.n_cycles == kept.n_cycles
     assert any("left out of the library" in w for w in dropped.warnings)
     assert all(c["entry_id"] is None for c in dropped.diagnostics["cycles"])
+
+
+def report_blas_threads(path: str, settings: BuildSettings) -> CaptureResult:
+    """A per-capture function that reports its worker's BLAS thread setting as a warning."""
+    return CaptureResult(source=path, sha256=file_sha256(path),
+                         warnings=[f"threads={os.environ.get('OPENBLAS_NUM_THREADS')}"])
+
+
+def test_workers_get_one_blas_thread_and_the_parent_is_untouched(tmp_path, monkeypatch):
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    result = build([tmp_path / "caps"], jobs=2, progress=False, process=report_blas_threads)
+    assert [c.warnings for c in result.captures] == [["threads=1"], ["threads=1"]]
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
