@@ -281,11 +281,10 @@ class Library:
 
         Evaluates the library's Fourier formula; ``t`` beyond ``T`` repeats the cycle.
         """
+        from .fourier import synthesize
+
         a, b = self.coefficients(entry_id)
-        period = _float(self.entry(entry_id)["T"])
-        k = np.arange(a.shape[1])
-        phase = 2.0 * np.pi * np.outer(np.asarray(t, dtype=np.float64), k) / period
-        return np.cos(phase) @ a.T + np.sin(phase) @ b.T
+        return synthesize(a, b, _float(self.entry(entry_id)["T"]), np.asarray(t, dtype=float))
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:
