@@ -63,7 +63,7 @@ class FourierSeries:
         return synthesize(self.a, self.b, self.period, t)
 
 
-def synthesize(a: np.ndarray, b: np.ndarray, period, t) -> np.ndarray:
+def synthesize(a: np.ndarray, b: np.ndarray, period, t, /) -> np.ndarray:
     """Evaluate the series at times ``t``: vectorised over times and channels.
 
     ``a``, ``b``: (D, N+1); ``period``: T in seconds (> 0); ``t``: any shape, seconds from the

@@ -241,7 +241,7 @@ def _horizontal(xy) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------- velocities
-def shoulder_heading(left_shoulder: np.ndarray, right_shoulder: np.ndarray) -> np.ndarray:
+def shoulder_heading(left_shoulder: np.ndarray, right_shoulder: np.ndarray, /) -> np.ndarray:
     """θ_S = θ_lr + π/2 per frame (F,), rad, unwrapped; θ_lr = direction left → right shoulder."""
     lr = np.asarray(right_shoulder, dtype=np.float64) - np.asarray(left_shoulder, dtype=np.float64)
     return np.unwrap(np.arctan2(lr[:, 1], lr[:, 0]) + np.pi / 2)
@@ -276,7 +276,7 @@ def cycle_velocities(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate
                            float(v * np.mean(np.cos(relative))))
 
 
-def cycle_times(start_s: float, end_s: float, rate: float) -> np.ndarray:
+def cycle_times(start_s: float, end_s: float, rate: float, /) -> np.ndarray:
     """Sample times of a cycle: ``start_s``, the frame times strictly inside, ``end_s`` (s)."""
     first = int(np.floor(start_s * rate)) + 1
     last = int(np.ceil(end_s * rate)) - 1
