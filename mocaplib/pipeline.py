@@ -227,6 +227,7 @@ def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
     A landmark the protocol lacks is placed at its catalogue position on its segment, scaled
     to the subject's leg length.
     """
+    from .ik import model_markers
     from .protocols import REFERENCE_HEIGHT, load_landmarks
     from .skeleton import HEIGHT_PROPORTIONS, SEGMENT_NAMES
 
@@ -235,7 +236,7 @@ def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
     legs = ("thigh", "shank")
     height = (sum(model.skeleton.lengths[k] for k in legs)
               / sum(HEIGHT_PROPORTIONS[k] for k in legs))
-    measured = model_markers_of(trial, model)
+    measured = model_markers(trial, model)
     names = ("L_HEEL", "L_TOE", "R_HEEL", "R_TOE", "L_ACROMION", "R_ACROMION")
     segments, offsets, columns = [], [], []
     for name in names:
@@ -257,13 +258,6 @@ def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
             track[seen] = measured[seen, index]
         tracks[name] = track
     return tracks
-
-
-def model_markers_of(trial, model) -> np.ndarray:
-    """The trial's markers in the calibrated model's order, (F, M, 3) m, NaN where absent."""
-    from .ik import model_markers
-
-    return model_markers(trial, model)
 
 
 def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):
