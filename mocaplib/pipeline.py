@@ -491,11 +491,12 @@ class BuildResult:
                              "library": library_name, "captures": records}, DIAGNOSTICS_DIGITS)
 
     def write(self, path: str | os.PathLike) -> tuple[Path, Path]:
-        """Write the library and ``<stem>.diagnostics.json`` beside it (both atomically)."""
+        """Write ``<stem>.diagnostics.json`` and then the library beside it (both atomically:
+        if either write fails, the library file is left as it was)."""
         path = Path(path)
         sidecar = diagnostics_path(path)
-        self.library.write(path)
         atomic_write_text(sidecar, json_text(self.diagnostics(path.name)))
+        self.library.write(path)
         return path, sidecar
 
 
