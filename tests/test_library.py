@@ -177,6 +177,7 @@ def broken(mutate) -> dict:
     (lambda d: d["entries"][0]["fourier"]["b"].pop(), "must be 32 rows of 4"),
     (lambda d: d["entries"][0]["fourier"]["a"][0].append(0.0), "must be 32 rows of 4"),
     (lambda d: d["entries"][2]["fourier"]["b"][5].__setitem__(0, 0.1), r"b\[:, 0\] must be 0"),
+    (lambda d: d["entries"][0]["fourier"].update(n=7), "fitted order 7 exceeds"),
     (lambda d: d["entries"][0].update(T=0.0), "period must be finite and > 0"),
     (lambda d: d["entries"][0].update(T=None), "period must be finite and > 0"),
     (lambda d: d["entries"][0].update(end_s=1.7), "end_s - start_s"),
