@@ -395,7 +395,9 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
 
     ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the first present of
     :data:`FOOT_LANDMARKS`. With a fitted ``motion`` (:class:`mocaplib.Motion`), samples where a
-    marker is missing are taken from the fitted skeleton's position of that marker. Raises
+    marker is missing are taken from the fitted skeleton's position of that marker, except in
+    frames the fit flagged as failed (they stay missing); the events' ``quality`` then counts
+    those model samples as measured. Raises
     :class:`EventError` naming the missing landmark.
     """
     present = landmark_labels(match)
@@ -405,7 +407,8 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
         points = match.marker(trial, label)
         if modelled is not None and label in motion.marker_labels:
             model_points = modelled[:, motion.marker_labels.index(label)]
-            points = np.where(np.isnan(points), model_points, points)
+            usable = np.isnan(points) & ~np.asarray(motion.failed, dtype=bool)[:, None]
+            points = np.where(usable, model_points, points)
         return points
 
     feet = {}

@@ -33,17 +33,13 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..calibrate import calibrate
     from ..cycles import analyse_cycles, shoulder_centres
-    from ..ik import fit
     from ..io.c3d import read_c3d
     from ._common import print_json
-    from .events import detect, load
+    from .events import detect, fitted, load
 
     trial, match = load(args)
-    model = calibrate(trial, protocol=match.protocol,
-                      static=read_c3d(args.static) if args.static else None)
-    motion = fit(trial, model)
+    motion = fitted(trial, match, read_c3d(args.static) if args.static else None)
     events = detect(args, trial, match, motion)
     left, right = shoulder_centres(motion)
     cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q, source=args.file)

@@ -15,6 +15,9 @@ def register(subparsers) -> None:
                     "the file's first frame. Exit 0 on success, 1 when the file cannot be "
                     "read or has no foot markers, 2 on usage errors.")
     add_common_options(parser)
+    parser.add_argument("--fit", action="store_true",
+                        help="fill missing foot-marker samples from the fitted skeleton "
+                             "(calibrates and fits the capture first: slower)")
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "events": [{"side", "kind", "time_s", "frame"}]}')
     parser.set_defaults(run=_run)
@@ -43,6 +46,14 @@ def load(args):
     return trial, match
 
 
+def fitted(trial, match, static=None):
+    """The capture's fitted :class:`~mocaplib.Motion` (calibrated from ``static`` if given)."""
+    from ..calibrate import calibrate
+    from ..ik import fit
+
+    return fit(trial, calibrate(trial, protocol=match.protocol, static=static))
+
+
 def detect(args, trial, match, motion=None):
     """Events of ``trial`` from its foot markers (gaps filled from ``motion`` when given)."""
     from ..events import detect_events, feet_of
@@ -55,7 +66,7 @@ def _run(args) -> int:
     from ._common import print_json
 
     trial, match = load(args)
-    events = detect(args, trial, match)
+    events = detect(args, trial, match, fitted(trial, match) if args.fit else None)
     if args.json:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
