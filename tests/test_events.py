@@ -215,3 +215,14 @@ def test_cli_events_errors(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["events", str(bad), "--toe-off", "sometime"])
     assert exit_info.value.code == 2
+
+
+def test_synthetic_captures_events_alternate_per_foot():
+    from sample_captures import samples
+
+    for name, _, _, events, truth in samples():
+        for side in ("left", "right"):
+            kinds = [e.kind for e in events if e.side == side]
+            assert all(a != b for a, b in zip(kinds, kinds[1:])), (name, side, kinds)
+        if not truth["events"]:
+            assert events == [], name  # standing: no events, a rest entry
