@@ -210,6 +210,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         events = detect_events({"left": (track["L_HEEL"], track["L_TOE"]),
                                 "right": (track["R_HEEL"], track["R_TOE"])},
                                trial.rate, source=path)
+        result.diagnostics = _series(trial, motion, track, events)
     with clock.stage("cycles"):
         cycles = analyse_cycles(events, track["L_ACROMION"], track["R_ACROMION"], trial.rate,
                                 q=motion.q, source=path)
@@ -217,8 +218,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
         result.entries = _entries(path, result, kept, motion, settings)
-        result.diagnostics = _diagnostics(trial, motion, track, events, cycles,
-                                          {e["cycle_index"]: e["id"] for e in result.entries})
+        result.diagnostics.update(_cycle_diagnostics(
+            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
 
 def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
@@ -347,17 +348,28 @@ def cycle_qc(cycle, motion) -> dict:
         }
 
 
-def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
-    """This capture's record of the diagnostics sidecar (series downsampled)."""
-    from .patterns import cycle_times
-
+def _series(trial, motion, track, events) -> dict:
+    """The diagnostics known once events are detected (kept when a later stage fails)."""
     every = downsample(trial.n_frames)
     with warnings.catch_warnings():  # frames without any marker have no RMS: NaN, said so
         warnings.simplefilter("ignore", RuntimeWarning)
         frame_rms = motion.frame_rms()
     mid = 0.5 * (track["L_ACROMION"] + track["R_ACROMION"])
+    return to_json_data({
+        "rate_hz": trial.rate,
+        "time_s": trial.time[every],
+        "shoulder_mid_xy": mid[every, :2],
+        "frame_rms_m": frame_rms[every],
+        "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
+    }, DIAGNOSTICS_DIGITS)
+
+
+def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
+    """Every cycle's summary and the chosen cycle's angles (root in the moving frame)."""
+    from .patterns import cycle_times
+
     chosen = next(c for c in cycles if c.chosen)
-    times = cycle_times(chosen.start_s, chosen.end_s, trial.rate)[:-1]
+    times = cycle_times(chosen.start_s, chosen.end_s, motion.rate)[:-1]
     frames = np.arange(motion.n_frames) / motion.rate
     q = np.column_stack([np.interp(times, frames, column) for column in
                          np.unwrap(motion.q, axis=0).T])
@@ -366,11 +378,6 @@ def _diagnostics(trial, motion, track, events, cycles, entry_ids) -> dict:
     angles = {"time_s": times[pick] - chosen.start_s}
     angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
     return to_json_data({
-        "rate_hz": trial.rate,
-        "time_s": trial.time[every],
-        "shoulder_mid_xy": mid[every, :2],
-        "frame_rms_m": frame_rms[every],
-        "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
         "cycles": [{"index": c.index, "start_s": c.start_s, "end_s": c.end_s,
                     "chosen": c.chosen, "rest": c.rest, "entry_id": entry_ids.get(c.index),
                     "pattern": _pattern(c.velocities.pattern), "v": c.velocities.v,

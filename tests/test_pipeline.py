@@ -356,3 +356,20 @@ def test_landmark_tracks_fill_a_missing_heel_from_the_fitted_model(synthetic_fol
     assert np.median(error) < 0.02, np.median(error)
     # Measured markers are used as they are.
     np.testing.assert_array_equal(tracks["R_TOE"], full.marker("RTOE"))
+
+
+def test_a_capture_failing_after_events_keeps_its_series_in_the_diagnostics(synthetic_folder,
+                                                                            tmp_path):
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    # The first 0.6 s of a side-step: feet move, but there are not two left toe-offs.
+    trial = read_c3d(synthetic_folder / "side_left_normal.c3d")
+    short = tmp_path / "short.c3d"
+    write_c3d(short, trial.markers[:60], trial.labels, trial.rate)
+    result = process_capture(short, BuildSettings())
+    assert not result.ok and result.stage == "cycles", result.error
+    assert "short.c3d" in result.error and "toe-off" in result.error
+    diag = result.diagnostics
+    assert diag["rate_hz"] == 100.0 and len(diag["time_s"]) == 60 and diag["events"]
+    assert "cycles" not in diag and result.entries == []
