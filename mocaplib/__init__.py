@@ -26,6 +26,7 @@ _EXPORTS = {
     "Cycle": "mocaplib.cycles",
     "read_c3d": "mocaplib.io.c3d",
     "load_library": "mocaplib.library",
+    "validate_library": "mocaplib.library",
     "ControlSpace": "mocaplib.controlspace",
     "write_report": "mocaplib.report",
 }

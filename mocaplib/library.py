@@ -254,6 +254,10 @@ class Library:
     def __len__(self) -> int:
         return len(self.document["entries"])
 
+    def __repr__(self) -> str:
+        return (f"<Library {len(self)} entries, {len(self.dof_names)} DOFs, "
+                f"N={self.n_harmonics}, mocaplib {self.document['tool_version']}>")
+
     def entry(self, entry_id: str) -> dict:
         """The JSON data of one entry."""
         for e in self.document["entries"]:

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import mocaplib
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.library import (QC_NAMES, Library, assemble_library, make_entry, schema,
@@ -117,6 +118,7 @@ def test_load_library_gives_a_dataframe_and_coefficient_arrays(tmp_path):
     assert table.loc["capture01_c0", "pattern_type"] == "arc"
     assert set(f"qc_{name}" for name in QC_NAMES) <= set(table.columns)
     assert lib.n_harmonics == 3
+    assert repr(lib) == f"<Library 5 entries, {D} DOFs, N=3, mocaplib {mocaplib.__version__}>"
     a, b = lib.coefficient_arrays()
     assert a.shape == b.shape == (5, D, 4)
     a0, b0 = lib.coefficients("capture00_c0")
