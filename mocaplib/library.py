@@ -46,7 +46,8 @@ ROOT_DRIFT_TEXT = ("displacement of the path frame over one cycle, expressed in 
                    "cycle start: dx_m forward, dy_m left, dheading_rad counter-clockwise")
 
 #: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
-#: Marker limits are OpenSim's IK best practice. The Fourier limit is twice the encoding target
+#: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
+#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding target
 #: of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose frame-to-frame
 #: noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about 0.5 deg itself, so
 #: 1 deg flags cycles that are not periodic or not followed, not fit noise.
@@ -55,7 +56,7 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "marker_rms_m": (0.02, "max"),
     "marker_max_m": (0.04, "max"),
     "gap_fraction": (0.5, "max"),
-    "event_quality": (None, "min"),
+    "event_quality": (0.5, "min"),   # as mocaplib.cycles.MIN_EVENT_QUALITY
     "fourier_rms_rad": (math.radians(1.0), "max"),
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),

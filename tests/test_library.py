@@ -188,6 +188,7 @@ def broken(mutate) -> dict:
     (lambda d: d["entries"].__delitem__(slice(3, None)), "needs at least 4"),
     (lambda d: d["entries"][0]["qc"].update(marker_rms_m=0.031), "marker_rms_m 0.031 > 0.02"),
     (lambda d: d["entries"][0]["qc"].update(fourier_rms_rad=None), "fourier_rms_rad is not fin"),
+    (lambda d: d["entries"][0]["qc"].update(event_quality=0.3), "event_quality 0.3 < 0.5"),
     (lambda d: d["skeleton"]["dof_names"].__setitem__(1, "pelvis_tx"), "duplicate DOF names"),
     (lambda d: d["skeleton"]["dof_units"].pop(), "31 items for 32 DOFs"),
     (lambda d: d["entries"][0].update(source_sha256="xyz"), "schema: 'xyz' does not match"),
