@@ -343,7 +343,7 @@ class Skeleton:
             rot = np.flatnonzero(MOVES[s] & ~_TRANSLATION)
             trans = np.flatnonzero(MOVES[s] & _TRANSLATION)
             lever = pts[:, rows, None, :] - pivots[:, None, rot, :]             # (F, m, d, 3)
-            block = np.cross(axes[:, None, rot, :], lever)
+            block = _cross(axes[:, None, rot, :], lever)
             # (advanced indices first: the assigned block is laid out (m, d, F, 3))
             jac[:, rows[:, None], :, rot[None, :]] = block.transpose(1, 2, 0, 3)
             jac[:, rows[:, None], :, trans[None, :]] = axes[None, :, trans, :].transpose(0, 2, 1, 3)
@@ -373,5 +373,21 @@ def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:
     a = np.asarray(axis, dtype=np.float64)
     angle = np.asarray(angle, dtype=np.float64)
     c, s = np.cos(angle), np.sin(angle)
+    if np.count_nonzero(a) == 1:                  # ±X, ±Y or ±Z: write the entries directly
+        k = int(np.flatnonzero(a)[0])
+        i, j = (k + 1) % 3, (k + 2) % 3
+        s = s * a[k]
+        out = np.zeros(angle.shape + (3, 3))
+        out[..., k, k] = 1.0
+        out[..., i, i] = out[..., j, j] = c
+        out[..., i, j], out[..., j, i] = -s, s
+        return out
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     return (np.eye(3) + s[:, None, None] * K + (1.0 - c)[:, None, None] * (K @ K))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of broadcast arrays of 3-vectors (last axis), as ``np.cross`` but lighter."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
