@@ -32,7 +32,7 @@ import numpy as np
 
 from .errors import EventError
 from .events import GaitEvent, landmark_labels
-from .fourier import TRANSLATIONS, CycleEncoding, encode_cycle
+from .fourier import ROOT_X, ROOT_Y, TRANSLATIONS, CycleEncoding, encode_cycle
 from .patterns import CycleVelocities, Pattern, cycle_times, cycle_velocities, sample_shoulders
 
 #: Nominal period of the rest entry, seconds.
@@ -132,6 +132,7 @@ def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]
 
 def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                    right_shoulder: np.ndarray, rate: float, /, *, q: np.ndarray | None = None,
+                   ground: np.ndarray | None = None,
                    tol_angle: float = np.deg2rad(0.5), tol_length: float = 0.002,
                    point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0),
                    source: str | os.PathLike | None = None) -> list[Cycle]:
@@ -149,6 +150,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         Optional joint coordinates (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order; when
         given each cycle gets its Fourier encoding (tolerances ``tol_angle`` rad,
         ``tol_length`` m).
+    ground
+        The floor's velocity (3,) m/s, from :func:`mocaplib.events.ground_velocity`: on a
+        treadmill, paths, velocities and the root's drift are measured relative to the belt.
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
 
@@ -157,6 +161,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:
         q = _unwrapped(np.asarray(q, dtype=np.float64), n_frames, source)
+        if ground is not None:
+            q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(n_frames) / rate, ground[:2])
     if not events:
         return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source,
                             tol_angle, tol_length)]
@@ -170,8 +176,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     for index, (first, last) in enumerate(pairs):
         start, end = first.time_s, last.time_s
         velocities = cycle_velocities(left_shoulder, right_shoulder, rate, start, end,
-                                      point_radius=point_radius, min_arc_angle=min_arc_angle,
-                                      source=source)
+                                      ground=ground, point_radius=point_radius,
+                                      min_arc_angle=min_arc_angle, source=source)
         encoding = None
         if q is not None:
             times = cycle_times(start, end, rate)
@@ -179,7 +185,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
                                     tol_angle=tol_angle, tol_length=tol_length)
         cycles.append(Cycle(index, start, end, velocities,
-                            _unsteadiness(left_shoulder, right_shoulder, rate, start, end, source),
+                            _unsteadiness(left_shoulder, right_shoulder, rate, start, end,
+                                          ground, source),
                             min(first.quality, last.quality), encoding))
     choose_cycle(cycles)
     return cycles
@@ -196,9 +203,9 @@ def choose_cycle(cycles: list[Cycle], /) -> Cycle:
     return best
 
 
-def _unsteadiness(left, right, rate, start, end, source) -> float:
+def _unsteadiness(left, right, rate, start, end, ground, source) -> float:
     times = cycle_times(start, end, rate)
-    mid, heading = sample_shoulders(left, right, rate, times, source=source)
+    mid, heading = sample_shoulders(left, right, rate, times, ground=ground, source=source)
     half = int(np.argmin(np.abs(times - 0.5 * (start + end))))
     v1 = np.hypot(*(mid[half, :2] - mid[0, :2])) / (times[half] - times[0])
     v2 = np.hypot(*(mid[-1, :2] - mid[half, :2])) / (times[-1] - times[half])

@@ -136,9 +136,7 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
                          path=source)
     heel, toe = _checked_points(heel, toe, rate, side, source)
     measured = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
-    raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])  # (2, F, 3)
-    points = np.stack([_smooth(p, rate, cutoff_hz) for p in raw])
-    velocity = np.gradient(points, axis=1) * rate if points.shape[1] > 1 else 0 * points
+    raw, points, velocity = _prepared(heel, toe, rate, cutoff_hz, max_gap_s)
     heights, ground = _floor(points, velocity)
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
@@ -167,6 +165,36 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
             t = _median_kink(raw, first, float(end) if t is None else t, half)
             events.append(_event(side, "heel_strike", t / rate, measured, rate))
     return events
+
+
+def ground_velocity(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
+                    cutoff_hz: float = 12.0, max_gap_s: float = 0.25, min_speed: float = 0.2,
+                    source: str | os.PathLike | None = None) -> np.ndarray:
+    """Horizontal velocity (3,) m/s of the surface the feet stand on: a treadmill belt's, or
+    zeros overground (an estimate slower than ``min_speed`` counts as overground).
+
+    ``feet`` as for :func:`detect_events`. The estimate is the median, over the feet, of each
+    foot's median horizontal velocity while low (module docstring, step 2). Pass it to
+    :func:`mocaplib.cycles.analyse_cycles` so treadmill cycles are measured relative to the
+    belt (a runner on a belt at 2.2 m/s runs at 2.2 m/s, not on the spot).
+    """
+    estimates = []
+    for side, (heel, toe) in feet.items():
+        heel, toe = _checked_points(heel, toe, rate, side, source)
+        _, points, velocity = _prepared(heel, toe, rate, cutoff_hz, max_gap_s)
+        estimates.append(_floor(points, velocity)[1])
+    if not estimates:
+        return np.zeros(3)
+    ground = np.median(estimates, axis=0)
+    return ground if np.hypot(*ground[:2]) >= min_speed else np.zeros(3)
+
+
+def _prepared(heel, toe, rate, cutoff_hz, max_gap_s):
+    """Gap-filled raw points (2, F, 3), their low-passed version and its velocity (m/s)."""
+    raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])
+    points = np.stack([_smooth(p, rate, cutoff_hz) for p in raw])
+    velocity = np.gradient(points, axis=1) * rate if points.shape[1] > 1 else 0 * points
+    return raw, points, velocity
 
 
 def _checked_points(heel, toe, rate, side, source):
@@ -226,7 +254,8 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
     horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill).
 
     The ground velocity is the median horizontal velocity of the foot over the frames where
-    its lowest point is within 3 cm of its lowest height. Samples where a point moves slower
+    its lowest point is within 3 cm of its lowest height, then again over those of them that
+    move within ``still_speed`` of that first estimate. Samples where a point moves slower
     than ``still_speed`` relative to the ground are standing on the floor; the floor is the
     plane ``z = a_p + slope·xy`` (an offset per point, one slope) fitted to them by least
     squares, dropping samples more than 1 cm off and refitting. Lab floors and calibrations
@@ -243,6 +272,11 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
     ground = np.zeros(3)
     if near.any():
         ground[:2] = np.median(centre_velocity[near, :2], axis=0)
+        # again over the frames that move with that estimate: flat on the floor, not rolling
+        with np.errstate(invalid="ignore"):
+            flat = near & (np.linalg.norm(centre_velocity - ground, axis=1) < still_speed)
+        if flat.any():
+            ground[:2] = np.median(centre_velocity[flat, :2], axis=0)
     with np.errstate(invalid="ignore"):
         still = np.linalg.norm(velocity - ground, axis=2) < still_speed
     still &= np.isfinite(z)

@@ -248,20 +248,23 @@ def shoulder_heading(left_shoulder: np.ndarray, right_shoulder: np.ndarray, /) -
 
 
 def cycle_velocities(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate: float,
-                     start_s: float, end_s: float, /, *, point_radius: float = 0.05,
-                     min_arc_angle: float = np.deg2rad(10.0), min_valid: float = 0.8,
+                     start_s: float, end_s: float, /, *, ground: np.ndarray | None = None,
+                     point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0),
+                     min_valid: float = 0.8,
                      source: str | os.PathLike | None = None) -> CycleVelocities:
     """Pattern and average velocities of the cycle [start_s, end_s] (seconds from frame 0).
 
     ``left_shoulder``, ``right_shoulder``: (F, 3) metres, Z up, NaN where missing. Samples are
     the frames inside the cycle plus both ends interpolated at the exact (sub-frame) times;
     gaps are filled linearly when at least ``min_valid`` of the cycle's frames were measured.
+    ``ground`` (3,) m/s: the floor's velocity (a treadmill belt's, see
+    :func:`mocaplib.events.ground_velocity`); the path is then measured relative to it.
     """
     period = float(end_s - start_s)
     if not period > 0:
         raise EventError(f"cycle end {end_s} s is not after its start {start_s} s", path=source)
     times = cycle_times(start_s, end_s, rate)
-    mid, heading = sample_shoulders(left_shoulder, right_shoulder, rate, times,
+    mid, heading = sample_shoulders(left_shoulder, right_shoulder, rate, times, ground=ground,
                                     min_valid=min_valid, source=source)
     path = mid[:, :2]
     pattern = fit_pattern(path, sway=sway_basis(times - start_s, period),
@@ -285,10 +288,12 @@ def cycle_times(start_s: float, end_s: float, rate: float, /) -> np.ndarray:
 
 
 def sample_shoulders(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate: float,
-                     times: np.ndarray, /, *, min_valid: float = 0.8,
+                     times: np.ndarray, /, *, ground: np.ndarray | None = None,
+                     min_valid: float = 0.8,
                      source: str | os.PathLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Shoulder midpoint (n, 3) m and θ_S (n,) rad unwrapped at ``times`` (n,) s, gaps filled.
 
+    With ``ground`` (3,) m/s the midpoint is relative to the moving floor (``− ground·t``).
     Raises :class:`EventError` when less than ``min_valid`` of the frames within the times'
     span were measured for either shoulder.
     """
@@ -309,4 +314,7 @@ def sample_shoulders(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate
         sampled.append(np.column_stack([np.interp(times, frames[valid], points[valid, k])
                                         for k in range(3)]))
     left_s, right_s = sampled
-    return 0.5 * (left_s + right_s), shoulder_heading(left_s, right_s)
+    mid = 0.5 * (left_s + right_s)
+    if ground is not None:
+        mid = mid - np.outer(times, ground)
+    return mid, shoulder_heading(left_s, right_s)

@@ -210,3 +210,20 @@ def test_unfitted_dof_is_named():
         analyse_cycles(events(), left, right, RATE, q=q, source="walk.c3d")
     with pytest.raises(EventError, match=r"q must have shape \(500, 32\)"):
         analyse_cycles(events(), left, right, RATE, q=q[:, :5])
+
+
+def test_treadmill_cycles_relative_to_the_belt():
+    speed = 1.2
+    left, right = shoulders(TIME, v_f=speed, period=PERIOD, noise=0.001)
+    belt = np.outer(TIME, [speed, 0.0, 0.0])  # the walker stays in place on the belt
+    q = np.zeros((len(TIME), len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("pelvis_tx")] = 0.01 * np.sin(2 * np.pi * TIME / PERIOD)
+    on_spot = analyse_cycles(events(), left - belt, right - belt, RATE, q=q)
+    assert on_spot[0].velocities.pattern.kind == "point"
+    moving = analyse_cycles(events(), left - belt, right - belt, RATE, q=q,
+                            ground=np.array([-speed, 0.0, 0.0]))
+    for c in moving:
+        np.testing.assert_allclose(c.velocities.v, speed, rtol=0.02)  # the 2 %
+        np.testing.assert_allclose(c.velocities.v_f, speed, rtol=0.02)
+        # the root drifts forwards with the belt speed in the encoding too
+        np.testing.assert_allclose(c.encoding.drift.u_f, speed, rtol=0.02)

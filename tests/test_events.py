@@ -226,3 +226,24 @@ def test_synthetic_captures_events_alternate_per_foot():
             assert all(a != b for a, b in zip(kinds, kinds[1:])), (name, side, kinds)
         if not truth["events"]:
             assert events == [], name  # standing: no events, a rest entry
+
+
+def on_treadmill(points, speed):
+    """An overground trajectory (F, 3) as seen on a treadmill whose belt runs at -speed in x."""
+    return points - np.outer(TIME, [speed, 0.0, 0.0])
+
+
+def test_treadmill_belt_velocity_and_events():
+    from mocaplib.events import ground_velocity
+
+    speed = 1.3 / 1.1  # the foot model's mean speed: step / period
+    lh, lt, offs, _ = foot(TIME, noise=0.0007)
+    rh, rt, *_ = foot(TIME, noise=0.0007, offset=0.55, seed=1)
+    overground = {"left": (lh, lt), "right": (rh, rt)}
+    belt = {side: tuple(on_treadmill(p, speed) for p in pts) for side, pts in overground.items()}
+    assert np.all(ground_velocity(overground, RATE) == 0)  # overground: exactly zero
+    # on the belt the standing foot moves backwards with it: median over stance, noise 0.7 mm
+    np.testing.assert_allclose(ground_velocity(belt, RATE), [-speed, 0, 0], atol=0.02)
+    events = detect_events(belt, RATE)
+    left = [e for e in events if e.side == "left"]
+    assert np.all(np.abs(errors(left, offs, "toe_off")) <= 1 / RATE)

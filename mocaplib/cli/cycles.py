@@ -34,15 +34,18 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..cycles import analyse_cycles, shoulder_centres
+    from ..events import detect_events, feet_of, ground_velocity
     from ..io.c3d import read_c3d
     from ._common import print_json
-    from .events import detect, fitted, load
+    from .events import fitted, load
 
     trial, match = load(args)
     motion = fitted(trial, match, read_c3d(args.static) if args.static else None)
-    events = detect(args, trial, match, motion)
+    feet = feet_of(trial, match, motion=motion)
+    events = detect_events(feet, trial.rate, toe_off=args.toe_off, source=args.file)
     left, right = shoulder_centres(motion)
-    cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q, source=args.file)
+    cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q,
+                            ground=ground_velocity(feet, trial.rate), source=args.file)
     rows = [c.to_dict() for c in cycles]
     if args.json:
         print_json({"file": args.file, "cycles": rows})
