@@ -180,12 +180,16 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture)."""
-    from .calibrate import calibrate, choose_protocol
-    from .cycles import analyse_cycles
-    from .events import detect_events
+    Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture).
+
+    The stages are chained as ``mocaplib cycles`` chains them, so both give the same cycles.
+    """
+    from .calibrate import calibrate
+    from .cycles import analyse_cycles, shoulder_centres
+    from .events import detect_events, feet_of
     from .ik import fit
     from .io.c3d import read_c3d
+    from .protocols import detect_protocol, load_protocol, match_protocol
 
     with clock.stage("import"):
         trial = read_c3d(path)
@@ -193,72 +197,32 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
     with clock.stage("protocol"):
-        protocol = choose_protocol(trial, settings.protocol)
+        match = (detect_protocol(trial) if settings.protocol == "auto"
+                 else match_protocol(trial, load_protocol(settings.protocol)))
     with clock.stage("calibrate"):
-        model = calibrate(trial, protocol=protocol, static=static)
+        model = calibrate(trial, protocol=match.protocol, static=static)
     with clock.stage("fit"):
         motion = fit(trial, model)
     if motion.locked_dofs:
-        result.warnings.append(f"protocol {protocol.name!r} cannot see "
+        result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
                                f"{', '.join(motion.locked_dofs)}")
     if motion.failed.any():
         result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
                                "(interpolated)")
     with clock.stage("events"):
-        track = _landmark_tracks(trial, model, motion)
-        events = detect_events({"left": (track["L_HEEL"], track["L_TOE"]),
-                                "right": (track["R_HEEL"], track["R_TOE"])},
-                               trial.rate, source=path)
-        result.diagnostics = _series(trial, motion, track, events)
+        feet = feet_of(trial, match, motion=motion)
+        events = detect_events(feet, trial.rate, source=path)
+        shoulders = shoulder_centres(motion)
+        result.diagnostics = _series(trial, motion, shoulders, events)
     with clock.stage("cycles"):
-        cycles = analyse_cycles(events, track["L_ACROMION"], track["R_ACROMION"], trial.rate,
-                                q=motion.q, source=path)
+        cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q, source=path)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
         result.entries = _entries(path, result, kept, motion, settings)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
-
-
-def _landmark_tracks(trial, model, motion) -> dict[str, np.ndarray]:
-    """Heels, toes and acromions (F, 3) m: the markers where measured, else the fitted model's.
-
-    A landmark the protocol lacks is placed at its catalogue position on its segment, scaled
-    to the subject's leg length.
-    """
-    from .ik import model_markers
-    from .protocols import REFERENCE_HEIGHT, load_landmarks
-    from .skeleton import HEIGHT_PROPORTIONS, SEGMENT_NAMES
-
-    catalogue = load_landmarks()
-    landmark_of = {m.label: m.landmark.name for m in model.protocol.markers}
-    legs = ("thigh", "shank")
-    height = (sum(model.skeleton.lengths[k] for k in legs)
-              / sum(HEIGHT_PROPORTIONS[k] for k in legs))
-    measured = model_markers(trial, model)
-    names = ("L_HEEL", "L_TOE", "R_HEEL", "R_TOE", "L_ACROMION", "R_ACROMION")
-    segments, offsets, columns = [], [], []
-    for name in names:
-        index = next((i for i, label in enumerate(model.labels) if landmark_of[label] == name),
-                     None)
-        if index is None:
-            segments.append(SEGMENT_NAMES.index(catalogue[name].segment))
-            offsets.append(np.asarray(catalogue[name].position) * height / REFERENCE_HEIGHT)
-        else:
-            segments.append(model.marker_segments[index])
-            offsets.append(model.marker_offsets[index])
-        columns.append(index)
-    modelled = motion.skeleton.points(motion.q, np.array(segments), np.array(offsets))
-    tracks = {}
-    for k, (name, index) in enumerate(zip(names, columns)):
-        track = modelled[:, k].copy()
-        if index is not None:
-            seen = np.isfinite(measured[:, index]).all(axis=1)
-            track[seen] = measured[seen, index]
-        tracks[name] = track
-    return tracks
 
 
 def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):
@@ -348,13 +312,13 @@ def cycle_qc(cycle, motion) -> dict:
         }
 
 
-def _series(trial, motion, track, events) -> dict:
+def _series(trial, motion, shoulders, events) -> dict:
     """The diagnostics known once events are detected (kept when a later stage fails)."""
     every = downsample(trial.n_frames)
     with warnings.catch_warnings():  # frames without any marker have no RMS: NaN, said so
         warnings.simplefilter("ignore", RuntimeWarning)
         frame_rms = motion.frame_rms()
-    mid = 0.5 * (track["L_ACROMION"] + track["R_ACROMION"])
+    mid = 0.5 * (shoulders[0] + shoulders[1])
     return to_json_data({
         "rate_hz": trial.rate,
         "time_s": trial.time[every],
