@@ -384,7 +384,7 @@ def _restart_outliers(solve, first: PoseFit) -> PoseFit:
 
 
 def _frame_rms(residuals: np.ndarray) -> np.ndarray:
-    """Marker RMS per frame (F,), +inf where no marker is seen."""
+    """RMS of each row of residuals (F, M) over its seen entries, shape (F,); +inf if none."""
     seen = np.isfinite(residuals)
     total = np.where(seen, residuals, 0.0) ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -399,13 +399,11 @@ def fit_quality(motion: Motion) -> dict:
     ``per_marker_rms_mm``: each marker's RMS over the capture; ``locked_dofs``;
     ``failed_frames``: indices of frames that could not be fitted.
     """
-    seen = np.isfinite(motion.residuals)
-    squares = np.where(seen, motion.residuals, 0.0) ** 2
-    frame_rms = np.sqrt(squares.sum(axis=1)[seen.any(axis=1)] / seen.sum(axis=1)[seen.any(axis=1)])
-    marker_rms = np.sqrt(squares.sum(axis=0) / np.maximum(seen.sum(axis=0), 1))
-    marker_rms[~seen.any(axis=0)] = np.nan
+    frame_rms = _frame_rms(motion.residuals)
+    marker_rms = _frame_rms(motion.residuals.T)
+    marker_rms[np.isinf(marker_rms)] = np.nan
     return {
-        "marker_rms_mm": float(np.mean(frame_rms) * 1000),
+        "marker_rms_mm": float(np.mean(frame_rms[np.isfinite(frame_rms)]) * 1000),
         "max_marker_error_mm": float(np.nanmax(motion.residuals) * 1000),
         "per_marker_rms_mm": {label: float(v * 1000)
                               for label, v in zip(motion.marker_labels, marker_rms)},
