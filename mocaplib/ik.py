@@ -11,8 +11,8 @@ bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames'
 within :meth:`mocaplib.skeleton.Skeleton.bounds` by projection. Missing markers (NaN) drop out.
 
 All frames of a chunk are solved together: the analytic Jacobians
-(:meth:`~mocaplib.skeleton.Skeleton.marker_jacobian`, shape (F, M, 3, D)) give the (F, D, D)
-normal equations, solved as one batched ``numpy.linalg.solve``; each frame keeps its own damping
+(:meth:`~mocaplib.skeleton.Skeleton.jacobian_blocks`, the nonzero blocks of the (F, M, 3, D)
+Jacobian) give the (F, D, D) normal equations, solved as one batched ``numpy.linalg.solve``; each frame keeps its own damping
 and stops when its cost stops falling. The start is a per-segment rigid fit (weighted Kabsch on
 the segment's markers and its joint centre), decomposed into the joint's DOFs.
 
@@ -119,15 +119,19 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             break
         q_ref = _neighbour_mean(q)[rows]
         qa = q[rows]
-        pts, jac = skeleton.marker_jacobian(qa, segments, offsets)
+        pts, blocks = skeleton.jacobian_blocks(qa, segments, offsets)
         r = target[rows] - pts
         d = np.linalg.norm(r, axis=2)
         sqrt_w = np.sqrt(w_marker[rows] * _soft_l1_weight(d, robust_scale))   # IRLS weights
-        Jw = (jac * sqrt_w[:, :, None, None]).reshape(rows.size, n_markers * 3, n_dofs)
-        JwT = Jw.transpose(0, 2, 1)
-        A = JwT @ Jw
-        g = (JwT @ (r * sqrt_w[..., None]).reshape(rows.size, -1, 1))[..., 0] \
-            - mu2 * (qa - q_ref)
+        rw = r * sqrt_w[..., None]
+        # normal equations J^T W J, J^T W r, summed segment by segment over its nonzero block
+        A = np.zeros((rows.size, n_dofs, n_dofs))
+        g = -mu2 * (qa - q_ref)
+        for marker_rows, dofs, block in blocks:
+            Jw = (block * sqrt_w[:, marker_rows, None, None]).reshape(rows.size, -1, dofs.size)
+            JwT = Jw.transpose(0, 2, 1)
+            A[:, dofs[:, None], dofs[None, :]] += JwT @ Jw
+            g[:, dofs] += (JwT @ rw[:, marker_rows].reshape(rows.size, -1, 1))[..., 0]
         A[diagonal] += mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
         held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))

@@ -331,23 +331,33 @@ class Skeleton:
             for ``pelvis_t*``). A rotation DOF moves the points of its segment and descendants
             by ``axis x (point - pivot)``; a translation DOF by its axis.
         """
+        pts, blocks = self.jacobian_blocks(q, segments, offsets)
+        jac = np.zeros(pts.shape[:2] + (3, len(DOFS)))
+        for rows, dofs, block in blocks:
+            # (advanced indices first: the assigned block is laid out (m, d, F, 3))
+            jac[:, rows[:, None], :, dofs[None, :]] = block.transpose(1, 3, 0, 2)
+        return pts, jac
+
+    def jacobian_blocks(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray
+                        ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+        """:meth:`marker_jacobian` without its zeros: points (F, M, 3) and, per segment holding
+        points, ``(rows, dofs, block)`` where ``block`` (F, m, 3, d) is d point[rows] / d q[dofs]
+        for the d DOFs that move that segment (the other columns are zero)."""
         segments = np.asarray(segments, dtype=int)
         T, axes, pivots = self._chain(q)
         Ts = T[:, segments]
         pts = (Ts[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + Ts[..., :3, 3]
-        # a DOF moves the points of its segment's subtree by axis x (point - pivot) (rotation)
-        # or along its axis (translation); the other entries are zero
-        jac = np.zeros(pts.shape[:2] + (3, axes.shape[1]))
+        blocks = []
         for s in np.unique(segments):
             rows = np.flatnonzero(segments == s)
-            rot = np.flatnonzero(MOVES[s] & ~_TRANSLATION)
-            trans = np.flatnonzero(MOVES[s] & _TRANSLATION)
-            lever = pts[:, rows, None, :] - pivots[:, None, rot, :]             # (F, m, d, 3)
-            block = _cross(axes[:, None, rot, :], lever)
-            # (advanced indices first: the assigned block is laid out (m, d, F, 3))
-            jac[:, rows[:, None], :, rot[None, :]] = block.transpose(1, 2, 0, 3)
-            jac[:, rows[:, None], :, trans[None, :]] = axes[None, :, trans, :].transpose(0, 2, 1, 3)
-        return pts, jac
+            dofs = np.flatnonzero(MOVES[s])
+            rot = ~_TRANSLATION[dofs]
+            block = np.empty((pts.shape[0], rows.size, 3, dofs.size))
+            lever = pts[:, rows, None, :] - pivots[:, None, dofs[rot], :]      # (F, m, d, 3)
+            block[..., rot] = _cross(axes[:, None, dofs[rot], :], lever).transpose(0, 1, 3, 2)
+            block[..., ~rot] = axes[:, None, dofs[~rot], :].transpose(0, 1, 3, 2)
+            blocks.append((rows, dofs, block))
+        return pts, blocks
 
     def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """World positions of points fixed in segments (markers, joint centres).
