@@ -23,11 +23,16 @@ Steps (all in metres, world Z up):
    Segment lengths are the median distances between those centres.
 4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
    markers); each marker's offset is re-registered as the least-squares (mean) position in its
-   segment's frame over those poses.
-5. **Refinement.** Alternate: fit poses to the markers alone; re-register offsets; solve the
-   segment lengths by linear least squares (marker positions are affine in the lengths for
-   fixed poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop
-   when the marker RMS falls by less than 1 %; the best model is kept.
+   segment's frame over those poses, and each segment's offsets are turned (Kabsch, about
+   their centroid) onto the catalogue layout, which makes the segment frames anatomical: zero
+   angles put the markers in the catalogue's layout, as the DOF sign table describes.
+5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
+   Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
+   feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their
+   markers, so the knee and elbow hinge axes become functional ones); solve the segment
+   lengths by linear least squares (marker positions are affine in the lengths for fixed
+   poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop when
+   the marker RMS falls by less than 1 %; the best model is kept.
 """
 
 from __future__ import annotations
@@ -85,7 +90,7 @@ class SubjectModel:
     left_out : list[str]. Segments with no marker on them or below them.
     rms : float. Marker RMS of the calibration fit, metres.
     history : list[float]. Marker RMS after each refinement round, metres.
-    source : str or None. The calibration trial's file.
+    source : str or None. The calibration trial's file (the static one when given).
     swapped : list of (label, label). Left/right pairs whose labels the trial exchanges; their
         data are exchanged back when fitting (:func:`mocaplib.ik.model_markers`).
     """
@@ -137,9 +142,11 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
     Parameters
     ----------
-    trial : the motion trial; used for calibration when ``static`` is None.
+    trial : the motion trial.
     protocol : Protocol, shipped name, TOML path, or None / "auto" to detect it.
-    static : a static standing trial of the same subject, preferred when given.
+    static : a static standing trial of the same subject. When given, steps 1-4 (markers,
+        height, joint centres, lengths, anatomical offsets) use it and step 5 refines on the
+        motion trial; otherwise every step uses the motion trial.
     height : standing height, metres; estimated from the markers when None.
     n_frames : calibration frames (the most complete ones, spread over the trial).
     max_rounds : refinement rounds at most (step 5).
@@ -196,6 +203,14 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+    if static is not None:
+        # the static pose fixed the anatomy; the motion shows the functional axes and the
+        # soft tissue of the movement, so step 5 runs on the motion's frames
+        X_motion = match_protocol(trial, proto).markers(trial)[:, used]
+        pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
+        if (pelvis_seen.sum(axis=1) >= 3).any():
+            X = exchange(X_motion[_calibration_frames(X_motion, n_frames)], labels, swapped)
+            poses = None
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
     best, history = None, []
