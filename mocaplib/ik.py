@@ -5,16 +5,18 @@ Per frame ``f`` the fit minimises
     Σ_m ρ(||x_fm − p_m(q_f)||) + μ² ||q_f − q̄_f||²
 
 where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.calibrate`), ρ the
-soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale ``c`` (20 mm), linear above, so one
-bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current solution
-(a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is kept
-within :meth:`mocaplib.skeleton.Skeleton.bounds` by projection. Missing markers (NaN) drop out.
+soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale c = 20 mm, linear above, so
+one bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current
+solution (a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is
+kept within :meth:`mocaplib.skeleton.Skeleton.bounds` (projected steps; a DOF on a bound whose
+gradient points outwards leaves the step). Missing markers (NaN) drop out.
 
 All frames of a chunk are solved together: the analytic Jacobians
-(:meth:`~mocaplib.skeleton.Skeleton.jacobian_blocks`, the nonzero blocks of the (F, M, 3, D)
-Jacobian) give the (F, D, D) normal equations, solved as one batched ``numpy.linalg.solve``; each frame keeps its own damping
-and stops when its cost stops falling. The start is a per-segment rigid fit (weighted Kabsch on
-the segment's markers and its joint centre), decomposed into the joint's DOFs.
+(:meth:`~mocaplib.skeleton.Skeleton.marker_jacobian`, shape (F, M, 3, D)) give the (F, D, D)
+normal equations, solved as one batched ``numpy.linalg.solve``;
+each frame keeps its own damping and stops when its cost stops falling. The start is a
+per-segment rigid fit (Kabsch on the segment's markers and its joint centre), decomposed into
+the joint's DOFs.
 
 Units: metres and radians. Arrays: time on axis 0.
 """
@@ -108,9 +110,15 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     mu2 = smoothing ** 2
 
     def cost(q_rows, rows, q_ref):
-        d = np.linalg.norm(target[rows] - skeleton.points(q_rows, segments, offsets), axis=2)
+        """Cost (n,) of poses q_rows for frames ``rows``, and their kinematic chain."""
+        chain = skeleton.chain(q_rows)
+        T = chain[0][:, segments]
+        pts = (T[..., :3, :3] @ offsets[..., None])[..., 0] + T[..., :3, 3]
+        d = np.linalg.norm(target[rows] - pts, axis=2)
         return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            ((q_rows - q_ref) * free) ** 2).sum(axis=1)
+            ((q_rows - q_ref) * free) ** 2).sum(axis=1), chain
+
+    chains = list(skeleton.chain(q))        # transforms, DOF axes and pivots at the current q
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -119,19 +127,16 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             break
         q_ref = _neighbour_mean(q)[rows]
         qa = q[rows]
-        pts, blocks = skeleton.jacobian_blocks(qa, segments, offsets)
+        pts, jac = skeleton.marker_jacobian(qa, segments, offsets,
+                                            chain=tuple(c[rows] for c in chains))
         r = target[rows] - pts
         d = np.linalg.norm(r, axis=2)
         sqrt_w = np.sqrt(w_marker[rows] * _soft_l1_weight(d, robust_scale))   # IRLS weights
-        rw = r * sqrt_w[..., None]
-        # normal equations J^T W J, J^T W r, summed segment by segment over its nonzero block
-        A = np.zeros((rows.size, n_dofs, n_dofs))
-        g = -mu2 * (qa - q_ref)
-        for marker_rows, dofs, block in blocks:
-            Jw = (block * sqrt_w[:, marker_rows, None, None]).reshape(rows.size, -1, dofs.size)
-            JwT = Jw.transpose(0, 2, 1)
-            A[:, dofs[:, None], dofs[None, :]] += JwT @ Jw
-            g[:, dofs] += (JwT @ rw[:, marker_rows].reshape(rows.size, -1, 1))[..., 0]
+        Jw = (jac * sqrt_w[:, :, None, None]).reshape(rows.size, n_markers * 3, n_dofs)
+        JwT = Jw.transpose(0, 2, 1)
+        A = JwT @ Jw
+        g = (JwT @ (r * sqrt_w[..., None]).reshape(rows.size, -1, 1))[..., 0] \
+            - mu2 * (qa - q_ref)
         A[diagonal] += mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
         held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))
@@ -151,11 +156,13 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             Ak[diagonal] += lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
             trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
-            c1 = cost(trial_q, rows[k], q_ref[k])
+            c1, trial_chain = cost(trial_q, rows[k], q_ref[k])
             better = c1 <= c0[k]
             good = k[better]
             moved = np.abs(trial_q[better] - qa[good]).max(axis=1)
             q[rows[good]] = trial_q[better]
+            for cached, new in zip(chains, trial_chain):
+                cached[rows[good]] = new[better]
             lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-7)
             done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < step_tol)
             active[rows[good[done]]] = False

@@ -271,9 +271,9 @@ class Skeleton:
         -------
         ndarray, shape (F, S, 4, 4)
         """
-        return self._chain(q)[0]
+        return self.chain(q)[0]
 
-    def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Transforms (F, S, 4, 4) plus each DOF's world axis (F, D, 3) and pivot (F, D, 3).
 
         A DOF's axis is its unit axis in the frame reached after the joint's earlier DOFs; its
@@ -314,7 +314,8 @@ class Skeleton:
             out[:, s, :3, 3] = p
         return out, axes, pivots
 
-    def marker_jacobian(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray
+    def marker_jacobian(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
+                        chain: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
                         ) -> tuple[np.ndarray, np.ndarray]:
         """Points fixed in segments and their analytic Jacobian with respect to ``q``.
 
@@ -323,6 +324,7 @@ class Skeleton:
         q : ndarray, shape (F, D)
         segments : int ndarray, shape (M,)
         offsets : ndarray, shape (M, 3), metres in each segment's frame.
+        chain : :meth:`chain` (q), when already computed.
 
         Returns
         -------
@@ -331,20 +333,22 @@ class Skeleton:
             for ``pelvis_t*``). A rotation DOF moves the points of its segment and descendants
             by ``axis x (point - pivot)``; a translation DOF by its axis.
         """
-        pts, blocks = self.jacobian_blocks(q, segments, offsets)
+        pts, blocks = self.jacobian_blocks(q, segments, offsets, chain=chain)
         jac = np.zeros(pts.shape[:2] + (3, len(DOFS)))
         for rows, dofs, block in blocks:
             # (advanced indices first: the assigned block is laid out (m, d, F, 3))
             jac[:, rows[:, None], :, dofs[None, :]] = block.transpose(1, 3, 0, 2)
         return pts, jac
 
-    def jacobian_blocks(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray
+    def jacobian_blocks(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
+                        chain: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
                         ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
         """:meth:`marker_jacobian` without its zeros: points (F, M, 3) and, per segment holding
         points, ``(rows, dofs, block)`` where ``block`` (F, m, 3, d) is d point[rows] / d q[dofs]
-        for the d DOFs that move that segment (the other columns are zero)."""
+        for the d DOFs that move that segment (the other columns are zero). ``chain`` is
+        :meth:`chain` (q) when already computed."""
         segments = np.asarray(segments, dtype=int)
-        T, axes, pivots = self._chain(q)
+        T, axes, pivots = self.chain(q) if chain is None else chain
         Ts = T[:, segments]
         pts = (Ts[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + Ts[..., :3, 3]
         blocks = []
