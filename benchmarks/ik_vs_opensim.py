@@ -7,11 +7,12 @@ accuracy 1e-5) and with ``mocaplib.ik.fit``, alternately ``--repeat`` times each
 print each one's frames/s, the speed ratio and both joint-angle RMS errors
 against the truth.
 
-Data: a synthetic capture with ground truth (``--c3d FILE`` with ``FILE.truth.json`` beside it,
-as mocaplib.synth writes them), or by default the tests' forward-kinematics walk (gait-like
-angles, 6 mm soft-tissue artefact, 1 mm noise; ``--frames`` long).
+Data: synthetic captures with ground truth (``--c3d FILE...``, each with ``FILE.truth.json``
+beside it, as mocaplib.synth writes them; times and frames are summed over them), or by
+default the tests' forward-kinematics walk (gait-like angles, 6 mm soft-tissue artefact, 1 mm
+noise; ``--frames`` long).
 
-    /work/venv/bin/python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE]
+    /work/venv/bin/python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE...]
 
 Needs the bench extra (``pip install ".[bench]"``: opensim).
 """
@@ -19,6 +20,7 @@ Needs the bench extra (``pip install ".[bench]"``: opensim).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -36,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from mocaplib.calibrate import calibrate  # noqa: E402
-from mocaplib.ik import fit  # noqa: E402
+from mocaplib.ik import fit, model_markers  # noqa: E402
 from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
 
@@ -45,24 +47,25 @@ FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
            if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]
 
 
-def load_capture(args):
-    """(trial, true q (F, D) or None) from --c3d, else the forward-kinematics walk."""
+def load_captures(args) -> list[tuple]:
+    """[(trial, true q (F, D) or None)] from --c3d files, else the forward-kinematics walk."""
     if args.c3d:
         from mocaplib.io.c3d import read_c3d
 
-        trial = read_c3d(args.c3d)
-        truth_path = Path(args.c3d).with_suffix(".truth.json")
-        truth = json.loads(truth_path.read_text()) if truth_path.exists() else None
-        q = None
-        if truth is not None:
-            angles = truth["angles"]
-            values = np.asarray(angles["values"], dtype=float)
-            q = values[:, [angles["dof_names"].index(name) for name in DOF_NAMES]]
-        return trial, q
+        out = []
+        for path in args.c3d:
+            truth_path = Path(path).with_suffix(".truth.json")
+            q = None
+            if truth_path.exists():
+                angles = json.loads(truth_path.read_text())["angles"]
+                values = np.asarray(angles["values"], dtype=float)
+                q = values[:, [angles["dof_names"].index(name) for name in DOF_NAMES]]
+            out.append((read_c3d(path), q))
+        return out
     from fk_data import fk_trial
 
     cap = fk_trial(n_frames=args.frames, placement_mm=0, sta_mm=6, noise_mm=1, seed=args.seed)
-    return cap.trial, cap.q
+    return [(cap.trial, cap.q)]
 
 
 def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path):
@@ -86,10 +89,25 @@ def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path
         task.setWeight(1.0)
         task.setApply(True)
         tasks.cloneAndAppend(task)
-    start = time.process_time()
-    tool.run()
-    seconds = time.process_time() - start
+    with _quiet_stdout():                 # the tool prints the whole model summary
+        start = time.process_time()
+        tool.run()
+        seconds = time.process_time() - start
     return seconds, read_mot(out)
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Silence writes to file descriptor 1 (OpenSim's C++ side prints there)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 1)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
 
 
 def read_mot(path: Path) -> np.ndarray:
@@ -115,39 +133,49 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--c3d", help="synthetic capture with a .truth.json beside it")
+    parser.add_argument("--c3d", nargs="+", metavar="FILE",
+                        help="synthetic captures, each with a .truth.json beside it")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
 
-    trial, truth = load_capture(args)
-    model = calibrate(trial)
-    osim_times, our_times = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
-        from mocaplib.ik import model_markers
-
-        write_osim(model, tmp / "model.osim")
-        write_trc(model_markers(trial, model), model.labels, trial.rate, tmp / "markers.trc")
-        for _ in range(args.repeat):
-            seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc",
-                                          model.labels, trial.duration, tmp / "ik.mot")
-            osim_times.append(seconds)
-            start = time.process_time()
-            motion = fit(trial, model)
-            our_times.append(time.process_time() - start)
-    t_osim, t_ours = min(osim_times), min(our_times)
-    n = trial.n_frames
-    print(f"capture: {trial.source}  frames: {n}  markers: {len(model.labels)}  "
-          f"protocol: {model.protocol.name}")
+    totals = {"OpenSim": 0.0, "mocaplib": 0.0}
+    errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
+    n = 0
+    for trial, truth in load_captures(args):
+        model = calibrate(trial)
+        osim_times, our_times = [], []
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = Path(tmp)
+            write_osim(model, tmp / "model.osim")
+            write_trc(model_markers(trial, model), model.labels, trial.rate, tmp / "markers.trc")
+            for _ in range(args.repeat):
+                seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc",
+                                              model.labels, trial.duration, tmp / "ik.mot")
+                osim_times.append(seconds)
+                start = time.process_time()
+                motion = fit(trial, model)
+                our_times.append(time.process_time() - start)
+        n += trial.n_frames
+        totals["OpenSim"] += min(osim_times)
+        totals["mocaplib"] += min(our_times)
+        for name, q in (("OpenSim", q_osim), ("mocaplib", motion.q)):
+            if truth is not None and len(q) == len(truth):
+                errors[name].append(angle_errors(q, truth))
+        print(f"capture: {trial.source}  frames: {trial.n_frames}  markers: "
+              f"{len(model.labels)}  protocol: {model.protocol.name}  ratio: "
+              f"{min(osim_times) / min(our_times):.1f}x")
+    print(f"\nall: {n} frames; joint-angle RMS error vs truth (deg), mean over captures of the "
+          "mean over DOFs / max over captures and DOFs / max over flexions")
     print(f"{'':10s}{'frames/s':>10s}{'mean RMS deg':>14s}{'max RMS deg':>13s}"
           f"{'max flexion':>13s}")
-    for name, seconds, q in (("OpenSim", t_osim, q_osim), ("mocaplib", t_ours, motion.q)):
-        if truth is not None and len(q) == len(truth):
-            mean, worst, flex = angle_errors(q, truth)
-            errors = f"{mean:14.2f}{worst:13.2f}{flex:13.2f}"
+    for name, seconds in totals.items():
+        if errors[name]:
+            e = np.array(errors[name])
+            text = f"{e[:, 0].mean():14.2f}{e[:, 1].max():13.2f}{e[:, 2].max():13.2f}"
         else:
-            errors = f"{'(no truth)':>14s}"
-        print(f"{name:10s}{n / seconds:10.0f}{errors}")
+            text = f"{'(no truth)':>14s}"
+        print(f"{name:10s}{n / seconds:10.0f}{text}")
+    t_osim, t_ours = totals["OpenSim"], totals["mocaplib"]
     print(f"speed ratio mocaplib / OpenSim: {t_osim / t_ours:.1f}x")
     return 0
 
