@@ -186,7 +186,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     """
     from .calibrate import calibrate
     from .cycles import analyse_cycles, shoulder_centres
-    from .events import detect_events, feet_of
+    from .events import detect_events, feet_of, ground_velocity
     from .ik import fit
     from .io.c3d import read_c3d
     from .protocols import detect_protocol, load_protocol, match_protocol
@@ -216,7 +216,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         shoulders = shoulder_centres(motion)
         result.diagnostics = _series(trial, motion, shoulders, events)
     with clock.stage("cycles"):
-        cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q, source=path)
+        cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q,
+                                ground=ground_velocity(feet, trial.rate), source=path)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
