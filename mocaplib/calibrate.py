@@ -44,7 +44,7 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import CalibrationError
 from .ik import solve_poses
-from .protocols import Protocol, list_protocols, load_protocol, match_protocol
+from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
 from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
 from .trial import Trial
 
@@ -114,25 +114,13 @@ class SubjectModel:
 
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
-    """The protocol to use: the one given (object, shipped name or TOML path), else detected.
-
-    Detection uses :func:`mocaplib.protocols.detect_protocol` when available, otherwise the
-    shipped protocol matching the most labels.
-    """
+    """The protocol to use: the one given (object, shipped name or TOML path), else the one
+    :func:`mocaplib.protocols.detect_protocol` finds for the trial's labels."""
     if isinstance(protocol, Protocol):
         return protocol
     if protocol not in (None, "auto"):
         return load_protocol(protocol)
-    detect = getattr(_protocols, "detect_protocol", None)
-    if detect is not None:
-        found = detect(trial)
-        return getattr(found, "protocol", found)
-    candidates = [load_protocol(name) for name in list_protocols()]
-    best = max(candidates, key=lambda p: match_protocol(trial, p).found, default=None)
-    if best is None or match_protocol(trial, best).found == 0:
-        raise CalibrationError("no shipped protocol matches the trial's labels",
-                               path=trial.source, hint="pass --protocol with a TOML file")
-    return best
+    return detect_protocol(trial).protocol
 
 
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
@@ -194,10 +182,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         X = exchange(X, labels, swapped)
         first = solve_poses(skeleton, X, segments, offsets, free=free)
     centres = joint_centres(X, landmarks, skeleton, first.q, scale=scale)
-    anatomical = _lengths_from_centres(skeleton, first.q, centres)
+    anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
-    v_seg, v_off, v_pos = _virtual_markers(skeleton, centres)
+    v_seg, v_off, v_pos = _virtual_markers(skeleton, centres, len(X))
     poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
                         np.concatenate([segments, v_seg]), np.vstack([offsets, v_off]),
                         free=free, weights=np.r_[np.ones(len(labels)),
@@ -377,7 +365,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], skeleton: Skeleton, q: np
     return out
 
 
-def _lengths_from_centres(skeleton: Skeleton, q: np.ndarray,
+def _lengths_from_centres(skeleton: Skeleton,
                           centres: dict[tuple[str, float], np.ndarray]) -> dict[str, float]:
     """Segment lengths (metres): median distances between joint centres, else the nominal."""
     lengths = dict(skeleton.lengths)
@@ -406,13 +394,19 @@ def _lengths_from_centres(skeleton: Skeleton, q: np.ndarray,
             for k, v in lengths.items()}
 
 
-def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.ndarray]):
-    """Joint centres as markers: segment indices (V,), offsets (V, 3), positions (F, V, 3)."""
+def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.ndarray],
+                     n_frames: int):
+    """Joint centres as markers: segment indices (V,), offsets (V, 3), positions (F, V, 3).
+
+    A joint centre sits at its segment's origin; the wrist (keys with z != 0) at the end of
+    ``skeleton``'s forearm.
+    """
     keys = list(centres)
     segs = np.array([SEGMENT_NAMES.index(seg) for seg, _ in keys], dtype=int)
-    offs = np.array([(0.0, 0.0, z) for _, z in keys]).reshape(-1, 3)
-    pos = np.stack([centres[k] for k in keys], axis=1) if keys else None
-    return segs, offs, pos if pos is not None else np.zeros((0, 0, 3))
+    offs = np.array([(0.0, 0.0, -skeleton.lengths["forearm"] if z else 0.0)
+                     for _, z in keys]).reshape(-1, 3)
+    pos = np.stack([centres[k] for k in keys], axis=1) if keys else np.zeros((n_frames, 0, 3))
+    return segs, offs, pos
 
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,

@@ -330,7 +330,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     n_frames = trial.n_frames
     if n_frames == 0:
         raise FitError("the trial has no frames", path=trial.source)
-    free = np.array([name not in model.locked_dofs for name in DOF_NAMES])
+    free = model.free
     q = np.zeros((n_frames, len(DOF_NAMES)))
     residuals = np.full((n_frames, len(model.labels)), np.nan)
     converged = np.zeros(n_frames, dtype=bool)
