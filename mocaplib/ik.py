@@ -50,6 +50,9 @@ RESTART_FACTOR = 3.0
 #: A marker this far (m) from its model position is taken as mislabelled in that frame: the
 #: frame is fitted again without it (its residual is still reported).
 GROSS_ERROR = 0.08
+#: Every STRIDE-th frame is solved first, from rigid fits; the others start from those poses
+#: interpolated, so they need fewer iterations.
+STRIDE = 4
 #: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
 CHUNK = 1000
 
@@ -105,7 +108,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     q = np.clip(q, _LOWER, _UPPER)
     n_dofs = len(DOF_NAMES)
     diagonal = (slice(None), np.arange(n_dofs), np.arange(n_dofs))
-    lam = np.full(n_frames, 1e-3)
+    lam = np.full(n_frames, 1e-5)
     active = np.ones(n_frames, dtype=bool)
     mu2 = smoothing ** 2
 
@@ -163,13 +166,16 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             q[rows[good]] = trial_q[better]
             for cached, new in zip(chains, trial_chain):
                 cached[rows[good]] = new[better]
-            lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-7)
+            lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-9)
             done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < step_tol)
             active[rows[good[done]]] = False
-            lam[rows[k[~better]]] *= 4.0
+            worse = k[~better]
+            lam[rows[worse]] *= 4.0
             todo[good] = False
-            stuck = k[~better][lam[rows[k[~better]]] > 1e8]
-            active[rows[stuck]] = False                       # no descent left: a minimum
+            # no descent left (a step below step_tol, or damping exhausted): at a minimum
+            stuck = worse[(np.abs(trial_q[~better] - qa[worse]).max(axis=1) < step_tol)
+                          | (lam[rows[worse]] > 1e8)]
+            active[rows[stuck]] = False
             todo[stuck] = False
     residuals = np.linalg.norm(markers - skeleton.points(q, segments, offsets), axis=2)
     return PoseFit(q, residuals, ~active, iterations)
@@ -288,6 +294,12 @@ def _joint_angles(R: np.ndarray, axes: list[tuple[float, float, float]]) -> np.n
     return np.column_stack([a, b, c])[:, :len(axes)] * signs
 
 
+def _interpolate(q: np.ndarray, at: np.ndarray, n_frames: int) -> np.ndarray:
+    """Poses q (K, D) known at frames ``at`` (K,), linearly interpolated to (n_frames, D)."""
+    frames = np.arange(n_frames)
+    return np.column_stack([np.interp(frames, at, q[:, j]) for j in range(q.shape[1])])
+
+
 def _fill_gaps(values: np.ndarray) -> np.ndarray:
     """Linearly interpolate NaN rows over time per column (0 where a column is all NaN)."""
     out = values.copy()
@@ -336,12 +348,19 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     converged = np.zeros(n_frames, dtype=bool)
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
-        q0 = initial_pose(model.skeleton, markers[part], model.marker_segments,
+        settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
+                        max_iter=max_iter)
+        # coarse to fine in time: every STRIDE-th frame from rigid-fit starts, then all frames
+        # from the coarse solution interpolated (a warm start, as frame-by-frame solvers use)
+        coarse = np.unique(np.r_[np.arange(0, part.stop - start, STRIDE), part.stop - start - 1])
+        q0 = initial_pose(model.skeleton, markers[part][coarse], model.marker_segments,
                           model.marker_offsets)
         q0[:, ~free] = 0.0
+        first = solve_poses(model.skeleton, markers[part][coarse], model.marker_segments,
+                            model.marker_offsets, q0=q0, **settings)
+        q0 = _interpolate(first.q, coarse, part.stop - start)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
-                        model.marker_offsets, free=free, robust_scale=robust_scale,
-                        smoothing=smoothing, max_iter=max_iter)
+                        model.marker_offsets, **settings)
         res = _restart_outliers(solve, solve(q0=q0))
         gross = res.residuals > GROSS_ERROR
         if gross.any():         # a mislabelled or ghost marker: fit those frames without it
