@@ -14,9 +14,10 @@ gradient points outwards leaves the step). Missing markers (NaN) drop out.
 All frames of a chunk are solved together: the analytic Jacobians
 (:meth:`~mocaplib.skeleton.Skeleton.marker_jacobian`, shape (F, M, 3, D)) give the (F, D, D)
 normal equations, solved as one batched ``numpy.linalg.solve``;
-each frame keeps its own damping and stops when its cost stops falling. The start is a
-per-segment rigid fit (Kabsch on the segment's markers and its joint centre), decomposed into
-the joint's DOFs.
+each frame keeps its own damping and stops when its cost stops falling. :func:`fit` starts
+every :data:`STRIDE`-th frame from per-segment rigid fits (Kabsch on the segment's markers and
+its joint centre, decomposed into the joint's DOFs) and the other frames from those solutions
+interpolated in time.
 
 Units: metres and radians. Arrays: time on axis 0.
 """
