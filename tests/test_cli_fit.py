@@ -43,3 +43,11 @@ def test_fit_reports_a_bad_file_in_one_line(tmp_path, capsys):
     assert code == 1
     assert "broken.c3d" in err and "Traceback" not in err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_unknown_protocol_is_a_usage_error(tmp_path, capsys):
+    cap = fk_trial(n_frames=5)
+    path = write_c3d(tmp_path / "walk.c3d", cap.trial.markers, cap.trial.labels, 100.0)
+    code = main(["fit", str(path), "--protocol", "nonesuch", "-o", str(tmp_path / "x.csv")])
+    assert code == 2
+    assert "--protocol" in capsys.readouterr().err

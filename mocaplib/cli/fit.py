@@ -6,6 +6,8 @@ Only parses options and writes outputs: the work is :func:`mocaplib.calibrate.ca
 
 from __future__ import annotations
 
+import sys
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -14,7 +16,7 @@ def register(subparsers) -> None:
                     "the capture), fit every frame's joint angles by robust least squares and "
                     "write them as CSV: a time_s column and one column per DOF (radians; "
                     "pelvis_t* metres). Exit 0 on success, 1 when the capture cannot be fitted, "
-                    "2 on usage errors.")
+                    "2 on usage errors (including an unknown or malformed --protocol).")
     parser.add_argument("input", metavar="FILE", help="C3D capture")
     parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
                         help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
@@ -33,15 +35,24 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..calibrate import calibrate
+    from ..errors import ProtocolError
     from ..ik import fit, fit_quality
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
+    from ..protocols import load_protocol
     from ._common import print_json, warn
 
+    protocol = args.protocol
+    if protocol != "auto":
+        try:
+            protocol = load_protocol(protocol)
+        except ProtocolError as exc:
+            print(f"mocaplib fit: error: --protocol: {exc}", file=sys.stderr)
+            return 2
     trial = read_c3d(args.input)
     static = read_c3d(args.static) if args.static else None
-    model = calibrate(trial, protocol=args.protocol, static=static)
+    model = calibrate(trial, protocol=protocol, static=static)
     motion = fit(trial, model)
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
