@@ -73,6 +73,7 @@ def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path
     import opensim
 
     opensim.Logger.setLevelString("error")
+    opensim.Logger.removeFileSink()              # no opensim.log in the working folder
     model = opensim.Model(str(osim_path))
     tool = opensim.InverseKinematicsTool()
     tool.setModel(model)

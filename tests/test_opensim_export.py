@@ -17,8 +17,9 @@ def _model(cap, locked=()):
                         locked_dofs=list(locked))
 
 
-def test_opensim_places_markers_where_we_do(tmp_path):
+def test_opensim_places_markers_where_we_do(tmp_path, monkeypatch):
     osim = pytest.importorskip("opensim")
+    monkeypatch.chdir(tmp_path)                      # OpenSim writes opensim.log here
     cap = fk_trial(n_frames=4)
     path = write_osim(_model(cap), tmp_path / "subject.osim")
     model = osim.Model(str(path))
