@@ -25,7 +25,8 @@ def test_swapped_acromion_labels_are_undone():
     # SOURCES.md: in Walking3 the left acromion is labelled RA and the right one LA
     trial = read_c3d(real_file("motonms_unipd/Walking3.c3d"))
     model = calibrate(trial)
-    assert model.swapped == [("LA", "RA")] or model.swapped == [("RA", "LA")]
+    assert model.swapped == [("LA", "RA")]
     assert model.left_out == ["head", "humerus_r", "forearm_r", "humerus_l", "forearm_l"]
     rms = fit(trial, model).marker_rms()
-    assert rms[model.labels.index("LA")] < 0.03 and rms[model.labels.index("RA")] < 0.03
+    # once exchanged back both fit like any trunk marker (measured 8.8 and 5.1 mm)
+    assert rms[model.labels.index("LA")] < 0.015 and rms[model.labels.index("RA")] < 0.015
