@@ -277,6 +277,8 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
             flat = near & (np.linalg.norm(centre_velocity - ground, axis=1) < still_speed)
         if flat.any():
             ground[:2] = np.median(centre_velocity[flat, :2], axis=0)
+        if not _is_belt(centre_velocity, near, ground, still_speed):
+            ground[:] = 0.0
     with np.errstate(invalid="ignore"):
         still = np.linalg.norm(velocity - ground, axis=2) < still_speed
     still &= np.isfinite(z)
@@ -302,6 +304,30 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
         keep = new_keep
     floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
     return z - floor, ground
+
+
+def _is_belt(centre_velocity: np.ndarray, low: np.ndarray, ground: np.ndarray,
+             still_speed: float) -> bool:
+    """Whether ``ground`` (3,) m/s, estimated from the foot centre's velocity (F, 3) over the
+    ``low`` frames (F,) bool, is a treadmill belt's rather than a foot's on a fixed floor.
+
+    The median over the low frames is not zero overground: at fast walking and running the
+    frames within 3 cm of the floor include the foot arriving and leaving, which pull it to
+    ~0.25 m/s along the travel. A belt needs both kinds of evidence: (1) more low frames move
+    with ``ground`` than stand still (each within ``still_speed``/2), as a foot flat on a belt
+    does for most of its stance; (2) the foot's mean horizontal velocity over the capture (its
+    net travel / duration) is under half the belt's speed: a treadmill walker stays in place,
+    while overground the foot travels at the walking speed, several times the false estimate.
+    """
+    speed = float(np.hypot(*ground[:2]))
+    if speed == 0.0:
+        return False
+    tolerance = 0.5 * still_speed
+    horizontal = centre_velocity[low, :2]
+    moving = np.sum(np.linalg.norm(horizontal - ground[:2], axis=1) < tolerance)
+    standing = np.sum(np.linalg.norm(horizontal, axis=1) < tolerance)
+    travel = np.hypot(*np.nanmean(centre_velocity[:, :2], axis=0))
+    return bool(moving > standing and travel < 0.5 * speed)
 
 
 def _swings(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
