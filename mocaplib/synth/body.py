@@ -34,8 +34,8 @@ from scipy.spatial.transform import Rotation
 
 from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton, axis_rotation
 from .command import Command, frame_to_world, reference_path, world_to_frame
-from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, GaitParameters,
-                   foot_rotation, foot_trajectory, plan_footprints)
+from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, GaitParameters, foot_trajectory,
+                   plan_footprints)
 
 _Q = {name: j for j, name in enumerate(DOF_NAMES)}
 _SEG = {name: s for s, name in enumerate(SEGMENT_NAMES)}
@@ -47,6 +47,9 @@ _LEG_DOFS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion",
 GIRDLE_PROTRACTION, GIRDLE_ELEVATION = 0.02, 0.012
 #: Period of the postural sway of a standing subject, s.
 SWAY_PERIOD_S = 4.5
+#: Amplitude of a standing subject's fore-aft sway about the ankles, rad (quiet standing:
+#: a few millimetres at the centre of mass).
+SWAY_ANGLE = 0.25 * DEG
 
 
 @dataclass
@@ -76,8 +79,6 @@ class BodyMotion:
 
 
 def _phase(params: GaitParameters, t: np.ndarray) -> np.ndarray:
-    if params.gait == "stand":
-        return 2 * np.pi * t / SWAY_PERIOD_S
     return 2 * np.pi * (t - params.t_left) / params.stride
 
 
@@ -87,19 +88,15 @@ def _upper_body(params: GaitParameters, t: np.ndarray, xy: np.ndarray, theta: np
     phi = _phase(params, t)
     run = params.gait == "run"
     q = np.zeros((len(t), len(DOF_NAMES)))
-    if params.gait == "stand":
-        local = offset + params.sway * np.stack([np.sin(phi), 0.7 * np.sin(0.6 * phi + 1)], -1)
-        bounce = np.zeros_like(t)
-    else:
-        mid_stance = np.pi * params.duty
-        local = offset + np.stack([np.zeros_like(t), params.sway * np.cos(phi - mid_stance)], -1)
-        low = mid_stance if run else np.pi * (params.duty - 0.5)
-        bounce = -params.bounce * np.cos(2 * (phi - low))
+    mid_stance = np.pi * params.duty
+    local = offset + np.stack([np.zeros_like(t), params.sway * np.cos(phi - mid_stance)], -1)
+    low = mid_stance if run else np.pi * (params.duty - 0.5)
+    bounce = -params.bounce * np.cos(2 * (phi - low))
     pos = frame_to_world(xy, theta, local)
     tilt0 = (8.0 if run else 4.0) * DEG
     A_pr, A_th, A_arm = params.pelvis_rotation, params.thorax_rotation, params.arm_swing
     pelvis_list = params.pelvis_list * np.sin(phi + 0.5)
-    tilt_wave = (1.5 * DEG if params.gait != "stand" else 0.0) * np.cos(2 * phi)
+    tilt_wave = 1.5 * DEG * np.cos(2 * phi)
     set_ = {
         "pelvis_tx": pos[:, 0], "pelvis_ty": pos[:, 1], "pelvis_tz": bounce,
         "pelvis_rotation": theta - A_pr * np.cos(phi),
@@ -175,9 +172,7 @@ def _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side):
 
 
 def _stride_grid(params: GaitParameters, samples: int = 200) -> np.ndarray:
-    """Times covering one period of the motion uniformly (one stride; the sway when standing)."""
-    if params.gait == "stand":
-        return SWAY_PERIOD_S * np.arange(samples) / samples
+    """Times covering one stride uniformly."""
     return params.t_left + params.stride * np.arange(samples) / samples
 
 
@@ -195,6 +190,8 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
     """The body at times ``t`` (F,) s for a command; the reference frame is at the origin facing
     +X at ``t_mid``. The pelvis height is set over one whole stride, so it does not depend on
     which times are asked for."""
+    if params.gait == "stand":
+        return _neutral_stance(command, skeleton, height, np.asarray(t, float), t_mid=t_mid)
     geom = FootGeometry.from_skeleton(skeleton)
     offset = -_shoulder_offset(params, skeleton, command, height, t_mid)
     n = len(t)
@@ -208,20 +205,9 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
 
     feet, footprints = {}, {}
     for side in SIDES:
-        if params.gait == "stand":
-            fxy, fth = nominal(np.array([t_mid]))
-            sign = 1.0 if side == "l" else -1.0
-            spot = frame_to_world(fxy, fth, np.array([[0.0, sign * params.step_width / 2]]))
-            ankle = np.zeros((len(tt), 3))
-            ankle[:, :2] = spot
-            ankle[:, 2] = geom.ankle_height
-            heading = np.full(len(tt), fth[0] - sign * params.toe_out)
-            feet[side] = (ankle, foot_rotation(heading, np.zeros(len(tt))), np.zeros(len(tt)),
-                          np.full(len(tt), FLAT))
-        else:
-            footprints[side] = plan_footprints(params, nominal, side, float(tt.min()),
-                                               float(tt.max()))
-            feet[side] = foot_trajectory(footprints[side], tt, params, geom)
+        footprints[side] = plan_footprints(params, nominal, side, float(tt.min()),
+                                           float(tt.max()))
+        feet[side] = foot_trajectory(footprints[side], tt, params, geom)
 
     T = skeleton.forward(q)
     pelvis_R = T[:, _SEG["pelvis"], :3, :3]
@@ -250,3 +236,29 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
         contact=np.stack([feet["l"][3][:n], feet["r"][3][:n]], axis=1),
         shoulders=shoulder_centres(skeleton, q, girdle), footprints=footprints,
         reference=(xy[:n], theta[:n]))
+
+
+def _neutral_stance(command: Command, skeleton: Skeleton, height: float, t: np.ndarray, *,
+                    t_mid: float) -> BodyMotion:
+    """Standing still in the anatomical neutral pose, as for a static calibration trial: every
+    joint angle 0 (feet parallel under the hips, arms hanging), except a fore-aft sway of the
+    rigid body about the ankles (``pelvis_tilt`` = ``ankle_dorsiflexion`` = :data:`SWAY_ANGLE`
+    sin 2πt/:data:`SWAY_PERIOD_S`, which keeps the feet flat and fixed). The ankle midpoint
+    stands on the reference point."""
+    n = len(t)
+    xy, theta = reference_path(command, t, t_mid=t_mid)
+    sway = SWAY_ANGLE * np.sin(2 * np.pi * t / SWAY_PERIOD_S)
+    q = np.zeros((n, len(DOF_NAMES)))
+    q[:, _Q["pelvis_rotation"]] = theta
+    q[:, _Q["pelvis_tilt"]] = sway
+    for side in SIDES:
+        q[:, _Q[f"ankle_dorsiflexion_{side}"]] = sway
+    T = skeleton.forward(q)
+    ankles = 0.5 * (T[:, _SEG["foot_l"], :3, 3] + T[:, _SEG["foot_r"], :3, 3])
+    target = np.column_stack([xy, np.full(n, FootGeometry.from_skeleton(skeleton).ankle_height)])
+    q[:, [_Q["pelvis_tx"], _Q["pelvis_ty"], _Q["pelvis_tz"]]] = target - ankles
+    girdle = girdle_shift(q, height)
+    return BodyMotion(time=t, q=q, toe=np.zeros((n, 2)), wrist=np.zeros((n, 2)), girdle=girdle,
+                      contact=np.full((n, 2), FLAT),
+                      shoulders=shoulder_centres(skeleton, q, girdle), footprints={},
+                      reference=(xy, theta))

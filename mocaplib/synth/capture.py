@@ -78,9 +78,12 @@ def min_duration(command: Command, subject: Subject = Subject()) -> float:
 
 def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subject = Subject(),
                rate: float = 100.0, protocol: str = "fullbody38",
-               markers: MarkerSettings = MarkerSettings(), name: str = "synthetic"
-               ) -> SynthCapture:
-    """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``."""
+               markers: MarkerSettings = MarkerSettings(), name: str = "synthetic",
+               session_seed: int | None = None) -> SynthCapture:
+    """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``.
+
+    ``session_seed`` seeds the marker placement shared by every capture of one session (see
+    :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``."""
     if not (np.isfinite(rate) and rate > 0):
         raise SynthError(f"frame rate must be > 0 Hz, got {rate}")
     need = min_duration(command, subject)
@@ -94,8 +97,9 @@ def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subj
     t_mid = float(t[-1]) / 2
     body = body_motion(command, params, skeleton, subject.height, t, t_mid=t_mid)
     rng = np.random.default_rng(seed)
+    session = None if session_seed is None else np.random.default_rng(session_seed)
     xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
-                                       rate=rate, mass=subject.mass)
+                                       rate=rate, mass=subject.mass, placement_rng=session)
     events = _events(body, t[-1])
     trial = Trial(xyz, labels, rate, events=[Event(_SIDE_NAME[s], lab, tm)
                                              for s, lab, tm in events], source=name)
@@ -109,6 +113,7 @@ def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subj
                     "radius": None if not np.isfinite(command.radius) else command.radius},
         "subject": asdict(subject),
         "seed": seed,
+        "session_seed": session_seed,
         "rate_hz": rate,
         "frames": len(t),
         "first_frame": 1,

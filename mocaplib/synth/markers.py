@@ -4,8 +4,12 @@ Each protocol marker sits at its landmark's nominal offset (``Protocol.nominal_o
 scaled by height) on its segment, then, each switchable through :class:`MarkerSettings`:
 
 placement
-    A per-capture offset from nominal, normal with ``placement_sd`` (default 3 mm) per axis,
-    clipped at 2.5 sd, in the segment frame: technicians never put markers exactly on the atlas.
+    An offset from nominal, normal with ``placement_sd`` (default 3 mm) per axis, clipped at
+    2.5 sd, in the segment frame: technicians never put markers exactly on the atlas. In a real
+    session the markers stay on the subject between captures, so the offset belongs to the
+    session: it is drawn from the session's own random stream (``placement_rng``, seeded by a
+    plan's ``session_seed``) and is the same in every capture of that session. Without a
+    session stream it is drawn from the capture's (a new placement per capture).
 soft tissue
     A displacement in the segment frame that follows the nearby joints (a thigh marker moves
     with hip and knee flexion...): ``gain x sum_j c_j (q_j - mean q_j)`` with random unit-scale
@@ -91,17 +95,20 @@ def _rotate_about_y(points: np.ndarray, centre: np.ndarray, angle: np.ndarray) -
 
 def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, height: float,
                  settings: MarkerSettings, rng: np.random.Generator, *, rate: float,
-                 mass: float = 70.0) -> tuple[np.ndarray, list[str], dict]:
+                 mass: float = 70.0, placement_rng: np.random.Generator | None = None
+                 ) -> tuple[np.ndarray, list[str], dict]:
     """Marker positions (F, M, 3) m (NaN in gaps), labels (M,) and a record of what was done
     (``{"gaps": [...], "swap": [a, b] or None}``). Soft-tissue gains grow with the body-mass
-    index (``mass`` kg / ``height``² relative to 22.9 kg/m², that of 70 kg at 1.75 m)."""
+    index (``mass`` kg / ``height``² relative to 22.9 kg/m², that of 70 kg at 1.75 m).
+    ``placement_rng`` (the session's stream) draws the placement offsets, else ``rng``."""
     q = body.q
     n = len(q)
     segments, nominal = protocol.nominal_offsets(height)
     names = [m.landmark.name for m in protocol.markers]
     labels = list(protocol.labels)
     sd = settings.placement_sd
-    placed = nominal + np.clip(rng.normal(0.0, sd, nominal.shape), -2.5 * sd, 2.5 * sd)
+    draw = rng if placement_rng is None else placement_rng
+    placed = nominal + np.clip(draw.normal(0.0, sd, nominal.shape), -2.5 * sd, 2.5 * sd)
     local = np.broadcast_to(placed, (n,) + placed.shape).copy()
     geom = FootGeometry.from_skeleton(skeleton)
     forearm = skeleton.lengths["forearm"]

@@ -10,6 +10,8 @@ ignores it. Layout::
     height = 1.75
     mass = 70.0
     markers = { noise_sd = 0.0007 } # MarkerSettings fields
+    session_seed = 2010             # marker placement shared by the captures (one session);
+                                    # leave it out for a new placement per capture
 
     [[capture]]
     name = "walk_straight_normal"
@@ -50,6 +52,7 @@ class PlannedCapture:
     rate: float
     protocol: str
     markers: MarkerSettings
+    session_seed: int | None = None
 
 
 @dataclass(frozen=True)
@@ -115,11 +118,13 @@ def load_plan(path: str | os.PathLike) -> Plan:
         get = lambda key, default: entry.get(key, defaults.get(key, default))  # noqa: E731
         try:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
+            session = get("session_seed", None)
             captures.append(PlannedCapture(
                 name, str(entry["class"]), _command(entry["command"]),
                 float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
                 str(get("protocol", "fullbody38")),
-                _markers({**defaults.get("markers", {}), **entry.get("markers", {})})))
+                _markers({**defaults.get("markers", {}), **entry.get("markers", {})}),
+                None if session is None else int(session)))
         except SynthError as exc:
             raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
         except (TypeError, ValueError) as exc:
@@ -151,7 +156,7 @@ def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
             capture = synthesize(entry.command, duration=entry.duration, seed=entry.seed,
                                  subject=entry.subject, rate=entry.rate,
                                  protocol=protocol or entry.protocol, markers=entry.markers,
-                                 name=entry.name)
+                                 name=entry.name, session_seed=entry.session_seed)
             written += write_capture(capture, directory, entry.name,
                                      extra={"plan": plan.name, "class": entry.cls})
         except MocapError as exc:
