@@ -11,6 +11,25 @@ turning, 0.5 m/s of side-stepping. Queries are normalised the same way. Barycent
 affine invariant, so they do not depend on the scales; which tetrahedra Delaunay chooses, the
 distances and the coverage figures do.
 
+Triangulation of degenerate (gridded) libraries
+-----------------------------------------------
+Libraries are often gridded: many entries share v̂_l = 0 or a speed, and four or more lie on a
+common plane or sphere. Their Delaunay subdivision then has cells that are not tetrahedra
+(a grid's cube cell has 8 cospherical corners), and Qhull's triangulated output (``Qt``, which
+``scipy.spatial.Delaunay`` always uses) splits such cells into fans that include **zero-volume
+tetrahedra** (34 of 178 on a 4×5×3 grid). Joggling the input (``QJ``) is worse here: the
+tetrahedra are flat only after the joggle is undone, and it gives 156 flat ones of 296 on the
+same grid. Dropping the flat ones leaves a non-conforming mesh (100 interior faces of that grid
+had no neighbour), so blending would jump across faces. :func:`delaunay_tetrahedra` instead lifts
+the normalised points onto the paraboloid ``|x|²`` plus a tiny deterministic height per point
+(:data:`LIFT_PERTURBATION` times a hash of the point, so the same entry gets the same height in
+every sub-library) and keeps the lower hull of the lifted points: a *regular* triangulation that
+refines the Delaunay subdivision. Every tetrahedron is a Delaunay tetrahedron of the original
+points, has positive volume, the mesh is conforming (each interior face shared by exactly two
+tetrahedra) and the tetrahedra tile the convex hull exactly (142 on that grid, smallest radius
+ratio 0.54). Thin tetrahedra that remain are genuine slivers of the point set, which is what
+the sliver count reports.
+
 Blending (Truong et al. 2010, equations (4)-(6))
 ------------------------------------------------
 A query point inside the hull lies in one tetrahedron; its barycentric weights ``w`` (four,
@@ -29,16 +48,17 @@ every entry), sliver tetrahedra, entries per class and a greedy farthest-point "
 
 from __future__ import annotations
 
+import hashlib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
-from .fourier import RootDrift, synthesize
+from .fourier import ROOT_HEADING, TRANSLATIONS, RootDrift, synthesize
 from .skeleton import DOF_NAMES, DOFS
 
 #: Axis names of the two control-space variants.
@@ -50,8 +70,14 @@ AXIS_UNITS = {"v": "m/s", "v_f": "m/s", "omega": "rad/s", "v_l": "m/s"}
 DEFAULT_SCALE = {"v": 1.5, "v_f": 1.5, "omega": np.pi / 2, "v_l": 0.5}
 #: Tetrahedra whose radius ratio 3·r_in/R_circ (1 = regular, 0 = flat) is below this are slivers.
 SLIVER_QUALITY = 0.1
-#: Rotational DOFs (joint-angle errors are computed on these; pelvis_t* are metres).
+#: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
+#: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
+LIFT_PERTURBATION = 1e-8
+#: Rotational DOFs (pelvis_t* are metres).
 ROTATIONAL = np.array([not d.translation for d in DOFS])
+#: The joint angles compared by :func:`leave_one_out`: the rotational DOFs except the root's
+#: heading ``pelvis_rotation``, which is compared apart (it is stored relative to the path frame).
+JOINT_ANGLES = ROTATIONAL & (np.asarray(DOF_NAMES) != "pelvis_rotation")
 #: Keys of an entry's ``root_drift`` blended here: the path frame's constant velocity in its own
 #: axes (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
 DRIFT_KEYS = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
@@ -102,7 +128,65 @@ def _closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.nda
     return best, best_d
 
 
-def locate(tri: Delaunay, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
+@dataclass(frozen=True)
+class Triangulation:
+    """Tetrahedra of a point set: ``points`` (E, 3), ``simplices`` (S, 4) and the boundary
+    triangles ``convex_hull`` (H, 3), both as row numbers of ``points``."""
+
+    points: np.ndarray
+    simplices: np.ndarray
+    convex_hull: np.ndarray
+
+
+def _lift_heights(x: np.ndarray) -> np.ndarray:
+    """A pseudo-random number in [0, 1) per point (E,), a hash of its coordinates (so a point
+    gets the same one whatever the other points are)."""
+    rows = np.ascontiguousarray(x, dtype=np.float64) + 0.0  # -0.0 hashes as 0.0
+    return np.array([int.from_bytes(hashlib.blake2b(r.tobytes(), digest_size=8).digest(),
+                                    "little") / 2.0 ** 64 for r in rows])
+
+
+def _volumes(vertices: np.ndarray) -> np.ndarray:
+    """Volumes (T,) of tetrahedra (T, 4, 3)."""
+    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
+    return np.abs(np.einsum("ti,ti->t", p1 - p0, np.cross(p2 - p0, p3 - p0))) / 6.0
+
+
+def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
+    """Delaunay tetrahedra of points x (E, 3) spanning 3-D, none flat, even for gridded points.
+
+    The lower hull of the points lifted onto ``|x|²`` + :data:`LIFT_PERTURBATION` × a per-point
+    hash (see the module docstring): a conforming triangulation refining the Delaunay
+    subdivision, whose tetrahedra all have positive volume and tile the convex hull. Raises
+    LibraryError if Qhull fails or the tetrahedra do not tile the hull.
+    """
+    x = np.asarray(x, dtype=float)
+    c = x - x.mean(axis=0)
+    c = c / np.abs(c).max()  # well-conditioned lift whatever the units
+    lift = np.einsum("ij,ij->i", c, c)
+    lift = lift + LIFT_PERTURBATION * max(float(np.ptp(lift)), 1.0) * _lift_heights(x)
+    # One point high above the centroid (Qhull's "Qz") makes 4 entries enough; it is never on
+    # the lower hull, so never in a tetrahedron.
+    above = np.append(np.zeros(3), 2.0 * lift.max() + 1.0)
+    try:
+        lifted = ConvexHull(np.vstack([np.column_stack([c, lift]), above]))
+        hull_volume = ConvexHull(x).volume
+    except QhullError as exc:
+        raise LibraryError(f"Delaunay triangulation failed: {exc}", path=source) from exc
+    simplices = lifted.simplices[lifted.equations[:, 3] < 0]  # lower hull: facing down
+    volume = _volumes(x[simplices])
+    simplices = simplices[volume > 1e-12 * hull_volume]  # vertical facets of the silhouette
+    covered = volume[volume > 1e-12 * hull_volume].sum()
+    if not abs(covered - hull_volume) <= 1e-9 * hull_volume:
+        raise LibraryError(f"the tetrahedra cover {covered / hull_volume:.9f} of the hull",
+                           path=source, hint="report this library as a bug")
+    faces = np.sort(simplices[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3),
+                    axis=1)
+    faces, count = np.unique(faces, axis=0, return_counts=True)
+    return Triangulation(x, simplices, faces[count == 1])
+
+
+def locate(tri: Triangulation, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
     """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
 
     Plain numpy, closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex,
@@ -113,11 +197,9 @@ def locate(tri: Delaunay, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256)
     pts = tri.points[tri.simplices]                        # (S, 4, 3)
     a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
     rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (S, 3, 3)
-    det = np.einsum("si,si->s", a, rows[:, 0])
-    ok = np.abs(det) > 1e-12 * np.max(np.abs(det), initial=0.0)
-    inv = rows[ok] / det[ok, None, None]                   # rows of the inverse of [a b c]
-    origin = pts[ok, 3]
-    where = np.flatnonzero(ok)
+    det = np.einsum("si,si->s", a, rows[:, 0])             # 6 × signed volume, never 0
+    inv = rows / det[:, None, None]                        # rows of the inverse of [a b c]
+    origin = pts[:, 3]
     simplex = np.full(len(x), -1)
     weights = np.full((len(x), 4), np.nan)
     for lo in range(0, len(x), chunk):
@@ -127,7 +209,7 @@ def locate(tri: Delaunay, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256)
         best = np.argmax(worst, axis=1)
         q = np.arange(len(best))
         hit = worst[q, best] >= -tol
-        simplex[lo:lo + chunk] = np.where(hit, where[best], -1)
+        simplex[lo:lo + chunk] = np.where(hit, best, -1)
         weights[lo:lo + chunk][hit] = w[q[hit], best[hit]]
     return simplex, weights
 
@@ -135,7 +217,7 @@ def locate(tri: Delaunay, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256)
 def tetra_quality(vertices: np.ndarray) -> np.ndarray:
     """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
     p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
-    vol = np.abs(np.einsum("ti,ti->t", p1 - p0, np.cross(p2 - p0, p3 - p0))) / 6.0
+    vol = _volumes(vertices)
     faces = ((p1, p2, p3), (p0, p2, p3), (p0, p1, p3), (p0, p1, p2))
     area = sum(np.linalg.norm(np.cross(b - a, c - a), axis=1) / 2 for a, b, c in faces)
     r_in = 3 * vol / np.where(area > 0, area, np.inf)
@@ -279,7 +361,7 @@ class ControlSpace:
         """SI points (…, 3) to normalised coordinates."""
         return np.asarray(x, dtype=float) / self.scale
 
-    def _triangulate(self) -> Delaunay:
+    def _triangulate(self) -> Triangulation:
         x = self.normalise(self.points)
         distinct = np.unique(np.round(x, 12), axis=0)
         if len(distinct) < 4:
@@ -295,10 +377,7 @@ class ControlSpace:
                 f"lie on {kind}, so there are no tetrahedra", path=self.source,
                 hint="capture turning, side-stepping and different speeds so the entries "
                      "span all three axes")
-        try:
-            return Delaunay(x)
-        except QhullError as exc:  # pragma: no cover - guarded by the rank test above
-            raise LibraryError(f"Delaunay triangulation failed: {exc}", path=self.source) from exc
+        return delaunay_tetrahedra(x, source=self.source)
 
     # ----------------------------------------------------------------- queries
     @property
@@ -374,22 +453,31 @@ class ControlSpace:
 def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     """Blending error of the library: each entry inside the hull of the others, rebuilt from them.
 
-    Both cycles are compared at ``n_phase`` equally spaced phases of their own period. Columns:
-    ``id``, ``class``, ``inside`` (False when the entry is on the hull of the others, or the
-    others are degenerate), ``neighbours`` (ids), ``weights``, ``rms_deg`` (joint-angle RMS over
-    rotational DOFs and phases, degrees), ``max_deg``, ``worst_dof``, ``T_error_s``.
+    Both cycles are compared at ``n_phase`` equally spaced phases of their own period, channel by
+    channel in the units they are stored in (the Fourier convention: root in the path frame,
+    per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
+    the hull of the others, or the others are degenerate), ``neighbours`` (ids), ``weights``;
+    joint angles (:data:`JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs and phases),
+    ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation`` relative to the
+    path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS over the three
+    and the phases); drift over one cycle: ``stride_error_mm`` (distance between the blended
+    and the entry's displacement per cycle), ``turn_error_deg`` (heading change per cycle,
+    blended minus entry's; NaN without drift); ``T_error_s`` (blended minus entry's period).
     """
     if cs.a is None:
         raise MocapError("leave-one-out needs Fourier coefficients", path=cs.source)
     phase = np.arange(n_phase) / n_phase
+    joint_names = np.asarray(DOF_NAMES)[JOINT_ANGLES]
     rows = []
     for i in range(len(cs.points)):
         keep = np.arange(len(cs.points)) != i
         row = {"id": cs.ids[i], "class": cs.classes[i], "inside": False, "neighbours": [],
                "weights": [], "rms_deg": np.nan, "max_deg": np.nan, "worst_dof": None,
-               "T_error_s": np.nan}
+               "heading_rms_deg": np.nan, "root_rms_mm": np.nan, "stride_error_mm": np.nan,
+               "turn_error_deg": np.nan, "T_error_s": np.nan}
         try:
             others = ControlSpace(cs.points[keep], a=cs.a[keep], b=cs.b[keep], T=cs.T[keep],
+                                  drift=None if cs.drift is None else cs.drift[keep],
                                   ids=[cs.ids[j] for j in np.flatnonzero(keep)],
                                   axes=cs.variant, scale=cs.scale, source=cs.source)
         except LibraryError:
@@ -398,18 +486,33 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
         res = others.query(cs.points[i])
         if res.inside[0]:
             bl = others.blend(res)
-            truth = synthesize(cs.a[i], cs.b[i], 1.0, phase)[:, ROTATIONAL]
-            guess = synthesize(bl.a[0], bl.b[0], 1.0, phase)[:, ROTATIONAL]
-            err = np.degrees(guess - truth)
-            per_dof = np.sqrt(np.mean(err ** 2, axis=0))
+            err = (synthesize(bl.a[0], bl.b[0], 1.0, phase)
+                   - synthesize(cs.a[i], cs.b[i], 1.0, phase))          # (n_phase, D) rad, m
+            joints = np.degrees(err[:, JOINT_ANGLES])
+            per_dof = np.sqrt(np.mean(joints ** 2, axis=0))
             row.update(inside=True, neighbours=[others.ids[j] for j in res.entries[0]],
                        weights=res.weights[0].tolist(),
-                       rms_deg=float(np.sqrt(np.mean(err ** 2))),
-                       max_deg=float(np.abs(err).max()),
-                       worst_dof=np.asarray(DOF_NAMES)[ROTATIONAL][np.argmax(per_dof)],
+                       rms_deg=float(np.sqrt(np.mean(joints ** 2))),
+                       max_deg=float(np.abs(joints).max()),
+                       worst_dof=str(joint_names[np.argmax(per_dof)]),
+                       heading_rms_deg=float(np.degrees(np.sqrt(np.mean(
+                           err[:, ROOT_HEADING] ** 2)))),
+                       root_rms_mm=float(1000 * np.sqrt(np.mean(err[:, TRANSLATIONS] ** 2))),
                        T_error_s=float(bl.T[0] - cs.T[i]))
+            if bl.drift is not None:
+                xb, yb, turned_b = _cycle_displacement(bl.drift[0], bl.T[0])
+                xi, yi, turned_i = _cycle_displacement(cs.drift[i], cs.T[i])
+                row.update(stride_error_mm=float(1000 * np.hypot(xb - xi, yb - yi)),
+                           turn_error_deg=float(np.degrees(turned_b - turned_i)))
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _cycle_displacement(drift: np.ndarray, T: float) -> tuple[float, float, float]:
+    """Displacement (m, in the start frame) and heading change (rad) over one cycle of the path
+    frame moving with drift velocities (u_f, u_l, ω) (:data:`DRIFT_KEYS`) for ``T`` s."""
+    x, y, turned = RootDrift(0.0, 0.0, 0.0, *(float(v) for v in drift)).frame(T)
+    return float(x), float(y), float(turned)
 
 
 # --------------------------------------------------------------------------- coverage
@@ -480,7 +583,8 @@ class Envelope:
         x = self.vertices / scale
         if np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9) < 3:
             return grid  # a flat envelope: its bounding box is the envelope
-        return grid[locate(Delaunay(x), grid / scale)[0] >= 0]
+        inside = locate(delaunay_tetrahedra(x, source=self.source), grid / scale)[0] >= 0
+        return grid[inside]
 
 
 @dataclass

@@ -7,8 +7,11 @@ import itertools
 import numpy as np
 import pytest
 
-from mocaplib.controlspace import (DEFAULT_SCALE, ROTATIONAL, Blend, ControlSpace, Envelope,
-                                   coverage, drift_velocities, leave_one_out, tetra_quality)
+from scipy.spatial import ConvexHull, Delaunay
+
+from mocaplib.controlspace import (DEFAULT_SCALE, JOINT_ANGLES, Blend, ControlSpace, Envelope,
+                                   coverage, delaunay_tetrahedra, drift_velocities,
+                                   leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.fourier import root_drift, synthesize
 from mocaplib.library import assemble_library, make_entry
@@ -160,14 +163,90 @@ def test_leave_one_out_known_answer():
     df = leave_one_out(ControlSpace.from_library(hand_library(pts, a=a, T=T)))
     assert df["inside"].tolist() == [False] * 8 + [True]
     row = df.iloc[8]
-    n_rot = int(ROTATIONAL.sum())
-    # Error 0.05 rad on 1 of the rotational DOFs, constant over the cycle.
+    n_joints = int(JOINT_ANGLES.sum())
+    assert n_joints == 28  # 32 DOFs minus pelvis_tx/ty/tz and the heading pelvis_rotation
+    # Error 0.05 rad on 1 of the joint angles, constant over the cycle.
     np.testing.assert_allclose(row["max_deg"], np.degrees(0.05), atol=1e-9)
-    np.testing.assert_allclose(row["rms_deg"], np.degrees(0.05) / np.sqrt(n_rot), atol=1e-9)
+    np.testing.assert_allclose(row["rms_deg"], np.degrees(0.05) / np.sqrt(n_joints), atol=1e-9)
     assert row["worst_dof"] == "knee_flexion_r"
+    assert row["heading_rms_deg"] == 0 and row["root_rms_mm"] == 0
     np.testing.assert_allclose(row["T_error_s"], -0.2, atol=1e-9)
     np.testing.assert_allclose(sum(row["weights"]), 1.0, atol=1e-12)
     assert set(row["neighbours"]) <= {f"e{i:02d}" for i in range(8)}
+
+
+def test_leave_one_out_keeps_root_channels_and_drift_apart():
+    # The centre's root is 10 mm ahead and 0.02 rad left of its path frame and its period is
+    # 1.2 s against the corners' 1.0 s; the drift (u_f, u_l, ω) = (v, v_l, ω) is affine in the
+    # control point, so the blended drift velocities are the centre's own.
+    pts = np.vstack([CUBE, [[0.5, 0.5, 0.5]]])
+    a = np.zeros((9, D, 3))
+    a[8, DOF_NAMES.index("pelvis_tx"), 0] = 0.010
+    a[8, DOF_NAMES.index("pelvis_rotation"), 0] = 0.02
+    T = np.array([1.0] * 8 + [1.2])
+    row = leave_one_out(ControlSpace.from_library(hand_library(pts, a=a, T=T))).iloc[8]
+    assert row["inside"] and row["rms_deg"] == 0  # metres and heading stay out of the joints
+    # Constant offsets: RMS over pelvis_tx/ty/tz of (10, 0, 0) mm; heading 0.02 rad.
+    np.testing.assert_allclose(row["root_rms_mm"], 10 / np.sqrt(3), atol=1e-9)
+    np.testing.assert_allclose(row["heading_rms_deg"], np.degrees(0.02), atol=1e-9)
+    # Per cycle the frame turns ω·T and moves along an arc: ∫0^T R(ωt) (u_f, u_l) dt.
+    u, w = np.array([0.5, 0.5]), 0.5
+
+    def arc(t):
+        c, s = np.sin(w * t) / w, (1 - np.cos(w * t)) / w
+        return np.array([[c, -s], [s, c]]) @ u
+    np.testing.assert_allclose(row["turn_error_deg"], np.degrees(w * (1.0 - 1.2)), atol=1e-9)
+    np.testing.assert_allclose(row["stride_error_mm"],
+                               1000 * np.linalg.norm(arc(1.0) - arc(1.2)), atol=1e-6)
+
+
+def test_gridded_library_has_no_flat_tetrahedra():
+    # A 4 x 5 x 3 grid: every cube cell has 8 cospherical corners. Qhull's triangulated output
+    # (scipy's Delaunay) fans such cells into tetrahedra some of which are flat; ours must not.
+    axes = (np.linspace(0, 1.5, 4), np.linspace(-1.2, 1.2, 5), np.linspace(-0.5, 0.5, 3))
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    x = grid / [DEFAULT_SCALE[k] for k in ("v", "omega", "v_l")]
+    p = x[Delaunay(x).simplices]
+    qhull_volumes = np.abs(np.linalg.det(p[:, 1:] - p[:, :1])) / 6
+    assert (qhull_volumes < 1e-12).sum() > 0  # the degeneracy this test is about exists
+    cs = ControlSpace(grid)
+    p = cs.tri.points[cs.tri.simplices]
+    volumes = np.abs(np.linalg.det(p[:, 1:] - p[:, :1])) / 6
+    hull = ConvexHull(x).volume
+    # Each grid cell is split into tetrahedra of at least 1/6 of a cell (a corner tetrahedron)
+    # (3 x 4 x 2 = 24 cells); they tile the hull exactly (round-off only).
+    assert volumes.min() >= hull / 24 / 6 * (1 - 1e-9)
+    np.testing.assert_allclose(volumes.sum(), hull, rtol=1e-12)
+    # Cells are 0.33 x 0.38 x 1 normalised boxes: corner tetrahedra have radius ratio ~0.38.
+    assert cs.tetra_quality().min() > 0.3 and len(cs.tri.simplices) >= 24 * 5
+    # Conforming: every face inside the hull is shared by exactly two tetrahedra.
+    faces = np.sort(cs.tri.simplices[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]]
+                    .reshape(-1, 3), axis=1)
+    _, count = np.unique(faces, axis=0, return_counts=True)
+    assert set(count) == {1, 2} and (count == 1).sum() == len(cs.hull_facets)
+    assert len(cs.hull_facets) == 2 * (3 * 4 + 3 * 2 + 4 * 2) * 2  # the box's grid squares, x 2
+    # Queries anywhere in the box (on grid planes too) get valid weights reproducing the point.
+    rng = np.random.default_rng(7)
+    q = np.vstack([rng.uniform([0, -1.2, -0.5], [1.5, 1.2, 0.5], (300, 3)),
+                   np.column_stack([rng.uniform(0, 1.5, 50), np.full(50, 0.6), np.zeros(50)])])
+    res = cs.query(q)
+    assert res.inside.all() and (res.weights >= 0).all()
+    np.testing.assert_allclose(res.weights.sum(axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("qk,qkj->qj", res.weights, cs.points[res.entries]), q,
+                               atol=1e-12)  # one affine solve per point: round-off only
+    assert coverage(cs, Envelope.box({"v": (0, 1.5), "omega": (-1.2, 1.2),
+                                      "v_l": (-0.5, 0.5)})).slivers.empty
+
+
+def test_triangulation_does_not_depend_on_entry_order():
+    # The tie-breaking heights hash each point, so leaving an entry out or reordering the
+    # library keeps the same tetrahedra among the others (a 3 x 3 x 3 grid is full of ties).
+    grid = np.array(list(itertools.product((0.0, 0.5, 1.0), repeat=3)))
+    order = np.random.default_rng(3).permutation(len(grid))
+    first = {frozenset(map(tuple, grid[s])) for s in delaunay_tetrahedra(grid).simplices}
+    again = {frozenset(map(tuple, grid[order][s]))
+             for s in delaunay_tetrahedra(grid[order]).simplices}
+    assert first == again
 
 
 def test_leave_one_out_is_exact_for_affine_coefficients():
