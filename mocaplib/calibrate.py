@@ -26,6 +26,15 @@ Steps (all in metres, world Z up):
    segment's frame over those poses, and each segment's offsets are turned (Kabsch, about
    their centroid) onto the catalogue layout, which makes the segment frames anatomical: zero
    angles put the markers in the catalogue's layout, as the DOF sign table describes.
+4'. **Neutral static** (``static_pose="neutral"``, the default when a static trial is given,
+   as OpenSim's MarkerPlacer and Plug-in Gait's static processing do): the subject is taken to
+   stand in the anatomical neutral pose, every joint angle 0 (:func:`neutral_offsets`). Only
+   the root pose is fitted to the static frames, and each marker's offset is then measured
+   directly in its segment frame (the mean of ``R_s^T (x − t_s)``, no turning onto the
+   catalogue), so a marker placed off its landmark keeps its true offset and the placement
+   error does not become a joint-angle offset. Step 5 is then skipped: the model is the
+   static's. ``static_pose="free"`` instead runs step 4 on the static and step 5 on the
+   motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
    Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
    feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their
@@ -43,7 +52,7 @@ import numpy as np
 
 from . import protocols as _protocols
 from .errors import CalibrationError
-from .ik import solve_poses
+from .ik import initial_pose, solve_poses
 from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
 from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
 from .trial import Trial
@@ -59,6 +68,10 @@ CENTRE_WEIGHT = 10.0
 
 #: Residual (m) above which a left/right pair is checked for exchanged labels.
 SWAP_RESIDUAL = 0.03
+
+#: What a static trial's pose is taken to be: "neutral" (anatomical, every joint angle 0) or
+#: "free" (unknown: fitted, like a motion).
+STATIC_POSES = ("neutral", "free")
 
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
@@ -124,7 +137,8 @@ def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Pro
 
 
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
-              static: Trial | None = None, height: float | None = None, n_frames: int = 60,
+              static: Trial | None = None, static_pose: str = "neutral",
+              height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
@@ -135,6 +149,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     static : a static standing trial of the same subject. When given, steps 1-4 (markers,
         height, joint centres, lengths, anatomical offsets) use it and step 5 refines on the
         motion trial; otherwise every step uses the motion trial.
+    static_pose : "neutral" (default): the static subject stands in the anatomical neutral
+        pose, every joint angle 0, and the marker offsets are measured in it (step 4'); "free":
+        the static pose is fitted like any other (steps 4 and 5). Unused without ``static``.
     height : standing height, metres; estimated from the markers when None.
     n_frames : calibration frames (the most complete ones, spread over the trial).
     max_rounds : refinement rounds at most (step 5).
@@ -143,6 +160,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     -------
     SubjectModel
     """
+    if static_pose not in STATIC_POSES:
+        raise CalibrationError(f"static_pose must be one of {', '.join(STATIC_POSES)}, "
+                               f"got {static_pose!r}", path=getattr(static, "source", None))
     cal = static if static is not None else trial
     proto = choose_protocol(cal, protocol)
     X_all = match_protocol(cal, proto).markers(cal)
@@ -184,6 +204,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     centres = joint_centres(X, landmarks, skeleton, first.q, scale=scale)
     anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
+    if static is not None and static_pose == "neutral":
+        offsets, rms = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled)
+        return SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
+                            [rms], cal.source, swapped)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
     v_seg, v_off, v_pos = _virtual_markers(skeleton, centres, len(X))
     poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
@@ -221,6 +245,25 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
 
 # ----------------------------------------------------------------------------- pieces
+def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
+                    nominal: np.ndarray) -> tuple[np.ndarray, float]:
+    """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
+
+    ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
+    (scaled) for the start. Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
+    fitted to all markers with the nominal offsets, then each offset is the mean of
+    ``R_s^T (x − t_s)`` over the frames where its marker is seen (not turned onto the
+    catalogue: the pose, not the layout, defines the segment frames). Returns the offsets and
+    the RMS (m) of the static markers about the neutral model with them.
+    """
+    root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
+    q0 = np.where(root, initial_pose(skeleton, X, segments, nominal), 0.0)
+    q = solve_poses(skeleton, X, segments, nominal, q0=q0, free=root, smoothing=0.0).q
+    offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
+    residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
+    return offsets, float(np.sqrt(np.nanmean(residual ** 2)))
+
+
 def find_swaps(fit_without, residuals: np.ndarray, X: np.ndarray, labels: list[str],
                landmarks: list[str]) -> list[tuple[str, str]]:
     """Left/right marker pairs whose labels are exchanged in the trial.
