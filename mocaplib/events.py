@@ -35,13 +35,17 @@ forefoot (where the toe marker sits, on the metatarsal heads) lifts first, the t
 (toe roll); a force plate's Foot Off is the second. The foot-centre velocity peak marks the
 second; the first kink of the toe marker marks the first.
 
-* ``"lift"`` (default): the kink searched up to ``refine_s`` before the velocity peak, i.e. the
-  instant the toe marker lifts. Exact for a rigid foot that leaves the floor at once, as the
-  synthetic walker's does (its truth is that instant); on real feet it comes before the force
-  plate's Foot Off by the toe-roll time (measured in the README).
-* ``"foot_velocity"``: the kink searched only within ``refine_s/2`` of the velocity peak,
-  which stays on the toes' release: within a few ms of force-plate Foot Off on the real files,
-  but late on the synthetic rigid foot (whose velocity peak follows its lift-off).
+* ``"foot_velocity"`` (default): the kink searched only within ``refine_s/2`` of the velocity
+  peak, which stays on the toes' release: within a few ms of force-plate Foot Off on the real
+  files (median 5 ms). On the synthetic walker, whose rigid foot has no toe roll and whose
+  truth is the instant it lifts, 90 % of toe-offs within 1 frame, 95 % within 2.
+* ``"lift"``: the kink searched up to ``refine_s`` before the velocity peak, i.e. the instant
+  the toe marker lifts: exact for a rigid foot (99.7 % of the synthetic toe-offs within 1
+  frame), ~37 ms before the force plate's Foot Off on real feet.
+
+No one search window serves both: widening it from ``refine_s/2`` towards ``refine_s`` before
+the peak moves the synthetic score from 90 % to 99 % and the real median from 5 ms to 34 ms
+early (README). Real captures are what the product measures, hence the default.
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """
@@ -60,7 +64,7 @@ from .errors import EventError
 SIDES = ("left", "right")
 #: Toe-off definitions (see the module docstring) and how far before the coarse time (in
 #: units of ``refine_s``) each searches for the kink.
-TOE_OFF_SEARCH = {"lift": 1.0, "foot_velocity": 0.5}
+TOE_OFF_SEARCH = {"foot_velocity": 0.5, "lift": 1.0}
 
 
 @dataclass(frozen=True)
@@ -88,7 +92,7 @@ class GaitEvent:
 
 
 def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
-                  toe_off: str = "lift", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
+                  toe_off: str = "foot_velocity", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
                   min_swing_s: float = 0.08, still_speed: float = 0.5,
                   refine_s: float = 0.08, max_gap_s: float = 0.25,
                   source: str | os.PathLike | None = None) -> list[GaitEvent]:
@@ -102,8 +106,8 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
     rate
         Frame rate, Hz.
     toe_off
-        ``"lift"`` (kinematic lift-off) or ``"foot_velocity"`` (force-plate-like), see the
-        module docstring.
+        ``"foot_velocity"`` (force-plate-like, default) or ``"lift"`` (the toe marker's
+        lift-off), see the module docstring.
     cutoff_hz, min_clearance, min_swing_s, still_speed, refine_s, max_gap_s
         See the module docstring (Hz, m, s, m/s, s, s).
     source
@@ -126,7 +130,7 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
 
 
 def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
-                toe_off: str = "lift", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
+                toe_off: str = "foot_velocity", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
                 min_swing_s: float = 0.08, still_speed: float = 0.5,
                 refine_s: float = 0.08, max_gap_s: float = 0.25,
                 source: str | os.PathLike | None = None) -> list[GaitEvent]:

@@ -29,13 +29,16 @@ def _load():
             continue
         trial = read_c3d(path)
         match = detect_protocol(trial)
-        events = detect_events(feet_of(trial, match), trial.rate)
+        # the synthetic foot is rigid and its truth's toe-off is the instant it lifts: the
+        # "lift" definition (the default, foot_velocity, is tested on its own)
+        events = detect_events(feet_of(trial, match), trial.rate, toe_off="lift")
         out.append((path.stem, trial, match, events, json.loads(truth_path.read_text())))
     return out
 
 
 def samples():
-    """[(name, trial, protocol match, detected events, truth dict)]; skips when none exist."""
+    """[(name, trial, protocol match, events (toe_off="lift"), truth dict)]; skips when none
+    exist."""
     found = _load()
     if not found:
         pytest.skip(f"no synthetic captures with truth in {SAMPLES}")

@@ -114,7 +114,7 @@ LAB_NAMES = {"Foot Off": "toe_off", "Foot Strike": "heel_strike",
              "LTO": "toe_off", "RTO": "toe_off", "LHS": "heel_strike", "RHS": "heel_strike"}
 
 
-def lab_differences(kind, toe_off="lift"):
+def lab_differences(kind, toe_off="foot_velocity"):
     """Detected minus lab event time (s) for every lab event of ``kind`` in the 4 files."""
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
@@ -136,14 +136,14 @@ def lab_differences(kind, toe_off="lift"):
 
 
 def test_real_toe_offs_match_lab_foot_off():
-    diff = lab_differences("toe_off", toe_off="foot_velocity")
+    diff = lab_differences("toe_off")  # the default, foot_velocity
     assert len(diff) >= 18  # 21 lab Foot Off events in the four files, a few at the edges
     # the issue's target: median |difference| <= 10 ms against the lab's Foot Off
     assert np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
 
 
 def test_real_forefoot_lift_precedes_foot_off_by_the_toe_roll():
-    diff = lab_differences("toe_off")  # default "lift": the toe marker leaves first
+    diff = lab_differences("toe_off", toe_off="lift")  # the toe marker leaves first
     # measured median -36 ms: the toes stay on the plate for a few tens of ms after the
     # forefoot lifts; the window checks the sign and the order of magnitude
     assert -0.060 <= np.median(diff) <= -0.015, np.round(diff * 1000)
@@ -156,11 +156,13 @@ def test_real_heel_strikes_match_lab_foot_strike():
     assert np.median(np.abs(diff)) <= 0.020, np.round(diff * 1000)
 
 
-def test_synthetic_captures_toe_offs_within_one_frame():
+def synthetic_toe_off_errors(toe_off):
+    """{locomotion type: [|detected - true| toe-off time in frames]} over sample_c3d/."""
     from sample_captures import locomotion_type, samples
 
     by_type: dict[str, list[float]] = {}
-    for name, trial, _, events, truth in samples():
+    for name, trial, match, _, truth in samples():
+        events = detect_events(feet_of(trial, match), trial.rate, toe_off=toe_off)
         for true in truth["events"]:
             if true["kind"] != "toe_off":
                 continue
@@ -168,14 +170,31 @@ def test_synthetic_captures_toe_offs_within_one_frame():
                      if e.side == true["side"] and e.kind == "toe_off"]
             error = min(map(abs, found)) * trial.rate if found else np.inf
             by_type.setdefault(locomotion_type(name), []).append(error)
-    within = {kind: np.mean(np.array(errs) <= 1.0) for kind, errs in by_type.items()}
-    everything = np.concatenate([np.array(e) for e in by_type.values()])
-    # the issue's target over all synthetic toe-offs: >= 95 % within one frame
+    return {kind: np.array(errors) for kind, errors in by_type.items()}
+
+
+def test_synthetic_toe_offs_lift_within_one_frame():
+    by_type = synthetic_toe_off_errors("lift")
+    within = {kind: np.mean(errors <= 1.0) for kind, errors in by_type.items()}
+    everything = np.concatenate(list(by_type.values()))
+    # the issue's target over all synthetic toe-offs: >= 95 % within one frame (measured
+    # 99.7 %: the synthetic foot is rigid, its truth is the instant the toe marker lifts)
     assert np.mean(everything <= 1.0) >= 0.95, within
-    # per locomotion type (15-45 toe-offs each) the README reports the figures (measured
-    # 93-100 %); 85 % leaves room for one unlucky event per type as the samples are remade
+    # per locomotion type (15-45 toe-offs each) measured 93-100 %; 85 % leaves room for one
+    # unlucky event per type as the samples are remade
     assert min(within.values()) >= 0.85, within
     assert everything.max() <= 3.0  # none missed, none far off
+
+
+def test_synthetic_toe_offs_default_foot_velocity():
+    by_type = synthetic_toe_off_errors("foot_velocity")
+    everything = np.concatenate(list(by_type.values()))
+    # the default misses the issue's synthetic target (>= 95 % within 1 frame): measured 90 %
+    # within 1 frame, 95 % within 2 (README); these bounds catch a regression from there
+    assert np.mean(everything <= 1.0) >= 0.85, np.mean(everything <= 1.0)
+    assert np.mean(everything <= 2.0) >= 0.93, np.mean(everything <= 2.0)
+    assert min(np.mean(e <= 2.0) for e in by_type.values()) >= 0.8
+    assert np.isfinite(everything).all()  # every toe-off found
 
 
 def sample_file(name):

@@ -29,10 +29,10 @@ def add_common_options(parser) -> None:
     parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
                         help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
                              "(default: the best shipped protocol)")
-    parser.add_argument("--toe-off", choices=("lift", "foot_velocity"), default="lift",
-                        help="toe-off definition: 'lift' (the toe marker leaves the floor; "
-                             "default) or 'foot_velocity' (the foot's upward-velocity peak, "
-                             "close to a force plate's Foot Off)")
+    parser.add_argument("--toe-off", choices=("foot_velocity", "lift"), default="foot_velocity",
+                        help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
+                             "peak, close to a force plate's Foot Off; default) or 'lift' (the "
+                             "toe marker leaves the floor, ~40 ms earlier on real feet)")
 
 
 def load(args):
