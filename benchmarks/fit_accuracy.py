@@ -30,6 +30,8 @@ sys.path.insert(0, str(ROOT))
 
 from mocaplib.calibrate import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
+from mocaplib.filtering import filter_trial  # noqa: E402
+from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
@@ -45,38 +47,79 @@ WALKING = ["cmu/07_01.c3d", "cmu/07_12.c3d", "biomechzoo/HC030A05.c3d", "biomech
            "c3dviewer_examples/running.c3d"]
 
 
-def synthetic(folder: Path) -> None:
-    rows = defaultdict(list)
-    worst: dict[str, tuple[float, str]] = {}
+#: Calibration and marker filtering of each row of the synthetic table.
+MODES = (("capture", None), ("capture", "auto"), ("static", None), ("static", "auto"))
+
+
+def fourier_orders(q: np.ndarray, rate: float, cycles: list[dict]) -> list[int]:
+    """Fourier order N (tolerance 0.5 deg, 2 mm) of each true cycle of the angles q (F, D)."""
+    t = np.arange(len(q)) / rate
+    orders = []
+    for cycle in cycles:
+        inside = (t >= cycle["start_s"]) & (t < cycle["end_s"])
+        q_end = np.array([np.interp(cycle["end_s"], t, column) for column in q.T])
+        orders.append(encode_cycle(q[inside], t[inside] - cycle["start_s"], cycle["T"],
+                                   q_end).order)
+    return orders
+
+
+def synthetic(folder: Path, static_path: Path | None) -> None:
+    """Per calibration (the capture itself, or the static trial) and marker filter (none, or
+    Winter's automatic cutoff): joint-angle errors per class and the Fourier orders."""
+    captures = []
     for path in sorted(folder.glob("*.c3d")):
         truth_path = path.with_suffix(".truth.json")
-        if not truth_path.exists():
+        if truth_path.exists():
+            captures.append((path, json.loads(truth_path.read_text())))
+    static = read_c3d(static_path) if static_path and static_path.exists() else None
+    orders_truth = [n for path, truth in captures
+                    for n in fourier_orders(np.asarray(truth["angles"]["values"]),
+                                            truth["rate_hz"], truth["cycles"])]
+    print("| calibration | markers | class | captures | flexion RMS mean / max (deg) "
+          "| other RMS mean / max (deg) | flexion tracking max | other tracking max "
+          "| marker RMS (mm) | cutoff (Hz) | Fourier N median / max, at cap 20 |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for calibration, cutoff in MODES:
+        if calibration == "static" and static is None:
             continue
-        truth = json.loads(truth_path.read_text())
-        trial = read_c3d(path)
-        motion = fit(trial, calibrate(trial))
-        error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
-        rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
-        tracking = np.degrees(error.std(axis=0))
-        rows[truth.get("class", "?")].append(
-            (rms[FLEXION], rms[OTHER], tracking[FLEXION], tracking[OTHER],
-             fit_quality(motion)["marker_rms_mm"]))
-        for j in FLEXION + OTHER:
-            if rms[j] > worst.get(DOF_NAMES[j], (0.0, ""))[0]:
-                worst[DOF_NAMES[j]] = (rms[j], path.stem)
-    print("| class | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
-          "| flexion tracking max | other tracking max | marker RMS (mm) |")
-    print("|---|---|---|---|---|---|---|")
-    every = [r for group in rows.values() for r in group]
-    for name, group in sorted(rows.items()) + [("all", every)]:
-        f, o, tf, to, mk = (np.array([r[k] for r in group]) for k in range(5))
-        print(f"| {name} | {len(group)} | {f.mean():.2f} / {f.max():.2f} | {o.mean():.2f} / "
-              f"{o.max():.2f} | {tf.max():.2f} | {to.max():.2f} | {mk.mean():.1f} |")
-    print("\nMean RMS error per DOF over all captures (deg):")
-    means = np.mean([np.r_[r[0], r[1]] for r in every], axis=0)
-    for j, value in zip(FLEXION + OTHER, means):
-        print(f"  {DOF_NAMES[j]:22s} {value:5.2f}   worst {worst[DOF_NAMES[j]][0]:5.2f} "
-              f"({worst[DOF_NAMES[j]][1]})")
+        rows, orders, cutoffs = defaultdict(list), [], []
+        worst: dict[str, tuple[float, str]] = {}
+        for path, truth in captures:
+            raw = read_c3d(path)
+            trial, used = filter_trial(raw, cutoff=cutoff)
+            cutoffs.append(np.nan if used is None else used)
+            model = calibrate(trial, static=static if calibration == "static" else None)
+            motion = fit(trial, model)
+            error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
+            rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
+            tracking = np.degrees(error.std(axis=0))
+            orders += fourier_orders(motion.q, trial.rate, truth["cycles"])
+            rows[truth.get("class", "?")].append(
+                (rms[FLEXION], rms[OTHER], tracking[FLEXION], tracking[OTHER],
+                 fit_quality(motion)["marker_rms_mm"]))
+            for j in FLEXION + OTHER:
+                if rms[j] > worst.get(DOF_NAMES[j], (0.0, ""))[0]:
+                    worst[DOF_NAMES[j]] = (rms[j], path.stem)
+        every = [r for group in rows.values() for r in group]
+        orders = np.array(orders)
+        fc = (f"{np.nanmin(cutoffs):.1f}–{np.nanmax(cutoffs):.1f}"
+              if np.isfinite(cutoffs).any() else "none")
+        for name, group in sorted(rows.items()) + [("all", every)]:
+            f, o, tf, to, mk = (np.array([r[k] for r in group]) for k in range(5))
+            extra = (f"{fc} | {np.median(orders):.0f} / {orders.max()}, "
+                     f"{(orders >= 20).sum()} of {len(orders)}") if name == "all" else " | "
+            print(f"| {calibration} | {cutoff or 'raw'} | {name} | {len(group)} | "
+                  f"{f.mean():.2f} / {f.max():.2f} | {o.mean():.2f} / {o.max():.2f} | "
+                  f"{tf.max():.2f} | {to.max():.2f} | {mk.mean():.1f} | {extra} |")
+        means = np.mean([np.r_[r[0], r[1]] for r in every], axis=0)
+        worst_dofs = sorted(zip(means, FLEXION + OTHER), reverse=True)[:4]
+        print("|  |  | largest mean DOF errors: " + ", ".join(
+            f"{DOF_NAMES[j]} {m:.2f} (worst {worst[DOF_NAMES[j]][0]:.2f}, "
+            f"{worst[DOF_NAMES[j]][1]})" for m, j in worst_dofs) + " | | | | | | | | |")
+    orders_truth = np.array(orders_truth)
+    print(f"\nFourier N of the true angles over the same cycles: median "
+          f"{np.median(orders_truth):.0f}, max {orders_truth.max()}, at cap 20: "
+          f"{(orders_truth >= 20).sum()} of {len(orders_truth)}")
 
 
 def forward_kinematics(seeds: int) -> None:
@@ -126,17 +169,21 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--synth", default=str(ROOT / "sample_c3d"))
     parser.add_argument("--real", default=str(ROOT.parent / "shared" / "data" / "c3d"))
+    parser.add_argument("--static", default=str(ROOT / "sample_c3d" / "rest.c3d"),
+                        help="static trial of the synthetic session (neutral pose)")
     parser.add_argument("--fk-seeds", type=int, default=5)
+    parser.add_argument("--only", choices=("fk", "synth", "real"), help="one table only")
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
-    print("| data | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
-          "| marker RMS (mm) |\n|---|---|---|---|---|")
-    forward_kinematics(args.fk_seeds)
-    print()
-    if Path(args.synth).is_dir():
-        synthetic(Path(args.synth))
+    if args.only in (None, "fk"):
+        print("| data | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
+              "| marker RMS (mm) |\n|---|---|---|---|---|")
+        forward_kinematics(args.fk_seeds)
         print()
-    if Path(args.real).is_dir():
+    if args.only in (None, "synth") and Path(args.synth).is_dir():
+        synthetic(Path(args.synth), Path(args.static))
+        print()
+    if args.only in (None, "real") and Path(args.real).is_dir():
         real(Path(args.real))
     return 0
 

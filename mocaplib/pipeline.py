@@ -52,6 +52,8 @@ class BuildSettings:
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.protocols`).
     static : a static calibration capture, or None to calibrate from each motion capture.
+    cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
+        ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     all_cycles : keep every complete cycle, not only the one chosen per capture.
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
@@ -61,6 +63,7 @@ class BuildSettings:
 
     protocol: str = "auto"
     static: str | None = None
+    cutoff: float | str | None = "auto"
     all_cycles: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
@@ -186,6 +189,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     """
     from .calibrate import calibrate
     from .cycles import analyse_cycles, shoulder_centres
+    from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
     from .ik import fit
     from .io.c3d import read_c3d
@@ -199,10 +203,12 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("protocol"):
         match = (detect_protocol(trial) if settings.protocol == "auto"
                  else match_protocol(trial, load_protocol(settings.protocol)))
+    with clock.stage("filter"):
+        filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        model = calibrate(trial, protocol=match.protocol, static=static)
+        model = calibrate(filtered, protocol=match.protocol, static=static)
     with clock.stage("fit"):
-        motion = fit(trial, model)
+        motion = fit(filtered, model)
     if motion.locked_dofs:
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
@@ -214,7 +220,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         feet = feet_of(trial, match, motion=motion)
         events = detect_events(feet, trial.rate, source=path)
         shoulders = shoulder_centres(motion)
-        result.diagnostics = _series(trial, motion, shoulders, events)
+        result.diagnostics = {**_series(trial, motion, shoulders, events),
+                              "marker_cutoff_hz": cutoff}
     with clock.stage("cycles"):
         cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q,
                                 ground=ground_velocity(feet, trial.rate), source=path)

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 from fk_data import fk_trial
 
 from mocaplib.cli import main
@@ -51,3 +52,21 @@ def test_unknown_protocol_is_a_usage_error(tmp_path, capsys):
     code = main(["fit", str(path), "--protocol", "nonesuch", "-o", str(tmp_path / "x.csv")])
     assert code == 2
     assert "--protocol" in capsys.readouterr().err
+
+
+def test_cutoff_option(tmp_path, capsys):
+    cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=2)
+    path = write_c3d(tmp_path / "walk.c3d", cap.trial.markers, cap.trial.labels, 100.0)
+    reports = {}
+    for cutoff in ("none", "8", "auto"):
+        assert main(["fit", str(path), "--protocol", "fullbody38", "--cutoff", cutoff,
+                     "-o", str(tmp_path / f"{cutoff}.csv"), "--json"]) == 0
+        reports[cutoff] = json.loads(capsys.readouterr().out)
+    assert reports["none"]["cutoff_hz"] is None and reports["8"]["cutoff_hz"] == 8.0
+    assert 2.0 <= reports["auto"]["cutoff_hz"] <= 20.0
+    # low-passed markers lose their 0.5 mm white noise, so they lie closer to the model
+    assert reports["8"]["marker_rms_mm"] < reports["none"]["marker_rms_mm"]
+    with pytest.raises(SystemExit) as exit_info:      # argparse: a usage error
+        main(["fit", str(path), "--cutoff", "-3", "-o", str(tmp_path / "x.csv")])
+    assert exit_info.value.code == 2
+    assert "--cutoff: must be > 0 Hz" in capsys.readouterr().err

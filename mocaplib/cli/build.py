@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ._common import warn
+from .fit import add_cutoff_option
 
 
 def _positive_int(text: str) -> int:
@@ -33,7 +34,9 @@ def register(subparsers) -> None:
     parser.add_argument("--protocol", default="auto",
                         help="marker-set protocol name or TOML file, or 'auto' (default)")
     parser.add_argument("--static", metavar="FILE",
-                        help="static calibration capture (default: calibrate from each capture)")
+                        help="static calibration capture, subject in the anatomical neutral "
+                             "pose (default: calibrate from each capture)")
+    add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
                         help="worker processes (default 1)")
@@ -77,7 +80,7 @@ def _run(args) -> int:
         print(f"mocaplib build: error: {problem}", file=sys.stderr)
         return 2
     output = Path(args.output)
-    settings = BuildSettings(protocol=args.protocol, static=args.static,
+    settings = BuildSettings(protocol=args.protocol, static=args.static, cutoff=args.cutoff,
                              all_cycles=args.all_cycles, qc_policy=args.qc)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,

@@ -49,9 +49,11 @@ def load(args):
 def fitted(trial, match, static=None):
     """The capture's fitted :class:`~mocaplib.Motion` (calibrated from ``static`` if given)."""
     from ..calibrate import calibrate
+    from ..filtering import filter_trial
     from ..ik import fit
 
-    return fit(trial, calibrate(trial, protocol=match.protocol, static=static))
+    markers, _ = filter_trial(trial, cutoff="auto")     # as mocaplib build and fit do
+    return fit(markers, calibrate(markers, protocol=match.protocol, static=static))
 
 
 def detect(args, trial, match, motion=None):

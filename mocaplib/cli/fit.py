@@ -6,7 +6,28 @@ Only parses options and writes outputs: the work is :func:`mocaplib.calibrate.ca
 
 from __future__ import annotations
 
+import argparse
 import sys
+
+
+def cutoff_type(text: str) -> float | str | None:
+    """``--cutoff`` value: a frequency in Hz (> 0), ``auto`` or ``none``."""
+    if text.lower() in ("auto", "none"):
+        return None if text.lower() == "none" else "auto"
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected Hz, 'auto' or 'none', got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0 Hz, got {text}")
+    return value
+
+
+def add_cutoff_option(parser) -> None:
+    parser.add_argument("--cutoff", type=cutoff_type, default="auto", metavar="HZ|auto|none",
+                        help="low-pass the markers before calibrating and fitting: zero-lag "
+                             "Butterworth at HZ (-3 dB), 'auto' (default: Winter's residual "
+                             "analysis per capture) or 'none'")
 
 
 def register(subparsers) -> None:
@@ -21,7 +42,10 @@ def register(subparsers) -> None:
     parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
                         help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
                              "(default: detected from the labels)")
-    parser.add_argument("--static", metavar="FILE", help="static standing C3D for calibration")
+    parser.add_argument("--static", metavar="FILE",
+                        help="static C3D of the subject standing in the anatomical neutral pose "
+                             "(joint angles 0): marker offsets are measured on it")
+    add_cutoff_option(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT.csv",
                         help="joint angles as CSV")
     parser.add_argument("--mot", metavar="OUT.mot", help="also write the angles as OpenSim .mot")
@@ -36,6 +60,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..calibrate import calibrate
     from ..errors import ProtocolError
+    from ..filtering import filter_trial
     from ..ik import fit, fit_quality
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
@@ -50,7 +75,7 @@ def _run(args) -> int:
         except ProtocolError as exc:
             print(f"mocaplib fit: error: --protocol: {exc}", file=sys.stderr)
             return 2
-    trial = read_c3d(args.input)
+    trial, cutoff = filter_trial(read_c3d(args.input), cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None
     model = calibrate(trial, protocol=protocol, static=static)
     motion = fit(trial, model)
@@ -66,10 +91,12 @@ def _run(args) -> int:
         warn(f"{args.input}: {len(quality['failed_frames'])} frames could not be fitted "
              "(interpolated)")
     if args.json:
-        print_json({"file": args.input, "protocol": model.protocol.name, **quality})
+        print_json({"file": args.input, "protocol": model.protocol.name,
+                    "cutoff_hz": cutoff, **quality})
     else:
         print(f"{args.input}: protocol {model.protocol.name}, {motion.n_frames} frames, "
               f"marker RMS {quality['marker_rms_mm']:.1f} mm, "
-              f"max {quality['max_marker_error_mm']:.1f} mm -> {args.output}")
+              f"max {quality['max_marker_error_mm']:.1f} mm, markers low-passed at "
+              f"{'(none)' if cutoff is None else f'{cutoff:g} Hz'} -> {args.output}")
     return 0
 

@@ -1,0 +1,110 @@
+"""Marker low-pass filter: zero lag, gaps respected, Winter's residual cutoff."""
+
+import numpy as np
+import pytest
+
+from mocaplib.errors import FitError
+from mocaplib.filtering import (MIN_RUN, filter_trial, lowpass, residual_cutoff,
+                                residual_curve, valid_runs)
+from mocaplib.trial import Trial
+
+RATE = 100.0
+
+
+def _time(n=400):
+    return np.arange(n) / RATE
+
+
+def test_valid_runs():
+    mask = np.array([0, 1, 1, 0, 0, 1, 1, 1, 0, 1], bool)
+    np.testing.assert_array_equal(valid_runs(mask), [[1, 3], [5, 8], [9, 10]])
+
+
+def test_no_phase_lag_and_unit_gain_in_the_pass_band():
+    t = _time()
+    x = 0.05 * np.sin(2 * np.pi * 1.5 * t + 0.3)
+    y = lowpass(x, RATE, 6.0)
+    lags = np.arange(-5, 6)
+    core = slice(50, -50)
+    corr = [np.dot(np.roll(y, k)[core], x[core]) for k in lags]
+    assert lags[int(np.argmax(corr))] == 0, "the forward-backward filter shifts nothing"
+    # 1.5 Hz is a quarter of the cutoff: the 4th-order zero-lag response is 1 - 4e-3 there;
+    # odd-extension padding keeps the ends within 1 mm of a 50 mm sine (measured 0.6 mm)
+    np.testing.assert_allclose(y[core], x[core], atol=0.05 * 4e-3 + 1e-5)
+    np.testing.assert_allclose(y, x, atol=1e-3)
+
+
+def test_cutoff_is_the_minus_3_db_point_of_both_passes():
+    t = _time(2000)
+    for fc in (4.0, 6.0, 10.0, 15.0):
+        y = lowpass(np.sin(2 * np.pi * fc * t), RATE, fc)[500:-500]
+        basis = np.stack([np.sin(2 * np.pi * fc * t), np.cos(2 * np.pi * fc * t)], 1)[500:-500]
+        amplitude = np.linalg.norm(np.linalg.lstsq(basis, y, rcond=None)[0])
+        # Winter's two-pass correction, in the bilinear transform's warped frequency, puts the
+        # half-power point exactly at the cutoff (1e-4: 15 s of a sine, ends cut, by least
+        # squares); without it the gain there would be 0.5
+        np.testing.assert_allclose(amplitude, 2 ** -0.5, atol=1e-4)
+
+
+def test_gaps_stay_gaps_and_runs_are_filtered_apart():
+    t = _time()
+    rng = np.random.default_rng(0)
+    x = np.sin(2 * np.pi * t)[:, None] * [1.0, 2.0] + rng.normal(0, 0.01, (len(t), 2))
+    x[100:130, 0] = np.nan      # a gap splitting column 0 into two long runs
+    x[300:395, 1] = np.nan      # column 1: a long run, then a 5-frame run at the end
+    assert 400 - 395 < MIN_RUN
+    y = lowpass(x, RATE, 6.0)
+    np.testing.assert_array_equal(np.isnan(y), np.isnan(x))
+    # each run is filtered on its own: the same as filtering that slice alone, exactly
+    np.testing.assert_allclose(y[:100, 0], lowpass(x[:100, 0], RATE, 6.0), atol=1e-12)
+    np.testing.assert_allclose(y[130:, 0], lowpass(x[130:, 0], RATE, 6.0), atol=1e-12)
+    np.testing.assert_allclose(y[:300, 1], lowpass(x[:300, 1], RATE, 6.0), atol=1e-12)
+    # a run shorter than MIN_RUN frames is left as it is
+    np.testing.assert_array_equal(y[395:, 1], x[395:, 1])
+    # and the long runs are really smoothed: white noise keeps about sqrt(6 / 50) of its sd
+    # below 6 Hz (measured 0.35), so it falls at least twofold
+    clean = np.sin(2 * np.pi * t)
+    assert np.std(y[150:280, 0] - clean[150:280]) < np.std(x[150:280, 0] - clean[150:280]) / 2
+
+
+def test_residual_analysis_finds_the_knee_of_signal_plus_noise():
+    t = _time(1000)
+    rng = np.random.default_rng(1)
+    # six coordinates: 1 Hz and 3 Hz sines (100 and 20 mm) of different phases and sizes
+    phase = np.arange(6)
+    signal = (0.1 * np.sin(2 * np.pi * 1.0 * t[:, None] + phase)
+              + 0.02 * np.sin(2 * np.pi * 3.0 * t[:, None] + 2 * phase)) * np.linspace(0.5, 1.5, 6)
+    noisy = signal + rng.normal(0, 0.001, signal.shape)
+    fc = residual_cutoff(noisy, RATE)
+    # the signal ends at 3 Hz and 1 mm noise is flat to 50 Hz: the knee lies a little above 3 Hz
+    assert 3.0 <= fc <= 8.0, fc
+    # filtering there leaves less error than the noise had (measured 0.62 mm of 1 mm: the
+    # residual method balances the noise passed and the 3 Hz signal trimmed)
+    error = np.sqrt(np.mean((lowpass(noisy, RATE, fc) - signal) ** 2))
+    assert error < 0.75 * 0.001, error
+    # the residual falls as the cutoff rises and is noise-sized at high cutoffs
+    curve = residual_curve(noisy, RATE, np.array([1.0, 5.0, 20.0, 35.0]))
+    assert np.all(np.diff(curve) < 0) and 0.0002 < curve[-1] < 0.001
+
+
+def test_filter_trial_returns_a_new_trial():
+    t = _time(200)
+    rng = np.random.default_rng(2)
+    markers = np.stack([np.sin(2 * np.pi * t), np.cos(2 * np.pi * t), t], -1)[:, None]
+    markers = np.repeat(markers, 3, axis=1) + rng.normal(0, 0.001, (200, 3, 3))
+    trial = Trial(markers.copy(), ["A", "B", "C"], RATE, source="walk.c3d")
+    filtered, used = filter_trial(trial, cutoff=6.0)
+    assert used == 6.0 and filtered is not trial
+    np.testing.assert_array_equal(trial.markers, markers)      # the input is untouched
+    assert np.abs(filtered.markers - markers).max() > 0
+    same, none = filter_trial(trial, cutoff=None)
+    assert same is trial and none is None
+    auto, fc = filter_trial(trial, cutoff="auto")
+    assert 2.0 <= fc <= 20.0
+
+
+@pytest.mark.parametrize("cutoff", [0.0, 50.0, "fast"])
+def test_bad_cutoff_names_the_file(cutoff):
+    trial = Trial(np.zeros((50, 1, 3)), ["A"], RATE, source="walk.c3d")
+    with pytest.raises(FitError, match="walk.c3d: low-pass cutoff must be"):
+        filter_trial(trial, cutoff=cutoff)
