@@ -70,6 +70,9 @@ AXIS_UNITS = {"v": "m/s", "v_f": "m/s", "omega": "rad/s", "v_l": "m/s"}
 DEFAULT_SCALE = {"v": 1.5, "v_f": 1.5, "omega": np.pi / 2, "v_l": 0.5}
 #: Tetrahedra whose radius ratio 3·r_in/R_circ (1 = regular, 0 = flat) is below this are slivers.
 SLIVER_QUALITY = 0.1
+#: Entries closer than this (normalised: 30 mm/s of v̂, 1.8°/s, 10 mm/s of v̂_l) are hard to tell
+#: apart in the control space: blending between them switches motions over a tiny distance.
+CLOSE_DISTANCE = 0.02
 #: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
 #: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
 LIFT_PERTURBATION = 1e-8
@@ -447,6 +450,18 @@ class ControlSpace:
     def tetra_quality(self) -> np.ndarray:
         """Radius ratio of every tetrahedron in normalised coordinates, shape (nsimplex,)."""
         return tetra_quality(self.tri.points[self.tri.simplices])
+
+
+def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:
+    """Pairs of entries closer than ``within`` (normalised distance): columns ``a``, ``b`` (ids)
+    and ``distance``, nearest first. E.g. 60° and 120° diagonal walks have the same v̂ and v̂_l,
+    so they coincide on the tangential axes but not on the frontal ones."""
+    x = cs.normalise(cs.points)
+    pairs = np.array(sorted(cKDTree(x).query_pairs(within)), dtype=int).reshape(-1, 2)
+    d = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+    order = np.argsort(d, kind="stable")
+    return pd.DataFrame({"a": [cs.ids[i] for i in pairs[order, 0]],
+                         "b": [cs.ids[j] for j in pairs[order, 1]], "distance": d[order]})
 
 
 # --------------------------------------------------------------------------- leave-one-out

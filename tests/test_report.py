@@ -43,10 +43,10 @@ def _coefficients(v: float, omega: float, n: int = 4):
 
 
 def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
-                 diagnostics: bool = True) -> Path:
-    """A hand-assembled library (and its diagnostics sidecar) in ``folder``."""
+                 diagnostics: bool = True, rows=ENTRIES) -> Path:
+    """A hand-assembled library of ``rows`` (and its diagnostics sidecar) in ``folder``."""
     entries = []
-    for i, (cls, v, w, vl) in enumerate(ENTRIES):
+    for i, (cls, v, w, vl) in enumerate(rows):
         a, b = _coefficients(v, w)
         T = 1.1 - 0.15 * v
         source = source_name if i == 0 else f"cap{i:02d}.c3d"
@@ -122,6 +122,9 @@ def test_report_is_self_contained(report):
     assert len(images) >= 3  # projections, 3-D view, one capture figure
     for img in images:
         assert img.ndim == 3 and img.shape[0] > 200 and img[..., :3].std() > 0.05
+    # Every picture is a palette PNG (IHDR colour type 3): a few tens of kB, not hundreds.
+    for data in re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html):
+        assert base64.b64decode(data)[25] == 3
 
 
 def test_report_escapes_untrusted_names(report):
@@ -135,11 +138,64 @@ def test_report_escapes_untrusted_names(report):
 def test_report_contents(report):
     _, html = report
     for text in ("Capture next", "largest hole", "Blending error", "sliver tetrahedra",
-                 "cap99.c3d", "no left toe-off found", "Interactive view", 'id="cs-data"'):
+                 "cap99.c3d", "no left toe-off found", "Interactive view", 'id="cs-data"',
+                 "joint RMS (°)", "heading RMS (°)", "root RMS (mm)", "stride error (mm)",
+                 "For comparison, on the frontal axes"):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
                                 html, re.S).group(1))
     assert len(data["points"]) == len(ENTRIES) and len(data["edges"]) > len(ENTRIES)
+
+
+def test_report_warns_about_entries_too_close_to_tell_apart(tmp_path):
+    from mocaplib.report import write_report
+
+    # A 60° and a 120° diagonal at 1 m/s: same v̂ and v̂_l, so the same tangential point.
+    rows = ENTRIES + [("diagonal", 1.0, 0.001, 0.7)]
+    lib = make_library(tmp_path, rows=rows, diagnostics=False)
+    html = write_report(lib, tmp_path / "r", renderer="matplotlib").read_text()
+    warnings = html.split('<ul class="warn">')[1].split("</ul>")[0]
+    assert "1 pair(s) of entries nearly coincide" in warnings
+    table = html.split("Entries too close to tell apart</h3>")[1].split("</table>")[0]
+    assert "cap11#0" in table and "cap15#0" in table
+    assert "0.000, 0.057, 0.000" in table  # |Δv̂| m/s, |Δω̂| °/s, |Δv̂_l| m/s
+
+
+def test_sliver_summary_lists_the_worst_ten():
+    import pandas as pd
+
+    from mocaplib.report.html import MAX_SLIVER_ROWS, _sliver_context
+
+    quality = np.array([0.05, 2e-4, 0.09, 5e-3, 1e-12] + [0.02] * 20)
+    slivers = pd.DataFrame({"entries": [["a", "b", "c", f"e{i}"] for i in range(25)],
+                            "quality": quality})
+    ctx = _sliver_context(slivers)
+    assert ctx["count"] == 25 and ctx["not_listed"] == 25 - MAX_SLIVER_ROWS == 15
+    assert [r["quality"] for r in ctx["worst"][:3]] == [1e-12, 2e-4, 5e-3]
+    assert [b["count"] for b in ctx["bands"]] == [2, 1, 22]  # < 0.001, < 0.01, < 0.1
+    assert ctx["frequent"][0] == {"id": "a", "count": 25}
+
+
+def test_compressed_pngs_look_the_same():
+    from matplotlib.image import imread
+
+    from mocaplib.report import figures
+
+    fig = figures._figure(6, 4)
+    ax = fig.subplots()
+    t = np.linspace(0, 2, 300)
+    for k in range(6):
+        ax.plot(t, np.sin(3 * t + k), lw=3, alpha=0.4)
+        ax.plot(t, np.sin(3 * t + k), lw=1)
+    ax.legend([f"dof {k}" for k in range(12)], fontsize=7)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=figures.DPI)
+    original = imread(io.BytesIO(buf.getvalue()))[..., :3]
+    small = figures.compress_png(buf.getvalue())
+    palette = imread(io.BytesIO(small))[..., :3]
+    assert len(small) < 0.6 * len(buf.getvalue())
+    # Only antialiased edge pixels move: 99 % of pixels within 10/255 of the original.
+    assert np.quantile(np.abs(palette - original).max(axis=2), 0.99) <= 10 / 255
 
 
 def test_report_falls_back_without_opengl(tmp_path, monkeypatch):

@@ -12,7 +12,9 @@ import numpy as np
 
 #: Joint angles drawn per capture (the ones a gait lab reads first).
 CAPTURE_DOFS = ("hip_flexion_r", "knee_flexion_r", "ankle_dorsiflexion_r", "trunk_rotation")
-DPI = 80
+DPI = 96
+#: Palette size of the report's PNGs (:func:`compress_png`).
+PALETTE_COLOURS = 256
 UNKNOWN_CLASS = "unknown"
 
 
@@ -37,9 +39,25 @@ def _figure(width: float, height: float):
 
 
 def png_bytes(fig) -> bytes:
+    """The figure as a compact PNG (see :func:`compress_png`)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
-    return buf.getvalue()
+    return compress_png(buf.getvalue())
+
+
+def compress_png(png: bytes, *, colours: int = PALETTE_COLOURS) -> bytes:
+    """An RGB(A) PNG re-encoded with a palette of ``colours`` colours, without dithering.
+
+    Plots have few colours (lines, markers, text antialiasing), so an adaptive 256-colour
+    palette is visually identical and about 4 times smaller (a 68-capture report: 5.5 MB of
+    images down to about 1.5 MB)."""
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    out = io.BytesIO()
+    image.quantize(colors=colours, method=Image.Quantize.FASTOCTREE,
+                   dither=Image.Dither.NONE).save(out, format="PNG", optimize=True)
+    return out.getvalue()
 
 
 def _display(points: np.ndarray, axes: tuple[str, ...]) -> np.ndarray:
@@ -78,8 +96,8 @@ def projections(points, classes, axes, *, envelope=None, hull_points=None, holes
             ax.plot(ring[:, 0], ring[:, 1], lw=1.2, label=label, **style)
         if holes is not None and len(holes):
             h = _display(holes, axes)
-            ax.scatter(h[:, i], h[:, j], marker="x", s=8, color="tab:red", alpha=0.15,
-                       linewidths=0.6, label="envelope not covered")
+            ax.scatter(h[:, i], h[:, j], marker="x", s=8, color="#f2b8b8", linewidths=0.6,
+                       label="envelope outside the library hull", zorder=1)
         p = _display(points, axes)
         for name in sorted(set(classes)):
             sel = np.array([c == name for c in classes])
@@ -151,9 +169,15 @@ def capture_figure(record: dict, reconstructions: dict[str, tuple[np.ndarray, np
     return png_bytes(fig)
 
 
+def _headroom(ax, share: float = 0.3):
+    """Extend the y axis upwards so a legend in the top corner covers no data."""
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + share * (hi - lo))
+
+
 def _shade_cycles(ax, cycles):
     for c in cycles:
-        ax.axvspan(c["start_s"], c["end_s"], color="tab:green" if c.get("chosen") else "0.85",
+        ax.axvspan(c["start_s"], c["end_s"], color="tab:green" if c.get("chosen") else "0.6",
                    alpha=0.15, lw=0)
 
 
@@ -177,8 +201,9 @@ def _path_panel(ax, record, cycles):
         ax.plot(*seg[[0, -1]].T, "|", color=colour, ms=14, mew=2)
         fitted = pattern_curve(c.get("pattern") or {}, seg)
         if fitted is not None:
+            which = "chosen cycle" if c.get("chosen") else "other cycle"
             ax.plot(fitted[:, 0], fitted[:, 1], color=colour, lw=2.2, alpha=0.7,
-                    label=f"{(c.get('pattern') or {}).get('type', '?')} fit")
+                    label=f"{which}: {(c.get('pattern') or {}).get('type', '?')} fit")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
@@ -266,7 +291,8 @@ def _angles_panel(ax, record, reconstructions):
     chosen = [c for c in record.get("cycles") or [] if c.get("chosen")]
     t = np.asarray(angles.get("time_s") or [], dtype=float)
     t = t + (chosen[0]["start_s"] if chosen else 0.0)
-    ax.set_title("joint angles (solid) and Fourier series (dashed)", fontsize=10)
+    ax.set_title("joint angles of the chosen cycle (wide, pale) and its Fourier series (thin)",
+                 fontsize=10)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("angle (°)")
     drawn = False
@@ -274,13 +300,14 @@ def _angles_panel(ax, record, reconstructions):
         colour = f"C{k}"
         values = angles.get(dof)
         if values is not None and len(values) == len(t):
-            ax.plot(t, np.degrees(np.asarray(values, dtype=float)), color=colour, lw=1.2,
-                    label=dof)
+            ax.plot(t, np.degrees(np.asarray(values, dtype=float)), color=colour, lw=4,
+                    alpha=0.3, solid_capstyle="butt", label=dof)
             drawn = True
         if dof in reconstructions:
             rt, rq = reconstructions[dof]
-            ax.plot(rt, np.degrees(rq), color=colour, lw=1.6, ls="--")
+            ax.plot(rt, np.degrees(rq), color=colour, lw=1.1)
     if drawn:
+        _headroom(ax)
         ax.legend(fontsize=7, ncol=2, loc="upper right")
     else:
         ax.text(0.5, 0.5, "no joint angles", ha="center", transform=ax.transAxes)

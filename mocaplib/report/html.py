@@ -16,9 +16,11 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from .. import __version__
-from ..controlspace import AXIS_UNITS, ControlSpace, Envelope, coverage, leave_one_out
+from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, Envelope,
+                            close_entries, coverage, leave_one_out)
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
 from ..library import load_library, validate_library
@@ -29,6 +31,8 @@ from .scene3d import render_control_space
 #: Captures drawn in detail; beyond this the rest are listed without figures (keeps the file
 #: small enough to mail; the library's own numbers are still all in the tables).
 MAX_CAPTURE_FIGURES = 80
+#: Sliver tetrahedra listed one by one (the worst first); the rest are summarised.
+MAX_SLIVER_ROWS = 10
 
 
 def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
@@ -137,7 +141,13 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         cs.points, cs.classes, cs.axes, envelope=env.vertices, hull_points=cs.points,
         holes=cov.samples[~cov.samples_inside],
         suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
-    context["coverage"] = _coverage_context(cov, cs)
+    context["coverage"] = _coverage_context(cov, cs, library)
+    close = context["coverage"]["close"]
+    if close:
+        warnings.append(
+            f"{len(close)} pair(s) of entries nearly coincide in the control space (closer than "
+            f"{close[0]['within']:.2f} normalised), e.g. {close[0]['a']} and {close[0]['b']}: "
+            f"blending switches between them over a tiny change of velocity; see Coverage")
     context["loo"] = _loo_context(leave_one_out(cs))
     context["three_d"], context["viewer"] = _three_d(cs, env, renderer)
     if context["three_d"]["fallback_reason"]:
@@ -198,7 +208,7 @@ def _entry_rows(df, label) -> list[dict]:
     return rows
 
 
-def _coverage_context(cov, cs) -> dict:
+def _coverage_context(cov, cs, library) -> dict:
     next_rows = []
     for n, row in enumerate(cov.capture_next.itertuples(index=False), 1):
         values = dict(zip(cs.axes, row[:3]))
@@ -210,10 +220,49 @@ def _coverage_context(cov, cs) -> dict:
         "hole": hole, "hole_omega_deg": math.degrees(hole["omega"]),
         "hole_distance": cov.largest_hole_distance,
         "per_class": cov.entries_per_class,
-        "slivers": [{"entries": ", ".join(r.entries), "quality": r.quality}
-                    for r in cov.slivers.itertuples(index=False)],
+        "slivers": _sliver_context(cov.slivers),
         "n_tetra": len(cs.tri.simplices), "next": next_rows,
+        "close": _close_rows(cs), "other_axes": _other_axes(cs, library),
     }
+
+
+def _sliver_context(slivers) -> dict:
+    """Sliver count by radius-ratio band, the entries most often in one, the worst few."""
+    worst = slivers.sort_values("quality", kind="stable")
+    counts = pd.Series([e for entries in slivers["entries"] for e in entries]).value_counts()
+    edges = [0.0, 1e-3, 1e-2, SLIVER_QUALITY]
+    bands = [{"label": f"{lo:g} – {hi:g}", "count": int(((slivers["quality"] >= lo)
+                                                          & (slivers["quality"] < hi)).sum())}
+             for lo, hi in zip(edges[:-1], edges[1:])]
+    return {"count": len(slivers), "threshold": SLIVER_QUALITY, "bands": bands,
+            "frequent": [{"id": k, "count": int(v)} for k, v in counts.head(6).items()],
+            "worst": [{"entries": ", ".join(r.entries), "quality": r.quality}
+                      for r in worst.head(MAX_SLIVER_ROWS).itertuples(index=False)],
+            "not_listed": max(0, len(slivers) - MAX_SLIVER_ROWS)}
+
+
+def _close_rows(cs) -> list[dict]:
+    """Pairs of entries too close to tell apart (:func:`close_entries`), with their gap in SI."""
+    rows = []
+    index = {k: i for i, k in enumerate(cs.ids)}
+    for r in close_entries(cs).itertuples(index=False):
+        gap = cs.points[index[r.a]] - cs.points[index[r.b]]
+        gap[cs.axes.index("omega")] = math.degrees(gap[cs.axes.index("omega")])
+        rows.append({"a": r.a, "b": r.b, "distance": r.distance, "within": CLOSE_DISTANCE,
+                     "gap": ", ".join(f"{abs(g):.3f}" for g in gap)})
+    return rows
+
+
+def _other_axes(cs, library) -> dict | None:
+    """Slivers and close pairs of the other axes variant, to compare (None if it fails)."""
+    other = "frontal" if cs.variant == "tangential" else "tangential"
+    try:
+        alt = ControlSpace.from_library(library, axes=other)
+    except MocapError:
+        return None
+    return {"variant": other, "axes": ", ".join(alt.axes), "n_tetra": len(alt.tri.simplices),
+            "slivers": int((alt.tetra_quality() < SLIVER_QUALITY).sum()),
+            "close": len(close_entries(alt))}
 
 
 def describe_command(values: dict) -> str:
@@ -240,13 +289,19 @@ def describe_command(values: dict) -> str:
 def _loo_context(df) -> dict:
     inside = df[df["inside"]]
     rows = [{"id": r["id"], "class": r["class"] or "unknown", "inside": bool(r["inside"]),
-             "neighbours": ", ".join(r["neighbours"]),
-             "weights": ", ".join(f"{w:.2f}" for w in r["weights"]),
-             "rms_deg": r["rms_deg"], "max_deg": r["max_deg"], "worst_dof": r["worst_dof"],
-             "T_error_s": r["T_error_s"]} for _, r in df.iterrows()]
-    return {"rows": rows, "n_inside": len(inside), "n": len(df),
-            "median_rms": float(inside["rms_deg"].median()) if len(inside) else None,
+             "rebuilt_from": ", ".join(f"{n} ({w:.2f})" for n, w in
+                                       zip(r["neighbours"], r["weights"])),
+             **{k: r[k] for k in LOO_COLUMNS}, "worst_dof": r["worst_dof"]}
+            for _, r in df.sort_values("rms_deg", ascending=False, kind="stable").iterrows()]
+    median = {k: float(inside[k].abs().median()) if len(inside) else None for k in LOO_COLUMNS}
+    return {"rows": rows, "n_inside": len(inside), "n": len(df), "median": median,
+            "median_rms": median["rms_deg"],
             "max_rms": float(inside["rms_deg"].max()) if len(inside) else None}
+
+
+#: Numeric columns of :func:`mocaplib.controlspace.leave_one_out` shown in the report.
+LOO_COLUMNS = ("rms_deg", "max_deg", "heading_rms_deg", "root_rms_mm", "stride_error_mm",
+               "turn_error_deg", "T_error_s")
 
 
 def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict]:
@@ -262,21 +317,42 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
         env_tris = ConvexHull(env_x).simplices
     except QhullError:  # a flat envelope: drawn as its vertices only
         env_tris = np.zeros((0, 3), int)
-    titles = [f"{a} (1 = {s:.3g} {AXIS_UNITS[a]})" for a, s in zip(cs.axes, cs.scale)]
+    # Axes labelled for people: SI values (ω in °/s) at the bounds of everything drawn.
+    titles = [VTK_AXIS_TITLES[a] for a in cs.axes]
+    everything = np.vstack([x, env_x])
+    to_people = cs.scale * np.where(np.asarray(cs.axes) == "omega", 180 / np.pi, 1.0)
+    ranges = np.column_stack([everything.min(axis=0), everything.max(axis=0)]) * to_people[:, None]
     rendered = render_control_space(
         x, [colours[c] for c in classes], classes, titles, edges=edges,
         hull_triangles=cs.hull_facets, envelope_points=env_x, envelope_triangles=env_tris,
-        renderer=renderer,
+        axes_ranges=ranges.ravel(), renderer=renderer,
         fallback=lambda: figures.control_space_3d(cs.points, classes, cs.axes, edges=edges,
                                                   envelope=env.vertices))
+    png = rendered.png if rendered.renderer == "matplotlib" else figures.compress_png(rendered.png)
     viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
               "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
                           for k, v in colours.items()},
-              "edges": edges.tolist(), "axes": titles,
+              "edges": edges.tolist(),
+              "axes": [f"{figures.axis_label(a)}: {lo:.2f} to {hi:.2f}" if a != "omega" else
+                       f"{figures.axis_label(a)}: {lo:.0f} to {hi:.0f}"
+                       for a, (lo, hi) in zip(cs.axes, ranges)],
+              "velocities": [_velocity_text(p, cs.axes) for p in cs.points],
               "envelope": {"points": np.round(env_x, 5).tolist(),
                            "edges": _unique_edges(env_tris).tolist()}}
-    return ({"png": _data_uri(rendered.png), "renderer": rendered.renderer,
+    return ({"png": _data_uri(png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+#: Axis titles of the pyvista picture (ASCII: VTK's fonts may lack ω and the hats).
+VTK_AXIS_TITLES = {"v": "v (m/s)", "v_f": "v_f (m/s)", "omega": "omega (deg/s, > 0 left)",
+                   "v_l": "v_l (m/s, > 0 left)"}
+
+
+def _velocity_text(point, axes) -> str:
+    """One entry's velocities for people, e.g. 'v̂ 1.20 m/s, ω̂ -30 °/s, v̂_l 0.00 m/s'."""
+    names = {"v": "v̂", "v_f": "v̂_f", "omega": "ω̂", "v_l": "v̂_l"}
+    return ", ".join(f"{names[a]} {math.degrees(p):.0f} °/s" if a == "omega"
+                     else f"{names[a]} {p:.2f} m/s" for a, p in zip(axes, point))
 
 
 def _unique_edges(cells: np.ndarray) -> np.ndarray:

@@ -6,7 +6,8 @@ time-out or a blank image there makes :func:`render_control_space` fall back to 
 say why. ``MOCAPLIB_NO_OPENGL=1`` (or ``renderer="matplotlib"``) skips pyvista altogether.
 
 Coordinates drawn are the normalised ones the triangulation uses (SI / scale), so the three
-axes have comparable lengths; axis titles give the scale.
+axes have comparable lengths; the axes are labelled in SI units (ω in °/s) through
+``axes_ranges``, so a technician reads velocities, not normalised numbers.
 """
 
 from __future__ import annotations
@@ -35,14 +36,15 @@ class Rendered:
 
 
 def render_control_space(points, colours, labels, axes_titles, *, edges, hull_triangles,
-                         envelope_triangles=None, envelope_points=None, classes=None,
+                         envelope_triangles=None, envelope_points=None, axes_ranges=None,
                          renderer: str = "auto", fallback=None) -> Rendered:
     """Render the scene; ``fallback()`` -> PNG bytes is the matplotlib picture.
 
     points (E, 3) normalised; colours (E, 3) RGB 0-1; labels (E,) class per point (legend);
     edges (K, 2); hull_triangles (H, 3) rows of points; envelope_points (P, 3) normalised with
-    envelope_triangles (G, 3). renderer: "auto" (pyvista, matplotlib if that fails), or
-    "matplotlib".
+    envelope_triangles (G, 3); axes_ranges (6,) the values shown at the bounds of all points
+    (x min, x max, y min, ...; e.g. SI units), None to show the normalised values. renderer:
+    "auto" (pyvista, matplotlib if that fails), or "matplotlib".
     """
     if renderer not in ("auto", "matplotlib"):
         raise ValueError(f"renderer must be 'auto' or 'matplotlib', got {renderer!r}")
@@ -59,7 +61,8 @@ def render_control_space(points, colours, labels, axes_titles, *, edges, hull_tr
                  env_points=np.asarray(envelope_points if envelope_points is not None
                                        else np.zeros((0, 3)), float),
                  env_tris=np.asarray(envelope_triangles if envelope_triangles is not None
-                                     else np.zeros((0, 3)), int).reshape(-1, 3))
+                                     else np.zeros((0, 3)), int).reshape(-1, 3),
+                 ranges=np.asarray(axes_ranges if axes_ranges is not None else [], float))
         reason = _run_renderer(scene, out)
         if reason is None:
             png = out.read_bytes()
@@ -107,29 +110,36 @@ def _render_pyvista(scene_path: str, out_path: str) -> None:
     pv.OFF_SCREEN = True
     s = np.load(scene_path)
     pts, colours = s["points"], s["colours"]
-    plotter = pv.Plotter(off_screen=True, window_size=(1000, 800))
+    plotter = pv.Plotter(off_screen=True, window_size=(1000, 760))
     plotter.set_background("white")
     if len(s["hull"]):
         faces = np.hstack([np.full((len(s["hull"]), 1), 3), s["hull"]]).ravel()
-        plotter.add_mesh(pv.PolyData(pts, faces), color="lightsteelblue", opacity=0.18,
-                         show_edges=False)
+        plotter.add_mesh(pv.PolyData(pts, faces), color="lightsteelblue", opacity=0.12,
+                         show_edges=True, edge_color="slategray", line_width=1.5)
     if len(s["edges"]):
         lines = np.hstack([np.full((len(s["edges"]), 1), 2), s["edges"]]).ravel()
-        plotter.add_mesh(pv.PolyData(pts, lines=lines), color="grey", line_width=1.2)
+        plotter.add_mesh(pv.PolyData(pts, lines=lines), color="darkgray", opacity=0.35,
+                         line_width=1)
     if len(s["env_tris"]):
         faces = np.hstack([np.full((len(s["env_tris"]), 1), 3), s["env_tris"]]).ravel()
-        plotter.add_mesh(pv.PolyData(s["env_points"], faces), color="red", style="wireframe",
-                         opacity=0.35, line_width=1)
+        plotter.add_mesh(pv.PolyData(s["env_points"], faces).extract_feature_edges(
+            boundary_edges=False, non_manifold_edges=False, feature_angle=1.0),
+            color="red", opacity=0.4, line_width=1.0, label="target envelope")
     for name in sorted(set(s["labels"].tolist())):
         sel = s["labels"] == name
-        plotter.add_points(pts[sel], color=tuple(colours[sel][0]), point_size=16,
+        plotter.add_points(pts[sel], color=tuple(colours[sel][0]), point_size=14,
                            render_points_as_spheres=True, label=str(name))
-    plotter.add_legend(bcolor="white", size=(0.2, 0.25), face="circle")
+    plotter.add_legend(bcolor="white", border=True, size=(0.17, 0.2), face="circle",
+                       loc="upper right")
     titles = s["titles"].tolist()
-    plotter.show_grid(xtitle=titles[0], ytitle=titles[1], ztitle=titles[2], color="black",
-                      font_size=10)
-    plotter.view_isometric()
-    plotter.camera.zoom(0.9)
+    everything = np.vstack([pts, s["env_points"]])
+    bounds = np.column_stack([everything.min(axis=0), everything.max(axis=0)]).ravel()
+    plotter.show_bounds(bounds=bounds, axes_ranges=s["ranges"].tolist() or None,
+                        xtitle=titles[0], ytitle=titles[1], ztitle=titles[2], color="black",
+                        font_size=11, location="outer", grid=False, fmt="%.2g", bold=False)
+    # v̂ to the right, ω̂ going away, v̂_l up, seen from above, in front and to the right.
+    plotter.view_vector((0.8, -1.3, 0.7), viewup=(0.0, 0.0, 1.0))
+    plotter.camera.zoom(1.05)
     plotter.screenshot(out_path)
     plotter.close()
 

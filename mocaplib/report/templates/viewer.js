@@ -14,7 +14,8 @@
   all.forEach(function (p) { for (var k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], p[k]); hi[k] = Math.max(hi[k], p[k]); } });
   var mid = [0, 1, 2].map(function (k) { return (lo[k] + hi[k]) / 2; });
   var span = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) || 1;
-  var yaw = -0.7, pitch = 0.45, zoom = 1.0, drag = null, projected = [];
+  // Start as the static picture: v̂ to the right, ω̂ into the page, v̂_l up, from a little above.
+  var yaw = -0.35, pitch = 0.4, zoom = 1.0, drag = null, projected = [];
 
   function project(p) {
     // Data axes (x, y, z) drawn with z up; rotate about z (yaw) then tilt (pitch).
@@ -22,7 +23,7 @@
     var cx = Math.cos(yaw), sx = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
     var u = cx * x - sx * y, w = sx * x + cx * y;
     var v = cp * z - sp * w, depth = sp * z + cp * w;
-    var s = zoom * 0.75 * Math.min(canvas.width, canvas.height) / span;
+    var s = zoom * 0.6 * Math.min(canvas.width, canvas.height) / span;
     return [canvas.width / 2 + s * u, canvas.height / 2 - s * v, depth];
   }
 
@@ -40,7 +41,9 @@
       var a = project(origin), b = project(end);
       line(a, b, "#000000", 1.5);
       ctx.fillStyle = "#000000"; ctx.font = "12px sans-serif";
-      ctx.fillText(data.axes[k], b[0] + 4, b[1] - 4);
+      var tw = ctx.measureText(data.axes[k]).width;  // keep the label inside the canvas
+      ctx.fillText(data.axes[k], Math.max(4, Math.min(b[0] + 4, canvas.width - tw - 4)),
+                   Math.max(14, Math.min(b[1] - 4, canvas.height - 4)));
     }
     data.envelope.edges.forEach(function (e) { line(project(env[e[0]]), project(env[e[1]]), "rgba(214,39,40,0.45)", 1, [4, 3]); });
     projected = pts.map(function (p, i) { var q = project(p); q.push(i); return q; });  // [x, y, depth, i]
@@ -65,7 +68,7 @@
     }
     var best = null;
     projected.forEach(function (q) { var d = Math.hypot(q[0] - mx, q[1] - my); if (d < 9 && (!best || d < best.dist)) { best = { dist: d, i: q[3] }; } });
-    if (tip) { tip.textContent = best ? data.ids[best.i] + " (" + data.classes[best.i] + ")" : "\u00a0"; }
+    if (tip) { tip.textContent = best ? data.ids[best.i] + " (" + data.classes[best.i] + "): " + data.velocities[best.i] : "\u00a0"; }
   });
   canvas.addEventListener("wheel", function (ev) {
     ev.preventDefault(); zoom = Math.max(0.3, Math.min(5, zoom * (ev.deltaY < 0 ? 1.1 : 0.9))); draw();
