@@ -232,3 +232,23 @@ def test_treadmill_cycles_relative_to_the_belt():
         np.testing.assert_allclose(c.velocities.v_f, speed, rtol=0.02)
         # the root drifts forwards with the belt speed in the encoding too
         np.testing.assert_allclose(c.encoding.drift.u_f, speed, rtol=0.02)
+
+
+@pytest.mark.parametrize("command", [dict(v_f=3.5, gait="run"), dict(v_f=1.8),
+                                     dict(v_f=1.2, omega=-1.2), dict(v_f=0.8, v_l=0.6, omega=0.3)])
+def test_velocities_are_the_truths_time_averages(command):
+    from mocaplib.patterns import cycle_velocities
+    from mocaplib.synth.capture import min_duration, synthesize
+    from mocaplib.synth.command import Command
+
+    cmd = Command(**command)
+    capture = synthesize(cmd, duration=min_duration(cmd) + 0.2, seed=1)
+    left, right = capture.body.shoulders[:, 0], capture.body.shoulders[:, 1]
+    for true in capture.truth["cycles"]:
+        got = cycle_velocities(left, right, capture.trial.rate, true["start_s"], true["end_s"])
+        # the generator's own glenohumeral centres: only the pattern fit and the sampling
+        # differ from the truth; measured <= 0.0008 m/s with time averages, 0.006 m/s with the
+        # plain mean of the samples (both ends of the cycle, the same phase, counted twice)
+        np.testing.assert_allclose(got.v_l, true["v_l"], atol=0.002)
+        np.testing.assert_allclose(got.v_f, true["v_f"], atol=0.002)
+        np.testing.assert_allclose(got.v, true["v"], atol=0.001)
