@@ -28,7 +28,8 @@ sys.path.insert(0, str(REPO))
 
 from mocaplib.pipeline import BuildSettings, build, find_captures  # noqa: E402
 
-STAGES = ("read", "import", "protocol", "calibrate", "fit", "events", "cycles", "entries")
+STAGES = ("read", "import", "protocol", "filter", "calibrate", "fit", "events", "cycles",
+          "entries")
 
 
 def timed_build(inputs, jobs: int, repeat: int):

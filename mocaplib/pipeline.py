@@ -220,8 +220,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         feet = feet_of(trial, match, motion=motion)
         events = detect_events(feet, trial.rate, source=path)
         shoulders = shoulder_centres(motion)
-        result.diagnostics = {**_series(trial, motion, shoulders, events),
-                              "marker_cutoff_hz": cutoff}
+        result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q,
                                 ground=ground_velocity(feet, trial.rate), source=path)
@@ -320,7 +319,7 @@ def cycle_qc(cycle, motion) -> dict:
         }
 
 
-def _series(trial, motion, shoulders, events) -> dict:
+def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
     """The diagnostics known once events are detected (kept when a later stage fails)."""
     every = downsample(trial.n_frames)
     with warnings.catch_warnings():  # frames without any marker have no RMS: NaN, said so
@@ -329,6 +328,7 @@ def _series(trial, motion, shoulders, events) -> dict:
     mid = 0.5 * (shoulders[0] + shoulders[1])
     return to_json_data({
         "rate_hz": trial.rate,
+        "marker_cutoff_hz": cutoff_hz,
         "time_s": trial.time[every],
         "shoulder_mid_xy": mid[every, :2],
         "frame_rms_m": frame_rms[every],

@@ -298,6 +298,7 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
     by_name = {c["source"]: c for c in diag["captures"]}
     side = by_name["side_left_normal.c3d"]
     assert side["ok"] and side["rate_hz"] == 100.0
+    assert 0 < side["marker_cutoff_hz"] < 50  # Winter's residual cutoff, below Nyquist
     assert {e["kind"] for e in side["events"]} == {"toe_off", "heel_strike"}
     chosen = [c for c in side["cycles"] if c["chosen"]]
     assert len(chosen) == 1 and chosen[0]["entry_id"] in table.index
