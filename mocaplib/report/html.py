@@ -317,15 +317,18 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
         env_tris = ConvexHull(env_x).simplices
     except QhullError:  # a flat envelope: drawn as its vertices only
         env_tris = np.zeros((0, 3), int)
-    # Axes labelled for people: SI values (ω in °/s) at the bounds of everything drawn.
+    # Axes labelled for people: round SI values (ω in °/s) around everything drawn.
     titles = [VTK_AXIS_TITLES[a] for a in cs.axes]
     everything = np.vstack([x, env_x])
     to_people = cs.scale * np.where(np.asarray(cs.axes) == "omega", 180 / np.pi, 1.0)
-    ranges = np.column_stack([everything.min(axis=0), everything.max(axis=0)]) * to_people[:, None]
+    ticks = [nice_range(lo, hi) for lo, hi in zip(everything.min(axis=0) * to_people,
+                                                  everything.max(axis=0) * to_people)]
+    ranges = np.array([t[:2] for t in ticks])
     rendered = render_control_space(
         x, [colours[c] for c in classes], classes, titles, edges=edges,
         hull_triangles=cs.hull_facets, envelope_points=env_x, envelope_triangles=env_tris,
-        axes_ranges=ranges.ravel(), renderer=renderer,
+        axes_bounds=(ranges / to_people[:, None]).ravel(), axes_ranges=ranges.ravel(),
+        axes_intervals=[t[2] for t in ticks], renderer=renderer,
         fallback=lambda: figures.control_space_3d(cs.points, classes, cs.axes, edges=edges,
                                                   envelope=env.vertices))
     png = rendered.png if rendered.renderer == "matplotlib" else figures.compress_png(rendered.png)
@@ -341,6 +344,20 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                            "edges": _unique_edges(env_tris).tolist()}}
     return ({"png": _data_uri(png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def nice_range(lo: float, hi: float) -> tuple[float, float, int]:
+    """The tightest range containing [lo, hi] split into 3 to 7 equal steps of 1, 2, 2.5, 3 or
+    5 × 10^k: (start, stop, number of steps)."""
+    span = max(hi - lo, 1e-9)
+    best = None
+    for k in range(int(np.floor(np.log10(span / 7))), int(np.ceil(np.log10(span))) + 1):
+        for step in (m * 10.0 ** k for m in (1.0, 2.0, 2.5, 3.0, 5.0)):
+            start = np.floor(lo / step + 1e-9) * step
+            n = int(np.ceil((hi - start) / step - 1e-9))
+            if 3 <= n <= 7 and (best is None or n * step < best[1] - best[0] - 1e-12):
+                best = (float(start), float(start + n * step), n)
+    return best
 
 
 #: Axis titles of the pyvista picture (ASCII: VTK's fonts may lack ω and the hats).

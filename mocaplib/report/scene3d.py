@@ -36,15 +36,17 @@ class Rendered:
 
 
 def render_control_space(points, colours, labels, axes_titles, *, edges, hull_triangles,
-                         envelope_triangles=None, envelope_points=None, axes_ranges=None,
-                         renderer: str = "auto", fallback=None) -> Rendered:
+                         envelope_triangles=None, envelope_points=None, axes_bounds=None,
+                         axes_ranges=None, axes_intervals=(4, 4, 4), renderer: str = "auto",
+                         fallback=None) -> Rendered:
     """Render the scene; ``fallback()`` -> PNG bytes is the matplotlib picture.
 
     points (E, 3) normalised; colours (E, 3) RGB 0-1; labels (E,) class per point (legend);
     edges (K, 2); hull_triangles (H, 3) rows of points; envelope_points (P, 3) normalised with
-    envelope_triangles (G, 3); axes_ranges (6,) the values shown at the bounds of all points
-    (x min, x max, y min, ...; e.g. SI units), None to show the normalised values. renderer:
-    "auto" (pyvista, matplotlib if that fails), or "matplotlib".
+    envelope_triangles (G, 3); axes_bounds (6,) the box of the axes (x min, x max, y min, ...;
+    default: around all points) and axes_ranges (6,) the values shown at its sides (e.g. SI
+    units; default the bounds), each labelled at ``axes_intervals`` (3,) + 1 ticks. renderer: "auto"
+    (pyvista, matplotlib if that fails), or "matplotlib".
     """
     if renderer not in ("auto", "matplotlib"):
         raise ValueError(f"renderer must be 'auto' or 'matplotlib', got {renderer!r}")
@@ -62,7 +64,9 @@ def render_control_space(points, colours, labels, axes_titles, *, edges, hull_tr
                                        else np.zeros((0, 3)), float),
                  env_tris=np.asarray(envelope_triangles if envelope_triangles is not None
                                      else np.zeros((0, 3)), int).reshape(-1, 3),
-                 ranges=np.asarray(axes_ranges if axes_ranges is not None else [], float))
+                 bounds=np.asarray(axes_bounds if axes_bounds is not None else [], float),
+                 ranges=np.asarray(axes_ranges if axes_ranges is not None else [], float),
+                 intervals=np.asarray(axes_intervals, int).reshape(3))
         reason = _run_renderer(scene, out)
         if reason is None:
             png = out.read_bytes()
@@ -133,13 +137,16 @@ def _render_pyvista(scene_path: str, out_path: str) -> None:
                        loc="upper right")
     titles = s["titles"].tolist()
     everything = np.vstack([pts, s["env_points"]])
-    bounds = np.column_stack([everything.min(axis=0), everything.max(axis=0)]).ravel()
+    bounds = (s["bounds"].tolist() or
+              np.column_stack([everything.min(axis=0), everything.max(axis=0)]).ravel())
+    nx, ny, nz = (int(k) + 1 for k in s["intervals"])
     plotter.show_bounds(bounds=bounds, axes_ranges=s["ranges"].tolist() or None,
                         xtitle=titles[0], ytitle=titles[1], ztitle=titles[2], color="black",
-                        font_size=11, location="outer", grid=False, fmt="%.2g", bold=False)
+                        font_size=11, location="outer", grid=False, fmt="%g", bold=False,
+                        n_xlabels=nx, n_ylabels=ny, n_zlabels=nz)
     # v̂ to the right, ω̂ going away, v̂_l up, seen from above, in front and to the right.
     plotter.view_vector((0.8, -1.3, 0.7), viewup=(0.0, 0.0, 1.0))
-    plotter.camera.zoom(1.05)
+    plotter.camera.zoom(0.85)
     plotter.screenshot(out_path)
     plotter.close()
 
