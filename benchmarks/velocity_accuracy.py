@@ -83,6 +83,10 @@ def report(rows: list[dict]) -> bool:
         worst_l, rl = max(dl, key=lambda x: x[0])
         print(f"| {kind} | {len(group)} | {worst_v:.4f} ({pct:.1f} %) | {max(dw):.4f} | "
               f"{worst_l:.4f} ({rl['name']}) | {misses} |")
+    missed = [f"{r['name']} ({r['v_l'] - r['true_v_l']:+.3f})" for r in rows
+              if abs(r["v_l"] - r["true_v_l"]) > V_L_TOL]
+    if missed:
+        print(f"\nv̂_l misses (estimate − truth, m/s): {', '.join(missed)}")
     late = [r["name"] for r in rows if r["start_dt"] > 0.05]
     if late:
         print(f"\nentries whose start is > 50 ms from every truth cycle: {', '.join(late)}")
