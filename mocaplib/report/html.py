@@ -254,15 +254,19 @@ def _close_rows(cs) -> list[dict]:
 
 
 def _other_axes(cs, library) -> dict | None:
-    """Slivers and close pairs of the other axes variant, to compare (None if it fails)."""
+    """Slivers, close pairs and blending error of the other axes variant, to compare (None if
+    it cannot be triangulated)."""
     other = "frontal" if cs.variant == "tangential" else "tangential"
     try:
         alt = ControlSpace.from_library(library, axes=other)
     except MocapError:
         return None
+    loo = _loo_context(leave_one_out(alt))
     return {"variant": other, "axes": ", ".join(alt.axes), "n_tetra": len(alt.tri.simplices),
             "slivers": int((alt.tetra_quality() < SLIVER_QUALITY).sum()),
-            "close": len(close_entries(alt))}
+            "close": len(close_entries(alt)), "n_tested": loo["n_inside"],
+            "median_rms": loo["median"]["rms_deg"],
+            "median_stride": loo["median"]["stride_error_mm"]}
 
 
 def describe_command(values: dict) -> str:
