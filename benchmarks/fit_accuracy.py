@@ -141,16 +141,18 @@ def forward_kinematics(seeds: int) -> None:
 
 
 def real(folder: Path) -> None:
-    print("| file | protocol | markers | frames fitted / failed | marker RMS (mm) "
-          "| max error (mm) | at marker | seconds |")
-    print("|---|---|---|---|---|---|---|---|")
+    """Each walking file as ``mocaplib fit`` does it: markers low-passed (Winter's cutoff),
+    calibrated from the capture, fitted; outlying samples removed and counted."""
+    print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
+          "| max error (mm) | at marker | removed samples | seconds |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for name in WALKING:
         path = folder / name
         if not path.exists():
             continue
         start = time.perf_counter()
         try:
-            trial = read_c3d(path)
+            trial, cutoff = filter_trial(read_c3d(path), cutoff="auto")
             model = calibrate(trial)
             motion = fit(trial, model)
         except MocapError as exc:
@@ -159,9 +161,11 @@ def real(folder: Path) -> None:
         quality = fit_quality(motion)
         worst = int(np.nanargmax(np.nanmax(motion.residuals, axis=0)))
         fitted = int((~motion.failed & np.isfinite(motion.residuals).any(axis=1)).sum())
-        print(f"| {name} | {model.protocol.name} | {len(model.labels)} | {fitted} / "
-              f"{len(quality['failed_frames'])} | {quality['marker_rms_mm']:.1f} | "
+        removed = ", ".join(f"{k} {v}" for k, v in quality["rejected_per_marker"].items())
+        print(f"| {name} | {model.protocol.name} | {len(model.labels)} | {cutoff:.1f} | "
+              f"{fitted} / {len(quality['failed_frames'])} | {quality['marker_rms_mm']:.1f} | "
               f"{quality['max_marker_error_mm']:.1f} | {model.labels[worst]} | "
+              f"{quality['rejected_samples']}{f' ({removed})' if removed else ''} | "
               f"{time.perf_counter() - start:.1f} |")
 
 

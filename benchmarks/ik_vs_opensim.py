@@ -13,6 +13,11 @@ default the tests' forward-kinematics walk (gait-like angles, 6 mm soft-tissue a
 noise; ``--frames`` long).
 
     /work/venv/bin/python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE...]
+        [--static FILE] [--cutoff HZ|auto|none]
+
+``--static`` calibrates from a static trial in the anatomical neutral pose (as ``mocaplib build
+--static`` does); ``--cutoff`` low-passes the markers first (:mod:`mocaplib.filtering`), and
+both solvers then get the same filtered markers (the filter's time is not in either figure).
 
 Needs the bench extra (``pip install ".[bench]"``: opensim).
 """
@@ -137,13 +142,21 @@ def main() -> int:
     parser.add_argument("--c3d", nargs="+", metavar="FILE",
                         help="synthetic captures, each with a .truth.json beside it")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--static", metavar="FILE", help="static trial (neutral pose)")
+    parser.add_argument("--cutoff", default="none", help="marker low-pass: Hz, auto or none")
     args = parser.parse_args()
+    from mocaplib.filtering import filter_trial
+    from mocaplib.io.c3d import read_c3d
+
+    static = read_c3d(args.static) if args.static else None
+    cutoff = args.cutoff if args.cutoff in ("auto", "none") else float(args.cutoff)
 
     totals = {"OpenSim": 0.0, "mocaplib": 0.0}
     errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
     n = 0
-    for trial, truth in load_captures(args):
-        model = calibrate(trial)
+    for raw, truth in load_captures(args):
+        trial, _ = filter_trial(raw, cutoff=cutoff)
+        model = calibrate(trial, static=static)
         osim_times, our_times = [], []
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)

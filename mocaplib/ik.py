@@ -24,6 +24,7 @@ Units: metres and radians. Arrays: time on axis 0.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
@@ -48,9 +49,22 @@ MIN_PELVIS_MARKERS = 2
 MIN_MARKERS = 6
 #: Frames with a marker RMS above this many times the median are re-solved from neighbours.
 RESTART_FACTOR = 3.0
-#: A marker this far (m) from its model position is taken as mislabelled in that frame: the
-#: frame is fitted again without it (its residual is still reported).
-GROSS_ERROR = 0.08
+#: Outlying samples (a mislabelled, swapped-in or jumping trajectory). A marker's residual in a
+#: frame is suspect above ``max(SUSPECT_FLOOR, median + OUTLIER_MADS x 1.4826 MAD)`` of that
+#: marker's residuals over the capture, or above OUTLIER_LIMIT (the robust fit may have
+#: absorbed part of its error); the frame is fitted again without its suspects, and a suspect
+#: still more than OUTLIER_LIMIT from the refitted pose is removed (gapped: residual NaN,
+#: counted in ``Motion.rejected``); the others are put back. OUTLIER_LIMIT is OpenSim's
+#: best-practice bound on a marker error (40 mm): soft tissue and noise leave skin markers
+#: within ~20 mm, and joints the skeleton lacks (toes, scapula) within ~35 mm.
+SUSPECT_FLOOR = 0.015
+OUTLIER_MADS = 8.0
+OUTLIER_LIMIT = 0.04
+#: Only a trajectory that jumps is removed: a run of suspect frames whose residual vector
+#: changes by more than this (m) between two frames near its start or end (or that starts or
+#: ends at a gap or the capture's edge). A marker the skeleton cannot follow (a toe marker in
+#: push-off) drifts away smoothly and is kept, however large its residual.
+JUMP = 0.01
 #: Every STRIDE-th frame is solved first, from rigid fits; the others start from those poses
 #: interpolated, so they need fewer iterations.
 STRIDE = 4
@@ -329,15 +343,16 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     chunk : frames solved together.
 
     Frames are solved together from per-segment rigid fits; frames left with an outlying
-    marker RMS are re-solved from their neighbours' poses, and markers further than
-    :data:`GROSS_ERROR` from the model are dropped from their frame's fit.
+    marker RMS are re-solved from their neighbours' poses, and outlying samples are removed
+    (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still further than that,
+    reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
 
     Returns
     -------
     Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than
     :data:`MIN_PELVIS_MARKERS` pelvis markers or :data:`MIN_MARKERS` markers, or no
     convergence) whose angles are interpolated from their neighbours and whose residuals are
-    NaN, and the model's locked DOFs (held at 0).
+    NaN, the removed samples, and the model's locked DOFs (held at 0).
     """
     markers = model_markers(trial, model)
     n_frames = trial.n_frames
@@ -347,6 +362,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     q = np.zeros((n_frames, len(DOF_NAMES)))
     residuals = np.full((n_frames, len(model.labels)), np.nan)
     converged = np.zeros(n_frames, dtype=bool)
+    rejected = np.zeros((n_frames, len(model.labels)), dtype=bool)
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
@@ -363,19 +379,9 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
         res = _restart_outliers(solve, solve(q0=q0))
-        gross = res.residuals > GROSS_ERROR
-        if gross.any():         # a mislabelled or ghost marker: fit those frames without it
-            kept = np.where(gross[..., None], np.nan, markers[part])
-            again = solve_poses(model.skeleton, kept, model.marker_segments, model.marker_offsets,
-                                q0=res.q, free=free, robust_scale=robust_scale,
-                                smoothing=smoothing, max_iter=max_iter)
-            rows = gross.any(axis=1)
-            res.q[rows], res.converged[rows] = again.q[rows], again.converged[rows]
-            res.residuals[rows] = np.linalg.norm(
-                markers[part][rows] - model.skeleton.points(
-                    res.q[rows], model.marker_segments, model.marker_offsets), axis=2)
+        rejected[part] = _reject_outliers(res, markers[part], model, **settings)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
-    seen = np.isfinite(markers[..., 0])
+    seen = np.isfinite(markers[..., 0]) & ~rejected
     failed = ((seen[:, model.marker_segments == _ROOT].sum(axis=1) < MIN_PELVIS_MARKERS)
               | (seen.sum(axis=1) < MIN_MARKERS) | ~converged)
     if failed.all():
@@ -387,11 +393,88 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         q[failed] = np.nan
         q = _fill_gaps(q)
         q[:, ~free] = 0.0
+    rejected &= ~failed[:, None]
     return Motion(angles_frame(q, trial.rate), model.skeleton, trial.rate,
                   marker_labels=list(model.labels), residuals=residuals, failed=failed,
+                  rejected=rejected,
                   locked_dofs=list(model.locked_dofs),
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
+
+
+def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
+    """Per-marker residual (M,) above which a sample is suspect, metres: median +
+    :data:`OUTLIER_MADS` robust standard deviations (1.4826 MAD) of that marker's residuals
+    (F, M) over the frames where it is seen, at least :data:`SUSPECT_FLOOR` and at most
+    :data:`OUTLIER_LIMIT`."""
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)       # a marker never seen: NaN
+        median = np.nanmedian(residuals, axis=0)
+        mad = np.nanmedian(np.abs(residuals - median), axis=0)
+    limit = median + OUTLIER_MADS * 1.4826 * mad
+    return np.clip(np.where(np.isfinite(limit), limit, SUSPECT_FLOOR), SUSPECT_FLOOR,
+                   OUTLIER_LIMIT)
+
+
+def _reject_outliers(res: PoseFit, markers: np.ndarray, model: "SubjectModel",
+                     **settings) -> np.ndarray:
+    """Remove outlying samples from a fit (updated in place); returns the removed (F, M).
+
+    Suspect samples (residual above :func:`suspect_threshold`) in runs that jump
+    (:func:`jumping_runs`) are taken out and their frames fitted again; a suspect still beyond
+    :data:`OUTLIER_LIMIT` from that pose is removed, the others are put back and the frame
+    fitted once more with them if any was.
+    """
+    limit = OUTLIER_LIMIT
+    suspect = res.residuals > suspect_threshold(res.residuals)
+    if suspect.any():
+        error = markers - model.skeleton.points(res.q, model.marker_segments,
+                                                model.marker_offsets)
+        suspect = jumping_runs(error, suspect)
+    if not suspect.any():
+        return suspect
+    removed = suspect.copy()
+    for _ in range(2):
+        rows = np.flatnonzero(suspect.any(axis=1))
+        kept = np.where(removed[rows, :, None], np.nan, markers[rows])
+        again = solve_poses(model.skeleton, kept, model.marker_segments, model.marker_offsets,
+                            q0=res.q[rows], **settings)
+        distance = np.linalg.norm(markers[rows] - model.skeleton.points(
+            again.q, model.marker_segments, model.marker_offsets), axis=2)
+        res.q[rows], res.converged[rows] = again.q, again.converged
+        res.residuals[rows] = np.where(removed[rows], np.nan, distance)
+        back = removed[rows] & ~(distance > limit)
+        if not back.any():
+            break
+        removed[rows] &= ~back          # put back what was only off because of the pose
+        suspect = np.zeros_like(suspect)
+        suspect[rows] = back
+    return removed
+
+
+def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
+    """The runs of ``suspect`` (F, M) bool that begin or end with a jump, (F, M) bool.
+
+    ``error`` (F, M, 3): marker minus model position, NaN where missing. A run of consecutive
+    suspect frames of one marker is kept when its residual vector changes by more than
+    :data:`JUMP` between two consecutive frames within 2 frames of its start or end, or when
+    it starts or ends at a gap or the capture's edge (its onset is unseen). A marker suspect in
+    half of the frames where it is seen or more is not an outlier but misplaced or misfitted
+    (a calibration matter): its samples are all kept.
+    """
+    step = np.linalg.norm(np.diff(error, axis=0), axis=2)        # (F-1, M); NaN at gaps
+    jump = np.where(np.isnan(step), np.inf, step) > JUMP
+    n = len(suspect)
+    out = np.zeros_like(suspect)
+    seen = np.isfinite(error[..., 0]).sum(axis=0)
+    for m in np.flatnonzero((suspect.sum(axis=0) > 0) & (suspect.sum(axis=0) < 0.5 * seen)):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], suspect[:, m].astype(int), [0]])))
+        for start, stop in edges.reshape(-1, 2):
+            near = np.r_[max(start - 3, 0):min(start + 2, n - 1),
+                         max(stop - 3, 0):min(stop + 2, n - 1)]
+            if start == 0 or stop == n or jump[near, m].any():
+                out[start:stop, m] = True
+    return out
 
 
 def _restart_outliers(solve, first: PoseFit) -> PoseFit:
@@ -428,7 +511,9 @@ def fit_quality(motion: Motion) -> dict:
     ``marker_rms_mm``: mean over frames of each frame's marker RMS (OpenSim's "marker error
     RMS", averaged); ``max_marker_error_mm``: the largest residual of any marker in any frame;
     ``per_marker_rms_mm``: each marker's RMS over the capture; ``locked_dofs``;
-    ``failed_frames``: indices of frames that could not be fitted.
+    ``failed_frames``: indices of frames that could not be fitted; ``rejected_samples``:
+    samples removed as outliers (not in the residual figures), ``rejected_per_marker``: their
+    count per marker label (markers with any).
     """
     frame_rms = _frame_rms(motion.residuals)
     marker_rms = _frame_rms(motion.residuals.T)
@@ -440,6 +525,9 @@ def fit_quality(motion: Motion) -> dict:
                               for label, v in zip(motion.marker_labels, marker_rms)},
         "locked_dofs": list(motion.locked_dofs),
         "failed_frames": np.flatnonzero(motion.failed).tolist(),
+        "rejected_samples": int(motion.rejected.sum()),
+        "rejected_per_marker": {label: int(n) for label, n in
+                                zip(motion.marker_labels, motion.rejected.sum(axis=0)) if n},
     }
 
 

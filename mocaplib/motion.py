@@ -34,6 +34,8 @@ class Motion:
     failed : ndarray of bool, shape (F,)
         Frames that could not be fitted (too few markers, no convergence); their angles are
         interpolated and should not be trusted.
+    rejected : ndarray of bool, shape (F, M)
+        Samples the fit removed as outliers (mislabelled or jumping); their residuals are NaN.
     locked_dofs : list[str]
         DOFs held at zero because the protocol lacks the markers to see them.
     marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
@@ -48,6 +50,7 @@ class Motion:
     marker_labels: list[str] = field(default_factory=list)
     residuals: np.ndarray | None = None
     failed: np.ndarray | None = None
+    rejected: np.ndarray | None = None
     locked_dofs: list[str] = field(default_factory=list)
     marker_segments: np.ndarray | None = None
     marker_offsets: np.ndarray | None = None
@@ -62,6 +65,8 @@ class Motion:
             self.residuals = np.full((n, len(self.marker_labels)), np.nan)
         if self.failed is None:
             self.failed = np.zeros(n, dtype=bool)
+        if self.rejected is None:
+            self.rejected = np.zeros(self.residuals.shape, dtype=bool)
         if self.residuals.shape != (n, len(self.marker_labels)):
             raise MocapError(f"residuals must have shape ({n}, {len(self.marker_labels)}), "
                              f"got {self.residuals.shape}", path=self.source)
