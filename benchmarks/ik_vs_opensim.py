@@ -156,7 +156,7 @@ def main() -> int:
     n = 0
     for raw, truth in load_captures(args):
         trial, _ = filter_trial(raw, cutoff=cutoff)
-        model = calibrate(trial, static=static)
+        model = calibrate(trial, static=static, static_pose="neutral")
         osim_times, our_times = [], []
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)

@@ -26,15 +26,17 @@ Steps (all in metres, world Z up):
    segment's frame over those poses, and each segment's offsets are turned (Kabsch, about
    their centroid) onto the catalogue layout, which makes the segment frames anatomical: zero
    angles put the markers in the catalogue's layout, as the DOF sign table describes.
-4'. **Neutral static** (``static_pose="neutral"``, the default when a static trial is given,
-   as OpenSim's MarkerPlacer and Plug-in Gait's static processing do): the subject is taken to
-   stand in the anatomical neutral pose, every joint angle 0 (:func:`neutral_offsets`). Only
+4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
+   model's default pose): the subject is taken to stand in the anatomical neutral pose, every
+   joint angle 0 (:func:`neutral_offsets`). Only
    the root pose is fitted to the static frames, and each marker's offset is then measured
    directly in its segment frame (the mean of ``R_s^T (x − t_s)``, no turning onto the
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
-   static's. ``static_pose="free"`` instead runs step 4 on the static and step 5 on the
-   motion.
+   static's. Only for statics recorded in that pose: real lab statics often are not (arms
+   abducted, feet turned out; measured on ../shared/data/c3d's statics: 11-68 mm marker RMS
+   with "neutral" against 4-9 mm with "free"), so the default, ``static_pose="free"``, runs
+   step 4 on the static and step 5 on the motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
    Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
    feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their
@@ -137,7 +139,7 @@ def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Pro
 
 
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
-              static: Trial | None = None, static_pose: str = "neutral",
+              static: Trial | None = None, static_pose: str = "free",
               height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
@@ -149,8 +151,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     static : a static standing trial of the same subject. When given, steps 1-4 (markers,
         height, joint centres, lengths, anatomical offsets) use it and step 5 refines on the
         motion trial; otherwise every step uses the motion trial.
-    static_pose : "neutral" (default): the static subject stands in the anatomical neutral
-        pose, every joint angle 0, and the marker offsets are measured in it (step 4'); "free":
+    static_pose : "neutral": the static subject stands in the anatomical neutral pose, every
+        joint angle 0, and the marker offsets are measured in it (step 4'); "free" (default):
         the static pose is fitted like any other (steps 4 and 5). Unused without ``static``.
     height : standing height, metres; estimated from the markers when None.
     n_frames : calibration frames (the most complete ones, spread over the trial).

@@ -52,6 +52,8 @@ class BuildSettings:
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.protocols`).
     static : a static calibration capture, or None to calibrate from each motion capture.
+    static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
+        angle 0; see :func:`mocaplib.calibrate.calibrate`).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     all_cycles : keep every complete cycle, not only the one chosen per capture.
@@ -63,6 +65,7 @@ class BuildSettings:
 
     protocol: str = "auto"
     static: str | None = None
+    static_pose: str = "free"
     cutoff: float | str | None = "auto"
     all_cycles: bool = False
     qc_policy: str = "drop"
@@ -206,7 +209,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        model = calibrate(filtered, protocol=match.protocol, static=static)
+        model = calibrate(filtered, protocol=match.protocol, static=static,
+                          static_pose=settings.static_pose)
     with clock.stage("fit"):
         motion = fit(filtered, model)
     if motion.locked_dofs:

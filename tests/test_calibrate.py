@@ -148,7 +148,8 @@ def test_neutral_static_absorbs_marker_placement():
     walk = fk_trial(n_frames=200, placement_mm=4, sta_mm=6, noise_mm=1, seed=0)
     static = fk_trial(n_frames=60, placement_mm=4, sta_mm=6, noise_mm=1, seed=0, static=True)
     neutral = _rms_deg(fit(walk.trial, calibrate(walk.trial, static=static.trial,
-                                                 protocol="fullbody38")), walk.q)
+                                                 static_pose="neutral", protocol="fullbody38")),
+                       walk.q)
     free = _rms_deg(fit(walk.trial, calibrate(walk.trial, static=static.trial,
                                               static_pose="free", protocol="fullbody38")),
                     walk.q)

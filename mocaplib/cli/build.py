@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ._common import warn
-from .fit import add_cutoff_option
+from .fit import add_cutoff_option, add_static_options
 
 
 def _positive_int(text: str) -> int:
@@ -33,9 +33,7 @@ def register(subparsers) -> None:
                         help="library file to write")
     parser.add_argument("--protocol", default="auto",
                         help="marker-set protocol name or TOML file, or 'auto' (default)")
-    parser.add_argument("--static", metavar="FILE",
-                        help="static calibration capture, subject in the anatomical neutral "
-                             "pose (default: calibrate from each capture)")
+    add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
@@ -80,7 +78,8 @@ def _run(args) -> int:
         print(f"mocaplib build: error: {problem}", file=sys.stderr)
         return 2
     output = Path(args.output)
-    settings = BuildSettings(protocol=args.protocol, static=args.static, cutoff=args.cutoff,
+    settings = BuildSettings(protocol=args.protocol, static=args.static,
+                             static_pose=args.static_pose, cutoff=args.cutoff,
                              all_cycles=args.all_cycles, qc_policy=args.qc)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,

@@ -23,6 +23,18 @@ def cutoff_type(text: str) -> float | str | None:
     return value
 
 
+def add_static_options(parser) -> None:
+    """``--static FILE`` and ``--static-pose``, shared by ``fit`` and ``build``."""
+    parser.add_argument("--static", metavar="FILE",
+                        help="static calibration C3D of the same subject (default: calibrate "
+                             "from each capture)")
+    parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
+                        help="'neutral': the static subject stands in the anatomical neutral "
+                             "pose (every joint angle 0) and each marker's offset is measured "
+                             "on it, placement error included; 'free' (default): the static "
+                             "pose is fitted, then refined on the motion")
+
+
 def add_cutoff_option(parser) -> None:
     parser.add_argument("--cutoff", type=cutoff_type, default="auto", metavar="HZ|auto|none",
                         help="low-pass the markers before calibrating and fitting: zero-lag "
@@ -42,9 +54,7 @@ def register(subparsers) -> None:
     parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
                         help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
                              "(default: detected from the labels)")
-    parser.add_argument("--static", metavar="FILE",
-                        help="static C3D of the subject standing in the anatomical neutral pose "
-                             "(joint angles 0): marker offsets are measured on it")
+    add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT.csv",
                         help="joint angles as CSV")
@@ -77,7 +87,7 @@ def _run(args) -> int:
             return 2
     trial, cutoff = filter_trial(read_c3d(args.input), cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None
-    model = calibrate(trial, protocol=protocol, static=static)
+    model = calibrate(trial, protocol=protocol, static=static, static_pose=args.static_pose)
     motion = fit(trial, model)
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
