@@ -24,8 +24,9 @@ def register(subparsers) -> None:
                     "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
                     "the capture cannot be processed, 2 on usage errors.")
     add_common_options(parser)
-    parser.add_argument("--static", metavar="FILE",
-                        help="static standing trial of the same subject, for calibration")
+    from .fit import add_static_options
+
+    add_static_options(parser)
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "cycles": [...]} (SI units, angles in radians; '
                              '"fourier_rms_deg" in degrees)')
@@ -40,7 +41,8 @@ def _run(args) -> int:
     from .events import fitted, load
 
     trial, match = load(args)
-    motion = fitted(trial, match, read_c3d(args.static) if args.static else None)
+    motion = fitted(trial, match, read_c3d(args.static) if args.static else None,
+                    static_pose=args.static_pose)
     feet = feet_of(trial, match, motion=motion)
     events = detect_events(feet, trial.rate, toe_off=args.toe_off, source=args.file)
     left, right = shoulder_centres(motion)

@@ -46,14 +46,16 @@ def load(args):
     return trial, match
 
 
-def fitted(trial, match, static=None):
-    """The capture's fitted :class:`~mocaplib.Motion` (calibrated from ``static`` if given)."""
+def fitted(trial, match, static=None, static_pose="free"):
+    """The capture's fitted :class:`~mocaplib.Motion` (calibrated from ``static`` if given,
+    in ``static_pose``; markers low-passed first)."""
     from ..calibrate import calibrate
     from ..filtering import filter_trial
     from ..ik import fit
 
     markers, _ = filter_trial(trial, cutoff="auto")     # as mocaplib build and fit do
-    return fit(markers, calibrate(markers, protocol=match.protocol, static=static))
+    return fit(markers, calibrate(markers, protocol=match.protocol, static=static,
+                                  static_pose=static_pose))
 
 
 def detect(args, trial, match, motion=None):
