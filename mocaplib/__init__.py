@@ -20,6 +20,7 @@ _EXPORTS = {
     "calibrate": "mocaplib.calibrate",
     "SubjectModel": "mocaplib.calibrate",
     "fit": "mocaplib.ik",
+    "filter_trial": "mocaplib.filtering",
     "detect_events": "mocaplib.events",
     "GaitEvent": "mocaplib.events",
     "analyse_cycles": "mocaplib.cycles",

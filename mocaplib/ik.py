@@ -17,7 +17,8 @@ normal equations, solved as one batched ``numpy.linalg.solve``;
 each frame keeps its own damping and stops when its cost stops falling. :func:`fit` starts
 every :data:`STRIDE`-th frame from per-segment rigid fits (Kabsch on the segment's markers and
 its joint centre, decomposed into the joint's DOFs) and the other frames from those solutions
-interpolated in time.
+interpolated in time. Samples of a trajectory that jumps away from the model (mislabelled,
+swapped in, glitching) are removed and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`).
 
 Units: metres and radians. Arrays: time on axis 0.
 """
