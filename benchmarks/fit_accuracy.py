@@ -32,7 +32,7 @@ from mocaplib.calibrate import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
 from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402
-from mocaplib.ik import fit, fit_quality  # noqa: E402
+from mocaplib.ik import fit, fit_filtered, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
 
@@ -85,8 +85,7 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
         rows, orders, cutoffs = defaultdict(list), [], []
         worst: dict[str, tuple[float, str]] = {}
         for path, truth in captures:
-            raw = read_c3d(path)
-            trial, used = filter_trial(raw, cutoff=cutoff)
+            trial, used = filter_trial(read_c3d(path), cutoff=cutoff)
             cutoffs.append(np.nan if used is None else used)
             model = (calibrate(trial, static=static, static_pose="neutral")
                      if calibration == "static" else calibrate(trial))
@@ -142,8 +141,9 @@ def forward_kinematics(seeds: int) -> None:
 
 
 def real(folder: Path) -> None:
-    """Each walking file as ``mocaplib fit`` does it: markers low-passed (Winter's cutoff),
-    calibrated from the capture, fitted; outlying samples removed and counted."""
+    """Each walking file as ``mocaplib fit`` does it: calibrated from the capture's markers
+    low-passed at Winter's cutoff; fitted with outlying samples found on the raw markers,
+    gapped, then low-passed (:func:`mocaplib.ik.fit_filtered`); removed samples counted."""
     print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | removed samples | seconds |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -153,9 +153,10 @@ def real(folder: Path) -> None:
             continue
         start = time.perf_counter()
         try:
-            trial, cutoff = filter_trial(read_c3d(path), cutoff="auto")
+            raw = read_c3d(path)
+            trial, cutoff = filter_trial(raw, cutoff="auto")
             model = calibrate(trial)
-            motion = fit(trial, model)
+            motion, _ = fit_filtered(raw, model, cutoff=cutoff)
         except MocapError as exc:
             print(f"| {name} | error: {exc} |")
             continue

@@ -26,7 +26,7 @@ Units: metres and radians. Arrays: time on axis 0.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -401,6 +401,45 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   locked_dofs=list(model.locked_dofs),
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
+
+
+def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | str | None,
+                 **options) -> tuple[Motion, float | None]:
+    """Fit ``trial``'s markers low-passed at ``cutoff`` (Hz, "auto" or None), outliers first.
+
+    A low-pass filter turns a jumping trajectory into a ramp the jump rule cannot see, so
+    outlying samples are found on the raw markers (a :func:`fit` of ``trial``), gapped, and the
+    markers are filtered (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again.
+    The motion's ``rejected`` holds the samples removed by either fit. Returns the motion and
+    the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
+    """
+    from .filtering import filter_trial
+
+    if cutoff is None or cutoff == "none":
+        return fit(trial, model, **options), None
+    raw = fit(trial, model, **options)
+    markers = trial.markers.copy()
+    columns = _trial_columns(trial, model)
+    frames, m = np.nonzero(raw.rejected)
+    markers[frames, columns[m]] = np.nan
+    cleaned, used = filter_trial(replace(trial, markers=markers, warnings=list(trial.warnings)),
+                                 cutoff=cutoff)
+    motion = fit(cleaned, model, **options)
+    motion.rejected |= raw.rejected & ~motion.failed[:, None]
+    motion.residuals[motion.rejected] = np.nan
+    return motion, used
+
+
+def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:
+    """The trial's marker column (M,) of each model marker (-1 when absent), as
+    :func:`model_markers` reads them (swapped pairs exchanged)."""
+    match = match_protocol(trial, model.protocol)
+    columns = np.array([match.indices[model.protocol.labels.index(label)]
+                        for label in model.labels])
+    for a, b in model.swapped:
+        i, j = model.labels.index(a), model.labels.index(b)
+        columns[[i, j]] = columns[[j, i]]
+    return columns
 
 
 def suspect_threshold(residuals: np.ndarray) -> np.ndarray:

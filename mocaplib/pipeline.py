@@ -194,7 +194,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     from .cycles import analyse_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
-    from .ik import fit
+    from .ik import fit_filtered
     from .io.c3d import read_c3d
     from .protocols import detect_protocol, load_protocol, match_protocol
 
@@ -212,7 +212,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         model = calibrate(filtered, protocol=match.protocol, static=static,
                           static_pose=settings.static_pose)
     with clock.stage("fit"):
-        motion = fit(filtered, model)
+        motion, _ = fit_filtered(trial, model, cutoff=cutoff)
     if motion.locked_dofs:
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "

@@ -6,7 +6,7 @@ from fk_data import fk_trial
 
 from mocaplib.calibrate import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
-from mocaplib.ik import fit, fit_quality, initial_pose, solve_poses
+from mocaplib.ik import fit, fit_filtered, fit_quality, initial_pose, solve_poses
 from mocaplib.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 from mocaplib.trial import Trial
@@ -192,3 +192,25 @@ def test_a_marker_drifting_smoothly_away_is_kept():
     # the robust fit shares the drift with the foot's pose (measured 28 mm left on the toe);
     # fitted without the toe it would be 60 mm off and, but for the jump rule, removed
     assert np.nanmax(motion.residuals[:, toe]) > 0.02
+
+
+def test_outliers_are_found_before_the_low_pass_spreads_them():
+    from mocaplib.filtering import filter_trial
+
+    cap = fk_trial(n_frames=150, placement_mm=0, sta_mm=3, noise_mm=0.7, seed=5)
+    markers = cap.trial.markers.copy()
+    t10 = cap.trial.labels.index("T10")
+    markers[70:74, t10] += (-0.045, 0.0, 0.0)        # four frames of a 45 mm jump
+    trial = Trial(markers, cap.trial.labels, cap.trial.rate, source="jump.c3d")
+    model = _true_model(cap)
+    motion, cutoff = fit_filtered(trial, model, cutoff=6.0)
+    assert cutoff == 6.0
+    expected = np.zeros_like(motion.rejected)
+    expected[70:74, t10] = True
+    np.testing.assert_array_equal(motion.rejected, expected)
+    # filtered first, the jump becomes a smooth bump the jump rule does not remove (this is why
+    # fit_filtered looks at the raw markers first)
+    smeared = fit(filter_trial(trial, cutoff=6.0)[0], model)
+    assert not smeared.rejected[:, t10].any()
+    # with the jump gapped before filtering, the kept samples fit as the clean capture does
+    assert np.nanmax(motion.residuals[:, t10]) < 0.01

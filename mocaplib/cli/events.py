@@ -51,11 +51,11 @@ def fitted(trial, match, static=None, static_pose="free"):
     in ``static_pose``; markers low-passed first)."""
     from ..calibrate import calibrate
     from ..filtering import filter_trial
-    from ..ik import fit
+    from ..ik import fit_filtered
 
-    markers, _ = filter_trial(trial, cutoff="auto")     # as mocaplib build and fit do
-    return fit(markers, calibrate(markers, protocol=match.protocol, static=static,
-                                  static_pose=static_pose))
+    filtered, cutoff = filter_trial(trial, cutoff="auto")     # as mocaplib build and fit do
+    model = calibrate(filtered, protocol=match.protocol, static=static, static_pose=static_pose)
+    return fit_filtered(trial, model, cutoff=cutoff)[0]
 
 
 def detect(args, trial, match, motion=None):

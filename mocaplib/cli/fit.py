@@ -71,7 +71,7 @@ def _run(args) -> int:
     from ..calibrate import calibrate
     from ..errors import ProtocolError
     from ..filtering import filter_trial
-    from ..ik import fit, fit_quality
+    from ..ik import fit_filtered, fit_quality
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
@@ -85,10 +85,11 @@ def _run(args) -> int:
         except ProtocolError as exc:
             print(f"mocaplib fit: error: --protocol: {exc}", file=sys.stderr)
             return 2
-    trial, cutoff = filter_trial(read_c3d(args.input), cutoff=args.cutoff)
+    trial = read_c3d(args.input)
+    filtered, cutoff = filter_trial(trial, cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None
-    model = calibrate(trial, protocol=protocol, static=static, static_pose=args.static_pose)
-    motion = fit(trial, model)
+    model = calibrate(filtered, protocol=protocol, static=static, static_pose=args.static_pose)
+    motion, _ = fit_filtered(trial, model, cutoff=cutoff)
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
