@@ -331,7 +331,8 @@ def _fill_gaps(values: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- the fit
 def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUST_SCALE,
-        smoothing: float = SMOOTHING, max_iter: int = 40, chunk: int = CHUNK) -> Motion:
+        smoothing: float = SMOOTHING, max_iter: int = 40, chunk: int = CHUNK,
+        q0: np.ndarray | None = None) -> Motion:
     """Fit the calibrated model's joint angles to every frame of ``trial``.
 
     Parameters
@@ -342,6 +343,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     smoothing : continuity weight μ (metres per radian); 0 switches it off.
     max_iter : LM iterations per chunk of frames.
     chunk : frames solved together.
+    q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
+        start described above.
 
     Frames are solved together from per-segment rigid fits; frames left with an outlying
     marker RMS are re-solved from their neighbours' poses, and outlying samples are removed
@@ -370,16 +373,10 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                         max_iter=max_iter)
         # coarse to fine in time: every STRIDE-th frame from rigid-fit starts, then all frames
         # from the coarse solution interpolated (a warm start, as frame-by-frame solvers use)
-        coarse = np.unique(np.r_[np.arange(0, part.stop - start, STRIDE), part.stop - start - 1])
-        q0 = initial_pose(model.skeleton, markers[part][coarse], model.marker_segments,
-                          model.marker_offsets)
-        q0[:, ~free] = 0.0
-        first = solve_poses(model.skeleton, markers[part][coarse], model.marker_segments,
-                            model.marker_offsets, q0=q0, **settings)
-        q0 = _interpolate(first.q, coarse, part.stop - start)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
-        res = _restart_outliers(solve, solve(q0=q0))
+        start_q = _coarse_start(model, markers[part], settings) if q0 is None else q0[part]
+        res = _restart_outliers(solve, solve(q0=start_q))
         rejected[part] = _reject_outliers(res, markers[part], model, **settings)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
     seen = np.isfinite(markers[..., 0]) & ~rejected
@@ -403,6 +400,19 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
 
 
+def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict) -> np.ndarray:
+    """Start poses (F, D) for markers (F, M, 3): every :data:`STRIDE`-th frame solved from
+    per-segment rigid fits, the others interpolated in time."""
+    n = len(markers)
+    coarse = np.unique(np.r_[np.arange(0, n, STRIDE), n - 1])
+    q0 = initial_pose(model.skeleton, markers[coarse], model.marker_segments,
+                      model.marker_offsets)
+    q0[:, ~settings["free"]] = 0.0
+    first = solve_poses(model.skeleton, markers[coarse], model.marker_segments,
+                        model.marker_offsets, q0=q0, **settings)
+    return _interpolate(first.q, coarse, n)
+
+
 def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | str | None,
                  **options) -> tuple[Motion, float | None]:
     """Fit ``trial``'s markers low-passed at ``cutoff`` (Hz, "auto" or None), outliers first.
@@ -424,7 +434,7 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     markers[frames, columns[m]] = np.nan
     cleaned, used = filter_trial(replace(trial, markers=markers, warnings=list(trial.warnings)),
                                  cutoff=cutoff)
-    motion = fit(cleaned, model, **options)
+    motion = fit(cleaned, model, q0=raw.q, **options)    # the raw fit is a warm start
     motion.rejected |= raw.rejected & ~motion.failed[:, None]
     motion.residuals[motion.rejected] = np.nan
     return motion, used
