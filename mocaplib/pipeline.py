@@ -220,6 +220,9 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     if motion.failed.any():
         result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
                                "(interpolated)")
+    if motion.rejected.any():
+        result.warnings.append(f"{int(motion.rejected.sum())} marker samples removed as "
+                               "outliers (jumping or mislabelled trajectories)")
     with clock.stage("events"):
         feet = feet_of(trial, match, motion=motion)
         events = detect_events(feet, trial.rate, source=path)
