@@ -101,6 +101,9 @@ def _run(args) -> int:
     if quality["failed_frames"]:
         warn(f"{args.input}: {len(quality['failed_frames'])} frames could not be fitted "
              "(interpolated)")
+    if quality["rejected_samples"]:
+        warn(f"{args.input}: {quality['rejected_samples']} marker samples removed as outliers "
+             f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
     if args.json:
         print_json({"file": args.input, "protocol": model.protocol.name,
                     "cutoff_hz": cutoff, **quality})
