@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -43,3 +44,24 @@ def expand_inputs(inputs: list[str], *, suffix: str = ".c3d") -> list[Path]:
 
 def warn(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr)
+
+
+def add_protocol_option(parser, *, default: str = "the best shipped protocol") -> None:
+    """``--protocol NAME|PATH|auto``; an unknown or malformed protocol is a usage error (exit 2).
+
+    The value stays the name or path given (it is checked here, loaded again where used).
+    """
+    parser.add_argument("--protocol", default="auto", type=_protocol_name, metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
+                             f"(default: {default})")
+
+
+def _protocol_name(value: str) -> str:
+    from ..protocols import load_protocol
+
+    if value != "auto":
+        try:
+            load_protocol(value)
+        except MocapError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return value

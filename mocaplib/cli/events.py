@@ -6,6 +6,8 @@ markers the protocol names (:func:`mocaplib.events.feet_of`).
 
 from __future__ import annotations
 
+from ._common import add_protocol_option
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -26,9 +28,7 @@ def register(subparsers) -> None:
 def add_common_options(parser) -> None:
     """FILE, --protocol and --toe-off, shared with ``mocaplib cycles``."""
     parser.add_argument("file", metavar="FILE", help="a C3D file")
-    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
-                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
-                             "(default: the best shipped protocol)")
+    add_protocol_option(parser)
     parser.add_argument("--toe-off", choices=("foot_velocity", "lift"), default="foot_velocity",
                         help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
                              "peak, close to a force plate's Foot Off; default) or 'lift' (the "

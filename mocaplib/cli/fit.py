@@ -7,7 +7,8 @@ Only parses options and writes outputs: the work is :func:`mocaplib.calibrate.ca
 from __future__ import annotations
 
 import argparse
-import sys
+
+from ._common import add_protocol_option
 
 
 def cutoff_type(text: str) -> float | str | None:
@@ -51,9 +52,7 @@ def register(subparsers) -> None:
                     "pelvis_t* metres). Exit 0 on success, 1 when the capture cannot be fitted, "
                     "2 on usage errors (including an unknown or malformed --protocol).")
     parser.add_argument("input", metavar="FILE", help="C3D capture")
-    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
-                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
-                             "(default: detected from the labels)")
+    add_protocol_option(parser, default="detected from the labels")
     add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT.csv",
@@ -69,7 +68,6 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..calibrate import calibrate
-    from ..errors import ProtocolError
     from ..filtering import filter_trial
     from ..ik import fit_filtered, fit_quality
     from ..io.atomic import atomic_write_text
@@ -78,13 +76,7 @@ def _run(args) -> int:
     from ..protocols import load_protocol
     from ._common import print_json, warn
 
-    protocol = args.protocol
-    if protocol != "auto":
-        try:
-            protocol = load_protocol(protocol)
-        except ProtocolError as exc:
-            print(f"mocaplib fit: error: --protocol: {exc}", file=sys.stderr)
-            return 2
+    protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     trial = read_c3d(args.input)
     filtered, cutoff = filter_trial(trial, cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None

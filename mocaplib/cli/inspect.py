@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import sys
 
+from ._common import add_protocol_option
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -18,27 +20,19 @@ def register(subparsers) -> None:
                     "Exit 0 when every file was read, 1 when some could not be, 2 on usage "
                     "errors (including an unknown or malformed --protocol).")
     parser.add_argument("inputs", nargs="+", metavar="FILE", help="C3D files or folders")
-    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
-                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
-                             "(default: the best shipped protocol for each file)")
+    add_protocol_option(parser, default="the best shipped protocol for each file")
     parser.add_argument("--json", action="store_true",
                         help="print a JSON list, one object per file, instead of tables")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
-    from ..errors import MocapError, ProtocolError
+    from ..errors import MocapError
     from ..inspection import failed_summary, format_summary, inspect_c3d
     from ..protocols import load_protocol
     from ._common import expand_inputs, print_json
 
-    protocol = args.protocol
-    if protocol != "auto":
-        try:
-            protocol = load_protocol(protocol)
-        except ProtocolError as exc:
-            print(f"mocaplib inspect: error: --protocol: {exc}", file=sys.stderr)
-            return 2
+    protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     summaries = []
     for item in args.inputs:
         try:
