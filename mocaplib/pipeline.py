@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from . import __version__
-from .errors import LibraryError, MocapError
+from .errors import MocapError
 from .io.atomic import atomic_write_text
 import numpy as np
 

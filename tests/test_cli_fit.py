@@ -4,7 +4,6 @@ import json
 
 import numpy as np
 import pandas as pd
-import pytest
 from fk_data import fk_trial
 
 from mocaplib.cli import main

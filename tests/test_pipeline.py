@@ -8,7 +8,6 @@ JSON "captures", so these tests are fast and do not depend on the fitting stages
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
