@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import warn
+from ._common import add_protocol_option, warn
 from .fit import add_cutoff_option, add_static_options
 
 
@@ -31,8 +31,7 @@ def register(subparsers) -> None:
                         help="C3D files or folders (searched recursively for *.c3d)")
     parser.add_argument("-o", "--output", required=True, metavar="LIBRARY.json",
                         help="library file to write")
-    parser.add_argument("--protocol", default="auto",
-                        help="marker-set protocol name or TOML file, or 'auto' (default)")
+    add_protocol_option(parser, default="detected for each capture")
     add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
@@ -55,15 +54,7 @@ def register(subparsers) -> None:
 
 
 def _usage_problem(args) -> str | None:
-    """What is wrong with --protocol or --static before any capture is processed."""
-    from ..errors import ProtocolError
-    from ..protocols import load_protocol
-
-    if args.protocol != "auto":
-        try:
-            load_protocol(args.protocol)
-        except ProtocolError as exc:
-            return f"--protocol: {exc}"
+    """What is wrong with --static before any capture is processed (None when fine)."""
     if args.static and not Path(args.static).is_file():
         return f"--static: no such file: {args.static}"
     return None
