@@ -60,6 +60,7 @@ import numpy as np
 from scipy.signal import butter, filtfilt
 
 from .errors import EventError
+from .filtering import valid_runs
 
 SIDES = ("left", "right")
 #: Toe-off definitions (see the module docstring) and how far before the coarse time (in
@@ -221,18 +222,12 @@ def _checked_points(heel, toe, rate, side, source):
     return heel, toe
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) of each run of True in a 1-D boolean array."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
 def _fill_gaps(points: np.ndarray, max_gap: int) -> np.ndarray:
     """Linear interpolation over interior NaN runs of at most ``max_gap`` frames (F, 3)."""
     out = points.copy()
     missing = ~np.isfinite(points).all(axis=1)
     frames = np.arange(len(points))
-    for start, end in _runs(missing):
+    for start, end in valid_runs(missing).tolist():
         if start > 0 and end < len(points) and end - start <= max_gap:
             for axis in range(3):
                 out[start:end, axis] = np.interp(frames[start:end], [start - 1, end],
@@ -246,7 +241,7 @@ def _smooth(points: np.ndarray, rate: float, cutoff_hz: float) -> np.ndarray:
         return points
     b, a = butter(2, cutoff_hz / (0.5 * rate))
     out = points.copy()
-    for start, end in _runs(np.isfinite(points).all(axis=1)):
+    for start, end in valid_runs(np.isfinite(points).all(axis=1)).tolist():
         if end - start > 3 * max(len(a), len(b)):
             out[start:end] = filtfilt(b, a, points[start:end], axis=0)
     return out
@@ -337,7 +332,7 @@ def _is_belt(centre_velocity: np.ndarray, low: np.ndarray, ground: np.ndarray,
 def _swings(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
     """[start, end) of each run of at least ``min_frames`` measured frames out of contact; a
     run cut short by either end of the capture needs only 3 (its one visible event is seen)."""
-    runs = _runs(~contact & np.isfinite(clearance))
+    runs = valid_runs(~contact & np.isfinite(clearance)).tolist()
     return [(s, e) for s, e in runs
             if e - s >= min_frames or ((s == 0 or e == len(contact)) and e - s >= 3)]
 

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import FitError
+from .filtering import valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
 from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, axis_rotation
@@ -518,8 +519,7 @@ def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
     out = np.zeros_like(suspect)
     seen = np.isfinite(error[..., 0]).sum(axis=0)
     for m in np.flatnonzero((suspect.sum(axis=0) > 0) & (suspect.sum(axis=0) < 0.5 * seen)):
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], suspect[:, m].astype(int), [0]])))
-        for start, stop in edges.reshape(-1, 2):
+        for start, stop in valid_runs(suspect[:, m]):
             near = np.r_[max(start - 3, 0):min(start + 2, n - 1),
                          max(stop - 3, 0):min(stop + 2, n - 1)]
             if start == 0 or stop == n or jump[near, m].any():
