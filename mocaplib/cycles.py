@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import EventError
-from .events import GaitEvent, landmark_labels
+from .events import GaitEvent
 from .fourier import ROOT_X, ROOT_Y, TRANSLATIONS, CycleEncoding, encode_cycle
 from .patterns import CycleVelocities, Pattern, cycle_times, cycle_velocities, sample_shoulders
 
@@ -95,18 +95,6 @@ class Cycle:
             out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
                        fourier_worst_dof=self.encoding.worst_dof)
         return out
-
-
-def shoulders_of(trial, match, /) -> tuple[np.ndarray, np.ndarray]:
-    """Left and right acromion markers (F, 3) m of a trial's protocol match (ProtocolMatch)."""
-    present = landmark_labels(match)
-    missing = [name for name in ("L_ACROMION", "R_ACROMION") if name not in present]
-    if missing:
-        raise EventError(f"no {' or '.join(missing)} marker in protocol "
-                         f"{match.protocol.name!r}", path=trial.source,
-                         hint="patterns and velocities need both shoulder (acromion) markers")
-    return (match.marker(trial, present["L_ACROMION"]),
-            match.marker(trial, present["R_ACROMION"]))
 
 
 def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:

@@ -137,7 +137,6 @@ def _build_topology() -> tuple[tuple[Segment, ...], tuple[Dof, ...]]:
 SEGMENTS, DOFS = _build_topology()
 SEGMENT_NAMES: tuple[str, ...] = tuple(s.name for s in SEGMENTS)
 DOF_NAMES: tuple[str, ...] = tuple(d.name for d in DOFS)
-ROOT_TRANSLATION = ("pelvis_tx", "pelvis_ty", "pelvis_tz")
 _SEGMENT_INDEX = {name: i for i, name in enumerate(SEGMENT_NAMES)}
 _DOF_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 _TRANSLATION = np.array([d.translation for d in DOFS])
