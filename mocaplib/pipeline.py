@@ -13,6 +13,7 @@ per-capture diagnostics the HTML report reads (see ``docs/library-format.md``).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -512,14 +513,31 @@ def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return list(found.values())
 
 
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """SHA-256 of mocaplib's own code and data (``*.py``, protocols, schema), read once.
+
+    Part of every cache key: a result cached by different code (a development checkout, a
+    patched install) is never reused, even when the version number did not change.
+    """
+    root = Path(__file__).resolve().parent
+    files = [Path(folder, name) for folder, _, names in os.walk(root, followlinks=True)
+             for name in names if name.endswith((".py", ".toml", ".json"))]
+    digest = hashlib.sha256()
+    for path in sorted(files):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
 def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     """Hex key of a capture's cached result: file name and content, settings, tool version.
 
-    The static trial's content and the capture's truth sidecar (which names its locomotion
-    class) are part of the key, so editing either invalidates the cache.
+    The static trial's content, the capture's truth sidecar (which names its locomotion
+    class) and :func:`code_fingerprint` are part of the key, so editing any of them
+    invalidates the cache.
     """
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
-             "tool": __version__}
+             "tool": __version__, "code": code_fingerprint()}
     if settings.static:
         parts["static_sha256"] = file_sha256(settings.static)
     truth = path.with_name(f"{path.stem}.truth.json")

@@ -139,6 +139,16 @@ def test_cache_processes_only_new_or_changed_captures(tmp_path):
     assert len(calls(folder)) == 6 + 5, "other settings must re-process everything"
 
 
+def test_cache_made_by_other_code_is_not_reused(tmp_path, monkeypatch):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:2])
+    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    # Same version number, edited code (a development checkout): everything is re-processed.
+    monkeypatch.setattr(pipeline, "code_fingerprint", lambda: "edited")
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert len(calls(folder)) == 4 and not any(c.from_cache for c in again.captures)
+
+
 def test_failures_are_cached_but_crashes_are_not(tmp_path):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     folder.mkdir()

@@ -1,11 +1,10 @@
-"""Small helpers shared by the sub-commands (output formatting, input expansion)."""
+"""Small helpers shared by the sub-commands (output formatting, shared options)."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
-from pathlib import Path
 
 from ..errors import MocapError
 
@@ -25,21 +24,6 @@ def _clean(obj):
     if hasattr(obj, "item") and callable(obj.item):  # numpy scalar
         return _clean(obj.item())
     return obj
-
-
-def expand_inputs(inputs: list[str], *, suffix: str = ".c3d") -> list[Path]:
-    """Files named directly plus files with ``suffix`` found (recursively, sorted) in folders."""
-    files: list[Path] = []
-    for item in inputs:
-        path = Path(item)
-        if path.is_dir():
-            files.extend(sorted(p for p in path.rglob("*") if p.suffix.lower() == suffix))
-        elif path.exists():
-            files.append(path)
-        else:
-            raise MocapError("no such file or folder", path=path,
-                             hint="check the path; folders are searched for *.c3d")
-    return files
 
 
 def warn(message: str) -> None:

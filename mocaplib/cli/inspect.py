@@ -30,13 +30,14 @@ def _run(args) -> int:
     from ..errors import MocapError
     from ..inspection import failed_summary, format_summary, inspect_c3d
     from ..protocols import load_protocol
-    from ._common import expand_inputs, print_json
+    from ..pipeline import find_captures
+    from ._common import print_json
 
     protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     summaries = []
     for item in args.inputs:
         try:
-            files = expand_inputs([item])
+            files = find_captures([item])
         except MocapError as exc:
             summaries.append(failed_summary(item, exc))
             continue
