@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 
 from .errors import MocapError, ProtocolError
-from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
+from .protocols import Protocol, match_trial
 from .trial import Trial
 
 #: Keys of every summary, in order (failed files have None or empty values).
@@ -60,8 +60,7 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
                        for e in trial.events])
     warnings = list(trial.warnings)
     try:
-        match = (detect_protocol(trial) if protocol == "auto" else match_protocol(
-            trial, protocol if isinstance(protocol, Protocol) else load_protocol(protocol)))
+        match = match_trial(trial, protocol)
     except ProtocolError as exc:
         match = None
         warnings.append(str(exc))

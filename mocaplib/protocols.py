@@ -393,6 +393,17 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
     return match_protocol(trial, best.protocol)
 
 
+def match_trial(trial: Trial, protocol: Protocol | str | os.PathLike = "auto", /
+                ) -> ProtocolMatch:
+    """The match of ``trial`` with ``protocol``: a :class:`Protocol`, a shipped name, a TOML
+    path, or ``"auto"`` (:func:`detect_protocol` among the shipped ones)."""
+    if isinstance(protocol, Protocol):
+        return match_protocol(trial, protocol)
+    if protocol == "auto":
+        return detect_protocol(trial)
+    return match_protocol(trial, load_protocol(protocol))
+
+
 #: Sided landmarks whose left/right labels are checked for swaps.
 SWAP_CHECKED = ("ACROMION", "ASIS", "PSIS")
 #: Anterior and posterior landmarks giving the subject's forward direction, in order of trust.

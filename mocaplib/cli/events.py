@@ -38,12 +38,10 @@ def add_common_options(parser) -> None:
 def load(args):
     """(trial, protocol match) of ``args.file`` with ``args.protocol``."""
     from ..io.c3d import read_c3d
-    from ..protocols import detect_protocol, load_protocol, match_protocol
+    from ..protocols import match_trial
 
     trial = read_c3d(args.file)
-    match = (detect_protocol(trial) if args.protocol == "auto"
-             else match_protocol(trial, load_protocol(args.protocol)))
-    return trial, match
+    return trial, match_trial(trial, args.protocol)
 
 
 def fitted(trial, match, static=None, static_pose="free"):
