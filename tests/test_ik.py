@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from fk_data import fk_trial
+from fk_data import fk_trial, true_model
 
 from mocaplib.calibrate import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
@@ -15,20 +15,13 @@ DEG = np.pi / 180
 ROT = np.array([not n.startswith("pelvis_t") for n in DOF_NAMES])
 
 
-def _true_model(cap, *, locked=()):
-    """The model that generated ``cap`` (exact skeleton and offsets), as calibrate returns."""
-    proto = load_protocol("fullbody38")
-    return SubjectModel(cap.skeleton, proto, proto.labels, cap.segments, cap.offsets,
-                        locked_dofs=list(locked))
-
-
 def _angle_rms(q, truth):
     return np.sqrt(((q - truth)[:, ROT] ** 2).mean(axis=0))
 
 
 def test_exact_markers_give_exact_angles():
     cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0)
-    motion = fit(cap.trial, _true_model(cap), smoothing=0.0)
+    motion = fit(cap.trial, true_model(cap), smoothing=0.0)
     # noise-free markers from the same model: only round-off and the stopping rule remain
     np.testing.assert_allclose(motion.q, cap.q, atol=1e-4)
     assert np.nanmax(motion.residuals) < 1e-5
@@ -38,7 +31,7 @@ def test_exact_markers_give_exact_angles():
 
 def test_noisy_markers_recover_angles_within_a_degree():
     cap = fk_trial(n_frames=150, placement_mm=0, sta_mm=0, noise_mm=1.0, seed=1)
-    motion = fit(cap.trial, _true_model(cap))
+    motion = fit(cap.trial, true_model(cap))
     rms = _angle_rms(motion.q, cap.q)
     # 1 mm noise on markers 5-40 cm from the joints: ~0.1-1 deg per DOF; the foot's
     # inversion rests on markers ~4 cm from its axis, so it gets the widest bound
@@ -54,7 +47,7 @@ def test_missing_markers_drop_out():
     rng = np.random.default_rng(0)
     markers[rng.random(markers.shape[:2]) < 0.2] = np.nan          # 20 % of samples missing
     trial = Trial(markers, cap.trial.labels, cap.trial.rate)
-    motion = fit(trial, _true_model(cap))
+    motion = fit(trial, true_model(cap))
     assert np.isnan(motion.residuals[np.isnan(markers[..., 0])]).all()
     rms = _angle_rms(motion.q, cap.q)
     # fewer markers per frame: same bound as with all markers but for the 20 % loss
@@ -67,8 +60,8 @@ def test_a_bad_marker_does_not_drag_the_pose():
     knee = cap.trial.labels.index("RKNE")
     markers[:, knee] += (0.0, 0.08, 0.05)                          # 9 cm off in every frame
     trial = Trial(markers, cap.trial.labels, cap.trial.rate)
-    robust = fit(trial, _true_model(cap))
-    plain = fit(trial, _true_model(cap), robust_scale=np.inf)
+    robust = fit(trial, true_model(cap))
+    plain = fit(trial, true_model(cap), robust_scale=np.inf)
     hip = DOF_NAMES.index("hip_adduction_r")
     err_robust = np.abs(robust.q[:, hip] - cap.q[:, hip]).mean()
     err_plain = np.abs(plain.q[:, hip] - cap.q[:, hip]).mean()
@@ -84,7 +77,7 @@ def test_joint_ranges_are_respected():
     knee = DOF_NAMES.index("knee_flexion_l")
     q[:, knee] = -25 * DEG                                  # hyper-extension beyond -10 deg
     markers = cap.skeleton.points(q, cap.segments, cap.offsets)
-    motion = fit(Trial(markers, cap.trial.labels, 100.0), _true_model(cap))
+    motion = fit(Trial(markers, cap.trial.labels, 100.0), true_model(cap))
     lower, upper = Skeleton.bounds()
     assert (motion.q >= lower - 1e-12).all() and (motion.q <= upper + 1e-12).all()
     np.testing.assert_allclose(motion.q[:, knee], lower[knee], atol=1e-9)  # held at the bound
@@ -113,7 +106,7 @@ def test_frames_without_pelvis_are_flagged_and_interpolated():
     markers = cap.trial.markers.copy()
     pelvis = [cap.trial.labels.index(x) for x in ("LASI", "RASI", "LPSI")]
     markers[20:25][:, pelvis] = np.nan
-    motion = fit(Trial(markers, cap.trial.labels, 100.0), _true_model(cap))
+    motion = fit(Trial(markers, cap.trial.labels, 100.0), true_model(cap))
     assert motion.failed.tolist() == [20 <= f < 25 for f in range(60)]
     assert np.isnan(motion.residuals[20:25]).all()
     assert np.isfinite(motion.q).all()
@@ -141,7 +134,7 @@ def test_trial_without_model_markers_is_refused():
     other = Trial(cap.trial.markers, [f"X{i}" for i in range(cap.trial.n_markers)], 100.0,
                   source="other.c3d")
     with pytest.raises(FitError, match="other.c3d: none of the model's markers"):
-        fit(other, _true_model(cap))
+        fit(other, true_model(cap))
 
 
 def test_locked_dofs_rule():
@@ -158,14 +151,14 @@ def test_locked_dofs_rule():
 
 def test_jumping_and_mislabelled_samples_are_removed_and_counted():
     cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=3, noise_mm=0.7, seed=4)
-    clean = fit(cap.trial, _true_model(cap))
+    clean = fit(cap.trial, true_model(cap))
     assert not clean.rejected.any(), "soft tissue and noise alone are never outliers"
     markers = cap.trial.markers.copy()
     toe, psis = cap.trial.labels.index("LTOE"), cap.trial.labels.index("RPSI")
     markers[40:45, toe] += (0.0, 0.0, 0.06)          # a 60 mm jump for five frames
     markers[90, psis] += (0.20, 0.05, 0.0)           # another trajectory labelled RPSI
     trial = Trial(markers, cap.trial.labels, cap.trial.rate, source="glitch.c3d")
-    motion = fit(trial, _true_model(cap))
+    motion = fit(trial, true_model(cap))
     expected = np.zeros_like(motion.rejected)
     expected[40:45, toe] = expected[90, psis] = True
     np.testing.assert_array_equal(motion.rejected, expected)
@@ -187,7 +180,7 @@ def test_a_marker_drifting_smoothly_away_is_kept():
     markers = cap.trial.markers.copy()
     toe = cap.trial.labels.index("LTOE")
     markers[40:80, toe, 2] += 0.06 * np.sin(np.linspace(0, np.pi, 40))
-    motion = fit(Trial(markers, cap.trial.labels, cap.trial.rate), _true_model(cap))
+    motion = fit(Trial(markers, cap.trial.labels, cap.trial.rate), true_model(cap))
     assert not motion.rejected.any()
     # the robust fit shares the drift with the foot's pose (measured 28 mm left on the toe);
     # fitted without the toe it would be 60 mm off and, but for the jump rule, removed
@@ -202,7 +195,7 @@ def test_outliers_are_found_before_the_low_pass_spreads_them():
     t10 = cap.trial.labels.index("T10")
     markers[70:74, t10] += (-0.045, 0.0, 0.0)        # four frames of a 45 mm jump
     trial = Trial(markers, cap.trial.labels, cap.trial.rate, source="jump.c3d")
-    model = _true_model(cap)
+    model = true_model(cap)
     motion, cutoff = fit_filtered(trial, model, cutoff=6.0)
     assert cutoff == 6.0
     expected = np.zeros_like(motion.rejected)

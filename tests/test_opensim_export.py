@@ -2,26 +2,18 @@
 
 import numpy as np
 import pytest
-from fk_data import fk_trial
+from fk_data import fk_trial, true_model
 
-from mocaplib.calibrate import SubjectModel
 from mocaplib.io.opensim import osim_text, write_mot, write_osim, write_trc
 from mocaplib.motion import Motion, angles_frame
-from mocaplib.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES
-
-
-def _model(cap, locked=()):
-    proto = load_protocol("fullbody38")
-    return SubjectModel(cap.skeleton, proto, proto.labels, cap.segments, cap.offsets,
-                        locked_dofs=list(locked))
 
 
 def test_opensim_places_markers_where_we_do(tmp_path, monkeypatch):
     osim = pytest.importorskip("opensim")
     monkeypatch.chdir(tmp_path)                      # OpenSim writes opensim.log here
     cap = fk_trial(n_frames=4)
-    path = write_osim(_model(cap), tmp_path / "subject.osim")
+    path = write_osim(true_model(cap), tmp_path / "subject.osim")
     model = osim.Model(str(path))
     state = model.initSystem()
     coords = model.getCoordinateSet()
@@ -40,7 +32,7 @@ def test_opensim_places_markers_where_we_do(tmp_path, monkeypatch):
 
 def test_osim_lists_every_dof_with_ranges_and_locks():
     cap = fk_trial(n_frames=2)
-    text = osim_text(_model(cap, locked=["neck_rotation"]))
+    text = osim_text(true_model(cap, locked=["neck_rotation"]))
     for name in DOF_NAMES:
         assert f'<Coordinate name="{name}">' in text
     neck = text[text.index('<Coordinate name="neck_rotation">'):]

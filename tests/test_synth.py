@@ -10,6 +10,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 from mocaplib.errors import SynthError
+from mocaplib.filtering import valid_runs
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize
 from mocaplib.synth.body import body_motion
@@ -120,9 +121,7 @@ def test_stance_foot_does_not_slip_or_sink(name):
         soles = _soles(cap, side)
         # sole points never below the floor (1e-6 m: truth angles are exact, only round-off)
         assert soles[..., 2].min() > -1e-6
-        flat = cap.body.contact[:, col] == FLAT
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], flat.astype(int), [0]])))
-        for start, stop in zip(edges[::2], edges[1::2]):
+        for start, stop in valid_runs(cap.body.contact[:, col] == FLAT):
             drift = np.linalg.norm(soles[start:stop] - soles[start], axis=-1).max()
             assert drift <= 0.005, f"{name}: {side} foot slips {drift * 1000:.1f} mm"
             assert np.abs(soles[start:stop, :, 2]).max() < 1e-6, "a flat foot lies on the floor"
