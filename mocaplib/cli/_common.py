@@ -1,4 +1,4 @@
-"""Small helpers shared by the sub-commands (output formatting, shared options)."""
+"""Small helpers shared by the sub-commands (output formatting, input expansion, --protocol)."""
 
 from __future__ import annotations
 

@@ -73,14 +73,12 @@ def _run(args) -> int:
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
-    from ..protocols import load_protocol
     from ._common import print_json, warn
 
-    protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     trial = read_c3d(args.input)
     filtered, cutoff = filter_trial(trial, cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None
-    model = calibrate(filtered, protocol=protocol, static=static, static_pose=args.static_pose)
+    model = calibrate(filtered, protocol=args.protocol, static=static, static_pose=args.static_pose)
     motion, _ = fit_filtered(trial, model, cutoff=cutoff)
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
