@@ -33,7 +33,8 @@ import numpy as np
 from .errors import EventError
 from .events import GaitEvent
 from .fourier import ROOT_X, ROOT_Y, TRANSLATIONS, CycleEncoding, encode_cycle
-from .patterns import CycleVelocities, Pattern, cycle_times, cycle_velocities, sample_shoulders
+from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
+                       sample_shoulders)
 
 #: Nominal period of the rest entry, seconds.
 REST_PERIOD = 1.0
@@ -163,18 +164,16 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     cycles = []
     for index, (first, last) in enumerate(pairs):
         start, end = first.time_s, last.time_s
-        velocities = cycle_velocities(left_shoulder, right_shoulder, rate, start, end,
-                                      ground=ground, point_radius=point_radius,
-                                      min_arc_angle=min_arc_angle, source=source)
+        times, mid, heading = cycle_samples(left_shoulder, right_shoulder, rate, start, end,
+                                            ground=ground, source=source)
+        velocities = path_velocities(times, mid, heading, point_radius=point_radius,
+                                     min_arc_angle=min_arc_angle)
         encoding = None
         if q is not None:
-            times = cycle_times(start, end, rate)
             samples = _interpolate(q, rate, times, source)
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
                                     tol_angle=tol_angle, tol_length=tol_length)
-        cycles.append(Cycle(index, start, end, velocities,
-                            _unsteadiness(left_shoulder, right_shoulder, rate, start, end,
-                                          ground, source),
+        cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
                             min(first.quality, last.quality), encoding))
     choose_cycle(cycles)
     return cycles
@@ -191,10 +190,9 @@ def choose_cycle(cycles: list[Cycle], /) -> Cycle:
     return best
 
 
-def _unsteadiness(left, right, rate, start, end, ground, source) -> float:
-    times = cycle_times(start, end, rate)
-    mid, heading = sample_shoulders(left, right, rate, times, ground=ground, source=source)
-    half = int(np.argmin(np.abs(times - 0.5 * (start + end))))
+def _unsteadiness(times: np.ndarray, mid: np.ndarray, heading: np.ndarray) -> float:
+    """Module docstring's measure (m/s) from a cycle's :func:`~mocaplib.patterns.cycle_samples`."""
+    half = int(np.argmin(np.abs(times - 0.5 * (times[0] + times[-1]))))
     v1 = np.hypot(*(mid[half, :2] - mid[0, :2])) / (times[half] - times[0])
     v2 = np.hypot(*(mid[-1, :2] - mid[half, :2])) / (times[-1] - times[half])
     w1 = (heading[half] - heading[0]) / (times[half] - times[0])

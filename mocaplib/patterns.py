@@ -261,12 +261,32 @@ def cycle_velocities(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate
     ``ground`` (3,) m/s: the floor's velocity (a treadmill belt's, see
     :func:`mocaplib.events.ground_velocity`); the path is then measured relative to it.
     """
-    period = float(end_s - start_s)
-    if not period > 0:
+    times, mid, heading = cycle_samples(left_shoulder, right_shoulder, rate, start_s, end_s,
+                                        ground=ground, min_valid=min_valid, source=source)
+    return path_velocities(times, mid, heading, point_radius=point_radius,
+                           min_arc_angle=min_arc_angle)
+
+
+def cycle_samples(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate: float,
+                  start_s: float, end_s: float, /, *, ground: np.ndarray | None = None,
+                  min_valid: float = 0.8, source: str | os.PathLike | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cycle [start_s, end_s] (s) sampled: times (n,) s (:func:`cycle_times`), shoulder
+    midpoint (n, 3) m and θ_S (n,) rad (:func:`sample_shoulders`, same arguments)."""
+    if not float(end_s - start_s) > 0:
         raise EventError(f"cycle end {end_s} s is not after its start {start_s} s", path=source)
     times = cycle_times(start_s, end_s, rate)
     mid, heading = sample_shoulders(left_shoulder, right_shoulder, rate, times, ground=ground,
                                     min_valid=min_valid, source=source)
+    return times, mid, heading
+
+
+def path_velocities(times: np.ndarray, mid: np.ndarray, heading: np.ndarray, /, *,
+                    point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0)
+                    ) -> CycleVelocities:
+    """Pattern and average velocities of a cycle from :func:`cycle_samples`' times (n,) s,
+    shoulder midpoint (n, 3) m and θ_S (n,) rad; the cycle runs from times[0] to times[-1]."""
+    start_s, period = times[0], float(times[-1] - times[0])
     path = mid[:, :2]
     pattern = fit_pattern(path, sway=sway_basis(times - start_s, period),
                           point_radius=point_radius, min_arc_angle=min_arc_angle)
