@@ -68,6 +68,8 @@ def _display(points: np.ndarray, axes: tuple[str, ...]) -> np.ndarray:
 
 
 def axis_label(name: str) -> str:
+    """Axis title, with its unit, of a control-space coordinate (``v``, ``v_f``, ``omega``,
+    ``v_l``); ω̂ in degrees per second, as the plots draw it."""
     return {"v": "v̂ (m/s)", "v_f": "v̂_f (m/s)", "omega": "ω̂ (°/s, > 0 left)",
             "v_l": "v̂_l (m/s, > 0 left)"}[name]
 
