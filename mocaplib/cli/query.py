@@ -51,23 +51,24 @@ def _run(args) -> int:
         blended = cs.query(res.nearest)
     answer = {"inside": bool(res.inside[0]), "point": res.points[0].tolist(),
               "axes": list(cs.axes), "entries": [], "weights": []}
-    if blended.inside[0]:
+    blend = cs.blend(blended) if blended.inside[0] else None
+    if blend is not None:
         answer["entries"] = [cs.ids[k] for k in blended.entries[0]]
         answer["weights"] = blended.weights[0].tolist()
-        answer["T_s"] = float(cs.blend(blended).T[0])
+        answer["T_s"] = float(blend.T[0])
     if not res.inside[0]:
         answer["nearest"] = res.nearest[0].tolist()
         answer["distance"] = float(res.distance[0])
         answer["clamped"] = bool(args.clamp)
     if args.bvh:
-        if not blended.inside[0]:
+        if blend is None:
             raise MocapError(
                 "cannot write a BVH: the command is outside the control space",
                 path=args.library, hint=f"the nearest point on the hull is "
                 f"{_triple(res.nearest[0])}; query it, or add --clamp")
         from ..io.bvh import write_bvh
 
-        _, q = cs.blend(blended).world(0, rate=args.rate, cycles=args.cycles)
+        _, q = blend.world(0, rate=args.rate, cycles=args.cycles)
         skeleton = Skeleton(library.document["skeleton"]["segment_lengths_m"])
         answer["bvh"] = str(write_bvh(args.bvh, q, skeleton, rate=args.rate))
     if args.json:
