@@ -441,6 +441,24 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     return motion, used
 
 
+def fit_capture(trial: "Trial", /, *, protocol="auto", static: "Trial | None" = None,
+                static_pose: str = "free", cutoff: float | str | None = "auto"
+                ) -> tuple[Motion, "SubjectModel", float | None]:
+    """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
+    :func:`mocaplib.calibrate.calibrate` on them (or on ``static`` when given, in
+    ``static_pose``; ``protocol`` as calibrate takes it), then :func:`fit_filtered`.
+
+    Returns the motion, the subject model and the cutoff used (Hz; None: unfiltered).
+    """
+    from .calibrate import calibrate
+    from .filtering import filter_trial
+
+    filtered, used = filter_trial(trial, cutoff=cutoff)
+    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose)
+    motion, _ = fit_filtered(trial, model, cutoff=used)
+    return motion, model, used
+
+
 def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's marker column (M,) of each model marker (-1 when absent), as
     :func:`model_markers` reads them (swapped pairs exchanged)."""

@@ -44,18 +44,6 @@ def load(args):
     return trial, match_trial(trial, args.protocol)
 
 
-def fitted(trial, match, static=None, static_pose="free"):
-    """The capture's fitted :class:`~mocaplib.Motion` (calibrated from ``static`` if given,
-    in ``static_pose``; markers low-passed first)."""
-    from ..calibrate import calibrate
-    from ..filtering import filter_trial
-    from ..ik import fit_filtered
-
-    filtered, cutoff = filter_trial(trial, cutoff="auto")     # as mocaplib build and fit do
-    model = calibrate(filtered, protocol=match.protocol, static=static, static_pose=static_pose)
-    return fit_filtered(trial, model, cutoff=cutoff)[0]
-
-
 def detect(args, trial, match, motion=None):
     """Events of ``trial`` from its foot markers (gaps filled from ``motion`` when given)."""
     from ..events import detect_events, feet_of
@@ -65,10 +53,12 @@ def detect(args, trial, match, motion=None):
 
 
 def _run(args) -> int:
+    from ..ik import fit_capture
     from ._common import print_json
 
     trial, match = load(args)
-    events = detect(args, trial, match, fitted(trial, match) if args.fit else None)
+    motion = fit_capture(trial, protocol=match.protocol)[0] if args.fit else None
+    events = detect(args, trial, match, motion)
     if args.json:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,

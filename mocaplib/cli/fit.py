@@ -1,7 +1,7 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
-Only parses options and writes outputs: the work is :func:`mocaplib.calibrate.calibrate` and
-:func:`mocaplib.ik.fit`.
+Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_capture`
+(:func:`mocaplib.calibrate.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
 """
 
 from __future__ import annotations
@@ -67,19 +67,16 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..calibrate import calibrate
-    from ..filtering import filter_trial
-    from ..ik import fit_filtered, fit_quality
+    from ..ik import fit_capture, fit_quality
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
     from ._common import print_json, warn
 
     trial = read_c3d(args.input)
-    filtered, cutoff = filter_trial(trial, cutoff=args.cutoff)
     static = read_c3d(args.static) if args.static else None
-    model = calibrate(filtered, protocol=args.protocol, static=static, static_pose=args.static_pose)
-    motion, _ = fit_filtered(trial, model, cutoff=cutoff)
+    motion, model, cutoff = fit_capture(trial, protocol=args.protocol, static=static,
+                                        static_pose=args.static_pose, cutoff=args.cutoff)
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
