@@ -32,7 +32,7 @@ from mocaplib.calibrate import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
 from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402
-from mocaplib.ik import fit, fit_filtered, fit_quality  # noqa: E402
+from mocaplib.ik import fit, fit_capture, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
 
@@ -143,7 +143,8 @@ def forward_kinematics(seeds: int) -> None:
 def real(folder: Path) -> None:
     """Each walking file as ``mocaplib fit`` does it: calibrated from the capture's markers
     low-passed at Winter's cutoff; fitted with outlying samples found on the raw markers,
-    gapped, then low-passed (:func:`mocaplib.ik.fit_filtered`); removed samples counted."""
+    gapped, then low-passed (:func:`mocaplib.ik.fit_capture`, :func:`mocaplib.ik.fit_filtered`);
+    removed samples counted."""
     print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | removed samples | seconds |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -153,10 +154,7 @@ def real(folder: Path) -> None:
             continue
         start = time.perf_counter()
         try:
-            raw = read_c3d(path)
-            trial, cutoff = filter_trial(raw, cutoff="auto")
-            model = calibrate(trial)
-            motion, _ = fit_filtered(raw, model, cutoff=cutoff)
+            motion, model, cutoff = fit_capture(read_c3d(path))
         except MocapError as exc:
             print(f"| {name} | error: {exc} |")
             continue
