@@ -443,12 +443,6 @@ FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
                   "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}
 
 
-def landmark_labels(match, /) -> dict[str, str]:
-    """``{landmark name: trial label}`` of the markers a protocol match found in the trial."""
-    return {m.landmark.name: m.label for j, m in enumerate(match.protocol.markers)
-            if match.indices[j] >= 0}
-
-
 def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{"left": (heel, toe), "right": ...}`` (F, 3) m from a trial's protocol-matched markers.
 
@@ -459,7 +453,7 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
     those model samples as measured. Raises
     :class:`EventError` naming the missing landmark.
     """
-    present = landmark_labels(match)
+    present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
 
     def track(label):

@@ -299,6 +299,13 @@ class ProtocolMatch:
         return ([by_label[label] for label in self.missing_required]
                 + ["|".join(by_label[label] for label in groups[g]) for g in self.missing_any_of])
 
+    @property
+    def present_landmarks(self) -> dict[str, str]:
+        """``{landmark name: protocol label}`` of the markers found in the trial (the label is
+        what :meth:`marker` takes)."""
+        return {m.landmark.name: m.label for m, i in zip(self.protocol.markers, self.indices)
+                if i >= 0}
+
     def markers(self, trial: Trial) -> np.ndarray:
         """The trial's markers in protocol order, shape (F, P, 3), NaN for absent ones."""
         out = np.full((trial.n_frames, len(self.indices), 3), np.nan)
