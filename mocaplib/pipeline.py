@@ -189,7 +189,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
     Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture).
 
-    The stages are chained as ``mocaplib cycles`` chains them, so both give the same cycles.
+    The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
+    spelled out, so each stage is timed), so both give the same cycles.
     """
     from .calibrate import calibrate
     from .cycles import analyse_cycles, shoulder_centres
@@ -197,7 +198,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     from .events import detect_events, feet_of, ground_velocity
     from .ik import fit_filtered
     from .io.c3d import read_c3d
-    from .protocols import detect_protocol, load_protocol, match_protocol
+    from .protocols import match_trial
 
     with clock.stage("import"):
         trial = read_c3d(path)
@@ -205,8 +206,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
     with clock.stage("protocol"):
-        match = (detect_protocol(trial) if settings.protocol == "auto"
-                 else match_protocol(trial, load_protocol(settings.protocol)))
+        match = match_trial(trial, settings.protocol)
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
