@@ -417,3 +417,8 @@ def test_query_command_bvh(cube_library, tmp_path, capsys):
         _query([cube_library, 3.0, 0.5, 0.25, "--bvh", out])
     assert _query([cube_library, 3.0, 0.5, 0.25, "--bvh", out, "--clamp"]) == 0
     assert "blending at that point (--clamp)" in capsys.readouterr().out
+    from mocaplib.cli import main
+
+    for bad in (["--cycles", "0"], ["--rate", "-5"], ["--rate", "fast"]):  # usage errors
+        assert main(["query", str(cube_library), "0.7", "0.4", "0.2", *bad]) == 2
+    assert "must be > 0" in capsys.readouterr().err

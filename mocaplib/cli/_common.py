@@ -49,3 +49,16 @@ def _protocol_name(value: str) -> str:
         except MocapError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
     return value
+
+
+def positive(kind: type):
+    """argparse ``type=`` accepting numbers of ``kind`` (int or float) > 0; else exit 2."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+        return value
+    return parse

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+from ._common import positive
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -24,9 +26,9 @@ def register(subparsers) -> None:
                         help="print {inside, entries, weights, point, nearest, distance, T_s}")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
-    parser.add_argument("--cycles", type=int, default=1,
+    parser.add_argument("--cycles", type=positive(int), default=1,
                         help="cycles written to the BVH (default 1)")
-    parser.add_argument("--rate", type=float, default=100.0,
+    parser.add_argument("--rate", type=positive(float), default=100.0,
                         help="BVH frame rate, Hz (default 100)")
     parser.add_argument("--clamp", action="store_true",
                         help="outside the hull, blend at the nearest point on the hull instead")
@@ -40,9 +42,6 @@ def _run(args) -> int:
     from ..skeleton import Skeleton
     from ._common import print_json
 
-    if args.cycles < 1 or not args.rate > 0:
-        raise MocapError("--cycles must be >= 1 and --rate > 0",
-                         hint=f"got --cycles {args.cycles} --rate {args.rate}")
     library = load_library(args.library)
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
     res = cs.query([[args.v, args.omega, args.v_l]])
