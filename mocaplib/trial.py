@@ -162,14 +162,11 @@ class Trial:
 
     def longest_gap(self) -> np.ndarray:
         """Longest run of missing frames per marker, shape (M,), in frames."""
+        from .filtering import valid_runs  # imported here: filtering imports this module
+
         missing = np.isnan(self.markers[:, :, 0])
-        out = np.zeros(self.n_markers, dtype=int)
-        for m in range(self.n_markers):
-            padded = np.concatenate(([0], missing[:, m].astype(np.int8), [0]))
-            edges = np.flatnonzero(np.diff(padded))
-            if edges.size:
-                out[m] = int((edges[1::2] - edges[::2]).max())
-        return out
+        return np.array([max((stop - start for start, stop in valid_runs(missing[:, m])),
+                             default=0) for m in range(self.n_markers)], dtype=int)
 
     def select(self, indices) -> "Trial":
         """A new trial holding only the markers at ``indices`` (same frames)."""
