@@ -57,7 +57,7 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "marker_max_m": (0.04, "max"),
     "gap_fraction": (0.5, "max"),
     "event_quality": (0.5, "min"),   # as mocaplib.cycles.MIN_EVENT_QUALITY
-    "fourier_rms_rad": (math.radians(0.5), "max"),  # the encoding's tolerance
+    "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
 }
