@@ -51,7 +51,7 @@ def _protocol_name(value: str) -> str:
     return value
 
 
-def positive(kind: type):
+def positive(kind: type, *, unit: str = ""):
     """argparse ``type=`` accepting numbers of ``kind`` (int or float) > 0; else exit 2."""
     def parse(text: str):
         try:
@@ -59,6 +59,32 @@ def positive(kind: type):
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
         if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+            raise argparse.ArgumentTypeError(f"must be > 0{unit}, got {text}")
         return value
     return parse
+
+
+def cutoff_type(text: str) -> float | str | None:
+    """``--cutoff`` value: a frequency in Hz (> 0), ``auto`` or ``none`` (None)."""
+    if text.lower() in ("auto", "none"):
+        return None if text.lower() == "none" else "auto"
+    return positive(float, unit=" Hz")(text)
+
+
+def add_static_options(parser) -> None:
+    """``--static FILE`` and ``--static-pose``, shared by ``fit`` and ``build``."""
+    parser.add_argument("--static", metavar="FILE",
+                        help="static calibration C3D of the same subject (default: calibrate "
+                             "from each capture)")
+    parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
+                        help="'neutral': the static subject stands in the anatomical neutral "
+                             "pose (every joint angle 0) and each marker's offset is measured "
+                             "on it, placement error included; 'free' (default): the static "
+                             "pose is fitted, then refined on the motion")
+
+
+def add_cutoff_option(parser) -> None:
+    parser.add_argument("--cutoff", type=cutoff_type, default="auto", metavar="HZ|auto|none",
+                        help="low-pass the markers before calibrating and fitting: zero-lag "
+                             "Butterworth at HZ (-3 dB), 'auto' (default: Winter's residual "
+                             "analysis per capture) or 'none'")

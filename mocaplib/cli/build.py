@@ -6,8 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import add_protocol_option, warn
-from .fit import add_cutoff_option, add_static_options
+from ._common import add_cutoff_option, add_protocol_option, add_static_options, warn
 
 
 def _positive_int(text: str) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._common import add_static_options
 from .events import add_common_options
 
 
@@ -24,8 +25,6 @@ def register(subparsers) -> None:
                     "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
                     "the capture cannot be processed, 2 on usage errors.")
     add_common_options(parser)
-    from .fit import add_static_options
-
     add_static_options(parser)
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "cycles": [...]} (SI units, angles in radians; '

@@ -6,41 +6,7 @@ Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_captu
 
 from __future__ import annotations
 
-import argparse
-
-from ._common import add_protocol_option
-
-
-def cutoff_type(text: str) -> float | str | None:
-    """``--cutoff`` value: a frequency in Hz (> 0), ``auto`` or ``none``."""
-    if text.lower() in ("auto", "none"):
-        return None if text.lower() == "none" else "auto"
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected Hz, 'auto' or 'none', got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0 Hz, got {text}")
-    return value
-
-
-def add_static_options(parser) -> None:
-    """``--static FILE`` and ``--static-pose``, shared by ``fit`` and ``build``."""
-    parser.add_argument("--static", metavar="FILE",
-                        help="static calibration C3D of the same subject (default: calibrate "
-                             "from each capture)")
-    parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
-                        help="'neutral': the static subject stands in the anatomical neutral "
-                             "pose (every joint angle 0) and each marker's offset is measured "
-                             "on it, placement error included; 'free' (default): the static "
-                             "pose is fitted, then refined on the motion")
-
-
-def add_cutoff_option(parser) -> None:
-    parser.add_argument("--cutoff", type=cutoff_type, default="auto", metavar="HZ|auto|none",
-                        help="low-pass the markers before calibrating and fitting: zero-lag "
-                             "Butterworth at HZ (-3 dB), 'auto' (default: Winter's residual "
-                             "analysis per capture) or 'none'")
+from ._common import add_cutoff_option, add_protocol_option, add_static_options
 
 
 def register(subparsers) -> None:
