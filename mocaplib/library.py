@@ -34,6 +34,7 @@ import pandas as pd
 from . import __version__
 from .errors import LibraryError
 from .io.atomic import atomic_write_text
+from .io.jsonvalues import json_values
 from .skeleton import DOFS
 
 FORMAT = "mocaplib-library"
@@ -470,27 +471,14 @@ def _control_space_problems(doc: dict) -> list[Problem]:
 
 # --------------------------------------------------------------------------- JSON text
 def to_json_data(obj, digits: int = _SIGNIFICANT):
-    """``obj`` with numpy values as Python ones and floats rounded to ``digits`` significant
-    digits (10 by default). Non-finite floats become None (JSON null). Dict keys become strings.
+    """``obj`` as plain JSON values (:func:`mocaplib.io.jsonvalues.json_values`) with floats
+    rounded to ``digits`` significant digits (10 by default); LibraryError for a value JSON
+    cannot hold.
     """
-    if isinstance(obj, dict):
-        return {str(k): to_json_data(v, digits) for k, v in obj.items()}
-    if isinstance(obj, np.ndarray):
-        return to_json_data(obj.tolist(), digits)
-    if isinstance(obj, (list, tuple)):
-        return [to_json_data(v, digits) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        value = float(obj)
-        if not math.isfinite(value):
-            return None
-        return float(format(value, f".{digits}g"))
-    if obj is None or isinstance(obj, str):
-        return obj
-    raise LibraryError(f"cannot store a {type(obj).__name__} in a library file")
+    try:
+        return json_values(obj, significant=digits)
+    except TypeError as exc:
+        raise LibraryError(f"cannot store in a library file: {exc}") from None
 
 
 def json_text(obj) -> str:

@@ -45,6 +45,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .errors import EventError
+from .io.jsonvalues import json_values
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ class Pattern:
 
     def to_dict(self) -> dict:
         """JSON-ready description: ``type``, ``params``, ``residual`` (m), ``arc_angle`` (rad)."""
-        return {"type": self.kind, "params": {k: _plain(v) for k, v in self.params.items()},
+        return {"type": self.kind, "params": json_values(self.params),
                 "residual": float(self.residual), "arc_angle": float(self.arc_angle),
                 "length": float(self.length)}
 
@@ -102,14 +103,6 @@ class CycleVelocities:
     omega: float
     v_l: float
     v_f: float
-
-
-def _plain(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, tuple):
-        return list(value)
-    return float(value) if isinstance(value, (np.floating, np.integer)) else value
 
 
 # ----------------------------------------------------------------------------------- line

@@ -7,23 +7,12 @@ import json
 import sys
 
 from ..errors import MocapError
+from ..io.jsonvalues import json_values
 
 
 def print_json(obj) -> None:
     """Print ``obj`` as indented JSON on stdout (NaN written as null)."""
-    print(json.dumps(_clean(obj), indent=2, ensure_ascii=False))
-
-
-def _clean(obj):
-    if isinstance(obj, float):
-        return None if obj != obj or obj in (float("inf"), float("-inf")) else obj
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if hasattr(obj, "item") and callable(obj.item):  # numpy scalar
-        return _clean(obj.item())
-    return obj
+    print(json.dumps(json_values(obj), indent=2, ensure_ascii=False))
 
 
 def warn(message: str) -> None:

@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import SynthError
 from ..io.atomic import atomic_write_text
 from ..io.c3d_write import write_c3d
+from ..io.jsonvalues import json_values
 from ..protocols import load_protocol
 from ..skeleton import DOF_NAMES, Skeleton
 from ..trial import Event, Trial
@@ -39,6 +40,8 @@ from .gait import LEAD_S, GaitParameters, gait_parameters
 from .markers import MarkerSettings, skin_markers
 
 TRUTH_FORMAT = "mocaplib-synth-truth/1"
+#: Decimals kept in the truth file: 1 µm for lengths, 1 µrad for angles.
+TRUTH_DECIMALS = 6
 #: Steady cycles every moving capture must hold.
 MIN_CYCLES = 2
 _SIDE_NAME = {"l": "Left", "r": "Right"}
@@ -194,22 +197,6 @@ def _cycle_truth(command, params, skeleton, height, start, t_mid) -> dict:
             **cycle_velocities(body, command)}
 
 
-def _json_ready(obj, digits: int = 6):
-    """Floats rounded to ``digits`` decimals (µm, µrad), arrays as lists, NaN as null."""
-    if isinstance(obj, dict):
-        return {k: _json_ready(v, digits) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_ready(v, digits) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _json_ready(obj.tolist(), digits)
-    if isinstance(obj, (float, np.floating)):
-        value = float(obj)
-        return None if not np.isfinite(value) else round(value, digits) + 0.0
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
 def write_capture(capture: SynthCapture, directory: str | os.PathLike, name: str, *,
                   integer: bool = True, extra: dict | None = None) -> tuple[Path, Path]:
     """Write ``<name>.c3d`` and ``<name>.truth.json`` in ``directory``; returns both paths.
@@ -224,6 +211,7 @@ def write_capture(capture: SynthCapture, directory: str | os.PathLike, name: str
                          events=trial.events, units="mm", integer=integer)
     truth = {**capture.truth, "name": name, **(extra or {}),
              "storage": "int16" if integer else "float32"}
-    text = json.dumps(_json_ready(truth), indent=None, separators=(",", ":"), allow_nan=False)
+    text = json.dumps(json_values(truth, decimals=TRUTH_DECIMALS), indent=None,
+                      separators=(",", ":"), allow_nan=False)
     json_path = atomic_write_text(directory / f"{name}.truth.json", text + "\n")
     return c3d_path, json_path
