@@ -107,7 +107,7 @@ def test_no_complete_cycle_is_an_error():
         analyse_cycles(events(n=1), left, right, RATE, source="walk.c3d")
 
 
-def shoulder_centres(truth):
+def truth_shoulder_centres(truth):
     """Glenohumeral centres (F, 3) x 2 from the truth's angles and segment lengths."""
     from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
 
@@ -122,7 +122,7 @@ def test_synthetic_truth_shoulders_give_the_true_velocities():
     from sample_captures import samples
 
     for name, trial, _, _, truth in samples():
-        left, right = shoulder_centres(truth)
+        left, right = truth_shoulder_centres(truth)
         for true in truth["cycles"]:
             got = cycle_velocities(left, right, trial.rate, true["start_s"], true["end_s"])
             # the issue's targets: v 2 % (0.02 m/s near 0), omega 0.02 rad/s, v_l 0.02 m/s
@@ -238,11 +238,11 @@ def test_treadmill_cycles_relative_to_the_belt():
                                      dict(v_f=1.2, omega=-1.2), dict(v_f=0.8, v_l=0.6, omega=0.3)])
 def test_velocities_are_the_truths_time_averages(command):
     from mocaplib.patterns import cycle_velocities
-    from mocaplib.synth.capture import min_duration, synthesize
+    from mocaplib.synth.capture import min_duration, synthesize_capture
     from mocaplib.synth.command import Command
 
     cmd = Command(**command)
-    capture = synthesize(cmd, duration=min_duration(cmd) + 0.2, seed=1)
+    capture = synthesize_capture(cmd, duration=min_duration(cmd) + 0.2, seed=1)
     left, right = capture.body.shoulders[:, 0], capture.body.shoulders[:, 1]
     for true in capture.truth["cycles"]:
         got = cycle_velocities(left, right, capture.trial.rate, true["start_s"], true["end_s"])

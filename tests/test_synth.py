@@ -12,7 +12,7 @@ from scipy.interpolate import CubicSpline
 from mocaplib.errors import SynthError
 from mocaplib.filtering import valid_runs
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
-from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize
+from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
 from mocaplib.synth.body import body_motion
 from mocaplib.synth.gait import FLAT, FootGeometry
 
@@ -39,8 +39,8 @@ TYPES = {
 @lru_cache(maxsize=None)
 def capture(name: str, seed: int = 1, **settings):
     command = TYPES[name] if name in TYPES else Command(gait="stand")
-    return synthesize(command, duration=max(min_duration(command) + 0.3, 2.0), seed=seed,
-                      markers=MarkerSettings(**settings))
+    return synthesize_capture(command, duration=max(min_duration(command) + 0.3, 2.0),
+                              seed=seed, markers=MarkerSettings(**settings))
 
 
 def _segment_points(cap, segment: str, offsets: np.ndarray) -> np.ndarray:
@@ -250,9 +250,9 @@ def test_gaps_and_label_swap_are_recorded():
 
 
 def test_same_seed_same_capture_other_seed_other_markers():
-    a = synthesize(TYPES["curve_left_r1"], duration=2.7, seed=7)
-    b = synthesize(TYPES["curve_left_r1"], duration=2.7, seed=7)
-    c = synthesize(TYPES["curve_left_r1"], duration=2.7, seed=8)
+    a = synthesize_capture(TYPES["curve_left_r1"], duration=2.7, seed=7)
+    b = synthesize_capture(TYPES["curve_left_r1"], duration=2.7, seed=7)
+    c = synthesize_capture(TYPES["curve_left_r1"], duration=2.7, seed=8)
     np.testing.assert_array_equal(a.trial.markers, b.trial.markers)
     assert np.abs(a.trial.markers - c.trial.markers).max() > 0.001
     np.testing.assert_array_equal(a.body.q, c.body.q)  # the seed touches markers only
@@ -260,7 +260,7 @@ def test_same_seed_same_capture_other_seed_other_markers():
 
 def test_bad_commands_and_durations_raise_synth_error():
     with pytest.raises(SynthError, match="too short"):
-        synthesize(Command(v_f=1.2), duration=1.0, seed=1)
+        synthesize_capture(Command(v_f=1.2), duration=1.0, seed=1)
     with pytest.raises(SynthError, match="gait must be"):
         Command(v_f=1.0, gait="hop")
     with pytest.raises(SynthError, match="standing"):
@@ -276,8 +276,8 @@ def test_soft_tissue_artefact_grows_with_body_mass():
     quiet = MarkerSettings(placement_sd=0.0, noise_sd=0.0)
     sizes = []
     for mass in (60.0, 100.0):
-        cap = synthesize(TYPES["straight_normal"], duration=2.6, seed=3, markers=quiet,
-                         subject=Subject(1.75, mass))
+        cap = synthesize_capture(TYPES["straight_normal"], duration=2.6, seed=3, markers=quiet,
+                                 subject=Subject(1.75, mass))
         segments, offsets = _protocol_offsets(cap)
         fk = cap.skeleton.points(cap.body.q, segments, offsets)
         thigh = [i for i, s in enumerate(segments) if SEGMENT_NAMES[s].startswith("femur")]
@@ -365,8 +365,9 @@ def test_bad_settings_raise_synth_error():
 def test_toe_markers_bend_with_the_toe_joint_the_fit_does_not_have():
     from mocaplib.protocols import load_protocol
     protocol = load_protocol("plugin_gait_ofm")
-    cap = synthesize(TYPES["straight_normal"], duration=2.6, seed=2, protocol="plugin_gait_ofm",
-                     markers=MarkerSettings(placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0))
+    cap = synthesize_capture(TYPES["straight_normal"], duration=2.6, seed=2,
+                             protocol="plugin_gait_ofm",
+                             markers=MarkerSettings(placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0))
     segments, offsets = protocol.nominal_offsets(1.75)
     fk = cap.skeleton.points(cap.body.q, segments, offsets)
     hallux = cap.trial.labels.index("LHLX")

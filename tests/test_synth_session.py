@@ -6,7 +6,7 @@ import numpy as np
 
 from mocaplib.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES
-from mocaplib.synth import Command, MarkerSettings, synthesize
+from mocaplib.synth import Command, MarkerSettings, synthesize_capture
 from mocaplib.synth.body import SWAY_ANGLE
 
 #: Placement only: no soft tissue, no noise, so a marker's segment-frame position is exact.
@@ -28,8 +28,8 @@ def _local_markers(cap) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _capture(command, seed, session_seed):
-    return synthesize(command, duration=2.5, seed=seed, markers=PLACEMENT_ONLY,
-                      session_seed=session_seed)
+    return synthesize_capture(command, duration=2.5, seed=seed, markers=PLACEMENT_ONLY,
+                              session_seed=session_seed)
 
 
 def test_one_session_shares_the_placement():
@@ -55,7 +55,7 @@ def test_without_a_session_each_capture_has_its_own_placement():
 
 
 def test_rest_is_a_neutral_static_trial():
-    cap = synthesize(Command(gait="stand"), duration=2.0, seed=5, session_seed=1)
+    cap = synthesize_capture(Command(gait="stand"), duration=2.0, seed=5, session_seed=1)
     q = cap.body.q
     root = [DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_tz",
                                          "pelvis_rotation", "pelvis_tilt")]

@@ -6,10 +6,10 @@ kinematics), :mod:`.markers` (skin markers and artefacts), :mod:`.capture` (one 
 truth, writing), :mod:`.plan` (capture plans).
 """
 
-from .capture import Subject, SynthCapture, min_duration, synthesize, write_capture
+from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
 from .plan import Plan, PlannedCapture, generate_plan, load_plan
 
 __all__ = ["Command", "MarkerSettings", "Plan", "PlannedCapture", "Subject", "SynthCapture",
-           "generate_plan", "load_plan", "min_duration", "synthesize", "write_capture"]
+           "generate_plan", "load_plan", "min_duration", "synthesize_capture", "write_capture"]

@@ -1,6 +1,6 @@
 """One synthetic capture: markers as a :class:`~mocaplib.trial.Trial` plus its exact truth.
 
-:func:`synthesize` runs the generator (command → gait → body → skin markers);
+:func:`synthesize_capture` runs the generator (command → gait → body → skin markers);
 :func:`write_capture` writes ``<name>.c3d`` (with the true Foot Strike / Foot Off events in the
 EVENT group) and ``<name>.truth.json``. Everything is a function of the arguments and the seed:
 the same call writes byte-identical files.
@@ -79,10 +79,10 @@ def min_duration(command: Command, subject: Subject = Subject()) -> float:
     return 0.0 if command.gait == "stand" else LEAD_S + MIN_CYCLES * params.stride
 
 
-def synthesize(command: Command, /, *, duration: float, seed: int, subject: Subject = Subject(),
-               rate: float = 100.0, protocol: str = "fullbody38",
-               markers: MarkerSettings = MarkerSettings(), name: str = "synthetic",
-               session_seed: int | None = None) -> SynthCapture:
+def synthesize_capture(command: Command, /, *, duration: float, seed: int,
+                       subject: Subject = Subject(), rate: float = 100.0,
+                       protocol: str = "fullbody38", markers: MarkerSettings = MarkerSettings(),
+                       name: str = "synthetic", session_seed: int | None = None) -> SynthCapture:
     """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``.
 
     ``session_seed`` seeds the marker placement shared by every capture of one session (see
@@ -157,7 +157,7 @@ def _cycle_starts(params: GaitParameters, t_end: float) -> list[float]:
     return [float(s) for s in starts if s + params.stride <= t_end + 1e-9]
 
 
-def cycle_velocities(body: BodyMotion, command: Command) -> dict:
+def true_cycle_velocities(body: BodyMotion, command: Command) -> dict:
     """The paper's per-cycle v̂, ω̂, v̂_l, v̂_f and pattern from a body sampled evenly over one
     cycle, endpoints included (see the module docstring)."""
     t = body.time
@@ -194,7 +194,7 @@ def _cycle_truth(command, params, skeleton, height, start, t_mid) -> dict:
     grid = start + params.stride * np.arange(401) / 400
     body = body_motion(command, params, skeleton, height, grid, t_mid=t_mid)
     return {"start_s": start, "end_s": start + params.stride, "T": params.stride,
-            **cycle_velocities(body, command)}
+            **true_cycle_velocities(body, command)}
 
 
 def write_capture(capture: SynthCapture, directory: str | os.PathLike, name: str, *,

@@ -30,7 +30,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from ..errors import MocapError, SynthError
-from .capture import Subject, synthesize, write_capture
+from .capture import Subject, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
 
@@ -153,10 +153,11 @@ def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
     written: list[Path] = []
     for entry in chosen:
         try:
-            capture = synthesize(entry.command, duration=entry.duration, seed=entry.seed,
-                                 subject=entry.subject, rate=entry.rate,
-                                 protocol=protocol or entry.protocol, markers=entry.markers,
-                                 name=entry.name, session_seed=entry.session_seed)
+            capture = synthesize_capture(entry.command, duration=entry.duration,
+                                         seed=entry.seed, subject=entry.subject, rate=entry.rate,
+                                         protocol=protocol or entry.protocol,
+                                         markers=entry.markers, name=entry.name,
+                                         session_seed=entry.session_seed)
             written += write_capture(capture, directory, entry.name,
                                      extra={"plan": plan.name, "class": entry.cls})
         except MocapError as exc:
