@@ -11,9 +11,9 @@ solution (a weak continuity term; μ is small so it only steadies poorly seen DO
 kept within :meth:`mocaplib.skeleton.Skeleton.bounds` (projected steps; a DOF on a bound whose
 gradient points outwards leaves the step). Missing markers (NaN) drop out.
 
-All frames of a chunk are solved together: the analytic Jacobians
-(:meth:`~mocaplib.skeleton.Skeleton.marker_jacobian`, shape (F, M, 3, D)) give the (F, D, D)
-normal equations, solved as one batched ``numpy.linalg.solve``;
+All frames of a chunk are solved together: the (F, D, D) Gauss–Newton normal equations of the
+analytic Jacobian come from per-DOF sums of marker moments (:func:`_normal_equations`, no
+(F, M, 3, D) Jacobian is formed) and are solved as one batched ``numpy.linalg.solve``;
 each frame keeps its own damping and stops when its cost stops falling. :func:`fit` starts
 every :data:`STRIDE`-th frame from per-segment rigid fits (Kabsch on the segment's markers and
 its joint centre, decomposed into the joint's DOFs) and the other frames from those solutions
@@ -36,7 +36,8 @@ from .errors import FitError
 from .filtering import valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, axis_rotation
+from .skeleton import (DOF_NAMES, DOFS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton, _cross,
+                       axis_rotation)
 
 if TYPE_CHECKING:
     from .calibrate import SubjectModel
@@ -75,6 +76,14 @@ CHUNK = 1000
 
 _LOWER, _UPPER = Skeleton.bounds()
 _ROOT = SEGMENT_NAMES.index("pelvis")
+_ROTATION = np.array([not d.translation for d in DOFS])
+#: (D, D) for :func:`_normal_equations`: 1 where DOF i moves the segment of DOF j (j's markers
+#: are a subset of i's), 0.5 on pairs of one segment (counted from both sides), else 0.
+_DOF_SEGMENT = np.array([SEGMENT_NAMES.index(d.segment) for d in DOFS])
+_PAIR_WEIGHT = MOVES[_DOF_SEGMENT].T * np.where(
+    _DOF_SEGMENT[:, None] == _DOF_SEGMENT[None, :], 0.5, 1.0)
+#: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
+_QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
 
 
 @dataclass
@@ -130,15 +139,16 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     mu2 = smoothing ** 2
 
     def cost(q_rows, rows, q_ref):
-        """Cost (n,) of poses q_rows for frames ``rows``, and their kinematic chain."""
+        """Cost (n,) of poses q_rows for frames ``rows``, their kinematic chain and markers."""
         chain = skeleton.chain(q_rows)
-        T = chain[0][:, segments]
-        pts = (T[..., :3, :3] @ offsets[..., None])[..., 0] + T[..., :3, 3]
+        pts = _points(chain[0], segments, offsets)
         d = np.linalg.norm(target[rows] - pts, axis=2)
         return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            ((q_rows - q_ref) * free) ** 2).sum(axis=1), chain
+            ((q_rows - q_ref) * free) ** 2).sum(axis=1), chain, pts
 
     chains = list(skeleton.chain(q))        # transforms, DOF axes and pivots at the current q
+    pts = _points(chains[0], segments, offsets)
+    moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -147,16 +157,11 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             break
         q_ref = _neighbour_mean(q)[rows]
         qa = q[rows]
-        pts, jac = skeleton.marker_jacobian(qa, segments, offsets,
-                                            chain=tuple(c[rows] for c in chains))
-        r = target[rows] - pts
+        r = target[rows] - pts[rows]
         d = np.linalg.norm(r, axis=2)
-        sqrt_w = np.sqrt(w_marker[rows] * _soft_l1_weight(d, robust_scale))   # IRLS weights
-        Jw = (jac * sqrt_w[:, :, None, None]).reshape(rows.size, n_markers * 3, n_dofs)
-        JwT = Jw.transpose(0, 2, 1)
-        A = JwT @ Jw
-        g = (JwT @ (r * sqrt_w[..., None]).reshape(rows.size, -1, 1))[..., 0] \
-            - mu2 * (qa - q_ref)
+        w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
+        A, g = _normal_equations(tuple(c[rows] for c in chains), pts[rows], moved, r, w)
+        g -= mu2 * (qa - q_ref)
         A[diagonal] += mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
         held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))
@@ -176,15 +181,17 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             Ak[diagonal] += lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
             trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
-            c1, trial_chain = cost(trial_q, rows[k], q_ref[k])
+            c1, trial_chain, trial_pts = cost(trial_q, rows[k], q_ref[k])
             better = c1 <= c0[k]
             good = k[better]
-            moved = np.abs(trial_q[better] - qa[good]).max(axis=1)
+            moved_by = np.abs(trial_q[better] - qa[good]).max(axis=1)
             q[rows[good]] = trial_q[better]
             for cached, new in zip(chains, trial_chain):
                 cached[rows[good]] = new[better]
+            pts[rows[good]] = trial_pts[better]
             lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-9)
-            done = (c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12)) | (moved < step_tol)
+            done = ((c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12))
+                    | (moved_by < step_tol))
             active[rows[good[done]]] = False
             worse = k[~better]
             lam[rows[worse]] *= 4.0
@@ -194,8 +201,56 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                           | (lam[rows[worse]] > 1e8)]
             active[rows[stuck]] = False
             todo[stuck] = False
-    residuals = np.linalg.norm(markers - skeleton.points(q, segments, offsets), axis=2)
+    residuals = np.linalg.norm(markers - pts, axis=2)
     return PoseFit(q, residuals, ~active, iterations)
+
+
+def _points(transforms: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Points (F, M, 3) fixed at ``offsets`` (M, 3) in ``segments`` (M,), from the segment
+    transforms (F, S, 4, 4) of :meth:`~mocaplib.skeleton.Skeleton.chain`."""
+    T = transforms[:, segments]
+    return np.einsum("fmij,mj->fmi", T[..., :3, :3], offsets) + T[..., :3, 3]
+
+
+def _normal_equations(chain: tuple, pts: np.ndarray, moved: np.ndarray, r: np.ndarray,
+                      w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Newton normal equations ``JᵀWJ`` (F, D, D) and ``JᵀWr`` (F, D) without the
+    (F, M, 3, D) Jacobian.
+
+    ``chain``: :meth:`~mocaplib.skeleton.Skeleton.chain` at the current poses; ``pts`` (F, M, 3)
+    the markers there, ``moved`` (M, D) 1 where DOF d moves marker m, ``r`` (F, M, 3) marker
+    minus model, ``w`` (F, M) weights (0 for missing markers).
+
+    DOF ``i`` moves a point ``p`` at the velocity ``ωᵢ × p + vᵢ`` (its twist: ``ω`` its world
+    axis and ``v = c × ω`` about its pivot ``c`` for a rotation; ``ω = 0``, ``v`` its axis for a
+    translation). So ``(JᵀWJ)ᵢⱼ = sᵢ · Hⱼ sⱼ`` whenever every marker DOF ``j`` moves is moved by
+    ``i`` too, with ``Hⱼ`` the 6×6 weighted second moment of the markers ``j`` moves (as in the
+    composite-rigid-body algorithm), and ``(JᵀWr)ᵢ = sᵢ · Σ w (p × r, r)`` over the markers
+    ``i`` moves: per-DOF sums of 16 marker moments, one matrix product for all of them.
+    """
+    _, axes, pivots = chain
+    origin = chain[0][:, _ROOT, None, :3, 3]               # moments about the pelvis: round-off
+    p = pts - origin
+    omega = axes * _ROTATION[:, None]
+    v = np.where(_ROTATION[:, None], _cross(pivots - origin, axes), axes)
+    wp = w[..., None] * p
+    moments = np.concatenate([w[..., None], wp, wp[..., _QI] * p[..., _QJ], _cross(wp, r),
+                              w[..., None] * r], axis=2)                       # (F, M, 16)
+    n, m, k = moments.shape
+    total = (moments.transpose(0, 2, 1).reshape(n * k, m) @ moved).reshape(n, k, -1)
+    W, P, Q = total[:, 0, :, None], total[:, 1:4].transpose(0, 2, 1), total[:, 4:10]
+    Q = np.moveaxis(Q, 1, 0)
+    (qxx, qyy, qzz, qxy, qxz, qyz), (ox, oy, oz) = Q, np.moveaxis(omega, 2, 0)
+    Q_omega = np.stack([qxx * ox + qxy * oy + qxz * oz, qxy * ox + qyy * oy + qyz * oz,
+                        qxz * ox + qyz * oy + qzz * oz], axis=2)
+    trace = (qxx + qyy + qzz)[..., None]
+    H_s = np.concatenate([trace * omega - Q_omega + _cross(P, v), W * v + _cross(omega, P)],
+                         axis=2)                                                # (F, D, 6)
+    twist = np.concatenate([omega, v], axis=2)
+    half = (twist @ H_s.transpose(0, 2, 1)) * _PAIR_WEIGHT
+    A = half + half.transpose(0, 2, 1)
+    g = (twist * total[:, 10:16].transpose(0, 2, 1)).sum(axis=2)
+    return A, g
 
 
 def _soft_l1(d: np.ndarray, c: float) -> np.ndarray:
