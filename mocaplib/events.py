@@ -438,6 +438,39 @@ def _event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: floa
     return GaitEvent(side, kind, float(time_s), frame, quality)
 
 
+
+#: Labels of lab-recorded events (C3D EVENT group: Vicon, Qualisys, our synthetic captures) and
+#: the event kind each marks; the side is the context's first letter (Left/Right), else the
+#: label's (LTO).
+LAB_EVENT_KINDS = {"Foot Off": "toe_off", "Foot Strike": "heel_strike",
+                   "LTO": "toe_off", "RTO": "toe_off", "LHS": "heel_strike", "RHS": "heel_strike"}
+
+
+def event_differences(detected, reference, /, *, kind: str, start_time: float = 0.0,
+                      max_s: float = 0.1) -> np.ndarray:
+    """Detected minus reference time (s) of each reference event of ``kind``, shape (R,).
+
+    ``detected`` are :class:`GaitEvent` (seconds from the first frame), ``reference`` the
+    trial's lab events (:class:`mocaplib.trial.Event`, on the lab clock whose first frame is at
+    ``start_time``). Each reference event is paired with the nearest detected event of the
+    same side and kind; NaN where there is none within ``max_s`` (e.g. at the capture's edges).
+    """
+    out = []
+    for lab in reference:
+        if LAB_EVENT_KINDS.get(lab.label) != kind:
+            continue
+        letter = next((text[:1].upper() for text in (lab.context, lab.label)
+                       if text[:1].upper() in ("L", "R")), None)
+        if letter is None:
+            continue
+        side = "left" if letter == "L" else "right"
+        found = [e.time_s + start_time - lab.time_s for e in detected
+                 if e.side == side and e.kind == kind]
+        nearest = min(found, key=abs, default=np.inf)
+        out.append(nearest if abs(nearest) <= max_s else np.nan)
+    return np.array(out, dtype=np.float64)
+
+
 #: Landmarks used as each foot's heel and toe point, the toe by preference order.
 FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
                   "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}

@@ -1,0 +1,115 @@
+"""Toe-off and heel-strike accuracy of both toe-off definitions, against the issue's targets.
+
+    /work/venv/bin/python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR]
+
+Runs :func:`mocaplib.events.detect_events` on every synthetic capture of ``--samples`` (their
+EVENT group holds the true Foot Off / Foot Strike) and on the four real files with lab-recorded
+events under ``--real`` (default ``../shared/data/c3d``; skipped when absent), for each toe-off
+definition, and prints:
+
+* synthetic, per locomotion type (the name without speed and size): toe-offs, % within 1 frame
+  (the issue's target: >= 95 % for every type), % within 2 frames, worst |error| in frames;
+* real, per event kind: events paired with a lab event, median difference, median |difference|
+  (target for toe-off: <= 10 ms), how many within 10 ms, worst |difference|.
+
+Exit code 1 when the default definition misses a target.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mocaplib.events import TOE_OFF_SEARCH, detect_events, event_differences, feet_of  # noqa: E402
+from mocaplib.io.c3d import read_c3d  # noqa: E402
+from mocaplib.protocols import detect_protocol  # noqa: E402
+
+#: The real files whose EVENT group holds lab (force-plate or operator) Foot Off events.
+LAB_FILES = ("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
+             "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d")
+SYNTHETIC_TARGET, REAL_TARGET_S = 0.95, 0.010
+
+
+def locomotion_type(name: str) -> str:
+    """``walk_curve_r2_left_fast`` -> ``walk_curve_left``: the name without speed and size."""
+    return re.sub(r"_(slow|normal|fast|r\d|\d+p\d|\d+)(?=_|$)", "", name)
+
+
+def differences(paths, toe_off: str, kind: str) -> dict[str, tuple[np.ndarray, float]]:
+    """{file stem: (detected - recorded times (s, NaN = none within 0.1 s), frame rate)}."""
+    out = {}
+    for path in paths:
+        trial = read_c3d(path)
+        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
+                               toe_off=toe_off, source=path)
+        out[path.stem] = (event_differences(events, trial.events, kind=kind,
+                                            start_time=trial.start_time), trial.rate)
+    return out
+
+
+def synthetic_table(samples: Path, toe_off: str) -> bool:
+    """Print the per-type table; True when every type meets the target."""
+    paths = [p for p in sorted(samples.glob("*.c3d")) if p.with_suffix(".truth.json").is_file()]
+    by_type: dict[str, list[float]] = {}
+    for name, (diff, rate) in differences(paths, toe_off, "toe_off").items():
+        frames = np.where(np.isnan(diff), np.inf, np.abs(diff) * rate)
+        if frames.size:  # the standing capture has none
+            by_type.setdefault(locomotion_type(name), []).extend(frames)
+    print(f"\nsynthetic toe-offs ({samples}), toe_off={toe_off!r}")
+    print(f"{'type':26s} {'n':>4s} {'<=1 fr':>7s} {'<=2 fr':>7s} {'worst fr':>9s}")
+    met = True
+    for kind, errors in sorted(by_type.items()) + [("ALL", sum(by_type.values(), []))]:
+        errors = np.array(errors)
+        within = np.mean(errors <= 1.0)
+        met &= kind == "ALL" or within >= SYNTHETIC_TARGET
+        print(f"{kind:26s} {len(errors):4d} {100 * within:6.1f}%"
+              f" {100 * np.mean(errors <= 2.0):6.1f}% {errors.max():9.1f}")
+    return met
+
+
+def real_table(real: Path, toe_off: str) -> bool:
+    """Print the real-file figures; True when the toe-off median |difference| meets the target."""
+    paths = [real / name for name in LAB_FILES if (real / name).is_file()]
+    if len(paths) < len(LAB_FILES):
+        print(f"\nreal lab files not found under {real}: skipped")
+        return True
+    print(f"\nreal files with lab events ({len(paths)}), toe_off={toe_off!r}")
+    print(f"{'kind':12s} {'n':>3s} {'median ms':>10s} {'med |d| ms':>11s} {'<=10 ms':>8s}"
+          f" {'max |d| ms':>11s}")
+    met = True
+    for kind in ("toe_off", "heel_strike"):
+        diff = np.concatenate([d for d, _ in differences(paths, toe_off, kind).values()])
+        diff = diff[np.isfinite(diff)] * 1000.0
+        median_abs = np.median(np.abs(diff))
+        if kind == "toe_off":
+            met = median_abs <= 1000.0 * REAL_TARGET_S
+        print(f"{kind:12s} {len(diff):3d} {np.median(diff):+10.1f} {median_abs:11.1f}"
+              f" {np.sum(np.abs(diff) <= 10.0):4d}/{len(diff):<3d} {np.abs(diff).max():11.1f}")
+    return met
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
+    parser.add_argument("--real", type=Path, default=ROOT.parent / "shared" / "data" / "c3d")
+    args = parser.parse_args(argv)
+    verdict = {}
+    for toe_off in TOE_OFF_SEARCH:
+        verdict[toe_off] = (synthetic_table(args.samples, toe_off), real_table(args.real, toe_off))
+    print()
+    for toe_off, (synthetic, real) in verdict.items():
+        print(f"{toe_off:14s} synthetic target {'met' if synthetic else 'MISSED'}, "
+              f"real target {'met' if real else 'MISSED'}")
+    default = detect_events.__kwdefaults__["toe_off"]
+    return 0 if all(verdict[default]) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
