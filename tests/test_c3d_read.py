@@ -456,23 +456,18 @@ def test_fuzz_real_files(data):
     read_or_c3derror(mutate(original, data.draw, header_bias=(original[0] + 12) * 512))
 
 
-def test_zero_width_labels_are_made_up(tmp_path):
-    """POINT:LABELS declared as 255 strings of width 0: labels are made up, with a warning."""
+@pytest.mark.parametrize("dims", [[0, 255], [0, 255, 255, 255, 255]], ids=["255", "255**4"])
+def test_zero_width_labels_are_made_up(tmp_path, dims):
+    """POINT:LABELS declared as strings of width 0 (255 of them, or 255**4: 4e9 iterations if
+    looped over): nothing to decode, labels are made up at once, with a warning."""
     data = bytearray(SMALL)
     at = SMALL.index(b"LABELS") + len("LABELS") + 2 + 1   # after the offset word and element size
     assert data[at] == 2                                      # two dimensions: width, count
-    data[at + 1:at + 3] = bytes([0, 255])
+    # the new dimensions, no data, an empty description; the offset word still points at the
+    # next parameter, so the rest of the old record is skipped
+    data[at:at + len(dims) + 2] = bytes([len(dims), *dims, 0])
     path = tmp_path / "zero.c3d"
     path.write_bytes(bytes(data))
     trial = read_c3d(path)
     assert trial.labels[:2] == ["POINT1", "POINT2"]
     assert any("have no label" in note for note in trial.warnings)
-
-
-def test_zero_width_strings_with_huge_counts_return_at_once():
-    """255**4 strings of width 0 (4e9 iterations if looped over): nothing to decode."""
-    from types import SimpleNamespace
-
-    from mocaplib.io.c3d import _strings
-    param = SimpleNamespace(dimensions=[0, 255, 255, 255, 255], bytes_per_element=-1, bytes=b"")
-    assert _strings(param, Path("x.c3d"), "POINT:LABELS") == []

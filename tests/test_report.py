@@ -177,11 +177,12 @@ def test_sliver_summary_lists_the_worst_ten():
 
 
 def test_compressed_pngs_look_the_same():
+    from matplotlib.figure import Figure
     from matplotlib.image import imread
 
     from mocaplib.report import figures
 
-    fig = figures._figure(6, 4)
+    fig = Figure(figsize=(6, 4), dpi=figures.DPI, layout="constrained")  # as the report's
     ax = fig.subplots()
     t = np.linspace(0, 2, 300)
     for k in range(6):
@@ -214,12 +215,14 @@ def test_report_detects_a_crashing_renderer(tmp_path, monkeypatch):
 
     lib = make_library(tmp_path, diagnostics=False)
     monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
-    # What _run_renderer reports when the VTK child process dies on a signal.
-    monkeypatch.setattr(scene3d, "_run_renderer",
-                        lambda scene, out: "pyvista/OpenGL rendering crashed (signal 11): "
-                                           "Segmentation fault")
+    # A renderer child process that dies on a signal, as VTK does without a usable OpenGL.
+    crash = tmp_path / "crash.sh"
+    crash.write_text("#!/bin/sh\nulimit -c 0\necho 'Segmentation fault' >&2\nkill -SEGV $$\n")
+    crash.chmod(0o755)
+    monkeypatch.setattr(scene3d.sys, "executable", str(crash))
     html = write_report(lib, tmp_path / "b").read_text()
-    assert "rendered with <b>matplotlib</b>" in html and "crashed (signal 11)" in html
+    assert "rendered with <b>matplotlib</b>" in html
+    assert "crashed (signal 11): Segmentation fault" in html
 
 
 def test_a_blank_render_falls_back(monkeypatch):
@@ -239,13 +242,17 @@ def test_a_blank_render_falls_back(monkeypatch):
     assert got.fallback_reason == "pyvista produced a blank image"
 
 
-def test_renderer_child_failure_is_reported(tmp_path, monkeypatch):
+def test_renderer_child_failure_is_reported(monkeypatch):
     from mocaplib.report import scene3d
 
     # A child process that cannot even start Python's module: non-zero exit, message kept.
+    monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
     monkeypatch.setattr(scene3d.sys, "executable", "/bin/false")
-    reason = scene3d._run_renderer(tmp_path / "s.npz", tmp_path / "s.png")
-    assert reason is not None and "failed (exit 1)" in reason
+    got = scene3d.render_control_space(np.eye(3), np.eye(3), ["a", "b", "c"], ["x", "y", "z"],
+                                       edges=[[0, 1]], hull_triangles=[],
+                                       fallback=lambda: b"fallback png")
+    assert got.renderer == "matplotlib" and got.png == b"fallback png"
+    assert "failed (exit 1)" in got.fallback_reason
 
 
 def test_report_of_a_degenerate_library_still_builds(tmp_path):
