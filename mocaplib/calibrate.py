@@ -2,6 +2,20 @@
 
 Steps (all in metres, world Z up):
 
+0. **Same subject** (only with a static trial, :func:`check_same_subject`). A static calibrates
+   the motion only if it shows the same person with the same markers on: the distance between
+   two markers on one segment is then the same in both trials, up to soft tissue and noise.
+   The median over all such pairs of |d_motion − d_static| (each distance the median over its
+   trial's frames) above :data:`SAME_SUBJECT_LIMIT` (5 mm) is a :class:`CalibrationError`.
+   Measured: 0.2 mm or less between the synthetic session's static and its 68 captures; 0.5-2.0
+   mm on the real sessions of ../shared/data/c3d (biomechzoo HC030A01 with A05/A22, motonms
+   Static1 with Walking1/3, CMU 07_01 with 07_12); 17-33 mm between different people (CMU
+   subjects 07 and 16; btkdata's two statics against PiG_Motion-FlatFoot-Full, ASIS–ASIS 228
+   and 227 mm against 200 mm); 5.4-5.7 mm for a synthetic subject 3 % taller or shorter, and
+   4.2-4.7 mm for the same synthetic subject with markers taken off and put back (3 mm sd),
+   which passes: it is the same person (the ``free`` static pose then absorbs the new
+   placement).
+
 1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames are
    used. A joint whose segment and descendants carry too few markers to be seen (none; or one
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
@@ -48,6 +62,7 @@ Steps (all in metres, world Z up):
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,6 +82,15 @@ LENGTH_PRIOR = 0.015
 MARKER_SIGMA = 0.005
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
+
+#: Largest median difference (m) of within-segment marker distances between a static trial and
+#: the motion it calibrates (step 0): 2.5x the largest measured within one real session
+#: (2.0 mm), under a third of the smallest measured between two people (17 mm).
+SAME_SUBJECT_LIMIT = 0.005
+#: Marker pairs closer than this (m) are not compared in step 0 (their ratio is noisy).
+MIN_PAIR_DISTANCE = 0.05
+#: Step 0 needs at least this many marker pairs seen in both trials; with fewer it is skipped.
+MIN_PAIRS = 3
 
 #: Residual (m) above which a left/right pair is checked for exchanged labels.
 SWAP_RESIDUAL = 0.03
@@ -150,7 +174,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     protocol : Protocol, shipped name, TOML path, or None / "auto" to detect it.
     static : a static standing trial of the same subject. When given, steps 1-4 (markers,
         height, joint centres, lengths, anatomical offsets) use it and step 5 refines on the
-        motion trial; otherwise every step uses the motion trial.
+        motion trial; otherwise every step uses the motion trial. Step 0 checks first that
+        it shows the same subject and marker placement (:func:`check_same_subject`).
     static_pose : "neutral": the static subject stands in the anatomical neutral pose, every
         joint angle 0, and the marker offsets are measured in it (step 4'); "free" (default):
         the static pose is fitted like any other (steps 4 and 5). Unused without ``static``.
@@ -179,6 +204,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
             f"only {n_pelvis} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
             "3 are needed to place the pelvis", path=cal.source,
             hint="check the labels against the protocol, or pass --protocol")
+    if static is not None:
+        check_same_subject(X_all[:, used], match_protocol(trial, proto).markers(trial)[:, used],
+                           segments, labels, static=static, trial=trial)
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
@@ -247,6 +275,57 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
 
 # ----------------------------------------------------------------------------- pieces
+def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Median distance (P,) metres over the frames of X (F, M, 3) of every marker pair on one
+    segment (``segments`` (M,)), and the pairs (P, 2) as marker indices; NaN for a pair never
+    seen together."""
+    pairs = np.array([(i, j) for i in range(len(segments)) for j in range(i + 1, len(segments))
+                      if segments[i] == segments[j]], dtype=int).reshape(-1, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # a pair never seen: NaN
+        d = np.nanmedian(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=2), axis=0) \
+            if len(X) and len(pairs) else np.full(len(pairs), np.nan)
+    return d, pairs
+
+
+def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.ndarray,
+                       labels: list[str], *, static: Trial, trial: Trial,
+                       limit: float = SAME_SUBJECT_LIMIT) -> float:
+    """Step 0: does the static trial show the motion's subject with the same markers on?
+
+    ``X_static`` (F_s, M, 3) and ``X_motion`` (F_m, M, 3) the same M markers (``labels``) of the
+    two trials (``static``, ``trial``: named in the error), ``segments`` (M,). Compares the
+    within-segment distances (:func:`segment_distances`) of pairs at least
+    :data:`MIN_PAIR_DISTANCE` apart seen in both. Returns the median |d_motion − d_static| (m),
+    NaN when fewer than :data:`MIN_PAIRS` pairs can be compared (nothing is checked); raises
+    :class:`CalibrationError` when it exceeds ``limit``, naming both files and the pairs that
+    differ most.
+    """
+    d_static, pairs = segment_distances(X_static, segments)
+    d_motion, _ = segment_distances(X_motion, segments)
+    usable = np.isfinite(d_static) & np.isfinite(d_motion) & (d_static >= MIN_PAIR_DISTANCE)
+    if usable.sum() < MIN_PAIRS:
+        return float("nan")
+    diff = d_motion[usable] - d_static[usable]
+    median = float(np.median(np.abs(diff)))
+    if median > limit:
+        worst = np.argsort(-np.abs(diff))[:3]
+        pairs_used = pairs[usable]
+        examples = ", ".join(f"{labels[pairs_used[k, 0]]}-{labels[pairs_used[k, 1]]} "
+                             f"{1000 * d_static[usable][k]:.0f} mm in the static, "
+                             f"{1000 * d_motion[usable][k]:.0f} mm in the motion" for k in worst)
+        scale = float(np.exp(np.median(np.log(d_motion[usable] / d_static[usable]))))
+        raise CalibrationError(
+            f"this static trial does not match the motion trial {trial.source or '(unnamed)'}: "
+            f"distances between markers on one segment differ by "
+            f"{1000 * median:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
+            f"same markers stays within {1000 * limit:.0f} mm; motion/static size ratio "
+            f"{scale:.3f}); e.g. {examples}", path=static.source,
+            hint="use the static recorded with this subject in this session (markers not moved "
+                 "since), or calibrate from the motion itself (leave out --static)")
+    return median
+
+
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
                     nominal: np.ndarray) -> tuple[np.ndarray, float]:
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
