@@ -225,6 +225,15 @@ def test_report_detects_a_crashing_renderer(tmp_path, monkeypatch):
     assert "crashed (signal 11): Segmentation fault" in html
 
 
+def _render_small_scene():
+    """Three points in the 3-D view, with b"fallback png" standing in for matplotlib's picture."""
+    from mocaplib.report import scene3d
+
+    return scene3d.render_control_space(np.eye(3), np.eye(3), ["a", "b", "c"], ["x", "y", "z"],
+                                        edges=[[0, 1]], hull_triangles=[],
+                                        fallback=lambda: b"fallback png")
+
+
 def test_a_blank_render_falls_back(monkeypatch):
     from matplotlib.image import imsave
 
@@ -235,9 +244,7 @@ def test_a_blank_render_falls_back(monkeypatch):
 
     monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
     monkeypatch.setattr(scene3d, "_run_renderer", blank)
-    got = scene3d.render_control_space(np.eye(3), np.eye(3), ["a", "b", "c"], ["x", "y", "z"],
-                                       edges=[[0, 1]], hull_triangles=[],
-                                       fallback=lambda: b"fallback png")
+    got = _render_small_scene()
     assert got.renderer == "matplotlib" and got.png == b"fallback png"
     assert got.fallback_reason == "pyvista produced a blank image"
 
@@ -248,9 +255,7 @@ def test_renderer_child_failure_is_reported(monkeypatch):
     # A child process that cannot even start Python's module: non-zero exit, message kept.
     monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
     monkeypatch.setattr(scene3d.sys, "executable", "/bin/false")
-    got = scene3d.render_control_space(np.eye(3), np.eye(3), ["a", "b", "c"], ["x", "y", "z"],
-                                       edges=[[0, 1]], hull_triangles=[],
-                                       fallback=lambda: b"fallback png")
+    got = _render_small_scene()
     assert got.renderer == "matplotlib" and got.png == b"fallback png"
     assert "failed (exit 1)" in got.fallback_reason
 

@@ -2,21 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from ._common import add_cutoff_option, add_protocol_option, add_static_options, warn
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+from ._common import add_cutoff_option, add_protocol_option, add_static_options, positive, warn
 
 
 def register(subparsers) -> None:
@@ -34,7 +23,7 @@ def register(subparsers) -> None:
     add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
-    parser.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
+    parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
                         help="worker processes (default 1)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
