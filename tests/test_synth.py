@@ -365,9 +365,9 @@ def test_bad_settings_raise_synth_error():
 def test_toe_markers_bend_with_the_toe_joint_the_fit_does_not_have():
     from mocaplib.protocols import load_protocol
     protocol = load_protocol("plugin_gait_ofm")
+    exact = MarkerSettings(placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0)
     cap = synthesize_capture(TYPES["straight_normal"], duration=2.6, seed=2,
-                             protocol="plugin_gait_ofm",
-                             markers=MarkerSettings(placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0))
+                             protocol="plugin_gait_ofm", markers=exact)
     segments, offsets = protocol.nominal_offsets(1.75)
     fk = cap.skeleton.points(cap.body.q, segments, offsets)
     hallux = cap.trial.labels.index("LHLX")
