@@ -36,7 +36,7 @@ from .errors import FitError
 from .filtering import valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import (DOF_NAMES, DOFS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton, _cross,
+from .skeleton import (DOF_NAMES, DOFS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton,
                        axis_rotation)
 
 if TYPE_CHECKING:
@@ -126,7 +126,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     offsets = np.asarray(offsets, dtype=np.float64)
     free = np.ones(len(DOF_NAMES), bool) if free is None else np.asarray(free, bool)
     valid = np.isfinite(markers).all(axis=2)
-    target = np.where(valid[..., None], markers, 0.0)
+    target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)          # (F, 3, M)
     w_marker = np.ones((n_frames, n_markers)) if weights is None else np.broadcast_to(
         np.asarray(weights, float), (n_frames, n_markers))
     w_marker = np.where(valid, w_marker, 0.0)
@@ -137,18 +137,19 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     lam = np.full(n_frames, 1e-5)
     active = np.ones(n_frames, dtype=bool)
     mu2 = smoothing ** 2
+    marker_map = _marker_map(segments, offsets)
+    moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
 
     def cost(q_rows, rows, q_ref):
         """Cost (n,) of poses q_rows for frames ``rows``, their kinematic chain and markers."""
         chain = skeleton.chain(q_rows)
-        pts = _points(chain[0], segments, offsets)
-        d = np.linalg.norm(target[rows] - pts, axis=2)
+        pts = _points(chain[0], marker_map)
+        d = _norm3(target[rows] - pts)
         return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
             ((q_rows - q_ref) * free) ** 2).sum(axis=1), chain, pts
 
     chains = list(skeleton.chain(q))        # transforms, DOF axes and pivots at the current q
-    pts = _points(chains[0], segments, offsets)
-    moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
+    pts = _points(chains[0], marker_map)    # (F, 3, M), markers at the current q
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -158,16 +159,19 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         q_ref = _neighbour_mean(q)[rows]
         qa = q[rows]
         r = target[rows] - pts[rows]
-        d = np.linalg.norm(r, axis=2)
+        d = _norm3(r)
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
         A, g = _normal_equations(tuple(c[rows] for c in chains), pts[rows], moved, r, w)
         g -= mu2 * (qa - q_ref)
         A[diagonal] += mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
         held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))
-        A *= ~held[:, :, None] & ~held[:, None, :]
-        A[diagonal] += held
-        g[held] = 0.0
+        some = np.flatnonzero(held.any(axis=1))
+        if some.size:
+            h = held[some]
+            A[some] *= ~h[:, :, None] & ~h[:, None, :]
+            A[some[:, None], diagonal[1], diagonal[2]] += h
+            g[held] = 0.0
         diag = A[diagonal].copy()
         c0 = (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
             ((qa - q_ref) * free) ** 2).sum(axis=1)
@@ -177,8 +181,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             k = np.flatnonzero(todo)
             if k.size == 0:
                 break
-            Ak = A[k]
-            Ak[diagonal] += lam[rows[k], None] * (diag[k] + 1e-9)
+            Ak = A if k.size == rows.size else A[k]            # (A itself on the first trial)
+            Ak[diagonal] = diag[k] + lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
             trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
             c1, trial_chain, trial_pts = cost(trial_q, rows[k], q_ref[k])
@@ -201,15 +205,31 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                           | (lam[rows[worse]] > 1e8)]
             active[rows[stuck]] = False
             todo[stuck] = False
-    residuals = np.linalg.norm(markers - pts, axis=2)
+    residuals = np.linalg.norm(markers - pts.transpose(0, 2, 1), axis=2)
     return PoseFit(q, residuals, ~active, iterations)
 
 
-def _points(transforms: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Points (F, M, 3) fixed at ``offsets`` (M, 3) in ``segments`` (M,), from the segment
-    transforms (F, S, 4, 4) of :meth:`~mocaplib.skeleton.Skeleton.chain`."""
-    T = transforms[:, segments]
-    return np.einsum("fmij,mj->fmi", T[..., :3, :3], offsets) + T[..., :3, 3]
+def _marker_map(segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(4S, M) matrix taking the rows ``[R | t]`` of every segment transform to the points
+    fixed at ``offsets`` (M, 3) in ``segments`` (M,): see :func:`_points`."""
+    n = len(segments)
+    out = np.zeros((len(SEGMENTS), 4, n))
+    out[segments, :3, np.arange(n)] = offsets
+    out[segments, 3, np.arange(n)] = 1.0
+    return out.reshape(-1, n)
+
+
+def _points(transforms: np.ndarray, marker_map: np.ndarray) -> np.ndarray:
+    """Points (F, 3, M) (coordinates on axis 1) from the segment transforms (F, S, 4, 4) of
+    :meth:`~mocaplib.skeleton.Skeleton.chain` and :func:`_marker_map`: one matrix product."""
+    n, s = transforms.shape[:2]
+    rows = transforms[:, :, :3, :].transpose(0, 2, 1, 3).reshape(n * 3, s * 4)
+    return (rows @ marker_map).reshape(n, 3, -1)
+
+
+def _norm3(v: np.ndarray) -> np.ndarray:
+    """Lengths (F, M) of vectors (F, 3, M)."""
+    return np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2 + v[:, 2] ** 2)
 
 
 def _normal_equations(chain: tuple, pts: np.ndarray, moved: np.ndarray, r: np.ndarray,
@@ -217,9 +237,9 @@ def _normal_equations(chain: tuple, pts: np.ndarray, moved: np.ndarray, r: np.nd
     """Gauss–Newton normal equations ``JᵀWJ`` (F, D, D) and ``JᵀWr`` (F, D) without the
     (F, M, 3, D) Jacobian.
 
-    ``chain``: :meth:`~mocaplib.skeleton.Skeleton.chain` at the current poses; ``pts`` (F, M, 3)
-    the markers there, ``moved`` (M, D) 1 where DOF d moves marker m, ``r`` (F, M, 3) marker
-    minus model, ``w`` (F, M) weights (0 for missing markers).
+    ``chain``: :meth:`~mocaplib.skeleton.Skeleton.chain` at the current poses; ``pts``
+    (F, 3, M) the markers there, ``moved`` (M, D) 1 where DOF d moves marker m, ``r`` (F, 3, M)
+    marker minus model, ``w`` (F, M) weights (0 for missing markers).
 
     DOF ``i`` moves a point ``p`` at the velocity ``ωᵢ × p + vᵢ`` (its twist: ``ω`` its world
     axis and ``v = c × ω`` about its pivot ``c`` for a rotation; ``ω = 0``, ``v`` its axis for a
@@ -228,28 +248,35 @@ def _normal_equations(chain: tuple, pts: np.ndarray, moved: np.ndarray, r: np.nd
     composite-rigid-body algorithm), and ``(JᵀWr)ᵢ = sᵢ · Σ w (p × r, r)`` over the markers
     ``i`` moves: per-DOF sums of 16 marker moments, one matrix product for all of them.
     """
-    _, axes, pivots = chain
-    origin = chain[0][:, _ROOT, None, :3, 3]               # moments about the pelvis: round-off
-    p = pts - origin
-    omega = axes * _ROTATION[:, None]
-    v = np.where(_ROTATION[:, None], _cross(pivots - origin, axes), axes)
-    wp = w[..., None] * p
-    moments = np.concatenate([w[..., None], wp, wp[..., _QI] * p[..., _QJ], _cross(wp, r),
-                              w[..., None] * r], axis=2)                       # (F, M, 16)
-    n, m, k = moments.shape
-    total = (moments.transpose(0, 2, 1).reshape(n * k, m) @ moved).reshape(n, k, -1)
-    W, P, Q = total[:, 0, :, None], total[:, 1:4].transpose(0, 2, 1), total[:, 4:10]
-    Q = np.moveaxis(Q, 1, 0)
-    (qxx, qyy, qzz, qxy, qxz, qyz), (ox, oy, oz) = Q, np.moveaxis(omega, 2, 0)
-    Q_omega = np.stack([qxx * ox + qxy * oy + qxz * oz, qxy * ox + qyy * oy + qyz * oz,
-                        qxz * ox + qyz * oy + qzz * oz], axis=2)
-    trace = (qxx + qyy + qzz)[..., None]
-    H_s = np.concatenate([trace * omega - Q_omega + _cross(P, v), W * v + _cross(omega, P)],
-                         axis=2)                                                # (F, D, 6)
-    twist = np.concatenate([omega, v], axis=2)
-    half = (twist @ H_s.transpose(0, 2, 1)) * _PAIR_WEIGHT
-    A = half + half.transpose(0, 2, 1)
-    g = (twist * total[:, 10:16].transpose(0, 2, 1)).sum(axis=2)
+    transforms, axes, pivots = chain
+    origin = transforms[:, _ROOT, :3, 3]                   # moments about the pelvis: round-off
+    n, m = w.shape
+    p = pts - origin[:, :, None]
+    moments = np.empty((n, 16, m))                                              # (F, 16, M)
+    moments[:, 0] = w
+    wp = np.multiply(w[:, None], p, out=moments[:, 1:4])
+    np.multiply(wp[:, _QI], p[:, _QJ], out=moments[:, 4:10])
+    moments[:, 10:13] = np.cross(wp, r, axis=1)
+    np.multiply(w[:, None], r, out=moments[:, 13:16])
+    total = (moments.reshape(n * 16, m) @ moved).reshape(n, 16, -1)          # (F, 16, D)
+    W, P, (qxx, qyy, qzz, qxy, qxz, qyz) = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
+    twist = np.empty((n, 6, axes.shape[1]))                                    # (F, 6, D)
+    omega = np.multiply(axes.transpose(0, 2, 1), _ROTATION, out=twist[:, :3])
+    twist[:, 3:] = np.where(_ROTATION, np.cross(pivots - origin[:, None], axes).transpose(0, 2, 1),
+                            axes.transpose(0, 2, 1))
+    v = twist[:, 3:]
+    ox, oy, oz = omega[:, 0], omega[:, 1], omega[:, 2]
+    trace = qxx + qyy + qzz
+    H_s = np.empty_like(twist)                              # H_j s_j for every DOF j
+    H_s[:, 0] = trace * ox - (qxx * ox + qxy * oy + qxz * oz)
+    H_s[:, 1] = trace * oy - (qxy * ox + qyy * oy + qyz * oz)
+    H_s[:, 2] = trace * oz - (qxz * ox + qyz * oy + qzz * oz)
+    H_s[:, :3] += np.cross(P, v, axis=1)
+    H_s[:, 3:] = W[:, None] * v + np.cross(omega, P, axis=1)
+    A = twist.transpose(0, 2, 1) @ H_s
+    A *= _PAIR_WEIGHT
+    A += A.transpose(0, 2, 1).copy()
+    g = (twist * total[:, 10:16]).sum(axis=1)
     return A, g
 
 
