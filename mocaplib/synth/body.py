@@ -135,7 +135,8 @@ def girdle_shift(q: np.ndarray, height: float) -> np.ndarray:
     return out
 
 
-def shoulder_centres(skeleton: Skeleton, q: np.ndarray, girdle: np.ndarray) -> np.ndarray:
+def true_shoulder_centres(skeleton: Skeleton, q: np.ndarray,
+                          girdle: np.ndarray) -> np.ndarray:
     """True glenohumeral centres (F, 2, 3) (left, right) including the girdle shift, metres."""
     T = skeleton.forward(q)
     torso = T[:, _SEG["torso"], :3, :3]
@@ -181,7 +182,7 @@ def _shoulder_offset(params, skeleton, command, height, t_mid) -> np.ndarray:
     grid = _stride_grid(params)
     xy, theta = reference_path(command, grid, t_mid=t_mid)
     q, _ = _upper_body(params, grid, xy, theta, np.zeros(2))
-    mid = shoulder_centres(skeleton, q, girdle_shift(q, height)).mean(axis=1)[:, :2]
+    mid = true_shoulder_centres(skeleton, q, girdle_shift(q, height)).mean(axis=1)[:, :2]
     return world_to_frame(xy, theta, mid).mean(axis=0)
 
 
@@ -234,7 +235,7 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
         time=np.asarray(t, float), q=q, toe=np.stack([feet["l"][2][:n], feet["r"][2][:n]], 1),
         wrist=wrist, girdle=girdle,
         contact=np.stack([feet["l"][3][:n], feet["r"][3][:n]], axis=1),
-        shoulders=shoulder_centres(skeleton, q, girdle), footprints=footprints,
+        shoulders=true_shoulder_centres(skeleton, q, girdle), footprints=footprints,
         reference=(xy[:n], theta[:n]))
 
 
@@ -260,5 +261,5 @@ def _neutral_stance(command: Command, skeleton: Skeleton, height: float, t: np.n
     girdle = girdle_shift(q, height)
     return BodyMotion(time=t, q=q, toe=np.zeros((n, 2)), wrist=np.zeros((n, 2)), girdle=girdle,
                       contact=np.full((n, 2), FLAT),
-                      shoulders=shoulder_centres(skeleton, q, girdle), footprints={},
+                      shoulders=true_shoulder_centres(skeleton, q, girdle), footprints={},
                       reference=(xy, theta))
