@@ -44,8 +44,9 @@ second; the first kink of the toe marker marks the first.
   frame), ~37 ms before the force plate's Foot Off on real feet.
 
 No one search window serves both: widening it from ``refine_s/2`` towards ``refine_s`` before
-the peak moves the synthetic score from 90 % to 99 % and the real median from 5 ms to 34 ms
-early (README). Real captures are what the product measures, hence the default.
+the peak moves the synthetic score from 90 % to 99.7 % and the real median from 5 ms to 37 ms
+early (README; ``benchmarks/event_accuracy.py`` prints both). Real captures are what the
+product measures, hence the default.
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """
