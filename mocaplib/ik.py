@@ -25,7 +25,6 @@ Units: metres and radians. Arrays: time on axis 0.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING
@@ -68,9 +67,15 @@ OUTLIER_LIMIT = 0.04
 #: ends at a gap or the capture's edge). A marker the skeleton cannot follow (a toe marker in
 #: push-off) drifts away smoothly and is kept, however large its residual.
 JUMP = 0.01
-#: Every STRIDE-th frame is solved first, from rigid fits; the others start from those poses
-#: interpolated, so they need fewer iterations.
+#: Keyframes (:func:`keyframes`) are solved first, from rigid fits; the others start from those
+#: poses interpolated, so they need fewer iterations. Keyframes are LONGEST_STRIDE frames apart,
+#: or down to STRIDE where a marker strays more than KEY_TOLERANCE (m) from the straight line
+#: between its keyframe positions (so a still subject needs few keyframes, a fast one many).
 STRIDE = 4
+LONGEST_STRIDE = 32
+KEY_TOLERANCE = 0.005
+#: Largest change (rad or m) the keyframes' linearisation may make to an interpolated start.
+PREDICTION_LIMIT = 0.1
 #: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
 CHUNK = 1000
 
@@ -84,6 +89,7 @@ _PAIR_WEIGHT = MOVES[_DOF_SEGMENT].T * np.where(
     _DOF_SEGMENT[:, None] == _DOF_SEGMENT[None, :], 0.5, 1.0)
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
 _QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
+_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
 
 
 @dataclass
@@ -161,7 +167,9 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         r = target[rows] - pts[rows]
         d = _norm3(r)
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
-        A, g = _normal_equations(tuple(c[rows] for c in chains), pts[rows], moved, r, w)
+        twist, origin = _twists(tuple(c[rows] for c in chains))
+        about = pts[rows] - origin[:, :, None]
+        A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
         A[diagonal] += mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
@@ -185,6 +193,19 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             Ak[diagonal] = diag[k] + lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
             trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
+            # a frame whose next step is below step_tol is at its minimum: it takes the step
+            # untried, its markers moved to first order (error ~ step² x lever, < 1 µm)
+            there = np.abs(trial_q - qa[k]).max(axis=1) < step_tol
+            if there.any():
+                last, f = k[there], rows[k[there]]
+                pts[f] += _first_order_move(twist[last], about[last], moved,
+                                            trial_q[there] - qa[last])
+                q[f] = trial_q[there]
+                active[f] = False
+                todo[last] = False
+                k, trial_q = k[~there], trial_q[~there]
+                if k.size == 0:
+                    break
             c1, trial_chain, trial_pts = cost(trial_q, rows[k], q_ref[k])
             better = c1 <= c0[k]
             good = k[better]
@@ -200,9 +221,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             worse = k[~better]
             lam[rows[worse]] *= 4.0
             todo[good] = False
-            # no descent left (a step below step_tol, or damping exhausted): at a minimum
-            stuck = worse[(np.abs(trial_q[~better] - qa[worse]).max(axis=1) < step_tol)
-                          | (lam[rows[worse]] > 1e8)]
+            # no descent left (damping exhausted): at a minimum
+            stuck = worse[lam[rows[worse]] > 1e8]
             active[rows[stuck]] = False
             todo[stuck] = False
     residuals = np.linalg.norm(markers - pts.transpose(0, 2, 1), axis=2)
@@ -232,53 +252,84 @@ def _norm3(v: np.ndarray) -> np.ndarray:
     return np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2 + v[:, 2] ** 2)
 
 
-def _normal_equations(chain: tuple, pts: np.ndarray, moved: np.ndarray, r: np.ndarray,
+def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray,
                       w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Gauss–Newton normal equations ``JᵀWJ`` (F, D, D) and ``JᵀWr`` (F, D) without the
     (F, M, 3, D) Jacobian.
 
-    ``chain``: :meth:`~mocaplib.skeleton.Skeleton.chain` at the current poses; ``pts``
-    (F, 3, M) the markers there, ``moved`` (M, D) 1 where DOF d moves marker m, ``r`` (F, 3, M)
-    marker minus model, ``w`` (F, M) weights (0 for missing markers).
+    ``twist`` (F, 6, D): :func:`_twists` at the current poses; ``p`` (F, 3, M) the markers
+    there, about the twists' origin; ``moved`` (M, D) 1 where DOF d moves marker m; ``r``
+    (F, 3, M) marker minus model; ``w`` (F, M) weights (0 for missing markers).
 
     DOF ``i`` moves a point ``p`` at the velocity ``ωᵢ × p + vᵢ`` (its twist: ``ω`` its world
     axis and ``v = c × ω`` about its pivot ``c`` for a rotation; ``ω = 0``, ``v`` its axis for a
     translation). So ``(JᵀWJ)ᵢⱼ = sᵢ · Hⱼ sⱼ`` whenever every marker DOF ``j`` moves is moved by
     ``i`` too, with ``Hⱼ`` the 6×6 weighted second moment of the markers ``j`` moves (as in the
     composite-rigid-body algorithm), and ``(JᵀWr)ᵢ = sᵢ · Σ w (p × r, r)`` over the markers
-    ``i`` moves: per-DOF sums of 16 marker moments, one matrix product for all of them.
+    ``i`` moves: per-DOF sums of 16 marker moments, two matrix products for all of them.
     """
-    transforms, axes, pivots = chain
-    origin = transforms[:, _ROOT, :3, 3]                   # moments about the pelvis: round-off
     n, m = w.shape
-    p = pts - origin[:, :, None]
-    moments = np.empty((n, 16, m))                                              # (F, 16, M)
+    moments = np.empty((n, 10, m))                                              # (F, 10, M)
     moments[:, 0] = w
     wp = np.multiply(w[:, None], p, out=moments[:, 1:4])
     np.multiply(wp[:, _QI], p[:, _QJ], out=moments[:, 4:10])
-    moments[:, 10:13] = np.cross(wp, r, axis=1)
-    np.multiply(w[:, None], r, out=moments[:, 13:16])
-    total = (moments.reshape(n * 16, m) @ moved).reshape(n, 16, -1)          # (F, 16, D)
+    total = (moments.reshape(n * 10, m) @ moved).reshape(n, 10, -1)          # (F, 10, D)
     W, P, (qxx, qyy, qzz, qxy, qxz, qyz) = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
-    twist = np.empty((n, 6, axes.shape[1]))                                    # (F, 6, D)
-    omega = np.multiply(axes.transpose(0, 2, 1), _ROTATION, out=twist[:, :3])
-    twist[:, 3:] = np.where(_ROTATION, np.cross(pivots - origin[:, None], axes).transpose(0, 2, 1),
-                            axes.transpose(0, 2, 1))
-    v = twist[:, 3:]
+    omega, v = twist[:, :3], twist[:, 3:]
     ox, oy, oz = omega[:, 0], omega[:, 1], omega[:, 2]
     trace = qxx + qyy + qzz
     H_s = np.empty_like(twist)                              # H_j s_j for every DOF j
     H_s[:, 0] = trace * ox - (qxx * ox + qxy * oy + qxz * oz)
     H_s[:, 1] = trace * oy - (qxy * ox + qyy * oy + qyz * oz)
     H_s[:, 2] = trace * oz - (qxz * ox + qyz * oy + qzz * oz)
-    H_s[:, :3] += np.cross(P, v, axis=1)
-    H_s[:, 3:] = W[:, None] * v + np.cross(omega, P, axis=1)
+    H_s[:, :3] += _cross_rows(P, v)
+    H_s[:, 3:] = W[:, None] * v + _cross_rows(omega, P)
     A = twist.transpose(0, 2, 1) @ H_s
     A *= _PAIR_WEIGHT
     A += A.transpose(0, 2, 1).copy()
-    g = (twist * total[:, 10:16]).sum(axis=1)
-    return A, g
+    return A, _gradient(twist, p, moved, r, w)
 
+
+def _twists(chain: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Each DOF's twist (F, 6, D) — world axis ω (0 for a translation) over ``v`` — about the
+    pelvis origin (F, 3), from :meth:`~mocaplib.skeleton.Skeleton.chain`: see
+    :func:`_normal_equations`."""
+    transforms, axes, pivots = chain
+    origin = transforms[:, _ROOT, :3, 3]                   # moments about the pelvis: round-off
+    twist = np.empty((len(axes), 6, axes.shape[1]))
+    axes = axes.transpose(0, 2, 1)
+    np.multiply(axes, _ROTATION, out=twist[:, :3])
+    twist[:, 3:] = np.where(_ROTATION, _cross_rows((pivots - origin[:, None]).transpose(0, 2, 1),
+                                                   axes), axes)
+    return twist, origin
+
+
+def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray,
+              w: np.ndarray) -> np.ndarray:
+    """``JᵀWr`` (F, D) from the twists (F, 6, D) and the markers ``p`` (F, 3, M) about their
+    origin, ``r`` (F, 3, M) and ``w`` (F, M) as in :func:`_normal_equations`."""
+    n, m = w.shape
+    moments = np.empty((n, 6, m))
+    wr = np.multiply(w[:, None], r, out=moments[:, 3:])
+    moments[:, :3] = _cross_rows(p, wr)
+    total = (moments.reshape(n * 6, m) @ moved).reshape(n, 6, -1)
+    return (twist * total).sum(axis=1)
+
+
+
+
+def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
+                      step: np.ndarray) -> np.ndarray:
+    """Displacements (F, 3, M) of markers ``p`` (F, 3, M, about the twists' origin) for a small
+    change ``step`` (F, D) of the poses, to first order: ``J step`` from the twists (F, 6, D)."""
+    n = len(step)
+    total = ((twist * step[:, None]).reshape(n * 6, -1) @ moved.T).reshape(n, 6, -1)
+    return _cross_rows(total[:, :3], p) + total[:, 3:]
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
+    axis shuffling."""
+    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
 
 def _soft_l1(d: np.ndarray, c: float) -> np.ndarray:
     """Soft-L1 loss of distances d (metres): d² for d ≪ c, ≈ 2c·d for d ≫ c."""
@@ -484,16 +535,81 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
 
 
 def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict) -> np.ndarray:
-    """Start poses (F, D) for markers (F, M, 3): every :data:`STRIDE`-th frame solved from
-    per-segment rigid fits, the others interpolated in time."""
-    n = len(markers)
-    coarse = np.unique(np.r_[np.arange(0, n, STRIDE), n - 1])
-    q0 = initial_pose(model.skeleton, markers[coarse], model.marker_segments,
+    """Start poses (F, D) for markers (F, M, 3): the :func:`keyframes` solved from per-segment
+    rigid fits, the other frames predicted from them (:func:`_predict_between`)."""
+    keys = keyframes(markers)
+    q0 = initial_pose(model.skeleton, markers[keys], model.marker_segments,
                       model.marker_offsets)
     q0[:, ~settings["free"]] = 0.0
-    first = solve_poses(model.skeleton, markers[coarse], model.marker_segments,
+    first = solve_poses(model.skeleton, markers[keys], model.marker_segments,
                         model.marker_offsets, q0=q0, **settings)
-    return _interpolate(first.q, coarse, n)
+    return _predict_between(model, markers, keys, first.q, settings)
+
+
+def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarray,
+                     q_keys: np.ndarray, settings: dict) -> np.ndarray:
+    """Poses (F, D) for markers (F, M, 3) from solved keyframes ``keys`` (K,) with poses
+    ``q_keys`` (K, D): each frame's pose is the Gauss–Newton step its markers ask of each of its
+    two keyframes (their normal equations, solved once), blended linearly in time.
+
+    Exact where the model is linear between keyframes (a still or slow subject), so such frames
+    start at their minimum and stop after one check; where a prediction strays more than
+    :data:`PREDICTION_LIMIT` from the plain interpolation of the keyframe poses, that is used.
+    """
+    skeleton, segments = model.skeleton, model.marker_segments
+    n, n_markers = markers.shape[:2]
+    free = settings["free"]
+    chain = skeleton.chain(q_keys)
+    twist, origin = _twists(chain)
+    about = _points(chain[0], _marker_map(segments, model.marker_offsets)) - origin[:, :, None]
+    valid = np.isfinite(markers).all(axis=2)
+    target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
+    weights = np.broadcast_to(np.asarray(settings.get("weights", 1.0), float), (n, n_markers))
+    moved = MOVES[segments].astype(np.float64)
+    r = target[keys] - about - origin[:, :, None]
+    w = np.where(valid[keys], weights[keys], 0.0) * _soft_l1_weight(_norm3(r),
+                                                                    settings["robust_scale"])
+    A = _normal_equations(twist, about, moved, r, w)[0]
+    A[:, np.arange(len(free)), np.arange(len(free))] += settings["smoothing"] ** 2 + 1e-9
+    A[:, ~free] = A[:, :, ~free] = 0.0
+    A[:, ~free, ~free] = 1.0
+    inverse = np.linalg.inv(A)
+    after = np.clip(np.searchsorted(keys, np.arange(n), side="right"), 1, len(keys) - 1)
+    alpha = (np.arange(n) - keys[after - 1]) / np.maximum(keys[after] - keys[after - 1], 1)
+    plain = _interpolate(q_keys, keys, n)
+    q = np.zeros_like(plain)
+    for side, share in ((after - 1, 1.0 - alpha), (after, alpha)):
+        g = _gradient(twist[side], about[side], moved,
+                      target - about[side] - origin[side, :, None], np.where(valid, w[side], 0.0))
+        g[:, ~free] = 0.0
+        q += share[:, None] * (q_keys[side] + np.einsum("fij,fj->fi", inverse[side], g))
+    stray = np.abs(q - plain).max(axis=1) > PREDICTION_LIMIT
+    q[stray] = plain[stray]
+    q[keys] = q_keys
+    return np.clip(q, _LOWER, _UPPER)
+
+
+def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
+              shortest: int = STRIDE, tolerance: float = KEY_TOLERANCE) -> np.ndarray:
+    """Frames (K,) to solve first: every ``longest``-th frame and the last, with intervals
+    halved down to ``shortest`` frames while a marker between their ends leaves the straight
+    line between its positions there by more than ``tolerance`` metres (or is seen there but
+    not at an end). Markers (F, M, 3), NaN where missing."""
+    n = len(markers)
+    keys = np.unique(np.r_[np.arange(0, n, longest), n - 1])
+    gap = longest
+    while gap > shortest and len(keys) < n:
+        after = np.clip(np.searchsorted(keys, np.arange(n), side="right"), 1, len(keys) - 1)
+        a, b = keys[after - 1], keys[after]
+        alpha = ((np.arange(n) - a) / (b - a))[:, None, None]
+        off = np.linalg.norm(markers - ((1 - alpha) * markers[a] + alpha * markers[b]), axis=2)
+        bad = np.where(np.isfinite(markers[:, :, 0]), np.nan_to_num(off, nan=np.inf), 0.0)
+        split = np.zeros(len(keys), dtype=bool)
+        split[after[(bad > tolerance).any(axis=1)]] = True
+        mid = (keys[:-1] + keys[1:]) // 2
+        keys = np.unique(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
+        gap //= 2
+    return keys
 
 
 def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | str | None,
@@ -558,11 +674,8 @@ def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
     :data:`OUTLIER_MADS` robust standard deviations (1.4826 MAD) of that marker's residuals
     (F, M) over the frames where it is seen, at least :data:`SUSPECT_FLOOR` and at most
     :data:`OUTLIER_LIMIT`."""
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)       # a marker never seen: NaN
-        median = np.nanmedian(residuals, axis=0)
-        mad = np.nanmedian(np.abs(residuals - median), axis=0)
-    limit = median + OUTLIER_MADS * 1.4826 * mad
+    median = _column_median(residuals)
+    limit = median + OUTLIER_MADS * 1.4826 * _column_median(np.abs(residuals - median))
     return np.clip(np.where(np.isfinite(limit), limit, SUSPECT_FLOOR), SUSPECT_FLOOR,
                    OUTLIER_LIMIT)
 
@@ -602,6 +715,16 @@ def _reject_outliers(res: PoseFit, markers: np.ndarray, model: "SubjectModel",
         suspect[rows] = back
     return removed
 
+
+
+def _column_median(values: np.ndarray) -> np.ndarray:
+    """Median of each column of ``values`` (F, M) over its non-NaN entries, shape (M,); NaN
+    for a column without any (as np.nanmedian, without its masked-array path)."""
+    ordered = np.sort(values, axis=0)                      # NaN sort last
+    count = (~np.isnan(values)).sum(axis=0)
+    columns = np.arange(values.shape[1])
+    middle = 0.5 * (ordered[np.maximum(count - 1, 0) // 2, columns] + ordered[count // 2, columns])
+    return np.where(count > 0, middle, np.nan)
 
 def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
     """The runs of ``suspect`` (F, M) bool that begin or end with a jump, (F, M) bool.
