@@ -1,6 +1,7 @@
 """Accuracy of calibrate + fit: synthetic captures against their truth, real files' residuals.
 
     /work/venv/bin/python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR]
+    /work/venv/bin/python benchmarks/fit_accuracy.py --only budget     # running error budget
 
 Forward kinematics: the tests' gait-like walk (``tests/fk_data.py``) with markers on the
 catalogue landmarks, 6 mm soft-tissue artefact and 1 mm noise, ``--fk-seeds`` subjects.
@@ -10,12 +11,17 @@ locomotion class for the flexions (hip, knee, ankle) and the other rotations; "t
 same after removing each capture's mean error (the constant offset a placement error of the
 markers leaves; see the README). Real files (the walking captures in ``../shared/data/c3d``):
 protocol, markers, fitted/failed frames, mean per-frame marker RMS, largest marker error and the
-marker holding it. Prints Markdown tables.
+marker holding it. Running error budget (``--only budget``): each running capture of the
+sample plan regenerated with the artefacts switched off one group at a time (same seeds,
+``mocaplib.synth``), calibrated from the session's static (neutral) and fitted with markers raw
+or low-passed at Winter's cutoff, and the true angles themselves low-passed at that cutoff (what
+the filter alone costs). Prints Markdown tables.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -34,7 +40,10 @@ from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_capture, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
+from mocaplib.filtering import lowpass  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
+from mocaplib.synth import synthesize_capture  # noqa: E402
+from mocaplib.synth.plan import load_plan  # noqa: E402
 
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
            if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]
@@ -122,6 +131,49 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
           f"{(orders_truth >= 20).sum()} of {len(orders_truth)}")
 
 
+#: Artefact groups of the running budget: overrides of each capture's marker settings.
+BUDGET = (("as shipped", {}), ("no soft tissue", {"soft_tissue": 0.0}),
+          ("soft tissue only", {"placement_sd": 0.0, "noise_sd": 0.0}),
+          ("none", {"soft_tissue": 0.0, "placement_sd": 0.0, "noise_sd": 0.0}))
+
+
+def running_budget(plan_path: Path) -> None:
+    """Flexion and other-DOF RMS error (max over DOFs, degrees) of each running capture per
+    artefact group (:data:`BUDGET`) and marker filter, and the filter's cost on the truth."""
+    captures = {c.name: c for c in load_plan(plan_path).captures}
+
+    def generate(planned, overrides):
+        markers = dataclasses.replace(planned.markers, **overrides)
+        return synthesize_capture(planned.command, duration=planned.duration, seed=planned.seed,
+                                  subject=planned.subject, rate=planned.rate,
+                                  markers=markers, name=planned.name,
+                                  session_seed=planned.session_seed)
+
+    print("| capture | artefacts | markers | flexion RMS max (deg, DOF) "
+          "| other RMS max (deg, DOF) |")
+    print("|---|---|---|---|---|")
+    for name in sorted(n for n, c in captures.items() if c.cls == "running"):
+        for label, overrides in BUDGET:
+            capture = generate(captures[name], overrides)
+            static = generate(captures["rest"], overrides).trial
+            truth = np.asarray(capture.truth["angles"]["values"], dtype=float)
+            for cutoff in ("auto", None):
+                trial, used = filter_trial(capture.trial, cutoff=cutoff)
+                motion = fit(trial, calibrate(trial, static=static, static_pose="neutral"))
+                rms = np.degrees(np.sqrt(((motion.q - truth) ** 2).mean(axis=0)))
+                print(f"| {name} | {label} | {'raw' if used is None else f'{used:.1f} Hz'} | "
+                      + " | ".join(f"{rms[j]:.2f} ({DOF_NAMES[j]})"
+                                   for j in (max(group, key=lambda j: rms[j])
+                                             for group in (FLEXION, OTHER))) + " |")
+                if label == "as shipped" and used is not None:
+                    floor = np.degrees(np.sqrt(((lowpass(truth, trial.rate, used) - truth) ** 2)
+                                               .mean(axis=0)))
+                    j = max(FLEXION, key=lambda j: floor[j])
+                    k = max(OTHER, key=lambda k: floor[k])
+                    print(f"| {name} | truth low-passed | {used:.1f} Hz | {floor[j]:.2f} "
+                          f"({DOF_NAMES[j]}) | {floor[k]:.2f} ({DOF_NAMES[k]}) |")
+
+
 def forward_kinematics(seeds: int) -> None:
     """The tests' FK walk (markers on the landmarks, 6 mm soft tissue, 1 mm noise), 300 frames."""
     sys.path.insert(0, str(ROOT / "tests"))
@@ -176,7 +228,10 @@ def main() -> int:
     parser.add_argument("--static", default=str(ROOT / "sample_c3d" / "rest.c3d"),
                         help="static trial of the synthetic session (neutral pose)")
     parser.add_argument("--fk-seeds", type=int, default=5)
-    parser.add_argument("--only", choices=("fk", "synth", "real"), help="one table only")
+    parser.add_argument("--plan", default=str(ROOT / "protocols" / "paper_plan.toml"),
+                        help="the sample plan, for the running budget")
+    parser.add_argument("--only", choices=("fk", "synth", "real", "budget"),
+                        help="one table only (the budget only when asked)")
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
     if args.only in (None, "fk"):
@@ -189,6 +244,8 @@ def main() -> int:
         print()
     if args.only in (None, "real") and Path(args.real).is_dir():
         real(Path(args.real))
+    if args.only == "budget":
+        running_budget(Path(args.plan))
     return 0
 
 
