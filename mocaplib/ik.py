@@ -83,10 +83,11 @@ _LOWER, _UPPER = Skeleton.bounds()
 _ROOT = SEGMENT_NAMES.index("pelvis")
 _ROTATION = np.array([not d.translation for d in DOFS])
 #: (D, D) for :func:`_normal_equations`: 1 where DOF i moves the segment of DOF j (j's markers
-#: are a subset of i's), 0.5 on pairs of one segment (counted from both sides), else 0.
-_DOF_SEGMENT = np.array([SEGMENT_NAMES.index(d.segment) for d in DOFS])
-_PAIR_WEIGHT = MOVES[_DOF_SEGMENT].T * np.where(
-    _DOF_SEGMENT[:, None] == _DOF_SEGMENT[None, :], 0.5, 1.0)
+#: are a subset of i's). Parents' DOFs come first, so above the diagonal it holds every pair
+#: that shares markers.
+_ANCESTOR = MOVES[[SEGMENT_NAMES.index(d.segment) for d in DOFS]].T.astype(np.float64)
+_UPPER_I, _UPPER_J = np.triu_indices(len(DOFS), 1)
+assert (np.tril(_ANCESTOR, -1) <= _ANCESTOR.T).all(), "a DOF listed before its parent's"
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
 _QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
 _NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
@@ -162,13 +163,14 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         rows = np.flatnonzero(active)
         if rows.size == 0:
             break
+        every = rows.size == n_frames                # then no copies of the big arrays
         q_ref = _neighbour_mean(q)[rows]
         qa = q[rows]
-        r = target[rows] - pts[rows]
+        r = (target if every else target[rows]) - (pts if every else pts[rows])
         d = _norm3(r)
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
-        twist, origin = _twists(tuple(c[rows] for c in chains))
-        about = pts[rows] - origin[:, :, None]
+        twist, origin = _twists(chains if every else tuple(c[rows] for c in chains))
+        about = (pts if every else pts[rows]) - origin[:, :, None]
         A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
         A[diagonal] += mu2
@@ -285,8 +287,8 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     H_s[:, :3] += _cross_rows(P, v)
     H_s[:, 3:] = W[:, None] * v + _cross_rows(omega, P)
     A = twist.transpose(0, 2, 1) @ H_s
-    A *= _PAIR_WEIGHT
-    A += A.transpose(0, 2, 1).copy()
+    A *= _ANCESTOR                          # right on and above the diagonal: mirror it below
+    A[:, _UPPER_J, _UPPER_I] = A[:, _UPPER_I, _UPPER_J]
     return A, _gradient(twist, p, moved, r, w)
 
 
