@@ -111,7 +111,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 offsets: np.ndarray, /, *, q0: np.ndarray | None = None,
                 free: np.ndarray | None = None, weights: np.ndarray | None = None,
                 robust_scale: float = ROBUST_SCALE, smoothing: float = SMOOTHING,
-                max_iter: int = 40, tol: float = 1e-4, step_tol: float = 5e-4) -> PoseFit:
+                max_iter: int = 40, tol: float = 1e-4, step_tol: float = 5e-4,
+                step_metric: tuple[np.ndarray, np.ndarray] | None = None) -> PoseFit:
     """Fit joint coordinates to markers for every frame at once.
 
     Parameters
@@ -126,6 +127,10 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     smoothing : continuity weight μ (0 switches it off).
     max_iter, tol, step_tol : iteration limit; a frame has converged when its cost falls by
         less than ``tol`` (relative) or its largest step is below ``step_tol`` (rad or m).
+    step_metric : (inverses (K, D, D), owner (F,) int), optional. Inverse normal matrices of
+        solved poses near ``q0`` and the one each frame may use (-1: none), as
+        :func:`_predict_between` gives them: a frame whose first step by its matrix is below
+        ``step_tol`` takes that step without forming its own normal equations.
     """
     markers = np.asarray(markers, dtype=np.float64)
     n_frames, n_markers = markers.shape[:2]
@@ -157,6 +162,23 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
 
     chains = list(skeleton.chain(q))        # transforms, DOF axes and pivots at the current q
     pts = _points(chains[0], marker_map)    # (F, 3, M), markers at the current q
+    inverse, owner = step_metric if step_metric is not None else (None, np.full(n_frames, -1))
+    inside = ((q > _LOWER + 1e-12) & (q < _UPPER - 1e-12)) | ~free
+    rows = np.flatnonzero((owner >= 0) & inside.all(axis=1))
+    if rows.size:
+        twist, origin = _twists(tuple(c[rows] for c in chains))
+        about = pts[rows] - origin[:, :, None]
+        r = target[rows] - pts[rows]
+        g = _gradient(twist, about, moved, r, w_marker[rows] * _soft_l1_weight(_norm3(r),
+                                                                              robust_scale))
+        g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
+        g[:, ~free] = 0.0
+        step = np.einsum("fij,fj->fi", inverse[owner[rows]], g)
+        there = np.abs(step).max(axis=1) < step_tol
+        f = rows[there]
+        pts[f] += _first_order_move(twist[there], about[there], moved, step[there])
+        q[f] += step[there]
+        active[f] = False
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -227,7 +249,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             stuck = worse[lam[rows[worse]] > 1e8]
             active[rows[stuck]] = False
             todo[stuck] = False
-    residuals = np.linalg.norm(markers - pts.transpose(0, 2, 1), axis=2)
+    residuals = _norm3(markers.transpose(0, 2, 1) - pts)
     return PoseFit(q, residuals, ~active, iterations)
 
 
@@ -511,8 +533,9 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         # from the coarse solution interpolated (a warm start, as frame-by-frame solvers use)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
-        start_q = _coarse_start(model, markers[part], settings) if q0 is None else q0[part]
-        res = _restart_outliers(solve, solve(q0=start_q))
+        start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
+                           else (q0[part], None))
+        res = _restart_outliers(solve, solve(q0=start_q, step_metric=metric))
         rejected[part] = _reject_outliers(res, markers[part], model, **settings)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
     seen = np.isfinite(markers[..., 0]) & ~rejected
@@ -536,9 +559,11 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_offsets=np.array(model.marker_offsets), source=trial.source)
 
 
-def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict) -> np.ndarray:
-    """Start poses (F, D) for markers (F, M, 3): the :func:`keyframes` solved from per-segment
-    rigid fits, the other frames predicted from them (:func:`_predict_between`)."""
+def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict
+                  ) -> tuple[np.ndarray, tuple]:
+    """Start poses (F, D) for markers (F, M, 3) and their ``step_metric``: the
+    :func:`keyframes` solved from per-segment rigid fits, the other frames predicted from them
+    (:func:`_predict_between`)."""
     keys = keyframes(markers)
     q0 = initial_pose(model.skeleton, markers[keys], model.marker_segments,
                       model.marker_offsets)
@@ -549,10 +574,11 @@ def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict) ->
 
 
 def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarray,
-                     q_keys: np.ndarray, settings: dict) -> np.ndarray:
+                     q_keys: np.ndarray, settings: dict) -> tuple[np.ndarray, tuple]:
     """Poses (F, D) for markers (F, M, 3) from solved keyframes ``keys`` (K,) with poses
     ``q_keys`` (K, D): each frame's pose is the Gauss–Newton step its markers ask of each of its
-    two keyframes (their normal equations, solved once), blended linearly in time.
+    two keyframes (their normal equations, solved once), blended linearly in time; and the
+    ``step_metric`` of :func:`solve_poses` for them (the keyframes' inverse normal matrices).
 
     Exact where the model is linear between keyframes (a still or slow subject), so such frames
     start at their minimum and stop after one check; where a prediction strays more than
@@ -587,8 +613,10 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
         q += share[:, None] * (q_keys[side] + np.einsum("fij,fj->fi", inverse[side], g))
     stray = np.abs(q - plain).max(axis=1) > PREDICTION_LIMIT
     q[stray] = plain[stray]
-    q[keys] = q_keys
-    return np.clip(q, _LOWER, _UPPER)
+    # the nearest keyframe's matrix measures a frame's next step if it sees the same markers
+    owner = np.where(alpha < 0.5, after - 1, after)
+    owner[stray | (valid != valid[keys[owner]]).any(axis=1)] = -1
+    return np.clip(q, _LOWER, _UPPER), (inverse, owner)
 
 
 def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
