@@ -268,7 +268,7 @@ def _points(transforms: np.ndarray, marker_map: np.ndarray) -> np.ndarray:
     :meth:`~mocaplib.skeleton.Skeleton.chain` and :func:`_marker_map`: one matrix product."""
     n, s = transforms.shape[:2]
     rows = transforms[:, :, :3, :].transpose(0, 2, 1, 3).reshape(n * 3, s * 4)
-    return (rows @ marker_map).reshape(n, 3, -1)
+    return (rows @ marker_map).reshape(n, 3, marker_map.shape[1])
 
 
 def _norm3(v: np.ndarray) -> np.ndarray:
@@ -297,8 +297,9 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     moments[:, 0] = w
     wp = np.multiply(w[:, None], p, out=moments[:, 1:4])
     np.multiply(wp[:, _QI], p[:, _QJ], out=moments[:, 4:10])
-    total = (moments.reshape(n * 10, m) @ moved).reshape(n, 10, -1)          # (F, 10, D)
-    W, P, (qxx, qyy, qzz, qxy, qxz, qyz) = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
+    total = (moments.reshape(n * 10, m) @ moved).reshape(n, 10, moved.shape[1])  # (F, 10, D)
+    W, P, Q = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
+    qxx, qyy, qzz, qxy, qxz, qyz = Q
     omega, v = twist[:, :3], twist[:, 3:]
     ox, oy, oz = omega[:, 0], omega[:, 1], omega[:, 2]
     trace = qxx + qyy + qzz
@@ -336,7 +337,7 @@ def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray
     moments = np.empty((n, 6, m))
     wr = np.multiply(w[:, None], r, out=moments[:, 3:])
     moments[:, :3] = _cross_rows(p, wr)
-    total = (moments.reshape(n * 6, m) @ moved).reshape(n, 6, -1)
+    total = (moments.reshape(n * 6, m) @ moved).reshape(n, 6, moved.shape[1])
     return (twist * total).sum(axis=1)
 
 
@@ -347,7 +348,8 @@ def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
     """Displacements (F, 3, M) of markers ``p`` (F, 3, M, about the twists' origin) for a small
     change ``step`` (F, D) of the poses, to first order: ``J step`` from the twists (F, 6, D)."""
     n = len(step)
-    total = ((twist * step[:, None]).reshape(n * 6, -1) @ moved.T).reshape(n, 6, -1)
+    total = (twist * step[:, None]).reshape(n * 6, moved.shape[1]) @ moved.T
+    total = total.reshape(n, 6, len(moved))
     return _cross_rows(total[:, :3], p) + total[:, 3:]
 
 def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -468,10 +470,13 @@ def _joint_angles(R: np.ndarray, axes: list[tuple[float, float, float]]) -> np.n
     return np.column_stack([a, b, c])[:, :len(axes)] * signs
 
 
-def _interpolate(q: np.ndarray, at: np.ndarray, n_frames: int) -> np.ndarray:
-    """Poses q (K, D) known at frames ``at`` (K,), linearly interpolated to (n_frames, D)."""
+def _bracket(keys: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every frame of ``range(n_frames)``, the index (F,) in ``keys`` (K,) sorted, from 0 to
+    n_frames - 1) of the key after it (the one before for the last) and its position (F,) from
+    the key before (0) to that one (1)."""
     frames = np.arange(n_frames)
-    return np.column_stack([np.interp(frames, at, q[:, j]) for j in range(q.shape[1])])
+    after = np.clip(np.searchsorted(keys, frames, side="right"), 1, len(keys) - 1)
+    return after, (frames - keys[after - 1]) / np.maximum(keys[after] - keys[after - 1], 1)
 
 
 def _fill_gaps(values: np.ndarray) -> np.ndarray:
@@ -602,9 +607,8 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     A[:, ~free] = A[:, :, ~free] = 0.0
     A[:, ~free, ~free] = 1.0
     inverse = np.linalg.inv(A)
-    after = np.clip(np.searchsorted(keys, np.arange(n), side="right"), 1, len(keys) - 1)
-    alpha = (np.arange(n) - keys[after - 1]) / np.maximum(keys[after] - keys[after - 1], 1)
-    plain = _interpolate(q_keys, keys, n)
+    after, alpha = _bracket(keys, n)
+    plain = (1.0 - alpha)[:, None] * q_keys[after - 1] + alpha[:, None] * q_keys[after]
     q = np.zeros_like(plain)
     for side, share in ((after - 1, 1.0 - alpha), (after, alpha)):
         g = _gradient(twist[side], about[side], moved,
@@ -628,14 +632,14 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
     n = len(markers)
     keys = np.unique(np.r_[np.arange(0, n, longest), n - 1])
     gap = longest
+    seen = np.isfinite(markers[:, :, 0])
     while gap > shortest and len(keys) < n:
-        after = np.clip(np.searchsorted(keys, np.arange(n), side="right"), 1, len(keys) - 1)
-        a, b = keys[after - 1], keys[after]
-        alpha = ((np.arange(n) - a) / (b - a))[:, None, None]
-        off = np.linalg.norm(markers - ((1 - alpha) * markers[a] + alpha * markers[b]), axis=2)
-        bad = np.where(np.isfinite(markers[:, :, 0]), np.nan_to_num(off, nan=np.inf), 0.0)
+        after, alpha = _bracket(keys, n)
+        alpha = alpha[:, None, None]
+        line = (1 - alpha) * markers[keys[after - 1]] + alpha * markers[keys[after]]
+        off = ((markers - line) ** 2).sum(axis=2)          # NaN if unseen here or at an end
         split = np.zeros(len(keys), dtype=bool)
-        split[after[(bad > tolerance).any(axis=1)]] = True
+        split[after[(seen & ~(off <= tolerance ** 2)).any(axis=1)]] = True
         mid = (keys[:-1] + keys[1:]) // 2
         keys = np.unique(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
         gap //= 2
