@@ -14,10 +14,13 @@ gradient points outwards leaves the step). Missing markers (NaN) drop out.
 All frames of a chunk are solved together: the (F, D, D) Gauss–Newton normal equations of the
 analytic Jacobian come from per-DOF sums of marker moments (:func:`_normal_equations`, no
 (F, M, 3, D) Jacobian is formed) and are solved as one batched ``numpy.linalg.solve``;
-each frame keeps its own damping and stops when its cost stops falling. :func:`fit` starts
-every :data:`STRIDE`-th frame from per-segment rigid fits (Kabsch on the segment's markers and
-its joint centre, decomposed into the joint's DOFs) and the other frames from those solutions
-interpolated in time. Samples of a trajectory that jumps away from the model (mislabelled,
+each frame keeps its own damping and stops when its cost stops falling or its next step is
+below a tolerance (taken without a trial). :func:`fit` first solves :func:`keyframes` (4 to 32
+frames apart, closer where markers move less straight) from per-segment rigid fits (Kabsch on
+the segment's markers and its joint centre, decomposed into the joint's DOFs); every other
+frame starts from the Gauss–Newton step its markers ask of its two keyframes' linearisation,
+and where that leaves a step below the tolerance it stops without its own normal equations
+(:func:`_predict_between`; still and slow stretches cost one evaluation a frame). Samples of a trajectory that jumps away from the model (mislabelled,
 swapped in, glitching) are removed and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`).
 
 Units: metres and radians. Arrays: time on axis 0.
@@ -67,8 +70,8 @@ OUTLIER_LIMIT = 0.04
 #: ends at a gap or the capture's edge). A marker the skeleton cannot follow (a toe marker in
 #: push-off) drifts away smoothly and is kept, however large its residual.
 JUMP = 0.01
-#: Keyframes (:func:`keyframes`) are solved first, from rigid fits; the others start from those
-#: poses interpolated, so they need fewer iterations. Keyframes are LONGEST_STRIDE frames apart,
+#: Keyframes (:func:`keyframes`) are solved first, from rigid fits; the others start from
+#: predictions made from them, so they need fewer iterations. Keyframes are LONGEST_STRIDE apart,
 #: or down to STRIDE where a marker strays more than KEY_TOLERANCE (m) from the straight line
 #: between its keyframe positions (so a still subject needs few keyframes, a fast one many).
 STRIDE = 4
@@ -76,7 +79,7 @@ LONGEST_STRIDE = 32
 KEY_TOLERANCE = 0.005
 #: Largest change (rad or m) the keyframes' linearisation may make to an interpolated start.
 PREDICTION_LIMIT = 0.1
-#: Frames solved together; bounds memory to ~chunk × M × 3 × D × 8 bytes for the Jacobian.
+#: Frames solved together; bounds memory to ~chunk × D² × 8 bytes per normal-matrix array.
 CHUNK = 1000
 
 _LOWER, _UPPER = Skeleton.bounds()
@@ -509,7 +512,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
         start described above.
 
-    Frames are solved together from per-segment rigid fits; frames left with an outlying
+    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left with an outlying
     marker RMS are re-solved from their neighbours' poses, and outlying samples are removed
     (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still further than that,
     reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
@@ -534,8 +537,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
                         max_iter=max_iter)
-        # coarse to fine in time: every STRIDE-th frame from rigid-fit starts, then all frames
-        # from the coarse solution interpolated (a warm start, as frame-by-frame solvers use)
+        # coarse to fine in time: keyframes from rigid-fit starts, then all frames from their
+        # predictions (a warm start, as frame-by-frame solvers use)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
         start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
