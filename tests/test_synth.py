@@ -13,7 +13,7 @@ from mocaplib.errors import SynthError
 from mocaplib.filtering import valid_runs
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
-from mocaplib.synth.body import body_motion
+from mocaplib.synth.body import SWING_KNEE_FLOOR, body_motion
 from mocaplib.synth.gait import FLAT, FootGeometry
 
 DEG = np.pi / 180
@@ -376,3 +376,30 @@ def test_toe_markers_bend_with_the_toe_joint_the_fit_does_not_have():
     assert gap[toe == 0].max() < 1e-9          # toes straight: the rigid foot's point
     assert gap[toe > 0.3].min() > 0.01         # toes bent at push-off: centimetres away
     assert cap.trial.markers[:, hallux, 2].min() > 0.0
+
+
+def _knee_at(cap, dt: float):
+    """True knee flexion (F, 2) (left, right), rad, and contact states (F, 2), every ``dt`` s."""
+    t = np.arange(0.0, cap.trial.time[-1], dt)
+    body = body_motion(cap.command, cap.params, cap.skeleton, 1.75, t,
+                       t_mid=cap.trial.time[-1] / 2)
+    knee = body.q[:, [DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r")]]
+    return knee, body.contact
+
+
+@pytest.mark.parametrize("name", ["straight_fast", "run"])
+def test_swing_knee_slows_down_towards_its_floor(name):
+    """A swing foot planned beyond the leg's reach (fast walking, running): the knee extends to
+    just above the gait's floor (walking terminal swing 0-5°, running late swing 10-20°), never
+    below it, and within 15° of the floor its velocity changes by less than 200°/s per 1 ms
+    step (a hard stop at the reach made steps of 700-2300°/s)."""
+    cap = capture(name)
+    floor = SWING_KNEE_FLOOR[cap.params.gait]
+    knee, contact = _knee_at(cap, 1e-3)
+    for col in range(2):
+        swing = contact[:, col] == 0
+        assert floor < knee[swing, col].min() < floor + 2 * DEG
+        near = swing & (knee[:, col] < floor + 15 * DEG)
+        inside = near[:-2] & near[1:-1] & near[2:]
+        step = np.abs(np.diff(knee[:, col], 2))[inside] / 1e-3
+        assert step.max() < 200 * DEG, f"{name}: knee velocity steps {step.max() / DEG:.0f}°/s"

@@ -11,9 +11,11 @@ opposite the legs with the elbows flexing as the arm comes forward.
 The legs reach the planned rear-foot poses by analytic inverse kinematics: the knee angle from
 the hip-ankle distance, the hip rotation from the rule that the foot's long axis lies in the
 knee's plane, then hip and ankle angles by Euler decomposition in the skeleton's DOF order. The
-pelvis height is the highest that keeps every stance hip-ankle distance within 99.7 % of the
-leg length; a swing foot beyond that reach is left hanging at it (the planned swing path is only
-a target, the truth is what the leg does).
+pelvis height is the highest that keeps every stance hip-ankle distance within
+:data:`STANCE_REACH` of the leg length (knee flexed 8.9° or more walking, 20° running). A swing
+leg planned straighter than that (or beyond reach: the planned swing path is only a target, the
+truth is what the leg does) is saturated smoothly (C2) towards :data:`SWING_KNEE_FLOOR`, so the
+knee slows down as it extends instead of stopping dead.
 
 The body is richer than the fitting skeleton: it also has a toe joint (see
 :mod:`~mocaplib.synth.gait`), a shoulder girdle that moves the glenohumeral centre (protraction
@@ -39,7 +41,13 @@ from .gait import (DEG, FLAT, SIDES, SWING, FootGeometry, GaitParameters, foot_t
 
 _Q = {name: j for j, name in enumerate(DOF_NAMES)}
 _SEG = {name: s for s, name in enumerate(SEGMENT_NAMES)}
-REACH = 0.997
+#: Longest stance hip–ankle distance, as a fraction of thigh + shank, per gait: the pelvis is
+#: the highest that keeps every stance leg within it (knee flexed by at least 8.9° walking,
+#: 20° running, as at a runner's foot strike, 15–20°).
+STANCE_REACH = {"walk": 0.997, "run": 0.985}
+#: Knee flexion a swing leg approaches but never reaches, rad, per gait: walking terminal
+#: swing 0–5°, running late swing 10–20°.
+SWING_KNEE_FLOOR = {"walk": 3.0 * DEG, "run": 12.0 * DEG}
 _LEG_DOFS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion",
              "ankle_dorsiflexion", "ankle_inversion")
 #: Shoulder-girdle motion of the glenohumeral centre in the torso frame, metres for a 1.75 m
@@ -144,17 +152,33 @@ def true_shoulder_centres(skeleton: Skeleton, q: np.ndarray,
     return out + np.einsum("fij,fsj->fsi", torso, girdle)
 
 
-def _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side):
+def _knee_cosine(d, thigh, shank, start, floor):
+    """Cosine of the knee's inner angle for hip–ankle distances ``d`` (F,) m: exact while the
+    knee is flexed by ``start`` rad or more; a straighter planned leg (even beyond reach) is
+    saturated as cos(knee) = c0 + (c1 − c0) tanh((c − c0) / (c1 − c0)) (c0, c1 the cosines of
+    ``start`` and ``floor``), equal to the exact value with its first two derivatives at the
+    junction, so the knee slows down smoothly and never extends beyond ``floor`` rad."""
+    cos_inner = (thigh ** 2 + shank ** 2 - d ** 2) / (2 * thigh * shank)
+    c0, c1 = np.cos(start), np.cos(floor)
+    beyond = -cos_inner > c0
+    saturated = c0 + (c1 - c0) * np.tanh((-cos_inner[beyond] - c0) / (c1 - c0))
+    cos_inner[beyond] = -saturated
+    return cos_inner, beyond
+
+
+def _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side, *, start, floor):
     """Hip (flexion, adduction, rotation), knee flexion, ankle (dorsiflexion, inversion), each
     (F,) rad, putting the ankle centre at ``ankle`` (F, 3) with rear-foot orientation
-    ``foot_R`` (F, 3, 3), for a hip at ``hip`` (F, 3) on a pelvis ``pelvis_R`` (F, 3, 3)."""
+    ``foot_R`` (F, 3, 3), for a hip at ``hip`` (F, 3) on a pelvis ``pelvis_R`` (F, 3, 3).
+    A leg planned straighter than ``start`` rad of knee flexion is saturated towards ``floor``
+    (:func:`_knee_cosine`); its ankle then stops short of the plan along the hip–ankle line."""
     s = 1.0 if side == "r" else -1.0
     p = ankle - hip
     d = np.linalg.norm(p, axis=1)
-    reach = REACH * (thigh + shank)
-    p *= np.minimum(1.0, reach / d)[:, None]     # a swing foot out of reach: the leg stretches
-    d = np.minimum(d, reach)
-    cos_inner = (thigh ** 2 + shank ** 2 - d ** 2) / (2 * thigh * shank)
+    cos_inner, beyond = _knee_cosine(d, thigh, shank, start, floor)
+    reached = np.sqrt(thigh ** 2 + shank ** 2 - 2 * thigh * shank * cos_inner[beyond])
+    p[beyond] *= (reached / d[beyond])[:, None]
+    d[beyond] = reached
     knee = np.pi - np.arccos(np.clip(cos_inner, -1.0, 1.0))
     u = np.stack([-shank * np.sin(knee), -thigh - shank * np.cos(knee)], axis=1) / d[:, None]
     e = p / d[:, None]
@@ -213,20 +237,22 @@ def body_motion(command: Command, params: GaitParameters, skeleton: Skeleton, he
     T = skeleton.forward(q)
     pelvis_R = T[:, _SEG["pelvis"], :3, :3]
     hips = {side: T[:, _SEG[f"femur_{side}"], :3, 3] for side in SIDES}
-    leg = skeleton.lengths["thigh"] + skeleton.lengths["shank"]
+    thigh, shank = skeleton.lengths["thigh"], skeleton.lengths["shank"]
+    reach = STANCE_REACH[params.gait] * (thigh + shank)
     lift = np.inf
     for side in SIDES:
         stance = feet[side][3][n:] != SWING
         gap = (feet[side][0] - hips[side])[n:][stance]
-        lift = min(lift, float(np.min(np.sqrt((REACH * leg) ** 2 - (gap[:, :2] ** 2).sum(1))
+        lift = min(lift, float(np.min(np.sqrt(reach ** 2 - (gap[:, :2] ** 2).sum(1))
                                       + gap[:, 2])))
     lift -= 2e-4   # the stride grid samples the reach limit; keep 0.2 mm in hand between samples
     q[:, _Q["pelvis_tz"]] += lift
+    start = np.pi - np.arccos((thigh ** 2 + shank ** 2 - reach ** 2) / (2 * thigh * shank))
     for side in SIDES:
         hip = hips[side] + np.array([0.0, 0.0, lift])
         ankle, foot_R = feet[side][:2]
-        angles = _leg_ik(hip, pelvis_R, ankle, foot_R, skeleton.lengths["thigh"],
-                         skeleton.lengths["shank"], side)
+        angles = _leg_ik(hip, pelvis_R, ankle, foot_R, thigh, shank, side, start=start,
+                         floor=SWING_KNEE_FLOOR[params.gait])
         for name, value in zip(_LEG_DOFS, angles):
             q[:, _Q[f"{name}_{side}"]] = value
     q, wrist = q[:n], wrist[:n]
