@@ -20,7 +20,9 @@ Feet
     the ankle follows a cubic Hermite curve, drawn in the moving body frame, between the
     toe-off and heel-strike poses, and is
     lifted so that the lowest sole point (heel, metatarsal heads or toe tip) follows a
-    clearance profile.
+    clearance profile; where the heel and the forefoot are nearly level the lowest point is a
+    smooth minimum, so the ankle height has no kink when the foot tips from toes-down to
+    toes-up.
 
 Angles in radians, lengths in metres, times in seconds. World frame Z up, floor at z = 0.
 """
@@ -42,6 +44,9 @@ SIDES = ("l", "r")
 LEAD_S = 0.25
 #: Contact states returned by :func:`foot_trajectory`.
 SWING, HEEL_CONTACT, FLAT, TOE_CONTACT = 0, 1, 2, 3
+#: Height difference (m) within which the swing foot's lowest point passes smoothly from toe
+#: tip to metatarsal heads to heel (:func:`_smooth_min`; the ankle rises at most a sixth of it).
+SOLE_BLEND = 0.008
 
 
 @dataclass(frozen=True)
@@ -250,6 +255,13 @@ def _stance(fp: Footprints, k: np.ndarray, t: np.ndarray, params: GaitParameters
     return ankle, heading, pitch, toe, rate, state
 
 
+def _smooth_min(a, b, width):
+    """min(a, b) made C2 where ``a`` and ``b`` are within ``width`` (> 0, or an array >= 0)
+    of each other: min − max(width − |a − b|, 0)³ / (6 width²), at most width / 6 below."""
+    width = np.maximum(width, 1e-12)
+    return np.minimum(a, b) - np.maximum(width - np.abs(a - b), 0.0) ** 3 / (6 * width ** 2)
+
+
 def _hermite(p0, v0, p1, v1, s, duration):
     """Cubic Hermite between values ``p0``→``p1`` with rates ``v0``, ``v1`` (per second)."""
     s2, s3 = s * s, s * s * s
@@ -305,11 +317,15 @@ def foot_trajectory(fp: Footprints, t: np.ndarray, params: GaitParameters, geom:
         hd = fth + rel0 + turn * (3 * s ** 2 - 2 * s ** 3)
         p = _hermite(p0, 0.3 * r0, p1, r1, s, duration)   # the push-off spin fades fast
         release = np.clip(s / 0.35, 0.0, 1.0)
-        tq = params.toe_pitch * (1.0 - release ** 2 * (3 - 2 * release))
+        released = release ** 2 * (3 - 2 * release)
+        tq = params.toe_pitch * (1.0 - released)
         skew = s + (0.8 if params.gait == "run" else 0.3) * s * (1 - s)
         lift = params.clearance * np.sin(np.pi * skew)
         sole = np.einsum("fij,fkj->fki", _about(Y_AXIS, -p), geom.sole_points(tq))
         ankle[sw, :2] = xy
-        ankle[sw, 2] = lift - sole[..., 2].min(axis=1)
+        # toes and metatarsal heads are level at toe-off: blend them only as the toes release
+        forefoot = _smooth_min(sole[:, 1, 2], sole[:, 2, 2], SOLE_BLEND * released)
+        lowest = _smooth_min(sole[:, 0, 2], forefoot, SOLE_BLEND)
+        ankle[sw, 2] = lift - lowest
         heading[sw], pitch[sw], toe[sw], state[sw] = hd, p, tq, SWING
     return ankle, foot_rotation(heading, pitch), toe, state
