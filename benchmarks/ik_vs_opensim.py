@@ -154,6 +154,7 @@ def main() -> int:
     totals = {"OpenSim": 0.0, "mocaplib": 0.0}
     errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
     n = 0
+    ratios = []
     for raw, truth in load_captures(args):
         trial, _ = filter_trial(raw, cutoff=cutoff)
         model = calibrate(trial, static=static, static_pose="neutral")
@@ -175,9 +176,10 @@ def main() -> int:
         for name, q in (("OpenSim", q_osim), ("mocaplib", motion.q)):
             if truth is not None and len(q) == len(truth):
                 errors[name].append(angle_errors(q, truth))
+        ratios.append((min(osim_times) / min(our_times), Path(trial.source).stem))
         print(f"capture: {trial.source}  frames: {trial.n_frames}  markers: "
               f"{len(model.labels)}  protocol: {model.protocol.name}  ratio: "
-              f"{min(osim_times) / min(our_times):.1f}x")
+              f"{ratios[-1][0]:.1f}x")
     print(f"\nall: {n} frames; joint-angle RMS error vs truth (deg), mean over captures of the "
           "mean over DOFs / max over captures and DOFs / max over flexions")
     print(f"{'':10s}{'frames/s':>10s}{'mean RMS deg':>14s}{'max RMS deg':>13s}"
@@ -191,6 +193,9 @@ def main() -> int:
         print(f"{name:10s}{n / seconds:10.0f}{text}")
     t_osim, t_ours = totals["OpenSim"], totals["mocaplib"]
     print(f"speed ratio mocaplib / OpenSim: {t_osim / t_ours:.1f}x")
+    if len(ratios) > 1:
+        print("lowest per capture: " + ", ".join(f"{name} {r:.1f}x" for r, name in
+                                                 sorted(ratios)[:4]))
     return 0
 
 
