@@ -643,6 +643,8 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
         off = ((markers - line) ** 2).sum(axis=2)          # NaN if unseen here or at an end
         split = np.zeros(len(keys), dtype=bool)
         split[after[(seen & ~(off <= tolerance ** 2)).any(axis=1)]] = True
+        if not split.any():                    # the same lines again at the next level
+            break
         mid = (keys[:-1] + keys[1:]) // 2
         keys = np.unique(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
         gap //= 2
