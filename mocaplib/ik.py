@@ -212,7 +212,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             ((qa - q_ref) * free) ** 2).sum(axis=1)
         # a few damping trials per iteration: frames whose step fails raise their damping
         todo = np.ones(rows.size, dtype=bool)
-        for _ in range(4):
+        for attempt in range(4):
             k = np.flatnonzero(todo)
             if k.size == 0:
                 break
@@ -220,9 +220,10 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             Ak[diagonal] = diag[k] + lam[rows[k], None] * (diag[k] + 1e-9)
             step = np.linalg.solve(Ak, g[k][..., None])[..., 0]
             trial_q = np.clip(qa[k] + step, _LOWER, _UPPER)
-            # a frame whose next step is below step_tol is at its minimum: it takes the step
-            # untried, its markers moved to first order (error ~ step² x lever, < 1 µm)
-            there = np.abs(trial_q - qa[k]).max(axis=1) < step_tol
+            # a frame whose next (undamped enough) step is below step_tol is at its minimum:
+            # it takes the step untried, its markers moved to first order (error ~ step² x
+            # lever, < 1 µm)
+            there = (np.abs(trial_q - qa[k]).max(axis=1) < step_tol) & (attempt == 0)
             if there.any():
                 last, f = k[there], rows[k[there]]
                 pts[f] += _first_order_move(twist[last], about[last], moved,
@@ -248,8 +249,9 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             worse = k[~better]
             lam[rows[worse]] *= 4.0
             todo[good] = False
-            # no descent left (damping exhausted): at a minimum
-            stuck = worse[lam[rows[worse]] > 1e8]
+            # no descent left (a damped step below step_tol, or damping exhausted): at a minimum
+            stuck = worse[(np.abs(trial_q[~better] - qa[worse]).max(axis=1) < step_tol)
+                          | (lam[rows[worse]] > 1e8)]
             active[rows[stuck]] = False
             todo[stuck] = False
     residuals = _norm3(markers.transpose(0, 2, 1) - pts)
