@@ -93,6 +93,7 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
             continue
         rows, orders, cutoffs = defaultdict(list), [], []
         worst: dict[str, tuple[float, str]] = {}
+        squared, n_frames = np.zeros(len(DOF_NAMES)), 0
         for path, truth in captures:
             trial, used = filter_trial(read_c3d(path), cutoff=cutoff)
             cutoffs.append(np.nan if used is None else used)
@@ -101,6 +102,7 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
             motion = fit(trial, model)
             error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
             rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
+            squared, n_frames = squared + (error ** 2).sum(axis=0), n_frames + len(error)
             tracking = np.degrees(error.std(axis=0))
             orders += fourier_orders(motion.q, trial.rate, truth["cycles"])
             rows[truth.get("class", "?")].append(
@@ -125,6 +127,11 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
         print("|  |  | largest mean DOF errors: " + ", ".join(
             f"{DOF_NAMES[j]} {m:.2f} (worst {worst[DOF_NAMES[j]][0]:.2f}, "
             f"{worst[DOF_NAMES[j]][1]})" for m, j in worst_dofs) + " | | | | | | | | |")
+        pooled = np.degrees(np.sqrt(squared / n_frames))
+        print("|  |  | pooled over every frame of every capture, worst DOF: " + ", ".join(
+            f"{group} {DOF_NAMES[j]} {pooled[j]:.2f}" for group, j in
+            (("flexion", max(FLEXION, key=pooled.__getitem__)),
+             ("other", max(OTHER, key=pooled.__getitem__)))) + " | | | | | | | | |")
     orders_truth = np.array(orders_truth)
     print(f"\nFourier N of the true angles over the same cycles: median "
           f"{np.median(orders_truth):.0f}, max {orders_truth.max()}, at cap 20: "
