@@ -18,7 +18,6 @@ Exit code 1 when the default definition misses a target.
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
 
@@ -30,16 +29,12 @@ sys.path.insert(0, str(ROOT))
 from mocaplib.events import TOE_OFF_SEARCH, detect_events, event_differences, feet_of  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.protocols import detect_protocol  # noqa: E402
+from mocaplib.synth.plan import locomotion_type  # noqa: E402
 
 #: The real files whose EVENT group holds lab (force-plate or operator) Foot Off events.
 LAB_FILES = ("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
              "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d")
 SYNTHETIC_TARGET, REAL_TARGET_S = 0.95, 0.010
-
-
-def locomotion_type(name: str) -> str:
-    """``walk_curve_r2_left_fast`` -> ``walk_curve_left``: the name without speed and size."""
-    return re.sub(r"_(slow|normal|fast|r\d|\d+p\d|\d+)(?=_|$)", "", name)
 
 
 def differences(paths, toe_off: str, kind: str) -> dict[str, tuple[np.ndarray, float]]:

@@ -36,13 +36,11 @@ sys.path.insert(0, str(ROOT))
 
 from mocaplib.calibrate import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
-from mocaplib.filtering import filter_trial  # noqa: E402
+from mocaplib.filtering import filter_trial, lowpass  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_capture, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.filtering import lowpass  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
-from mocaplib.synth import synthesize_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402
 
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
@@ -151,10 +149,7 @@ def running_budget(plan_path: Path) -> None:
 
     def generate(planned, overrides):
         markers = dataclasses.replace(planned.markers, **overrides)
-        return synthesize_capture(planned.command, duration=planned.duration, seed=planned.seed,
-                                  subject=planned.subject, rate=planned.rate,
-                                  markers=markers, name=planned.name,
-                                  session_seed=planned.session_seed)
+        return dataclasses.replace(planned, markers=markers).generate()
 
     print("| capture | artefacts | markers | flexion RMS max (deg, DOF) "
           "| other RMS max (deg, DOF) |")

@@ -23,8 +23,8 @@ correlation with the v̂_l error and how many draws miss.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
-import re
 import subprocess
 import sys
 import tempfile
@@ -41,18 +41,9 @@ from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.ik import fit  # noqa: E402
 from mocaplib.library import load_library  # noqa: E402
 from mocaplib.patterns import cycle_samples, path_velocities  # noqa: E402
-from mocaplib.synth import synthesize_capture  # noqa: E402
-from mocaplib.synth.plan import load_plan  # noqa: E402
+from mocaplib.synth.plan import load_plan, locomotion_type  # noqa: E402
 
-#: Locomotion type of a sample capture, from its file name (first match wins).
-TYPES = (("side_curve", r"^side_.*_curve_"), ("side_step", r"^side_"), ("diagonal", r"^diag_"),
-         ("walk_curve", r"^walk_curve_"), ("walk_straight", r"^walk_straight_"),
-         ("run", r"^run_"), ("turn_spot", r"^turn_spot_"), ("rest", r"^rest"))
 V_REL, V_ABS, OMEGA_TOL, V_L_TOL = 0.02, 0.02, 0.02, 0.02
-
-
-def locomotion_type(name: str) -> str:
-    return next((kind for kind, pattern in TYPES if re.match(pattern, name)), "other")
 
 
 def compare(library_path: Path, samples: Path) -> list[dict]:
@@ -70,7 +61,7 @@ def compare(library_path: Path, samples: Path) -> list[dict]:
             dt = abs(truth["start_s"] - entry.start_s)
         else:  # rest: the truth is standing still
             truth, dt = {"v": 0.0, "omega": 0.0, "v_l": 0.0}, 0.0
-        rows.append({"name": name, "type": locomotion_type(name), "start_dt": dt,
+        rows.append({"name": name, "type": locomotion_type(name, sided=False), "start_dt": dt,
                      **{f"true_{k}": truth[k] for k in ("v", "omega", "v_l")},
                      **{k: float(getattr(entry, k)) for k in ("v", "omega", "v_l")}})
     return rows
@@ -124,10 +115,7 @@ def placement_draws(plan_path: Path, capture_name: str, draws: int) -> None:
     planned = {c.name: c for c in load_plan(plan_path).captures}
 
     def generate(name, session_seed):
-        c = planned[name]
-        return synthesize_capture(c.command, duration=c.duration, seed=c.seed,
-                                  subject=c.subject, rate=c.rate, markers=c.markers, name=name,
-                                  session_seed=session_seed)
+        return dataclasses.replace(planned[name], session_seed=session_seed).generate()
 
     print("| session seed | δ static heading (deg) | Δv̂_l (m/s) | −v̂·δ (m/s) |")
     print("|---|---|---|---|")

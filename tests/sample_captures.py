@@ -3,17 +3,11 @@
 from __future__ import annotations
 
 import json
-import re
 from functools import lru_cache
 
 import pytest
 
 from conftest import SAMPLES
-
-
-def locomotion_type(name: str) -> str:
-    """``walk_curve_r2_left_fast`` -> ``walk_curve_left``: the name without speed and size."""
-    return re.sub(r"_(slow|normal|fast|r\d|\d+p\d|\d+)(?=_|$)", "", name)
 
 
 @lru_cache(maxsize=1)

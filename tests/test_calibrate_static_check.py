@@ -1,5 +1,7 @@
 """Step 0 of calibration: a static trial must show the motion's subject with the same markers."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import SAMPLES, real_file
@@ -9,7 +11,7 @@ from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.protocols import load_protocol, match_protocol
 from mocaplib.skeleton import SEGMENT_NAMES
-from mocaplib.synth import Subject, synthesize_capture, write_capture
+from mocaplib.synth import Subject, write_capture
 from mocaplib.synth.plan import load_plan
 
 REPO = SAMPLES.parent
@@ -20,9 +22,8 @@ def _session_rest(tmp_path, height):
     ``height`` m, written and read back as a C3D file."""
     rest = next(c for c in load_plan(REPO / "protocols" / "paper_plan.toml").captures
                 if c.name == "rest")
-    capture = synthesize_capture(rest.command, duration=rest.duration, seed=rest.seed,
-                                 markers=rest.markers, session_seed=rest.session_seed,
-                                 subject=Subject(height=height, mass=70.0 * (height / 1.75) ** 2))
+    subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
+    capture = dataclasses.replace(rest, subject=subject).generate()
     c3d_path, _ = write_capture(capture, tmp_path, f"rest_{height:.2f}")
     return read_c3d(c3d_path)
 

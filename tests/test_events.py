@@ -168,7 +168,9 @@ def test_real_heel_strikes_match_lab_foot_strike():
 
 def synthetic_toe_off_errors(toe_off):
     """{locomotion type: [|detected - true| toe-off time in frames]} over sample_c3d/."""
-    from sample_captures import locomotion_type, samples
+    from sample_captures import samples
+
+    from mocaplib.synth.plan import locomotion_type
 
     by_type: dict[str, list[float]] = {}
     for name, trial, match, _, truth in samples():

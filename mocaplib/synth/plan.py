@@ -26,11 +26,11 @@ from __future__ import annotations
 import os
 import re
 import tomllib
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..errors import MocapError, SynthError
-from .capture import Subject, synthesize_capture, write_capture
+from .capture import Subject, SynthCapture, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
 
@@ -38,6 +38,18 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _COMMAND_KEYS = {"v_f", "v_l", "omega", "gait"}
 _KIND_KEYS = {"kind", "speed", "radius", "direction", "side"}
 
+
+#: Speed and size parts of a capture name in the sample plan (``_fast``, ``_r2``, ``_3p5``,
+#: ``_150``).
+_NAME_DETAILS = r"_(slow|normal|fast|r\d|\d+p\d|\d+)(?=_|$)"
+
+
+def locomotion_type(name: str, /, *, sided: bool = True) -> str:
+    """Locomotion type of a capture named as in ``protocols/paper_plan.toml``: the name without
+    speed and size (``walk_curve_r2_left_fast`` -> ``walk_curve_left``), and also without the
+    sides when ``sided`` is false (-> ``walk_curve``; ``diag_right_150_fast`` -> ``diag``)."""
+    kind = re.sub(_NAME_DETAILS, "", name)
+    return kind if sided else re.sub(r"_(left|right)(?=_|$)", "", kind)
 
 @dataclass(frozen=True)
 class PlannedCapture:
@@ -53,6 +65,14 @@ class PlannedCapture:
     protocol: str
     markers: MarkerSettings
     session_seed: int | None = None
+
+    def generate(self) -> SynthCapture:
+        """The capture this entry describes (change a setting first with
+        ``dataclasses.replace(entry, ...)``)."""
+        return synthesize_capture(self.command, duration=self.duration, seed=self.seed,
+                                  subject=self.subject, rate=self.rate, protocol=self.protocol,
+                                  markers=self.markers, name=self.name,
+                                  session_seed=self.session_seed)
 
 
 @dataclass(frozen=True)
@@ -153,11 +173,7 @@ def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
     written: list[Path] = []
     for entry in chosen:
         try:
-            capture = synthesize_capture(entry.command, duration=entry.duration,
-                                         seed=entry.seed, subject=entry.subject, rate=entry.rate,
-                                         protocol=protocol or entry.protocol,
-                                         markers=entry.markers, name=entry.name,
-                                         session_seed=entry.session_seed)
+            capture = replace(entry, protocol=protocol or entry.protocol).generate()
             written += write_capture(capture, directory, entry.name,
                                      extra={"plan": plan.name, "class": entry.cls})
         except MocapError as exc:
