@@ -38,8 +38,8 @@ from .errors import FitError
 from .filtering import valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import (DOF_NAMES, DOFS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton,
-                       axis_rotation)
+from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton,
+                       elementary_rotations)
 
 if TYPE_CHECKING:
     from .calibrate import SubjectModel
@@ -85,6 +85,7 @@ CHUNK = 1000
 _LOWER, _UPPER = Skeleton.bounds()
 _ROOT = SEGMENT_NAMES.index("pelvis")
 _ROTATION = np.array([not d.translation for d in DOFS])
+_SHIFTS = np.flatnonzero(~_ROTATION)                        # the root's translations
 #: (D, D) for :func:`_normal_equations`: 1 where DOF i moves the segment of DOF j (j's markers
 #: are a subset of i's). Parents' DOFs come first, so above the diagonal it holds every pair
 #: that shares markers.
@@ -391,88 +392,117 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                  offsets: np.ndarray) -> np.ndarray:
     """Start pose from per-segment rigid fits, shape (F, D).
 
-    Segments are visited root first. Each segment's rotation is the weighted Kabsch fit of its
-    markers (model offsets → measured) plus its joint centre placed by the parent; the rotation
-    relative to the parent is decomposed into the joint's DOFs. Frames or segments with fewer
-    than three points get the value interpolated over time (0 when never seen). The heading is
-    unwrapped over time.
+    Segments are visited root first, those of one depth together (:data:`LEVELS`). Each
+    segment's rotation is the weighted Kabsch fit of its markers (model offsets → measured)
+    plus its joint centre placed by the parent; the rotation relative to the parent is
+    decomposed into the joint's DOFs. Frames or segments with fewer than three points get the
+    value interpolated over time (0 when never seen). The heading is unwrapped over time.
     """
     n_frames = markers.shape[0]
-    q = np.zeros((n_frames, len(DOF_NAMES)))
+    q = np.zeros((n_frames, len(DOF_NAMES) + 1))       # the last column: LEVELS' padding slot
     joint = skeleton.joint_offsets()
     rot = np.empty((n_frames, len(SEGMENTS), 3, 3))         # segment-to-world, built root first
     pos = np.empty((n_frames, len(SEGMENTS), 3))
-    for s, seg in enumerate(SEGMENTS):
-        own = np.flatnonzero(segments == s)
-        local, world = offsets[own], markers[:, own]
-        cols = [DOF_NAMES.index(n) for n in seg.dofs]
-        rot_cols = [c for c in cols if not DOFS[c].translation]
-        if seg.parent is None:
+    unseen = np.concatenate([markers, np.full((n_frames, 1, 3), np.nan)], axis=1)
+    for (segs, parents, spins, *_), euler, dofs in zip(LEVELS, _EULER, _LEVEL_DOFS):
+        # each segment's markers (index -1: the unseen column) and a last slot for its centre
+        own = [np.flatnonzero(segments == s) for s in segs]
+        index = np.full((len(segs), max(map(len, own)) + 1), -1)
+        local = np.zeros(index.shape + (3,))
+        for row, m in enumerate(own):
+            index[row, :len(m)] = m
+            local[row, :len(m)] = offsets[m]
+        world = unseen[:, index]                                          # (F, k, N, 3)
+        if parents is None:
+            R_parent = np.broadcast_to(np.eye(3), (n_frames, len(segs), 3, 3))
             R, t, ok = _kabsch(local, world)
-            rel, R_parent = R, np.broadcast_to(np.eye(3), (n_frames, 3, 3))
-            q[:, [c for c in cols if DOFS[c].translation]] = t
+            rel = R
+            q[:, _SHIFTS] = t[:, 0]
         else:
-            p = SEGMENT_NAMES.index(seg.parent)
-            R_parent = rot[:, p]
-            centre = R_parent @ joint[s] + pos[:, p]
-            R, _, ok = _kabsch(np.vstack([local, np.zeros((1, 3))]),
-                               np.concatenate([world, centre[:, None]], axis=1))
-            rel = np.swapaxes(R_parent, 1, 2) @ R
-        q[:, rot_cols] = _joint_angles(rel, [DOFS[c].axis for c in rot_cols])
-        q[np.ix_(~ok, cols)] = np.nan
+            R_parent = rot[:, parents]
+            centre = (R_parent @ joint[segs, :, None])[..., 0] + pos[:, parents]
+            world[:, :, -1] = centre                          # its local position: zero
+            R, _, ok = _kabsch(local, world)
+            rel = np.swapaxes(R_parent, -1, -2) @ R
+        q[:, spins] = _joint_angles(rel, *euler)
+        for row in np.flatnonzero(~ok.all(axis=0)):
+            q[np.ix_(~ok[:, row], dofs[row])] = np.nan
+        cols = np.concatenate(dofs)
         q[:, cols] = _fill_gaps(q[:, cols])
-        R = R_parent.copy()
-        for c in rot_cols:
-            R = R @ axis_rotation(DOFS[c].axis, q[:, c])
-        rot[:, s] = R
-        pos[:, s] = q[:, cols[:3]] if seg.parent is None else centre
+        local_rot = elementary_rotations(q[:, :-1])
+        R = R_parent
+        for j in spins.T:
+            R = R @ local_rot[:, j]
+        rot[:, segs] = R
+        pos[:, segs] = q[:, None, _SHIFTS] if parents is None else centre
+    q = q[:, :-1]
     heading = DOF_NAMES.index("pelvis_rotation")
     q[:, heading] = np.unwrap(q[:, heading])
     return np.clip(q, _LOWER, _UPPER)
 
 
 def _kabsch(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rigid fits ``world ≈ R @ local + t`` per frame over the finite points.
+    """Rigid fits ``world ≈ R @ local + t`` per frame (and per set) over the finite points.
 
-    local (N, 3); world (F, N, 3) with NaN where missing. Returns R (F, 3, 3), t (F, 3) and
-    ok (F,): at least three points and a non-degenerate spread.
+    local (..., N, 3); world (F, ..., N, 3) with NaN where missing. Returns R (F, ..., 3, 3),
+    t (F, ..., 3) and ok (F, ...): at least three points and a non-degenerate spread.
     """
-    n_frames = world.shape[0]
-    valid = np.isfinite(world).all(axis=2)
+    valid = np.isfinite(world).all(axis=-1)
     w = valid.astype(float)
-    count = w.sum(axis=1)
+    count = w.sum(axis=-1)
     Y = np.where(valid[..., None], world, 0.0)
-    safe = np.maximum(count, 1.0)[:, None]
-    cp = (w @ local) / safe
-    cy = (w[..., None] * Y).sum(axis=1) / safe
-    P = (local[None] - cp[:, None]) * w[..., None]
-    H = np.einsum("fni,fnj->fij", P, Y - cy[:, None])
+    safe = np.maximum(count, 1.0)[..., None]
+    cp = (w[..., None, :] @ local)[..., 0, :] / safe
+    cy = (w[..., None, :] @ Y)[..., 0, :] / safe
+    P = (local - cp[..., None, :]) * w[..., None]
+    H = np.swapaxes(P, -1, -2) @ (Y - cy[..., None, :])
     U, S, Vt = np.linalg.svd(H)
-    sign = np.sign(np.linalg.det(Vt.transpose(0, 2, 1) @ U.transpose(0, 2, 1)))
+    V, Ut = np.swapaxes(Vt, -1, -2), np.swapaxes(U, -1, -2)
+    sign = np.sign(np.linalg.det(V @ Ut))
     sign[sign == 0] = 1.0
-    D = np.zeros((n_frames, 3, 3))
-    D[:, 0, 0], D[:, 1, 1], D[:, 2, 2] = 1.0, 1.0, sign
-    R = Vt.transpose(0, 2, 1) @ D @ U.transpose(0, 2, 1)
-    t = cy - np.einsum("fij,fj->fi", R, cp)
-    ok = (count >= 3) & (S[:, 1] > 1e-6)
+    V = V.copy()
+    V[..., 2] *= sign[..., None]                          # V diag(1, 1, sign)
+    R = V @ Ut
+    t = cy - (R @ cp[..., None])[..., 0]
+    ok = (count >= 3) & (S[..., 1] > 1e-6)
     return R, t, ok
 
 
-def _joint_angles(R: np.ndarray, axes: list[tuple[float, float, float]]) -> np.ndarray:
-    """Angles about the signed unit ``axes`` (1-3 of ±X/±Y/±Z, intrinsic order) closest to R.
+def _euler_table(spins: np.ndarray) -> tuple[np.ndarray, ...]:
+    """For :func:`_joint_angles`: per row of ``spins`` (k, 3) (a joint's rotation DOFs, padded
+    with D), the Tait-Bryan letters i, j, k (k,) over its axes' letters (completed with the
+    unused ones), e (k,) = +1 for a cyclic order (XYZ, YZX, ZXY) else -1, and the axes'
+    signs (k, 3) (1 for padding)."""
+    letters, signs = np.zeros((len(spins), 3), dtype=int), np.ones((len(spins), 3))
+    for row, dofs in enumerate(spins):
+        axes = [DOFS[c].axis for c in dofs if c < len(DOFS)]
+        used = [int(np.argmax(np.abs(axis))) for axis in axes]
+        letters[row] = used + [c for c in range(3) if c not in used][:3 - len(used)]
+        signs[row, :len(axes)] = [float(np.sign(axis[k])) for axis, k in zip(axes, used)]
+    i, j, k = letters.T
+    return i, j, k, np.where((j - i) % 3 == 1, 1.0, -1.0), signs
 
-    R (F, 3, 3) is read as the Tait-Bryan sequence R_i(a) R_j(b) R_k(c) over the axes' letters
-    (completed with the unused ones): with e = +1 for a cyclic order (XYZ, YZX, ZXY), else -1,
-    b = asin(e R_ik), a = atan2(-e R_jk, R_kk), c = atan2(-e R_ij, R_ii). Returns (F, len(axes)).
+
+def _joint_angles(R: np.ndarray, i: np.ndarray, j: np.ndarray, k: np.ndarray, e: np.ndarray,
+                  signs: np.ndarray) -> np.ndarray:
+    """Angles (F, n, 3) about each joint's signed unit axes (±X/±Y/±Z, intrinsic order)
+    closest to its rotation R (F, n, 3, 3), with :func:`_euler_table`'s letters, e and signs.
+
+    R is read as the Tait-Bryan sequence R_i(a) R_j(b) R_k(c): b = asin(e R_ik),
+    a = atan2(-e R_jk, R_kk), c = atan2(-e R_ij, R_ii); a joint with fewer axes uses the
+    first angles.
     """
-    letters = [int(np.argmax(np.abs(axis))) for axis in axes]
-    signs = np.array([float(np.sign(axis[k])) for axis, k in zip(axes, letters)])
-    i, j, k = letters + [c for c in range(3) if c not in letters][:3 - len(letters)]
-    e = 1.0 if (j - i) % 3 == 1 else -1.0
-    b = np.arcsin(np.clip(e * R[:, i, k], -1.0, 1.0))
-    a = np.arctan2(-e * R[:, j, k], R[:, k, k])
-    c = np.arctan2(-e * R[:, i, j], R[:, i, i])
-    return np.column_stack([a, b, c])[:, :len(axes)] * signs
+    n = np.arange(R.shape[1])
+    b = np.arcsin(np.clip(e * R[:, n, i, k], -1.0, 1.0))
+    a = np.arctan2(-e * R[:, n, j, k], R[:, n, k, k])
+    c = np.arctan2(-e * R[:, n, i, j], R[:, n, i, i])
+    return np.stack([a, b, c], axis=-1) * signs
+
+
+#: per level of LEVELS: :func:`_euler_table` of its joints, and each segment's DOFs
+_EULER = [_euler_table(spins) for _, _, spins, *_ in LEVELS]
+_LEVEL_DOFS = [[np.array([DOF_NAMES.index(n) for n in SEGMENTS[s].dofs]) for s in segs]
+               for segs, *_ in LEVELS]
 
 
 def _bracket(keys: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -487,6 +517,8 @@ def _bracket(keys: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
 def _fill_gaps(values: np.ndarray) -> np.ndarray:
     """Linearly interpolate NaN rows over time per column (0 where a column is all NaN)."""
     out = values.copy()
+    if not np.isnan(out).any():
+        return out
     idx = np.arange(len(values))
     for c in range(values.shape[1]):
         good = np.isfinite(values[:, c])

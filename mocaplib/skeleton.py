@@ -155,6 +155,77 @@ def _moves() -> np.ndarray:
 #: ``MOVES[s, j]``: DOF ``j`` moves segment ``s`` (shape (S, D), bool).
 MOVES = _moves()
 
+
+def _axis_letter(j: int) -> tuple[int, float]:
+    """Index (0-2 for X-Z) and sign of DOF ``j``'s axis, which must be ±X, ±Y or ±Z."""
+    axis = np.asarray(DOFS[j].axis)
+    k = int(np.argmax(np.abs(axis)))
+    assert np.count_nonzero(axis) == 1 and abs(axis[k]) == 1.0, f"{DOFS[j].name}: not ±X/Y/Z"
+    return k, float(axis[k])
+
+
+def _levels() -> list[tuple]:
+    """Segments by depth, root first, for :meth:`Skeleton.chain`: per level the segment
+    indices (k,), their parents' (k,) (None for the root), their joints' rotation DOFs in order
+    (k, 3), padded with ``D`` (the slot of an identity rotation), and per DOF position the
+    flat indices (3, 3k) of each DOF axis's column in the level's (k, 3, 3) rotations, and its
+    signs (3, 3k)."""
+    depth = []
+    for seg in SEGMENTS:
+        depth.append(0 if seg.parent is None else depth[_SEGMENT_INDEX[seg.parent]] + 1)
+    out = []
+    for level in range(max(depth) + 1):
+        segs = [s for s in range(len(SEGMENTS)) if depth[s] == level]
+        spins = np.full((len(segs), 3), len(DOFS))
+        columns = np.zeros((3, len(segs), 3), dtype=int)
+        signs = np.ones((3, len(segs), 3))
+        for row, s in enumerate(segs):
+            rot = [_DOF_INDEX[n] for n in SEGMENTS[s].dofs if not DOFS[_DOF_INDEX[n]].translation]
+            spins[row, :len(rot)] = rot
+            for i, j in enumerate(rot):
+                k, signs[i, row] = _axis_letter(j)
+                columns[i, row] = row * 9 + np.arange(3) * 3 + k
+        parents = None if level == 0 else np.array([_SEGMENT_INDEX[SEGMENTS[s].parent]
+                                                      for s in segs])
+        out.append((np.array(segs), parents, spins, columns.reshape(3, -1),
+                    signs.reshape(3, -1)))
+    return out
+
+
+def _spin_entries() -> tuple[np.ndarray, ...]:
+    """Where :meth:`Skeleton.chain` writes each rotation DOF's matrix, as :func:`axis_rotation`
+    does, in the flat (D + 1) x 9 array of all DOFs' rotations (translations and the last,
+    padding slot: the identity): flat indices of the ones, of the cosines and of the sines,
+    the rotation DOF (index into :data:`_SPINS`) of each cosine and sine, and each sine's sign.
+    """
+    spins = np.flatnonzero(~_TRANSLATION)
+    one, cos, cos_dof, sin, sin_dof, sin_sign = [], [], [], [], [], []
+    for j in range(len(DOFS) + 1):
+        if j == len(DOFS) or DOFS[j].translation:
+            one += [j * 9 + 0, j * 9 + 4, j * 9 + 8]
+            continue
+        k, sign = _axis_letter(j)
+        a, b = (k + 1) % 3, (k + 2) % 3
+        r = int(np.flatnonzero(spins == j)[0])
+        one.append(j * 9 + 4 * k)
+        cos += [j * 9 + 4 * a, j * 9 + 4 * b]
+        cos_dof += [r, r]
+        sin += [j * 9 + 3 * a + b, j * 9 + 3 * b + a]
+        sin_dof += [r, r]
+        sin_sign += [-sign, sign]
+    return (spins, np.array(one), np.array(cos), np.array(cos_dof), np.array(sin),
+            np.array(sin_dof), np.array(sin_sign))
+
+
+#: Segments by depth for batched kinematics: see :func:`_levels`.
+LEVELS = _levels()
+_SPINS, _SPIN_ONE, _SPIN_COS, _SPIN_COS_DOF, _SPIN_SIN, _SPIN_SIN_DOF, _SPIN_SIN_SIGN = \
+    _spin_entries()
+_SHIFTS = np.flatnonzero(_TRANSLATION)                    # translation DOFs
+_AXES = np.array([d.axis for d in DOFS])
+assert all(SEGMENTS[_SEGMENT_INDEX[DOFS[j].segment]].parent is None
+           for j in _SHIFTS), "chain() takes translations at the root only"
+
 #: Segment lengths as fractions of standing height (Winter 2009, Fig. 4.1; hip-centre width after
 #: Harrington 2007's adult mean). Keys are the names used by :meth:`Skeleton.joint_offsets`.
 HEIGHT_PROPORTIONS: dict[str, float] = {
@@ -285,33 +356,28 @@ class Skeleton:
             raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
         n = q.shape[0]
         offsets = self.joint_offsets()
+        local = elementary_rotations(q)
         out = np.empty((n, len(SEGMENTS), 4, 4))
         out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
-        axes = np.zeros((n, len(DOFS), 3))
-        pivots = np.zeros((n, len(DOFS), 3))
-        for s, seg in enumerate(SEGMENTS):
-            if seg.parent is None:
-                R_parent = np.broadcast_to(np.eye(3), (n, 3, 3))
-                p = np.broadcast_to(offsets[s], (n, 3)).copy()
+        axes = np.zeros((n, len(DOFS) + 1, 3))
+        pivots = np.zeros((n, len(DOFS) + 1, 3))
+        axes[:, _SHIFTS] = _AXES[_SHIFTS]                      # the root's, unrotated
+        for segments, parents, spins, columns, signs in LEVELS:
+            if parents is None:
+                R = np.broadcast_to(np.eye(3), (n, 1, 3, 3))
+                p = offsets[segments] + (q[:, _SHIFTS] @ _AXES[_SHIFTS])[:, None]
             else:
-                parent = out[:, _SEGMENT_INDEX[seg.parent]]
-                R_parent = parent[:, :3, :3]
-                p = R_parent @ offsets[s] + parent[:, :3, 3]
-            R = R_parent.copy()
-            for name in seg.dofs:
-                j = _DOF_INDEX[name]
-                axis = np.asarray(DOFS[j].axis)
-                axes[:, j] = R @ axis
-                if DOFS[j].translation:
-                    p = p + q[:, j, None] * axes[:, j]
-                else:
-                    R = R @ axis_rotation(axis, q[:, j])
-            for name in seg.dofs:
-                if not DOFS[_DOF_INDEX[name]].translation:
-                    pivots[:, _DOF_INDEX[name]] = p
-            out[:, s, :3, :3] = R
-            out[:, s, :3, 3] = p
-        return out, axes, pivots
+                parent = out[:, parents]
+                R = parent[..., :3, :3]
+                p = (R @ offsets[segments, :, None])[..., 0] + parent[..., :3, 3]
+            for j, column, sign in zip(spins.T, columns, signs):
+                # the DOF's world axis: its signed column of the rotation so far
+                axes[:, j] = (np.reshape(R, (n, -1))[:, column] * sign).reshape(n, -1, 3)
+                R = R @ local[:, j]
+            pivots[:, spins] = p[:, :, None]
+            out[:, segments, :3, :3] = R
+            out[:, segments, :3, 3:] = p[..., None]
+        return out, axes[:, :-1], pivots[:, :-1]
 
     def marker_jacobian(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
                         chain: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -379,6 +445,19 @@ class Skeleton:
         """
         T = self.forward(q)[:, np.asarray(segments, dtype=int)]
         return (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
+
+
+def elementary_rotations(q: np.ndarray) -> np.ndarray:
+    """Each DOF's own rotation for poses ``q`` (F, D): shape (F, D + 1, 3, 3), the identity for
+    translations and in the last slot (the padding of :data:`LEVELS`); entries as
+    :func:`axis_rotation` writes them."""
+    n = len(q)
+    local = np.zeros((n, (len(DOFS) + 1) * 9))
+    local[:, _SPIN_ONE] = 1.0
+    spin = q[:, _SPINS]
+    local[:, _SPIN_COS] = np.cos(spin)[:, _SPIN_COS_DOF]
+    local[:, _SPIN_SIN] = np.sin(spin)[:, _SPIN_SIN_DOF] * _SPIN_SIN_SIGN
+    return local.reshape(n, len(DOFS) + 1, 3, 3)
 
 
 def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:

@@ -113,3 +113,35 @@ def test_jacobian_is_zero_for_dofs_that_do_not_move_a_segment():
 def test_bad_q_shape_is_reported():
     with pytest.raises(MocapError, match=r"q must have shape \(F, 32\)"):
         SK.forward(np.zeros((3, 5)))
+
+
+def test_chain_equals_joint_by_joint_composition():
+    """chain() batches segments by depth; it must equal composing each joint's offset and
+    elementary rotations (axis_rotation) segment by segment, root first."""
+    from mocaplib.skeleton import DOFS, SEGMENTS, axis_rotation
+
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(7, len(DOF_NAMES)))
+    T, axes, pivots = SK.chain(q)
+    offsets = SK.joint_offsets()
+    for f in range(len(q)):
+        rot, pos = {}, {}
+        for s, seg in enumerate(SEGMENTS):
+            R = np.eye(3) if seg.parent is None else rot[seg.parent]
+            p = offsets[s] if seg.parent is None else R @ offsets[s] + pos[seg.parent]
+            for name in seg.dofs:
+                j = DOF_NAMES.index(name)
+                np.testing.assert_allclose(axes[f, j], R @ DOFS[j].axis, atol=1e-12)
+                if DOFS[j].translation:
+                    p = p + q[f, j] * np.asarray(DOFS[j].axis)
+                else:
+                    R = R @ axis_rotation(DOFS[j].axis, q[f, j:j + 1])[0]
+            for name in seg.dofs:
+                j = DOF_NAMES.index(name)
+                expected = np.zeros(3) if DOFS[j].translation else p
+                np.testing.assert_allclose(pivots[f, j], expected, atol=1e-12)
+            rot[seg.name], pos[seg.name] = R, p
+            # round-off only: products of a few unit rotations and metre offsets
+            np.testing.assert_allclose(T[f, s, :3, :3], R, atol=1e-12)
+            np.testing.assert_allclose(T[f, s, :3, 3], p, atol=1e-12)
+            np.testing.assert_array_equal(T[f, s, 3], [0.0, 0.0, 0.0, 1.0])
