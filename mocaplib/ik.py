@@ -170,19 +170,24 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     inside = ((q > _LOWER + 1e-12) & (q < _UPPER - 1e-12)) | ~free
     rows = np.flatnonzero((owner >= 0) & inside.all(axis=1))
     if rows.size:
-        twist, origin = _twists(tuple(c[rows] for c in chains))
-        about = pts[rows] - origin[:, :, None]
-        r = target[rows] - pts[rows]
+        every = rows.size == n_frames                # then no copies of the big arrays
+        twist, origin = _twists(chains if every else tuple(c[rows] for c in chains))
+        about = (pts if every else pts[rows]) - origin[:, :, None]
+        r = (target if every else target[rows]) - (pts if every else pts[rows])
         g = _gradient(twist, about, moved, r, w_marker[rows] * _soft_l1_weight(_norm3(r),
                                                                               robust_scale))
         g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
         g[:, ~free] = 0.0
-        step = np.einsum("fij,fj->fi", inverse[owner[rows]], g)
+        step = _by_owner(inverse, owner[rows], g)
+        # (moving every row, by zero where the step is too big, copies less than selecting)
         there = np.abs(step).max(axis=1) < step_tol
-        f = rows[there]
-        pts[f] += _first_order_move(twist[there], about[there], moved, step[there])
-        q[f] += step[there]
-        active[f] = False
+        step[~there] = 0.0
+        if every:
+            pts += _first_order_move(twist, about, moved, step)
+        else:
+            pts[rows] += _first_order_move(twist, about, moved, step)
+        q[rows] += step
+        active[rows[there]] = False
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -257,6 +262,17 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             todo[stuck] = False
     residuals = _norm3(markers.transpose(0, 2, 1) - pts)
     return PoseFit(q, residuals, ~active, iterations)
+
+
+def _by_owner(matrices: np.ndarray, owner: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """``matrices[owner[f]] @ vectors[f]`` for every row f, shape (F, D): matrices (K, D, D),
+    owner (F,) non-decreasing, vectors (F, D). One product per run of equal owners
+    (owners are keyframes, so runs are long) instead of gathering (F, D, D) matrices."""
+    out = np.empty_like(vectors)
+    edges = np.r_[0, np.flatnonzero(np.diff(owner)) + 1, len(owner)]
+    for start, stop in zip(edges[:-1], edges[1:]):
+        out[start:stop] = vectors[start:stop] @ matrices[owner[start]].T
+    return out
 
 
 def _marker_map(segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -347,6 +363,19 @@ def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray
     return (twist * total).sum(axis=1)
 
 
+
+
+def _jacobian(twist: np.ndarray, p: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """Marker Jacobians (F, 3M, D) (rows: x of every marker, then y, then z) from the twists
+    (F, 6, D) and the markers ``p`` (F, 3, M) about their origin: DOF d moves marker m at
+    ``ω_d × p_m + v_d`` where ``moved`` (M, D) says it moves it at all."""
+    n, m = p.shape[0], p.shape[2]
+    out = np.empty((n, 3, m, twist.shape[2]))
+    for c, (a, b) in enumerate(zip(_NEXT, _AFTER)):
+        out[:, c] = (twist[:, a, None] * p[:, b, :, None] - twist[:, b, None] * p[:, a, :, None]
+                     + twist[:, 3 + c, None])
+    out *= moved
+    return out.reshape(n, 3 * m, -1)
 
 
 def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
@@ -644,14 +673,19 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     A[:, ~free] = A[:, :, ~free] = 0.0
     A[:, ~free, ~free] = 1.0
     inverse = np.linalg.inv(A)
+    jacobian = _jacobian(twist, about, moved)                     # (K, 3M, D)
+    jacobian[..., ~free] = 0.0
+    at_key = about + origin[:, :, None]
     after, alpha = _bracket(keys, n)
     plain = (1.0 - alpha)[:, None] * q_keys[after - 1] + alpha[:, None] * q_keys[after]
     q = np.zeros_like(plain)
-    for side, share in ((after - 1, 1.0 - alpha), (after, alpha)):
-        g = _gradient(twist[side], about[side], moved,
-                      target - about[side] - origin[side, :, None], np.where(valid, w[side], 0.0))
-        g[:, ~free] = 0.0
-        q += share[:, None] * (q_keys[side] + np.einsum("fij,fj->fi", inverse[side], g))
+    edges = np.r_[0, np.flatnonzero(np.diff(after)) + 1, n]
+    for start, stop in zip(edges[:-1], edges[1:]):          # the frames between two keyframes
+        span = slice(start, stop)
+        for key, share in ((after[start] - 1, 1.0 - alpha[span]), (after[start], alpha[span])):
+            wr = (target[span] - at_key[key]) * np.where(valid[span], w[key], 0.0)[:, None]
+            step = (wr.reshape(stop - start, -1) @ jacobian[key]) @ inverse[key].T
+            q[span] += share[:, None] * (q_keys[key] + step)
     stray = np.abs(q - plain).max(axis=1) > PREDICTION_LIMIT
     q[stray] = plain[stray]
     # the nearest keyframe's matrix measures a frame's next step if it sees the same markers

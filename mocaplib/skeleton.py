@@ -168,8 +168,7 @@ def _levels() -> list[tuple]:
     """Segments by depth, root first, for :meth:`Skeleton.chain`: per level the segment
     indices (k,), their parents' (k,) (None for the root), their joints' rotation DOFs in order
     (k, 3), padded with ``D`` (the slot of an identity rotation), and per DOF position the
-    flat indices (3, 3k) of each DOF axis's column in the level's (k, 3, 3) rotations, and its
-    signs (3, 3k)."""
+    axis letter (0-2 for X-Z) those DOFs share (3,) and their signs (3, k)."""
     depth = []
     for seg in SEGMENTS:
         depth.append(0 if seg.parent is None else depth[_SEGMENT_INDEX[seg.parent]] + 1)
@@ -177,18 +176,19 @@ def _levels() -> list[tuple]:
     for level in range(max(depth) + 1):
         segs = [s for s in range(len(SEGMENTS)) if depth[s] == level]
         spins = np.full((len(segs), 3), len(DOFS))
-        columns = np.zeros((3, len(segs), 3), dtype=int)
-        signs = np.ones((3, len(segs), 3))
+        letters = [set() for _ in range(3)]
+        signs = np.ones((3, len(segs)))
         for row, s in enumerate(segs):
             rot = [_DOF_INDEX[n] for n in SEGMENTS[s].dofs if not DOFS[_DOF_INDEX[n]].translation]
             spins[row, :len(rot)] = rot
             for i, j in enumerate(rot):
                 k, signs[i, row] = _axis_letter(j)
-                columns[i, row] = row * 9 + np.arange(3) * 3 + k
+                letters[i].add(k)
+        assert all(len(used) <= 1 for used in letters), f"level {level}: mixed axis orders"
         parents = None if level == 0 else np.array([_SEGMENT_INDEX[SEGMENTS[s].parent]
                                                       for s in segs])
-        out.append((np.array(segs), parents, spins, columns.reshape(3, -1),
-                    signs.reshape(3, -1)))
+        out.append((np.array(segs), parents, spins,
+                    [used.pop() if used else 0 for used in letters], signs[..., None]))
     return out
 
 
@@ -223,6 +223,7 @@ _SPINS, _SPIN_ONE, _SPIN_COS, _SPIN_COS_DOF, _SPIN_SIN, _SPIN_SIN_DOF, _SPIN_SIN
     _spin_entries()
 _SHIFTS = np.flatnonzero(_TRANSLATION)                    # translation DOFs
 _AXES = np.array([d.axis for d in DOFS])
+_EYE = np.eye(3)[None, None]                             # the root's parent frame (1, 1, 3, 3)
 assert all(SEGMENTS[_SEGMENT_INDEX[DOFS[j].segment]].parent is None
            for j in _SHIFTS), "chain() takes translations at the root only"
 
@@ -362,17 +363,17 @@ class Skeleton:
         axes = np.zeros((n, len(DOFS) + 1, 3))
         pivots = np.zeros((n, len(DOFS) + 1, 3))
         axes[:, _SHIFTS] = _AXES[_SHIFTS]                      # the root's, unrotated
-        for segments, parents, spins, columns, signs in LEVELS:
+        for segments, parents, spins, letters, signs in LEVELS:
             if parents is None:
-                R = np.broadcast_to(np.eye(3), (n, 1, 3, 3))
+                R = _EYE
                 p = offsets[segments] + (q[:, _SHIFTS] @ _AXES[_SHIFTS])[:, None]
             else:
                 parent = out[:, parents]
                 R = parent[..., :3, :3]
                 p = (R @ offsets[segments, :, None])[..., 0] + parent[..., :3, 3]
-            for j, column, sign in zip(spins.T, columns, signs):
+            for j, letter, sign in zip(spins.T, letters, signs):
                 # the DOF's world axis: its signed column of the rotation so far
-                axes[:, j] = (np.reshape(R, (n, -1))[:, column] * sign).reshape(n, -1, 3)
+                axes[:, j] = R[..., letter] * sign
                 R = R @ local[:, j]
             pivots[:, spins] = p[:, :, None]
             out[:, segments, :3, :3] = R
