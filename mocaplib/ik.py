@@ -141,7 +141,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     segments = np.asarray(segments, dtype=int)
     offsets = np.asarray(offsets, dtype=np.float64)
     free = np.ones(len(DOF_NAMES), bool) if free is None else np.asarray(free, bool)
-    valid = np.isfinite(markers).all(axis=2)
+    valid = _seen(markers)
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)          # (F, 3, M)
     w_marker = np.ones((n_frames, n_markers)) if weights is None else np.broadcast_to(
         np.asarray(weights, float), (n_frames, n_markers))
@@ -291,6 +291,12 @@ def _points(transforms: np.ndarray, marker_map: np.ndarray) -> np.ndarray:
     n, s = transforms.shape[:2]
     rows = transforms[:, :, :3, :].transpose(0, 2, 1, 3).reshape(n * 3, s * 4)
     return (rows @ marker_map).reshape(n, 3, marker_map.shape[1])
+
+
+def _seen(points: np.ndarray) -> np.ndarray:
+    """Points (..., 3) whose three coordinates are finite, bool (...): as
+    ``np.isfinite(points).all(axis=-1)``, without its slow reduction over a short axis."""
+    return np.isfinite(points[..., 0]) & np.isfinite(points[..., 1]) & np.isfinite(points[..., 2])
 
 
 def _norm3(v: np.ndarray) -> np.ndarray:
@@ -476,7 +482,7 @@ def _kabsch(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarra
     local (..., N, 3); world (F, ..., N, 3) with NaN where missing. Returns R (F, ..., 3, 3),
     t (F, ..., 3) and ok (F, ...): at least three points and a non-degenerate spread.
     """
-    valid = np.isfinite(world).all(axis=-1)
+    valid = _seen(world)
     w = valid.astype(float)
     count = w.sum(axis=-1)
     Y = np.where(valid[..., None], world, 0.0)
@@ -661,7 +667,7 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     chain = skeleton.chain(q_keys)
     twist, origin = _twists(chain)
     about = _points(chain[0], _marker_map(segments, model.marker_offsets)) - origin[:, :, None]
-    valid = np.isfinite(markers).all(axis=2)
+    valid = _seen(markers)
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
     weights = np.broadcast_to(np.asarray(settings.get("weights", 1.0), float), (n, n_markers))
     moved = MOVES[segments].astype(np.float64)
@@ -767,7 +773,7 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static: "Trial | None" = 
 def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's marker column (M,) of each model marker (-1 when absent), as
     :func:`model_markers` reads them (swapped pairs exchanged)."""
-    match = match_protocol(trial, model.protocol)
+    match = match_protocol(trial, model.protocol, check_swaps=False)   # model.swapped rules
     columns = np.array([match.indices[model.protocol.labels.index(label)]
                         for label in model.labels])
     for a, b in model.swapped:
@@ -916,7 +922,7 @@ def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
 
     Pairs the calibration found with exchanged left/right labels are exchanged back.
     """
-    match = match_protocol(trial, model.protocol)
+    match = match_protocol(trial, model.protocol, check_swaps=False)   # model.swapped rules
     order = [model.protocol.labels.index(label) for label in model.labels]
     found = sum(match.indices[j] >= 0 for j in order)
     if found == 0:
