@@ -714,7 +714,8 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
         after, alpha = _bracket(keys, n)
         alpha = alpha[:, None, None]
         line = (1 - alpha) * markers[keys[after - 1]] + alpha * markers[keys[after]]
-        off = ((markers - line) ** 2).sum(axis=2)          # NaN if unseen here or at an end
+        d = markers - line
+        off = d[..., 0] ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2   # NaN if unseen here or at an end
         split = np.zeros(len(keys), dtype=bool)
         split[after[(seen & ~(off <= tolerance ** 2)).any(axis=1)]] = True
         if not split.any():                    # the same lines again at the next level

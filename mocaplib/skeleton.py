@@ -168,7 +168,7 @@ def _levels() -> list[tuple]:
     """Segments by depth, root first, for :meth:`Skeleton.chain`: per level the segment
     indices (k,), their parents' (k,) (None for the root), their joints' rotation DOFs in order
     (k, 3), padded with ``D`` (the slot of an identity rotation), and per DOF position the
-    axis letter (0-2 for X-Z) those DOFs share (3,) and their signs (3, k)."""
+    axis letter (0-2 for X-Z) those DOFs share (3,) and their signs (k, 3, 1)."""
     depth = []
     for seg in SEGMENTS:
         depth.append(0 if seg.parent is None else depth[_SEGMENT_INDEX[seg.parent]] + 1)
@@ -188,7 +188,7 @@ def _levels() -> list[tuple]:
         parents = None if level == 0 else np.array([_SEGMENT_INDEX[SEGMENTS[s].parent]
                                                       for s in segs])
         out.append((np.array(segs), parents, spins,
-                    [used.pop() if used else 0 for used in letters], signs[..., None]))
+                    [used.pop() if used else 0 for used in letters], signs.T[..., None]))
     return out
 
 
@@ -371,10 +371,12 @@ class Skeleton:
                 parent = out[:, parents]
                 R = parent[..., :3, :3]
                 p = (R @ offsets[segments, :, None])[..., 0] + parent[..., :3, 3]
-            for j, letter, sign in zip(spins.T, letters, signs):
-                # the DOF's world axis: its signed column of the rotation so far
-                axes[:, j] = R[..., letter] * sign
-                R = R @ local[:, j]
+            turns = local[:, spins]              # (F, k, 3, 3, 3): each joint's rotations
+            columns = np.empty((n, len(segments), 3, 3))
+            for i, letter in enumerate(letters):
+                columns[:, :, i] = R[..., letter]    # a DOF's axis: a column of the rotation so far
+                R = R @ turns[:, :, i]
+            axes[:, spins] = columns * signs
             pivots[:, spins] = p[:, :, None]
             out[:, segments, :3, :3] = R
             out[:, segments, :3, 3:] = p[..., None]
