@@ -125,8 +125,10 @@ def residual_cutoff(data: np.ndarray, rate: float) -> float:
     flat = np.isfinite(data.reshape(len(data), -1))
     longest = max((stop - start for column in flat.T for start, stop in valid_runs(column)),
                   default=0)
+    if longest < MIN_RUN:          # nothing long enough to filter, nor to analyse
+        return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
     # a cutoff whose period is longer than every run would filter nothing (residual 0)
-    lowest = max(1.0, rate / longest) if longest >= MIN_RUN else np.inf
+    lowest = max(1.0, rate / longest)
     cutoffs = np.arange(np.ceil(2 * lowest) / 2, MAX_CANDIDATE * nyquist + 1e-9, 0.5)
     if len(cutoffs) < 4:
         return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))

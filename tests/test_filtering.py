@@ -103,6 +103,17 @@ def test_filter_trial_returns_a_new_trial():
     assert 2.0 <= fc <= 20.0
 
 
+@pytest.mark.parametrize("frames", [1, MIN_RUN - 1])
+def test_auto_cutoff_of_a_capture_too_short_to_filter(frames):
+    # a one-frame static (btkdata's PiG_Calibration-FlatFoot-One) made the candidate list
+    # infinite; now it gets the walking default and its markers come back unchanged
+    markers = np.random.default_rng(3).normal(0, 0.1, (frames, 4, 3))
+    trial = Trial(markers.copy(), ["A", "B", "C", "D"], RATE, source="static.c3d")
+    filtered, used = filter_trial(trial, cutoff="auto")
+    assert used == residual_cutoff(markers, RATE) and 0 < used < RATE / 2
+    np.testing.assert_array_equal(filtered.markers, markers)
+
+
 @pytest.mark.parametrize("cutoff", [0.0, 50.0, "fast"])
 def test_bad_cutoff_names_the_file(cutoff):
     trial = Trial(np.zeros((50, 1, 3)), ["A"], RATE, source="walk.c3d")
