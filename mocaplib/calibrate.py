@@ -192,7 +192,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                                f"got {static_pose!r}", path=getattr(static, "source", None))
     cal = static if static is not None else trial
     proto = choose_protocol(cal, protocol)
-    X_all = match_protocol(cal, proto).markers(cal)
+    X_all = match_protocol(cal, proto, check_swaps=False).markers(cal)   # find_swaps decides
     seen = np.isfinite(X_all[..., 0]).mean(axis=0) if cal.n_frames else np.zeros(len(proto.labels))
     used = np.flatnonzero(seen >= MIN_PRESENCE)
     markers = [proto.markers[j] for j in used]
@@ -205,8 +205,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
             "3 are needed to place the pelvis", path=cal.source,
             hint="check the labels against the protocol, or pass --protocol")
     if static is not None:
-        check_same_subject(X_all[:, used], match_protocol(trial, proto).markers(trial)[:, used],
-                           segments, labels, static=static, trial=trial)
+        X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
+        check_same_subject(X_all[:, used], X_motion, segments, labels, static=static,
+                           trial=trial)
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
@@ -248,7 +249,6 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static is not None:
         # the static pose fixed the anatomy; the motion shows the functional axes and the
         # soft tissue of the movement, so step 5 runs on the motion's frames
-        X_motion = match_protocol(trial, proto).markers(trial)[:, used]
         pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
         if (pelvis_seen.sum(axis=1) >= 3).any():
             X = exchange(X_motion[_calibration_frames(X_motion, n_frames)], labels, swapped)
