@@ -179,6 +179,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
         g[:, ~free] = 0.0
         step = _by_owner(inverse, owner[rows], g)
+        step = np.clip(q[rows] + step, _LOWER, _UPPER) - q[rows]     # projected, as below
         # (moving every row, by zero where the step is too big, copies less than selecting)
         there = np.abs(step).max(axis=1) < step_tol
         step[~there] = 0.0

@@ -84,6 +84,19 @@ def test_joint_ranges_are_respected():
     np.testing.assert_allclose(motion.q[:, knee], lower[knee], atol=1e-9)  # held at the bound
 
 
+def test_an_angle_just_inside_its_range_is_fitted_inside_it():
+    # an elbow 1e-5 rad above its lower bound: the predicted frames' first step (taken
+    # without a trial) may aim past the bound and must be clipped as the iterations' are
+    cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0, seed=3)
+    q = cap.q.copy()
+    lower, upper = Skeleton.bounds()
+    elbow = DOF_NAMES.index("elbow_flexion_l")
+    q[:, elbow] = lower[elbow] + 1e-5
+    markers = cap.skeleton.points(q, cap.segments, cap.offsets)
+    motion = fit(Trial(markers, cap.trial.labels, 100.0), true_model(cap))
+    assert (motion.q >= lower).all() and (motion.q <= upper).all()
+
+
 def test_segments_without_markers_are_locked_at_zero_and_reported():
     cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=5)
     proto = load_protocol("fullbody38")
