@@ -40,7 +40,7 @@ from mocaplib.cycles import shoulder_centres  # noqa: E402
 from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.ik import fit  # noqa: E402
 from mocaplib.library import load_library  # noqa: E402
-from mocaplib.patterns import cycle_samples, path_velocities  # noqa: E402
+from mocaplib.patterns import cycle_samples, path_velocities, shoulder_heading  # noqa: E402
 from mocaplib.synth.plan import load_plan, locomotion_type  # noqa: E402
 
 V_REL, V_ABS, OMEGA_TOL, V_L_TOL = 0.02, 0.02, 0.02, 0.02
@@ -102,12 +102,6 @@ def report(rows: list[dict]) -> bool:
           f"v̂_l within {V_L_TOL} m/s; {len(rows)} entries, "
           f"{'all met' if ok else 'NOT all met'}")
     return ok
-
-
-def shoulder_heading(left: np.ndarray, right: np.ndarray) -> np.ndarray:
-    """θ_S (F,) rad of shoulder centres (F, 3): the left→right direction + π/2."""
-    d = right - left
-    return np.arctan2(d[:, 1], d[:, 0]) + np.pi / 2
 
 
 def placement_draws(plan_path: Path, capture_name: str, draws: int) -> None:
