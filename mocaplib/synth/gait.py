@@ -45,7 +45,8 @@ LEAD_S = 0.25
 #: Contact states returned by :func:`foot_trajectory`.
 SWING, HEEL_CONTACT, FLAT, TOE_CONTACT = 0, 1, 2, 3
 #: Height difference (m) within which the swing foot's lowest point passes smoothly from toe
-#: tip to metatarsal heads to heel (:func:`_smooth_min`; the ankle rises at most a sixth of it).
+#: tip to metatarsal heads to heel (:func:`_smooth_min`, twice: each lowers the minimum by at
+#: most a sixth of it and the two stack, so the ankle rises at most a third of it).
 SOLE_BLEND = 0.008
 
 
