@@ -37,6 +37,11 @@ def test_significant_digits():
     assert json_values([123456.789, 1.23456789e-12], significant=4) == [123500.0, 1.235e-12]
 
 
+def test_decimals_and_significant_together_are_refused():
+    with pytest.raises(ValueError, match="decimals=2 or significant=3, not both"):
+        json_values([1.23456], decimals=2, significant=3)
+
+
 def test_other_types_are_refused():
     with pytest.raises(TypeError, match="a set is not a JSON value"):
         json_values({"x": {1, 2}})

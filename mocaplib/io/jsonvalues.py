@@ -18,8 +18,10 @@ def json_values(obj, /, *, decimals: int | None = None, significant: int | None 
     numpy arrays and tuples become lists and numpy scalars Python ones; NaN and ±inf become
     None (JSON null). Floats are kept as they are, or rounded to ``decimals`` decimal places
     (a value rounded to zero is written 0.0, never -0.0) or to ``significant`` significant
-    digits (not both). Raises TypeError for any other type.
+    digits (not both: ValueError). Raises TypeError for any other type.
     """
+    if decimals is not None and significant is not None:
+        raise ValueError(f"round to decimals={decimals} or significant={significant}, not both")
     if isinstance(obj, dict):
         return {str(k): json_values(v, decimals=decimals, significant=significant)
                 for k, v in obj.items()}
