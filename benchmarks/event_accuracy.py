@@ -35,17 +35,20 @@ from mocaplib.synth.plan import locomotion_type  # noqa: E402
 LAB_FILES = ("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
              "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d")
 SYNTHETIC_TARGET, REAL_TARGET_S = 0.95, 0.010
+KINDS = ("toe_off", "heel_strike")
 
 
-def differences(paths, toe_off: str, kind: str) -> dict[str, tuple[np.ndarray, float]]:
-    """{file stem: (detected - recorded times (s, NaN = none within 0.1 s), frame rate)}."""
+def differences(paths, toe_off: str) -> dict[str, tuple[dict[str, np.ndarray], float]]:
+    """{file stem: ({event kind: detected - recorded times (s, NaN = none within 0.1 s)},
+    frame rate)}, each file read and its events detected once."""
     out = {}
     for path in paths:
         trial = read_c3d(path)
         events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
                                toe_off=toe_off, source=path)
-        out[path.stem] = (event_differences(events, trial.events, kind=kind,
-                                            start_time=trial.start_time), trial.rate)
+        out[path.stem] = ({kind: event_differences(events, trial.events, kind=kind,
+                                                   start_time=trial.start_time)
+                           for kind in KINDS}, trial.rate)
     return out
 
 
@@ -53,7 +56,8 @@ def synthetic_table(samples: Path, toe_off: str) -> bool:
     """Print the per-type table; True when every type meets the target."""
     paths = [p for p in sorted(samples.glob("*.c3d")) if p.with_suffix(".truth.json").is_file()]
     by_type: dict[str, list[float]] = {}
-    for name, (diff, rate) in differences(paths, toe_off, "toe_off").items():
+    for name, (by_kind, rate) in differences(paths, toe_off).items():
+        diff = by_kind["toe_off"]
         frames = np.where(np.isnan(diff), np.inf, np.abs(diff) * rate)
         if frames.size:  # the standing capture has none
             by_type.setdefault(locomotion_type(name), []).extend(frames)
@@ -79,8 +83,9 @@ def real_table(real: Path, toe_off: str) -> bool:
     print(f"{'kind':12s} {'n':>3s} {'median ms':>10s} {'med |d| ms':>11s} {'<=10 ms':>8s}"
           f" {'max |d| ms':>11s}")
     met = True
-    for kind in ("toe_off", "heel_strike"):
-        diff = np.concatenate([d for d, _ in differences(paths, toe_off, kind).values()])
+    found = differences(paths, toe_off)
+    for kind in KINDS:
+        diff = np.concatenate([by_kind[kind] for by_kind, _ in found.values()])
         diff = diff[np.isfinite(diff)] * 1000.0
         median_abs = np.median(np.abs(diff))
         if kind == "toe_off":
