@@ -1,11 +1,13 @@
 """Step 0 of calibration: a static trial must show the motion's subject with the same markers."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
 from conftest import SAMPLES, real_file
 
+import mocaplib.calibrate as calibrate_module
 from mocaplib.calibrate import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
@@ -87,4 +89,13 @@ def test_real_static_of_another_person_is_refused():
     with pytest.raises(CalibrationError, match="PiG_Calibration2-NoOption.*does not match the "
                                                "motion trial .*PiG_Motion-FlatFoot-Full"):
         calibrate(motion, static=static)
-    assert SAME_SUBJECT_LIMIT == pytest.approx(0.005)   # the README and docstring quote 5 mm
+
+
+def test_the_quoted_limit_is_the_constant():
+    # the module docstring and the README state the limit in mm next to the constant's name
+    docstring = re.search(r"SAME_SUBJECT_LIMIT`\s+\(([\d.]+) mm\)", calibrate_module.__doc__)
+    readme = re.search(r"above\s+\*\*([\d.]+) mm\*\*\s+\(`SAME_SUBJECT_LIMIT`\)",
+                       (REPO / "README.md").read_text(encoding="utf-8"))
+    assert docstring and readme                       # still quoted where they were
+    assert float(docstring.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)
+    assert float(readme.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)
