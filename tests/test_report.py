@@ -177,12 +177,11 @@ def test_sliver_summary_lists_the_worst_ten():
 
 
 def test_compressed_pngs_look_the_same():
-    from matplotlib.figure import Figure
     from matplotlib.image import imread
 
     from mocaplib.report import figures
 
-    fig = Figure(figsize=(6, 4), dpi=figures.DPI, layout="constrained")  # as the report's
+    fig = figures.new_figure(6, 4)                       # the report's settings
     ax = fig.subplots()
     t = np.linspace(0, 2, 300)
     for k in range(6):

@@ -29,7 +29,9 @@ def class_colours(classes) -> dict[str, tuple[float, float, float]]:
     return colours
 
 
-def _figure(width: float, height: float):
+def new_figure(width: float, height: float):
+    """An empty matplotlib Figure of ``width`` x ``height`` inches as every report figure
+    starts: :data:`DPI`, constrained layout, an Agg canvas (no pyplot, no display)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -82,7 +84,7 @@ def projections(points, classes, axes, *, envelope=None, hull_points=None, holes
     from scipy.spatial import ConvexHull, QhullError
 
     colours = class_colours(classes)
-    fig = _figure(11, 4.6)
+    fig = new_figure(11, 4.6)
     panels = fig.subplots(1, 2)
     for ax, (i, j) in zip(panels, ((0, 1), (0, 2))):
         for outline, style, label in ((envelope, dict(color="tab:red", ls="--"), "envelope"),
@@ -128,7 +130,7 @@ def control_space_3d(points, classes, axes, *, edges=(), envelope=None) -> bytes
     from scipy.spatial import ConvexHull, QhullError
 
     colours = class_colours(classes)
-    fig = _figure(8, 6.5)
+    fig = new_figure(8, 6.5)
     ax = fig.add_subplot(projection="3d")
     p = _display(points, axes)
     for a, b in edges:
@@ -161,7 +163,7 @@ def capture_figure(record: dict, reconstructions: dict[str, tuple[np.ndarray, np
     ``record``: one capture of the diagnostics sidecar. ``reconstructions``: DOF name ->
     (times s, angles rad) of the library entries' Fourier series, placed on the capture's time.
     """
-    fig = _figure(11, 6.4)
+    fig = new_figure(11, 6.4)
     (ax_path, ax_rms), (ax_events, ax_angles) = fig.subplots(2, 2)
     cycles = record.get("cycles") or []
     _path_panel(ax_path, record, cycles)
