@@ -20,8 +20,9 @@ frames apart, closer where markers move less straight) from per-segment rigid fi
 the segment's markers and its joint centre, decomposed into the joint's DOFs); every other
 frame starts from the Gauss–Newton step its markers ask of its two keyframes' linearisation,
 and where that leaves a step below the tolerance it stops without its own normal equations
-(:func:`_predict_between`; still and slow stretches cost one evaluation a frame). Samples of a trajectory that jumps away from the model (mislabelled,
-swapped in, glitching) are removed and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`).
+(:func:`_predict_between`; still and slow stretches cost one evaluation a frame). Samples of
+a trajectory that jumps away from the model (mislabelled, swapped in, glitching) are removed
+and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`).
 
 Units: metres and radians. Arrays: time on axis 0.
 """
@@ -75,7 +76,9 @@ JUMP = 0.01
 #: or down to STRIDE where a marker strays more than KEY_TOLERANCE (m) from the straight line
 #: between its keyframe positions (so a still subject needs few keyframes, a fast one many).
 STRIDE = 4
+#: Longest interval between keyframes, frames (used where markers move along straight lines).
 LONGEST_STRIDE = 32
+#: Largest distance (m) a marker may stray from the straight line between keyframes.
 KEY_TOLERANCE = 0.005
 #: Largest change (rad or m) the keyframes' linearisation may make to an interpolated start.
 PREDICTION_LIMIT = 0.1
@@ -267,8 +270,9 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
 
 def _by_owner(matrices: np.ndarray, owner: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """``matrices[owner[f]] @ vectors[f]`` for every row f, shape (F, D): matrices (K, D, D),
-    owner (F,) non-decreasing, vectors (F, D). One product per run of equal owners
-    (owners are keyframes, so runs are long) instead of gathering (F, D, D) matrices."""
+    owner (F,) indices into them in any order, vectors (F, D). One product per run of equal
+    consecutive owners (owners are keyframes, so runs are long) instead of gathering
+    (F, D, D) matrices."""
     out = np.empty_like(vectors)
     edges = np.r_[0, np.flatnonzero(np.diff(owner)) + 1, len(owner)]
     for start, stop in zip(edges[:-1], edges[1:]):
@@ -370,8 +374,6 @@ def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray
     return (twist * total).sum(axis=1)
 
 
-
-
 def _jacobian(twist: np.ndarray, p: np.ndarray, moved: np.ndarray) -> np.ndarray:
     """Marker Jacobians (F, 3M, D) (rows: x of every marker, then y, then z) from the twists
     (F, 6, D) and the markers ``p`` (F, 3, M) about their origin: DOF d moves marker m at
@@ -394,10 +396,12 @@ def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
     total = total.reshape(n, 6, len(moved))
     return _cross_rows(total[:, :3], p) + total[:, 3:]
 
+
 def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
     axis shuffling."""
     return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
+
 
 def _soft_l1(d: np.ndarray, c: float) -> np.ndarray:
     """Soft-L1 loss of distances d (metres): d² for d ≪ c, ≈ 2c·d for d ≫ c."""
@@ -542,7 +546,7 @@ _LEVEL_DOFS = [[np.array([DOF_NAMES.index(n) for n in SEGMENTS[s].dofs]) for s i
 
 
 def _bracket(keys: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """For every frame of ``range(n_frames)``, the index (F,) in ``keys`` (K,) sorted, from 0 to
+    """For every frame of ``range(n_frames)``, the index (F,) in ``keys`` (K,) (sorted, from 0 to
     n_frames - 1) of the key after it (the one before for the last) and its position (F,) from
     the key before (0) to that one (1)."""
     frames = np.arange(n_frames)
@@ -582,10 +586,10 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
         start described above.
 
-    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left with an outlying
-    marker RMS are re-solved from their neighbours' poses, and outlying samples are removed
-    (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still further than that,
-    reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
+    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
+    with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
+    samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
+    further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
 
     Returns
     -------
@@ -663,18 +667,16 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     :data:`PREDICTION_LIMIT` from the plain interpolation of the keyframe poses, that is used.
     """
     skeleton, segments = model.skeleton, model.marker_segments
-    n, n_markers = markers.shape[:2]
+    n = len(markers)
     free = settings["free"]
     chain = skeleton.chain(q_keys)
     twist, origin = _twists(chain)
     about = _points(chain[0], _marker_map(segments, model.marker_offsets)) - origin[:, :, None]
     valid = _seen(markers)
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
-    weights = np.broadcast_to(np.asarray(settings.get("weights", 1.0), float), (n, n_markers))
     moved = MOVES[segments].astype(np.float64)
     r = target[keys] - about - origin[:, :, None]
-    w = np.where(valid[keys], weights[keys], 0.0) * _soft_l1_weight(_norm3(r),
-                                                                    settings["robust_scale"])
+    w = valid[keys] * _soft_l1_weight(_norm3(r), settings["robust_scale"])
     A = _normal_equations(twist, about, moved, r, w)[0]
     A[:, np.arange(len(free)), np.arange(len(free))] += settings["smoothing"] ** 2 + 1e-9
     A[:, ~free] = A[:, :, ~free] = 0.0
@@ -831,7 +833,6 @@ def _reject_outliers(res: PoseFit, markers: np.ndarray, model: "SubjectModel",
     return removed
 
 
-
 def _column_median(values: np.ndarray) -> np.ndarray:
     """Median of each column of ``values`` (F, M) over its non-NaN entries, shape (M,); NaN
     for a column without any (as np.nanmedian, without its masked-array path)."""
@@ -840,6 +841,7 @@ def _column_median(values: np.ndarray) -> np.ndarray:
     columns = np.arange(values.shape[1])
     middle = 0.5 * (ordered[np.maximum(count - 1, 0) // 2, columns] + ordered[count // 2, columns])
     return np.where(count > 0, middle, np.nan)
+
 
 def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
     """The runs of ``suspect`` (F, M) bool that begin or end with a jump, (F, M) bool.
