@@ -439,7 +439,6 @@ def _event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: floa
     return GaitEvent(side, kind, float(time_s), frame, quality)
 
 
-
 #: Labels of lab-recorded events (C3D EVENT group: Vicon, Qualisys, our synthetic captures) and
 #: the event kind each marks; the side is the context's first letter (Left/Right), else the
 #: label's (LTO).

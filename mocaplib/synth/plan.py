@@ -51,6 +51,7 @@ def locomotion_type(name: str, /, *, sided: bool = True) -> str:
     kind = re.sub(_NAME_DETAILS, "", name)
     return kind if sided else re.sub(r"_(left|right)(?=_|$)", "", kind)
 
+
 @dataclass(frozen=True)
 class PlannedCapture:
     """One entry of a plan: what to generate and how."""
