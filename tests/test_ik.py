@@ -6,8 +6,8 @@ from fk_data import fk_trial, true_model
 
 from mocaplib.calibrate import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
-from mocaplib.ik import (_by_owner, _jacobian, _normal_equations, _twists, fit, fit_filtered,
-                         fit_quality, initial_pose, keyframes, solve_poses)
+from mocaplib.ik import (_jacobian, _normal_equations, _twists, fit, fit_filtered, fit_quality,
+                         initial_pose, keyframes, solve_poses)
 from mocaplib.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES, MOVES, Skeleton
 from mocaplib.trial import Trial
@@ -269,7 +269,7 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
     assert np.quantile(off, 0.99) < 5e-4 and off.max() < 5e-3, (np.quantile(off, 0.99), off.max())
 
 
-def test_keyframe_jacobians_and_per_owner_products_equal_their_dense_forms():
+def test_keyframe_jacobians_equal_the_skeletons_dense_form():
     cap = fk_trial(n_frames=5, placement_mm=0, sta_mm=6, noise_mm=1, seed=4)
     q = cap.q + np.random.default_rng(2).normal(0, 2 * DEG, cap.q.shape)
     chain = cap.skeleton.chain(q)
@@ -279,11 +279,6 @@ def test_keyframe_jacobians_and_per_owner_products_equal_their_dense_forms():
     J = _jacobian(twist, about, MOVES[cap.segments].astype(float))
     # rows x of every marker, then y, then z; round-off only (levers up to ~1.5 m)
     np.testing.assert_allclose(J, jac.transpose(0, 2, 1, 3).reshape(J.shape), atol=1e-13)
-    rng = np.random.default_rng(3)
-    matrices, vectors = rng.normal(size=(3, 6, 6)), rng.normal(size=(7, 6))
-    owner = np.array([0, 0, 1, 1, 1, 2, 2])
-    np.testing.assert_allclose(_by_owner(matrices, owner, vectors),
-                               np.einsum("fij,fj->fi", matrices[owner], vectors), atol=1e-13)
 
 
 def test_initial_pose_interpolates_a_segment_unseen_for_a_while():
