@@ -39,8 +39,8 @@ from .errors import FitError
 from .filtering import valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, Skeleton,
-                       elementary_rotations)
+from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, SHIFTS,
+                       Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
 
 if TYPE_CHECKING:
     from .calibrate import SubjectModel
@@ -87,8 +87,6 @@ CHUNK = 1000
 
 _LOWER, _UPPER = Skeleton.bounds()
 _ROOT = SEGMENT_NAMES.index("pelvis")
-_ROTATION = np.array([not d.translation for d in DOFS])
-_SHIFTS = np.flatnonzero(~_ROTATION)                        # the root's translations
 #: (D, D) for :func:`_normal_equations`: 1 where DOF i moves the segment of DOF j (j's markers
 #: are a subset of i's). Parents' DOFs come first, so above the diagonal it holds every pair
 #: that shares markers.
@@ -97,7 +95,6 @@ _UPPER_I, _UPPER_J = np.triu_indices(len(DOFS), 1)
 assert (np.tril(_ANCESTOR, -1) <= _ANCESTOR.T).all(), "a DOF listed before its parent's"
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
 _QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
-_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
 
 
 @dataclass
@@ -174,7 +171,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     rows = np.flatnonzero((owner >= 0) & inside.all(axis=1))
     if rows.size:
         every = rows.size == n_frames                # then no copies of the big arrays
-        twist, origin = _twists(chains if every else tuple(c[rows] for c in chains))
+        twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
         about = (pts if every else pts[rows]) - origin[:, :, None]
         r = (target if every else target[rows]) - (pts if every else pts[rows])
         g = _gradient(twist, about, moved, r, w_marker[rows] * _soft_l1_weight(_norm3(r),
@@ -204,7 +201,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         r = (target if every else target[rows]) - (pts if every else pts[rows])
         d = _norm3(r)
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
-        twist, origin = _twists(chains if every else tuple(c[rows] for c in chains))
+        twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
         about = (pts if every else pts[rows]) - origin[:, :, None]
         A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
@@ -314,9 +311,9 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     """Gauss–Newton normal equations ``JᵀWJ`` (F, D, D) and ``JᵀWr`` (F, D) without the
     (F, M, 3, D) Jacobian.
 
-    ``twist`` (F, 6, D): :func:`_twists` at the current poses; ``p`` (F, 3, M) the markers
-    there, about the twists' origin; ``moved`` (M, D) 1 where DOF d moves marker m; ``r``
-    (F, 3, M) marker minus model; ``w`` (F, M) weights (0 for missing markers).
+    ``twist`` (F, 6, D): :func:`~mocaplib.skeleton.twists` at the current poses; ``p``
+    (F, 3, M) the markers there, about the twists' origin; ``moved`` (M, D) 1 where DOF d moves
+    marker m; ``r`` (F, 3, M) marker minus model; ``w`` (F, M) weights (0 for missing markers).
 
     DOF ``i`` moves a point ``p`` at the velocity ``ωᵢ × p + vᵢ`` (its twist: ``ω`` its world
     axis and ``v = c × ω`` about its pivot ``c`` for a rotation; ``ω = 0``, ``v`` its axis for a
@@ -340,26 +337,12 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     H_s[:, 0] = trace * ox - (qxx * ox + qxy * oy + qxz * oz)
     H_s[:, 1] = trace * oy - (qxy * ox + qyy * oy + qyz * oz)
     H_s[:, 2] = trace * oz - (qxz * ox + qyz * oy + qzz * oz)
-    H_s[:, :3] += _cross_rows(P, v)
-    H_s[:, 3:] = W[:, None] * v + _cross_rows(omega, P)
+    H_s[:, :3] += cross_rows(P, v)
+    H_s[:, 3:] = W[:, None] * v + cross_rows(omega, P)
     A = twist.transpose(0, 2, 1) @ H_s
     A *= _ANCESTOR                          # right on and above the diagonal: mirror it below
     A[:, _UPPER_J, _UPPER_I] = A[:, _UPPER_I, _UPPER_J]
     return A, _gradient(twist, p, moved, r, w)
-
-
-def _twists(chain: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """Each DOF's twist (F, 6, D) — world axis ω (0 for a translation) over ``v`` — about the
-    pelvis origin (F, 3), from :meth:`~mocaplib.skeleton.Skeleton.chain`: see
-    :func:`_normal_equations`."""
-    transforms, axes, pivots = chain
-    origin = transforms[:, _ROOT, :3, 3]                   # moments about the pelvis: round-off
-    twist = np.empty((len(axes), 6, axes.shape[1]))
-    axes = axes.transpose(0, 2, 1)
-    np.multiply(axes, _ROTATION, out=twist[:, :3])
-    twist[:, 3:] = np.where(_ROTATION, _cross_rows((pivots - origin[:, None]).transpose(0, 2, 1),
-                                                   axes), axes)
-    return twist, origin
 
 
 def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray,
@@ -369,22 +352,9 @@ def _gradient(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np.ndarray
     n, m = w.shape
     moments = np.empty((n, 6, m))
     wr = np.multiply(w[:, None], r, out=moments[:, 3:])
-    moments[:, :3] = _cross_rows(p, wr)
+    moments[:, :3] = cross_rows(p, wr)
     total = (moments.reshape(n * 6, m) @ moved).reshape(n, 6, moved.shape[1])
     return (twist * total).sum(axis=1)
-
-
-def _jacobian(twist: np.ndarray, p: np.ndarray, moved: np.ndarray) -> np.ndarray:
-    """Marker Jacobians (F, 3M, D) (rows: x of every marker, then y, then z) from the twists
-    (F, 6, D) and the markers ``p`` (F, 3, M) about their origin: DOF d moves marker m at
-    ``ω_d × p_m + v_d`` where ``moved`` (M, D) says it moves it at all."""
-    n, m = p.shape[0], p.shape[2]
-    out = np.empty((n, 3, m, twist.shape[2]))
-    for c, (a, b) in enumerate(zip(_NEXT, _AFTER)):
-        out[:, c] = (twist[:, a, None] * p[:, b, :, None] - twist[:, b, None] * p[:, a, :, None]
-                     + twist[:, 3 + c, None])
-    out *= moved
-    return out.reshape(n, 3 * m, -1)
 
 
 def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
@@ -394,13 +364,7 @@ def _first_order_move(twist: np.ndarray, p: np.ndarray, moved: np.ndarray,
     n = len(step)
     total = (twist * step[:, None]).reshape(n * 6, moved.shape[1]) @ moved.T
     total = total.reshape(n, 6, len(moved))
-    return _cross_rows(total[:, :3], p) + total[:, 3:]
-
-
-def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
-    axis shuffling."""
-    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
+    return cross_rows(total[:, :3], p) + total[:, 3:]
 
 
 def _soft_l1(d: np.ndarray, c: float) -> np.ndarray:
@@ -457,7 +421,7 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             R_parent = np.broadcast_to(np.eye(3), (n_frames, len(segs), 3, 3))
             R, t, ok = _kabsch(local, world)
             rel = R
-            q[:, _SHIFTS] = t[:, 0]
+            q[:, SHIFTS] = t[:, 0]
         else:
             R_parent = rot[:, parents]
             centre = (R_parent @ joint[segs, :, None])[..., 0] + pos[:, parents]
@@ -474,7 +438,7 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         for j in spins.T:
             R = R @ local_rot[:, j]
         rot[:, segs] = R
-        pos[:, segs] = q[:, None, _SHIFTS] if parents is None else centre
+        pos[:, segs] = q[:, None, SHIFTS] if parents is None else centre
     q = q[:, :-1]
     heading = DOF_NAMES.index("pelvis_rotation")
     q[:, heading] = np.unwrap(q[:, heading])
@@ -670,7 +634,7 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     n = len(markers)
     free = settings["free"]
     chain = skeleton.chain(q_keys)
-    twist, origin = _twists(chain)
+    twist, origin = twists(chain)
     about = _points(chain[0], _marker_map(segments, model.marker_offsets)) - origin[:, :, None]
     valid = _seen(markers)
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
@@ -682,7 +646,7 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     A[:, ~free] = A[:, :, ~free] = 0.0
     A[:, ~free, ~free] = 1.0
     inverse = np.linalg.inv(A)
-    jacobian = _jacobian(twist, about, moved)                     # (K, 3M, D)
+    jacobian = twist_jacobian(twist, about, moved).reshape(len(keys), -1, len(free))  # (K, 3M, D)
     jacobian[..., ~free] = 0.0
     at_key = about + origin[:, :, None]
     after, alpha = _bracket(keys, n)

@@ -139,7 +139,10 @@ SEGMENT_NAMES: tuple[str, ...] = tuple(s.name for s in SEGMENTS)
 DOF_NAMES: tuple[str, ...] = tuple(d.name for d in DOFS)
 _SEGMENT_INDEX = {name: i for i, name in enumerate(SEGMENT_NAMES)}
 _DOF_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
-_TRANSLATION = np.array([d.translation for d in DOFS])
+#: ``TRANSLATION[j]``: DOF ``j`` is a translation (metres), not a rotation (shape (D,), bool).
+TRANSLATION = np.array([d.translation for d in DOFS])
+#: The translation DOFs' indices (the root's pelvis_t*).
+SHIFTS = np.flatnonzero(TRANSLATION)
 
 
 def _moves() -> np.ndarray:
@@ -198,7 +201,7 @@ def _spin_entries() -> tuple[np.ndarray, ...]:
     padding slot: the identity): flat indices of the ones, of the cosines and of the sines,
     the rotation DOF (index into :data:`_SPINS`) of each cosine and sine, and each sine's sign.
     """
-    spins = np.flatnonzero(~_TRANSLATION)
+    spins = np.flatnonzero(~TRANSLATION)
     one, cos, cos_dof, sin, sin_dof, sin_sign = [], [], [], [], [], []
     for j in range(len(DOFS) + 1):
         if j == len(DOFS) or DOFS[j].translation:
@@ -221,11 +224,12 @@ def _spin_entries() -> tuple[np.ndarray, ...]:
 LEVELS = _levels()
 _SPINS, _SPIN_ONE, _SPIN_COS, _SPIN_COS_DOF, _SPIN_SIN, _SPIN_SIN_DOF, _SPIN_SIN_SIGN = \
     _spin_entries()
-_SHIFTS = np.flatnonzero(_TRANSLATION)                    # translation DOFs
 _AXES = np.array([d.axis for d in DOFS])
+_ROOT = int(LEVELS[0][0][0])                             # the root segment (the pelvis)
+_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
 _EYE = np.eye(3)[None, None]                             # the root's parent frame (1, 1, 3, 3)
 assert all(SEGMENTS[_SEGMENT_INDEX[DOFS[j].segment]].parent is None
-           for j in _SHIFTS), "chain() takes translations at the root only"
+           for j in SHIFTS), "chain() takes translations at the root only"
 
 #: Segment lengths as fractions of standing height (Winter 2009, Fig. 4.1; hip-centre width after
 #: Harrington 2007's adult mean). Keys are the names used by :meth:`Skeleton.joint_offsets`.
@@ -362,11 +366,11 @@ class Skeleton:
         out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
         axes = np.zeros((n, len(DOFS) + 1, 3))
         pivots = np.zeros((n, len(DOFS) + 1, 3))
-        axes[:, _SHIFTS] = _AXES[_SHIFTS]                      # the root's, unrotated
+        axes[:, SHIFTS] = _AXES[SHIFTS]                        # the root's, unrotated
         for segments, parents, spins, letters, signs in LEVELS:
             if parents is None:
                 R = _EYE
-                p = offsets[segments] + (q[:, _SHIFTS] @ _AXES[_SHIFTS])[:, None]
+                p = offsets[segments] + (q[:, SHIFTS] @ _AXES[SHIFTS])[:, None]
             else:
                 parent = out[:, parents]
                 R = parent[..., :3, :3]
@@ -399,37 +403,16 @@ class Skeleton:
         points : ndarray, shape (F, M, 3), metres (as :meth:`points`).
         jacobian : ndarray, shape (F, M, 3, D): d point / d q, metres per radian (or per metre
             for ``pelvis_t*``). A rotation DOF moves the points of its segment and descendants
-            by ``axis x (point - pivot)``; a translation DOF by its axis.
+            by ``axis x (point - pivot)``; a translation DOF by its axis (a view of
+            :func:`twist_jacobian`'s (F, 3, M, D) array).
         """
-        pts, blocks = self.jacobian_blocks(q, segments, offsets, chain=chain)
-        jac = np.zeros(pts.shape[:2] + (3, len(DOFS)))
-        for rows, dofs, block in blocks:
-            # (advanced indices first: the assigned block is laid out (m, d, F, 3))
-            jac[:, rows[:, None], :, dofs[None, :]] = block.transpose(1, 3, 0, 2)
-        return pts, jac
-
-    def jacobian_blocks(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
-                        chain: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-                        ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-        """:meth:`marker_jacobian` without its zeros: points (F, M, 3) and, per segment holding
-        points, ``(rows, dofs, block)`` where ``block`` (F, m, 3, d) is d point[rows] / d q[dofs]
-        for the d DOFs that move that segment (the other columns are zero). ``chain`` is
-        :meth:`chain` (q) when already computed."""
         segments = np.asarray(segments, dtype=int)
-        T, axes, pivots = self.chain(q) if chain is None else chain
-        Ts = T[:, segments]
-        pts = (Ts[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + Ts[..., :3, 3]
-        blocks = []
-        for s in np.unique(segments):
-            rows = np.flatnonzero(segments == s)
-            dofs = np.flatnonzero(MOVES[s])
-            rot = ~_TRANSLATION[dofs]
-            block = np.empty((pts.shape[0], rows.size, 3, dofs.size))
-            lever = pts[:, rows, None, :] - pivots[:, None, dofs[rot], :]      # (F, m, d, 3)
-            block[..., rot] = _cross(axes[:, None, dofs[rot], :], lever).transpose(0, 1, 3, 2)
-            block[..., ~rot] = axes[:, None, dofs[~rot], :].transpose(0, 1, 3, 2)
-            blocks.append((rows, dofs, block))
-        return pts, blocks
+        chain = self.chain(q) if chain is None else chain
+        T = chain[0][:, segments]
+        pts = (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
+        twist, origin = twists(chain)
+        about = (pts - origin[:, None]).transpose(0, 2, 1)
+        return pts, twist_jacobian(twist, about, MOVES[segments]).transpose(0, 2, 1, 3)
 
     def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """World positions of points fixed in segments (markers, joint centres).
@@ -481,8 +464,36 @@ def axis_rotation(axis, angle: np.ndarray) -> np.ndarray:
     return (np.eye(3) + s[:, None, None] * K + (1.0 - c)[:, None, None] * (K @ K))
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of broadcast arrays of 3-vectors (last axis), as ``np.cross`` but lighter."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+def twists(chain: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Each DOF's twist (F, 6, D) about the root's origin (F, 3), from :meth:`Skeleton.chain`:
+    its world axis ω (0 for a translation) over ``v`` (``c × ω`` about its pivot ``c`` for a
+    rotation, its axis for a translation). DOF d moves a point ``p`` (about the origin: moments
+    about the pelvis keep round-off small) at ``ω_d × p + v_d``."""
+    transforms, axes, pivots = chain
+    origin = transforms[:, _ROOT, :3, 3]
+    twist = np.empty((len(axes), 6, axes.shape[1]))
+    axes = axes.transpose(0, 2, 1)
+    np.multiply(axes, ~TRANSLATION, out=twist[:, :3])
+    twist[:, 3:] = np.where(TRANSLATION, axes,
+                            cross_rows((pivots - origin[:, None]).transpose(0, 2, 1), axes))
+    return twist, origin
+
+
+def twist_jacobian(twist: np.ndarray, points: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """Jacobians (F, 3, M, D) of points (F, 3, M) (coordinates on axis 1, about the origin of
+    the twists (F, 6, D) of :func:`twists`): DOF d moves point m at ``ω_d × p_m + v_d`` where
+    ``moved`` (M, D) is 1 (``MOVES[segments]``), not at all where it is 0. The batched form of
+    :meth:`Skeleton.marker_jacobian`, for twists and points already at hand."""
+    n, m = points.shape[0], points.shape[2]
+    out = np.empty((n, 3, m, twist.shape[2]))
+    for c, (a, b) in enumerate(zip(_NEXT, _AFTER)):
+        out[:, c] = (twist[:, a, None] * points[:, b, :, None]
+                     - twist[:, b, None] * points[:, a, :, None] + twist[:, 3 + c, None])
+    out *= moved
+    return out
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
+    axis shuffling."""
+    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]

@@ -6,10 +6,10 @@ from fk_data import fk_trial, true_model
 
 from mocaplib.calibrate import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
-from mocaplib.ik import (_jacobian, _normal_equations, _twists, fit, fit_filtered, fit_quality,
-                         initial_pose, keyframes, solve_poses)
+from mocaplib.ik import (_normal_equations, fit, fit_filtered, fit_quality, initial_pose,
+                         keyframes, solve_poses)
 from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, MOVES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, MOVES, Skeleton, twists
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -230,7 +230,7 @@ def test_normal_equations_from_moments_equal_the_jacobians():
     pts, jac = cap.skeleton.marker_jacobian(q, cap.segments, cap.offsets, chain=chain)
     r = cap.trial.markers - pts
     w = np.random.default_rng(1).uniform(0.2, 1.0, r.shape[:2])
-    twist, origin = _twists(chain)
+    twist, origin = twists(chain)
     about = pts.transpose(0, 2, 1) - origin[:, :, None]
     A, g = _normal_equations(twist, about, MOVES[cap.segments].astype(float),
                              r.transpose(0, 2, 1).copy(), w)
@@ -267,18 +267,6 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
     # as the iterations do; along the few flat directions (ankle inversion, shoulder rotation:
     # markers a few cm from the axis) the relative-cost rule (1e-4) may stop up to ~0.2 deg off
     assert np.quantile(off, 0.99) < 5e-4 and off.max() < 5e-3, (np.quantile(off, 0.99), off.max())
-
-
-def test_keyframe_jacobians_equal_the_skeletons_dense_form():
-    cap = fk_trial(n_frames=5, placement_mm=0, sta_mm=6, noise_mm=1, seed=4)
-    q = cap.q + np.random.default_rng(2).normal(0, 2 * DEG, cap.q.shape)
-    chain = cap.skeleton.chain(q)
-    pts, jac = cap.skeleton.marker_jacobian(q, cap.segments, cap.offsets, chain=chain)
-    twist, origin = _twists(chain)
-    about = pts.transpose(0, 2, 1) - origin[:, :, None]
-    J = _jacobian(twist, about, MOVES[cap.segments].astype(float))
-    # rows x of every marker, then y, then z; round-off only (levers up to ~1.5 m)
-    np.testing.assert_allclose(J, jac.transpose(0, 2, 1, 3).reshape(J.shape), atol=1e-13)
 
 
 def test_initial_pose_interpolates_a_segment_unseen_for_a_while():
