@@ -92,6 +92,10 @@ MIN_PAIR_DISTANCE = 0.05
 #: Step 0 needs at least this many marker pairs seen in both trials; with fewer it is skipped.
 MIN_PAIRS = 3
 
+#: Heights (m) the markers may suggest before the capture is refused as having wrong units:
+#: a factor of 10 (cm read as mm or mm as cm) or more off any walking person's 0.8-2.3 m.
+PLAUSIBLE_HEIGHT = (0.4, 5.0)
+
 #: Residual (m) above which a left/right pair is checked for exchanged labels.
 SWAP_RESIDUAL = 0.03
 
@@ -192,7 +196,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                                f"got {static_pose!r}", path=getattr(static, "source", None))
     cal = static if static is not None else trial
     proto = choose_protocol(cal, protocol)
-    X_all = match_protocol(cal, proto, check_swaps=False).markers(cal)   # find_swaps decides
+    cal_match = match_protocol(cal, proto, check_swaps=False)   # find_swaps decides
+    X_all = cal_match.markers(cal)
     seen = np.isfinite(X_all[..., 0]).mean(axis=0) if cal.n_frames else np.zeros(len(proto.labels))
     used = np.flatnonzero(seen >= MIN_PRESENCE)
     markers = [proto.markers[j] for j in used]
@@ -200,10 +205,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in markers], dtype=int)
     n_pelvis = int((segments == SEGMENT_NAMES.index("pelvis")).sum())
     if n_pelvis < 3:
-        raise CalibrationError(
-            f"only {n_pelvis} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
-            "3 are needed to place the pelvis", path=cal.source,
-            hint="check the labels against the protocol, or pass --protocol")
+        _refuse_pelvis(cal, proto, cal_match, n_pelvis)
     if static is not None:
         X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
         check_same_subject(X_all[:, used], X_motion, segments, labels, static=static,
@@ -214,7 +216,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     nominal = np.array([m.landmark.position for m in markers])
     landmarks = [m.landmark.name for m in markers]
     if height is None:
-        height = estimate_height(X, segments, nominal)
+        height = estimate_height(X, segments, nominal, source=cal.source)
     scale = height / _protocols.REFERENCE_HEIGHT
     skeleton = Skeleton.from_height(height)
     nominal_scaled = nominal * scale
@@ -275,6 +277,24 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
 
 # ----------------------------------------------------------------------------- pieces
+def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
+    """Raise the error for a trial with fewer than 3 usable pelvis markers, saying whether
+    they are not labelled or labelled but missing in most frames."""
+    labelled = [m.label for m, i in zip(proto.markers, match.indices)
+                if i >= 0 and m.landmark.segment == "pelvis"]
+    if len(labelled) >= 3:
+        raise CalibrationError(
+            f"pelvis markers {', '.join(labelled)} are labelled but only {n_seen} of them are "
+            f"seen in at least {MIN_PRESENCE:.0%} of the {cal.n_frames} frames; 3 are needed "
+            "to place the pelvis", path=cal.source,
+            hint="the capture is too short or those markers are missing in most frames: "
+                 "check its gaps with `mocaplib inspect`")
+    raise CalibrationError(
+        f"only {n_seen} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
+        "3 are needed to place the pelvis", path=cal.source,
+        hint="check the labels against the protocol, or pass --protocol")
+
+
 def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Median distance (P,) metres over the frames of X (F, M, 3) of every marker pair on one
     segment (``segments`` (M,)), and the pairs (P, 2) as marker indices; NaN for a pair never
@@ -413,11 +433,15 @@ def _calibration_frames(X: np.ndarray, n_frames: int) -> np.ndarray:
     return good[np.unique(pick)]
 
 
-def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray) -> float:
-    """Standing height, metres, from marker distances within segments vs nominal (1.75 m).
+def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
+                    source: str | None = None) -> float:
+    """Standing height, metres, from marker distances within segments vs nominal (1.75 m),
+    clipped to 0.8-2.3 m.
 
     X (F, M, 3) markers; segments (M,); nominal (M, 3) catalogue positions for 1.75 m. Falls
-    back to 1.75 m when no segment carries two markers seen together.
+    back to 1.75 m when no segment carries two markers seen together. Raises
+    :class:`CalibrationError` naming ``source`` when the distances suggest a height outside
+    :data:`PLAUSIBLE_HEIGHT` (the file's units are wrong).
     """
     ratios = []
     for s in np.unique(segments):
@@ -431,7 +455,14 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray) ->
                     ratios.append(d / ref)
     if not ratios:
         return _protocols.REFERENCE_HEIGHT
-    return float(np.clip(np.median(ratios) * _protocols.REFERENCE_HEIGHT, 0.8, 2.3))
+    height = float(np.median(ratios) * _protocols.REFERENCE_HEIGHT)
+    if not PLAUSIBLE_HEIGHT[0] <= height <= PLAUSIBLE_HEIGHT[1]:
+        raise CalibrationError(
+            f"the distances between markers on one segment suggest a subject {height:.3g} m "
+            "tall: the coordinates are not in the units the file states", path=source,
+            hint="check POINT:UNITS: millimetres stored as 'm' make the subject 1000 times "
+                 "too tall, metres stored as 'mm' 1000 times too small; re-export the file")
+    return float(np.clip(height, 0.8, 2.3))
 
 
 def harrington_hips(lasi, rasi, back) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,7 @@
 """Subject calibration on forward-kinematics captures whose skeleton and offsets are known."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from fk_data import fk_trial
@@ -69,6 +71,28 @@ def test_too_few_pelvis_markers_is_an_error():
     keep = [i for i, label in enumerate(cap.trial.labels) if label not in ("LPSI", "RPSI")]
     with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: only 2 pelvis marker"):
         calibrate(cap.trial.select(keep), protocol="fullbody38")
+
+
+@pytest.mark.parametrize("factor", [1000.0, 0.001])
+def test_coordinates_in_the_wrong_units_are_refused(factor):
+    # millimetres labelled as metres (x1000) or the reverse: a subject 1750 m or 1.75 mm tall
+    # was clipped to 2.3 / 0.8 m and fitted with residuals of metres, or failed in the fit
+    cap = fk_trial(n_frames=10)
+    trial = dataclasses.replace(cap.trial, markers=cap.trial.markers * factor)
+    with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: .* subject .* m tall.*"
+                                               r"POINT:UNITS"):
+        calibrate(trial, protocol="fullbody38")
+
+
+def test_pelvis_markers_missing_in_most_frames_are_told_apart_from_absent_labels():
+    cap = fk_trial(n_frames=40)
+    markers = cap.trial.markers.copy()
+    markers[2:] = np.nan  # every marker labelled, seen in 2 of 40 frames (< MIN_PRESENCE)
+    trial = dataclasses.replace(cap.trial, markers=markers)
+    with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: pelvis markers LASI, "
+                                               r"RASI, LPSI, RPSI are labelled but only 0 .* "
+                                               r"40 frames.*too short"):
+        calibrate(trial, protocol="fullbody38")
 
 
 def test_harrington_regression_in_the_asis_frame():
