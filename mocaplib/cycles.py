@@ -21,6 +21,8 @@ on one, so callers keep all of them on request (``--all-cycles``).
 v̂_f = 0, pattern ``point``, nominal period :data:`REST_PERIOD` (1.0 s, about the stride time
 of normal walking, so rest blends with slow walking on a comparable time base), starting at the
 capture's first frame; its Fourier encoding is order 0 (the mean posture over that second).
+A capture shorter than that second (a fragment of walking has no gait event either) is an
+error, not a rest entry.
 """
 
 from __future__ import annotations
@@ -201,9 +203,11 @@ def _unsteadiness(times: np.ndarray, mid: np.ndarray, heading: np.ndarray) -> fl
 
 
 def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -> Cycle:
-    if n_frames < 2:
-        raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry", path=source,
-                         hint="capture at least a second of standing")
+    if n_frames < max(2, round(REST_PERIOD * rate)):
+        raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry: "
+                         f"{n_frames / rate:.3g} s without a gait event, shorter than the "
+                         f"{REST_PERIOD:g} s a rest entry spans", path=source,
+                         hint="capture at least a second of standing, or two full strides")
     times = cycle_times(0.0, min(REST_PERIOD, (n_frames - 1) / rate), rate)
     mid, _ = sample_shoulders(left, right, rate, times, source=source)
     pattern = Pattern("point", {"point": mid[:, :2].mean(axis=0)})

@@ -90,6 +90,19 @@ def test_standing_gives_one_rest_entry():
                                atol=1e-9)
 
 
+@pytest.mark.parametrize("n_frames", [1, 2, 30, 99])
+def test_a_capture_shorter_than_the_rest_period_is_not_a_rest_entry(n_frames):
+    # 2 frames of walking (no gait event in 0.02 s) became a 1 s rest entry in the library
+    left, right = shoulders(TIME, v_f=1.2, period=PERIOD)
+    q = np.zeros((len(TIME), len(DOF_NAMES)))
+    with pytest.raises(EventError, match=rf"short.c3d: a capture of {n_frames} frame\(s\) "
+                                         r"cannot be a rest entry: .* s without a gait event"):
+        analyse_cycles([], left[:n_frames], right[:n_frames], RATE, q=q[:n_frames],
+                       source="short.c3d")
+    (rest,) = analyse_cycles([], left[:100], right[:100], RATE, q=q[:100])  # 1 s is enough
+    assert rest.rest
+
+
 def test_cycles_with_fourier():
     left, right = shoulders(TIME, v_f=1.2, period=PERIOD)
     q = np.zeros((len(TIME), len(DOF_NAMES)))
