@@ -217,9 +217,10 @@ def _checked_points(heel, toe, rate, side, source):
     if heel.shape != toe.shape:
         raise EventError(f"{side} heel {heel.shape} and toe {toe.shape} differ in length",
                          path=source)
-    if not np.isfinite(heel[:, 2]).any() or not np.isfinite(toe[:, 2]).any():
-        raise EventError(f"{side} heel or toe is missing in every frame", path=source,
-                         hint="check the protocol matched the foot markers")
+    for name, points in (("heel", heel), ("toe", toe)):
+        if not np.isfinite(points[:, 2]).any():
+            raise EventError(f"{side} {name} is missing in every frame", path=source,
+                             hint="check the protocol matched the foot markers")
     return heel, toe
 
 
@@ -484,17 +485,22 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
     marker is missing are taken from the fitted skeleton's position of that marker, except in
     frames the fit flagged as failed (they stay missing); the events' ``quality`` then counts
     those model samples as measured. Raises
-    :class:`EventError` naming the missing landmark.
+    :class:`EventError` naming the missing landmark, or the marker missing in every frame.
     """
     present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
 
-    def track(label):
+    def track(side, label):
         points = match.marker(trial, label)
         if modelled is not None and label in motion.marker_labels:
             model_points = modelled[:, motion.marker_labels.index(label)]
             usable = np.isnan(points) & ~np.asarray(motion.failed, dtype=bool)[:, None]
             points = np.where(usable, model_points, points)
+        if np.isnan(points[:, 2]).all():
+            raise EventError(f"{side} foot marker {label} is missing in every frame",
+                             path=trial.source,
+                             hint="gait events need it: check the capture's gaps with `mocaplib "
+                                  "inspect` (samples at exactly 0,0,0 count as missing)")
         return points
 
     feet = {}
@@ -505,5 +511,5 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
             raise EventError(f"no {side} {what} marker in protocol {match.protocol.name!r}",
                              path=trial.source,
                              hint="gait events need a heel and a toe marker on each foot")
-        feet[side] = (track(present[heel]), track(present[toe]))
+        feet[side] = (track(side, present[heel]), track(side, present[toe]))
     return feet

@@ -100,12 +100,25 @@ def test_bad_input_names_the_file():
         foot_events(heel[:, :2], toe, RATE, side="left", source="walk.c3d")
     with pytest.raises(EventError, match="differ in length"):
         foot_events(heel[:-1], toe, RATE, side="left")
-    with pytest.raises(EventError, match="missing in every frame"):
+    with pytest.raises(EventError, match="left heel is missing in every frame"):
         foot_events(np.full_like(heel, np.nan), toe, RATE, side="left")
     with pytest.raises(EventError, match="unknown foot side"):
         detect_events({"middle": (heel, toe)}, RATE)
     with pytest.raises(EventError, match="frame rate"):
         foot_events(heel, toe, 0.0, side="left")
+
+
+def test_a_foot_marker_missing_in_every_frame_is_named():
+    # the message said 'left heel or toe is missing in every frame', naming no marker
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+    from conftest import SAMPLES
+
+    trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    trial.markers[:, trial.labels.index("LHEE")] = np.nan
+    with pytest.raises(EventError, match=r"walk_straight_normal.c3d: left foot marker LHEE is "
+                                         r"missing in every frame.*mocaplib inspect"):
+        feet_of(trial, match_trial(trial, "fullbody38"))
 
 
 LAB_FILES = ["biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
