@@ -155,6 +155,12 @@ class SubjectModel:
         """DOFs the fit may move, bool (D,)."""
         return np.array([name not in self.locked_dofs for name in DOF_NAMES])
 
+    @property
+    def swap_warnings(self) -> list[str]:
+        """One sentence per left/right pair in :attr:`swapped`, for the user."""
+        return [f"labels {a} and {b} look exchanged (each marker lies where the other belongs); "
+                "the fit exchanges them back: check the labelling" for a, b in self.swapped]
+
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
     """The protocol to use: the one given (object, shipped name or TOML path), else the one

@@ -500,7 +500,7 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
             raise EventError(f"{side} foot marker {label} is missing in every frame",
                              path=trial.source,
                              hint="gait events need it: check the capture's gaps with `mocaplib "
-                                  "inspect` (samples at exactly 0,0,0 count as missing)")
+                                  "inspect`; samples at exactly 0,0,0 count as missing")
         return points
 
     feet = {}

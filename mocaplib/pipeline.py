@@ -212,6 +212,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("calibrate"):
         model = calibrate(filtered, protocol=match.protocol, static=static,
                           static_pose=settings.static_pose)
+    result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
     if motion.locked_dofs:

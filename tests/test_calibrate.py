@@ -123,6 +123,9 @@ def test_exchanged_left_right_labels_are_found_and_undone(walk):
     swapped = Trial(walk.trial.markers, labels, walk.trial.rate, source="swapped.c3d")
     model = calibrate(swapped, protocol="fullbody38")
     assert model.swapped == [("LSHO", "RSHO")]
+    assert model.swap_warnings == ["labels LSHO and RSHO look exchanged (each marker lies where "
+                                   "the other belongs); the fit exchanges them back: check the "
+                                   "labelling"]
     motion = fit(swapped, model)
     # once exchanged back the capture fits as well as the unswapped one (6 mm artefact)
     assert np.nanmax(motion.marker_rms()) < 0.006

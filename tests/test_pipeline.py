@@ -227,6 +227,25 @@ def test_process_capture_returns_errors_instead_of_raising(tmp_path):
     assert result.to_dict()["ok"] is False  # JSON-ready for the cache
 
 
+def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
+    # the fit exchanged them back silently: motonms Walking3's swapped acromions went unreported
+    from conftest import SAMPLES
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(SAMPLES / "rest.c3d")
+    labels = list(trial.labels)
+    i, j = labels.index("LSHO"), labels.index("RSHO")
+    labels[i], labels[j] = labels[j], labels[i]
+    path = write_c3d(tmp_path / "swapped.c3d", trial.markers[:120], labels, trial.rate)
+    result = process_capture(path, BuildSettings())
+    assert result.ok, result.error
+    assert any(w.startswith("labels LSHO and RSHO look exchanged") for w in result.warnings), \
+        result.warnings
+    assert main(["fit", str(path), "-o", str(tmp_path / "angles.csv")]) == 0
+    assert "swapped.c3d: labels LSHO and RSHO look exchanged" in capsys.readouterr().err
+
+
 # --------------------------------------------------------------------------- CLI
 def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(pipeline, "process_capture", fake_process)

@@ -49,6 +49,8 @@ def _run(args) -> int:
     if args.osim:
         write_osim(model, args.osim)
     quality = fit_quality(motion)
+    for note in model.swap_warnings:
+        warn(f"{model.source}: {note}")
     if model.left_out:
         warn(f"{args.input}: no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
     if quality["failed_frames"]:
