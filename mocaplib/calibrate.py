@@ -69,7 +69,7 @@ import numpy as np
 
 from . import protocols as _protocols
 from .errors import CalibrationError
-from .ik import initial_pose, solve_poses
+from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
 from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
 from .trial import Trial
@@ -214,6 +214,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         _refuse_pelvis(cal, proto, cal_match, n_pelvis)
     if static is not None:
         X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
+        _check_motion_markers(X_motion, segments, labels, proto, static=static, trial=trial)
         check_same_subject(X_all[:, used], X_motion, segments, labels, static=static,
                            trial=trial)
     locked, left_out = locked_dofs(segments)
@@ -299,6 +300,21 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         f"only {n_seen} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
         "3 are needed to place the pelvis", path=cal.source,
         hint="check the labels against the protocol, or pass --protocol")
+
+
+def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: list[str],
+                          proto: Protocol, *, static: Trial, trial: Trial) -> None:
+    """Refuse a static whose pelvis markers the motion trial (F, M, 3) never shows together:
+    no frame of it could be fitted with the static's model (a static of another marker set)."""
+    pelvis = segments == SEGMENT_NAMES.index("pelvis")
+    most = int(np.isfinite(X_motion[:, pelvis, 0]).sum(axis=1).max(initial=0))
+    if most < MIN_PELVIS_MARKERS:
+        names = ", ".join(np.array(labels)[pelvis])
+        raise CalibrationError(
+            f"the motion trial {trial.source} never shows {MIN_PELVIS_MARKERS} of this static's "
+            f"pelvis markers ({names}, protocol {proto.name!r}) in one frame: the static is of "
+            "another marker set", path=static.source,
+            hint="give the static of this capture's session, or pass --protocol")
 
 
 def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

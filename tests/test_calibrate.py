@@ -95,6 +95,18 @@ def test_pelvis_markers_missing_in_most_frames_are_told_apart_from_absent_labels
         calibrate(trial, protocol="fullbody38")
 
 
+def test_static_of_another_marker_set_is_refused(walk):
+    # the protocol came from the static's labels and the motion, in another marker set, failed
+    # in the fit: 'walk: no frame could be fitted', blaming the motion
+    static = fk_trial(n_frames=20, seed=0, static=True).trial
+    other = walk.trial.select([i for i, label in enumerate(walk.trial.labels)
+                               if label not in ("LASI", "RASI", "LPSI", "RPSI")])
+    with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: the motion trial .* never "
+                                               r"shows 2 of this static's pelvis markers .*"
+                                               r"another marker set"):
+        calibrate(other, static=static, protocol="fullbody38")
+
+
 def test_harrington_regression_in_the_asis_frame():
     # pelvis facing +X, level: ASIS 0.24 m apart, mid-PSIS 0.15 m behind mid-ASIS
     lasi, rasi, back = np.array([[0.0, 0.12, 1.0]]), np.array([[0.0, -0.12, 1.0]]), \
