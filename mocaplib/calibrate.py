@@ -308,13 +308,18 @@ def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: li
     no frame of it could be fitted with the static's model (a static of another marker set)."""
     pelvis = segments == SEGMENT_NAMES.index("pelvis")
     most = int(np.isfinite(X_motion[:, pelvis, 0]).sum(axis=1).max(initial=0))
-    if most < MIN_PELVIS_MARKERS:
-        names = ", ".join(np.array(labels)[pelvis])
-        raise CalibrationError(
-            f"the motion trial {trial.source} never shows {MIN_PELVIS_MARKERS} of this static's "
-            f"pelvis markers ({names}, protocol {proto.name!r}) in one frame: the static is of "
-            "another marker set", path=static.source,
-            hint="give the static of this capture's session, or pass --protocol")
+    if most >= MIN_PELVIS_MARKERS:
+        return
+    names = np.array(labels)[pelvis]
+    present = match_protocol(trial, proto, check_swaps=False).present_landmarks.values()
+    shows = (f"never shows {MIN_PELVIS_MARKERS} of the static's pelvis markers "
+             f"({', '.join(names)}, protocol {proto.name!r}) in one frame")
+    if sum(name in present for name in names) >= MIN_PELVIS_MARKERS:
+        raise CalibrationError(f"this motion trial {shows}: they are missing in its frames",
+                               path=trial.source, hint="check its gaps with `mocaplib inspect`")
+    raise CalibrationError(f"the motion trial {trial.source} {shows}: the static is of another "
+                           "marker set", path=static.source,
+                           hint="give the static of this capture's session, or pass --protocol")
 
 
 def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -102,9 +102,14 @@ def test_static_of_another_marker_set_is_refused(walk):
     other = walk.trial.select([i for i, label in enumerate(walk.trial.labels)
                                if label not in ("LASI", "RASI", "LPSI", "RPSI")])
     with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: the motion trial .* never "
-                                               r"shows 2 of this static's pelvis markers .*"
+                                               r"shows 2 of the static's pelvis markers .*"
                                                r"another marker set"):
         calibrate(other, static=static, protocol="fullbody38")
+    gaps = dataclasses.replace(walk.trial, markers=walk.trial.markers.copy(), source="gaps.c3d")
+    gaps.markers[:, [gaps.labels.index(label) for label in ("LASI", "RASI", "LPSI")]] = np.nan
+    with pytest.raises(CalibrationError, match=r"gaps.c3d: this motion trial never shows 2 .* "
+                                               r"they are missing in its frames"):
+        calibrate(gaps, static=static, protocol="fullbody38")
 
 
 def test_harrington_regression_in_the_asis_frame():
