@@ -484,14 +484,17 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
     :data:`FOOT_LANDMARKS`. With a fitted ``motion`` (:class:`mocaplib.Motion`), samples where a
     marker is missing are taken from the fitted skeleton's position of that marker, except in
     frames the fit flagged as failed (they stay missing); the events' ``quality`` then counts
-    those model samples as measured. Raises
+    those model samples as measured; and a left/right pair the calibration found exchanged
+    (``motion.swapped``, e.g. LHEE/RHEE) is read exchanged back, as the fit reads it. Raises
     :class:`EventError` naming the missing landmark, or the marker missing in every frame.
     """
     present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
+    partner = {} if motion is None else {a: b for pair in motion.swapped
+                                         for a, b in (pair, pair[::-1])}
 
     def track(side, label):
-        points = match.marker(trial, label)
+        points = match.marker(trial, partner.get(label, label))
         if modelled is not None and label in motion.marker_labels:
             model_points = modelled[:, motion.marker_labels.index(label)]
             usable = np.isnan(points) & ~np.asarray(motion.failed, dtype=bool)[:, None]

@@ -602,7 +602,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   rejected=rejected,
                   locked_dofs=list(model.locked_dofs),
                   marker_segments=np.array(model.marker_segments),
-                  marker_offsets=np.array(model.marker_offsets), source=trial.source)
+                  marker_offsets=np.array(model.marker_offsets),
+                  swapped=list(model.swapped), source=trial.source)
 
 
 def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict

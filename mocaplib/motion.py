@@ -40,6 +40,9 @@ class Motion:
         DOFs held at zero because the protocol lacks the markers to see them.
     marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
         Each marker's segment index and its position in that segment's frame (metres).
+    swapped : list of (label, label)
+        Left/right pairs whose labels the trial exchanges (found by calibration); the fit read
+        each marker of a pair from the other's trajectory, and so do the gait events.
     source : str or None
         The capture's file.
     """
@@ -54,6 +57,7 @@ class Motion:
     locked_dofs: list[str] = field(default_factory=list)
     marker_segments: np.ndarray | None = None
     marker_offsets: np.ndarray | None = None
+    swapped: list[tuple[str, str]] = field(default_factory=list)
     source: str | None = None
 
     def __post_init__(self):

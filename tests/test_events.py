@@ -311,3 +311,33 @@ def test_real_treadmill_jogging_is_recognised():
     belt = ground_velocity(feet_of(trial, detect_protocol(trial)), trial.rate)
     # a jog on a treadmill (SOURCES.md): recognised as one; measured 2.35 m/s
     assert 2.0 <= np.hypot(*belt[:2]) <= 2.7, belt
+
+
+def test_feet_follow_the_calibrations_left_right_exchange():
+    # heel labels exchanged in the file: the calibration finds it, the fit reads each heel from
+    # the other's trajectory, and the gait events must too (they used the raw labels before)
+    from conftest import SAMPLES
+
+    from mocaplib.calibrate import calibrate
+    from mocaplib.ik import fit
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+    from mocaplib.trial import Trial
+
+    trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    labels = list(trial.labels)
+    i, j = labels.index("LHEE"), labels.index("RHEE")
+    labels[i], labels[j] = labels[j], labels[i]
+    swapped = Trial(trial.markers, labels, trial.rate, source="swapped.c3d")
+    model = calibrate(swapped)
+    assert ("LHEE", "RHEE") in model.swapped or ("RHEE", "LHEE") in model.swapped
+    motion = fit(swapped, model)
+    assert motion.swapped == model.swapped
+    feet = feet_of(swapped, detect_protocol(swapped), motion=motion)
+    true_feet = feet_of(trial, detect_protocol(trial))
+    for side in ("left", "right"):
+        np.testing.assert_array_equal(feet[side][0], true_feet[side][0])   # the same samples
+    found = detect_events(feet, trial.rate)
+    expected = detect_events(true_feet, trial.rate)
+    assert [(e.side, e.kind) for e in found] == [(e.side, e.kind) for e in expected]
+    np.testing.assert_allclose([e.time_s for e in found], [e.time_s for e in expected], atol=0)
