@@ -67,6 +67,8 @@ SIDES = ("left", "right")
 #: Toe-off definitions (see the module docstring) and how far before the coarse time (in
 #: units of ``refine_s``) each searches for the kink.
 TOE_OFF_SEARCH = {"foot_velocity": 0.5, "lift": 1.0}
+#: Median heel-to-toe marker distance (m) a foot can have; outside it the units are wrong.
+PLAUSIBLE_FOOT = (0.03, 1.0)
 
 
 @dataclass(frozen=True)
@@ -221,6 +223,15 @@ def _checked_points(heel, toe, rate, side, source):
         if not np.isfinite(points[:, 2]).any():
             raise EventError(f"{side} {name} is missing in every frame", path=source,
                              hint="check the protocol matched the foot markers")
+    both = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
+    if both.any():
+        spacing = float(np.median(np.linalg.norm(heel[both] - toe[both], axis=1)))
+        if not PLAUSIBLE_FOOT[0] <= spacing <= PLAUSIBLE_FOOT[1]:
+            raise EventError(
+                f"the {side} heel and toe markers are {spacing:.3g} m apart: the coordinates "
+                "are not in the units the file states", path=source,
+                hint="check POINT:UNITS: millimetres stored as 'm' make the foot 1000 times "
+                     "too long, metres stored as 'mm' 1000 times too short; re-export the file")
     return heel, toe
 
 

@@ -106,6 +106,11 @@ def test_bad_input_names_the_file():
         detect_events({"middle": (heel, toe)}, RATE)
     with pytest.raises(EventError, match="frame rate"):
         foot_events(heel, toe, 0.0, side="left")
+    # millimetres stored as metres (or the reverse): a foot 1000 times too long (short)
+    for scale in (1000.0, 0.001):
+        with pytest.raises(EventError, match=r"walk\.c3d: the left heel and toe markers are "
+                                             r".* m apart: .* units"):
+            foot_events(heel * scale, toe * scale, RATE, side="left", source="walk.c3d")
 
 
 def test_a_foot_marker_missing_in_every_frame_is_named():
