@@ -68,7 +68,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import protocols as _protocols
-from .errors import CalibrationError
+from .errors import UNITS_HINT, CalibrationError
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
 from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
@@ -487,8 +487,7 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
         raise CalibrationError(
             f"the distances between markers on one segment suggest a subject {height:.3g} m "
             "tall: the coordinates are not in the units the file states", path=source,
-            hint="check POINT:UNITS: millimetres stored as 'm' make the subject 1000 times "
-                 "too tall, metres stored as 'mm' 1000 times too small; re-export the file")
+            hint=UNITS_HINT)
     return float(np.clip(height, 0.8, 2.3))
 
 

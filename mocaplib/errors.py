@@ -68,3 +68,8 @@ class LibraryError(MocapError):
 
 class SynthError(MocapError):
     """A synthetic capture cannot be generated from the command or plan given."""
+
+
+#: Hint of an error about coordinates that are not in the units the file states.
+UNITS_HINT = ("check POINT:UNITS: millimetres stored as 'm' make every length 1000 times too "
+              "large, metres stored as 'mm' 1000 times too small; re-export the file")

@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, filtfilt
 
-from .errors import EventError
+from .errors import UNITS_HINT, EventError
 from .filtering import valid_runs
 
 SIDES = ("left", "right")
@@ -229,9 +229,7 @@ def _checked_points(heel, toe, rate, side, source):
         if not PLAUSIBLE_FOOT[0] <= spacing <= PLAUSIBLE_FOOT[1]:
             raise EventError(
                 f"the {side} heel and toe markers are {spacing:.3g} m apart: the coordinates "
-                "are not in the units the file states", path=source,
-                hint="check POINT:UNITS: millimetres stored as 'm' make the foot 1000 times "
-                     "too long, metres stored as 'mm' 1000 times too short; re-export the file")
+                "are not in the units the file states", path=source, hint=UNITS_HINT)
     return heel, toe
 
 
