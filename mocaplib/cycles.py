@@ -162,7 +162,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         raise EventError("no complete cycle: fewer than two left toe-offs were found",
                          path=source,
                          hint="a cycle runs from one left toe-off to the next; capture at "
-                              "least two full strides")
+                              "least two full strides, or, if it has them, check its frame "
+                              "rate (POINT:RATE): a wrong rate makes the swings seem too short "
+                              "or too slow to count")
     cycles = []
     for index, (first, last) in enumerate(pairs):
         start, end = first.time_s, last.time_s
