@@ -26,6 +26,7 @@ All arrays have time on axis 0; positions are metres, rates and cutoffs Hz.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
@@ -78,8 +79,7 @@ def lowpass(data: np.ndarray, rate: float, cutoff: float, /, *, order: int = ORD
         raise FitError(f"low-pass cutoff must be between 0 and {rate / 2:g} Hz (half the "
                        f"frame rate), got {cutoff:g} Hz",
                        hint="give a lower cutoff, 'auto' or 'none'")
-    design = rate / np.pi * np.arctan(np.tan(np.pi * cutoff / rate) / pass_correction(order))
-    sos = butter(order, design, fs=rate, output="sos")
+    sos = _design(order, float(cutoff), float(rate)).copy()  # scipy wants it writable
     pad = 3 * (2 * len(sos) + 1)
     shortest = max(MIN_RUN, int(np.ceil(rate / cutoff)))
     flat = data.reshape(len(data), -1)
@@ -95,6 +95,16 @@ def lowpass(data: np.ndarray, rate: float, cutoff: float, /, *, order: int = ORD
                 out[start:stop, column] = sosfiltfilt(sos, flat[start:stop, column],
                                                       padlen=min(pad, stop - start - 1))
     return out.reshape(data.shape)
+
+
+@functools.lru_cache(maxsize=1024)
+def _design(order: int, cutoff: float, rate: float) -> np.ndarray:
+    """Second-order sections of one pass whose two passes have their -3 dB point at ``cutoff``
+    (Hz); cached, as the residual analysis designs the same candidates for every capture."""
+    design = rate / np.pi * np.arctan(np.tan(np.pi * cutoff / rate) / pass_correction(order))
+    sos = butter(order, design, fs=rate, output="sos")
+    sos.flags.writeable = False
+    return sos
 
 
 def residual_curve(data: np.ndarray, rate: float, cutoffs: np.ndarray) -> np.ndarray:
