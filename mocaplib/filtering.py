@@ -142,14 +142,22 @@ def residual_cutoff(data: np.ndarray, rate: float) -> float:
     cutoffs = np.arange(np.ceil(2 * lowest) / 2, MAX_CANDIDATE * nyquist + 1e-9, 0.5)
     if len(cutoffs) < 4:
         return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
-    resid = residual_curve(data, rate, cutoffs)
     band = (cutoffs >= NOISE_BAND[0] * nyquist) & (cutoffs <= NOISE_BAND[1] * nyquist)
+    resid = np.full(len(cutoffs), np.nan)
+    resid[band] = residual_curve(data, rate, cutoffs[band])
     ok = band & np.isfinite(resid)
     if ok.sum() < 2:
         return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
     _, intercept = np.polyfit(cutoffs[ok], resid[ok], 1)
-    below = np.flatnonzero(resid <= intercept)
-    fc = cutoffs[below[0]] if below.size else cutoffs[-1]
+    # the lowest candidate at or below the intercept, evaluated upwards from the lowest: the
+    # candidates above it are never filtered (the cutoff is usually far below the noise band)
+    fc = cutoffs[-1]
+    for i, candidate in enumerate(cutoffs):
+        if not band[i]:
+            resid[i] = residual_curve(data, rate, cutoffs[i:i + 1])[0]
+        if resid[i] <= intercept:
+            fc = candidate
+            break
     return float(np.clip(fc, AUTO_MIN, AUTO_MAX * nyquist))
 
 

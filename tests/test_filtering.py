@@ -87,6 +87,25 @@ def test_residual_analysis_finds_the_knee_of_signal_plus_noise():
     assert np.all(np.diff(curve) < 0) and 0.0002 < curve[-1] < 0.001
 
 
+
+@pytest.mark.parametrize("signal_hz", [None, 1.0, 4.0, 12.0])
+def test_residual_cutoff_is_the_documented_rule_on_the_whole_curve(signal_hz):
+    """residual_cutoff evaluates the curve lazily (noise band, then upwards from the lowest
+    candidate); it must pick what the rule applied to every candidate picks, also for pure
+    noise, whose residual is at the intercept only inside the band."""
+    t = _time(600)
+    rng = np.random.default_rng(int(signal_hz or 0))
+    data = rng.normal(0, 0.001, (600, 4))
+    if signal_hz:
+        data += 0.05 * np.sin(2 * np.pi * signal_hz * t[:, None] + np.arange(4))
+    nyquist = RATE / 2
+    cutoffs = np.arange(np.ceil(2 * max(1.0, RATE / 600)) / 2, 0.75 * nyquist + 1e-9, 0.5)
+    curve = residual_curve(data, RATE, cutoffs)
+    band = (cutoffs >= 0.4 * nyquist) & (cutoffs <= 0.75 * nyquist)
+    _, intercept = np.polyfit(cutoffs[band], curve[band], 1)
+    expected = np.clip(cutoffs[np.flatnonzero(curve <= intercept)[0]], 2.0, 0.4 * nyquist)
+    assert residual_cutoff(data, RATE) == expected
+
 def test_filter_trial_returns_a_new_trial():
     t = _time(200)
     rng = np.random.default_rng(2)
