@@ -45,13 +45,17 @@ from .trial import Trial, normalise_label
 REFERENCE_HEIGHT = 1.75
 
 
+#: The shipped protocols: mocaplib/data/protocols links to the repository's protocols/; wheels
+#: hold a copy.
+SHIPPED_PROTOCOLS = Path(__file__).resolve().parent / "data" / "protocols"
+
+
 def protocols_dir() -> Path:
     """The folder holding ``landmarks.toml`` and the protocol files."""
     env = os.environ.get("MOCAPLIB_PROTOCOLS")
     if env:
         return Path(env)
-    # mocaplib/data/protocols links to the repository's protocols/; wheels hold a copy.
-    return Path(__file__).resolve().parent / "data" / "protocols"
+    return SHIPPED_PROTOCOLS
 
 
 @dataclass(frozen=True)
@@ -164,7 +168,14 @@ def list_protocols() -> list[str]:
 
 def load_protocol(name_or_path: str | os.PathLike) -> Protocol:
     """Load a protocol by shipped name (``plugin_gait``) or by path to a TOML file."""
-    return _load_protocol(_protocol_path(name_or_path), ())
+    return _load_protocol_file(os.fspath(_protocol_path(name_or_path).resolve()))
+
+
+@lru_cache(maxsize=None)
+def _load_protocol_file(path: str) -> Protocol:
+    """A protocol file read once per process, as its TOML is (:func:`_read_toml`): protocol
+    detection loads every shipped protocol for every capture."""
+    return _load_protocol(Path(path), ())
 
 
 def _protocol_path(name_or_path: str | os.PathLike) -> Path:
