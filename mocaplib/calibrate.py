@@ -213,10 +213,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if n_pelvis < 3:
         _refuse_pelvis(cal, proto, cal_match, n_pelvis)
     if static is not None:
-        X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
-        _check_motion_markers(X_motion, segments, labels, proto, static=static, trial=trial)
-        check_same_subject(X_all[:, used], X_motion, segments, labels, static=static,
-                           trial=trial)
+        X_motion = _check_static(X_all[:, used], trial, proto, used, segments, labels, static)
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
@@ -300,6 +297,28 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         f"only {n_seen} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
         "3 are needed to place the pelvis", path=cal.source,
         hint="check the labels against the protocol, or pass --protocol")
+
+
+def check_static(trial: Trial, static: Trial, model: SubjectModel) -> None:
+    """Step 0 of :func:`calibrate` for a ``model`` calibrated on ``static`` with
+    ``static_pose="neutral"`` (which depends on the static and protocol alone, so a batch of
+    one session calibrates once): raises :class:`CalibrationError` when the motion ``trial``
+    never shows the model's pelvis markers together or shows another subject or marker
+    placement, naming both files."""
+    used = np.array([model.protocol.labels.index(label) for label in model.labels], dtype=int)
+    X_static = match_protocol(static, model.protocol, check_swaps=False).markers(static)[:, used]
+    _check_static(X_static, trial, model.protocol, used, model.marker_segments, model.labels,
+                  static)
+
+
+def _check_static(X_static: np.ndarray, trial: Trial, proto: Protocol, used: np.ndarray,
+                  segments: np.ndarray, labels: list[str], static: Trial) -> np.ndarray:
+    """The checks of :func:`check_static` on the static's ``used`` protocol markers
+    ``X_static`` (F_s, M, 3); returns the motion's (F, M, 3)."""
+    X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
+    _check_motion_markers(X_motion, segments, labels, proto, static=static, trial=trial)
+    check_same_subject(X_static, X_motion, segments, labels, static=static, trial=trial)
+    return X_motion
 
 
 def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: list[str],

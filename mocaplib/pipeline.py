@@ -192,7 +192,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed), so both give the same cycles.
     """
-    from .calibrate import calibrate
+    from .calibrate import calibrate, check_static
     from .cycles import analyse_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
@@ -202,7 +202,9 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
 
     with clock.stage("import"):
         trial = read_c3d(path)
-        static = read_c3d(settings.static) if settings.static else None
+        static_key = (os.fspath(settings.static), file_sha256(settings.static)) \
+            if settings.static else None
+        static = _read_static(*static_key) if static_key else None
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
     with clock.stage("protocol"):
@@ -210,8 +212,12 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        model = calibrate(filtered, protocol=match.protocol, static=static,
-                          static_pose=settings.static_pose)
+        if static is not None and settings.static_pose == "neutral":
+            model = _neutral_model(*static_key, match.protocol)
+            check_static(filtered, static, model)
+        else:
+            model = calibrate(filtered, protocol=match.protocol, static=static,
+                              static_pose=settings.static_pose)
     result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
@@ -239,6 +245,23 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, motion, settings)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+
+
+@lru_cache(maxsize=4)
+def _read_static(path: str, sha256: str):
+    """The static trial, read once per worker process for each content (``sha256``)."""
+    from .io.c3d import read_c3d
+    return read_c3d(path)
+
+
+@lru_cache(maxsize=4)
+def _neutral_model(path: str, sha256: str, protocol):
+    """The model calibrated on the neutral-pose static ``path``, once per worker process for
+    each content and protocol: it depends on nothing else, so each capture only checks that it
+    shows the same subject (:func:`mocaplib.calibrate.check_static`)."""
+    from .calibrate import calibrate
+    static = _read_static(path, sha256)
+    return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
 
 
 def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):

@@ -246,6 +246,28 @@ def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
     assert "swapped.c3d: labels LSHO and RSHO look exchanged" in capsys.readouterr().err
 
 
+
+def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_path):
+    # build calibrates a neutral static once per worker (the model depends on the static
+    # alone); a later capture of another subject must still be refused, not fitted with it
+    import dataclasses
+
+    from conftest import SAMPLES
+    from mocaplib.synth import Subject, write_capture
+    from mocaplib.synth.plan import load_plan
+
+    plan = load_plan(SAMPLES.parent / "protocols" / "paper_plan.toml")
+    walk = next(c for c in plan.captures if c.name == "walk_straight_normal")
+    taller = dataclasses.replace(walk, subject=Subject(height=1.85, mass=70.0 * (1.85 / 1.75) ** 2))
+    other, _ = write_capture(taller.generate(), tmp_path, "z_taller_walk")
+    settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
+    result = build([SAMPLES / "walk_straight_normal.c3d", other], settings, jobs=1,
+                   cache_dir=None, progress=False)
+    same, taller_result = result.captures
+    assert same.ok and same.entries, same.error
+    assert not taller_result.ok and taller_result.stage == "calibrate"
+    assert "z_taller_walk.c3d" in taller_result.error and "rest.c3d" in taller_result.error
+
 # --------------------------------------------------------------------------- CLI
 def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(pipeline, "process_capture", fake_process)
