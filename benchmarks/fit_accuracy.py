@@ -2,6 +2,7 @@
 
     /work/venv/bin/python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR]
     /work/venv/bin/python benchmarks/fit_accuracy.py --only budget     # running error budget
+    /work/venv/bin/python benchmarks/fit_accuracy.py --only statures   # 1.55 m and 1.95 m subjects
 
 Forward kinematics: the tests' gait-like walk (``tests/fk_data.py``) with markers on the
 catalogue landmarks, 6 mm soft-tissue artefact and 1 mm noise, ``--fk-seeds`` subjects.
@@ -15,7 +16,12 @@ marker holding it. Running error budget (``--only budget``): each running captur
 sample plan regenerated with the artefacts switched off one group at a time (same seeds,
 ``mocaplib.synth``), calibrated from the session's static (neutral) and fitted with markers raw
 or low-passed at Winter's cutoff, and the true angles themselves low-passed at that cutoff (what
-the filter alone costs). Prints Markdown tables.
+the filter alone costs). Other statures (``--only statures``): one capture of each locomotion
+type of the sample plan (:data:`STATURE_CAPTURES`) and its static regenerated for subjects of
+1.55 m and 1.95 m (same seeds and marker placement; a capture too short for the taller
+subject's slower cadence is lengthened to two cycles), built as the README's main command
+builds (static, neutral pose), with each capture's angle errors as above and its v̂, ω̂, v̂_l
+errors against the truth. Prints Markdown tables.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import argparse
 import dataclasses
 import json
 import sys
+import tempfile
 import time
 import warnings
 from collections import defaultdict
@@ -41,7 +48,10 @@ from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_capture, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
+from mocaplib.pipeline import BuildSettings, build  # noqa: E402
+from mocaplib.synth import Subject, min_duration, write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402
+from velocity_accuracy import compare  # noqa: E402
 
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
            if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]
@@ -56,6 +66,11 @@ WALKING = ["cmu/07_01.c3d", "cmu/07_12.c3d", "biomechzoo/HC030A05.c3d", "biomech
 
 #: Calibration and marker filtering of each row of the synthetic table.
 MODES = (("capture", None), ("capture", "auto"), ("static", None), ("static", "auto"))
+#: One capture of each locomotion type, and the static, for ``--only statures``.
+STATURE_CAPTURES = ("rest", "walk_straight_slow", "walk_straight_normal", "walk_straight_fast",
+                    "walk_curve_r1_left_normal", "side_left_normal", "turn_spot_left_normal",
+                    "diag_left_60_normal", "run_2p5", "run_3p5")
+STATURES = (1.55, 1.95)
 
 
 def fourier_orders(q: np.ndarray, rate: float, cycles: list[dict]) -> list[int]:
@@ -176,6 +191,42 @@ def running_budget(plan_path: Path) -> None:
                           f"({DOF_NAMES[j]}) | {floor[k]:.2f} ({DOF_NAMES[k]}) |")
 
 
+def statures(plan_path: Path) -> None:
+    """Angle and velocity errors of :data:`STATURE_CAPTURES` for subjects of :data:`STATURES`."""
+    plan = [c for c in load_plan(plan_path).captures if c.name in STATURE_CAPTURES]
+    print("| height | capture | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
+          "| Δv̂ (m/s) | Δω̂ (rad/s) | Δv̂_l (m/s) |")
+    print("|---|---|---|---|---|---|---|")
+    for height in STATURES:
+        subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            for planned in plan:
+                duration = max(planned.duration, min_duration(planned.command, subject))
+                capture = dataclasses.replace(planned, subject=subject, duration=duration)
+                write_capture(capture.generate(), folder, planned.name)
+            settings = BuildSettings(static=str(folder / "rest.c3d"), static_pose="neutral")
+            build([folder], settings, jobs=2, cache_dir=None, progress=False).write(
+                folder / "library.json")
+            velocities = {row["name"]: row for row in compare(folder / "library.json", folder)}
+            static = read_c3d(folder / "rest.c3d")
+            for planned in plan:
+                path = folder / f"{planned.name}.c3d"
+                truth = json.loads(path.with_suffix(".truth.json").read_text())
+                trial, _ = filter_trial(read_c3d(path))
+                motion = fit(trial, calibrate(trial, static=static, static_pose="neutral"))
+                error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
+                rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
+                row = velocities.get(planned.name)
+                deltas = (" | ".join(f"{row[k] - row['true_' + k]:+.4f}"
+                                     for k in ("v", "omega", "v_l"))
+                          if row else "no entry | | ")
+                worst = [max(group, key=lambda j: rms[j]) for group in (FLEXION, OTHER)]
+                print(f"| {height:.2f} m | {planned.name} | " + " | ".join(
+                    f"{rms[group].mean():.2f} / {rms[j]:.2f} ({DOF_NAMES[j]})"
+                    for group, j in zip((FLEXION, OTHER), worst)) + f" | {deltas} |")
+
+
 def forward_kinematics(seeds: int) -> None:
     """The tests' FK walk (markers on the landmarks, 6 mm soft tissue, 1 mm noise), 300 frames."""
     sys.path.insert(0, str(ROOT / "tests"))
@@ -231,9 +282,9 @@ def main() -> int:
                         help="static trial of the synthetic session (neutral pose)")
     parser.add_argument("--fk-seeds", type=int, default=5)
     parser.add_argument("--plan", default=str(ROOT / "protocols" / "paper_plan.toml"),
-                        help="the sample plan, for the running budget")
-    parser.add_argument("--only", choices=("fk", "synth", "real", "budget"),
-                        help="one table only (the budget only when asked)")
+                        help="the sample plan, for the running budget and statures")
+    parser.add_argument("--only", choices=("fk", "synth", "real", "budget", "statures"),
+                        help="one table only (the budget and statures only when asked)")
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
     if args.only in (None, "fk"):
@@ -248,6 +299,8 @@ def main() -> int:
         real(Path(args.real))
     if args.only == "budget":
         running_budget(Path(args.plan))
+    if args.only == "statures":
+        statures(Path(args.plan))
     return 0
 
 
