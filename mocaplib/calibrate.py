@@ -63,7 +63,9 @@ Steps (all in metres, world Z up):
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -390,6 +392,33 @@ def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.
             hint="use the static recorded with this subject in this session (markers not moved "
                  "since), or calibrate from the motion itself (leave out --static)")
     return median
+
+
+def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int:
+    """Index of the static in ``statics`` that shows ``trial``'s subject, for a batch of
+    several subjects or sessions: the least step-0 difference (:func:`check_same_subject`
+    over the within-segment marker pairs of ``protocol``), if within
+    :data:`SAME_SUBJECT_LIMIT`. Raises :class:`CalibrationError` naming the trial and each
+    static with its difference when none is within the limit or none can be compared."""
+    segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in protocol.markers])
+    X_motion = match_protocol(trial, protocol, check_swaps=False).markers(trial)
+    gaps = np.array([check_same_subject(
+        match_protocol(static, protocol, check_swaps=False).markers(static), X_motion,
+        segments, protocol.labels, static=static, trial=trial, limit=np.inf)
+        for static in statics])
+    if np.isfinite(gaps).any() and np.nanmin(gaps) <= SAME_SUBJECT_LIMIT:
+        return int(np.nanargmin(gaps))
+    listing = "; ".join(
+        f"{Path(static.source).name if static.source else f'static {i + 1}'} "
+        + ("shares too few marker pairs with it (another marker set?)" if np.isnan(gap)
+           else f"{1000 * gap:.1f} mm")
+        for i, (static, gap) in enumerate(zip(statics, gaps)))
+    raise CalibrationError(
+        f"none of the {len(statics)} static trials shows this capture's subject with the same "
+        f"markers (median difference of the distances between markers on one segment; one "
+        f"subject stays within {1000 * SAME_SUBJECT_LIMIT:.0f} mm): {listing}",
+        path=trial.source, hint="add the static recorded with this subject in this session, "
+                                "or build this capture without --static")
 
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,

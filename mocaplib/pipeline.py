@@ -52,7 +52,9 @@ class BuildSettings:
     """Everything besides the captures that decides a library's content.
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.protocols`).
-    static : a static calibration capture, or None to calibrate from each motion capture.
+    static : a static calibration capture, several (one per subject or session: each capture
+        is calibrated with the one showing its subject, :func:`mocaplib.calibrate.choose_static`),
+        or None to calibrate from each motion capture.
     static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
         angle 0; see :func:`mocaplib.calibrate.calibrate`).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
@@ -65,7 +67,7 @@ class BuildSettings:
     """
 
     protocol: str = "auto"
-    static: str | None = None
+    static: str | tuple[str, ...] | None = None
     static_pose: str = "free"
     cutoff: float | str | None = "auto"
     all_cycles: bool = False
@@ -73,13 +75,24 @@ class BuildSettings:
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
 
     def __post_init__(self):
+        if self.static is not None and not isinstance(self.static, str):
+            given = (self.static,) if isinstance(self.static, os.PathLike) else self.static
+            statics = tuple(dict.fromkeys(os.fspath(p) for p in given))
+            object.__setattr__(self, "static", statics[0] if len(statics) == 1 else statics or None)
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")
 
+    @property
+    def statics(self) -> tuple[str, ...]:
+        """The static trials given: none, one, or one per subject or session."""
+        return (self.static,) if isinstance(self.static, str) else self.static or ()
+
     def to_dict(self) -> dict:
-        """The settings as JSON data, as stored in the library (static file by name only)."""
+        """The settings as JSON data, as stored in the library (static files by name only: one
+        name, a list of names when several were given, or None)."""
         data = asdict(self)
-        data["static"] = None if self.static is None else Path(self.static).name
+        names = [Path(p).name for p in self.statics]
+        data["static"] = names if len(names) > 1 else names[0] if names else None
         return to_json_data(data)
 
 
@@ -107,6 +120,8 @@ class CaptureResult:
     n_cycles : int
         Complete cycles found (entries may be fewer: one chosen, QC drops).
     from_cache : bool
+    static : str or None
+        File name of the static trial the capture was calibrated with (None: none).
     """
 
     source: str
@@ -121,6 +136,7 @@ class CaptureResult:
     n_frames: int = 0
     n_cycles: int = 0
     from_cache: bool = False
+    static: str | None = None
 
     @property
     def file(self) -> str:
@@ -192,7 +208,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed), so both give the same cycles.
     """
-    from .calibrate import calibrate, check_static
+    from .calibrate import calibrate, check_static, choose_static
     from .cycles import analyse_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
@@ -202,9 +218,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
 
     with clock.stage("import"):
         trial = read_c3d(path)
-        static_key = (os.fspath(settings.static), file_sha256(settings.static)) \
-            if settings.static else None
-        static = _read_static(*static_key) if static_key else None
+        statics = [(static, file_sha256(static)) for static in settings.statics]
+        static_trials = [_read_static(*key) for key in statics]
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
     with clock.stage("protocol"):
@@ -212,6 +227,10 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
+        static_key = statics[choose_static(filtered, static_trials, match.protocol)] \
+            if len(statics) > 1 else statics[0] if statics else None
+        static = _read_static(*static_key) if static_key else None
+        result.static = Path(static_key[0]).name if static_key else None
         if static is not None and settings.static_pose == "neutral":
             model = _neutral_model(*static_key, match.protocol)
             check_static(filtered, static, model)
@@ -496,7 +515,7 @@ class BuildResult:
                            "events": [], "cycles": [], "angles": {}})
             record.update(c.diagnostics)
             record.update({"source": c.file, "ok": c.ok, "error": c.error, "stage": c.stage,
-                           "warnings": list(c.warnings)})
+                           "static": c.static, "warnings": list(c.warnings)})
             records.append(record)
         return to_json_data({"format": DIAGNOSTICS_FORMAT, "version": DIAGNOSTICS_VERSION,
                              "library": library_name, "captures": records}, DIAGNOSTICS_DIGITS)
@@ -562,8 +581,9 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     """
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
              "tool": __version__, "code": code_fingerprint()}
-    if settings.static:
-        parts["static_sha256"] = file_sha256(settings.static)
+    if settings.statics:
+        shas = [file_sha256(static) for static in settings.statics]
+        parts["static_sha256"] = shas if len(shas) > 1 else shas[0]
     truth = path.with_name(f"{path.stem}.truth.json")
     if truth.is_file():
         parts["truth_sha256"] = file_sha256(truth)

@@ -8,6 +8,7 @@ JSON "captures", so these tests are fast and do not depend on the fitting stages
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -247,26 +248,59 @@ def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
 
 
 
-def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_path):
-    # build calibrates a neutral static once per worker (the model depends on the static
-    # alone); a later capture of another subject must still be refused, not fitted with it
+def _other_subject(tmp_path, name: str, height: float):
+    """The sample plan's capture ``name`` for a subject of ``height`` m (same seeds and marker
+    placement), written into ``tmp_path`` as ``<name>_<height>.c3d``."""
     import dataclasses
 
     from conftest import SAMPLES
     from mocaplib.synth import Subject, write_capture
     from mocaplib.synth.plan import load_plan
 
-    plan = load_plan(SAMPLES.parent / "protocols" / "paper_plan.toml")
-    walk = next(c for c in plan.captures if c.name == "walk_straight_normal")
-    taller = dataclasses.replace(walk, subject=Subject(height=1.85, mass=70.0 * (1.85 / 1.75) ** 2))
-    other, _ = write_capture(taller.generate(), tmp_path, "z_taller_walk")
+    planned = next(c for c in load_plan(SAMPLES.parent / "protocols" / "paper_plan.toml").captures
+                   if c.name == name)
+    subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
+    capture = dataclasses.replace(planned, subject=subject).generate()
+    return write_capture(capture, tmp_path, f"{name}_{height:.2f}")[0]
+
+
+def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_path):
+    # build calibrates a neutral static once per worker (the model depends on the static
+    # alone); a later capture of another subject must still be refused, not fitted with it
+    from conftest import SAMPLES
+
+    taller = _other_subject(tmp_path, "walk_straight_normal", 1.85)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    result = build([SAMPLES / "walk_straight_normal.c3d", other], settings, jobs=1,
+    result = build([SAMPLES / "walk_straight_normal.c3d", taller], settings, jobs=1,
                    cache_dir=None, progress=False)
-    same, taller_result = result.captures
-    assert same.ok and same.entries, same.error
-    assert not taller_result.ok and taller_result.stage == "calibrate"
-    assert "z_taller_walk.c3d" in taller_result.error and "rest.c3d" in taller_result.error
+    same, refused = result.captures
+    assert same.ok and same.entries and same.static == "rest.c3d", same.error
+    assert not refused.ok and refused.stage == "calibrate"
+    assert "walk_straight_normal_1.85.c3d" in refused.error and "rest.c3d" in refused.error
+
+
+def test_several_statics_each_capture_gets_its_subjects(tmp_path):
+    # a batch of two subjects, each with its own static: each capture is calibrated with the
+    # static that shows its subject; a capture of a third subject fails, naming every static
+    from conftest import SAMPLES
+
+    taller_walk = _other_subject(tmp_path, "walk_straight_normal", 1.85)
+    taller_rest = _other_subject(tmp_path, "rest", 1.85)
+    shorter_walk = _other_subject(tmp_path, "walk_straight_normal", 1.55)
+    settings = BuildSettings(static=[SAMPLES / "rest.c3d", taller_rest], static_pose="neutral")
+    assert settings.statics == (str(SAMPLES / "rest.c3d"), str(taller_rest))
+    result = build([SAMPLES / "walk_straight_normal.c3d", taller_walk, shorter_walk], settings,
+                   jobs=1, cache_dir=None, progress=False)
+    walk, taller, shorter = result.captures
+    assert walk.ok and walk.static == "rest.c3d", walk.error
+    assert taller.ok and taller.static == "rest_1.85.c3d", taller.error
+    assert walk.entries[0]["segment_lengths_m"] != taller.entries[0]["segment_lengths_m"]
+    assert not shorter.ok and shorter.stage == "calibrate"
+    assert "none of the 2 static trials" in shorter.error
+    assert re.search(r"rest\.c3d \d+\.\d mm; rest_1\.85\.c3d \d+\.\d mm", shorter.error)
+    assert result.library.settings["static"] == ["rest.c3d", "rest_1.85.c3d"]
+    assert [c["static"] for c in result.diagnostics()["captures"]] == \
+        ["rest.c3d", "rest_1.85.c3d", None]
 
 # --------------------------------------------------------------------------- CLI
 def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
@@ -289,6 +323,12 @@ def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
     assert main(["build", str(folder), "-o", str(out), "--protocol", "no_such_set"]) == 2
     assert main(["build", str(folder), "-o", str(out), "--static", str(tmp_path / "x.c3d")]) == 2
     assert "--static: no such file" in capsys.readouterr().err
+    real_static = tmp_path / "real.c3d"
+    real_static.write_bytes(b"")
+    assert main(["build", str(folder), "-o", str(out), "--static", str(real_static),
+                 "--static", str(tmp_path / "y.c3d")]) == 2
+    error = capsys.readouterr().err
+    assert "--static: no such file: " + str(tmp_path / "y.c3d") in error and "real.c3d" not in error
 
 
 def test_cli_validate_prints_problems(tmp_path, capsys):

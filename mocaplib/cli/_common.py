@@ -61,11 +61,19 @@ def cutoff_type(text: str) -> float | str | None:
     return positive(float, unit=" Hz")(text)
 
 
-def add_static_options(parser) -> None:
-    """``--static FILE`` and ``--static-pose``, shared by ``fit`` and ``build``."""
-    parser.add_argument("--static", metavar="FILE",
-                        help="static calibration C3D of the same subject (default: calibrate "
-                             "from each capture)")
+def add_static_options(parser, *, several: bool = False) -> None:
+    """``--static FILE`` and ``--static-pose``, shared by ``fit``, ``cycles`` and ``build``
+    (``several``: ``--static`` may be repeated, one static per subject or session)."""
+    if several:
+        parser.add_argument("--static", metavar="FILE", action="append",
+                            help="static calibration C3D; repeat it for a batch of several "
+                                 "subjects or sessions: each capture is calibrated with the "
+                                 "static showing its subject, and one that none shows fails "
+                                 "(default: calibrate from each capture)")
+    else:
+        parser.add_argument("--static", metavar="FILE",
+                            help="static calibration C3D of the same subject (default: "
+                                 "calibrate from each capture)")
     parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
                         help="'neutral': the static subject stands in the anatomical neutral "
                              "pose (every joint angle 0) and each marker's offset is measured "

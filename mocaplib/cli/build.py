@@ -20,7 +20,7 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="LIBRARY.json",
                         help="library file to write")
     add_protocol_option(parser, default="detected for each capture")
-    add_static_options(parser)
+    add_static_options(parser, several=True)
     add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
@@ -43,9 +43,8 @@ def register(subparsers) -> None:
 
 def _usage_problem(args) -> str | None:
     """What is wrong with --static before any capture is processed (None when fine)."""
-    if args.static and not Path(args.static).is_file():
-        return f"--static: no such file: {args.static}"
-    return None
+    missing = [static for static in args.static or () if not Path(static).is_file()]
+    return f"--static: no such file: {', '.join(missing)}" if missing else None
 
 
 def _run(args) -> int:
