@@ -2,7 +2,8 @@
 
 Usage (from the repository root)::
 
-    python benchmarks/build.py [SAMPLES] [--growth-captures N] [--repeat R]
+    python benchmarks/build.py [SAMPLES] [--static FILE [--static-pose neutral]]
+                               [--growth-captures N] [--repeat R]
 
 1. Builds every capture in SAMPLES (default ``sample_c3d/``) with 1 job and with 2 jobs, cache
    off, and prints wall time, captures/s and the speed-up (ratio of the two wall times).
@@ -12,6 +13,8 @@ Usage (from the repository root)::
    frames, and the time per 1000 frames (flat means linear growth).
 
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
+``--static`` / ``--static-pose`` build as the README's main command does (default: calibrate
+from each capture, as ``mocaplib build`` without ``--static``).
 """
 
 from __future__ import annotations
@@ -32,12 +35,12 @@ STAGES = ("read", "import", "protocol", "filter", "calibrate", "fit", "events", 
           "entries")
 
 
-def timed_build(inputs, jobs: int, repeat: int):
+def timed_build(inputs, settings: BuildSettings, jobs: int, repeat: int):
     """Best wall time of ``repeat`` uncached builds, and the result of the last one."""
     best, result = float("inf"), None
     for _ in range(repeat):
         start = time.perf_counter()
-        result = build(inputs, BuildSettings(), jobs=jobs, cache_dir=None, progress=False)
+        result = build(inputs, settings, jobs=jobs, cache_dir=None, progress=False)
         best = min(best, time.perf_counter() - start)
     return best, result
 
@@ -48,16 +51,20 @@ def main() -> int:
     parser.add_argument("--growth-captures", type=int, default=None,
                         help="captures used for the 1x/2x/4x growth runs (default: all)")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--static", default=None, help="static calibration capture")
+    parser.add_argument("--static-pose", default="free", choices=("free", "neutral"))
     args = parser.parse_args()
+    settings = BuildSettings(static=args.static, static_pose=args.static_pose)
 
     captures = find_captures([args.samples])
     if not captures:
         print(f"no captures in {args.samples}; generate the samples first", file=sys.stderr)
         return 1
-    print(f"{len(captures)} captures in {args.samples}")
+    print(f"{len(captures)} captures in {args.samples}; static {args.static} "
+          f"({args.static_pose})")
 
-    one, result = timed_build([args.samples], 1, args.repeat)
-    two, result2 = timed_build([args.samples], 2, args.repeat)
+    one, result = timed_build([args.samples], settings, 1, args.repeat)
+    two, result2 = timed_build([args.samples], settings, 2, args.repeat)
     same = result.library.to_json() == result2.library.to_json()
     n = len(captures)
     print(f"\njobs  wall_s  captures/s   (ok {sum(c.ok for c in result.captures)}, "
@@ -83,7 +90,7 @@ def main() -> int:
                 target.mkdir(parents=True)
                 for path in subset:
                     shutil.copy2(path, target / path.name)
-            wall, grown = timed_build([folder], 2, args.repeat)
+            wall, grown = timed_build([folder], settings, 2, args.repeat)
             total = sum(c.n_frames for c in grown.captures)
             print(f"{k}x    {len(grown.captures):8d}  {total:6d}  {wall:7.1f}  "
                   f"{1000 * wall / total:13.3f}")
