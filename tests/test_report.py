@@ -86,7 +86,7 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
                                                           "turn": 1}}}],
         "angles": {"time_s": t_cycle.tolist(),
                    **{n: q[:, j].tolist() for j, n in enumerate(DOF_NAMES)}},
-        "warnings": [f"label {EVIL} renamed"],
+        "warnings": [f"label {EVIL} renamed"], "static": "Static1.c3d",
     }
     failed = {"source": "cap99.c3d", "ok": False, "error": "no left toe-off found",
               "stage": "events", "warnings": []}
@@ -140,7 +140,7 @@ def test_report_contents(report):
     for text in ("Capture next", "largest hole", "Blending error", "sliver tetrahedra",
                  "cap99.c3d", "no left toe-off found", "Interactive view", 'id="cs-data"',
                  "joint RMS (°)", "heading RMS (°)", "root RMS (mm)", "stride error (mm)",
-                 "For comparison, on the frontal axes"):
+                 "For comparison, on the frontal axes", "calibrated with Static1.c3d"):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
                                 html, re.S).group(1))

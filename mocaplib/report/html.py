@@ -392,7 +392,7 @@ def _captures(diagnostics: dict | None, library) -> list[dict]:
     for k, record in enumerate(diagnostics.get("captures") or []):
         item = {"source": str(record.get("source", f"capture {k + 1}")),
                 "ok": bool(record.get("ok", True)), "error": record.get("error"),
-                "stage": record.get("stage"),
+                "stage": record.get("stage"), "static": record.get("static"),
                 "warnings": [str(w) for w in record.get("warnings") or []],
                 "cycles": [{"start": c.get("start_s"), "end": c.get("end_s"),
                             "chosen": bool(c.get("chosen")), "entry": c.get("entry_id"),
