@@ -686,11 +686,7 @@ def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: n
     L0 = np.array([skeleton.lengths[k] for k in keys])
     base = skeleton.points(q, segments, offsets)
     valid = np.isfinite(X).all(axis=2)
-    G = np.empty(base.shape + (len(keys),))
-    for i, key in enumerate(keys):
-        moved = Skeleton({**skeleton.lengths, key: skeleton.lengths[key] + 1.0})
-        G[..., i] = moved.points(q, segments, offsets) - base
-    G = G[valid].reshape(-1, len(keys))
+    G = skeleton.length_jacobian(q, segments)[valid].reshape(-1, len(keys))
     r = (X - base)[valid].reshape(-1)
     prior_vec = np.array([prior[k] for k in keys])
     A = G.T @ G / MARKER_SIGMA ** 2 + np.eye(len(keys)) / LENGTH_PRIOR ** 2

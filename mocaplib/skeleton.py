@@ -251,6 +251,27 @@ HEIGHT_PROPORTIONS: dict[str, float] = {
 }
 
 
+def _joint_offsets(L) -> np.ndarray:
+    """Each segment's joint centre in its parent's frame (S, 3) from lengths ``L`` (a mapping
+    with every key of :data:`HEIGHT_PROPORTIONS`); linear in them."""
+    off = {
+        "pelvis": (0.0, 0.0, 0.0),
+        "torso": (0.0, 0.0, L["lumbar_height"]),
+        "head": (0.0, 0.0, L["torso_length"]),
+        "humerus_r": (0.0, -L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
+        "humerus_l": (0.0, L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
+        "forearm_r": (0.0, 0.0, -L["upper_arm"]),
+        "forearm_l": (0.0, 0.0, -L["upper_arm"]),
+        "femur_r": (0.0, -L["hip_width"] / 2, 0.0),
+        "femur_l": (0.0, L["hip_width"] / 2, 0.0),
+        "tibia_r": (0.0, 0.0, -L["thigh"]),
+        "tibia_l": (0.0, 0.0, -L["thigh"]),
+        "foot_r": (0.0, 0.0, -L["shank"]),
+        "foot_l": (0.0, 0.0, -L["shank"]),
+    }
+    return np.array([off[name] for name in SEGMENT_NAMES])
+
+
 @dataclass
 class Skeleton:
     """The fixed topology with one subject's segment lengths (metres).
@@ -308,23 +329,21 @@ class Skeleton:
 
         The root's row is zero (its position is the pelvis_t* DOFs).
         """
-        L = self.lengths
-        off = {
-            "pelvis": (0.0, 0.0, 0.0),
-            "torso": (0.0, 0.0, L["lumbar_height"]),
-            "head": (0.0, 0.0, L["torso_length"]),
-            "humerus_r": (0.0, -L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
-            "humerus_l": (0.0, L["shoulder_width"] / 2, L["torso_length"] - L["shoulder_drop"]),
-            "forearm_r": (0.0, 0.0, -L["upper_arm"]),
-            "forearm_l": (0.0, 0.0, -L["upper_arm"]),
-            "femur_r": (0.0, -L["hip_width"] / 2, 0.0),
-            "femur_l": (0.0, L["hip_width"] / 2, 0.0),
-            "tibia_r": (0.0, 0.0, -L["thigh"]),
-            "tibia_l": (0.0, 0.0, -L["thigh"]),
-            "foot_r": (0.0, 0.0, -L["shank"]),
-            "foot_l": (0.0, 0.0, -L["shank"]),
-        }
-        return np.array([off[name] for name in SEGMENT_NAMES])
+        return _joint_offsets(self.lengths)
+
+    def length_jacobian(self, q: np.ndarray, segments: np.ndarray) -> np.ndarray:
+        """Derivative of the position of a point fixed on each of ``segments`` (M,) with respect
+        to each length (:data:`HEIGHT_PROPORTIONS` order), in poses ``q`` (F, D): shape
+        (F, M, 3, K), metres per metre. Exact, as positions are linear in the joint offsets and
+        those in the lengths: a joint centre moves along its parent's axes, and with it all
+        below it."""
+        per_length = np.stack([_joint_offsets({k: float(k == key) for k in HEIGHT_PROPORTIONS})
+                               for key in HEIGHT_PROPORTIONS], axis=-1)          # (S, 3, K)
+        T = self.forward(q)
+        origin = np.zeros(T.shape[:2] + per_length.shape[1:])                  # (F, S, 3, K)
+        for segs, parents, *_ in LEVELS[1:]:
+            origin[:, segs] = origin[:, parents] + T[:, parents, :3, :3] @ per_length[segs]
+        return origin[:, np.asarray(segments)]
 
     def neutral_q(self, n_frames: int = 1) -> np.ndarray:
         """All-zero pose standing on the floor at the origin, shape (F, D)."""

@@ -101,6 +101,21 @@ def test_marker_jacobian_matches_finite_differences():
     np.testing.assert_allclose(jac, numeric, atol=1e-8)
 
 
+
+def test_length_jacobian_is_the_change_of_points_with_each_length():
+    # points are affine in the lengths, so a whole metre's step is exact (to rounding)
+    rng = np.random.default_rng(4)
+    q = SK.neutral_q(4) + rng.normal(0, 0.4, (4, len(DOF_NAMES)))
+    segments = rng.integers(0, len(SEGMENT_NAMES), 25)
+    offsets = rng.normal(0, 0.1, (25, 3))
+    jac = SK.length_jacobian(q, segments)
+    base = SK.points(q, segments, offsets)
+    for k, key in enumerate(SK.lengths):
+        moved = Skeleton({**SK.lengths, key: SK.lengths[key] + 1.0})
+        np.testing.assert_allclose(jac[..., k], moved.points(q, segments, offsets) - base,
+                                   atol=1e-12, err_msg=key)
+    assert np.abs(jac).max() > 0.5          # the legs' lengths move the feet
+
 def test_jacobian_is_zero_for_dofs_that_do_not_move_a_segment():
     segments = np.arange(len(SEGMENT_NAMES))
     _, jac = SK.marker_jacobian(SK.neutral_q(1), segments, np.full((len(segments), 3), 0.1))
