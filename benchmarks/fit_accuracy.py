@@ -49,7 +49,7 @@ from mocaplib.ik import fit, fit_capture, fit_quality  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build  # noqa: E402
-from mocaplib.synth import Subject, min_duration, write_capture  # noqa: E402
+from mocaplib.synth import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402
 from velocity_accuracy import compare  # noqa: E402
 
@@ -198,13 +198,10 @@ def statures(plan_path: Path) -> None:
           "| Δv̂ (m/s) | Δω̂ (rad/s) | Δv̂_l (m/s) |")
     print("|---|---|---|---|---|---|---|")
     for height in STATURES:
-        subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp)
             for planned in plan:
-                duration = max(planned.duration, min_duration(planned.command, subject))
-                capture = dataclasses.replace(planned, subject=subject, duration=duration)
-                write_capture(capture.generate(), folder, planned.name)
+                write_capture(planned.for_height(height).generate(), folder, planned.name)
             settings = BuildSettings(static=str(folder / "rest.c3d"), static_pose="neutral")
             build([folder], settings, jobs=2, cache_dir=None, progress=False).write(
                 folder / "library.json")
@@ -213,8 +210,7 @@ def statures(plan_path: Path) -> None:
             for planned in plan:
                 path = folder / f"{planned.name}.c3d"
                 truth = json.loads(path.with_suffix(".truth.json").read_text())
-                trial, _ = filter_trial(read_c3d(path))
-                motion = fit(trial, calibrate(trial, static=static, static_pose="neutral"))
+                motion, _, _ = fit_capture(read_c3d(path), static=static, static_pose="neutral")
                 error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
                 rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
                 row = velocities.get(planned.name)

@@ -62,6 +62,7 @@ Steps (all in metres, world Z up):
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -394,6 +395,20 @@ def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.
     return median
 
 
+def static_names(paths: Sequence[str]) -> list[str]:
+    """Each static trial's name for people: its file name, with as many parent folders as it
+    takes to tell apart statics whose names clash (``S1/Static.c3d``, ``S2/Static.c3d``)."""
+    parts = [Path(os.path.abspath(path)).parts for path in paths]
+    names = []
+    for i, own in enumerate(parts):
+        depth = 1
+        while depth < len(own) and any(other[-depth:] == own[-depth:]
+                                       for j, other in enumerate(parts) if j != i):
+            depth += 1
+        names.append("/".join(own[-depth:]))
+    return names
+
+
 def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int:
     """Index of the static in ``statics`` that shows ``trial``'s subject, for a batch of
     several subjects or sessions: the least step-0 difference (:func:`check_same_subject`
@@ -408,11 +423,11 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) ->
         for static in statics])
     if np.isfinite(gaps).any() and np.nanmin(gaps) <= SAME_SUBJECT_LIMIT:
         return int(np.nanargmin(gaps))
+    names = static_names([static.source or f"static {i + 1}" for i, static in enumerate(statics)])
     listing = "; ".join(
-        f"{Path(static.source).name if static.source else f'static {i + 1}'} "
-        + ("shares too few marker pairs with it (another marker set?)" if np.isnan(gap)
-           else f"{1000 * gap:.1f} mm")
-        for i, (static, gap) in enumerate(zip(statics, gaps)))
+        f"{name} " + ("shares too few marker pairs with it (another marker set?)"
+                      if np.isnan(gap) else f"{1000 * gap:.1f} mm")
+        for name, gap in zip(names, gaps))
     raise CalibrationError(
         f"none of the {len(statics)} static trials shows this capture's subject with the same "
         f"markers (median difference of the distances between markers on one segment; one "

@@ -77,8 +77,14 @@ class BuildSettings:
     def __post_init__(self):
         if self.static is not None and not isinstance(self.static, str):
             given = (self.static,) if isinstance(self.static, os.PathLike) else self.static
-            statics = tuple(dict.fromkeys(os.fspath(p) for p in given))
+            unique: dict[str, str] = {}   # the same file given twice (relative, absolute) once
+            for static in map(os.fspath, given):
+                if static:
+                    unique.setdefault(os.path.abspath(static), static)
+            statics = tuple(unique.values())
             object.__setattr__(self, "static", statics[0] if len(statics) == 1 else statics or None)
+        if self.static == "":
+            object.__setattr__(self, "static", None)
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")
 
@@ -91,7 +97,9 @@ class BuildSettings:
         """The settings as JSON data, as stored in the library (static files by name only: one
         name, a list of names when several were given, or None)."""
         data = asdict(self)
-        names = [Path(p).name for p in self.statics]
+        from .calibrate import static_names
+
+        names = static_names(self.statics)
         data["static"] = names if len(names) > 1 else names[0] if names else None
         return to_json_data(data)
 
@@ -208,7 +216,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed), so both give the same cycles.
     """
-    from .calibrate import calibrate, check_static, choose_static
+    from .calibrate import calibrate, check_static, choose_static, static_names
     from .cycles import analyse_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
@@ -218,7 +226,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
 
     with clock.stage("import"):
         trial = read_c3d(path)
-        statics = [(static, file_sha256(static)) for static in settings.statics]
+        statics = [(static, _static_sha256(static)) for static in settings.statics]
         static_trials = [_read_static(*key) for key in statics]
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
@@ -227,16 +235,17 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        static_key = statics[choose_static(filtered, static_trials, match.protocol)] \
-            if len(statics) > 1 else statics[0] if statics else None
-        static = _read_static(*static_key) if static_key else None
-        result.static = Path(static_key[0]).name if static_key else None
+        chosen = (choose_static(filtered, static_trials, match.protocol) if len(statics) > 1
+                  else 0 if statics else None)
+        static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
-            model = _neutral_model(*static_key, match.protocol)
+            model = _neutral_model(*statics[chosen], match.protocol)
             check_static(filtered, static, model)
         else:
             model = calibrate(filtered, protocol=match.protocol, static=static,
                               static_pose=settings.static_pose)
+        if chosen is not None:
+            result.static = static_names(settings.statics)[chosen]
     result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
@@ -266,14 +275,25 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
 
-@lru_cache(maxsize=4)
+def _static_sha256(path: str) -> str:
+    """SHA-256 of a static trial's file; one that cannot be read is named (C3DError)."""
+    from .errors import C3DError
+
+    try:
+        return file_sha256(path)
+    except OSError as exc:
+        raise C3DError(f"cannot read the static trial: {exc.strerror or exc}", path=path,
+                       hint="check the --static path") from None
+
+
+@lru_cache(maxsize=None)
 def _read_static(path: str, sha256: str):
     """The static trial, read once per worker process for each content (``sha256``)."""
     from .io.c3d import read_c3d
     return read_c3d(path)
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=None)
 def _neutral_model(path: str, sha256: str, protocol):
     """The model calibrated on the neutral-pose static ``path``, once per worker process for
     each content and protocol: it depends on nothing else, so each capture only checks that it
@@ -582,7 +602,7 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
              "tool": __version__, "code": code_fingerprint()}
     if settings.statics:
-        shas = [file_sha256(static) for static in settings.statics]
+        shas = [_static_sha256(static) for static in settings.statics]
         parts["static_sha256"] = shas if len(shas) > 1 else shas[0]
     truth = path.with_name(f"{path.stem}.truth.json")
     if truth.is_file():
@@ -770,4 +790,3 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
 def downsample(n_points: int, limit: int = MAX_SERIES_POINTS) -> slice:
     """A slice keeping at most about ``limit`` evenly spaced points of a series of ``n_points``."""
     return slice(None, None, max(1, -(-n_points // limit)))
-

@@ -168,13 +168,14 @@ def list_protocols() -> list[str]:
 
 def load_protocol(name_or_path: str | os.PathLike) -> Protocol:
     """Load a protocol by shipped name (``plugin_gait``) or by path to a TOML file."""
-    return _load_protocol_file(os.fspath(_protocol_path(name_or_path).resolve()))
+    path = _protocol_path(name_or_path)
+    return _load_protocol_file(os.path.abspath(path), os.fspath(protocols_dir()))
 
 
 @lru_cache(maxsize=None)
-def _load_protocol_file(path: str) -> Protocol:
-    """A protocol file read once per process, as its TOML is (:func:`_read_toml`): protocol
-    detection loads every shipped protocol for every capture."""
+def _load_protocol_file(path: str, landmarks_dir: str) -> Protocol:
+    """A protocol file read once per process (and landmark catalogue folder), as its TOML is
+    (:func:`_read_toml`): protocol detection loads every shipped protocol for every capture."""
     return _load_protocol(Path(path), ())
 
 

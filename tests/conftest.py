@@ -33,3 +33,16 @@ def real_file(relative: str) -> Path:
     if not path.is_file():
         pytest.skip(f"real C3D file not found: {path}")
     return path
+
+
+def plan_capture(name: str, height: float, folder: Path):
+    """The sample plan's capture ``name`` for a subject ``height`` m tall (same seeds and marker
+    placement, :meth:`mocaplib.synth.PlannedCapture.for_height`), written into ``folder`` as
+    ``<name>_<height>.c3d``. Returns its path and the :class:`~mocaplib.synth.SynthCapture`."""
+    from mocaplib.synth import write_capture
+    from mocaplib.synth.plan import load_plan
+
+    planned = next(c for c in load_plan(REPO / "protocols" / "paper_plan.toml").captures
+                   if c.name == name)
+    capture = planned.for_height(height).generate()
+    return write_capture(capture, folder, f"{name}_{height:.2f}")[0], capture

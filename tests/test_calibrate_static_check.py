@@ -1,11 +1,10 @@
 """Step 0 of calibration: a static trial must show the motion's subject with the same markers."""
 
-import dataclasses
 import re
 
 import numpy as np
 import pytest
-from conftest import SAMPLES, real_file
+from conftest import SAMPLES, plan_capture, real_file
 
 import mocaplib.calibrate as calibrate_module
 from mocaplib.calibrate import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
@@ -13,8 +12,6 @@ from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.protocols import load_protocol, match_protocol
 from mocaplib.skeleton import SEGMENT_NAMES
-from mocaplib.synth import Subject, write_capture
-from mocaplib.synth.plan import load_plan
 
 REPO = SAMPLES.parent
 
@@ -22,12 +19,7 @@ REPO = SAMPLES.parent
 def _session_rest(tmp_path, height):
     """The sample session's static (same seeds, same marker placement) for a subject of
     ``height`` m, written and read back as a C3D file."""
-    rest = next(c for c in load_plan(REPO / "protocols" / "paper_plan.toml").captures
-                if c.name == "rest")
-    subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
-    capture = dataclasses.replace(rest, subject=subject).generate()
-    c3d_path, _ = write_capture(capture, tmp_path, f"rest_{height:.2f}")
-    return read_c3d(c3d_path)
+    return read_c3d(plan_capture("rest", height, tmp_path)[0])
 
 
 def _distance_gap(static, motion):

@@ -87,7 +87,6 @@ def test_residual_analysis_finds_the_knee_of_signal_plus_noise():
     assert np.all(np.diff(curve) < 0) and 0.0002 < curve[-1] < 0.001
 
 
-
 @pytest.mark.parametrize("signal_hz", [None, 1.0, 4.0, 12.0])
 def test_residual_cutoff_is_the_documented_rule_on_the_whole_curve(signal_hz):
     """residual_cutoff evaluates the curve lazily (noise band, then upwards from the lowest
@@ -105,6 +104,7 @@ def test_residual_cutoff_is_the_documented_rule_on_the_whole_curve(signal_hz):
     _, intercept = np.polyfit(cutoffs[band], curve[band], 1)
     expected = np.clip(cutoffs[np.flatnonzero(curve <= intercept)[0]], 2.0, 0.4 * nyquist)
     assert residual_cutoff(data, RATE) == expected
+
 
 def test_filter_trial_returns_a_new_trial():
     t = _time(200)

@@ -247,46 +247,31 @@ def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
     assert "swapped.c3d: labels LSHO and RSHO look exchanged" in capsys.readouterr().err
 
 
-
-def _other_subject(tmp_path, name: str, height: float):
-    """The sample plan's capture ``name`` for a subject of ``height`` m (same seeds and marker
-    placement), written into ``tmp_path`` as ``<name>_<height>.c3d``."""
-    import dataclasses
-
-    from conftest import SAMPLES
-    from mocaplib.synth import Subject, write_capture
-    from mocaplib.synth.plan import load_plan
-
-    planned = next(c for c in load_plan(SAMPLES.parent / "protocols" / "paper_plan.toml").captures
-                   if c.name == name)
-    subject = Subject(height=height, mass=70.0 * (height / 1.75) ** 2)
-    capture = dataclasses.replace(planned, subject=subject).generate()
-    return write_capture(capture, tmp_path, f"{name}_{height:.2f}")[0]
-
-
 def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_path):
-    # build calibrates a neutral static once per worker (the model depends on the static
-    # alone); a later capture of another subject must still be refused, not fitted with it
-    from conftest import SAMPLES
+    # build calibrates a neutral static once per worker (the model depends on the static and
+    # the protocol alone); a later capture of another subject must still be refused
+    from conftest import SAMPLES, plan_capture
 
-    taller = _other_subject(tmp_path, "walk_straight_normal", 1.85)
+    taller, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    result = build([SAMPLES / "walk_straight_normal.c3d", taller], settings, jobs=1,
-                   cache_dir=None, progress=False)
-    same, refused = result.captures
-    assert same.ok and same.entries and same.static == "rest.c3d", same.error
-    assert not refused.ok and refused.stage == "calibrate"
+    pipeline._neutral_model.cache_clear()
+    result = build([SAMPLES / "walk_straight_normal.c3d", SAMPLES / "turn_spot_left_normal.c3d",
+                    taller], settings, jobs=1, cache_dir=None, progress=False)
+    assert pipeline._neutral_model.cache_info().misses == 1          # calibrated once
+    walk, turn, refused = result.captures
+    assert walk.ok and turn.ok and walk.static == turn.static == "rest.c3d", walk.error
+    assert not refused.ok and refused.stage == "calibrate" and refused.static is None
     assert "walk_straight_normal_1.85.c3d" in refused.error and "rest.c3d" in refused.error
 
 
 def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     # a batch of two subjects, each with its own static: each capture is calibrated with the
     # static that shows its subject; a capture of a third subject fails, naming every static
-    from conftest import SAMPLES
+    from conftest import SAMPLES, plan_capture
 
-    taller_walk = _other_subject(tmp_path, "walk_straight_normal", 1.85)
-    taller_rest = _other_subject(tmp_path, "rest", 1.85)
-    shorter_walk = _other_subject(tmp_path, "walk_straight_normal", 1.55)
+    taller_walk, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
+    taller_rest, _ = plan_capture("rest", 1.85, tmp_path)
+    shorter_walk, _ = plan_capture("walk_straight_normal", 1.55, tmp_path)
     settings = BuildSettings(static=[SAMPLES / "rest.c3d", taller_rest], static_pose="neutral")
     assert settings.statics == (str(SAMPLES / "rest.c3d"), str(taller_rest))
     result = build([SAMPLES / "walk_straight_normal.c3d", taller_walk, shorter_walk], settings,
@@ -295,12 +280,31 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     assert walk.ok and walk.static == "rest.c3d", walk.error
     assert taller.ok and taller.static == "rest_1.85.c3d", taller.error
     assert walk.entries[0]["segment_lengths_m"] != taller.entries[0]["segment_lengths_m"]
-    assert not shorter.ok and shorter.stage == "calibrate"
+    assert not shorter.ok and shorter.stage == "calibrate" and shorter.static is None
     assert "none of the 2 static trials" in shorter.error
     assert re.search(r"rest\.c3d \d+\.\d mm; rest_1\.85\.c3d \d+\.\d mm", shorter.error)
     assert result.library.settings["static"] == ["rest.c3d", "rest_1.85.c3d"]
     assert [c["static"] for c in result.diagnostics()["captures"]] == \
         ["rest.c3d", "rest_1.85.c3d", None]
+
+
+def test_statics_are_named_apart_and_read_errors_name_them(tmp_path):
+    # two sessions' statics of one name are told apart by their folders; the same file given
+    # twice counts once; an empty value is no static; an unreadable static is named
+    from conftest import SAMPLES
+
+    for session in ("S1", "S2"):
+        (tmp_path / session).mkdir()
+        (tmp_path / session / "Static.c3d").write_bytes((SAMPLES / "rest.c3d").read_bytes())
+    settings = BuildSettings(static=[tmp_path / "S1" / "Static.c3d", tmp_path / "S2" / "Static.c3d",
+                                     str(tmp_path / "S1" / ".." / "S1" / "Static.c3d")])
+    assert settings.to_dict()["static"] == ["S1/Static.c3d", "S2/Static.c3d"]
+    assert BuildSettings(static="").static is None and BuildSettings(static=[]).static is None
+    missing = process_capture(SAMPLES / "walk_straight_normal.c3d",
+                              BuildSettings(static=str(tmp_path / "gone.c3d")))
+    assert not missing.ok and missing.stage == "import"
+    assert missing.error.startswith(str(tmp_path / "gone.c3d")) and "cannot read" in missing.error
+
 
 # --------------------------------------------------------------------------- CLI
 def test_cli_exit_codes(tmp_path, monkeypatch, capsys):

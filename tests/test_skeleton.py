@@ -101,7 +101,6 @@ def test_marker_jacobian_matches_finite_differences():
     np.testing.assert_allclose(jac, numeric, atol=1e-8)
 
 
-
 def test_length_jacobian_is_the_change_of_points_with_each_length():
     # points are affine in the lengths, so a whole metre's step is exact (to rounding)
     rng = np.random.default_rng(4)
@@ -115,6 +114,7 @@ def test_length_jacobian_is_the_change_of_points_with_each_length():
         np.testing.assert_allclose(jac[..., k], moved.points(q, segments, offsets) - base,
                                    atol=1e-12, err_msg=key)
     assert np.abs(jac).max() > 0.5          # the legs' lengths move the feet
+
 
 def test_jacobian_is_zero_for_dofs_that_do_not_move_a_segment():
     segments = np.arange(len(SEGMENT_NAMES))

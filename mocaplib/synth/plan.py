@@ -30,7 +30,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..errors import MocapError, SynthError
-from .capture import Subject, SynthCapture, synthesize_capture, write_capture
+from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
 
@@ -66,6 +66,15 @@ class PlannedCapture:
     protocol: str
     markers: MarkerSettings
     session_seed: int | None = None
+
+    def for_height(self, height: float) -> "PlannedCapture":
+        """This capture of a subject ``height`` m tall (mass scaled with height², as body mass
+        index stays), everything else the same (seeds, marker placement), lengthened to the
+        cycles the command needs when the taller subject's slower cadence asks for it."""
+        subject = Subject(height=height,
+                          mass=self.subject.mass * (height / self.subject.height) ** 2)
+        return replace(self, subject=subject,
+                       duration=max(self.duration, min_duration(self.command, subject)))
 
     def generate(self) -> SynthCapture:
         """The capture this entry describes (change a setting first with
