@@ -16,8 +16,8 @@ Steps (all in metres, world Z up):
    which passes: it is the same person (the ``free`` static pose then absorbs the new
    placement).
 
-1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames are
-   used. A joint whose segment and descendants carry too few markers to be seen (none; or one
+1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames
+   are used. A joint whose segment and descendants carry too few markers to be seen (none; or one
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
    below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. A left/right
    pair whose labels are exchanged (each marker far from its model position, near the other's
@@ -231,6 +231,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
     # step 3: anatomical joint centres from a nominal fit
     first = solve_poses(skeleton, X, segments, offsets, free=free)
+
     def fit_without(i, j):
         Xij = X.copy()
         Xij[:, [i, j]] = np.nan
@@ -601,11 +602,13 @@ def joint_centres(X: np.ndarray, landmarks: list[str], skeleton: Skeleton, q: np
             elif lat in where:
                 mark = catalogue[lat]
                 s = SEGMENT_NAMES.index(mark.segment)
-                local = np.asarray(mark.position) * scale - joints[SEGMENT_NAMES.index(child + suffix)]
+                local = (np.asarray(mark.position) * scale
+                         - joints[SEGMENT_NAMES.index(child + suffix)])
                 out[(child + suffix, 0.0)] = where[lat] - T[:, s, :3, :3] @ local
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
-            out[("forearm" + suffix, -skeleton.lengths["forearm"])] = 0.5 * (where[rad] + where[uln])
+            out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
+                0.5 * (where[rad] + where[uln]))
     return out
 
 
@@ -662,9 +665,9 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     its frame: a constant rotation of the frame could be absorbed by the offsets. So each
     segment's offsets are then turned about their centroid by the rotation that best aligns
     them with the catalogue layout ``nominal`` (M, 3) (Kabsch; with two markers the segment
-    origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame is thus anatomical: zero angles put the markers in the
-    catalogue's layout, as the DOF sign table describes. Only segments named in ``align`` are
-    turned.
+    origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame
+    is thus anatomical: zero angles put the markers in the catalogue's layout, as the DOF sign table
+    describes. Only segments named in ``align`` are turned.
     """
     T = skeleton.forward(q)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])

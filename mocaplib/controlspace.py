@@ -19,16 +19,16 @@ common plane or sphere. Their Delaunay subdivision then has cells that are not t
 ``scipy.spatial.Delaunay`` always uses) splits such cells into fans that include **zero-volume
 tetrahedra** (34 of 178 on a grid of 4×5×3 points, cells 0.33×0.5×0.5). Joggling the input
 (``QJ``) is worse here: the tetrahedra are flat only after the joggle is undone, and it gives
-156 flat ones of 296 on the same grid. Dropping the flat ones leaves a non-conforming mesh (100 interior faces of that grid
-had no neighbour), so blending would jump across faces. :func:`delaunay_tetrahedra` instead lifts
-the normalised points onto the paraboloid ``|x|²`` plus a tiny deterministic height per point
-(:data:`LIFT_PERTURBATION` times a hash of the point, so the same entry gets the same height in
-every sub-library) and keeps the lower hull of the lifted points: a *regular* triangulation that
-refines the Delaunay subdivision. Every tetrahedron is a Delaunay tetrahedron of the original
-points, has positive volume, the mesh is conforming (each interior face shared by exactly two
-tetrahedra) and the tetrahedra tile the convex hull exactly (142 on that grid, smallest radius
-ratio 0.54). Thin tetrahedra that remain are genuine slivers of the point set, which is what
-the sliver count reports: on the sample library, side-steps within ~1e-5 (normalised) of the
+156 flat ones of 296 on the same grid. Dropping the flat ones leaves a non-conforming mesh
+(100 interior faces of that grid had no neighbour), so blending would jump across faces.
+:func:`delaunay_tetrahedra` instead lifts the normalised points onto the paraboloid ``|x|²`` plus a
+tiny deterministic height per point (:data:`LIFT_PERTURBATION` times a hash of the point, so the
+same entry gets the same height in every sub-library) and keeps the lower hull of the lifted points:
+a *regular* triangulation that refines the Delaunay subdivision. Every tetrahedron is a Delaunay
+tetrahedron of the original points, has positive volume, the mesh is conforming (each interior face
+shared by exactly two tetrahedra) and the tetrahedra tile the convex hull exactly (142 on that grid,
+smallest radius ratio 0.54). Thin tetrahedra that remain are genuine slivers of the point set, which
+is what the sliver count reports: on the sample library, side-steps within ~1e-5 (normalised) of the
 cone |v̂_l| = v̂ with spot turns on its edge, and 60°/120° diagonal walks that share v̂ and v̂_l
 (:func:`close_entries` finds such pairs; the frontal axes separate them).
 

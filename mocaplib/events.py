@@ -96,8 +96,8 @@ class GaitEvent:
 
 
 def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
-                  toe_off: str = "foot_velocity", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
-                  min_swing_s: float = 0.08, still_speed: float = 0.5,
+                  toe_off: str = "foot_velocity", cutoff_hz: float = 12.0,
+                  min_clearance: float = 0.01, min_swing_s: float = 0.08, still_speed: float = 0.5,
                   refine_s: float = 0.08, max_gap_s: float = 0.25,
                   source: str | os.PathLike | None = None) -> list[GaitEvent]:
     """Toe-offs and heel-strikes of both feet, sorted by time.
@@ -134,8 +134,8 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
 
 
 def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
-                toe_off: str = "foot_velocity", cutoff_hz: float = 12.0, min_clearance: float = 0.01,
-                min_swing_s: float = 0.08, still_speed: float = 0.5,
+                toe_off: str = "foot_velocity", cutoff_hz: float = 12.0,
+                min_clearance: float = 0.01, min_swing_s: float = 0.08, still_speed: float = 0.5,
                 refine_s: float = 0.08, max_gap_s: float = 0.25,
                 source: str | os.PathLike | None = None) -> list[GaitEvent]:
     """Toe-offs and heel-strikes of one foot from its heel and toe points (F, 3), metres."""

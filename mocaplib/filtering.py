@@ -122,13 +122,13 @@ def residual_cutoff(data: np.ndarray, rate: float) -> float:
     """Cutoff (Hz) by Winter's residual analysis of ``data`` (F, ...) sampled at ``rate`` Hz.
 
     Candidates run from 1 Hz (or from ``rate`` / the longest run of valid samples, below which
-    nothing would be filtered) in steps of 0.5 Hz. The residual R(fc) (:func:`residual_curve`) of pure white noise falls linearly with fc; at
-    high cutoffs only noise is left, so a straight line fitted to R over the noise band
-    (:data:`NOISE_BAND` of the Nyquist frequency) and extended to fc = 0 gives the noise's
-    residual ``a``. The cutoff is the lowest candidate whose residual is no more than ``a``:
-    signal distortion and passed noise balance there (Winter 2009, §3.4.4.3). Clipped to
-    [:data:`AUTO_MIN` Hz, :data:`AUTO_MAX` × Nyquist]. Data too short for the analysis (fewer
-    than 4 candidates, or 2 in the noise band) get :data:`WALKING_CUTOFF`.
+    nothing would be filtered) in steps of 0.5 Hz. The residual R(fc) (:func:`residual_curve`) of
+    pure white noise falls linearly with fc; at high cutoffs only noise is left, so a straight line
+    fitted to R over the noise band (:data:`NOISE_BAND` of the Nyquist frequency) and extended to
+    fc = 0 gives the noise's residual ``a``. The cutoff is the lowest candidate whose residual is no
+    more than ``a``: signal distortion and passed noise balance there (Winter 2009, §3.4.4.3).
+    Clipped to [:data:`AUTO_MIN` Hz, :data:`AUTO_MAX` × Nyquist]. Data too short for the analysis
+    (fewer than 4 candidates, or 2 in the noise band) get :data:`WALKING_CUTOFF`.
     """
     nyquist = rate / 2
     data = np.asarray(data, dtype=np.float64)

@@ -80,8 +80,10 @@ def synthesize(a: np.ndarray, b: np.ndarray, period, t, /) -> np.ndarray:
     return np.cos(phase) @ a.T + np.sin(phase) @ b.T
 
 
-def fit_series(values: np.ndarray, time_s: np.ndarray, period: float, order: int, /) -> FourierSeries:
-    """Least-squares series of fixed ``order`` through samples ``values`` (n, D) at ``time_s`` (n,)."""
+def fit_series(values: np.ndarray, time_s: np.ndarray, period: float,
+               order: int, /) -> FourierSeries:
+    """Least-squares series of fixed ``order`` through samples ``values`` (n, D) at
+    ``time_s`` (n,)."""
     values = np.asarray(values, dtype=np.float64)
     time_s = np.asarray(time_s, dtype=np.float64)
     phase = 2 * np.pi * np.outer(time_s, np.arange(1, order + 1)) / period

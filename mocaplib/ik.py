@@ -175,7 +175,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         about = (pts if every else pts[rows]) - origin[:, :, None]
         r = (target if every else target[rows]) - (pts if every else pts[rows])
         g = _gradient(twist, about, moved, r, w_marker[rows] * _soft_l1_weight(_norm3(r),
-                                                                              robust_scale))
+                                                                               robust_scale))
         g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
         g[:, ~free] = 0.0
         step = _by_owner(inverse, owner[rows], g)

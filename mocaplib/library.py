@@ -48,10 +48,10 @@ ROOT_DRIFT_TEXT = ("displacement of the path frame over one cycle, expressed in 
 
 #: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
 #: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
-#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding target
-#: of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose frame-to-frame
-#: noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about 0.5 deg itself, so
-#: 1 deg flags cycles that are not periodic or not followed, not fit noise.
+#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding
+#: target of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose
+#: frame-to-frame noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about
+#: 0.5 deg itself, so 1 deg flags cycles that are not periodic or not followed, not fit noise.
 #: A threshold of None means the metric is reported, not checked.
 QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "marker_rms_m": (0.02, "max"),
@@ -151,7 +151,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
             entry["fourier"][key] = [row + [0.0] * (n_max + 1 - len(row)) for row in rows]
     lengths = [e["segment_lengths_m"] for e in entries if e.get("segment_lengths_m")]
     if lengths:
-        segment_lengths = {k: float(np.median([l[k] for l in lengths])) for k in lengths[0]}
+        segment_lengths = {k: float(np.median([lens[k] for lens in lengths])) for k in lengths[0]}
     else:
         segment_lengths = Skeleton.from_height(1.75).lengths
     doc = {
@@ -236,7 +236,7 @@ class Library:
         rows = []
         for e in self.document["entries"]:
             row = {key: e[key] for key in ("id", "locomotion_class", "source_file",
-                                            "source_sha256", "cycle_index")}
+                                           "source_sha256", "cycle_index")}
             row["chosen"] = bool(e.get("chosen", True))
             row.update({key: _float(e[key]) for key in ("start_s", "end_s", "T")})
             row["pattern_type"] = e["pattern"]["type"]
@@ -294,7 +294,8 @@ class Library:
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:
-        """The file's text: deterministic (sorted keys, 10 significant digits), ends with newline."""
+        """The file's text: deterministic (sorted keys, 10 significant digits), ends with
+        newline."""
         return json_text(self.document)
 
     def write(self, path: str | os.PathLike) -> Path:

@@ -1,4 +1,5 @@
-"""Geometric pattern of a cycle (line, circular arc or point) and its velocities (v̂, ω̂, v̂_l, v̂_f).
+"""Geometric pattern of a cycle (line, circular arc or point) and its velocities
+(v̂, ω̂, v̂_l, v̂_f).
 
 The pattern is fitted to the horizontal path of the shoulder midpoint over one cycle:
 

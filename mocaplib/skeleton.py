@@ -189,7 +189,7 @@ def _levels() -> list[tuple]:
                 letters[i].add(k)
         assert all(len(used) <= 1 for used in letters), f"level {level}: mixed axis orders"
         parents = None if level == 0 else np.array([_SEGMENT_INDEX[SEGMENTS[s].parent]
-                                                      for s in segs])
+                                                    for s in segs])
         out.append((np.array(segs), parents, spins,
                     [used.pop() if used else 0 for used in letters], signs.T[..., None]))
     return out

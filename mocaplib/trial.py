@@ -35,7 +35,8 @@ class Event:
 
     ``context`` is the side as written by the lab ("Left", "Right", "General"); ``label`` the
     event name ("Foot Strike", "Foot Off", ...); ``time_s`` seconds from the start of the
-    recording as the lab's software counts it (frame ``first_frame`` is at ``(first_frame-1)/rate``).
+    recording as the lab's software counts it (frame ``first_frame`` is at
+    ``(first_frame-1)/rate``).
     """
 
     context: str

@@ -97,5 +97,8 @@ def foot(t, *, period=1.1, duty=0.62, offset=0.0, step=1.3, direction=0.0, groun
     n = np.arange(-1, int(t[-1] / period) + 2)
     strikes = offset + n * period
     offs = strikes + stance
-    inside = lambda x: x[(x > t[0]) & (x < t[-1])]
+
+    def inside(x):
+        return x[(x > t[0]) & (x < t[-1])]
+
     return heel, toe, inside(offs), inside(strikes)

@@ -25,7 +25,8 @@ REAL = [path.relative_to(SHARED_C3D).as_posix() for path in real_files()]
 
 
 def ezc3d_reference(path: Path, units: str):
-    """ezc3d's labels (LABELS + LABELS2...), markers (F, M, 3) in metres, as stored (not rotated)."""
+    """ezc3d's labels (LABELS + LABELS2...), markers (F, M, 3) in metres, as stored (not
+    rotated)."""
     ezc3d = pytest.importorskip("ezc3d")
     c3d = ezc3d.c3d(str(path))
     point = c3d["parameters"]["POINT"]

@@ -1,4 +1,5 @@
-"""write_c3d: files that ezc3d (the reference reader) reads back exactly, byte-for-byte repeatable."""
+"""write_c3d: files that ezc3d (the reference reader) reads back exactly, byte-for-byte
+repeatable."""
 
 from __future__ import annotations
 

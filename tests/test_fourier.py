@@ -28,7 +28,8 @@ def test_synthesize_matches_the_formula_and_is_periodic():
     got = synthesize(a, b, T, t)
     assert got.shape == (2, 2, 4)
     k = np.arange(4)
-    expected = (a[1] * np.cos(2 * np.pi * k * 0.7 / T) + b[1] * np.sin(2 * np.pi * k * 0.7 / T)).sum()
+    expected = (a[1] * np.cos(2 * np.pi * k * 0.7 / T)
+                + b[1] * np.sin(2 * np.pi * k * 0.7 / T)).sum()
     np.testing.assert_allclose(got[1, 0, 1], expected, atol=1e-12)  # same formula, rounding only
     np.testing.assert_allclose(synthesize(a, b, T, t + T), got, atol=1e-12)  # base period is T
 
@@ -71,7 +72,8 @@ def walking_q(time, *, v=1.2, omega=0.5, heading0=2.9):
         q[:, d] = 0.2 * np.sin(phase + d) + 0.05 * np.cos(2 * phase + 0.3 * d)
     psi = heading0 + omega * time
     radius = v / omega
-    q[:, ROOT_HEADING] = np.angle(np.exp(1j * (psi + q[:, ROOT_HEADING])))  # wrapped, as a fit gives
+    # wrapped, as a fit gives
+    q[:, ROOT_HEADING] = np.angle(np.exp(1j * (psi + q[:, ROOT_HEADING])))
     q[:, ROOT_X] = radius * np.sin(psi) + 0.02 * np.sin(phase)
     q[:, ROOT_Y] = -radius * np.cos(psi) + 0.03 * np.cos(phase)
     return q

@@ -1,4 +1,5 @@
-"""``mocaplib inspect``: per-file summary (library) and the command line (JSON, table, exit codes)."""
+"""``mocaplib inspect``: per-file summary (library) and the command line (JSON, table, exit
+codes)."""
 
 from __future__ import annotations
 

@@ -95,8 +95,8 @@ def test_serial_build_gives_a_valid_library_and_diagnostics(tmp_path):
     assert [c["source"] for c in diag["captures"]] == [f"walk{i:02d}.c3d" for i in range(5)]
     assert diag["captures"][0]["cycles"][0]["entry_id"] == "walk00_c0"
     assert set(diag["captures"][0]) >= {"source", "ok", "error", "stage", "rate_hz", "time_s",
-                                         "shoulder_mid_xy", "frame_rms_m", "events", "cycles",
-                                         "angles", "warnings"}
+                                        "shoulder_mid_xy", "frame_rms_m", "events", "cycles",
+                                        "angles", "warnings"}
     assert result.summary()["entries"] == 5 and result.summary()["failed"] == 0
 
 

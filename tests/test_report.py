@@ -25,7 +25,8 @@ KNEE = DOF_NAMES.index("knee_flexion_r")
 # (class, v, omega, v_l) of a small hand library covering the usual locomotion types.
 ENTRIES = [
     ("straight", 0.6, 0.0, 0.0), ("straight", 1.2, 0.02, 0.0), ("straight", 1.8, -0.02, 0.0),
-    ("curve_left", 1.2, 0.6, 0.05), ("curve_left", 1.2, 1.2, 0.1), ("curve_right", 1.2, -0.6, -0.05),
+    ("curve_left", 1.2, 0.6, 0.05), ("curve_left", 1.2, 1.2, 0.1),
+    ("curve_right", 1.2, -0.6, -0.05),
     ("curve_right", 1.2, -1.2, -0.1), ("spot_turn", 0.02, 1.0, 0.0), ("spot_turn", 0.02, -1.0, 0.0),
     ("sidestep", 0.4, 0.0, 0.4), ("sidestep", 0.4, 0.0, -0.4), ("diagonal", 1.0, 0.0, 0.7),
     ("diagonal", 1.0, 0.0, -0.7), ("straight", 1.2, 0.3, 0.2), (None, 0.9, -0.3, -0.2),

@@ -32,7 +32,7 @@ def test_a_shorter_and_a_taller_subject_are_fitted_and_measured(tmp_path, height
     error = motion.q - np.asarray(capture.truth["angles"]["values"])
     rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
     assert rms[FLEXION].max() < 1.0 and rms[OTHER].max() < 2.5, (rms[FLEXION].max(),
-                                                                   rms[OTHER].max())
+                                                                 rms[OTHER].max())
 
     # the library entry's velocities against the truth cycle it covers (issue targets)
     result = process_capture(walk, BuildSettings(static=str(static), static_pose="neutral"))

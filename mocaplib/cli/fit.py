@@ -68,4 +68,3 @@ def _run(args) -> int:
               f"max {quality['max_marker_error_mm']:.1f} mm, markers low-passed at "
               f"{'(none)' if cutoff is None else f'{cutoff:g} Hz'} -> {args.output}")
     return 0
-

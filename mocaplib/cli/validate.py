@@ -10,7 +10,8 @@ def register(subparsers) -> None:
                     "coefficients, periods, ids, control space, QC). Exit 0 valid, 1 invalid.")
     parser.add_argument("library", help="library JSON file")
     parser.add_argument("--json", action="store_true",
-                        help="print {\"file\", \"valid\", \"problems\": [{\"where\", \"message\"}]}")
+                        help="print {\"file\", \"valid\", "
+                             "\"problems\": [{\"where\", \"message\"}]}")
     parser.set_defaults(run=_run)
 
 

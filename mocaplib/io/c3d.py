@@ -1,4 +1,5 @@
-"""Read the markers of a C3D file into a :class:`~mocaplib.trial.Trial` (metres, Z up, NaN = missing).
+"""Read the markers of a C3D file into a :class:`~mocaplib.trial.Trial` (metres, Z up,
+NaN = missing).
 
 What :func:`read_c3d` does
     * Header and parameters: the ``c3d`` package, through a small adapter (:class:`_Reader`)
@@ -112,7 +113,8 @@ def _read_bytes(path: Path) -> bytes:
 def _check_header(data: bytes, path: Path) -> None:
     """The checks the ``c3d`` package would fail on with an unhelpful exception."""
     if len(data) == 0:
-        raise C3DError("the file is empty", path=path, hint="re-export it from the capture software")
+        raise C3DError("the file is empty", path=path,
+                       hint="re-export it from the capture software")
     if len(data) < 512:
         raise C3DError(f"only {len(data)} bytes: too short for a C3D file (header is 512 bytes)",
                        path=path, hint="the file is truncated or not a C3D file")

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 
 def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"):
-    """Write ``<out_dir>/<library stem>-report.html``; see :func:`mocaplib.report.html.write_report`."""
+    """Write ``<out_dir>/<library stem>-report.html``; see
+    :func:`mocaplib.report.html.write_report`."""
     from .html import write_report as _write
 
     return _write(library_path, out_dir, envelope=envelope, renderer=renderer)

@@ -95,7 +95,8 @@ def _read_diagnostics(library_path: Path) -> tuple[dict | None, str | None]:
                 data.get("captures"), list):
             raise ValueError("not a mocaplib-diagnostics file")
     except (OSError, ValueError, AttributeError) as exc:
-        return None, f"diagnostics sidecar {path.name} unreadable ({exc}); per-capture plots skipped"
+        return None, (f"diagnostics sidecar {path.name} unreadable ({exc}); "
+                      "per-capture plots skipped")
     return data, None
 
 
@@ -232,7 +233,7 @@ def _sliver_context(slivers) -> dict:
     counts = pd.Series([e for entries in slivers["entries"] for e in entries]).value_counts()
     edges = [0.0, 1e-3, 1e-2, SLIVER_QUALITY]
     bands = [{"label": f"{lo:g} – {hi:g}", "count": int(((slivers["quality"] >= lo)
-                                                          & (slivers["quality"] < hi)).sum())}
+                                                         & (slivers["quality"] < hi)).sum())}
              for lo, hi in zip(edges[:-1], edges[1:])]
     return {"count": len(slivers), "threshold": SLIVER_QUALITY, "bands": bands,
             "frequent": [{"id": k, "count": int(v)} for k, v in counts.head(6).items()],
@@ -275,7 +276,8 @@ def describe_command(values: dict) -> str:
     w, vl = values["omega"], values["v_l"]
     parts = []
     if abs(v) < 0.05 and abs(w) >= 0.05:
-        return f"turn on the spot to the {'left' if w > 0 else 'right'} at {abs(math.degrees(w)):.0f}°/s"
+        return (f"turn on the spot to the {'left' if w > 0 else 'right'} at "
+                f"{abs(math.degrees(w)):.0f}°/s")
     if abs(v) < 0.05:
         return "stand still"
     if abs(vl) > 0.2 * abs(v):

@@ -145,7 +145,10 @@ def load_plan(path: str | os.PathLike) -> Plan:
         missing = {"class", "command", "duration", "seed"} - set(entry)
         if missing:
             raise SynthError(f"{where}: missing {', '.join(sorted(missing))}", path=path)
-        get = lambda key, default: entry.get(key, defaults.get(key, default))  # noqa: E731
+
+        def get(key, default):
+            return entry.get(key, defaults.get(key, default))
+
         try:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
             session = get("session_seed", None)
