@@ -671,7 +671,8 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     """
     T = skeleton.forward(q)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
-    with np.errstate(invalid="ignore"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # a marker never seen: NaN
         mean = np.nanmean(local, axis=0) if len(q) else nominal
     out = np.where(np.isfinite(mean), mean, nominal)
     for s in np.unique(segments):

@@ -20,6 +20,7 @@ import os
 import sys
 import time
 import warnings
+from collections import Counter
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
@@ -508,6 +509,7 @@ class BuildResult:
                          for c in self.failures],
             "warnings": [{"file": c.source, "warning": w} for c in self.captures
                          for w in c.warnings],
+            "statics": dict(Counter(c.static for c in self.captures if c.static)),
         }
 
     def summary_text(self) -> str:
@@ -516,6 +518,12 @@ class BuildResult:
         lines = [f"captures {s['captures']}  ok {s['succeeded']}  failed {s['failed']}  "
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
                  f"({s['seconds']:.1f} s)"]
+        if len(self.settings.statics) > 1:
+            from .calibrate import static_names
+
+            lines.append("captures per static: " + ", ".join(
+                f"{name} {s['statics'].get(name, 0)}"
+                for name in static_names(self.settings.statics)))
         if s["failures"]:
             lines.append("failures:")
             lines += [f"  {f['file']} [{f['stage']}]: "

@@ -208,3 +208,23 @@ def test_neutral_static_absorbs_marker_placement():
 def test_unknown_static_pose_is_an_error(walk):
     with pytest.raises(CalibrationError, match="static_pose must be one of neutral, free"):
         calibrate(walk.trial, static=walk.trial, static_pose="tpose", protocol="fullbody38")
+
+
+def test_a_marker_never_seen_takes_its_nominal_offset_silently():
+    # a static with one marker missing in every calibration frame (biomechzoo HC030A01) used
+    # to print numpy's "Mean of empty slice" on the technician's terminal
+    import warnings
+
+    from mocaplib.calibrate import register_offsets
+    from mocaplib.skeleton import Skeleton
+
+    skeleton = Skeleton.from_height(1.75)
+    q = skeleton.neutral_q(3)
+    segments = np.array([0, 0, 0])
+    nominal = np.array([[0.1, 0.1, 0.0], [-0.1, 0.1, 0.0], [0.0, -0.1, 0.05]])
+    X = skeleton.points(q, segments, nominal)
+    X[:, 2] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
+    np.testing.assert_allclose(offsets, nominal, atol=1e-12)

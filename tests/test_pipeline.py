@@ -286,6 +286,8 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     assert result.library.settings["static"] == ["rest.c3d", "rest_1.85.c3d"]
     assert [c["static"] for c in result.diagnostics()["captures"]] == \
         ["rest.c3d", "rest_1.85.c3d", None]
+    assert result.summary()["statics"] == {"rest.c3d": 1, "rest_1.85.c3d": 1}
+    assert "captures per static: rest.c3d 1, rest_1.85.c3d 1" in result.summary_text()
 
 
 def test_statics_are_named_apart_and_read_errors_name_them(tmp_path):
