@@ -721,19 +721,28 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     return motion, used
 
 
-def fit_capture(trial: "Trial", /, *, protocol="auto", static: "Trial | None" = None,
+def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto"
                 ) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
     :func:`mocaplib.calibrate.calibrate` on them (or on ``static`` when given, in
     ``static_pose``; ``protocol`` as calibrate takes it), then :func:`fit_filtered`.
+    ``static`` may also be a list of static trials, one per subject or session: the one that
+    shows this capture's subject is used (:func:`mocaplib.calibrate.choose_static`).
 
-    Returns the motion, the subject model and the cutoff used (Hz; None: unfiltered).
+    Returns the motion, the subject model (its ``source`` names the static used) and the
+    cutoff used (Hz; None: unfiltered).
     """
-    from .calibrate import calibrate
+    from .calibrate import calibrate, choose_protocol, choose_static
     from .filtering import filter_trial
 
     filtered, used = filter_trial(trial, cutoff=cutoff)
+    if isinstance(static, (list, tuple)):
+        if len(static) > 1:
+            protocol = choose_protocol(filtered, protocol)
+            static = static[choose_static(filtered, static, protocol)]
+        else:
+            static = static[0] if static else None
     model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose)
     motion, _ = fit_filtered(trial, model, cutoff=used)
     return motion, model, used

@@ -68,3 +68,17 @@ def test_cutoff_option(tmp_path, capsys):
     # argparse: a usage error
     assert main(["fit", str(path), "--cutoff", "-3", "-o", str(tmp_path / "x.csv")]) == 2
     assert "--cutoff: must be > 0 Hz" in capsys.readouterr().err
+
+
+def test_fit_takes_the_static_that_shows_the_subject(tmp_path, capsys):
+    # --static repeated (one per subject or session), as in build: the matching one is used
+    from conftest import SAMPLES, plan_capture
+
+    other_rest, _ = plan_capture("rest", 1.85, tmp_path)
+    walk = SAMPLES / "walk_straight_normal.c3d"
+    args = ["fit", str(walk), "-o", str(tmp_path / "a.csv"), "--static-pose", "neutral"]
+    assert main([*args, "--static", str(other_rest), "--static", str(SAMPLES / "rest.c3d"),
+                 "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["static"] == "rest.c3d"
+    assert main([*args, "--static", str(other_rest)]) == 1          # the other subject's only
+    assert "does not match the motion trial" in capsys.readouterr().err

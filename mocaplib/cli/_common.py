@@ -61,19 +61,14 @@ def cutoff_type(text: str) -> float | str | None:
     return positive(float, unit=" Hz")(text)
 
 
-def add_static_options(parser, *, several: bool = False) -> None:
-    """``--static FILE`` and ``--static-pose``, shared by ``fit``, ``cycles`` and ``build``
-    (``several``: ``--static`` may be repeated, one static per subject or session)."""
-    if several:
-        parser.add_argument("--static", metavar="FILE", action="append",
-                            help="static calibration C3D; repeat it for a batch of several "
-                                 "subjects or sessions: each capture is calibrated with the "
-                                 "static showing its subject, and one that none shows fails "
-                                 "(default: calibrate from each capture)")
-    else:
-        parser.add_argument("--static", metavar="FILE",
-                            help="static calibration C3D of the same subject (default: "
-                                 "calibrate from each capture)")
+def add_static_options(parser) -> None:
+    """``--static FILE`` (repeatable: one static per subject or session) and
+    ``--static-pose``, shared by ``fit``, ``cycles`` and ``build``."""
+    parser.add_argument("--static", metavar="FILE", action="append",
+                        help="static calibration C3D of the subject (default: calibrate from "
+                             "each capture); repeat it for several subjects or sessions: each "
+                             "capture is calibrated with the static showing its subject, and "
+                             "one that none shows is an error")
     parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
                         help="'neutral': the static subject stands in the anatomical neutral "
                              "pose (every joint angle 0) and each marker's offset is measured "
@@ -86,3 +81,10 @@ def add_cutoff_option(parser) -> None:
                         help="low-pass the markers before calibrating and fitting: zero-lag "
                              "Butterworth at HZ (-3 dB), 'auto' (default: Winter's residual "
                              "analysis per capture) or 'none'")
+
+
+def read_statics(args) -> list:
+    """The ``--static`` trials (empty when none was given)."""
+    from ..io.c3d import read_c3d
+
+    return [read_c3d(path) for path in args.static or ()]

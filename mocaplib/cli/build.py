@@ -20,7 +20,7 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="LIBRARY.json",
                         help="library file to write")
     add_protocol_option(parser, default="detected for each capture")
-    add_static_options(parser, several=True)
+    add_static_options(parser)
     add_cutoff_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import add_static_options
+from ._common import add_static_options, read_statics
 from .events import add_common_options
 
 
@@ -36,13 +36,11 @@ def _run(args) -> int:
     from ..cycles import analyse_cycles, shoulder_centres
     from ..events import detect_events, feet_of, ground_velocity
     from ..ik import fit_capture
-    from ..io.c3d import read_c3d
     from ._common import print_json
     from .events import load
 
     trial, match = load(args)
-    motion = fit_capture(trial, protocol=match.protocol,
-                         static=read_c3d(args.static) if args.static else None,
+    motion = fit_capture(trial, protocol=match.protocol, static=read_statics(args),
                          static_pose=args.static_pose)[0]
     feet = feet_of(trial, match, motion=motion)
     events = detect_events(feet, trial.rate, toe_off=args.toe_off, source=args.file)

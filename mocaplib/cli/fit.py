@@ -6,7 +6,10 @@ Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_captu
 
 from __future__ import annotations
 
-from ._common import add_cutoff_option, add_protocol_option, add_static_options
+from pathlib import Path
+
+from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
+                      read_statics)
 
 
 def register(subparsers) -> None:
@@ -40,9 +43,9 @@ def _run(args) -> int:
     from ._common import print_json, warn
 
     trial = read_c3d(args.input)
-    static = read_c3d(args.static) if args.static else None
-    motion, model, cutoff = fit_capture(trial, protocol=args.protocol, static=static,
+    motion, model, cutoff = fit_capture(trial, protocol=args.protocol, static=read_statics(args),
                                         static_pose=args.static_pose, cutoff=args.cutoff)
+    static = Path(model.source).name if args.static else None
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
@@ -60,10 +63,11 @@ def _run(args) -> int:
         warn(f"{args.input}: {quality['rejected_samples']} marker samples removed as outliers "
              f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
     if args.json:
-        print_json({"file": args.input, "protocol": model.protocol.name,
+        print_json({"file": args.input, "protocol": model.protocol.name, "static": static,
                     "cutoff_hz": cutoff, **quality})
     else:
-        print(f"{args.input}: protocol {model.protocol.name}, {motion.n_frames} frames, "
+        print(f"{args.input}: protocol {model.protocol.name}"
+              f"{f', static {static}' if static else ''}, {motion.n_frames} frames, "
               f"marker RMS {quality['marker_rms_mm']:.1f} mm, "
               f"max {quality['max_marker_error_mm']:.1f} mm, markers low-passed at "
               f"{'(none)' if cutoff is None else f'{cutoff:g} Hz'} -> {args.output}")
