@@ -14,7 +14,8 @@ Steps (all in metres, world Z up):
    and 227 mm against 200 mm); 5.4-5.7 mm for a synthetic subject 3 % taller or shorter, and
    4.2-4.7 mm for the same synthetic subject with markers taken off and put back (3 mm sd),
    which passes: it is the same person (the ``free`` static pose then absorbs the new
-   placement).
+   placement). The same difference picks, among several statics (one per subject or session),
+   the one that shows a capture's subject (:func:`choose_static`).
 
 1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames
    are used. A joint whose segment and descendants carry too few markers to be seen (none; or one
