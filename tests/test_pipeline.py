@@ -335,6 +335,11 @@ def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
                  "--static", str(tmp_path / "y.c3d")]) == 2
     error = capsys.readouterr().err
     assert "--static: no such file: " + str(tmp_path / "y.c3d") in error and "real.c3d" not in error
+    # a static that is there but not a C3D file: named before any capture is processed
+    assert main(["build", str(folder), "-o", str(tmp_path / "z.json"), "--static",
+                 str(real_static)]) == 2
+    error = capsys.readouterr().err
+    assert f"--static: {real_static}" in error and not (tmp_path / "z.json").exists()
 
 
 def test_cli_validate_prints_problems(tmp_path, capsys):

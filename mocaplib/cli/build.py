@@ -42,9 +42,20 @@ def register(subparsers) -> None:
 
 
 def _usage_problem(args) -> str | None:
-    """What is wrong with --static before any capture is processed (None when fine)."""
+    """What is wrong with --static before any capture is processed (None when fine): every
+    capture would fail on a static that is missing or cannot be read."""
+    from ..errors import MocapError
+    from ..io.c3d import read_c3d
+
     missing = [static for static in args.static or () if not Path(static).is_file()]
-    return f"--static: no such file: {', '.join(missing)}" if missing else None
+    if missing:
+        return f"--static: no such file: {', '.join(missing)}"
+    for static in args.static or ():
+        try:
+            read_c3d(static)
+        except MocapError as exc:
+            return f"--static: {exc}"
+    return None
 
 
 def _run(args) -> int:
