@@ -411,12 +411,15 @@ def static_names(paths: Sequence[str]) -> list[str]:
     return names
 
 
-def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int:
+def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int | None:
     """Index of the static in ``statics`` that shows ``trial``'s subject, for a batch of
     several subjects or sessions: the least step-0 difference (:func:`check_same_subject`
     over the within-segment marker pairs of ``protocol``), if within
     :data:`SAME_SUBJECT_LIMIT`. Raises :class:`CalibrationError` naming the trial and each
-    static with its difference when none is within the limit or none can be compared."""
+    static with its difference when none is within the limit or none can be compared. With
+    one static, 0 (:func:`calibrate` checks it in step 0); with none, None."""
+    if len(statics) < 2:
+        return 0 if statics else None
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in protocol.markers])
     X_motion = match_protocol(trial, protocol, check_swaps=False).markers(trial)
     gaps = np.array([check_same_subject(

@@ -740,9 +740,8 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
     if isinstance(static, (list, tuple)):
         if len(static) > 1:
             protocol = choose_protocol(filtered, protocol)
-            static = static[choose_static(filtered, static, protocol)]
-        else:
-            static = static[0] if static else None
+        chosen = choose_static(filtered, static, protocol)
+        static = None if chosen is None else static[chosen]
     model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose)
     motion, _ = fit_filtered(trial, model, cutoff=used)
     return motion, model, used

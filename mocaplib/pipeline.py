@@ -236,8 +236,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        chosen = (choose_static(filtered, static_trials, match.protocol) if len(statics) > 1
-                  else 0 if statics else None)
+        chosen = choose_static(filtered, static_trials, match.protocol)
         static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
             model = _neutral_model(*statics[chosen], match.protocol)
