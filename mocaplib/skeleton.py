@@ -272,6 +272,12 @@ def _joint_offsets(L) -> np.ndarray:
     return np.array([off[name] for name in SEGMENT_NAMES])
 
 
+#: Change of every joint offset per metre of each length (S, 3, K), K in
+#: :data:`HEIGHT_PROPORTIONS` order (the offsets are linear in the lengths).
+_OFFSETS_PER_LENGTH = np.stack([_joint_offsets({k: float(k == key) for k in HEIGHT_PROPORTIONS})
+                                for key in HEIGHT_PROPORTIONS], axis=-1)
+
+
 @dataclass
 class Skeleton:
     """The fixed topology with one subject's segment lengths (metres).
@@ -337,12 +343,11 @@ class Skeleton:
         (F, M, 3, K), metres per metre. Exact, as positions are linear in the joint offsets and
         those in the lengths: a joint centre moves along its parent's axes, and with it all
         below it."""
-        per_length = np.stack([_joint_offsets({k: float(k == key) for k in HEIGHT_PROPORTIONS})
-                               for key in HEIGHT_PROPORTIONS], axis=-1)          # (S, 3, K)
         T = self.forward(q)
-        origin = np.zeros(T.shape[:2] + per_length.shape[1:])                  # (F, S, 3, K)
+        origin = np.zeros(T.shape[:2] + _OFFSETS_PER_LENGTH.shape[1:])         # (F, S, 3, K)
         for segs, parents, *_ in LEVELS[1:]:
-            origin[:, segs] = origin[:, parents] + T[:, parents, :3, :3] @ per_length[segs]
+            origin[:, segs] = (origin[:, parents]
+                               + T[:, parents, :3, :3] @ _OFFSETS_PER_LENGTH[segs])
         return origin[:, np.asarray(segments)]
 
     def neutral_q(self, n_frames: int = 1) -> np.ndarray:
