@@ -277,7 +277,7 @@ def _events_panel(ax, record, cycles):
                            color="tab:blue" if side == "left" else "tab:orange",
                            edgecolor="k", label=f"{side} {kind}")
     t = record.get("time_s") or []
-    if len(t):
+    if len(t) > 1 and t[-1] > t[0]:  # a one-frame capture keeps matplotlib's default span
         ax.set_xlim(t[0], t[-1])
     ax.set_yticks([0, 1], ["right", "left"])
     ax.set_ylim(-0.6, 1.6)
