@@ -41,7 +41,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mocaplib.calibrate import calibrate  # noqa: E402
+from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
 from mocaplib.filtering import filter_trial, lowpass  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402

@@ -42,7 +42,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-from mocaplib.calibrate import calibrate  # noqa: E402
+from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.ik import fit, model_markers  # noqa: E402
 from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402

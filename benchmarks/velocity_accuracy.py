@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mocaplib.calibrate import calibrate  # noqa: E402
+from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.cycles import shoulder_centres  # noqa: E402
 from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.ik import fit  # noqa: E402

@@ -4,7 +4,7 @@ Per frame ``f`` the fit minimises
 
     Σ_m ρ(||x_fm − p_m(q_f)||) + μ² ||q_f − q̄_f||²
 
-where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.calibrate`), ρ the
+where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.calibration`), ρ the
 soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale c = 20 mm, linear above, so
 one bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current
 solution (a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is
@@ -43,7 +43,7 @@ from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, 
                        Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
 
 if TYPE_CHECKING:
-    from .calibrate import SubjectModel
+    from .calibration import SubjectModel
     from .trial import Trial
 
 #: Soft-L1 scale c, metres: residuals above it count linearly (soft tissue moves markers 5-20 mm).
@@ -542,7 +542,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     Parameters
     ----------
     trial : Trial with the model's protocol labels (matched as :func:`match_protocol` does).
-    model : SubjectModel from :func:`mocaplib.calibrate.calibrate`.
+    model : SubjectModel from :func:`mocaplib.calibration.calibrate`.
     robust_scale : soft-L1 scale, metres; ``np.inf`` for plain least squares.
     smoothing : continuity weight μ (metres per radian); 0 switches it off.
     max_iter : LM iterations per chunk of frames.
@@ -725,15 +725,15 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto"
                 ) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
-    :func:`mocaplib.calibrate.calibrate` on them (or on ``static`` when given, in
+    :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
     ``static_pose``; ``protocol`` as calibrate takes it), then :func:`fit_filtered`.
     ``static`` may also be a list of static trials, one per subject or session: the one that
-    shows this capture's subject is used (:func:`mocaplib.calibrate.choose_static`).
+    shows this capture's subject is used (:func:`mocaplib.calibration.choose_static`).
 
     Returns the motion, the subject model (its ``source`` names the static used) and the
     cutoff used (Hz; None: unfiltered).
     """
-    from .calibrate import calibrate, choose_protocol, choose_static
+    from .calibration import calibrate, choose_protocol, choose_static
     from .filtering import filter_trial
 
     filtered, used = filter_trial(trial, cutoff=cutoff)
@@ -908,7 +908,7 @@ def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
                        hint=f"calibrate with the trial's protocol, not {model.protocol.name!r}")
     markers = match.markers(trial)[:, order]
     if model.swapped:
-        from .calibrate import exchange
+        from .calibration import exchange
 
         markers = exchange(markers, model.labels, model.swapped)
     return markers

@@ -54,10 +54,10 @@ class BuildSettings:
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.protocols`).
     static : a static calibration capture, several (one per subject or session: each capture
-        is calibrated with the one showing its subject, :func:`mocaplib.calibrate.choose_static`),
+        is calibrated with the one showing its subject, :func:`mocaplib.calibration.choose_static`),
         or None to calibrate from each motion capture.
     static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
-        angle 0; see :func:`mocaplib.calibrate.calibrate`).
+        angle 0; see :func:`mocaplib.calibration.calibrate`).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     all_cycles : keep every complete cycle, not only the one chosen per capture.
@@ -98,7 +98,7 @@ class BuildSettings:
         """The settings as JSON data, as stored in the library (static files by name only: one
         name, a list of names when several were given, or None)."""
         data = asdict(self)
-        from .calibrate import static_names
+        from .calibration import static_names
 
         names = static_names(self.statics)
         data["static"] = names if len(names) > 1 else names[0] if names else None
@@ -217,7 +217,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed), so both give the same cycles.
     """
-    from .calibrate import calibrate, check_static, choose_static, static_names
+    from .calibration import calibrate, check_static, choose_static, static_names
     from .cycles import analyse_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import detect_events, feet_of, ground_velocity
@@ -297,8 +297,8 @@ def _read_static(path: str, sha256: str):
 def _neutral_model(path: str, sha256: str, protocol):
     """The model calibrated on the neutral-pose static ``path``, once per worker process for
     each content and protocol: it depends on nothing else, so each capture only checks that it
-    shows the same subject (:func:`mocaplib.calibrate.check_static`)."""
-    from .calibrate import calibrate
+    shows the same subject (:func:`mocaplib.calibration.check_static`)."""
+    from .calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
 
@@ -518,7 +518,7 @@ class BuildResult:
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
                  f"({s['seconds']:.1f} s)"]
         if len(self.settings.statics) > 1:
-            from .calibrate import static_names
+            from .calibration import static_names
 
             lines.append("captures per static: " + ", ".join(
                 f"{name} {s['statics'].get(name, 0)}"

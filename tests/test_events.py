@@ -363,7 +363,7 @@ def test_feet_follow_the_calibrations_left_right_exchange():
     # the other's trajectory, and the gait events must too (they used the raw labels before)
     from conftest import SAMPLES
 
-    from mocaplib.calibrate import calibrate
+    from mocaplib.calibration import calibrate
     from mocaplib.ik import fit
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol

@@ -3,7 +3,7 @@
 import pytest
 from conftest import real_file
 
-from mocaplib.calibrate import calibrate
+from mocaplib.calibration import calibrate
 from mocaplib.ik import fit, fit_quality
 from mocaplib.io.c3d import read_c3d
 

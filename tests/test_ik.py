@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from fk_data import fk_trial, true_model
 
-from mocaplib.calibrate import SubjectModel, locked_dofs
+from mocaplib.calibration import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
 from mocaplib.ik import (_normal_equations, fit, fit_filtered, fit_quality, initial_pose,
                          keyframes, solve_poses)

@@ -2,7 +2,7 @@
 velocities and Fourier order, and the one chosen for the library.
 
 Parses options and formats; the work is done by the stages: import, protocol, calibration, fit
-(:mod:`mocaplib.calibrate`, :mod:`mocaplib.ik`), events (as ``mocaplib events``, with missing
+(:mod:`mocaplib.calibration`, :mod:`mocaplib.ik`), events (as ``mocaplib events``, with missing
 foot-marker samples taken from the fitted skeleton) and :func:`mocaplib.cycles.analyse_cycles`
 on the fitted shoulder joint centres.
 """

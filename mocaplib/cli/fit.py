@@ -1,7 +1,7 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
 Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_capture`
-(:func:`mocaplib.calibrate.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
+(:func:`mocaplib.calibration.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
 """
 
 from __future__ import annotations

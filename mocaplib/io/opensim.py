@@ -29,7 +29,7 @@ from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
 from .atomic import atomic_write_text
 
 if TYPE_CHECKING:
-    from ..calibrate import SubjectModel
+    from ..calibration import SubjectModel
     from ..motion import Motion
 
 #: Rotation ranges without a finite bound (the heading) are written as ± this, radians.

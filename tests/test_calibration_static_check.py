@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import SAMPLES, plan_capture, real_file
 
-import mocaplib.calibrate as calibrate_module
-from mocaplib.calibrate import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
+import mocaplib.calibration as calibration
+from mocaplib.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.protocols import load_protocol, match_protocol
@@ -85,7 +85,7 @@ def test_real_static_of_another_person_is_refused():
 
 def test_the_quoted_limit_is_the_constant():
     # the module docstring and the README state the limit in mm next to the constant's name
-    docstring = re.search(r"SAME_SUBJECT_LIMIT`\s+\(([\d.]+) mm\)", calibrate_module.__doc__)
+    docstring = re.search(r"SAME_SUBJECT_LIMIT`\s+\(([\d.]+) mm\)", calibration.__doc__)
     readme = re.search(r"above\s+\*\*([\d.]+) mm\*\*\s+\(`SAME_SUBJECT_LIMIT`\)",
                        (REPO / "README.md").read_text(encoding="utf-8"))
     assert docstring and readme                       # still quoted where they were

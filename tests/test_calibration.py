@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from fk_data import fk_trial
 
-from mocaplib.calibrate import calibrate, choose_protocol, harrington_hips, neutral_offsets
+from mocaplib.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
 from mocaplib.errors import CalibrationError, MocapError
 from mocaplib.ik import fit
 from mocaplib.protocols import load_protocol
@@ -215,7 +215,7 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
     # to print numpy's "Mean of empty slice" on the technician's terminal
     import warnings
 
-    from mocaplib.calibrate import register_offsets
+    from mocaplib.calibration import register_offsets
     from mocaplib.skeleton import Skeleton
 
     skeleton = Skeleton.from_height(1.75)
