@@ -204,6 +204,28 @@ def test_cli_cycles_json(capsys):
     assert sum(row["chosen"] for row in out["cycles"]) == 1
 
 
+def test_cli_cycles_cutoff_reaches_the_fit(capsys):
+    # `cycles` fits as `fit` and `build` do, with their --cutoff: raw markers (none) leave the
+    # fit's noise on ankle inversion, which the Fourier order then chases (measured N = 20
+    # against 9 with the default auto cutoff on this capture)
+    import json
+
+    from mocaplib.cli import main
+
+    from conftest import SAMPLES
+
+    path = SAMPLES / "walk_straight_normal.c3d"
+    if not path.is_file():
+        pytest.skip(f"sample capture {path} not found")
+    orders = {}
+    for cutoff in ("auto", "none"):
+        assert main(["cycles", str(path), "--json", "--cutoff", cutoff]) == 0
+        rows = json.loads(capsys.readouterr().out)["cycles"]
+        orders[cutoff] = [row["fourier_n"] for row in rows]
+    assert max(orders["auto"]) < min(orders["none"]), orders
+    assert main(["cycles", str(path), "--cutoff", "-3"]) == 2  # a usage error
+
+
 def test_cli_cycles_real_file_with_marker_gaps(capsys):
     import json
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import add_static_options, read_statics
+from ._common import add_cutoff_option, add_static_options, read_statics
 from .events import add_common_options
 
 
@@ -26,6 +26,7 @@ def register(subparsers) -> None:
                     "the capture cannot be processed, 2 on usage errors.")
     add_common_options(parser)
     add_static_options(parser)
+    add_cutoff_option(parser)
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "cycles": [...]} (SI units, angles in radians; '
                              '"fourier_rms_deg" in degrees)')
@@ -41,7 +42,7 @@ def _run(args) -> int:
 
     trial, match = load(args)
     motion = fit_capture(trial, protocol=match.protocol, static=read_statics(args),
-                         static_pose=args.static_pose)[0]
+                         static_pose=args.static_pose, cutoff=args.cutoff)[0]
     feet = feet_of(trial, match, motion=motion)
     events = detect_events(feet, trial.rate, toe_off=args.toe_off, source=args.file)
     left, right = shoulder_centres(motion)

@@ -30,8 +30,10 @@ def register(subparsers) -> None:
     parser.add_argument("--osim", metavar="OUT.osim",
                         help="also write the calibrated model as OpenSim .osim")
     parser.add_argument("--json", action="store_true",
-                        help="print the fit quality as JSON: marker_rms_mm, max_marker_error_mm, "
-                             "per_marker_rms_mm, locked_dofs, failed_frames")
+                        help="print the fit as JSON: file, protocol, static, cutoff_hz and the "
+                             "quality: marker_rms_mm, max_marker_error_mm, per_marker_rms_mm, "
+                             "locked_dofs, failed_frames, rejected_samples, "
+                             "rejected_per_marker")
     parser.set_defaults(run=_run)
 
 
