@@ -571,8 +571,9 @@ def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     found: dict[Path, Path] = {}
     for item in inputs:
         path = Path(item)
-        if path.is_dir():
-            candidates = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".c3d")
+        if path.is_dir():  # a folder named like a capture is not one
+            candidates = sorted(p for p in path.rglob("*")
+                                if p.suffix.lower() == ".c3d" and not p.is_dir())
         elif path.is_file():
             candidates = [path]
         else:
@@ -661,7 +662,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     cache = None if cache_dir is None else Path(cache_dir)
     for i, path in enumerate(paths):
         if cache is not None:
-            keys[i] = cache_key(path, file_sha256(path), settings)
+            try:
+                keys[i] = cache_key(path, file_sha256(path), settings)
+            except OSError:
+                continue  # unreadable: its processing fails and says why
             cached = _read_cache(cache, keys[i])
             if cached is not None:
                 cached.source = os.fspath(path)
@@ -671,7 +675,7 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i]) for i in todo], settings, jobs, scheduler):
             results[i] = result
-            if cache is not None and not _internal(result):
+            if i in keys and not _internal(result):
                 atomic_write_text(cache / f"{keys[i]}.json", json_text(result.to_dict()))
             bar.update(1)
     captures = [results[i] for i in range(len(paths))]
@@ -687,12 +691,23 @@ def _internal(result: CaptureResult) -> bool:
     return result.stage == "worker" or "internal error" in (result.error or "")
 
 
+#: Types of the fields a cached :class:`CaptureResult` must have to be trusted.
+_CACHED_TYPES = {"source": str, "sha256": str, "ok": bool, "entries": list, "diagnostics": dict,
+                 "warnings": list, "stage_times": dict, "n_frames": int, "n_cycles": int}
+
+
 def _read_cache(cache: Path, key: str) -> CaptureResult | None:
+    """The cached result under ``key``; None when absent, unreadable, or not a result as
+    :meth:`CaptureResult.to_dict` writes it (a truncated or hand-edited file is recomputed)."""
     path = cache / f"{key}.json"
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None  # absent or unreadable: recompute
+    except (OSError, ValueError, RecursionError):
+        return None
+    if not (isinstance(data, dict) and set(data) == {f.name for f in fields(CaptureResult)}
+            and all(isinstance(data[name], kind) for name, kind in _CACHED_TYPES.items())
+            and all(isinstance(entry, dict) for entry in data["entries"])):
+        return None
     result = CaptureResult.from_dict(data)
     result.from_cache = True
     return result

@@ -160,6 +160,31 @@ def test_failures_are_cached_but_crashes_are_not(tmp_path):
     assert sorted(calls(folder)) == ["bad.c3d", "bug.c3d", "bug.c3d"]
 
 
+def test_a_damaged_cache_file_is_recomputed_not_trusted(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:4])
+    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    damaged = ["[]", '{"ok": 1}', "7", '{"source": "x"}', "{", "[" * 100000]
+    for path, text in zip(sorted(cache.glob("*.json")), damaged):
+        path.write_text(text)
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert len(calls(folder)) == 8 and not any(c.from_cache for c in again.captures)
+    assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
+
+
+def test_a_folder_named_like_a_capture_is_skipped_and_a_broken_link_fails_alone(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:4])
+    (folder / "takes.c3d").mkdir()                        # a folder, not a capture
+    (folder / "gone.c3d").symlink_to(tmp_path / "moved.c3d")  # its target was moved away
+    result = build([folder], cache_dir=cache, progress=False)
+    names = [c.file for c in result.captures]
+    assert "takes.c3d" not in names
+    gone = next(c for c in result.captures if c.file == "gone.c3d")
+    assert not gone.ok and gone.stage == "read" and "gone.c3d: cannot read" in gone.error
+    assert all(not c.ok for c in result.captures)  # the fake captures are not C3D either
+
+
 def test_two_jobs_give_the_same_bytes_as_one(tmp_path):
     write_captures(tmp_path / "caps")
     one = build([tmp_path / "caps"], jobs=1, progress=False, process=fake_process)
