@@ -51,7 +51,6 @@ every entry), sliver tetrahedra, entries per class and a greedy farthest-point "
 from __future__ import annotations
 
 import hashlib
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,6 +59,7 @@ import pandas as pd
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
+from .io.tomlfile import read_toml
 from .fourier import ROOT_HEADING, TRANSLATIONS, RootDrift, synthesize
 from .skeleton import DOF_NAMES, DOFS
 
@@ -569,11 +569,8 @@ class Envelope:
         """Read an ``[envelope]`` table: either ``points = [[v, omega, v_l], ...]`` (optionally
         ``axes = ["v_f", "omega", "v_l"]``) or one ``[lo, hi]`` range per axis name."""
         path = Path(path)
-        try:
-            table = tomllib.loads(path.read_text(encoding="utf-8")).get("envelope")
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-            raise MocapError(f"cannot read envelope: {exc}", path=path,
-                             hint="give a TOML file with an [envelope] table") from exc
+        table = read_toml(path, what="envelope file",
+                          hint="give a TOML file with an [envelope] table").get("envelope")
         if not isinstance(table, dict):
             raise MocapError("no [envelope] table", path=path,
                              hint="add [envelope] with v/omega/v_l ranges or points")

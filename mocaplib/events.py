@@ -62,6 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 from .errors import UNITS_HINT, EventError
 from .filtering import lowpass, valid_runs
+from .trial import check_gait_rate
 
 SIDES = ("left", "right")
 #: Toe-off definitions (see the module docstring) and how far before the coarse time (in
@@ -208,8 +209,7 @@ def _prepared(heel, toe, rate, cutoff_hz, max_gap_s):
 def _checked_points(heel, toe, rate, side, source):
     if side not in SIDES:
         raise EventError(f"side must be 'left' or 'right', got {side!r}", path=source)
-    if not np.isfinite(rate) or rate <= 0:
-        raise EventError(f"frame rate must be > 0 Hz, got {rate}", path=source)
+    check_gait_rate(rate, source, EventError)
     heel = np.asarray(heel, dtype=np.float64)
     toe = np.asarray(toe, dtype=np.float64)
     for name, points in (("heel", heel), ("toe", toe)):

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from .errors import FitError
-from .trial import Trial
+from .trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
 ORDER = 2
@@ -166,8 +166,10 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto"
     """The trial with low-pass filtered markers, and the cutoff used (Hz; None: unfiltered).
 
     ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the trial's markers) or None /
-    ``"none"`` (the trial itself is returned). The input trial is not modified.
+    ``"none"`` (the trial itself is returned). The input trial is not modified. Raises
+    :class:`FitError` for a frame rate no gait capture has (:data:`mocaplib.trial.GAIT_RATES`).
     """
+    check_gait_rate(trial.rate, trial.source, FitError)
     if cutoff is None or cutoff == "none" or trial.n_frames == 0:
         return trial, None
     if cutoff == "auto":

@@ -41,6 +41,10 @@ FORMAT = "mocaplib-library"
 FORMAT_VERSION = 1
 CONTROL_AXES = ("v", "omega", "v_l")
 CONTROL_UNITS = ("m/s", "rad/s", "m/s")
+#: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
+#: may have: far beyond any human locomotion, so only corrupt files are refused (and the control
+#: space's geometry never overflows).
+PLAUSIBLE_SPEED, PLAUSIBLE_COEFFICIENT = 100.0, 1000.0
 FOURIER_FORMULA = ("q_d(t) = a[d][0] + sum_{k=1..N} (a[d][k] cos(2 pi k t / T) "
                    "+ b[d][k] sin(2 pi k t / T)), t in s from the cycle start")
 ROOT_DRIFT_TEXT = ("displacement of the path frame over one cycle, expressed in the frame at the "
@@ -311,12 +315,14 @@ def _matrix(rows) -> np.ndarray:
 def load_library(path: str | os.PathLike) -> Library:
     """Read a library file. Raises :class:`LibraryError` when it is not a valid library.
 
-    The file is checked with :func:`validate_library` schema first, so a table built from it
-    can be trusted to have every column; semantic problems (QC, degenerate control space) do
-    not prevent loading — run :func:`validate_library` for those.
+    The file is checked against the schema and for what would make its numbers unusable
+    (coefficient shapes, non-finite or implausible values, periods), so a table built from it
+    can be trusted; a QC metric over its threshold or a degenerate control space does not
+    prevent loading — run :func:`validate_library` for those.
     """
     document = _read_document(path)
-    problems = _schema_problems(document)
+    problems = _schema_problems(document) or (_skeleton_problems(document)
+                                              + _entry_problems(document, qc=False))
     if problems:
         raise LibraryError(f"not a valid mocaplib library: {problems[0]}"
                            + (f" (and {len(problems) - 1} more problems)" if len(problems) > 1
@@ -339,6 +345,10 @@ def _read_document(path: str | os.PathLike) -> dict:
         raise LibraryError(f"library is not valid JSON: {exc.msg} at line {exc.lineno}",
                            path=path, hint="a library is a JSON file written by "
                                            "`mocaplib build`") from exc
+    except RecursionError:
+        raise LibraryError("library is not a mocaplib library: its JSON is nested too deep",
+                           path=path, hint="a library is a JSON file written by "
+                                           "`mocaplib build`") from None
 
 
 def schema() -> dict:
@@ -403,7 +413,8 @@ def _skeleton_problems(doc: dict) -> list[Problem]:
     return problems
 
 
-def _entry_problems(doc: dict) -> list[Problem]:
+def _entry_problems(doc: dict, *, qc: bool = True) -> list[Problem]:
+    """Problems of the entries: ids, coefficients, periods, velocities and (``qc``) QC."""
     n_dof = len(doc["skeleton"]["dof_names"])
     n_harm = doc["fourier"]["n_harmonics"]
     thresholds = doc["qc_thresholds"]
@@ -424,7 +435,11 @@ def _entry_problems(doc: dict) -> list[Problem]:
         for key in ("v", "omega", "v_l", "v_f"):
             if not math.isfinite(_float(e[key])):
                 problems.append(Problem(f"{where}.{key}", "velocity is missing or not finite"))
-        for failure in qc_failures(e["qc"], thresholds, e["qc_waived"]):
+            elif abs(_float(e[key])) > PLAUSIBLE_SPEED:
+                problems.append(Problem(f"{where}.{key}", f"velocity {e[key]} is not a "
+                                                          f"locomotion's (|value| > "
+                                                          f"{PLAUSIBLE_SPEED:g})"))
+        for failure in qc_failures(e["qc"], thresholds, e["qc_waived"]) if qc else ():
             problems.append(Problem(f"{where}.qc", f"{failure} (fix the capture, or waive it "
                                                    f"with a reason in qc_waived)"))
     return problems
@@ -439,9 +454,14 @@ def _fourier_problems(fourier: dict, where: str, n_dof: int, n_harm: int) -> lis
             problems.append(Problem(f"{where}.{key}", f"coefficients must be {n_dof} rows of "
                                                       f"{n_harm + 1}, got {shape}"))
             return problems
-        if not np.isfinite(_matrix(rows)).all():
+        values = _matrix(rows)
+        if not np.isfinite(values).all():
             problems.append(Problem(f"{where}.{key}", "coefficients contain null or non-finite "
                                                       "values"))
+        elif np.abs(values).max(initial=0.0) > PLAUSIBLE_COEFFICIENT:
+            problems.append(Problem(f"{where}.{key}", f"coefficients beyond "
+                                                      f"±{PLAUSIBLE_COEFFICIENT:g} (rad or m) "
+                                                      "are not a joint's"))
     if any(row[0] not in (0, 0.0) for row in b):
         problems.append(Problem(f"{where}.b", "b[:, 0] must be 0 (there is no sin(0) term)"))
     if fourier["n"] > n_harm:

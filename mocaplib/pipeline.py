@@ -13,6 +13,7 @@ per-capture diagnostics the HTML report reads (see ``docs/library-format.md``).
 
 from __future__ import annotations
 
+import errno
 import functools
 import hashlib
 import json
@@ -30,6 +31,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import MocapError
+from .io import special_file
 from .io.atomic import atomic_write_text
 import numpy as np
 
@@ -179,7 +181,9 @@ class _Clock:
 
 
 def file_sha256(path: str | os.PathLike) -> str:
-    """Hex SHA-256 of a file's bytes."""
+    """Hex SHA-256 of a file's bytes; OSError for a pipe or device (it could block)."""
+    if special_file(path):
+        raise OSError(errno.EINVAL, "not a regular file (a pipe, socket or device)", path)
     digest = hashlib.sha256()
     with open(path, "rb") as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
@@ -479,12 +483,14 @@ def _fail(result: CaptureResult, stage: str | None, reason: str) -> None:
 # --------------------------------------------------------------------------- many captures
 @dataclass
 class BuildResult:
-    """A finished build: the library, every capture's result (input order) and a summary."""
+    """A finished build: the library, every capture's result (input order) and a summary;
+    ``notes`` are the build's own warnings (e.g. a cache it could not write)."""
 
     library: Library
     captures: list[CaptureResult]
     settings: BuildSettings
     seconds: float = 0.0
+    notes: list = field(default_factory=list)
 
     @property
     def failures(self) -> list[CaptureResult]:
@@ -509,6 +515,7 @@ class BuildResult:
             "warnings": [{"file": c.source, "warning": w} for c in self.captures
                          for w in c.warnings],
             "statics": dict(Counter(c.static for c in self.captures if c.static)),
+            "notes": list(self.notes),
         }
 
     def summary_text(self) -> str:
@@ -528,6 +535,7 @@ class BuildResult:
             lines += [f"  {f['file']} [{f['stage']}]: "
                       f"{(f['reason'] or '').removeprefix(f['file'] + ': ')}"
                       for f in s["failures"]]
+        lines += [f"note: {note}" for note in s["notes"]]
         if s["warnings"]:
             lines.append(f"warnings ({len(s['warnings'])}):")
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
@@ -571,10 +579,10 @@ def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     found: dict[Path, Path] = {}
     for item in inputs:
         path = Path(item)
-        if path.is_dir():  # a folder named like a capture is not one
-            candidates = sorted(p for p in path.rglob("*")
-                                if p.suffix.lower() == ".c3d" and not p.is_dir())
-        elif path.is_file():
+        if path.is_dir():  # a folder or pipe named like a capture is not one
+            candidates = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".c3d"
+                                and not p.is_dir() and not special_file(p))
+        elif path.is_file() or special_file(path):  # reading a pipe fails and says why
             candidates = [path]
         else:
             raise MocapError("no such file or folder", path=path,
@@ -671,19 +679,23 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
                 cached.source = os.fspath(path)
                 results[i] = cached
     todo = [i for i in range(len(paths)) if i not in results]
+    notes: list[str] = []
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i]) for i in todo], settings, jobs, scheduler):
             results[i] = result
-            if i in keys and not _internal(result):
-                atomic_write_text(cache / f"{keys[i]}.json", json_text(result.to_dict()))
+            if i in keys and not _internal(result) and not notes:
+                try:
+                    atomic_write_text(cache / f"{keys[i]}.json", json_text(result.to_dict()))
+                except MocapError as exc:  # the build goes on, uncached
+                    notes.append(f"results not cached: {exc}")
             bar.update(1)
     captures = [results[i] for i in range(len(paths))]
     _unique_entry_ids(captures)
     library = assemble_library([e for c in captures for e in c.entries],
                                settings=settings.to_dict(),
                                qc_thresholds=settings.qc_thresholds)
-    return BuildResult(library, captures, settings, time.perf_counter() - started)
+    return BuildResult(library, captures, settings, time.perf_counter() - started, notes)
 
 
 def _internal(result: CaptureResult) -> bool:
@@ -760,7 +772,7 @@ def _run_dask(process, work, settings, address: str):
                          hint="pip install 'mocaplib[dask]'") from exc
     try:
         client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
         raise MocapError(f"cannot connect to the Dask scheduler at {address}: {exc}",
                          hint="start one with `dask scheduler` or check the address") from exc
     with client:

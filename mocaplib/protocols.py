@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import os
 import re
-import tomllib
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -38,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ProtocolError
+from .io.tomlfile import read_toml
 from .skeleton import SEGMENT_NAMES
 from .trial import Trial, normalise_label
 
@@ -121,14 +121,8 @@ class Protocol:
 
 @lru_cache(maxsize=None)
 def _read_toml(path: str) -> dict:
-    try:
-        with open(path, "rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise ProtocolError("file not found", path=path,
-                            hint=f"protocols live in {protocols_dir()}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ProtocolError(f"not valid TOML: {exc}", path=path) from None
+    return read_toml(path, error=ProtocolError, what="protocol file",
+                     hint=f"protocols are TOML files like those in {protocols_dir()}")
 
 
 def load_landmarks(path: str | os.PathLike | None = None) -> dict[str, Landmark]:

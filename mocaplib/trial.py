@@ -14,6 +14,21 @@ import numpy as np
 
 from .errors import MocapError
 
+#: Frame rates (Hz) gait can be analysed at. Below, a stride spans too few frames to find its
+#: events; above, no optical system records whole-body markers: POINT:RATE is then corrupt.
+GAIT_RATES = (10.0, 10000.0)
+
+
+def check_gait_rate(rate: float, source: str | os.PathLike | None,
+                    error: type[MocapError] = MocapError) -> None:
+    """Raise ``error`` naming ``source`` when ``rate`` (Hz) is outside :data:`GAIT_RATES`."""
+    lo, hi = GAIT_RATES
+    if not lo <= rate <= hi:
+        raise error(f"frame rate {rate:g} Hz is outside the {lo:g}-{hi:g} Hz of gait "
+                    "captures", path=source,
+                    hint="the file's POINT:RATE is probably wrong: re-export the capture")
+
+
 _PREFIX = re.compile(r"^.*:")
 _SEPARATORS = re.compile(r"[\s_\-\.]+")
 

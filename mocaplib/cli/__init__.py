@@ -14,6 +14,7 @@ import sys
 
 from .. import __version__
 from ..errors import MocapError
+from ._common import UsageError
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
 COMMANDS = ("inspect", "fit", "events", "cycles", "build", "validate", "query", "report", "synth")
@@ -38,6 +39,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(exc.code or 0)
     try:
         return int(args.run(args) or 0)
+    except UsageError as exc:
+        print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
+        return 2
     except MocapError as exc:
         print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
         return 1

@@ -4,10 +4,34 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
+from pathlib import Path
 
 from ..errors import MocapError
 from ..io.jsonvalues import json_values
+
+
+class UsageError(MocapError):
+    """A mistake in the command line found after parsing: exits 2, as argparse's do."""
+
+
+def check_outputs(outputs: dict[str, str | os.PathLike | None],
+                  inputs: list[str | os.PathLike]) -> None:
+    """Raise :class:`UsageError` before anything is written when an output file (``{option:
+    path}``, None = not asked for) would overwrite an input, another output, or is a folder."""
+    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    existing = [Path(path) for path in inputs if Path(path).is_file()]
+    for n, (option, path) in enumerate(given):
+        if path.is_dir():
+            raise UsageError(f"{option} {path} is a folder; give a file name")
+        if path.exists() and any(os.path.samefile(path, source) for source in existing):
+            raise UsageError(f"{option} {path} is an input of this command; writing it "
+                             "would overwrite the input: give another file name")
+        for other, earlier in given[:n]:
+            if os.path.abspath(path) == os.path.abspath(earlier):
+                raise UsageError(f"{option} and {other} name the same file {path}")
 
 
 def print_json(obj) -> None:
@@ -40,16 +64,32 @@ def _protocol_name(value: str) -> str:
     return value
 
 
-def positive(kind: type, *, unit: str = ""):
-    """argparse ``type=`` accepting numbers of ``kind`` (int or float) > 0; else exit 2."""
+def positive(kind: type, *, unit: str = "", most: float = math.inf):
+    """argparse ``type=`` accepting finite numbers of ``kind`` (int or float) in (0, most];
+    else exit 2."""
     def parse(text: str):
         try:
             value = kind(text)
         except ValueError:
             what = "a whole number" if kind is int else "a number"
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be > 0{unit}, got {text}")
+        if not (math.isfinite(value) and 0 < value <= most):
+            limit = "" if math.isinf(most) else f" and <= {most:g}{unit}"
+            raise argparse.ArgumentTypeError(f"must be > 0{unit}{limit}, got {text}")
+        return value
+    return parse
+
+
+def bounded(limit: float):
+    """argparse ``type=`` accepting numbers with ``|value| <= limit`` (NaN and inf refused);
+    else exit 2."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not abs(value) <= limit:
+            raise argparse.ArgumentTypeError(f"must be a number within ±{limit:g}, got {text}")
         return value
     return parse
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import add_cutoff_option, add_protocol_option, add_static_options, positive, warn
+from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
+                      check_outputs, positive, warn)
 
 
 def register(subparsers) -> None:
@@ -41,31 +42,34 @@ def register(subparsers) -> None:
     parser.set_defaults(run=_run)
 
 
-def _usage_problem(args) -> str | None:
-    """What is wrong with --static before any capture is processed (None when fine): every
-    capture would fail on a static that is missing or cannot be read."""
+def _check_usage(args) -> None:
+    """Raise :class:`UsageError` for what would fail or do harm before any capture is
+    processed: a --static that is missing or cannot be read (every capture would fail on it),
+    an output that would overwrite an input, a --report that is a file."""
     from ..errors import MocapError
     from ..io.c3d import read_c3d
+    from ..pipeline import diagnostics_path, find_captures
 
     missing = [static for static in args.static or () if not Path(static).is_file()]
     if missing:
-        return f"--static: no such file: {', '.join(missing)}"
+        raise UsageError(f"--static: no such file: {', '.join(missing)}")
     for static in args.static or ():
         try:
             read_c3d(static)
         except MocapError as exc:
-            return f"--static: {exc}"
-    return None
+            raise UsageError(f"--static: {exc}") from None
+    check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
+                   diagnostics_path(args.output)},
+                  [*find_captures(args.inputs), *(args.static or ())])
+    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
+        raise UsageError(f"--report {args.report} is a file; give a folder for the report")
 
 
 def _run(args) -> int:
     from ..library import validate_library
     from ..pipeline import BuildSettings, build
 
-    problem = _usage_problem(args)
-    if problem:
-        print(f"mocaplib build: error: {problem}", file=sys.stderr)
-        return 2
+    _check_usage(args)
     output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              static_pose=args.static_pose, cutoff=args.cutoff,

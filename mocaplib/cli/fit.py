@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
-                      read_statics)
+                      check_outputs, read_statics)
 
 
 def register(subparsers) -> None:
@@ -44,6 +44,8 @@ def _run(args) -> int:
     from ..io.opensim import write_mot, write_osim
     from ._common import print_json, warn
 
+    check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
+                  [args.input, *(args.static or ())])
     trial = read_c3d(args.input)
     motion, model, cutoff = fit_capture(trial, protocol=args.protocol, static=read_statics(args),
                                         static_pose=args.static_pose, cutoff=args.cutoff)

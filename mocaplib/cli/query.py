@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import math
 
-from ._common import positive
+from ._common import bounded, check_outputs, positive
+
+
+#: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
+#: typing mistakes (and overflow in the geometry) are kept out.
+SPEED_LIMIT = 100.0
+#: BVH output limits: frames per second and cycles (a BVH is text: 100 cycles at 1 kHz is
+#: already ~100 MB).
+MAX_RATE, MAX_CYCLES = 1000.0, 100
 
 
 def register(subparsers) -> None:
@@ -14,11 +22,11 @@ def register(subparsers) -> None:
                     "entries with their barycentric weights; outside the control space, print "
                     "the nearest point on its hull. Exit 0 when answered (inside or outside).")
     parser.add_argument("library", help="library JSON file")
-    parser.add_argument("v", type=float, metavar="V",
+    parser.add_argument("v", type=bounded(SPEED_LIMIT), metavar="V",
                         help="tangential speed v̂, m/s (v̂_f with --axes frontal)")
-    parser.add_argument("omega", type=float, metavar="OMEGA",
+    parser.add_argument("omega", type=bounded(SPEED_LIMIT), metavar="OMEGA",
                         help="turn rate ω̂, rad/s (> 0 turns left)")
-    parser.add_argument("v_l", type=float, metavar="VL",
+    parser.add_argument("v_l", type=bounded(SPEED_LIMIT), metavar="VL",
                         help="lateral speed v̂_l, m/s (> 0 moves left)")
     parser.add_argument("--axes", choices=("tangential", "frontal"), default="tangential",
                         help="control space (v, ω, v_l) or (v_f, ω, v_l) (default tangential)")
@@ -26,10 +34,10 @@ def register(subparsers) -> None:
                         help="print {inside, entries, weights, point, nearest, distance, T_s}")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
-    parser.add_argument("--cycles", type=positive(int), default=1,
-                        help="cycles written to the BVH (default 1)")
-    parser.add_argument("--rate", type=positive(float), default=100.0,
-                        help="BVH frame rate, Hz (default 100)")
+    parser.add_argument("--cycles", type=positive(int, most=MAX_CYCLES), default=1,
+                        help=f"cycles written to the BVH (default 1, at most {MAX_CYCLES})")
+    parser.add_argument("--rate", type=positive(float, unit=" Hz", most=MAX_RATE), default=100.0,
+                        help=f"BVH frame rate, Hz (default 100, at most {MAX_RATE:g})")
     parser.add_argument("--clamp", action="store_true",
                         help="outside the hull, blend at the nearest point on the hull instead")
     parser.set_defaults(run=_run)
@@ -42,6 +50,7 @@ def _run(args) -> int:
     from ..skeleton import Skeleton
     from ._common import print_json
 
+    check_outputs({"--bvh": args.bvh}, [args.library])
     library = load_library(args.library)
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
     res = cs.query([[args.v, args.omega, args.v_l]])

@@ -22,7 +22,13 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
+    from pathlib import Path
+
     from ..report import write_report
+    from ._common import UsageError
+
+    if Path(args.output).exists() and not Path(args.output).is_dir():
+        raise UsageError(f"-o {args.output} is a file; give a folder for the report")
 
     path = write_report(args.library, args.output, envelope=args.envelope,
                         renderer="matplotlib" if args.no_opengl else "auto")

@@ -47,6 +47,7 @@ import c3d
 import numpy as np
 
 from ..errors import C3DError
+from . import special_file
 from ..trial import Event, Trial
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
@@ -100,6 +101,9 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
 
 # ----------------------------------------------------------------------------- file and header
 def _read_bytes(path: Path) -> bytes:
+    if special_file(path):
+        raise C3DError("not a regular file (a pipe, socket or device)", path=path,
+                       hint="give the C3D file itself")
     try:
         return path.read_bytes()
     except FileNotFoundError:
@@ -262,12 +266,13 @@ class PointLayout:
 def _point_layout(reader, file_size: int, path: Path) -> PointLayout:
     header = reader.header
     try:
-        processor = reader.proc_type
-        count = _number(reader, "POINT:USED", "uint16", int(header.point_count))
-        scale = _number(reader, "POINT:SCALE", "float", float(header.scale_factor))
-        rate = _number(reader, "POINT:RATE", "float", None) or float(header.frame_rate)
-        first_frame = int(reader.first_frame)
-        last_frame = int(reader.last_frame)
+        with np.errstate(over="ignore", invalid="ignore"):  # corrupt words: checked below
+            processor = reader.proc_type
+            count = _number(reader, "POINT:USED", "uint16", int(header.point_count))
+            scale = _number(reader, "POINT:SCALE", "float", float(header.scale_factor))
+            rate = _number(reader, "POINT:RATE", "float", None) or float(header.frame_rate)
+            first_frame = int(reader.first_frame)
+            last_frame = int(reader.last_frame)
     except Exception as exc:  # corrupt parameter values the package cannot convert
         raise C3DError(f"corrupt POINT parameters ({type(exc).__name__}: {exc})",
                        path=path) from None

@@ -400,10 +400,15 @@ def _captures(diagnostics: dict | None, library) -> list[dict]:
                             "chosen": bool(c.get("chosen")), "entry": c.get("entry_id"),
                             "pattern": (c.get("pattern") or {}).get("type")}
                            for c in record.get("cycles") or []],
-                "figure": None, "anchor": f"capture-{k + 1}"}
+                "figure": None, "figure_error": None, "anchor": f"capture-{k + 1}"}
         if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
-            item["figure"] = _data_uri(figures.capture_figure(
-                record, _reconstructions(record, library, known)))
+            try:
+                item["figure"] = _data_uri(figures.capture_figure(
+                    record, _reconstructions(record, library, known)))
+            except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
+                # a hand-edited or foreign sidecar: this capture's plots only are lost
+                item["figure_error"] = (f"its record in the diagnostics sidecar is malformed "
+                                        f"({type(exc).__name__}: {str(exc)[:200]})")
         out.append(item)
     return out
 

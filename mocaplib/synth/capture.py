@@ -90,7 +90,9 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     if not (np.isfinite(rate) and rate > 0):
         raise SynthError(f"frame rate must be > 0 Hz, got {rate}")
     need = min_duration(command, subject)
-    if not np.isfinite(duration) or duration < max(need, 1.0 / rate):
+    if not np.isfinite(duration):
+        raise SynthError(f"duration must be a finite number of seconds, got {duration}")
+    if duration < max(need, 1.0 / rate):
         raise SynthError(f"duration {duration} s is too short",
                          hint=f"this command needs at least {need:.2f} s for {MIN_CYCLES} cycles")
     skeleton = Skeleton.from_height(subject.height)

@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import os
 import re
-import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..errors import MocapError, SynthError
+from ..io.tomlfile import read_toml
 from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
@@ -120,20 +120,20 @@ def _markers(spec) -> MarkerSettings:
 def load_plan(path: str | os.PathLike) -> Plan:
     """Read and check a plan file; raises :class:`SynthError` naming the file and capture."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as handle:
-            data = tomllib.load(handle)
-    except FileNotFoundError:
-        raise SynthError("plan file not found", path=path) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SynthError(f"not valid TOML: {exc}", path=path) from None
+    data = read_toml(path, error=SynthError, what="capture plan",
+                     hint="a plan is a TOML file like protocols/paper_plan.toml")
     defaults = data.get("defaults", {})
     entries = data.get("capture")
     if not isinstance(entries, list) or not entries:
         raise SynthError("no [[capture]] entries", path=path,
                          hint="each capture needs name, class, command, duration, seed")
+    if not isinstance(defaults, dict) or not isinstance(defaults.get("markers", {}), dict):
+        raise SynthError("[defaults] and its markers must be tables", path=path)
     captures, seen = [], set()
     for i, entry in enumerate(entries):
+        if not isinstance(entry, dict) or not isinstance(entry.get("markers", {}), dict):
+            raise SynthError(f"capture #{i + 1} (and its markers) must be a table", path=path,
+                             hint="write each capture as a [[capture]] table")
         name = entry.get("name")
         where = f"capture {name!r}" if name else f"capture #{i + 1}"
         if not isinstance(name, str) or not _NAME.match(name):

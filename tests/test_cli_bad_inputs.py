@@ -1,0 +1,212 @@
+"""Hostile but plausible command lines and files: a clear error, the right exit code, no
+traceback (``main`` returning, not raising), inputs untouched, nothing half-written."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import warnings
+from pathlib import Path
+
+import pytest
+
+from mocaplib.cli import main
+from conftest import SAMPLES
+
+
+def sample(name: str, folder: Path) -> Path:
+    """A copy of the sample capture ``name`` in ``folder`` (skips when the samples are absent)."""
+    source = SAMPLES / f"{name}.c3d"
+    if not source.is_file():
+        pytest.skip(f"sample capture {source} not found")
+    folder.mkdir(parents=True, exist_ok=True)
+    return Path(shutil.copy(source, folder / source.name))
+
+
+def digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory) -> Path:
+    """A small valid library built from four sample captures."""
+    folder = tmp_path_factory.mktemp("lib")
+    names = ["walk_straight_normal", "turn_spot_left_normal", "side_left_normal",
+             "walk_curve_r2_left_normal", "rest"]
+    captures = [sample(name, folder / "caps") for name in names]
+    out = folder / "lib.json"
+    assert main(["build", *map(str, captures), "-o", str(out), "--no-cache", "-q"]) == 0
+    return out
+
+
+def broken_library(library: Path, folder: Path, edit) -> Path:
+    document = json.loads(library.read_text())
+    edit(document)
+    path = folder / "broken.json"
+    path.write_text(json.dumps(document))
+    return path
+
+
+@pytest.mark.parametrize("args", [
+    ["fit", "{w}", "-o", "{w}"],
+    ["fit", "{w}", "-o", "{d}/a.csv", "--mot", "{w}"],
+    ["fit", "{w}", "-o", "{d}/a.csv", "--mot", "{d}/a.csv"],
+    ["fit", "{w}", "-o", "{d}"],
+    ["fit", "{w}", "-o", "{r}", "--static", "{r}"],
+    ["build", "{d}", "-o", "{w}", "-q"],
+    ["build", "{w}", "-o", "{d}", "-q"],
+    ["build", "{w}", "-o", "{d}/lib.json", "--report", "{r}", "-q"],
+    ["report", "{lib}", "-o", "{w}"],
+    ["query", "{lib}", "1.0", "0", "0", "--bvh", "{lib}"],
+])
+def test_an_output_that_would_overwrite_an_input_is_a_usage_error(args, tmp_path, library,
+                                                                  capsys):
+    walk = sample("walk_straight_normal", tmp_path / "in")
+    static = sample("rest", tmp_path / "in")
+    before = {p: digest(p) for p in (walk, static, library)}
+    names = {"w": walk, "r": static, "d": tmp_path / "in", "lib": library}
+    assert main([a.format(**names) for a in args]) == 2
+    error = capsys.readouterr().err
+    assert "error:" in error and ("input" in error or "folder" in error or "same file" in error)
+    assert {p: digest(p) for p in before} == before
+    assert sorted(p.name for p in (tmp_path / "in").iterdir()) == ["rest.c3d",
+                                                                   "walk_straight_normal.c3d"]
+
+
+@pytest.mark.parametrize("args", [
+    ["query", "{lib}", "inf", "0", "0"],
+    ["query", "{lib}", "nan", "0", "0"],
+    ["query", "{lib}", "1e308", "0", "0"],
+    ["query", "{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--rate", "inf"],
+    ["query", "{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--cycles", "1000000000"],
+    ["fit", "{w}", "-o", "{d}/a.csv", "--cutoff", "inf"],
+])
+def test_numbers_no_command_can_use_are_usage_errors(args, tmp_path, library, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    assert main([a.format(lib=library, d=tmp_path, w=walk) for a in args]) == 2
+    assert "error: argument" in capsys.readouterr().err
+    assert not list(tmp_path.glob("a.*"))
+
+
+@pytest.mark.parametrize("edit, problem", [
+    (lambda d: d["entries"][0]["fourier"]["a"].pop(), "coefficients must be"),
+    (lambda d: d["entries"][0]["fourier"]["a"][0].pop(), "coefficients must be"),
+    (lambda d: d["entries"][0].update(v=1e300), "not a locomotion's"),
+    (lambda d: d["entries"][0]["fourier"]["a"][0].__setitem__(1, 1e300), "not a joint's"),
+])
+def test_a_library_with_unusable_numbers_is_refused_by_query_and_report(edit, problem,
+                                                                        tmp_path, library,
+                                                                        capsys):
+    broken = broken_library(library, tmp_path, edit)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow on the way to the refusal
+        assert main(["validate", str(broken)]) == 1
+        assert problem in capsys.readouterr().out
+        assert main(["query", str(broken), "1.0", "0", "0"]) == 1
+        assert main(["report", str(broken), "-o", str(tmp_path / "r"), "--no-opengl"]) == 1
+    error = capsys.readouterr().err
+    assert f"{broken}: not a valid mocaplib library" in error and problem in error
+    assert not (tmp_path / "r").exists()
+
+
+def test_json_nested_too_deep_is_not_a_library(tmp_path, capsys):
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100000 + "]" * 100000)
+    assert main(["validate", str(deep)]) == 1
+    assert main(["query", str(deep), "1", "0", "0"]) == 1
+    assert "nested too deep" in capsys.readouterr().err
+
+
+def test_a_malformed_capture_record_in_the_sidecar_loses_only_its_plots(tmp_path, library):
+    copy = Path(shutil.copy(library, tmp_path / "lib.json"))
+    sidecar = json.loads(library.with_name("lib.diagnostics.json").read_text())
+    sidecar["captures"][0]["time_s"] = "oops"
+    (tmp_path / "lib.diagnostics.json").write_text(json.dumps(sidecar))
+    assert main(["report", str(copy), "-o", str(tmp_path / "r"), "--no-opengl"]) == 0
+    html = (tmp_path / "r" / "lib-report.html").read_text()
+    assert html.count("No quality plots: its record in the diagnostics sidecar is malformed") == 1
+    assert html.count('class="capture-figure"') == len(sidecar["captures"]) - 1
+
+
+@pytest.mark.parametrize("text, message", [
+    ("capture = [1, 2]\n", "must be a table"),
+    ("defaults = 3\ncapture = [{name = 'a'}]\n", "must be tables"),
+    (b"\x80\x81 not text", "not UTF-8 text"),
+    (None, "cannot read the capture plan"),
+])
+def test_a_broken_capture_plan_is_a_clear_error(text, message, tmp_path, capsys):
+    plan = tmp_path / "plan.toml"
+    if text is None:
+        plan.mkdir()
+    elif isinstance(text, bytes):
+        plan.write_bytes(text)
+    else:
+        plan.write_text(text)
+    assert main(["synth", str(plan), "-o", str(tmp_path / "out"), "--no-progress"]) == 1
+    assert f"{plan}: " in (error := capsys.readouterr().err) and message in error
+
+
+@pytest.mark.parametrize("kind", ["folder", "binary"])
+def test_a_protocol_path_that_is_not_a_toml_text_is_a_usage_error(kind, tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    protocol = tmp_path / "mine.toml"
+    protocol.mkdir() if kind == "folder" else protocol.write_bytes(b"\xff\xfe\x00binary")
+    assert main(["events", str(walk), "--protocol", str(protocol)]) == 2
+    assert str(protocol) in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_a_pipe_named_like_a_capture_is_refused_not_read_forever(tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path / "caps")
+    pipe = tmp_path / "caps" / "pipe.c3d"
+    os.mkfifo(pipe)
+    assert main(["events", str(pipe)]) == 1
+    assert "not a regular file" in capsys.readouterr().err
+    out = tmp_path / "lib.json"
+    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 0
+    assert "captures 1" in capsys.readouterr().out  # the pipe is not taken for a capture
+    assert main(["build", str(pipe), str(walk), "-o", str(out), "--no-cache", "-q"]) == 1
+    assert "pipe.c3d [read]: cannot read: not a regular file" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("rate", [1.0, 5e5])
+def test_a_frame_rate_no_gait_capture_has_is_an_error(rate, tmp_path, capsys):
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(sample("walk_straight_normal", tmp_path))
+    path = tmp_path / "odd_rate.c3d"
+    write_c3d(path, trial.markers, trial.labels, rate)
+    for command in ("events", "cycles"):
+        assert main([command, str(path)]) == 1
+        assert f"{path}: frame rate {rate:g} Hz is outside" in capsys.readouterr().err
+
+
+def test_a_corrupt_processor_byte_gives_an_error_and_no_numpy_warning(tmp_path, capsys):
+    data = bytearray(sample("walk_straight_normal", tmp_path).read_bytes())
+    data[512 + 3] = 85  # DEC floats on an Intel file: the rate decodes to nonsense
+    path = tmp_path / "dec.c3d"
+    path.write_bytes(bytes(data))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["events", str(path)]) == 1
+    assert str(path) in capsys.readouterr().err
+
+
+def test_an_unusable_cache_folder_does_not_stop_the_build(tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path / "caps")
+    (tmp_path / "cache").write_text("a file where the cache folder should be")
+    out = tmp_path / "lib.json"
+    assert main(["build", str(walk), "-o", str(out), "--cache-dir", str(tmp_path / "cache"),
+                 "-q"]) == 0
+    assert "note: results not cached" in capsys.readouterr().out and out.is_file()
+
+
+def test_an_address_that_is_not_a_scheduler_is_a_clear_error(tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    pytest.importorskip("distributed")
+    assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--scheduler",
+                 "not an address", "-q"]) == 1
+    assert "cannot connect to the Dask scheduler" in capsys.readouterr().err
