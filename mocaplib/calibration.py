@@ -107,6 +107,12 @@ SWAP_RESIDUAL = 0.03
 #: "free" (unknown: fitted, like a motion).
 STATIC_POSES = ("neutral", "free")
 
+#: How far (m) a static trial's markers may move, each over the whole trial (median over the
+#: markers), and the trial still count as standing. Measured: 1-9 mm on the statics at hand
+#: (the samples' rest, motonms Static1, biomechzoo HC030A01, btkdata PiG_Calibration2), 0.2 m
+#: turning on the spot, metres walking.
+STANDING_EXTENT = 0.05
+
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
 #: hinge axes become functional ones.
@@ -204,6 +210,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static_pose not in STATIC_POSES:
         raise CalibrationError(f"static_pose must be one of {', '.join(STATIC_POSES)}, "
                                f"got {static_pose!r}", path=getattr(static, "source", None))
+    if static is not None:
+        check_standing(static)
     cal = static if static is not None else trial
     proto = choose_protocol(cal, protocol)
     cal_match = match_protocol(cal, proto, check_swaps=False)   # find_swaps decides
@@ -302,6 +310,24 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         f"only {n_seen} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
         "3 are needed to place the pelvis", path=cal.source,
         hint="check the labels against the protocol, or pass --protocol")
+
+
+def check_standing(static: Trial) -> None:
+    """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
+    (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
+    calibrates a subject in mid-stride."""
+    seen = np.isfinite(static.markers).all(axis=2).any(axis=0)
+    if not seen.any():
+        return  # nothing to judge: calibration refuses it with its own reason
+    points = static.markers[:, seen]
+    extent = np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0), axis=1)
+    moved = float(np.median(extent))
+    if moved > STANDING_EXTENT:
+        raise CalibrationError(
+            f"is not a standing static trial: its markers move {moved:.2f} m (median over the "
+            f"markers; a static moves less than {STANDING_EXTENT * 100:.0f} cm)",
+            path=static.source, hint="give the static calibration trial (the subject standing "
+                                     "still) as --static, and the motion as a capture")
 
 
 def check_static(trial: Trial, static: Trial, model: SubjectModel) -> None:

@@ -210,3 +210,58 @@ def test_an_address_that_is_not_a_scheduler_is_a_clear_error(tmp_path, capsys):
     assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--scheduler",
                  "not an address", "-q"]) == 1
     assert "cannot connect to the Dask scheduler" in capsys.readouterr().err
+
+
+def test_a_walk_given_as_the_static_is_refused(tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    other = sample("walk_straight_slow", tmp_path)
+    assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--static", str(other),
+                 "--static-pose", "neutral", "--no-cache", "-q"]) == 2
+    assert main(["fit", str(walk), "-o", str(tmp_path / "a.csv"), "--static", str(other)]) == 1
+    errors = capsys.readouterr().err
+    assert errors.count(f"{other}: is not a standing static trial") == 2
+    assert not list(tmp_path.glob("l.*")) and not (tmp_path / "a.csv").exists()
+
+
+def test_the_statics_at_hand_count_as_standing():
+    from mocaplib.calibration import check_standing
+    from mocaplib.io.c3d import read_c3d
+    from conftest import real_file
+
+    rest = SAMPLES / "rest.c3d"
+    if not rest.is_file():
+        pytest.skip("sample captures not found")
+    check_standing(read_c3d(rest))
+    for name in ("motonms_unipd/Static1.c3d", "biomechzoo/HC030A01.c3d",
+                 "btkdata/PiG_Calibration2-NoOption.c3d"):
+        check_standing(read_c3d(real_file(name)))
+
+
+@pytest.mark.parametrize("inputs, message", [
+    (["{w}", "{d}/nope.c3d"], "nope.c3d: no such file or folder"),
+    (["{d}/empty"], "no C3D captures (*.c3d) in"),
+])
+def test_build_inputs_that_are_not_captures_are_usage_errors(inputs, message, tmp_path,
+                                                             capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    (tmp_path / "empty").mkdir()
+    paths = [i.format(w=walk, d=tmp_path) for i in inputs]
+    assert main(["build", *paths, "-o", str(tmp_path / "l.json"), "--no-cache", "-q"]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "l.json").exists()
+
+
+def test_an_output_where_nothing_can_be_written_stops_fit_before_it_writes(tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    (tmp_path / "plain").write_text("a file")
+    assert main(["fit", str(walk), "-o", str(tmp_path / "a.csv"), "--mot",
+                 str(tmp_path / "plain" / "a.mot")]) == 2
+    assert "cannot write into" in capsys.readouterr().err
+    assert not (tmp_path / "a.csv").exists()
+
+
+def test_an_envelope_file_that_is_not_text_is_a_clear_error(tmp_path, library, capsys):
+    envelope = tmp_path / "envelope.toml"
+    envelope.write_bytes(b"\x80\x81\x82")
+    assert main(["report", str(library), "-o", str(tmp_path / "r"), "--envelope",
+                 str(envelope), "--no-opengl"]) == 1
+    assert f"{envelope}: the envelope file is not UTF-8 text" in capsys.readouterr().err

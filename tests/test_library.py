@@ -16,7 +16,7 @@ from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.library import (QC_NAMES, Library, assemble_library, make_entry, schema,
                               validate_library)
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 D = len(DOF_NAMES)
 # Five velocity triples that span all three axes (affine rank 3).
@@ -40,7 +40,8 @@ def entry(i: int, *, n: int = 3, v=None, omega=None, v_l=None, **overrides) -> d
         qc={"marker_rms_m": 0.008, "marker_max_m": 0.02, "gap_fraction": 0.01,
             "event_quality": 1.0, "fourier_rms_rad": 0.003, "cycle_closure_rad": 0.02,
             "jerk_rms_rad_s3": 40.0},
-        locomotion_class="curve_left", segment_lengths_m={"thigh": 0.43 + 0.01 * i})
+        locomotion_class="curve_left",
+        segment_lengths_m=Skeleton.from_height(1.75 + 0.01 * i).lengths)
     fields.update(overrides)
     return make_entry(**fields)
 
@@ -59,6 +60,17 @@ def test_shipped_schema_is_a_valid_draft_2020_12_schema():
 
     Draft202012Validator.check_schema(schema())
     assert schema()["$schema"].endswith("2020-12/schema")
+
+
+def test_the_schema_requires_every_length_of_the_fixed_skeleton():
+    # a reader rebuilds the skeleton from segment_lengths_m (`mocaplib query --bvh` does): a
+    # library missing one must not validate (it did, then query failed)
+    from mocaplib.skeleton import HEIGHT_PROPORTIONS
+
+    assert set(schema()["$defs"]["segment_lengths"]["required"]) == set(HEIGHT_PROPORTIONS)
+    doc = library().document
+    del doc["skeleton"]["segment_lengths_m"]["ankle_height"]
+    assert any("'ankle_height' is a required property" in p for p in problems_of(doc))
 
 
 def test_round_trip_through_file_is_valid_and_byte_identical(tmp_path):

@@ -20,12 +20,17 @@ class UsageError(MocapError):
 def check_outputs(outputs: dict[str, str | os.PathLike | None],
                   inputs: list[str | os.PathLike]) -> None:
     """Raise :class:`UsageError` before anything is written when an output file (``{option:
-    path}``, None = not asked for) would overwrite an input, another output, or is a folder."""
+    path}``, None = not asked for) would overwrite an input or another output, is a folder, or
+    lies where nothing can be written (its nearest existing folder is a file or read-only)."""
     given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
     existing = [Path(path) for path in inputs if Path(path).is_file()]
     for n, (option, path) in enumerate(given):
         if path.is_dir():
             raise UsageError(f"{option} {path} is a folder; give a file name")
+        folder = next(p for p in path.absolute().parents if p.exists())
+        if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+            raise UsageError(f"{option} {path}: cannot write into {folder}"
+                             f"{'' if folder.is_dir() else ' (a file, not a folder)'}")
         if path.exists() and any(os.path.samefile(path, source) for source in existing):
             raise UsageError(f"{option} {path} is an input of this command; writing it "
                              "would overwrite the input: give another file name")

@@ -46,21 +46,27 @@ def _check_usage(args) -> None:
     """Raise :class:`UsageError` for what would fail or do harm before any capture is
     processed: a --static that is missing or cannot be read (every capture would fail on it),
     an output that would overwrite an input, a --report that is a file."""
+    from ..calibration import check_standing
     from ..errors import MocapError
     from ..io.c3d import read_c3d
     from ..pipeline import diagnostics_path, find_captures
 
-    missing = [static for static in args.static or () if not Path(static).is_file()]
+    missing = [static for static in args.static or () if not Path(static).exists()]
     if missing:
         raise UsageError(f"--static: no such file: {', '.join(missing)}")
     for static in args.static or ():
         try:
-            read_c3d(static)
+            check_standing(read_c3d(static))
         except MocapError as exc:
             raise UsageError(f"--static: {exc}") from None
+    try:
+        captures = find_captures(args.inputs)
+    except MocapError as exc:
+        raise UsageError(str(exc)) from None
+    if not captures:
+        raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
-                   diagnostics_path(args.output)},
-                  [*find_captures(args.inputs), *(args.static or ())])
+                   diagnostics_path(args.output)}, [*captures, *(args.static or ())])
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
         raise UsageError(f"--report {args.report} is a file; give a folder for the report")
 

@@ -22,6 +22,7 @@ import pandas as pd
 
 from ..controlspace import Envelope
 from ..errors import MocapError
+from ..io.tomlfile import read_toml
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
@@ -79,8 +80,7 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
         return (Envelope(FALLBACK_ENVELOPE, source="built-in"),
                 {"text": f"built-in default ({why}): hull of rest, spot turns, straight, "
                          "curved, side and diagonal walking", "plan": None})
-    text = Path(plan).read_text(encoding="utf-8")
-    if "[envelope]" in text:
+    if "envelope" in read_toml(plan, what="capture plan"):
         env, how = Envelope.from_toml(plan), f"[envelope] table of {Path(plan).name}"
     else:
         env = Envelope.from_commands(commands, source=str(plan))
