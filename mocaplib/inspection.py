@@ -12,7 +12,7 @@ import os
 
 from .errors import MocapError, ProtocolError
 from .protocols import Protocol, match_trial
-from .trial import Trial
+from .trial import Trial, check_gait_rate
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
@@ -59,6 +59,10 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
                events=[{"context": e.context, "label": e.label, "time_s": e.time_s}
                        for e in trial.events])
     warnings = list(trial.warnings)
+    try:
+        check_gait_rate(trial.rate, None)
+    except MocapError as exc:  # shown, so the file can still be looked at
+        warnings.append(f"{exc.message}; fit, events and build refuse it ({exc.hint})")
     try:
         match = match_trial(trial, protocol)
     except ProtocolError as exc:

@@ -57,6 +57,17 @@ def test_summary_of_a_written_capture(capture):
     np.testing.assert_allclose([e["time_s"] for e in summary["events"]], [0.10, 0.25], atol=1e-6)
 
 
+def test_a_frame_rate_no_gait_capture_has_is_shown_with_a_warning(tmp_path):
+    # inspect still shows the file (it is how one finds the wrong POINT:RATE), and says that
+    # the processing commands refuse it
+    trial = walker_trial(load_protocol("plugin_gait"), n_frames=60)
+    path = write_c3d(tmp_path / "odd.c3d", trial.markers, trial.labels, 2.0)
+    summary = inspect_c3d(path)
+    assert summary["ok"] and summary["rate_hz"] == 2.0
+    assert any("frame rate 2 Hz is outside" in w for w in summary["warnings"])
+    assert not any("frame rate" in w for w in inspect_trial(trial)["warnings"])
+
+
 def test_json_output_and_exit_0(capsys, capture):
     code, out, _ = _cli(capsys, "inspect", "--json", str(capture))
     assert code == 0
