@@ -201,7 +201,9 @@ def ground_velocity(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: flo
 def _prepared(heel, toe, rate, cutoff_hz, max_gap_s):
     """Gap-filled raw points (2, F, 3), their low-passed version and its velocity (m/s)."""
     raw = np.stack([_fill_gaps(p, round(max_gap_s * rate)) for p in (heel, toe)])
-    points = np.stack([_smooth(p, rate, cutoff_hz) for p in raw])
+    # time is axis 1 here; lowpass filters along axis 0, each trailing column on its own
+    points = (raw if cutoff_hz >= 0.5 * rate else
+              lowpass(raw.transpose(1, 0, 2), rate, cutoff_hz).transpose(1, 0, 2))
     velocity = np.gradient(points, axis=1) * rate if points.shape[1] > 1 else 0 * points
     return raw, points, velocity
 
@@ -244,12 +246,6 @@ def _fill_gaps(points: np.ndarray, max_gap: int) -> np.ndarray:
                 out[start:end, axis] = np.interp(frames[start:end], [start - 1, end],
                                                  points[[start - 1, end], axis])
     return out
-
-
-def _smooth(points: np.ndarray, rate: float, cutoff_hz: float) -> np.ndarray:
-    """Low-passed points (F, 3), or the points themselves when ``cutoff_hz`` is not below the
-    Nyquist frequency (nothing to remove)."""
-    return points if cutoff_hz >= 0.5 * rate else lowpass(points, rate, cutoff_hz)
 
 
 def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2,

@@ -23,7 +23,6 @@ from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlS
                             close_entries, coverage, leave_one_out)
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
-from ..io.tomlfile import read_toml
 from ..library import load_library, validate_library
 from . import figures
 from .plan import default_envelope, planned_status
@@ -175,14 +174,7 @@ def _class_labeller(df, plan):
 def _resolve_envelope(envelope) -> tuple[Envelope, dict]:
     if isinstance(envelope, Envelope):
         return envelope, {"text": f"given by the caller ({envelope.source})", "plan": None}
-    if envelope is not None:
-        path = Path(envelope)
-        document = read_toml(path, what="envelope file", hint="give a TOML file with an "
-                             "[envelope] table, or a capture plan")
-        if "envelope" in document:
-            return Envelope.from_toml(path), {"text": f"from {path.name}", "plan": None}
-        return default_envelope(path)
-    return default_envelope(None)
+    return default_envelope(None if envelope is None else Path(envelope))
 
 
 def _summary(library, df, diagnostics, cs) -> dict:

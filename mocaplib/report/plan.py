@@ -62,8 +62,9 @@ def plan_commands(path: str | Path) -> pd.DataFrame:
 def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
     """The envelope from ``plan`` (or the plan :func:`find_plan` finds, or the fallback).
 
-    Returns the envelope and a note ``{"text": how it was made, "plan": planned captures
-    DataFrame or None}`` for the report.
+    ``plan`` given may also be a TOML file with just an ``[envelope]`` table (see
+    :meth:`Envelope.from_toml`), which is then the envelope. Returns the envelope and a note
+    ``{"text": how it was made, "plan": planned captures DataFrame or None}`` for the report.
     """
     found = plan is None
     plan = plan if plan is not None else find_plan()
@@ -71,6 +72,12 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
     commands = None
     if plan is not None:
         try:
+            document = read_toml(plan, what="capture plan" if found else "envelope file",
+                                 hint="give a TOML file with an [envelope] table, or a "
+                                      "capture plan")
+            if "envelope" in document and not found:
+                return Envelope.from_toml(plan), {"text": f"from {Path(plan).name}",
+                                                  "plan": None}
             commands = plan_commands(plan)
         except MocapError as exc:
             if not found:
@@ -80,7 +87,7 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
         return (Envelope(FALLBACK_ENVELOPE, source="built-in"),
                 {"text": f"built-in default ({why}): hull of rest, spot turns, straight, "
                          "curved, side and diagonal walking", "plan": None})
-    if "envelope" in read_toml(plan, what="capture plan"):
+    if "envelope" in document:
         env, how = Envelope.from_toml(plan), f"[envelope] table of {Path(plan).name}"
     else:
         env = Envelope.from_commands(commands, source=str(plan))
