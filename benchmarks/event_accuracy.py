@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mocaplib.events import TOE_OFF_SEARCH, detect_events, event_differences, feet_of  # noqa: E402
+from mocaplib.events import TOE_OFF_DEFINITIONS, detect_events, event_differences, feet_of  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.protocols import detect_protocol  # noqa: E402
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
@@ -124,7 +124,7 @@ def main(argv=None) -> int:
             samples = Path(folder)
             regenerate(samples, args.noise_sd)
         verdict = {toe_off: (synthetic_table(samples, toe_off), real_table(args.real, toe_off))
-                   for toe_off in TOE_OFF_SEARCH}
+                   for toe_off in TOE_OFF_DEFINITIONS}
     print()
     for toe_off, (synthetic, real) in verdict.items():
         print(f"{toe_off:14s} synthetic target {'met' if synthetic else 'MISSED'}, "

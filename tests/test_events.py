@@ -38,8 +38,11 @@ def errors(events, truth, kind):
 def test_events_within_one_frame_of_truth(gait):
     heel, toe, offs, strikes = foot(TIME, noise=0.0007, **GAITS[gait])
     events = foot_events(heel, toe, RATE, side="left")
-    # the issue's target: |error| <= 1 frame for toe-offs, with 0.7 mm marker noise
+    # the issue's target: |error| <= 1 frame for toe-offs, with 0.7 mm marker noise; both
+    # definitions (measured: worst 0.43 frames default, 0.39 lift)
     assert np.all(np.abs(errors(events, offs, "toe_off")) <= 1 / RATE), gait
+    lift = foot_events(heel, toe, RATE, side="left", toe_off="lift")
+    assert np.all(np.abs(errors(lift, offs, "toe_off")) <= 1 / RATE), gait
     # heel-strikes: 1 frame; 3 where the flat landing foot rocks its markers as it touches
     # (the median of three kinks trades these for better real and synthetic heel-strikes)
     limit = 3 if gait in ("on the spot", "side-step left", "side-step right") else 1
@@ -171,10 +174,10 @@ def test_real_toe_offs_match_lab_foot_off():
 
 
 def test_real_forefoot_lift_precedes_foot_off_by_the_toe_roll():
-    diff = lab_differences("toe_off", toe_off="lift")  # the toe marker leaves first
-    # measured median -36 ms: the toes stay on the plate for a few tens of ms after the
-    # forefoot lifts; the window checks the sign and the order of magnitude
-    assert -0.060 <= np.median(diff) <= -0.015, np.round(diff * 1000)
+    diff = lab_differences("toe_off", toe_off="lift")  # the forefoot's fastest upswing
+    # measured median -18 ms: the toes stay on the plate after the forefoot lifts; the
+    # window checks the sign and the order of magnitude
+    assert -0.040 <= np.median(diff) <= -0.008, np.round(diff * 1000)
 
 
 def test_real_heel_strikes_match_lab_foot_strike():
@@ -207,13 +210,12 @@ def test_synthetic_toe_offs_lift_within_one_frame():
     by_type = synthetic_toe_off_errors("lift")
     within = {kind: np.mean(errors <= 1.0) for kind, errors in by_type.items()}
     everything = np.concatenate(list(by_type.values()))
-    # the issue's target over all synthetic toe-offs: >= 95 % within one frame (measured
-    # 99.7 %: the synthetic foot is rigid, its truth is the instant the toe marker lifts)
+    # the issue's target: >= 95 % within one frame in every locomotion type (measured 99.7 %
+    # overall, every type >= 97.8 %: the synthetic foot is rigid, its truth is the instant
+    # it lifts). The samples are made from fixed seeds, so this is the shipped samples' score.
+    assert min(within.values()) >= 0.95, within
     assert np.mean(everything <= 1.0) >= 0.95, within
-    # per locomotion type (15-45 toe-offs each) measured 93-100 %; 85 % leaves room for one
-    # unlucky event per type as the samples are remade
-    assert min(within.values()) >= 0.85, within
-    assert everything.max() <= 3.0  # none missed, none far off
+    assert everything.max() <= 2.0  # none missed, none far off
 
 
 def test_synthetic_toe_offs_default_foot_velocity():

@@ -31,8 +31,9 @@ def add_common_options(parser) -> None:
     add_protocol_option(parser)
     parser.add_argument("--toe-off", choices=("foot_velocity", "lift"), default="foot_velocity",
                         help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
-                             "peak, close to a force plate's Foot Off; default) or 'lift' (the "
-                             "toe marker leaves the floor, ~40 ms earlier on real feet)")
+                             "peak, close to a force plate's Foot Off; default) or 'lift' (a "
+                             "rigid foot's lift-off: where the toe's upward velocity rises "
+                             "fastest, ~18 ms before Foot Off on real feet)")
 
 
 def load(args):
