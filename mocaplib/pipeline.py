@@ -31,6 +31,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import MocapError
+from .events import TOE_OFF_DEFINITIONS
 from .io import special_file
 from .io.atomic import atomic_write_text
 import numpy as np
@@ -62,6 +63,8 @@ class BuildSettings:
         angle 0; see :func:`mocaplib.calibration.calibrate`).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
+    toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
+        ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
     all_cycles : keep every complete cycle, not only the one chosen per capture.
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
@@ -73,6 +76,7 @@ class BuildSettings:
     static: str | tuple[str, ...] | None = None
     static_pose: str = "free"
     cutoff: float | str | None = "auto"
+    toe_off: str = "foot_velocity"
     all_cycles: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
@@ -88,6 +92,9 @@ class BuildSettings:
             object.__setattr__(self, "static", statics[0] if len(statics) == 1 else statics or None)
         if self.static == "":
             object.__setattr__(self, "static", None)
+        if self.toe_off not in TOE_OFF_DEFINITIONS:
+            raise MocapError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
+                             f"got {self.toe_off!r}")
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")
 
@@ -265,7 +272,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                                "outliers (jumping or mislabelled trajectories)")
     with clock.stage("events"):
         feet = feet_of(trial, match, motion=motion)
-        events = detect_events(feet, trial.rate, source=path)
+        events = detect_events(feet, trial.rate, toe_off=settings.toe_off, source=path)
         shoulders = shoulder_centres(motion)
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):

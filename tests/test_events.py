@@ -388,3 +388,10 @@ def test_feet_follow_the_calibrations_left_right_exchange():
     expected = detect_events(true_feet, trial.rate)
     assert [(e.side, e.kind) for e in found] == [(e.side, e.kind) for e in expected]
     np.testing.assert_allclose([e.time_s for e in found], [e.time_s for e in expected], atol=0)
+
+
+def test_cli_toe_off_choices_are_the_detector_definitions():
+    from mocaplib.cli._common import TOE_OFF_CHOICES
+    from mocaplib.events import TOE_OFF_DEFINITIONS
+
+    assert TOE_OFF_CHOICES == TOE_OFF_DEFINITIONS

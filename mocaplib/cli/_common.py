@@ -58,6 +58,20 @@ def add_protocol_option(parser, *, default: str = "the best shipped protocol") -
                              f"(default: {default})")
 
 
+#: ``--toe-off`` choices: :data:`mocaplib.events.TOE_OFF_DEFINITIONS` (not imported here, so
+#: the command line parses without loading numpy; a test keeps them equal).
+TOE_OFF_CHOICES = ("foot_velocity", "lift")
+
+
+def add_toe_off_option(parser) -> None:
+    """``--toe-off``: which toe-off definition cuts the cycles (:mod:`mocaplib.events`)."""
+    parser.add_argument("--toe-off", choices=TOE_OFF_CHOICES, default="foot_velocity",
+                        help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
+                             "peak, close to a force plate's Foot Off; default) or 'lift' (a "
+                             "rigid foot's lift-off: where the toe's upward velocity rises "
+                             "fastest, ~18 ms before Foot Off on real feet)")
+
+
 def _protocol_name(value: str) -> str:
     from ..protocols import load_protocol
 

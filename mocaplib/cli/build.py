@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      check_outputs, positive, warn)
+                      add_toe_off_option, check_outputs, positive, warn)
 
 
 def register(subparsers) -> None:
@@ -23,6 +23,7 @@ def register(subparsers) -> None:
     add_protocol_option(parser, default="detected for each capture")
     add_static_options(parser)
     add_cutoff_option(parser)
+    add_toe_off_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
                         help="worker processes (default 1)")
@@ -79,7 +80,8 @@ def _run(args) -> int:
     output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              static_pose=args.static_pose, cutoff=args.cutoff,
-                             all_cycles=args.all_cycles, qc_policy=args.qc)
+                             toe_off=args.toe_off, all_cycles=args.all_cycles,
+                             qc_policy=args.qc)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())

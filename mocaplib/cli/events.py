@@ -6,7 +6,7 @@ markers the protocol names (:func:`mocaplib.events.feet_of`).
 
 from __future__ import annotations
 
-from ._common import add_protocol_option
+from ._common import add_protocol_option, add_toe_off_option
 
 
 def register(subparsers) -> None:
@@ -29,11 +29,7 @@ def add_common_options(parser) -> None:
     """FILE, --protocol and --toe-off, shared with ``mocaplib cycles``."""
     parser.add_argument("file", metavar="FILE", help="a C3D file")
     add_protocol_option(parser)
-    parser.add_argument("--toe-off", choices=("foot_velocity", "lift"), default="foot_velocity",
-                        help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
-                             "peak, close to a force plate's Foot Off; default) or 'lift' (a "
-                             "rigid foot's lift-off: where the toe's upward velocity rises "
-                             "fastest, ~18 ms before Foot Off on real feet)")
+    add_toe_off_option(parser)
 
 
 def load(args):
