@@ -33,6 +33,11 @@ ENTRIES = [
 ]
 
 
+#: Build settings as a build records them (the static's name untrusted text).
+SETTINGS = {"protocol": "fullbody38", "static": f"S{EVIL}.c3d", "static_pose": "neutral",
+            "cutoff": "auto", "toe_off": "lift", "all_cycles": False, "qc_policy": "drop"}
+
+
 def _coefficients(v: float, omega: float, n: int = 4):
     """Gait-like Fourier coefficients whose amplitude grows with speed (not linearly, so
     blending has an error to show)."""
@@ -58,7 +63,7 @@ def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
             v_f=float(np.sqrt(max(v * v - vl * vl, 0.0))), a=a, b=b,
             root_drift={"u_f_m_s": v, "u_l_m_s": vl, "omega_rad_s": w},
             qc={"marker_rms_m": 0.006, "fourier_rms_rad": 0.002}, locomotion_class=cls))
-    lib = assemble_library(entries, settings={})
+    lib = assemble_library(entries, settings=SETTINGS)
     path = folder / "lib.json"
     lib.write(path)
     if diagnostics:
@@ -141,7 +146,10 @@ def test_report_contents(report):
     for text in ("Capture next", "largest hole", "Blending error", "sliver tetrahedra",
                  "cap99.c3d", "no left toe-off found", "Interactive view", 'id="cs-data"',
                  "joint RMS (°)", "heading RMS (°)", "root RMS (mm)", "stride error (mm)",
-                 "For comparison, on the frontal axes", "calibrated with Static1.c3d"):
+                 "For comparison, on the frontal axes", "calibrated with Static1.c3d",
+                 "Built with protocol fullbody38; static S&lt;script&gt;",
+                 ".c3d (neutral pose); marker low-pass by Winter&#39;s residual analysis; "
+                 "cycles cut at lift toe-offs; one cycle per capture; QC failures dropped."):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
                                 html, re.S).group(1))

@@ -184,10 +184,38 @@ def _summary(library, df, diagnostics, cs) -> dict:
         "entries": len(df), "in_control_space": len(cs.points) if cs else 0,
         "captures": len(captures) if captures else len(set(df["source_file"])),
         "failed": len(failed), "fourier_n": library.n_harmonics,
+        "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
             {"axis": a, "scale": s, "unit": AXIS_UNITS[a]} for a, s in zip(cs.axes, cs.scale)],
         "tetrahedra": 0 if cs is None else len(cs.tri.simplices),
     }
+
+
+def _built_with(settings: dict) -> list[str]:
+    """The build settings the library records (``settings``, see ``docs/library-format.md``),
+    as short phrases for the summary; a setting the library lacks is left out."""
+    phrases = []
+    if "protocol" in settings:
+        phrases.append(f"protocol {settings['protocol']}")
+    if "static" in settings:
+        static = settings["static"]
+        names = static if isinstance(static, list) else [static] if static else []
+        phrases.append(f"static {', '.join(map(str, names))} "
+                       f"({settings.get('static_pose', 'free')} pose)" if names else
+                       "each capture calibrated from itself")
+    if "cutoff" in settings:
+        cutoff = settings["cutoff"]
+        phrases.append("markers unfiltered" if cutoff is None else
+                       "marker low-pass by Winter's residual analysis" if cutoff == "auto" else
+                       f"marker low-pass {cutoff} Hz")
+    if "toe_off" in settings:
+        phrases.append(f"cycles cut at {settings['toe_off']} toe-offs")
+    if "all_cycles" in settings:
+        phrases.append("every complete cycle" if settings["all_cycles"] else
+                       "one cycle per capture")
+    if "qc_policy" in settings:
+        phrases.append(f"QC failures {'waived' if settings['qc_policy'] == 'waive' else 'dropped'}")
+    return phrases
 
 
 def _entry_rows(df, label) -> list[dict]:
