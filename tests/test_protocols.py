@@ -95,7 +95,7 @@ def test_walking3_swap_is_reported_not_fixed():
     match = detect_protocol(trial)
     assert any("LA (labelled left)" in w and "RA" in w for w in match.warnings)
     # LA is still the marker labelled LA in the file
-    assert match.protocol.labels.index("LA") >= 0
+    assert "LA" in match.protocol.labels
     np.testing.assert_array_equal(match.marker(trial, "LA"), before[:, trial.index("LA")])
     np.testing.assert_array_equal(trial.markers, before)
 
