@@ -96,7 +96,7 @@ def test_cli_generates_and_reports_bad_plans(tmp_path, capsys):
     bad.write_text('[[capture]]\nname = "short"\nclass = "x"\n'
                    'command = { kind = "straight", speed = 1.2 }\nduration = 0.5\nseed = 1\n')
     with pytest.raises(SynthError, match="capture 'short'.*too short"):
-        load_plan(bad)
+        generate_plan(load_plan(bad), tmp_path)   # the plan reads: the report may use it
     assert main(["synth", str(bad), "-o", str(tmp_path), "-q"]) == 1
     assert "capture 'short'" in capsys.readouterr().err
     bad.write_text('[[capture]]\nname = "odd"\nclass = "x"\ncommand = { kind = "curve", '
@@ -106,7 +106,9 @@ def test_cli_generates_and_reports_bad_plans(tmp_path, capsys):
     bad.write_text('[[capture]]\nname = "odd"\nclass = "x"\ncommand = { kind = "rest" }\n'
                    'duration = 3\nseed = 1\nprotocol = "no_such_set"\n')
     with pytest.raises(SynthError, match="capture 'odd': unknown protocol 'no_such_set'"):
-        load_plan(bad)
+        generate_plan(load_plan(bad), tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml", "rest.c3d",
+                                                          "rest.truth.json"]
 
 
 def test_a_plan_with_a_bad_capture_writes_nothing(tmp_path, capsys):

@@ -137,7 +137,11 @@ def _markers(spec) -> MarkerSettings:
 
 
 def load_plan(path: str | os.PathLike) -> Plan:
-    """Read and check a plan file; raises :class:`SynthError` naming the file and capture."""
+    """Read and check a plan file; raises :class:`SynthError` naming the file and capture.
+
+    Whether each capture can be generated (duration, rate, protocol) is checked by
+    :func:`check_captures`: a plan read for its commands alone (the report's envelope) need not
+    be generated."""
     path = os.fspath(path)
     data = read_toml(path, error=SynthError, what="capture plan",
                      hint="a plan is a TOML file like protocols/paper_plan.toml")
@@ -171,22 +175,33 @@ def load_plan(path: str | os.PathLike) -> Plan:
         try:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
             session = get("session_seed", None)
-            planned = PlannedCapture(
+            captures.append(PlannedCapture(
                 name, str(entry["class"]), _command(entry["command"]),
                 float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
                 str(get("protocol", "fullbody38")),
                 _markers({**defaults.get("markers", {}), **entry.get("markers", {})}),
-                None if session is None else int(session))
-            check_timing(planned.command, duration=planned.duration, rate=planned.rate,
-                         subject=subject)
-            load_protocol(planned.protocol)
-            captures.append(planned)
-        except MocapError as exc:
+                None if session is None else int(session)))
+        except SynthError as exc:
             raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
         except (TypeError, ValueError) as exc:
             raise SynthError(f"{where}: bad value ({exc})", path=path) from None
     return Plan(str(data.get("name", Path(path).stem)), str(data.get("description", "")),
                 tuple(captures), path)
+
+
+def check_captures(plan: Plan, captures: list[PlannedCapture], /, *,
+                   protocol: str | None = None) -> None:
+    """Raise :class:`SynthError` naming the plan and capture when one of ``captures`` cannot be
+    generated: a duration too short for its cycles, a bad rate, an unknown protocol (its own,
+    or ``protocol`` when given)."""
+    for entry in captures:
+        try:
+            check_timing(entry.command, duration=entry.duration, rate=entry.rate,
+                         subject=entry.subject)
+            load_protocol(protocol or entry.protocol)
+        except MocapError as exc:
+            raise SynthError(f"capture {entry.name!r}: {exc.message}", path=plan.path,
+                             hint=exc.hint) from None
 
 
 def check_targets(captures: list[PlannedCapture], directory: str | os.PathLike, /, *,
@@ -250,15 +265,11 @@ def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
 
     ``protocol`` overrides every capture's marker set. Returns the paths written (C3D and truth
     of each capture). Before anything is written, raises :class:`SynthError` for a name not in
-    the plan, an unknown ``protocol`` or files that must not be replaced
-    (:func:`check_targets`; ``overwrite`` replaces them).
+    the plan, a capture that cannot be generated (:func:`check_captures`) or files that must
+    not be replaced (:func:`check_targets`; ``overwrite`` replaces them).
     """
     chosen = plan.select(only)
-    if protocol is not None:
-        try:
-            load_protocol(protocol)
-        except MocapError as exc:
-            raise SynthError(str(exc), path=plan.path) from None
+    check_captures(plan, chosen, protocol=protocol)
     check_targets(chosen, directory, overwrite=overwrite)
     if progress:
         from tqdm import tqdm
