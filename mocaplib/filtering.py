@@ -8,17 +8,19 @@ markers are low-pass filtered first:
 * **Zero lag.** A Butterworth filter of order :data:`ORDER` run forwards and backwards
   (``scipy.signal.sosfiltfilt``): no phase shift, squared magnitude response. Two passes
   lower the -3 dB point, so each pass is designed above the cutoff by Winter's correction
-  (2009, §3.4.4.2: ``cutoff / PASS_CORRECTION``, 0.802 for two passes of order 2), applied
-  in the bilinear transform's warped frequency so it is exact for the digital filter:
-  ``tan(π f_pass / rate) = tan(π cutoff / rate) / PASS_CORRECTION``. The cutoff is then the
+  (2009, §3.4.4.2: ``cutoff / c`` with ``c`` = :func:`pass_correction`, 0.802 for two passes
+  of order 2), applied in the bilinear transform's warped frequency so it is exact for the
+  digital filter: ``tan(π f_pass / rate) = tan(π cutoff / rate) / c``. The cutoff is then the
   -3 dB point of the whole filter.
 * **Gap-aware.** Each marker coordinate is filtered separately over each run of consecutive
   valid (finite) samples; gaps stay NaN and never leak into the valid data. A run shorter
-  than ``max(MIN_RUN, rate / cutoff)`` frames (less than one period of the cutoff) is left as
-  it is: the filter's edge transients would dominate it.
+  than :func:`shortest_run` frames (``max(MIN_RUN, rate / cutoff)``: less than one period of
+  the cutoff) is left as it is: the filter's edge transients would dominate it.
 * **Cutoff.** Given in Hz, or ``"auto"``: Winter's residual analysis per capture
   (:func:`residual_cutoff`), or None for no filtering. The documented default for walking when
-  a fixed cutoff is wanted is :data:`WALKING_CUTOFF` (6 Hz).
+  a fixed cutoff is wanted is :data:`WALKING_CUTOFF` (6 Hz). :func:`filter_trial` reports the
+  cutoff only when some run was filtered, and refuses a cutoff in Hz whose period is longer
+  than the capture (nothing could be filtered).
 
 All arrays have time on axis 0; positions are metres, rates and cutoffs Hz.
 """
@@ -44,7 +46,6 @@ def pass_correction(order: int) -> float:
     return (2 ** 0.5 - 1) ** (1 / (2 * order))
 
 
-PASS_CORRECTION = pass_correction(ORDER)
 #: Fixed cutoff commonly used for walking markers, Hz (Winter 2009).
 WALKING_CUTOFF = 6.0
 #: Runs of valid samples shorter than this many frames are never filtered.
@@ -64,24 +65,41 @@ def valid_runs(valid: np.ndarray) -> np.ndarray:
     return edges.reshape(-1, 2)
 
 
+def longest_run(data: np.ndarray) -> int:
+    """Frames in the longest run of finite samples of any column of ``data`` (F, ...)."""
+    flat = np.isfinite(np.asarray(data, dtype=np.float64).reshape(len(data), -1))
+    return max((stop - start for column in flat.T for start, stop in valid_runs(column)),
+               default=0)
+
+
+def shortest_run(rate: float, cutoff: float) -> int:
+    """Frames a run of valid samples needs to be low-passed at ``cutoff`` Hz (``rate`` Hz):
+    one period of the cutoff, and at least :data:`MIN_RUN`."""
+    return max(MIN_RUN, int(np.ceil(rate / cutoff)))
+
+
+def _check_cutoff(cutoff: float, rate: float) -> None:
+    if not (np.isfinite(cutoff) and 0.0 < cutoff < rate / 2):
+        raise FitError(f"low-pass cutoff must be between 0 and {rate / 2:g} Hz (half the "
+                       f"frame rate), got {cutoff:g} Hz",
+                       hint="give a lower cutoff, 'auto' or 'none'")
+
+
 def lowpass(data: np.ndarray, rate: float, cutoff: float, /, *, order: int = ORDER
             ) -> np.ndarray:
     """Zero-lag Butterworth low-pass of ``data`` (F, ...) sampled at ``rate`` Hz, gap-aware;
     ``cutoff`` (Hz) is the -3 dB point of the two passes together.
 
     Every column (trailing index) is filtered over each run of finite samples separately; NaN
-    stays NaN; runs shorter than ``max(MIN_RUN, rate / cutoff)`` are returned unchanged.
+    stays NaN; runs shorter than :func:`shortest_run` are returned unchanged.
     Returns a new array of the same shape. Raises :class:`FitError` for a cutoff outside
     (0, rate / 2).
     """
     data = np.asarray(data, dtype=np.float64)
-    if not (np.isfinite(cutoff) and 0.0 < cutoff < rate / 2):
-        raise FitError(f"low-pass cutoff must be between 0 and {rate / 2:g} Hz (half the "
-                       f"frame rate), got {cutoff:g} Hz",
-                       hint="give a lower cutoff, 'auto' or 'none'")
+    _check_cutoff(cutoff, rate)
     sos = _design(order, float(cutoff), float(rate)).copy()  # scipy wants it writable
     pad = 3 * (2 * len(sos) + 1)
-    shortest = max(MIN_RUN, int(np.ceil(rate / cutoff)))
+    shortest = shortest_run(rate, cutoff)
     flat = data.reshape(len(data), -1)
     out = flat.copy()
     finite = np.isfinite(flat)
@@ -132,9 +150,7 @@ def residual_cutoff(data: np.ndarray, rate: float) -> float:
     """
     nyquist = rate / 2
     data = np.asarray(data, dtype=np.float64)
-    flat = np.isfinite(data.reshape(len(data), -1))
-    longest = max((stop - start for column in flat.T for start, stop in valid_runs(column)),
-                  default=0)
+    longest = longest_run(data)
     if longest < MIN_RUN:          # nothing long enough to filter, nor to analyse
         return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
     # a cutoff whose period is longer than every run would filter nothing (residual 0)
@@ -166,20 +182,36 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto"
     """The trial with low-pass filtered markers, and the cutoff used (Hz; None: unfiltered).
 
     ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the trial's markers) or None /
-    ``"none"`` (the trial itself is returned). The input trial is not modified. Raises
-    :class:`FitError` for a frame rate no gait capture has (:data:`mocaplib.trial.GAIT_RATES`).
+    ``"none"`` (the trial itself is returned). The cutoff is returned only when some run of
+    valid samples was long enough to be filtered (:func:`shortest_run`); otherwise the trial
+    itself and None. The input trial is not modified. Raises :class:`FitError` for a frame rate
+    no gait capture has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in
+    (0, rate / 2), or a cutoff in Hz whose period is longer than the whole capture.
     """
     check_gait_rate(trial.rate, trial.source, FitError)
     if cutoff is None or cutoff == "none" or trial.n_frames == 0:
         return trial, None
-    if cutoff == "auto":
+    given = cutoff != "auto"
+    if not given:
         cutoff = residual_cutoff(trial.markers, trial.rate)
     try:
-        markers = lowpass(trial.markers, trial.rate, float(cutoff))
+        cutoff = float(cutoff)
+        _check_cutoff(cutoff, trial.rate)
     except FitError as exc:
         raise FitError(exc.message, path=trial.source, hint=exc.hint) from None
     except (TypeError, ValueError):
         raise FitError(f"low-pass cutoff must be a number of Hz, 'auto' or 'none', got "
                        f"{cutoff!r}", path=trial.source) from None
-    return dataclasses.replace(trial, markers=markers, warnings=list(trial.warnings)), \
-        float(cutoff)
+    need = shortest_run(trial.rate, cutoff)
+    if given and trial.n_frames < need:
+        lowest = np.ceil(100 * trial.rate / trial.n_frames) / 100
+        raise FitError(
+            f"a {cutoff:g} Hz low-pass needs at least {need} frames (one period of the "
+            f"cutoff, and {MIN_RUN} at least); the capture has {trial.n_frames}",
+            path=trial.source,
+            hint=f"give a cutoff of at least {lowest:g} Hz, 'auto' or 'none'"
+            if trial.n_frames >= MIN_RUN else "give 'none': the capture is too short to filter")
+    if longest_run(trial.markers) < need:   # gaps leave no run long enough: nothing to do
+        return trial, None
+    markers = lowpass(trial.markers, trial.rate, cutoff)
+    return dataclasses.replace(trial, markers=markers, warnings=list(trial.warnings)), cutoff

@@ -206,13 +206,12 @@ class CycleEncoding:
 
     ``series`` holds the periodic channels (D = len(DOF_NAMES)), root in the moving frame;
     ``drift`` the root drift; ``worst_dof`` the DOF with the largest RMS relative to its
-    tolerance and ``worst_rms`` its RMS (rad or m).
+    tolerance.
     """
 
     series: FourierSeries
     drift: RootDrift
     worst_dof: str
-    worst_rms: float
 
     @property
     def order(self) -> int:
@@ -241,11 +240,12 @@ def encode_cycle(q: np.ndarray, time_s: np.ndarray, period: float, q_end: np.nda
     q = np.asarray(q, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
         raise FitError(f"q must have shape (n, {len(DOF_NAMES)}), got {q.shape}")
-    both = np.unwrap(np.vstack([q, np.asarray(q_end, dtype=np.float64)[None]]), axis=0)
+    q_end = np.asarray(q_end, dtype=np.float64)
+    both = np.unwrap(np.vstack([q, q_end[None]]), axis=0)
     both[:, TRANSLATIONS] = np.vstack([q, q_end[None]])[:, TRANSLATIONS]
     drift = root_drift(both[0], both[-1], period)
     local = drift.remove(both[:-1], time_s)
     tolerance = np.where(TRANSLATIONS, tol_length, tol_angle)
     series = encode(local, time_s, period, tolerance=tolerance, max_order=max_order)
     worst = int(np.argmax(series.rms / tolerance))
-    return CycleEncoding(series, drift, DOF_NAMES[worst], float(series.rms[worst]))
+    return CycleEncoding(series, drift, DOF_NAMES[worst])

@@ -358,11 +358,6 @@ def _drift(drift, period: float) -> dict:
             "u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
-#: Low-pass cut-off applied to the fitted angles before the jerk QC, Hz (Winter 2009's usual
-#: cut-off for gait kinematics): the jerk of unfiltered angles measures fit noise only.
-JERK_CUTOFF_HZ = 6.0
-
-
 def cycle_qc(cycle, motion) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
@@ -370,11 +365,11 @@ def cycle_qc(cycle, motion) -> dict:
     marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
     DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
     over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
-    those DOFs of the third time derivative of the fitted angles low-passed at
-    :data:`JERK_CUTOFF_HZ` (rad/s^3).
+    those DOFs of the third time derivative (centred differences) of the fitted angles
+    low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (rad/s^3; None when the capture
+    is too short to be filtered): the jerk of unfiltered angles would measure fit noise only.
     """
-    from scipy.signal import butter, filtfilt
-
+    from .filtering import WALKING_CUTOFF, lowpass, shortest_run
     from .fourier import TRANSLATIONS
 
     frames = np.arange(motion.n_frames) / motion.rate
@@ -385,10 +380,13 @@ def cycle_qc(cycle, motion) -> dict:
     ends = np.array([[np.interp(t, frames, q[:, d]) for d in range(q.shape[1])]
                      for t in (cycle.start_s, cycle.end_s)])
     jerk = None
-    if motion.n_frames > 12 and motion.rate > 2 * JERK_CUTOFF_HZ:
-        b, a = butter(2, JERK_CUTOFF_HZ / (motion.rate / 2))
-        third = np.diff(filtfilt(b, a, q, axis=0), n=3, axis=0) * motion.rate ** 3
-        jerk = float(np.sqrt(np.mean(third[inside[3:]] ** 2)))
+    if motion.n_frames >= shortest_run(motion.rate, WALKING_CUTOFF) \
+            and motion.rate > 2 * WALKING_CUTOFF:
+        smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
+        # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
+        third = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
+            * motion.rate ** 3 / 2
+        jerk = float(np.sqrt(np.mean(third[inside[2:-2]] ** 2)))
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),

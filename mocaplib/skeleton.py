@@ -307,24 +307,6 @@ class Skeleton:
         return cls({k: f * height for k, f in HEIGHT_PROPORTIONS.items()})
 
     # ----------------------------------------------------------------- topology
-    dof_names = DOF_NAMES
-    segment_names = SEGMENT_NAMES
-
-    @staticmethod
-    def dof_index(name: str) -> int:
-        try:
-            return DOF_NAMES.index(name)
-        except ValueError:
-            raise MocapError(f"unknown DOF {name!r}; DOFs are {', '.join(DOF_NAMES)}") from None
-
-    @staticmethod
-    def segment_index(name: str) -> int:
-        try:
-            return SEGMENT_NAMES.index(name)
-        except ValueError:
-            raise MocapError(
-                f"unknown segment {name!r}; segments are {', '.join(SEGMENT_NAMES)}") from None
-
     @staticmethod
     def bounds() -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper DOF limits, each shape (D,), radians or metres."""
@@ -349,13 +331,6 @@ class Skeleton:
             origin[:, segs] = (origin[:, parents]
                                + T[:, parents, :3, :3] @ _OFFSETS_PER_LENGTH[segs])
         return origin[:, np.asarray(segments)]
-
-    def neutral_q(self, n_frames: int = 1) -> np.ndarray:
-        """All-zero pose standing on the floor at the origin, shape (F, D)."""
-        q = np.zeros((n_frames, len(DOF_NAMES)))
-        q[:, DOF_NAMES.index("pelvis_tz")] = (
-            self.lengths["thigh"] + self.lengths["shank"] + self.lengths["ankle_height"])
-        return q
 
     # ----------------------------------------------------------------- kinematics
     def forward(self, q: np.ndarray) -> np.ndarray:

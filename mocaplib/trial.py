@@ -149,14 +149,6 @@ class Trial:
         """Normalised labels (see :func:`normalise_label`), length M, not necessarily unique."""
         return [normalise_label(label) for label in self.labels]
 
-    @property
-    def duplicate_labels(self) -> list[str]:
-        """Normalised labels that occur more than once, in order of first appearance."""
-        seen: dict[str, int] = {}
-        for name in self.names:
-            seen[name] = seen.get(name, 0) + 1
-        return [name for name, count in seen.items() if count > 1]
-
     def index(self, label: str) -> int:
         """Index of the first marker whose normalised label equals ``normalise_label(label)``."""
         key = normalise_label(label)
@@ -183,11 +175,3 @@ class Trial:
         missing = np.isnan(self.markers[:, :, 0])
         return np.array([max((stop - start for start, stop in valid_runs(missing[:, m])),
                              default=0) for m in range(self.n_markers)], dtype=int)
-
-    def select(self, indices) -> "Trial":
-        """A new trial holding only the markers at ``indices`` (same frames)."""
-        indices = list(indices)
-        return Trial(self.markers[:, indices, :], [self.labels[i] for i in indices], self.rate,
-                     first_frame=self.first_frame, units=self.units,
-                     vertical_axis=self.vertical_axis, events=list(self.events),
-                     source=self.source, warnings=list(self.warnings))

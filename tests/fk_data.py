@@ -22,6 +22,14 @@ DEG = np.pi / 180
 _LIMBS = {"femur": "thigh", "tibia": "shank", "humerus": "upper_arm", "forearm": "forearm"}
 
 
+def neutral_q(skeleton: Skeleton, n_frames: int = 1) -> np.ndarray:
+    """The all-zero pose of ``skeleton`` standing on the floor at the origin, shape (F, D)."""
+    q = np.zeros((n_frames, len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("pelvis_tz")] = (
+        skeleton.lengths["thigh"] + skeleton.lengths["shank"] + skeleton.lengths["ankle_height"])
+    return q
+
+
 def gait_angles(n_frames: int, rate: float, *, speed: float = 1.2, cadence_hz: float = 0.9,
                 seed: int = 0) -> np.ndarray:
     """Joint coordinates (F, D) of a steady gait-like motion (radians, metres)."""
@@ -87,7 +95,7 @@ def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float =
     q = gait_angles(n_frames, rate, seed=seed)
     if static:
         sway = np.random.default_rng(seed + 1).normal(0, 0.2 * DEG, (n_frames, len(DOF_NAMES)))
-        q = skeleton.neutral_q(n_frames) + sway
+        q = neutral_q(skeleton, n_frames) + sway
     segments, offsets = proto.nominal_offsets(height)
     # landmarks on a long bone scale with that bone (the malleolus stays at the ankle)
     for segment, length in _LIMBS.items():

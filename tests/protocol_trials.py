@@ -5,9 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from fk_data import neutral_q
 from mocaplib.protocols import Protocol
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 from mocaplib.trial import Trial
+
+
+def select(trial: Trial, indices) -> Trial:
+    """A copy of ``trial`` holding only the markers at ``indices`` (same frames)."""
+    indices = list(indices)
+    return Trial(trial.markers[:, indices, :], [trial.labels[i] for i in indices], trial.rate,
+                 first_frame=trial.first_frame, units=trial.units,
+                 vertical_axis=trial.vertical_axis, events=list(trial.events),
+                 source=trial.source, warnings=list(trial.warnings))
 
 
 def walker_trial(protocol: Protocol, *, heading: float = 0.0, speed: float = 1.2,
@@ -16,7 +26,7 @@ def walker_trial(protocol: Protocol, *, heading: float = 0.0, speed: float = 1.2
     ``heading`` (rad, CCW from +X) at ``speed`` m/s; ``labels`` renames the markers."""
     skeleton = Skeleton.from_height(1.75)
     segments, offsets = protocol.nominal_offsets()
-    q = skeleton.neutral_q(n_frames)
+    q = neutral_q(skeleton, n_frames)
     travel = speed * np.arange(n_frames) / rate
     q[:, DOF_NAMES.index("pelvis_tx")] = travel * np.cos(heading)
     q[:, DOF_NAMES.index("pelvis_ty")] = travel * np.sin(heading)

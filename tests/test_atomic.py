@@ -6,6 +6,7 @@ import stat
 import pytest
 
 from mocaplib.errors import MocapError
+from mocaplib.io import atomic
 from mocaplib.io.atomic import atomic_write_text
 
 
@@ -18,13 +19,31 @@ def test_write_replaces_whole_file_and_leaves_no_temporary(tmp_path):
 
 
 def test_permissions_follow_the_umask_not_mkstemp(tmp_path):
-    old = os.umask(0o022)
-    try:
-        path = atomic_write_text(tmp_path / "report.html", "x")
-    finally:
-        os.umask(old)
+    path = atomic_write_text(tmp_path / "report.html", "x")
     # mkstemp alone would give 0600; other people must be able to read shared reports.
-    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~atomic.UMASK
+    assert atomic.UMASK == atomic._read_umask()   # the process's umask
+
+
+def test_a_write_leaves_the_process_umask_alone(tmp_path, monkeypatch):
+    # setting the umask to read it would give files other threads create meanwhile mode 0666
+    def forbidden(mask):
+        raise AssertionError("os.umask called during a write")
+
+    monkeypatch.setattr(os, "umask", forbidden)
+    assert atomic_write_text(tmp_path / "a.txt", "x").read_text() == "x"
+
+
+def test_the_folder_entry_is_flushed_after_the_rename(tmp_path, monkeypatch):
+    synced, fsync = [], os.fsync
+
+    def record(fd):
+        synced.append(stat.S_ISDIR(os.fstat(fd).st_mode))
+        fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", record)
+    atomic_write_text(tmp_path / "a.txt", "x")
+    assert synced == [False, True]   # the file's data, then its folder
 
 
 def test_unwritable_folder_is_a_clear_error(tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fk_data import neutral_q
 
 from mocaplib.errors import MocapError
 from mocaplib.io.bvh import bvh_text, write_bvh
@@ -112,7 +113,7 @@ def test_bvh_joint_positions_equal_forward_kinematics(random_pose, units, scale)
 
 def test_bvh_is_y_up_for_blender():
     sk = Skeleton.from_height(1.75)
-    names, pos_file, _ = bvh_positions(bvh_text(sk.neutral_q(1), sk, rate=100.0))
+    names, pos_file, _ = bvh_positions(bvh_text(neutral_q(sk, 1), sk, rate=100.0))
     head = pos_file[0, names.index("head")]
     foot = pos_file[0, names.index("foot_l")]
     # Standing upright: the head is high on file +Y, the left foot at file -Z (our +Y, left).
@@ -122,7 +123,7 @@ def test_bvh_is_y_up_for_blender():
 
 def test_bvh_three_rotation_channels_per_joint():
     sk = Skeleton.from_height(1.75)
-    joints, _, values = parse_bvh(bvh_text(sk.neutral_q(2), sk, rate=100.0))
+    joints, _, values = parse_bvh(bvh_text(neutral_q(sk, 2), sk, rate=100.0))
     real = [j for j in joints if j["name"] is not None]
     for j in real:
         rot = sorted(c[0] for c in j["channels"] if c.endswith("rotation"))
@@ -132,13 +133,13 @@ def test_bvh_three_rotation_channels_per_joint():
 
 def test_write_bvh_atomic_and_errors(tmp_path):
     sk = Skeleton.from_height(1.75)
-    out = write_bvh(tmp_path / "sub" / "walk.bvh", sk.neutral_q(3), sk, rate=100.0)
+    out = write_bvh(tmp_path / "sub" / "walk.bvh", neutral_q(sk, 3), sk, rate=100.0)
     assert out.read_text().startswith("HIERARCHY\nROOT pelvis")
-    q = sk.neutral_q(3)
+    q = neutral_q(sk, 3)
     q[1, 5] = np.nan
     with pytest.raises(MocapError, match="finite"):
         bvh_text(q, sk, rate=100.0)
     with pytest.raises(MocapError, match=r"shape \(F, 32\)"):
         bvh_text(q[:, :5], sk, rate=100.0)
     with pytest.raises(MocapError, match="units"):
-        bvh_text(sk.neutral_q(1), sk, rate=100.0, units="inch")
+        bvh_text(neutral_q(sk, 1), sk, rate=100.0, units="inch")

@@ -4,7 +4,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from fk_data import fk_trial
+from fk_data import fk_trial, neutral_q
+from protocol_trials import select
 
 from mocaplib.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
 from mocaplib.errors import CalibrationError, MocapError
@@ -60,7 +61,7 @@ def test_segments_without_markers_are_reported():
     cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=1)
     keep = [i for i, label in enumerate(cap.trial.labels)
             if label not in ("LFHD", "RFHD", "LBHD", "RBHD")]
-    model = calibrate(cap.trial.select(keep), protocol="fullbody38")
+    model = calibrate(select(cap.trial, keep), protocol="fullbody38")
     assert model.left_out == ["head"]
     assert model.locked_dofs == ["neck_flexion", "neck_bending", "neck_rotation"]
     assert "LFHD" not in model.labels
@@ -70,7 +71,7 @@ def test_too_few_pelvis_markers_is_an_error():
     cap = fk_trial(n_frames=10)
     keep = [i for i, label in enumerate(cap.trial.labels) if label not in ("LPSI", "RPSI")]
     with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: only 2 pelvis marker"):
-        calibrate(cap.trial.select(keep), protocol="fullbody38")
+        calibrate(select(cap.trial, keep), protocol="fullbody38")
 
 
 @pytest.mark.parametrize("factor", [1000.0, 0.001])
@@ -99,8 +100,8 @@ def test_static_of_another_marker_set_is_refused(walk):
     # the protocol came from the static's labels and the motion, in another marker set, failed
     # in the fit: 'walk: no frame could be fitted', blaming the motion
     static = fk_trial(n_frames=20, seed=0, static=True).trial
-    other = walk.trial.select([i for i, label in enumerate(walk.trial.labels)
-                               if label not in ("LASI", "RASI", "LPSI", "RPSI")])
+    other = select(walk.trial, [i for i, label in enumerate(walk.trial.labels)
+                                if label not in ("LASI", "RASI", "LPSI", "RPSI")])
     with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: the motion trial .* never "
                                                r"shows 2 of the static's pelvis markers .*"
                                                r"another marker set"):
@@ -219,7 +220,7 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
     from mocaplib.skeleton import Skeleton
 
     skeleton = Skeleton.from_height(1.75)
-    q = skeleton.neutral_q(3)
+    q = neutral_q(skeleton, 3)
     segments = np.array([0, 0, 0])
     nominal = np.array([[0.1, 0.1, 0.0], [-0.1, 0.1, 0.0], [0.0, -0.1, 0.05]])
     X = skeleton.points(q, segments, nominal)

@@ -122,15 +122,43 @@ def test_filter_trial_returns_a_new_trial():
     assert 2.0 <= fc <= 20.0
 
 
-@pytest.mark.parametrize("frames", [1, MIN_RUN - 1])
+@pytest.mark.parametrize("frames", [1, 5, MIN_RUN - 1])
 def test_auto_cutoff_of_a_capture_too_short_to_filter(frames):
     # a one-frame static (btkdata's PiG_Calibration-FlatFoot-One) made the candidate list
-    # infinite; now it gets the walking default and its markers come back unchanged
+    # infinite; now it gets the walking default, nothing is filtered and none is reported
     markers = np.random.default_rng(3).normal(0, 0.1, (frames, 4, 3))
     trial = Trial(markers.copy(), ["A", "B", "C", "D"], RATE, source="static.c3d")
+    assert 0 < residual_cutoff(markers, RATE) < RATE / 2
     filtered, used = filter_trial(trial, cutoff="auto")
-    assert used == residual_cutoff(markers, RATE) and 0 < used < RATE / 2
+    assert used is None and filtered is trial
     np.testing.assert_array_equal(filtered.markers, markers)
+
+
+@pytest.mark.parametrize("frames, cutoff, hint", [
+    (266, 0.001, "give a cutoff of at least 0.38 Hz"),     # 100 Hz / 266 frames = 0.376 Hz
+    (266, 0.3, "give a cutoff of at least 0.38 Hz"),
+    (5, 6.0, "give 'none': the capture is too short"),
+])
+def test_a_cutoff_whose_period_is_longer_than_the_capture_is_refused(frames, cutoff, hint):
+    markers = np.random.default_rng(4).normal(0, 0.1, (frames, 2, 3))
+    trial = Trial(markers, ["A", "B"], RATE, source="walk.c3d")
+    with pytest.raises(FitError, match=f"walk.c3d: a {cutoff:g} Hz low-pass needs at least "
+                                       f"{max(MIN_RUN, int(np.ceil(RATE / cutoff)))} frames"
+                                       f".*the capture has {frames} .*{hint}"):
+        filter_trial(trial, cutoff=cutoff)
+    if frames >= MIN_RUN:   # the lowest cutoff the hint names does filter
+        _, used = filter_trial(trial, cutoff=0.38)
+        assert used == 0.38
+
+
+def test_a_cutoff_no_run_between_gaps_is_long_enough_for_is_not_reported():
+    markers = np.random.default_rng(5).normal(0, 0.1, (300, 2, 3))
+    markers[::50] = np.nan                     # runs of 49 frames
+    trial = Trial(markers, ["A", "B"], RATE, source="walk.c3d")
+    same, used = filter_trial(trial, cutoff=1.5)     # needs 67 frames
+    assert used is None and same is trial
+    filtered, used = filter_trial(trial, cutoff=2.5)  # needs 40 frames
+    assert used == 2.5 and np.nanmax(np.abs(filtered.markers - markers)) > 0
 
 
 @pytest.mark.parametrize("cutoff", [0.0, 50.0, "fast"])
@@ -138,3 +166,20 @@ def test_bad_cutoff_names_the_file(cutoff):
     trial = Trial(np.zeros((50, 1, 3)), ["A"], RATE, source="walk.c3d")
     with pytest.raises(FitError, match="walk.c3d: low-pass cutoff must be"):
         filter_trial(trial, cutoff=cutoff)
+
+
+def test_fit_reports_no_cutoff_for_a_capture_too_short_to_filter(tmp_path, capsys):
+    import json
+
+    from conftest import SAMPLES
+    from mocaplib.cli import main
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    walk = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    short = write_c3d(tmp_path / "short.c3d", walk.markers[:5], walk.labels, walk.rate)
+    assert main(["fit", str(short), "-o", str(tmp_path / "a.csv"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cutoff_hz"] is None
+    assert main(["fit", str(short), "-o", str(tmp_path / "b.csv"), "--cutoff", "6"]) == 1
+    assert "a 6 Hz low-pass needs at least 17 frames" in capsys.readouterr().err
+    assert not (tmp_path / "b.csv").exists()

@@ -95,6 +95,16 @@ def test_cycle_encoding_is_periodic_and_restores_the_drift():
                                atol=np.deg2rad(0.5))
 
 
+def test_cycle_end_pose_may_be_a_list():
+    time = np.arange(0, T, 0.01)
+    q = walking_q(time)
+    q_end = walking_q(np.array([T]))[0]
+    from_list = encode_cycle(q.tolist(), time, T, q_end.tolist())
+    from_array = encode_cycle(q, time, T, q_end)
+    np.testing.assert_array_equal(from_list.series.a, from_array.series.a)
+    assert from_list.drift == from_array.drift
+
+
 def test_drift_frame_reaches_the_end_pose():
     start = np.zeros(D)
     end = np.zeros(D)

@@ -9,7 +9,7 @@ from mocaplib.errors import FitError
 from mocaplib.ik import (_normal_equations, fit, fit_filtered, fit_quality, initial_pose,
                          keyframes, solve_poses)
 from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, MOVES, Skeleton, twists
+from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -272,7 +272,7 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
 def test_initial_pose_interpolates_a_segment_unseen_for_a_while():
     cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0)
     markers = cap.trial.markers.copy()
-    forearm = Skeleton.segment_index("forearm_r")
+    forearm = SEGMENT_NAMES.index("forearm_r")
     markers[10:20, cap.segments == forearm] = np.nan
     q0 = initial_pose(cap.skeleton, markers, cap.segments, cap.offsets)
     elbow = DOF_NAMES.index("elbow_flexion_r")

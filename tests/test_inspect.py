@@ -79,13 +79,14 @@ def test_json_output_and_exit_0(capsys, capture):
 def test_bad_file_exit_1_with_reason_and_no_traceback(capsys, capture, tmp_path):
     bad = tmp_path / "notes.c3d"
     bad.write_text("this is not a C3D file, just some notes from the session\n" * 20)
+    (tmp_path / "empty").mkdir()
     code, out, err = _cli(capsys, "inspect", "--json", str(capture), str(bad),
-                          str(tmp_path / "missing.c3d"))
+                          str(tmp_path / "empty"))
     assert code == 1
-    good, broken, missing = json.loads(out)
-    assert good["ok"] and not broken["ok"] and not missing["ok"]
+    good, broken, empty = json.loads(out)
+    assert good["ok"] and not broken["ok"] and not empty["ok"]
     assert REQUIRED_KEYS <= set(broken) and broken["frames"] is None
-    assert "notes.c3d" in broken["error"] and "missing.c3d" in missing["error"]
+    assert "notes.c3d" in broken["error"] and "no *.c3d files" in empty["error"]
     assert "notes.c3d" in err
     code, out, err = _cli(capsys, "inspect", str(bad))
     assert code == 1 and "FAILED" in out

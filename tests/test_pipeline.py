@@ -432,13 +432,21 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
 
 
 @pytest.mark.real
-def test_real_capture_failing_qc_is_dropped_or_waived(tmp_path):
+def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     from conftest import real_file
     from mocaplib.library import DEFAULT_QC_THRESHOLDS
 
     path = real_file("btkdata/Gait.c3d")
     # 1 mm marker RMS: no real capture with skin markers meets it, so QC must fail.
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.001}
+    # the policy acts only on the entries: process once, keep the cycles for the other policy
+    stage, entries = {}, pipeline._entries
+
+    def recorded(path, result, cycles, motion, settings):
+        stage.update(path=path, cycles=cycles, motion=motion)
+        return entries(path, result, cycles, motion, settings)
+
+    monkeypatch.setattr(pipeline, "_entries", recorded)
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
     assert kept.ok and len(kept.entries) == 1
     entry = kept.entries[0]
@@ -447,10 +455,11 @@ def test_real_capture_failing_qc_is_dropped_or_waived(tmp_path):
     assert sorted(entry["qc_waived"]) == sorted(f.split()[0] for f in failing)
     assert "marker_rms_m" in entry["qc_waived"]
     assert any("kept with QC waived" in w for w in kept.warnings)
-    dropped = process_capture(path, BuildSettings(qc_policy="drop", qc_thresholds=strict))
-    assert dropped.ok and dropped.entries == [] and dropped.n_cycles == kept.n_cycles
+    assert [c["entry_id"] for c in kept.diagnostics["cycles"] if c["chosen"]] == [entry["id"]]
+    dropped = CaptureResult(source=str(path))
+    drop = BuildSettings(qc_policy="drop", qc_thresholds=strict)
+    assert entries(stage["path"], dropped, stage["cycles"], stage["motion"], drop) == []
     assert any("left out of the library" in w for w in dropped.warnings)
-    assert all(c["entry_id"] is None for c in dropped.diagnostics["cycles"])
 
 
 @pytest.mark.parametrize("toe_off", ["foot_velocity", "lift"])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO, real_file, real_files, SHARED_C3D
-from protocol_trials import walker_trial
+from protocol_trials import select, walker_trial
 
 from mocaplib.errors import ProtocolError
 from mocaplib.io.c3d import read_c3d
@@ -95,7 +95,7 @@ def test_walking3_swap_is_reported_not_fixed():
     match = detect_protocol(trial)
     assert any("LA (labelled left)" in w and "RA" in w for w in match.warnings)
     # LA is still the marker labelled LA in the file
-    assert match.protocol.labels.index("LA") >= 0
+    assert "LA" in match.protocol.labels
     np.testing.assert_array_equal(match.marker(trial, "LA"), before[:, trial.index("LA")])
     np.testing.assert_array_equal(trial.markers, before)
 
@@ -164,7 +164,7 @@ def test_detection_prefers_the_complete_then_tighter_protocol():
     # without the shoulders no protocol is complete; the best is still returned, flagged
     pig = load_protocol("plugin_gait")
     keep = [i for i, label in enumerate(pig.labels) if label not in ("LSHO", "RSHO")]
-    match = detect_protocol(walker_trial(pig).select(keep))
+    match = detect_protocol(select(walker_trial(pig), keep))
     assert not match.complete and set(match.missing_landmarks) >= {"L_ACROMION", "R_ACROMION"}
 
 
@@ -233,6 +233,6 @@ def test_readme_protocol_example_matches_its_capture(tmp_path):
     labels[labels.index("Anna:SACRUM")] = "Anna:S1"
     trial = walker_trial(protocol, labels=labels)
     keep = [i for i, label in enumerate(labels) if label != "Anna:L_PSIS"]
-    match = detect_protocol(trial.select(keep), protocols=[protocol, load_protocol("plugin_gait")])
+    match = detect_protocol(select(trial, keep), protocols=[protocol, load_protocol("plugin_gait")])
     assert match.protocol.name == "mylab_lower16" and match.complete
     assert match.missing == ("L PSIS",) and match.found == 15

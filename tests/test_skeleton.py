@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from fk_data import neutral_q
 
 from mocaplib.errors import MocapError
 from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton
@@ -10,7 +11,7 @@ SK = Skeleton.from_height(1.75)
 
 
 def _pose(**angles):
-    q = SK.neutral_q(1)
+    q = neutral_q(SK, 1)
     for name, value in angles.items():
         q[0, DOF_NAMES.index(name)] = value
     return q
@@ -75,7 +76,7 @@ def test_rotations_turn_left_and_inward():
 
 
 def test_neutral_pose_stands_on_the_floor_facing_x():
-    T = SK.forward(SK.neutral_q(1))[0]
+    T = SK.forward(neutral_q(SK, 1))[0]
     np.testing.assert_allclose(T[:, :3, :3], np.broadcast_to(np.eye(3), (len(SEGMENT_NAMES), 3, 3)),
                                atol=1e-12)  # exact: every rotation is the identity
     ankle = T[SEGMENT_NAMES.index("foot_r"), :3, 3]
@@ -84,7 +85,7 @@ def test_neutral_pose_stands_on_the_floor_facing_x():
 
 def test_marker_jacobian_matches_finite_differences():
     rng = np.random.default_rng(3)
-    q = SK.neutral_q(5) + rng.normal(0, 0.4, (5, len(DOF_NAMES)))
+    q = neutral_q(SK, 5) + rng.normal(0, 0.4, (5, len(DOF_NAMES)))
     segments = rng.integers(0, len(SEGMENT_NAMES), 30)
     offsets = rng.normal(0, 0.1, (30, 3))
     points, jac = SK.marker_jacobian(q, segments, offsets)
@@ -104,7 +105,7 @@ def test_marker_jacobian_matches_finite_differences():
 def test_length_jacobian_is_the_change_of_points_with_each_length():
     # points are affine in the lengths, so a whole metre's step is exact (to rounding)
     rng = np.random.default_rng(4)
-    q = SK.neutral_q(4) + rng.normal(0, 0.4, (4, len(DOF_NAMES)))
+    q = neutral_q(SK, 4) + rng.normal(0, 0.4, (4, len(DOF_NAMES)))
     segments = rng.integers(0, len(SEGMENT_NAMES), 25)
     offsets = rng.normal(0, 0.1, (25, 3))
     jac = SK.length_jacobian(q, segments)
@@ -118,7 +119,7 @@ def test_length_jacobian_is_the_change_of_points_with_each_length():
 
 def test_jacobian_is_zero_for_dofs_that_do_not_move_a_segment():
     segments = np.arange(len(SEGMENT_NAMES))
-    _, jac = SK.marker_jacobian(SK.neutral_q(1), segments, np.full((len(segments), 3), 0.1))
+    _, jac = SK.marker_jacobian(neutral_q(SK, 1), segments, np.full((len(segments), 3), 0.1))
     moving = np.abs(jac[0]).max(axis=1) > 0          # (S, D)
     assert not (moving & ~MOVES).any()
     assert MOVES[SEGMENT_NAMES.index("foot_l"), DOF_NAMES.index("hip_flexion_l")]

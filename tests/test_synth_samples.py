@@ -88,35 +88,82 @@ def test_truth_file_layout():
 
 def test_cli_generates_and_reports_bad_plans(tmp_path, capsys):
     assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest",
-                 "--protocol", "plugin_gait", "--no-progress"]) == 0
+                 "--protocol", "plugin_gait", "-q"]) == 0
     truth = json.loads((tmp_path / "rest.truth.json").read_text())
     assert truth["protocol"] == "plugin_gait" and "LFIN" in truth["labels"]
-    assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "nope", "--no-progress"]) == 1
-    assert "not in the plan: nope" in capsys.readouterr().err
-
+    capsys.readouterr()
     bad = tmp_path / "bad.toml"
     bad.write_text('[[capture]]\nname = "short"\nclass = "x"\n'
                    'command = { kind = "straight", speed = 1.2 }\nduration = 0.5\nseed = 1\n')
     with pytest.raises(SynthError, match="capture 'short'.*too short"):
-        generate_plan(load_plan(bad), tmp_path)
-    assert main(["synth", str(bad), "-o", str(tmp_path), "--no-progress"]) == 1
+        generate_plan(load_plan(bad), tmp_path)   # the plan reads: the report may use it
+    assert main(["synth", str(bad), "-o", str(tmp_path), "-q"]) == 1
     assert "capture 'short'" in capsys.readouterr().err
     bad.write_text('[[capture]]\nname = "odd"\nclass = "x"\ncommand = { kind = "curve", '
                    'speed = 1.0 }\nduration = 3\nseed = 1\n')
     with pytest.raises(SynthError, match="capture 'odd': a curve needs a radius"):
         load_plan(bad)
+    bad.write_text('[[capture]]\nname = "odd"\nclass = "x"\ncommand = { kind = "rest" }\n'
+                   'duration = 3\nseed = 1\nprotocol = "no_such_set"\n')
+    with pytest.raises(SynthError, match="capture 'odd': unknown protocol 'no_such_set'"):
+        generate_plan(load_plan(bad), tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml", "rest.c3d",
+                                                          "rest.truth.json"]
 
 
-@pytest.mark.parametrize("entry, message", [
-    ('command = { v_f = 1.0, speed = 2 }', "capture 'x': command keys .* mix or miss"),
-    ('command = { kind = "straight", speed = 1.2 }\nmarkers = { noise = 1 }',
-     "capture 'x': unknown marker settings"),
-    ('command = { kind = "straight", speed = 1.2 }\nmarkers = { gaps = -1 }',
-     "capture 'x': marker settings must be >= 0"),
-    ('command = { kind = "straight", speed = "fast" }', "capture 'x': bad value"),
+def test_a_plan_with_a_bad_capture_writes_nothing(tmp_path, capsys):
+    plan = tmp_path / "plan.toml"
+    good = 'command = { kind = "straight", speed = 1.2 }\nseed = 1\nclass = "x"\n'
+    plan.write_text(f'[[capture]]\nname = "a_ok"\nduration = 3\n{good}'
+                    f'[[capture]]\nname = "b_bad"\nduration = 0.01\n{good}')
+    assert main(["synth", str(plan), "-o", str(tmp_path / "out"), "-q"]) == 1
+    assert "capture 'b_bad': duration 0.01 s is too short" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{plan}", "-o", "{d}", "--only", "walk_straigth_fast"],
+     "not in the plan: walk_straigth_fast (did you mean walk_straight_fast"),
+    (["{plan}", "-o", "{d}", "--only", "zzz"], "its captures are walk_straight_slow, "),
+    (["{plan}", "-o", "{d}", "--only", "rest", "--protocol", "bogus"],
+     "argument --protocol: unknown protocol 'bogus'"),
+    (["{plan}", "-o", "{d}/afile", "--only", "rest"], "it is a file, not a folder"),
+    (["{plan}", "-o", "{d}/afile/sub", "--only", "rest"], "it is a file, not a folder"),
+    (["{d}/nope.toml", "-o", "{d}"], "nope.toml: no such capture plan"),
+    (["{plan}", "-o", "{d}", "--only", "rest", "-j"], "usage: mocaplib synth"),
 ])
-def test_plan_errors_name_the_capture(tmp_path, entry, message):
-    bad = tmp_path / "plan.toml"
-    bad.write_text(f'[[capture]]\nname = "x"\nclass = "c"\nduration = 3\nseed = 1\n{entry}\n')
-    with pytest.raises(SynthError, match=message):
-        load_plan(bad)
+def test_synth_usage_errors_exit_2_before_writing(args, message, tmp_path, capsys):
+    (tmp_path / "afile").write_text("a file")
+    assert main(["synth", *(a.format(plan=PLAN, d=tmp_path) for a in args), "-q"]) == 2
+    assert message in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_synth_replaces_only_its_own_earlier_output(tmp_path, capsys):
+    rest = ["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest", "-q"]
+    assert main(rest) == 0    # a first time, then again over its own output: allowed
+    assert main(rest) == 0
+    assert (tmp_path / "rest.c3d").read_bytes() == (SAMPLES / "rest.c3d").read_bytes()
+    # another capture's file under this name (as a lab static copied there): refused
+    lab = (SAMPLES / "walk_straight_normal.c3d").read_bytes()
+    (tmp_path / "rest.c3d").write_bytes(lab)
+    capsys.readouterr()
+    assert main(rest) == 2
+    error = capsys.readouterr().err
+    assert "would overwrite" in error and "or pass --overwrite" in error
+    assert (tmp_path / "rest.c3d").read_bytes() == lab
+    (tmp_path / "rest.truth.json").unlink()     # a C3D without its truth: refused too
+    assert main(rest) == 2
+    assert "rest.c3d: not written by mocaplib synth" in capsys.readouterr().err
+    assert (tmp_path / "rest.c3d").read_bytes() == lab
+    assert main([*rest, "--overwrite"]) == 0
+    assert (tmp_path / "rest.c3d").read_bytes() == (SAMPLES / "rest.c3d").read_bytes()
+    (tmp_path / "walk_straight_slow.truth.json").write_text('{"format": "mine"}')
+    with pytest.raises(SynthError, match="walk_straight_slow.truth.json: not written by"):
+        generate_plan(load_plan(PLAN), tmp_path, only=["walk_straight_slow"])
+
+
+def test_synth_draws_no_progress_bar_into_a_pipe(tmp_path, capsys):
+    assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest"]) == 0
+    out, err = capsys.readouterr()
+    assert out == f"wrote 1 captures to {tmp_path}\n" and err == ""

@@ -3,6 +3,8 @@
 No algorithm lives here. Each sub-command is a module in this package with a
 ``register(subparsers)`` function; errors a user can cause (:class:`MocapError`) are printed
 as one line without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
+Output that the console's encoding cannot show (ω, ° on an ASCII or cp1252 stdout) is
+written with ``?`` in its place rather than stopping the command.
 """
 
 from __future__ import annotations
@@ -28,13 +30,18 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"{__name__}.{name}").register(sub)
+    parser.set_defaults(parsers=sub.choices)  # each sub-command's parser, by name
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (also used by the console script)."""
+    _tolerate_unencodable_output()
+    parser = build_parser()
     try:
-        args = build_parser().parse_args(argv)
+        args, unknown = parser.parse_known_args(argv)
+        if unknown:  # said by the sub-command's parser, so that its own usage is shown
+            args.parsers[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     except SystemExit as exc:  # argparse: --help/--version (0) or a usage error (2)
         return int(exc.code or 0)
     try:
@@ -51,6 +58,13 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
         return 0
+
+
+def _tolerate_unencodable_output() -> None:
+    """Replace, rather than fail on, characters stdout/stderr cannot encode."""
+    for stream in (sys.stdout, sys.stderr):
+        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="replace")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -28,9 +28,12 @@ def check_outputs(outputs: dict[str, str | os.PathLike | None],
         if path.is_dir():
             raise UsageError(f"{option} {path} is a folder; give a file name")
         folder = next(p for p in path.absolute().parents if p.exists())
-        if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
-            raise UsageError(f"{option} {path}: cannot write into {folder}"
-                             f"{'' if folder.is_dir() else ' (a file, not a folder)'}")
+        if not folder.is_dir():
+            raise UsageError(f"{option} {path}: cannot write into {folder}: it is a file, not "
+                             "a folder (choose another output path)")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise UsageError(f"{option} {path}: cannot write into {folder}: permission denied "
+                             "(choose a folder you can write to)")
         if path.exists() and any(os.path.samefile(path, source) for source in existing):
             raise UsageError(f"{option} {path} is an input of this command; writing it "
                              "would overwrite the input: give another file name")

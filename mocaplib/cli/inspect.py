@@ -6,6 +6,7 @@ Only parses options and formats: the per-file work is :func:`mocaplib.inspection
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ._common import add_protocol_option
 
@@ -18,7 +19,7 @@ def register(subparsers) -> None:
                     "missing required landmarks, each marker's gap percentage and longest gap, "
                     "events, and warnings (left/right swaps, duplicate labels, model outputs). "
                     "Exit 0 when every file was read, 1 when some could not be, 2 on usage "
-                    "errors (including an unknown or malformed --protocol).")
+                    "errors (a path that does not exist, an unknown or malformed --protocol).")
     parser.add_argument("inputs", nargs="+", metavar="FILE", help="C3D files or folders")
     add_protocol_option(parser, default="the best shipped protocol for each file")
     parser.add_argument("--json", action="store_true",
@@ -27,22 +28,22 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..errors import MocapError
     from ..inspection import failed_summary, format_summary, inspect_c3d
     from ..protocols import load_protocol
     from ..pipeline import find_captures
-    from ._common import print_json
+    from ._common import UsageError, print_json
 
+    missing = [item for item in args.inputs if not Path(item).exists()]
+    if missing:
+        raise UsageError(f"no such file or folder: {', '.join(missing)} (check the path)")
     protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     summaries = []
     for item in args.inputs:
-        try:
-            files = find_captures([item])
-        except MocapError as exc:
-            summaries.append(failed_summary(item, exc))
-            continue
+        files = find_captures([item])
         if not files:
-            summaries.append(failed_summary(item, f"{item}: no *.c3d files in this folder"))
+            summaries.append(failed_summary(
+                item, f"{item}: no *.c3d files in this folder or its subfolders (give C3D "
+                      "files, or the folder that holds them)"))
         summaries.extend(inspect_c3d(path, protocol=protocol) for path in files)
     if args.json:
         print_json(summaries)

@@ -2,17 +2,30 @@
 
 from __future__ import annotations
 
+import argparse
 import math
+from pathlib import Path
 
-from ._common import bounded, check_outputs, positive
+from ._common import UsageError, bounded, check_outputs, positive
 
 
 #: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
 #: typing mistakes (and overflow in the geometry) are kept out.
 SPEED_LIMIT = 100.0
 #: BVH output limits: frames per second and cycles (a BVH is text: 100 cycles at 1 kHz is
-#: already ~100 MB).
-MAX_RATE, MAX_CYCLES = 1000.0, 100
+#: already ~100 MB). Below MIN_RATE a gait cycle (about 1 s) would get fewer than 10 frames.
+MIN_RATE, MAX_RATE, MAX_CYCLES = 10.0, 1000.0, 100
+#: Defaults of --cycles and --rate (they are None when not given, to tell them apart).
+BVH_CYCLES, BVH_RATE = 1, 100.0
+
+
+def _bvh_rate(text: str) -> float:
+    """argparse ``type=`` of --rate: Hz in [MIN_RATE, MAX_RATE]; else exit 2."""
+    rate = positive(float, unit=" Hz", most=MAX_RATE)(text)
+    if rate < MIN_RATE:
+        raise argparse.ArgumentTypeError(
+            f"must be >= {MIN_RATE:g} Hz (a gait cycle needs frames to be seen), got {text}")
+    return rate
 
 
 def register(subparsers) -> None:
@@ -34,10 +47,12 @@ def register(subparsers) -> None:
                         help="print {inside, entries, weights, point, nearest, distance, T_s}")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
-    parser.add_argument("--cycles", type=positive(int, most=MAX_CYCLES), default=1,
-                        help=f"cycles written to the BVH (default 1, at most {MAX_CYCLES})")
-    parser.add_argument("--rate", type=positive(float, unit=" Hz", most=MAX_RATE), default=100.0,
-                        help=f"BVH frame rate, Hz (default 100, at most {MAX_RATE:g})")
+    parser.add_argument("--cycles", type=positive(int, most=MAX_CYCLES),
+                        help=f"cycles written to the BVH (default {BVH_CYCLES}, at most "
+                             f"{MAX_CYCLES}; only with --bvh)")
+    parser.add_argument("--rate", type=_bvh_rate,
+                        help=f"BVH frame rate, Hz (default {BVH_RATE:g}, {MIN_RATE:g} to "
+                             f"{MAX_RATE:g}; only with --bvh)")
     parser.add_argument("--clamp", action="store_true",
                         help="outside the hull, blend at the nearest point on the hull instead")
     parser.set_defaults(run=_run)
@@ -50,6 +65,14 @@ def _run(args) -> int:
     from ..skeleton import Skeleton
     from ._common import print_json
 
+    ignored = [option for option, value in (("--cycles", args.cycles), ("--rate", args.rate))
+               if value is not None]
+    if ignored and not args.bvh:
+        raise UsageError(f"{' and '.join(ignored)} only apply to the BVH output: add "
+                         f"--bvh OUT.bvh, or leave {'it' if len(ignored) == 1 else 'them'} out")
+    if not Path(args.library).exists():
+        raise UsageError(f"{args.library}: no such library file (check the path; `mocaplib "
+                         "build` writes one)")
     check_outputs({"--bvh": args.bvh}, [args.library])
     library = load_library(args.library)
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
@@ -76,9 +99,10 @@ def _run(args) -> int:
                 f"{_triple(res.nearest[0])}; query it, or add --clamp")
         from ..io.bvh import write_bvh
 
-        _, q = blend.world(0, rate=args.rate, cycles=args.cycles)
+        rate = args.rate or BVH_RATE
+        _, q = blend.world(0, rate=rate, cycles=args.cycles or BVH_CYCLES)
         skeleton = Skeleton(library.document["skeleton"]["segment_lengths_m"])
-        answer["bvh"] = str(write_bvh(args.bvh, q, skeleton, rate=args.rate))
+        answer["bvh"] = str(write_bvh(args.bvh, q, skeleton, rate=rate))
     if args.json:
         print_json(answer)
         return 0

@@ -109,7 +109,8 @@ def _read_bytes(path: Path) -> bytes:
     except FileNotFoundError:
         raise C3DError("no such file", path=path, hint="check the path") from None
     except IsADirectoryError:
-        raise C3DError("is a folder, not a C3D file", path=path) from None
+        raise C3DError("is a folder, not a C3D file", path=path,
+                       hint="give a .c3d file; build and inspect also search folders") from None
     except OSError as exc:
         raise C3DError(f"cannot read the file: {exc.strerror}", path=path) from None
 
@@ -123,8 +124,8 @@ def _check_header(data: bytes, path: Path) -> None:
         raise C3DError(f"only {len(data)} bytes: too short for a C3D file (header is 512 bytes)",
                        path=path, hint="the file is truncated or not a C3D file")
     if data[1] != 0x50:
-        raise C3DError(f"not a C3D file (byte 2 is 0x{data[1]:02x}, a C3D file has 0x50)",
-                       path=path)
+        raise C3DError(f"not a C3D file: byte 2 is 0x{data[1]:02x}, a C3D file has 0x50",
+                       path=path, hint="give the trial exported as C3D by the capture software")
     start = (data[0] - 1) * 512
     if data[0] < 2:
         raise C3DError(f"the header points to a parameter section at block {data[0]}, inside the "

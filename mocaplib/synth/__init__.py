@@ -9,7 +9,8 @@ truth, writing), :mod:`.plan` (capture plans).
 from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from .command import Command
 from .markers import MarkerSettings
-from .plan import Plan, PlannedCapture, generate_plan, load_plan
+from .plan import Plan, PlannedCapture, check_targets, generate_plan, load_plan, locomotion_type
 
 __all__ = ["Command", "MarkerSettings", "Plan", "PlannedCapture", "Subject", "SynthCapture",
-           "generate_plan", "load_plan", "min_duration", "synthesize_capture", "write_capture"]
+           "check_targets", "generate_plan", "load_plan", "locomotion_type", "min_duration",
+           "synthesize_capture", "write_capture"]

@@ -79,14 +79,10 @@ def min_duration(command: Command, subject: Subject = Subject()) -> float:
     return 0.0 if command.gait == "stand" else LEAD_S + MIN_CYCLES * params.stride
 
 
-def synthesize_capture(command: Command, /, *, duration: float, seed: int,
-                       subject: Subject = Subject(), rate: float = 100.0,
-                       protocol: str = "fullbody38", markers: MarkerSettings = MarkerSettings(),
-                       name: str = "synthetic", session_seed: int | None = None) -> SynthCapture:
-    """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``.
-
-    ``session_seed`` seeds the marker placement shared by every capture of one session (see
-    :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``."""
+def check_timing(command: Command, /, *, duration: float, rate: float,
+                 subject: Subject = Subject()) -> None:
+    """Raise :class:`SynthError` unless ``rate`` (Hz) is > 0 and ``duration`` (s) holds
+    :data:`MIN_CYCLES` steady cycles of ``command`` (and at least one frame interval)."""
     if not (np.isfinite(rate) and rate > 0):
         raise SynthError(f"frame rate must be > 0 Hz, got {rate}")
     need = min_duration(command, subject)
@@ -95,6 +91,17 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     if duration < max(need, 1.0 / rate):
         raise SynthError(f"duration {duration} s is too short",
                          hint=f"this command needs at least {need:.2f} s for {MIN_CYCLES} cycles")
+
+
+def synthesize_capture(command: Command, /, *, duration: float, seed: int,
+                       subject: Subject = Subject(), rate: float = 100.0,
+                       protocol: str = "fullbody38", markers: MarkerSettings = MarkerSettings(),
+                       name: str = "synthetic", session_seed: int | None = None) -> SynthCapture:
+    """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``.
+
+    ``session_seed`` seeds the marker placement shared by every capture of one session (see
+    :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``."""
+    check_timing(command, duration=duration, rate=rate, subject=subject)
     skeleton = Skeleton.from_height(subject.height)
     params = gait_parameters(command, subject.height)
     prot = load_protocol(protocol)

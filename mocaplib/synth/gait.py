@@ -304,8 +304,8 @@ def foot_trajectory(fp: Footprints, t: np.ndarray, params: GaitParameters, geom:
         h = 1e-4
         # the swing is drawn in the moving body frame, so the foot keeps its side of the body
         # on curves and turns instead of cutting across the other leg
-        a0, hd0, p0, _, r0, _ = _stance(fp, ks, t0, params, geom)
-        a1, hd1, p1, _, r1, _ = _stance(fp, ks + 1, t1, params, geom)
+        _, hd0, p0, _, r0, _ = _stance(fp, ks, t0, params, geom)
+        _, hd1, p1, _, r1, _ = _stance(fp, ks + 1, t1, params, geom)
         b0, b0h = _in_frame(fp, ks, t0, -h, params, geom)
         b1, b1h = _in_frame(fp, ks + 1, t1, h, params, geom)
         # the foot still moves (a quarter of its mean swing speed) when the heel strikes

@@ -23,6 +23,9 @@ ignores it. Layout::
 
 from __future__ import annotations
 
+import difflib
+import json
+import math
 import os
 import re
 from dataclasses import dataclass, fields, replace
@@ -30,7 +33,9 @@ from pathlib import Path
 
 from ..errors import MocapError, SynthError
 from ..io.tomlfile import read_toml
-from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
+from ..protocols import load_protocol
+from .capture import (TRUTH_FORMAT, Subject, SynthCapture, check_timing, min_duration,
+                      synthesize_capture, write_capture)
 from .command import Command
 from .markers import MarkerSettings
 
@@ -92,6 +97,20 @@ class Plan:
     captures: tuple[PlannedCapture, ...]
     path: str
 
+    def select(self, only: list[str] | None = None) -> list[PlannedCapture]:
+        """The captures named in ``only`` (all when None or empty), in the plan's order.
+        Raises :class:`SynthError` for a name not in the plan, with the closest names."""
+        names = [c.name for c in self.captures]
+        unknown = sorted(set(only or ()) - set(names))
+        if unknown:
+            close = sorted({m for u in unknown for m in difflib.get_close_matches(u, names, 3)})
+            more = f", ... ({len(names)} in all)" if len(names) > 5 else ""
+            raise SynthError(f"not in the plan: {', '.join(unknown)}", path=self.path,
+                             hint=f"did you mean {', '.join(close)}?" if close else
+                             f"its captures are {', '.join(names[:5])}{more}: the names of "
+                             "its [[capture]] tables")
+        return [c for c in self.captures if not only or c.name in only]
+
 
 def _command(spec) -> Command:
     """A command from a plan's inline table (either form); raises SynthError."""
@@ -118,7 +137,11 @@ def _markers(spec) -> MarkerSettings:
 
 
 def load_plan(path: str | os.PathLike) -> Plan:
-    """Read and check a plan file; raises :class:`SynthError` naming the file and capture."""
+    """Read and check a plan file; raises :class:`SynthError` naming the file and capture.
+
+    Whether each capture can be generated (duration, rate, protocol) is checked by
+    :func:`check_captures`: a plan read for its commands alone (the report's envelope) need not
+    be generated."""
     path = os.fspath(path)
     data = read_toml(path, error=SynthError, what="capture plan",
                      hint="a plan is a TOML file like protocols/paper_plan.toml")
@@ -166,20 +189,88 @@ def load_plan(path: str | os.PathLike) -> Plan:
                 tuple(captures), path)
 
 
+def check_captures(plan: Plan, captures: list[PlannedCapture], /, *,
+                   protocol: str | None = None) -> None:
+    """Raise :class:`SynthError` naming the plan and capture when one of ``captures`` cannot be
+    generated: a duration too short for its cycles, a bad rate, an unknown protocol (its own,
+    or ``protocol`` when given)."""
+    for entry in captures:
+        try:
+            check_timing(entry.command, duration=entry.duration, rate=entry.rate,
+                         subject=entry.subject)
+            load_protocol(protocol or entry.protocol)
+        except MocapError as exc:
+            raise SynthError(f"capture {entry.name!r}: {exc.message}", path=plan.path,
+                             hint=exc.hint) from None
+
+
+def check_targets(captures: list[PlannedCapture], directory: str | os.PathLike, /, *,
+                  overwrite: bool = False) -> None:
+    """Raise :class:`SynthError` before anything is written when a capture's ``<name>.c3d`` or
+    ``<name>.truth.json`` in ``directory`` is a folder, or (unless ``overwrite``) a file that is
+    not an earlier synth output of that name.
+
+    An earlier output is a truth file of this name (format :data:`TRUTH_FORMAT`) beside a C3D
+    (if any) with the frames, rate and labels it records: a folder of samples can be generated
+    again in place, but a lab capture copied there under a plan's name is not replaced.
+    """
+    directory = Path(directory)
+    folders, foreign = [], []
+    for entry in captures:
+        c3d, truth = (directory / f"{entry.name}{end}" for end in (".c3d", ".truth.json"))
+        folders += [p for p in (c3d, truth) if p.is_dir()]
+        if (c3d.exists() or truth.exists()) and not (overwrite or _earlier_output(c3d, truth)):
+            foreign += [p for p in (c3d, truth) if p.exists() and not p.is_dir()]
+    if folders:
+        raise SynthError(f"{_listed(folders)}: a folder where a capture file goes",
+                         hint="move it away or choose another output folder")
+    if foreign:
+        raise SynthError(f"would overwrite {_listed(foreign)}: not written by mocaplib synth "
+                         "under that name", hint="choose another output folder, move the "
+                                                 "files away, or pass --overwrite")
+
+
+def _listed(paths: list[Path], most: int = 3) -> str:
+    more = f" and {len(paths) - most} more" if len(paths) > most else ""
+    return ", ".join(map(str, paths[:most])) + more
+
+
+def _earlier_output(c3d: Path, truth_path: Path) -> bool:
+    """Whether ``c3d`` (may be absent) and ``truth_path`` are a synth output of their name."""
+    from ..io.c3d import read_c3d
+
+    name = truth_path.name[:-len(".truth.json")]
+    try:
+        truth = json.loads(truth_path.read_text("utf-8")) if truth_path.is_file() else None
+    except (OSError, ValueError):
+        return False
+    if not (isinstance(truth, dict) and truth.get("format") == TRUTH_FORMAT
+            and truth.get("name") == name):
+        return False
+    if not c3d.exists():
+        return True
+    try:
+        trial = read_c3d(c3d)
+    except MocapError:
+        return False
+    return (trial.labels == truth.get("labels") and trial.n_frames == truth.get("frames")
+            and isinstance(truth.get("rate_hz"), (int, float))
+            and math.isclose(trial.rate, truth["rate_hz"], rel_tol=1e-6))
+
+
 def generate_plan(plan: Plan, directory: str | os.PathLike, /, *,
                   only: list[str] | None = None, protocol: str | None = None,
-                  progress: bool = False) -> list[Path]:
+                  progress: bool = False, overwrite: bool = False) -> list[Path]:
     """Generate the plan's captures (or the ``only`` ones) into ``directory``.
 
     ``protocol`` overrides every capture's marker set. Returns the paths written (C3D and truth
-    of each capture). A capture that cannot be generated raises :class:`SynthError` naming it.
+    of each capture). Before anything is written, raises :class:`SynthError` for a name not in
+    the plan, a capture that cannot be generated (:func:`check_captures`) or files that must
+    not be replaced (:func:`check_targets`; ``overwrite`` replaces them).
     """
-    chosen = list(plan.captures)
-    if only:
-        unknown = sorted(set(only) - {c.name for c in chosen})
-        if unknown:
-            raise SynthError(f"not in the plan: {', '.join(unknown)}", path=plan.path)
-        chosen = [c for c in chosen if c.name in set(only)]
+    chosen = plan.select(only)
+    check_captures(plan, chosen, protocol=protocol)
+    check_targets(chosen, directory, overwrite=overwrite)
     if progress:
         from tqdm import tqdm
         chosen = tqdm(chosen, desc="synth", unit="capture")
