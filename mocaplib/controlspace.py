@@ -567,7 +567,8 @@ class Envelope:
     @classmethod
     def from_toml(cls, path) -> "Envelope":
         """Read an ``[envelope]`` table: either ``points = [[v, omega, v_l], ...]`` (optionally
-        ``axes = ["v_f", "omega", "v_l"]``) or one ``[lo, hi]`` range per axis name."""
+        ``axes = ["v_f", "omega", "v_l"]``) or one ``[lo, hi]`` range per axis name. Values
+        must be finite numbers (:class:`MocapError` naming the file and key otherwise)."""
         path = Path(path)
         table = read_toml(path, what="envelope file",
                           hint="give a TOML file with an [envelope] table").get("envelope")
@@ -579,26 +580,58 @@ class Envelope:
                 axes = tuple(table.get("axes", AXES["tangential"]))
                 if axes not in AXES.values():
                     raise ValueError(f"axes must be one of {list(AXES.values())}")
-                pts = np.asarray(table["points"], dtype=float)
+                pts = _finite_numbers("points", table["points"], "triples of finite numbers")
                 if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
                     raise ValueError("points must be at least 4 triples")
                 return cls(pts, axes, str(path))
-            return cls.box({k: tuple(float(x) for x in v) for k, v in table.items()
-                            if k in AXIS_UNITS}, source=str(path))
+            ranges = {}
+            for k, v in table.items():
+                if k in AXIS_UNITS:
+                    ranges[k] = tuple(_finite_numbers(k, v, "[lo, hi], two finite numbers"))
+                    if len(ranges[k]) != 2:
+                        raise ValueError(f"{k} must be [lo, hi], two finite numbers, got {v!r}")
+            return cls.box(ranges, source=str(path))
         except (ValueError, TypeError) as exc:
             raise MocapError(f"bad [envelope] table: {exc}", path=path,
                              hint="ranges are [lo, hi] in m/s or rad/s") from exc
 
-    def sample(self, scale: np.ndarray, *, n: int = 24) -> np.ndarray:
-        """Regular grid of about n³ cells over the bounding box, points inside the hull (S, 3)."""
+    def sample(self, scale: np.ndarray, *, n: int = 25) -> np.ndarray:
+        """Regular grid of about n³ points over the bounding box, the points inside the hull
+        (S, 3). An axis whose range straddles 0 is gridded through 0 (steps of
+        (hi - lo)/(n - 1) from 0; with odd n on a symmetric range that is linspace), so straight
+        walks, no turning and no side-step are sampled exactly, not ± half a step away."""
         lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
-        axes = [np.linspace(a, b, n) if b > a else np.array([a]) for a, b in zip(lo, hi)]
+        axes = [_grid_through_zero(a, b, n) for a, b in zip(lo, hi)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         x = self.vertices / scale
         if np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9) < 3:
             return grid  # a flat envelope: its bounding box is the envelope
         inside = locate(delaunay_tetrahedra(x, source=self.source), grid / scale)[0] >= 0
         return grid[inside]
+
+
+def _finite_numbers(key: str, value, expected: str) -> np.ndarray:
+    """``value`` (a list of numbers, or of lists of numbers, from a TOML file) as a float
+    array; ValueError naming ``key`` and what was ``expected`` for text, booleans, NaN or
+    infinity."""
+    def bad(x) -> bool:
+        if isinstance(x, list):
+            return any(bad(y) for y in x)
+        return isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x)
+    if not isinstance(value, list) or bad(value):
+        raise ValueError(f"{key} must be {expected}, got {repr(value)[:80]}")
+    return np.asarray(value, dtype=float)
+
+
+def _grid_through_zero(lo: float, hi: float, n: int) -> np.ndarray:
+    """n (about) evenly spaced values over [lo, hi]; through 0 when lo < 0 < hi."""
+    if not hi > lo:
+        return np.array([lo])
+    if not lo < 0.0 < hi:
+        return np.linspace(lo, hi, n)
+    step = (hi - lo) / (n - 1)
+    k = np.arange(np.ceil(lo / step - 1e-9), np.floor(hi / step + 1e-9) + 1)
+    return np.clip(k * step, lo, hi)
 
 
 @dataclass
@@ -631,9 +664,13 @@ class Coverage:
     samples: np.ndarray = field(default=None, repr=False)
 
 
-def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 24, n_next: int = 5,
+def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 25, n_next: int = 5,
              sliver_quality: float = SLIVER_QUALITY) -> Coverage:
-    """How well the entries cover ``envelope`` (see :class:`Coverage`)."""
+    """How well the entries cover ``envelope`` (see :class:`Coverage`).
+
+    Samples equally far from the entries (mirror images on a symmetric library) are told
+    apart by their distance to the envelope's centre, nearest first, so ties do not fall to
+    whichever side the grid lists first."""
     if tuple(envelope.axes) != tuple(cs.axes):
         raise MocapError(f"envelope axes {envelope.axes} differ from the control space's "
                          f"{cs.axes}", path=envelope.source)
@@ -641,11 +678,13 @@ def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 24, n_next: 
     inside = cs.contains(samples)
     xs = cs.normalise(samples)
     dist, _ = cKDTree(cs.normalise(cs.points)).query(xs)
-    hole = int(np.argmax(dist))
+    centre = cs.normalise(envelope.vertices).mean(axis=0)
+    off_centre = np.linalg.norm(xs - centre, axis=1)
+    hole = _farthest(dist, off_centre)
     picks, gaps = [], []
     d = dist.copy()
     for _ in range(min(n_next, len(xs))):
-        j = int(np.argmax(d))
+        j = _farthest(d, off_centre)
         if d[j] <= 0:
             break
         picks.append(samples[j])
@@ -664,3 +703,10 @@ def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 24, n_next: 
                     entries_per_class={str(k): int(v) for k, v in
                                        classes.value_counts().sort_index().items()},
                     capture_next=nxt, axes=cs.axes, samples_inside=inside, samples=samples)
+
+
+def _farthest(distance: np.ndarray, off_centre: np.ndarray, *, tol: float = 1e-9) -> int:
+    """Index of the largest ``distance``; among ties (within ``tol``) the smallest
+    ``off_centre``, then the first."""
+    ties = np.flatnonzero(distance >= distance.max() - tol)
+    return int(ties[np.argmin(off_centre[ties])])

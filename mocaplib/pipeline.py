@@ -466,11 +466,11 @@ def locomotion_class(path: Path, rest: bool) -> str | None:
 @lru_cache(maxsize=1)
 def _planned_classes() -> dict[str, str]:
     """Capture name -> class over the shipped capture plans."""
-    from .protocols import protocols_dir
+    from .protocols import capture_plans
     from .synth.plan import load_plan
 
     classes: dict[str, str] = {}
-    for plan_path in sorted(protocols_dir().glob("*plan*.toml")):
+    for plan_path in capture_plans():
         try:
             plan = load_plan(plan_path)
         except MocapError:

@@ -160,6 +160,12 @@ def list_protocols() -> list[str]:
     return names
 
 
+def capture_plans() -> list[Path]:
+    """The capture plans shipped in :func:`protocols_dir` (``*plan*.toml``, sorted by name):
+    the build's locomotion classes and the report's default target envelope come from them."""
+    return sorted(protocols_dir().glob("*plan*.toml"))
+
+
 def load_protocol(name_or_path: str | os.PathLike) -> Protocol:
     """Load a protocol by shipped name (``plugin_gait``) or by path to a TOML file."""
     path = _protocol_path(name_or_path)

@@ -119,15 +119,85 @@ def test_json_nested_too_deep_is_not_a_library(tmp_path, capsys):
     assert "nested too deep" in capsys.readouterr().err
 
 
-def test_a_malformed_capture_record_in_the_sidecar_loses_only_its_plots(tmp_path, library):
-    copy = Path(shutil.copy(library, tmp_path / "lib.json"))
+def _sidecar_copy(library: Path, folder: Path, edit) -> tuple[Path, dict]:
+    """The library and its diagnostics sidecar, edited by ``edit(sidecar)``, in ``folder``."""
+    copy = Path(shutil.copy(library, folder / "lib.json"))
     sidecar = json.loads(library.with_name("lib.diagnostics.json").read_text())
-    sidecar["captures"][0]["time_s"] = "oops"
-    (tmp_path / "lib.diagnostics.json").write_text(json.dumps(sidecar))
-    assert main(["report", str(copy), "-o", str(tmp_path / "r"), "--no-opengl"]) == 0
-    html = (tmp_path / "r" / "lib-report.html").read_text()
-    assert html.count("No quality plots: its record in the diagnostics sidecar is malformed") == 1
-    assert html.count('class="capture-figure"') == len(sidecar["captures"]) - 1
+    edit(sidecar)
+    (folder / "lib.diagnostics.json").write_text(json.dumps(sidecar))
+    return copy, sidecar
+
+
+def test_a_malformed_capture_record_in_the_sidecar_loses_only_its_plots(tmp_path, library,
+                                                                        monkeypatch):
+    from mocaplib.library import load_library
+    from mocaplib.report import html
+    from mocaplib.report.html import _captures, read_diagnostics
+
+    monkeypatch.setattr(html, "MAX_CAPTURE_FIGURES", 2)  # the bad record and the next one
+    copy, sidecar = _sidecar_copy(library, tmp_path,
+                                  lambda s: s["captures"][0].update(time_s="oops"))
+    lib = load_library(copy)
+    captures = _captures(read_diagnostics(copy, lib)[0], lib)
+    assert len(captures) == len(sidecar["captures"])
+    assert captures[0]["figure"] is None and captures[0]["figure_error"].startswith(
+        "its record in the diagnostics sidecar is malformed")
+    assert captures[1]["figure"] and not captures[1]["figure_error"]
+
+
+@pytest.mark.parametrize("edit, problem", [
+    (lambda s: s["captures"].__setitem__(0, [1, 2]), "capture record 0 left out of the "
+                                                     "report: a list, not an object"),
+    (lambda s: s["captures"][1]["cycles"].__setitem__(0, 1), "capture record 1 ("),
+    (lambda s: s["captures"][1]["cycles"][0].update(pattern=[]), "pattern = [] has the wrong"),
+    (lambda s: s["captures"][2].update(ok="yes"), 'ok = "yes" is not true or false'),
+    (lambda s: s["captures"][2].update(warnings=3), "its warnings are not a list"),
+])
+def test_a_capture_record_of_the_wrong_shape_is_left_out_with_a_warning(edit, problem, tmp_path,
+                                                                        library, monkeypatch):
+    # These crashed `mocaplib report` (AttributeError) in the summary, the planned captures or
+    # the capture tables, which all read the sidecar's records (figures are not drawn here).
+    from mocaplib.library import load_library
+    from mocaplib.report import html
+    from mocaplib.report.html import _captures, _summary, read_diagnostics
+    from mocaplib.report.plan import find_plan, plan_commands, planned_status
+
+    monkeypatch.setattr(html, "MAX_CAPTURE_FIGURES", 0)
+
+    copy, sidecar = _sidecar_copy(library, tmp_path, edit)
+    lib = load_library(copy)
+    diagnostics, warnings = read_diagnostics(copy, lib)
+    assert len(warnings) == 1 and problem in warnings[0]
+    assert len(diagnostics["captures"]) == len(sidecar["captures"]) - 1
+    assert _summary(lib, lib.entries, diagnostics, None)["captures"] == len(sidecar["captures"]) - 1
+    planned_status(plan_commands(find_plan()), "plan", lib.entries, diagnostics)
+    assert len(_captures(diagnostics, lib)) == len(sidecar["captures"]) - 1
+
+
+@pytest.mark.parametrize("table, key", [
+    ("v = [0.0, inf]", "v"), ("v = [0.0, nan]", "v"), ('v = "fast"', "v"),
+])
+def test_an_envelope_no_command_can_use_is_a_usage_error(table, key, tmp_path, library, capsys):
+    envelope = tmp_path / "envelope.toml"
+    envelope.write_text(f"[envelope]\n{table}\nomega = [-1.0, 1.0]\nv_l = [-0.5, 0.5]\n")
+    assert main(["report", str(library), "-o", str(tmp_path / "r"), "--envelope",
+                 str(envelope), "--no-opengl"]) == 2
+    assert f"{envelope}: bad [envelope] table: {key} must be" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("args", [
+    ["report", "{lib}", "-o", "{f}/r"],
+    ["build", "{w}", "-o", "{d}/new.json", "--report", "{f}/r", "--no-cache", "-q"],
+])
+def test_a_report_folder_that_cannot_be_written_is_a_usage_error_before_any_work(
+        args, tmp_path, library, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    (tmp_path / "plain").write_text("a file where a folder should be")
+    names = {"lib": library, "w": walk, "d": tmp_path, "f": tmp_path / "plain"}
+    assert main([a.format(**names) for a in args]) == 2
+    assert "cannot write into" in capsys.readouterr().err
+    assert not (tmp_path / "new.json").exists()  # the build did not start
 
 
 @pytest.mark.parametrize("text, message", [
@@ -263,5 +333,5 @@ def test_an_envelope_file_that_is_not_text_is_a_clear_error(tmp_path, library, c
     envelope = tmp_path / "envelope.toml"
     envelope.write_bytes(b"\x80\x81\x82")
     assert main(["report", str(library), "-o", str(tmp_path / "r"), "--envelope",
-                 str(envelope), "--no-opengl"]) == 1
+                 str(envelope), "--no-opengl"]) == 2
     assert f"{envelope}: the envelope file is not UTF-8 text" in capsys.readouterr().err

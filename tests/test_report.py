@@ -72,11 +72,11 @@ def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
 
 
 def _write_diagnostics(path: Path, lib, source_name: str) -> None:
-    rate, T = 100.0, float(lib.entries.iloc[0]["T"])
+    entry_id = f"{Path(source_name).stem}#0"
+    rate, T = 100.0, float(lib.entries.loc[entry_id, "T"])
     t = np.arange(0, 3.0, 1 / rate)
     R, w = 2.0, 0.6                          # walking an arc of radius 2 m
     xy = np.column_stack([R * np.sin(w * t), R - R * np.cos(w * t)])
-    entry_id = f"{Path(source_name).stem}#0"
     t_cycle = np.arange(0, T, 1 / rate)  # the chosen cycle's angles, timed from its start
     q = lib.angles(entry_id, t_cycle)
     record = {
@@ -87,17 +87,28 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
                    for s, k, x in (("left", "toe_off", 0.5), ("right", "heel_strike", 0.6),
                                    ("right", "toe_off", 1.0), ("left", "heel_strike", 1.1),
                                    ("left", "toe_off", 0.5 + T))],
-        "cycles": [{"start_s": 0.5, "end_s": 0.5 + T, "chosen": True, "entry_id": entry_id,
+        "cycles": [{"index": 0, "start_s": 0.5, "end_s": 0.5 + T, "chosen": True,
+                    "entry_id": entry_id,
                     "pattern": {"type": "arc", "params": {"centre": [0.0, R], "radius": R,
                                                           "turn": 1}}}],
         "angles": {"time_s": t_cycle.tolist(),
                    **{n: q[:, j].tolist() for j, n in enumerate(DOF_NAMES)}},
         "warnings": [f"label {EVIL} renamed"], "static": "Static1.c3d",
     }
-    failed = {"source": "cap99.c3d", "ok": False, "error": "no left toe-off found",
-              "stage": "events", "warnings": []}
+    # The other captures as a build records them without series: their one cycle, chosen.
+    others = [{"source": row["source_file"], "ok": True, "warnings": [],
+               "cycles": [{"index": 0, "start_s": row["start_s"], "end_s": row["end_s"],
+                           "chosen": True, "entry_id": entry, "pattern": {"type": "line"}}]}
+              for entry, row in lib.entries.drop(entry_id).iterrows()]
+    # A capture whose chosen cycle (its second, index 1) QC left out of the library.
+    dropped = {"source": "dropped.c3d", "ok": True, "warnings": [
+        "cycle 1 (1.00-2.00 s) left out of the library: fourier_rms_rad 0.03 > 0.01745"],
+        "cycles": [{"index": k, "start_s": k + 0.0, "end_s": k + 1.0, "chosen": k == 1,
+                    "entry_id": None, "pattern": {"type": "line"}} for k in (0, 1)]}
+    failed = {"source": "cap99.c3d", "ok": False, "error": "/lab/2024/day1/cap99.c3d: no left "
+              "toe-off found", "stage": "events", "warnings": []}
     path.write_text(json.dumps({"format": "mocaplib-diagnostics", "version": 1,
-                                "captures": [record, failed]}))
+                                "captures": [record, *others, dropped, failed]}))
 
 
 def _images(html: str) -> list[np.ndarray]:
@@ -125,7 +136,7 @@ def test_report_is_self_contained(report):
     assert not re.search(r'(src|href)="(?!data:|#)', html)
     assert "http://" not in html and "https://" not in html
     images = _images(html)
-    assert len(images) >= 3  # projections, 3-D view, one capture figure
+    assert len(images) == 3  # projections, 3-D view, the one capture with series
     for img in images:
         assert img.ndim == 3 and img.shape[0] > 200 and img[..., :3].std() > 0.05
     # Every picture is a palette PNG (IHDR colour type 3): a few tens of kB, not hundreds.
@@ -156,18 +167,50 @@ def test_report_contents(report):
     assert len(data["points"]) == len(ENTRIES) and len(data["edges"]) > len(ENTRIES)
 
 
-def test_report_warns_about_entries_too_close_to_tell_apart(tmp_path):
-    from mocaplib.report import write_report
+def test_report_says_the_default_target_is_not_the_labs(report):
+    _, html = report
+    note = html.split("Target envelope: ")[1].split("</p>")[0]
+    assert "mocaplib&#39;s default" in note and "paper_plan.toml" in note
+    assert "This is not a target you chose" in note and "--envelope FILE.toml" in note
+    # The library's captures are not named after that plan: its captures are not listed as
+    # the lab's omissions.
+    assert ("None of the library's captures is named like a capture of paper_plan.toml"
+            in html)
+    assert "Missing (never captured" not in html
+    # One number for the coverage: the summary card and the table agree.
+    card = re.search(r"<b>([\d.]+) %</b>of the default target envelope covered", html).group(1)
+    assert f"{card} % of" in html.split("envelope inside the library")[1].split("</tr>")[0]
+
+
+def test_report_numbers_cycles_as_the_entry_ids_do(report):
+    _, html = report
+    walk = html.split("walk&lt;script&gt;")[-1].split("</table>")[0]
+    assert "<td>0 (chosen)</td>" in walk  # cycle 0 became entry walk...#0
+    dropped = html.split("<summary>dropped.c3d — ")[1].split("</details>")[0]
+    assert "none in the library" in dropped.split("</summary>")[0]
+    assert "cycle 1 (1.00-2.00 s) left out of the library" in dropped  # the warning ...
+    assert re.search(r"<td>1 \(chosen\)</td>.*chosen but left out of the library", dropped,
+                     re.S)  # ... names the row below it
+
+
+def test_report_shows_no_absolute_paths(report):
+    _, html = report
+    assert "/lab/2024" not in html
+    assert "cap99.c3d: no left toe-off found" in html
+
+
+def test_entries_too_close_to_tell_apart_are_listed_and_warned_about(tmp_path):
+    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library import load_library
+    from mocaplib.report.html import _close_rows, _close_warning
 
     # A 60° and a 120° diagonal at 1 m/s: same v̂ and v̂_l, so the same tangential point.
     rows = ENTRIES + [("diagonal", 1.0, 0.001, 0.7)]
-    lib = make_library(tmp_path, rows=rows, diagnostics=False)
-    html = write_report(lib, tmp_path / "r", renderer="matplotlib").read_text()
-    warnings = html.split('<ul class="warn">')[1].split("</ul>")[0]
-    assert "1 pair(s) of entries nearly coincide" in warnings
-    table = html.split("Entries too close to tell apart</h3>")[1].split("</table>")[0]
-    assert "cap11#0" in table and "cap15#0" in table
-    assert "0.000, 0.057, 0.000" in table  # |Δv̂| m/s, |Δω̂| °/s, |Δv̂_l| m/s
+    lib = load_library(make_library(tmp_path, rows=rows, diagnostics=False))
+    close = _close_rows(ControlSpace.from_library(lib))
+    assert [(c["a"], c["b"]) for c in close] == [("cap11#0", "cap15#0")]
+    assert close[0]["gap"] == "0.000, 0.057, 0.000"  # |Δv̂| m/s, |Δω̂| °/s, |Δv̂_l| m/s
+    assert _close_warning(close).startswith("1 pair(s) of entries nearly coincide")
 
 
 def test_sliver_summary_lists_the_worst_ten():
@@ -215,7 +258,9 @@ def test_report_falls_back_without_opengl(tmp_path, monkeypatch):
     html = write_report(lib, tmp_path / "a").read_text()
     assert "rendered with <b>matplotlib</b>" in html and "MOCAPLIB_NO_OPENGL is set" in html
     assert "no diagnostics sidecar" in html
-    assert all(img[..., :3].std() > 0.05 for img in _images(html))
+    images = _images(html)
+    assert len(images) == 2  # the projections and the 3-D view (no sidecar: no captures)
+    assert all(img[..., :3].std() > 0.05 for img in images)
 
 
 def test_report_detects_a_crashing_renderer(tmp_path, monkeypatch):
@@ -268,6 +313,18 @@ def test_renderer_child_failure_is_reported(monkeypatch):
     assert "failed (exit 1)" in got.fallback_reason
 
 
+@pytest.mark.parametrize("executable", ["/nonexistent/python", "/dev/null"])
+def test_a_renderer_that_cannot_start_falls_back(executable, monkeypatch):
+    from mocaplib.report import scene3d
+
+    # No interpreter there, or a file that cannot be executed: OSError when spawning.
+    monkeypatch.delenv("MOCAPLIB_NO_OPENGL", raising=False)
+    monkeypatch.setattr(scene3d.sys, "executable", executable)
+    got = _render_small_scene()
+    assert got.renderer == "matplotlib" and got.png == b"fallback png"
+    assert "the pyvista renderer could not be started" in got.fallback_reason
+
+
 def test_report_of_a_degenerate_library_still_builds(tmp_path):
     from mocaplib.report import write_report
 
@@ -310,20 +367,44 @@ def test_report_of_an_empty_library(tmp_path):
     assert "at least 4 entries" in html and "No 3-D view" in html
 
 
-def test_a_broken_plan_found_in_protocols_falls_back(tmp_path, monkeypatch):
+def test_a_broken_shipped_plan_falls_back(tmp_path, monkeypatch):
     from mocaplib.errors import MocapError
     from mocaplib.report import plan as plan_module
 
-    (tmp_path / "protocols").mkdir()
-    broken = tmp_path / "protocols" / "lab_plan.toml"
+    broken = tmp_path / "lab_plan.toml"
     broken.write_text("[[capture]]\nname = 'x'\n")  # no class, command, duration, seed
-    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(tmp_path))
     assert plan_module.find_plan() == broken
     env, note = plan_module.default_envelope(None)
-    assert "could not be read" in note["text"] and note["plan"] is None
+    assert "could not be read" in note["text"] and note["plan"] is None and note["default"]
     assert len(env.vertices) == len(plan_module.FALLBACK_ENVELOPE)
     with pytest.raises(MocapError, match="lab_plan.toml"):
         plan_module.default_envelope(broken)  # named explicitly: an error, not a fallback
+
+
+def test_report_and_build_read_the_plans_beside_the_protocols(tmp_path, monkeypatch):
+    # An installed mocaplib has no source tree: the plans are found where the protocols are
+    # ($MOCAPLIB_PROTOCOLS or the package's data), whatever the current folder.
+    from mocaplib import pipeline
+    from mocaplib.protocols import protocols_dir
+    from mocaplib.report.plan import find_plan
+
+    shipped = find_plan()
+    assert shipped is not None and shipped.parent == protocols_dir()
+    plans = tmp_path / "protocols"
+    plans.mkdir()
+    (plans / "lab_plan.toml").write_text(
+        'name = "lab"\n[[capture]]\nname = "mine"\nclass = "holonomic"\n'
+        'command = { kind = "sidestep", speed = 0.4, side = "left" }\nduration = 2.0\n'
+        "seed = 1\n")
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(plans))
+    monkeypatch.chdir(tmp_path / "protocols")
+    pipeline._planned_classes.cache_clear()
+    try:
+        assert find_plan() == plans / "lab_plan.toml"
+        assert pipeline._planned_classes() == {"mine": "holonomic"}
+    finally:
+        pipeline._planned_classes.cache_clear()
 
 
 def test_report_command(tmp_path, capsys):
@@ -410,7 +491,141 @@ def test_envelope_and_planned_captures_from_a_capture_plan(tmp_path):
     lib = make_library(tmp_path)  # its diagnostics mark cap99.c3d failed in "events"
     html = write_report(lib, tmp_path / "r", envelope=plan, renderer="matplotlib").read_text()
     assert "convex hull of the 4 commanded velocities of the capture plan mini_plan.toml" in html
-    assert "1 of 4 planned captures are in the library" in html
-    assert "cap99 — events: no left toe-off found" in html
+    assert "1 of 4 planned captures of mini_plan.toml are in the library" in html
+    assert "This is not a target you chose" not in html
+    assert "cap99 — events: cap99.c3d: no left toe-off found" in html
     missing = html.split("Missing (never captured")[1].split("</ul>")[0]
     assert "never_done" in missing and "turn" in missing and "cap01" not in missing
+
+
+@pytest.mark.parametrize("table, key", [
+    ("v = [0.0, inf]", "v"), ("v = [0.0, nan]", "v"), ('v = "fast"', "v"), ("v = [0.0]", "v"),
+    ("v = [0.0, true]", "v"), ("points = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, nan]]", "points"),
+])
+def test_an_envelope_holds_finite_numbers_only(table, key, tmp_path):
+    from mocaplib.controlspace import Envelope
+    from mocaplib.errors import MocapError
+
+    path = tmp_path / "env.toml"
+    path.write_text(f"[envelope]\n{table}\nomega = [-1.0, 1.0]\nv_l = [-0.5, 0.5]\n")
+    with pytest.raises(MocapError, match=f"^{re.escape(str(path))}: bad \\[envelope\\] "
+                                         f"table: {key} must be"):
+        Envelope.from_toml(path)
+
+
+def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
+    from mocaplib.controlspace import Envelope
+
+    scale = np.array([1.5, np.pi / 2, 0.5])
+    for box in ({"v": (0, 1.8), "omega": (-1.2, 1.2), "v_l": (-0.5, 0.5)},   # symmetric
+                {"v": (0, 1.8), "omega": (-0.3, 1.2), "v_l": (-0.2, 0.5)}):   # not
+        samples = Envelope.box(box).sample(scale)
+        straight = samples[(samples[:, 1] == 0) & (samples[:, 2] == 0)]
+        assert len(straight) > 10 and straight[:, 0].max() > 1.7
+
+
+def test_capture_next_finds_a_missing_straight_walk_as_one():
+    from mocaplib.controlspace import ControlSpace, Envelope, coverage
+    from mocaplib.report.html import describe_command
+
+    # Turns, side-steps and their mixtures both ways, no straight walking: the gap is there.
+    points = [(v, w, vl) for v in (0.0, 1.6) for w in (-1.0, 1.0) for vl in (-0.4, 0.4)]
+    cs = ControlSpace(np.array(points, float))
+    cov = coverage(cs, Envelope(np.array(points, float)))
+    first = cov.capture_next.iloc[0]
+    assert first["omega"] == 0.0 and first["v_l"] == 0.0
+    assert "turning" not in describe_command(first.to_dict())
+    assert describe_command({"v": 1.75, "omega": 0.0, "v_l": 0.35}) == (
+        "walk at 1.75 m/s heading 12° to the left of the body")  # a crab walk said so
+    np.testing.assert_array_equal(cov.largest_hole[1:], [0.0, 0.0])
+
+
+def test_ties_go_to_the_sample_nearest_the_centre():
+    from mocaplib.controlspace import _farthest
+
+    distance = np.array([1.0, 2.0, 2.0, 2.0 - 1e-12, 0.5])
+    off_centre = np.array([0.0, 0.9, 0.5, 0.1, 0.0])
+    assert _farthest(distance, off_centre) == 3
+    assert _farthest(np.array([1.0, 1.0]), np.array([0.2, 0.2])) == 0  # then the first
+
+
+def test_stars_on_one_spot_share_a_label():
+    from mocaplib.report.figures import star_labels
+
+    stars = np.array([[1.0, 10.0], [1.0, 10.0], [2.0, -40.0], [1.005, 11.0], [0.0, 60.0]])
+    assert [text for text, _ in star_labels(stars, (0, 2), (-60, 60))] == ["1, 2, 4", "3", "5"]
+
+
+def _loo_row(entry_id, cls, rms, neighbours=(), weights=()):
+    return {"id": entry_id, "class": cls, "inside": bool(neighbours), "neighbours": neighbours,
+            "weights": weights, "rms_deg": rms, "max_deg": 2 * rms, "worst_dof": "hip",
+            "heading_rms_deg": 0.1, "root_rms_mm": 1.0, "stride_error_mm": 10.0,
+            "turn_error_deg": -0.5, "T_error_s": 0.01}
+
+
+def test_the_headline_blending_error_leaves_rest_out_and_flags_cross_mode_blends():
+    import pandas as pd
+
+    from mocaplib.report.html import _loo_context
+
+    df = pd.DataFrame([
+        _loo_row("rest_a", "rest", 25.0, ["rest_b", "w1", "w2", "w3"], [1.0, 0, 0, 0]),
+        _loo_row("walk_fast", "nonholonomic", 14.0, ["run", "w1", "w2", "w3"],
+                 [0.76, 0.1, 0.1, 0.04]),
+        _loo_row("w1", "holonomic", 1.0, ["w2", "w3", "side", "run"], [0.4, 0.3, 0.2, 0.1]),
+        _loo_row("w2", "mixed", 2.0, ["w1", "w3", "side", "rest_a"], [0.4, 0.3, 0.2, 0.1]),
+        _loo_row("w3", None, 3.0, ["run", "rest_a", "rest_b", "w1"], [0.5, 0.2, 0.2, 0.1]),
+        _loo_row("run", "running", np.nan), _loo_row("rest_b", "rest", np.nan),
+        _loo_row("side", "holonomic", np.nan)])
+    ctx = _loo_context(df)
+    assert ctx["n_inside"] == 5 and ctx["n_rest"] == 1 and ctx["n_headline"] == 4
+    assert ctx["median_rms"] == 2.5 and ctx["rest_median_rms"] == 25.0  # rest apart
+    assert ctx["max_rms"] == 14.0
+    # walking rebuilt 76 % from running is flagged; 10 % from another mode, or an entry of
+    # unknown class (w3, half from running), is not
+    flagged = {r["id"]: r["cross"] for r in ctx["rows"] if r["cross"]}
+    assert flagged == {"walk_fast": {"mode": "running", "share": 0.76}}
+    assert ctx["n_cross"] == 1 and ctx["same_mode_median_rms"] == 2.0
+    assert ctx["median"]["turn_error_deg"] == 0.5  # medians of |signed errors|
+
+
+def test_entries_at_the_fourier_order_cap_are_flagged():
+    from mocaplib.library import assemble_library, make_entry
+    from mocaplib.report.html import _entry_rows, _summary, fourier_limits
+
+    cap, tolerance = fourier_limits()
+    assert (cap, round(np.degrees(tolerance), 6)) == (20, 0.5)  # the encoder's defaults
+    entries = []
+    for n in (3, cap):
+        a, b = np.zeros((D, n + 1)), np.zeros((D, n + 1))
+        a[HIP, n] = 0.01
+        entries.append(make_entry(
+            id=f"e{n}", source_file=f"e{n}.c3d", source_sha256="0" * 64, cycle_index=0,
+            start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=1.0, omega=0.0, v_l=0.0,
+            v_f=1.0, a=a, b=b, root_drift={}, qc={}))
+    lib = assemble_library(entries, settings={})
+    rows = _entry_rows(lib.entries, lambda i: "unknown")
+    assert [(r["fourier_n"], r["at_cap"]) for r in rows] == [(cap, True), (3, False)]
+    assert _summary(lib, lib.entries, None, None)["at_cap"] == [f"e{cap}"]
+
+
+def test_a_sidecar_of_another_build_is_not_used(tmp_path):
+    from mocaplib.library import load_library
+    from mocaplib.report.html import read_diagnostics
+
+    lib_path = make_library(tmp_path)
+    library = load_library(lib_path)
+    sidecar = tmp_path / "lib.diagnostics.json"
+    diagnostics, warnings = read_diagnostics(lib_path, library)
+    assert diagnostics is not None and warnings == []
+    document = json.loads(sidecar.read_text())
+    walk, cap01 = document["captures"][:2]
+    assert cap01["source"] == "cap01.c3d"
+    subset = {**document, "captures": [walk, *document["captures"][-2:]]}  # a smaller build
+    cap01["cycles"][0]["entry_id"] = "other_c0"                    # a build of other captures
+    for edited, why in ((subset, "14 of the library's 15 entries are not in it"),
+                        (document, "it names 1 entry the library lacks, e.g. other_c0")):
+        sidecar.write_text(json.dumps(edited))
+        diagnostics, warnings = read_diagnostics(lib_path, library)
+        assert diagnostics is None and len(warnings) == 1
+        assert "does not belong to this library" in warnings[0] and why in warnings[0]

@@ -42,6 +42,17 @@ def check_outputs(outputs: dict[str, str | os.PathLike | None],
                 raise UsageError(f"{option} and {other} name the same file {path}")
 
 
+def check_output_folder(option: str, folder: str | os.PathLike, file_name: str,
+                        inputs: list[str | os.PathLike]) -> None:
+    """Raise :class:`UsageError` before any work when the folder ``option`` names cannot take
+    the file ``file_name``: the folder is a file, lies under a file or where nothing can be
+    written, or the file would overwrite an input or be a folder (:func:`check_outputs`)."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{option} {folder} is a file; give a folder")
+    check_outputs({option: folder / file_name}, inputs)
+
+
 def print_json(obj) -> None:
     """Print ``obj`` as indented JSON on stdout (NaN written as null)."""
     print(json.dumps(json_values(obj), indent=2, ensure_ascii=False))

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      add_toe_off_option, check_outputs, positive, warn)
+                      add_toe_off_option, check_output_folder, check_outputs, positive, warn)
 
 
 def register(subparsers) -> None:
@@ -46,7 +46,7 @@ def register(subparsers) -> None:
 def _check_usage(args) -> None:
     """Raise :class:`UsageError` for what would fail or do harm before any capture is
     processed: a --static that is missing or cannot be read (every capture would fail on it),
-    an output that would overwrite an input, a --report that is a file."""
+    an output that would overwrite an input, a --report folder that cannot take the report."""
     from ..calibration import check_standing
     from ..errors import MocapError
     from ..io.c3d import read_c3d
@@ -68,8 +68,11 @@ def _check_usage(args) -> None:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
                    diagnostics_path(args.output)}, [*captures, *(args.static or ())])
-    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
-        raise UsageError(f"--report {args.report} is a file; give a folder for the report")
+    if args.report:
+        from ..report import report_name
+
+        check_output_folder("--report", args.report, report_name(args.output),
+                            [*captures, *(args.static or ())])
 
 
 def _run(args) -> int:

@@ -14,23 +14,38 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", metavar="DIR", default="reports",
                         help="folder for the report (default: reports)")
     parser.add_argument("--envelope", metavar="FILE.toml",
-                        help="target envelope: a TOML file with an [envelope] table, or a "
-                             "capture plan (default: the capture plan in protocols/)")
+                        help="target envelope: a TOML file with an [envelope] table, or your "
+                             "capture plan (default: the plan of mocaplib's synthetic sample "
+                             "captures, shipped with it)")
     parser.add_argument("--no-opengl", action="store_true",
                         help="draw the 3-D view with matplotlib instead of pyvista/VTK")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
-    from pathlib import Path
+    from ..report import report_name, write_report
+    from ._common import check_output_folder
 
-    from ..report import write_report
-    from ._common import UsageError
-
-    if Path(args.output).exists() and not Path(args.output).is_dir():
-        raise UsageError(f"-o {args.output} is a file; give a folder for the report")
-
+    check_output_folder("-o", args.output, report_name(args.library), [args.library])
+    _check_envelope(args.envelope)
     path = write_report(args.library, args.output, envelope=args.envelope,
                         renderer="matplotlib" if args.no_opengl else "auto")
     print(f"report: {path}")
     return 0
+
+
+def _check_envelope(envelope: str | None) -> None:
+    """Raise :class:`UsageError` before any work for an ``--envelope`` file that is missing,
+    malformed or holds values no envelope can have (text, NaN, infinity)."""
+    from pathlib import Path
+
+    from ..errors import MocapError
+    from ..report.plan import default_envelope
+    from ._common import UsageError
+
+    if envelope is None:
+        return
+    try:
+        default_envelope(Path(envelope))
+    except MocapError as exc:
+        raise UsageError(f"--envelope: {exc}") from None

@@ -6,6 +6,9 @@ Plotting libraries (matplotlib, pyvista) are imported only when a report is made
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 
 def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"):
     """Write ``<out_dir>/<library stem>-report.html``; see
@@ -13,3 +16,8 @@ def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"
     from .html import write_report as _write
 
     return _write(library_path, out_dir, envelope=envelope, renderer=renderer)
+
+
+def report_name(library_path: str | os.PathLike) -> str:
+    """The report's file name for a library file: ``<stem>-report.html``."""
+    return f"{Path(library_path).stem}-report.html"

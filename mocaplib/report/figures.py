@@ -108,11 +108,11 @@ def projections(points, classes, axes, *, envelope=None, hull_points=None, holes
             ax.scatter(p[sel, i], p[sel, j], s=36, color=colours[name], edgecolor="k",
                        linewidths=0.5, label=name, zorder=3)
         if suggestions is not None and len(suggestions):
-            s = _display(suggestions, axes)
-            ax.scatter(s[:, i], s[:, j], marker="*", s=160, color="gold", edgecolor="k",
+            s = _display(suggestions, axes)[:, [i, j]]
+            ax.scatter(s[:, 0], s[:, 1], marker="*", s=160, color="gold", edgecolor="k",
                        zorder=4, label="capture next")
-            for n, (x, y) in enumerate(s[:, [i, j]], 1):
-                ax.annotate(str(n), (x, y), xytext=(5, 4), textcoords="offset points",
+            for text, (x, y) in star_labels(s, ax.get_xlim(), ax.get_ylim()):
+                ax.annotate(text, (x, y), xytext=(5, 4), textcoords="offset points",
                             fontsize=9, weight="bold")
         ax.set_xlabel(axis_label(axes[i]))
         ax.set_ylabel(axis_label(axes[j]))
@@ -120,6 +120,24 @@ def projections(points, classes, axes, *, envelope=None, hull_points=None, holes
     handles, labels = panels[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize=8)
     return png_bytes(fig)
+
+
+def star_labels(points: np.ndarray, xlim, ylim, *, near: float = 0.04
+                ) -> list[tuple[str, tuple[float, float]]]:
+    """Labels of numbered stars (1, 2, ... in the order of ``points`` (S, 2)) on a panel with
+    limits ``xlim``, ``ylim``: stars within ``near`` of the panel's size of an earlier one share
+    its label ("1, 2"), so no two numbers print on top of each other."""
+    span = np.array([xlim[1] - xlim[0], ylim[1] - ylim[0]], float)
+    span[span <= 0] = 1.0
+    groups: list[list[int]] = []
+    for n, p in enumerate(points):
+        for group in groups:
+            if np.all(np.abs((points[group[0]] - p) / span) < near):
+                group.append(n)
+                break
+        else:
+            groups.append([n])
+    return [(", ".join(str(n + 1) for n in g), tuple(points[g[0]])) for g in groups]
 
 
 def control_space_3d(points, classes, axes, *, edges=(), envelope=None) -> bytes:

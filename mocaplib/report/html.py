@@ -10,9 +10,11 @@ with ``tojson`` (which escapes ``<``, ``>``, ``&`` and quotes).
 from __future__ import annotations
 
 import base64
+import inspect
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +26,7 @@ from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlS
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
 from ..library import load_library, validate_library
-from . import figures
+from . import figures, report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
 
@@ -40,20 +42,19 @@ def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
     """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
 
     ``envelope``: an :class:`~mocaplib.controlspace.Envelope`, a TOML file (an ``[envelope]``
-    table, or a capture plan), or None for the capture plan found in ``protocols/`` (see
+    table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
     back to matplotlib without OpenGL) or ``"matplotlib"``. Reads the diagnostics sidecar
-    ``<stem>.diagnostics.json`` beside the library when it exists.
+    ``<stem>.diagnostics.json`` beside the library when it exists and belongs to it.
     """
     library_path = Path(library_path)
     library = load_library(library_path)
-    diagnostics, diag_warning = _read_diagnostics(library_path)
+    diagnostics, diag_warnings = read_diagnostics(library_path, library)
     context = build_context(library, library_path, diagnostics, envelope=envelope,
                             renderer=renderer)
-    if diag_warning:
-        context["warnings"].insert(0, diag_warning)
+    context["warnings"][:0] = diag_warnings
     html = render_html(context)
-    return atomic_write_text(Path(out_dir) / f"{library_path.stem}-report.html", html)
+    return atomic_write_text(Path(out_dir) / report_name(library_path), html)
 
 
 def render_html(context: dict) -> str:
@@ -82,28 +83,113 @@ def _data_uri(png: bytes) -> str:
     return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
-def _read_diagnostics(library_path: Path) -> tuple[dict | None, str | None]:
+# --------------------------------------------------------------------------- sidecar
+def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str]]:
+    """The diagnostics sidecar of ``library`` (None when missing, unreadable or another
+    build's) and the report warnings about it.
+
+    Capture records are checked once here, so the rest of the report can rely on their shape:
+    a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
+    out with a warning naming it (:func:`_record_problem`). A sidecar whose entry ids differ
+    from the library's was written by another build (a library rebuilt, or moved beside another
+    one's sidecar): it is not used, since its counts and plots would contradict the library."""
     from ..pipeline import diagnostics_path
 
     path = diagnostics_path(library_path)
     if not path.is_file():
-        return None, (f"no diagnostics sidecar {path.name}: per-capture plots are not shown "
-                      f"(`mocaplib build` writes it beside the library)")
+        return None, [f"no diagnostics sidecar {path.name}: per-capture plots are not shown "
+                      f"(`mocaplib build` writes it beside the library)"]
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
         if data.get("format") != "mocaplib-diagnostics" or not isinstance(
                 data.get("captures"), list):
             raise ValueError("not a mocaplib-diagnostics file")
-    except (OSError, ValueError, AttributeError) as exc:
-        return None, (f"diagnostics sidecar {path.name} unreadable ({exc}); "
-                      "per-capture plots skipped")
-    return data, None
+    except (OSError, ValueError, AttributeError, RecursionError) as exc:
+        return None, [f"diagnostics sidecar {path.name} unreadable ({exc}); "
+                      "per-capture plots skipped"]
+    warnings, records = [], []
+    for k, record in enumerate(data["captures"]):
+        problem = _record_problem(record)
+        if problem is None:
+            records.append(record)
+            continue
+        name = f" ({record['source']})" if isinstance(record, dict) and isinstance(
+            record.get("source"), str) else ""
+        warnings.append(f"diagnostics sidecar {path.name}: capture record {k}{name} left out "
+                        f"of the report: {problem}")
+    mismatch = _sidecar_mismatch(records, set(library.entries.index),
+                                 complete=len(records) == len(data["captures"]))
+    if mismatch:
+        return None, [f"diagnostics sidecar {path.name} does not belong to this library "
+                      f"({mismatch}): it was written by another build, so its captures, counts "
+                      "and plots are not shown (keep each library with the sidecar its build "
+                      "wrote, or rebuild)"]
+    return {**data, "captures": records}, warnings
+
+
+def _record_problem(record) -> str | None:
+    """What makes a capture record of the sidecar unusable (None when its shape is right).
+
+    Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
+    null); ``ok`` true or false; ``cycles`` a list of objects whose ``start_s``/``end_s``
+    are numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
+    ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
+    (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
+    if not isinstance(record, dict):
+        return f"a {type(record).__name__}, not an object"
+    for key in ("source", "error", "stage", "static"):
+        if record.get(key) is not None and not isinstance(record[key], str):
+            return f"{key} = {json.dumps(record[key])[:40]} is not a text"
+    if not isinstance(record.get("ok", True), bool):
+        return f"ok = {json.dumps(record['ok'])[:40]} is not true or false"
+    if not isinstance(record.get("warnings") or [], list):
+        return "its warnings are not a list"
+    cycles = record.get("cycles") or []
+    if not isinstance(cycles, list):
+        return "its cycles are not a list"
+    for n, cycle in enumerate(cycles):
+        if not isinstance(cycle, dict):
+            return f"cycle {n} is a {type(cycle).__name__}, not an object"
+        for key, ok in _CYCLE_FIELDS.items():
+            if cycle.get(key) is not None and not ok(cycle[key]):
+                return f"cycle {n}: {key} = {json.dumps(cycle[key])[:40]} has the wrong type"
+    return None
+
+
+#: Fields of a sidecar cycle the report reads outside its figures, and their type check.
+_CYCLE_FIELDS = {
+    "start_s": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
+    "end_s": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
+    "index": lambda x: isinstance(x, int) and not isinstance(x, bool),
+    "entry_id": lambda x: isinstance(x, str),
+    "pattern": lambda x: isinstance(x, dict),
+}
+
+
+def _sidecar_mismatch(records: list[dict], library_ids: set[str], *,
+                      complete: bool) -> str | None:
+    """Why the sidecar's ``records`` are not the library's build, or None: the entry ids they
+    name must all be in the library and, when no record was left out (``complete``), name
+    every library entry."""
+    named = {c["entry_id"] for r in records for c in r.get("cycles") or []
+             if c.get("entry_id") is not None}
+    unknown, unnamed = sorted(named - library_ids), sorted(library_ids - named)
+    reasons = []
+    if unknown:
+        reasons.append(f"it names {len(unknown)} entr{'y' if len(unknown) == 1 else 'ies'} "
+                       f"the library lacks, e.g. {unknown[0]}")
+    if unnamed and complete:
+        reasons.append(f"{len(unnamed)} of the library's {len(library_ids)} entries are not "
+                       f"in it, e.g. {unnamed[0]}")
+    return "; ".join(reasons) or None
 
 
 # --------------------------------------------------------------------------- context
 def build_context(library, library_path: Path, diagnostics: dict | None, *, envelope=None,
                   renderer: str = "auto") -> dict:
-    """Every number, table and figure of the report (values still unescaped)."""
+    """Every number, table and figure of the report (values still unescaped).
+
+    ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
     df = library.entries
     warnings = [f"library check: {p}" for p in validate_library(library)]
     env, env_note = _resolve_envelope(envelope)
@@ -111,7 +197,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     classes_all = [label(i) for i in df.index]
     cs, cs_error = None, None
     try:
-        cs = ControlSpace.from_library(library, source=library_path)
+        cs = ControlSpace.from_library(library, source=library_path.name)
         cs.classes = [label(i) for i in cs.ids]
     except MocapError as exc:
         cs_error = str(exc)
@@ -120,41 +206,80 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         "title": library_path.name, "version": __version__,
         "summary": _summary(library, df, diagnostics, cs),
         "warnings": warnings, "cs_error": cs_error, "envelope_note": env_note,
-        "axes": [{"name": n, "unit": AXIS_UNITS[n]} for n in
+        "axes": [{"name": n, "unit": AXIS_UNITS[n], "label": AXIS_NAMES[n]} for n in
                  (cs.axes if cs else ("v", "omega", "v_l"))],
         "entries": _entry_rows(df, label),
         "coverage": None, "loo": None, "three_d": None, "viewer": None, "projections": None,
-        "planned": planned_status(env_note.get("plan"), df, diagnostics),
+        "planned": planned_status(env_note["plan"], env_note["plan_name"], df, diagnostics),
         "captures": _captures(diagnostics, library),
     }
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
-    finite = df[["v", "omega", "v_l"]].notna().all(axis=1).to_numpy()
-    points = df.loc[finite, ["v", "omega", "v_l"]].to_numpy(float)
-    point_classes = [c for c, ok in zip(classes_all, finite) if ok]
+    _add_control_space(context, cs, env, library, label, classes_all, renderer)
+    _shorten_paths(context)
+    return context
+
+
+def _add_control_space(context, cs, env, library, label, classes_all, renderer) -> None:
+    """Coverage, blending error and the control-space figures into ``context``."""
+    warnings, df = context["warnings"], library.entries
     if cs is None:
-        if len(points):
+        finite = df[["v", "omega", "v_l"]].notna().all(axis=1).to_numpy()
+        if finite.any():
             context["projections"] = _data_uri(figures.projections(
-                points, point_classes, ("v", "omega", "v_l"), envelope=env.vertices))
-        return context
+                df.loc[finite, ["v", "omega", "v_l"]].to_numpy(float),
+                [c for c, ok in zip(classes_all, finite) if ok], ("v", "omega", "v_l"),
+                envelope=env.vertices))
+        return
     cov = coverage(cs, env)
     context["projections"] = _data_uri(figures.projections(
         cs.points, cs.classes, cs.axes, envelope=env.vertices, hull_points=cs.points,
         holes=cov.samples[~cov.samples_inside],
         suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
-    context["coverage"] = _coverage_context(cov, cs, library)
-    close = context["coverage"]["close"]
-    if close:
-        warnings.append(
-            f"{len(close)} pair(s) of entries nearly coincide in the control space (closer than "
-            f"{close[0]['within']:.2f} normalised), e.g. {close[0]['a']} and {close[0]['b']}: "
-            f"blending switches between them over a tiny change of velocity; see Coverage")
+    context["coverage"] = _coverage_context(cov, cs, library, label)
+    if context["coverage"]["close"]:
+        warnings.append(_close_warning(context["coverage"]["close"]))
     context["loo"] = _loo_context(leave_one_out(cs))
     context["three_d"], context["viewer"] = _three_d(cs, env, renderer)
     if context["three_d"]["fallback_reason"]:
         warnings.append("3-D view drawn with matplotlib: "
                         + context["three_d"]["fallback_reason"])
-    return context
+
+
+#: An absolute path's folders (POSIX or Windows), up to its last separator.
+_ABSOLUTE_FOLDERS = re.compile(r"(?<![\w.~/\\])(?:/|[A-Za-z]:[\\/])[^\s:;,'\"()<>]*[\\/]")
+
+
+def _shorten_paths(context: dict) -> None:
+    """Show the absolute paths in the report's texts (errors and warnings carry the paths given
+    to the build) relative to the folder holding all of them: names alone when they share one
+    folder. The report may be mailed; the build machine's folders are of no use there."""
+    texts = [*context["warnings"], *context["summary"]["built_with"]]
+    for c in context["captures"]:
+        texts += [c["error"] or "", *c["warnings"]]
+    folders = [m.group(0) for t in texts for m in _ABSOLUTE_FOLDERS.finditer(t)]
+    if not folders:
+        return
+    common = os.path.commonpath(folders) if len(set(map(_drive, folders))) == 1 else ""
+    if not common:
+        return
+
+    def short(text):
+        return _ABSOLUTE_FOLDERS.sub(lambda m: m.group(0)[len(common):].lstrip("/\\"),
+                                     text) if isinstance(text, str) else text
+
+    context["warnings"][:] = map(short, context["warnings"])
+    context["summary"]["built_with"][:] = map(short, context["summary"]["built_with"])
+    if context["cs_error"]:
+        context["cs_error"] = short(context["cs_error"])
+    for c in context["captures"]:
+        c["error"], c["warnings"][:] = short(c["error"]), map(short, c["warnings"])
+    for f in (context["planned"] or {}).get("failed", []):
+        f["reason"] = short(f["reason"])
+
+
+def _drive(path: str) -> str:
+    return path[:2] if path[1:2] == ":" else "/"
 
 
 def _class_labeller(df, plan):
@@ -173,22 +298,35 @@ def _class_labeller(df, plan):
 
 def _resolve_envelope(envelope) -> tuple[Envelope, dict]:
     if isinstance(envelope, Envelope):
-        return envelope, {"text": f"given by the caller ({envelope.source})", "plan": None}
+        return envelope, {"text": f"given by the caller ({envelope.source})", "plan": None,
+                          "plan_name": None, "default": False}
     return default_envelope(None if envelope is None else Path(envelope))
 
 
 def _summary(library, df, diagnostics, cs) -> dict:
     captures = (diagnostics or {}).get("captures") or []
     failed = [c for c in captures if not c.get("ok", True)]
+    cap, tolerance = fourier_limits()
     return {
         "entries": len(df), "in_control_space": len(cs.points) if cs else 0,
         "captures": len(captures) if captures else len(set(df["source_file"])),
         "failed": len(failed), "fourier_n": library.n_harmonics,
+        "fourier_cap": cap, "fourier_tolerance_deg": math.degrees(tolerance),
+        "at_cap": [str(i) for i in df.index[df["fourier_n"] >= cap]],
         "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
             {"axis": a, "scale": s, "unit": AXIS_UNITS[a]} for a, s in zip(cs.axes, cs.scale)],
         "tetrahedra": 0 if cs is None else len(cs.tri.simplices),
     }
+
+
+def fourier_limits() -> tuple[int, float]:
+    """The encoder's cap on the Fourier order and its joint-angle tolerance (rad): the
+    defaults of :func:`mocaplib.fourier.encode_cycle`, which the build uses."""
+    from ..fourier import encode_cycle
+
+    defaults = inspect.signature(encode_cycle).parameters
+    return int(defaults["max_order"].default), float(defaults["tol_angle"].default)
 
 
 def _built_with(settings: dict) -> list[str]:
@@ -219,6 +357,7 @@ def _built_with(settings: dict) -> list[str]:
 
 
 def _entry_rows(df, label) -> list[dict]:
+    cap, _ = fourier_limits()
     rows = []
     for entry_id, r in df.iterrows():
         rows.append({"id": entry_id, "class": label(entry_id),
@@ -226,12 +365,13 @@ def _entry_rows(df, label) -> list[dict]:
                      "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
                      else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
                      "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
+                     "fourier_n": int(r["fourier_n"]), "at_cap": int(r["fourier_n"]) >= cap,
                      "fourier_deg": math.degrees(r["qc_fourier_rms_rad"])
                      if r["qc_fourier_rms_rad"] == r["qc_fourier_rms_rad"] else None})
     return rows
 
 
-def _coverage_context(cov, cs, library) -> dict:
+def _coverage_context(cov, cs, library, label) -> dict:
     next_rows = []
     for n, row in enumerate(cov.capture_next.itertuples(index=False), 1):
         values = dict(zip(cs.axes, row[:3]))
@@ -245,7 +385,7 @@ def _coverage_context(cov, cs, library) -> dict:
         "per_class": cov.entries_per_class,
         "slivers": _sliver_context(cov.slivers),
         "n_tetra": len(cs.tri.simplices), "next": next_rows,
-        "close": _close_rows(cs), "other_axes": _other_axes(cs, library),
+        "close": _close_rows(cs), "other_axes": _other_axes(cs, library, label),
     }
 
 
@@ -276,7 +416,15 @@ def _close_rows(cs) -> list[dict]:
     return rows
 
 
-def _other_axes(cs, library) -> dict | None:
+def _close_warning(close: list[dict]) -> str:
+    """The report's warning about the pairs of :func:`_close_rows` (not empty)."""
+    return (f"{len(close)} pair(s) of entries nearly coincide in the control space (closer "
+            f"than {close[0]['within']:.2f} normalised), e.g. {close[0]['a']} and "
+            f"{close[0]['b']}: blending switches between them over a tiny change of velocity; "
+            "see Coverage")
+
+
+def _other_axes(cs, library, label) -> dict | None:
     """Slivers, close pairs and blending error of the other axes variant, to compare (None if
     it cannot be triangulated)."""
     other = "frontal" if cs.variant == "tangential" else "tangential"
@@ -284,16 +432,19 @@ def _other_axes(cs, library) -> dict | None:
         alt = ControlSpace.from_library(library, axes=other)
     except MocapError:
         return None
+    alt.classes = [label(i) for i in alt.ids]
     loo = _loo_context(leave_one_out(alt))
-    return {"variant": other, "axes": ", ".join(alt.axes), "n_tetra": len(alt.tri.simplices),
+    return {"variant": other, "axes": ", ".join(AXIS_NAMES[a] for a in alt.axes),
+            "n_tetra": len(alt.tri.simplices),
             "slivers": int((alt.tetra_quality() < SLIVER_QUALITY).sum()),
-            "close": len(close_entries(alt)), "n_tested": loo["n_inside"],
+            "close": len(close_entries(alt)), "n_tested": loo["n_headline"],
             "median_rms": loo["median"]["rms_deg"],
             "median_stride": loo["median"]["stride_error_mm"]}
 
 
 def describe_command(values: dict) -> str:
-    """A velocity triple in words, for the "capture next" list."""
+    """A velocity triple in words, for the "capture next" list: below 0.05 m/s (or rad/s) a
+    velocity counts as none."""
     v = values.get("v", values.get("v_f", 0.0))
     w, vl = values["omega"], values["v_l"]
     parts = []
@@ -302,7 +453,7 @@ def describe_command(values: dict) -> str:
                 f"{abs(math.degrees(w)):.0f}°/s")
     if abs(v) < 0.05:
         return "stand still"
-    if abs(vl) > 0.2 * abs(v):
+    if abs(vl) >= 0.05:
         direction = math.degrees(math.asin(max(-1.0, min(1.0, vl / v)))) if v else 0.0
         side = "left" if vl > 0 else "right"
         parts.append(f"walk at {v:.2f} m/s heading {abs(direction):.0f}° to the {side} of "
@@ -314,22 +465,79 @@ def describe_command(values: dict) -> str:
     return ", ".join(parts)
 
 
+#: Gait mode of each locomotion class (:func:`_gait_mode`): walking in any direction (the plan's
+#: nonholonomic, holonomic and mixed classes and any other named class), running, rest.
+GAIT_MODES = {"running": "running", "rest": "rest", figures.UNKNOWN_CLASS: None}
+#: A leave-one-out row is flagged when at least this share of its blend weight comes from
+#: entries of another gait mode (walking rebuilt mostly from running, ...).
+CROSS_MODE_SHARE = 0.5
+
+
+def _gait_mode(cls: str | None) -> str | None:
+    """"walking", "running" or "rest" for a locomotion class; None when unknown."""
+    if cls is None or cls != cls:
+        return None
+    return GAIT_MODES.get(cls, "walking")
+
+
 def _loo_context(df) -> dict:
-    inside = df[df["inside"]]
-    rows = [{"id": r["id"], "class": r["class"] or "unknown", "inside": bool(r["inside"]),
-             "rebuilt_from": ", ".join(f"{n} ({w:.2f})" for n, w in
-                                       zip(r["neighbours"], r["weights"])),
-             **{k: r[k] for k in LOO_COLUMNS}, "worst_dof": r["worst_dof"]}
-            for _, r in df.sort_values("rms_deg", ascending=False, kind="stable").iterrows()]
-    median = {k: float(inside[k].abs().median()) if len(inside) else None for k in LOO_COLUMNS}
-    return {"rows": rows, "n_inside": len(inside), "n": len(df), "median": median,
-            "median_rms": median["rms_deg"],
-            "max_rms": float(inside["rms_deg"].max()) if len(inside) else None}
+    """The leave-one-out table and its medians.
+
+    The headline medians leave out rest entries: a standing pose rebuilt from other standing
+    poses (other subjects' statics, at the same point (0, 0, 0)) measures how the poses differ,
+    not blending; they get their own median. Rows whose blend takes at least
+    :data:`CROSS_MODE_SHARE` of its weight from another gait mode are flagged (``cross``) and a
+    median without them is given too."""
+    mode_of = dict(zip(df["id"], (_gait_mode(c) for c in df["class"])))
+    rows = []
+    for _, r in df.sort_values("rms_deg", ascending=False, kind="stable").iterrows():
+        rows.append({"id": r["id"], "class": r["class"] or figures.UNKNOWN_CLASS,
+                     "inside": bool(r["inside"]), "rest": mode_of[r["id"]] == "rest",
+                     "cross": _cross_mode(mode_of[r["id"]], r["neighbours"], r["weights"],
+                                          mode_of),
+                     "rebuilt_from": ", ".join(f"{n} ({w:.2f})" for n, w in
+                                               zip(r["neighbours"], r["weights"])),
+                     **{k: r[k] for k in LOO_COLUMNS}, "worst_dof": r["worst_dof"]})
+    tested = [r for r in rows if r["inside"]]
+    headline = [r for r in tested if not r["rest"]]
+    same_mode = [r for r in headline if not r["cross"]]
+    rest = [r for r in tested if r["rest"]]
+    median = _medians(headline)
+    return {"rows": rows, "n_inside": len(tested), "n": len(rows), "median": median,
+            "n_headline": len(headline), "median_rms": median["rms_deg"],
+            "max_rms": max((r["rms_deg"] for r in headline), default=None),
+            "n_rest": len(rest), "rest_median_rms": _medians(rest)["rms_deg"],
+            "n_cross": len(headline) - len(same_mode), "cross_share": CROSS_MODE_SHARE,
+            "same_mode_median_rms": _medians(same_mode)["rms_deg"]}
+
+
+def _medians(rows: list[dict]) -> dict:
+    """Median of |value| of each :data:`LOO_COLUMNS` over ``rows``, NaN left out (None when
+    there is no value)."""
+    values = {k: [abs(r[k]) for r in rows if r[k] == r[k]] for k in LOO_COLUMNS}
+    return {k: float(np.median(v)) if v else None for k, v in values.items()}
+
+
+def _cross_mode(mode: str | None, neighbours, weights, mode_of: dict) -> dict | None:
+    """The other gait mode giving a blend at least :data:`CROSS_MODE_SHARE` of its weight
+    (``{"mode", "share"}``), or None (also when a mode is unknown)."""
+    if mode is None:
+        return None
+    shares: dict[str, float] = {}
+    for n, w in zip(neighbours, weights):
+        if mode_of.get(n) is not None and mode_of[n] != mode:
+            shares[mode_of[n]] = shares.get(mode_of[n], 0.0) + w
+    other = max(shares, key=shares.get, default=None)
+    if other is None or shares[other] < CROSS_MODE_SHARE:
+        return None
+    return {"mode": other, "share": shares[other]}
 
 
 #: Numeric columns of :func:`mocaplib.controlspace.leave_one_out` shown in the report.
 LOO_COLUMNS = ("rms_deg", "max_deg", "heading_rms_deg", "root_rms_mm", "stride_error_mm",
                "turn_error_deg", "T_error_s")
+#: Axis names as the report's tables show them.
+AXIS_NAMES = {"v": "v̂", "v_f": "v̂_f", "omega": "ω̂", "v_l": "v̂_l"}
 
 
 def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict]:
@@ -395,9 +603,8 @@ VTK_AXIS_TITLES = {"v": "v (m/s)", "v_f": "v_f (m/s)", "omega": "omega (deg/s, >
 
 def _velocity_text(point, axes) -> str:
     """One entry's velocities for people, e.g. 'v̂ 1.20 m/s, ω̂ -30 °/s, v̂_l 0.00 m/s'."""
-    names = {"v": "v̂", "v_f": "v̂_f", "omega": "ω̂", "v_l": "v̂_l"}
-    return ", ".join(f"{names[a]} {math.degrees(p):.0f} °/s" if a == "omega"
-                     else f"{names[a]} {p:.2f} m/s" for a, p in zip(axes, point))
+    return ", ".join(f"{AXIS_NAMES[a]} {math.degrees(p):.0f} °/s" if a == "omega"
+                     else f"{AXIS_NAMES[a]} {p:.2f} m/s" for a, p in zip(axes, point))
 
 
 def _unique_edges(cells: np.ndarray) -> np.ndarray:
@@ -408,21 +615,26 @@ def _unique_edges(cells: np.ndarray) -> np.ndarray:
 
 
 def _captures(diagnostics: dict | None, library) -> list[dict]:
-    """Per-capture sections: status, warnings and the quality figure."""
+    """Per-capture sections: status, warnings, cycles and the quality figure.
+
+    ``diagnostics``: as :func:`read_diagnostics` returns it (its records' shape checked).
+    Cycles are numbered by their ``index`` in the capture, from 0, as in the entry ids
+    (``<stem>_c<index>``) and the warnings."""
     if not diagnostics:
         return []
     out = []
     known = set(library.entries.index)
     for k, record in enumerate(diagnostics.get("captures") or []):
-        item = {"source": str(record.get("source", f"capture {k + 1}")),
-                "ok": bool(record.get("ok", True)), "error": record.get("error"),
+        cycles = [{"index": c.get("index", n), "start": c.get("start_s"),
+                   "end": c.get("end_s"), "chosen": bool(c.get("chosen")),
+                   "entry": c.get("entry_id"), "pattern": (c.get("pattern") or {}).get("type")}
+                  for n, c in enumerate(record.get("cycles") or [])]
+        item = {"source": str(record.get("source", f"capture {k}")),
+                "ok": record.get("ok", True), "error": record.get("error"),
                 "stage": record.get("stage"), "static": record.get("static"),
                 "warnings": [str(w) for w in record.get("warnings") or []],
-                "cycles": [{"start": c.get("start_s"), "end": c.get("end_s"),
-                            "chosen": bool(c.get("chosen")), "entry": c.get("entry_id"),
-                            "pattern": (c.get("pattern") or {}).get("type")}
-                           for c in record.get("cycles") or []],
-                "figure": None, "figure_error": None, "anchor": f"capture-{k + 1}"}
+                "cycles": cycles, "n_entries": sum(c["entry"] is not None for c in cycles),
+                "figure": None, "figure_error": None, "anchor": f"capture-{k}"}
         if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
             try:
                 item["figure"] = _data_uri(figures.capture_figure(

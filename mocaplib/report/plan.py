@@ -3,8 +3,10 @@
 Envelope definition (documented, overridable)
 ---------------------------------------------
 The target region of the control space is the **convex hull of the commanded velocities of the
-captures in the capture plan** (``protocols/*plan*.toml``): each planned capture's command
-``(v_f, v_l, ω)`` becomes the point ``(v̂ = hypot(v_f, v_l), ω̂, v̂_l)``. A plan (or any TOML
+captures in a capture plan**: each planned capture's command ``(v_f, v_l, ω)`` becomes the
+point ``(v̂ = hypot(v_f, v_l), ω̂, v̂_l)``. The plan is the one given (``--envelope``), else the
+plan shipped with mocaplib (:func:`mocaplib.protocols.capture_plans`, the plan of its synthetic
+sample captures: a default, not the lab's plan, and the report says so). A plan (or any TOML
 file) may instead carry an explicit ``[envelope]`` table, which wins (see
 :meth:`mocaplib.controlspace.Envelope.from_toml`). Without any plan the report uses
 :data:`FALLBACK_ENVELOPE`, a small hand-written set of the same locomotion types, and says so.
@@ -34,18 +36,13 @@ FALLBACK_ENVELOPE = np.array([
 ])
 
 
-def plan_search_path() -> list[Path]:
-    """Folders searched for ``*plan*.toml``: ./protocols, then the source tree's protocols/."""
-    return [Path.cwd() / "protocols", Path(__file__).resolve().parents[2] / "protocols"]
-
-
 def find_plan() -> Path | None:
-    """The first capture plan found on :func:`plan_search_path`, or None."""
-    for folder in plan_search_path():
-        plans = sorted(folder.glob("*plan*.toml")) if folder.is_dir() else []
-        if plans:
-            return plans[0]
-    return None
+    """The first capture plan shipped with mocaplib (:func:`mocaplib.protocols.capture_plans`,
+    the same plans the build takes locomotion classes from), or None."""
+    from ..protocols import capture_plans
+
+    plans = capture_plans()
+    return plans[0] if plans else None
 
 
 def plan_commands(path: str | Path) -> pd.DataFrame:
@@ -64,11 +61,13 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
 
     ``plan`` given may also be a TOML file with just an ``[envelope]`` table (see
     :meth:`Envelope.from_toml`), which is then the envelope. Returns the envelope and a note
-    ``{"text": how it was made, "plan": planned captures DataFrame or None}`` for the report.
+    ``{"text": how it was made, "plan": planned captures DataFrame or None, "plan_name": its
+    file name or None, "default": True when the target is mocaplib's default (no ``plan``
+    given), not one the user chose}`` for the report.
     """
     found = plan is None
     plan = plan if plan is not None else find_plan()
-    why = "no capture plan found in protocols/"
+    why = "no capture plan shipped"
     commands = None
     if plan is not None:
         try:
@@ -77,28 +76,37 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
                                       "capture plan")
             if "envelope" in document and not found:
                 return Envelope.from_toml(plan), {"text": f"from {Path(plan).name}",
-                                                  "plan": None}
+                                                  "plan": None, "plan_name": None,
+                                                  "default": False}
             commands = plan_commands(plan)
         except MocapError as exc:
             if not found:
                 raise
-            why = f"the capture plan found could not be read: {exc}"
+            why = f"the shipped capture plan could not be read: {exc}"
     if commands is None:
         return (Envelope(FALLBACK_ENVELOPE, source="built-in"),
-                {"text": f"built-in default ({why}): hull of rest, spot turns, straight, "
-                         "curved, side and diagonal walking", "plan": None})
+                {"text": f"mocaplib's built-in default ({why}): hull of rest, spot turns, "
+                         "straight, curved, side and diagonal walking", "plan": None,
+                 "plan_name": None, "default": True})
     if "envelope" in document:
         env, how = Envelope.from_toml(plan), f"[envelope] table of {Path(plan).name}"
     else:
         env = Envelope.from_commands(commands, source=str(plan))
         how = (f"convex hull of the {len(commands)} commanded velocities of the capture plan "
                f"{Path(plan).name}")
-    return env, {"text": how, "plan": commands}
+    if found:
+        how = (f"mocaplib's default, the {how} shipped with mocaplib (the plan of its "
+               "synthetic sample captures, not your session's)")
+    return env, {"text": how, "plan": commands, "plan_name": Path(plan).name, "default": found}
 
 
-def planned_status(plan: pd.DataFrame | None, entries: pd.DataFrame,
+def planned_status(plan: pd.DataFrame | None, plan_name: str | None, entries: pd.DataFrame,
                    diagnostics: dict | None) -> dict | None:
-    """Planned captures missing from the library or failed in the build; None without a plan."""
+    """Planned captures missing from the library or failed in the build; None without a plan.
+
+    ``matched`` counts the planned captures found by file stem in the library or among the
+    failed captures: 0 means the library's captures are not named after this plan, and the
+    missing ones are not listed (they would be the whole plan, not the lab's omissions)."""
     if plan is None:
         return None
     in_library = {Path(s).stem for s in entries["source_file"]}
@@ -108,6 +116,8 @@ def planned_status(plan: pd.DataFrame | None, entries: pd.DataFrame,
             failed[Path(str(record.get("source", ""))).stem] = (
                 f"{record.get('stage') or '?'}: {record.get('error') or 'failed'}")
     rows_failed = [{"name": n, "reason": failed[n]} for n in plan["name"] if n in failed]
+    n_in_library = int(plan["name"].isin(in_library).sum())
+    matched = n_in_library + len(rows_failed)
     missing = [n for n in plan["name"] if n not in in_library and n not in failed]
-    return {"n_planned": len(plan), "n_in_library": int(plan["name"].isin(in_library).sum()),
-            "missing": missing, "failed": rows_failed}
+    return {"n_planned": len(plan), "plan_name": plan_name, "n_in_library": n_in_library,
+            "matched": matched, "missing": missing if matched else [], "failed": rows_failed}

@@ -87,6 +87,8 @@ def _run_renderer(scene: Path, out: Path) -> str | None:
                               timeout=RENDER_TIMEOUT_S)
     except subprocess.TimeoutExpired:
         return f"pyvista did not finish within {RENDER_TIMEOUT_S} s"
+    except (OSError, subprocess.SubprocessError) as exc:  # e.g. the interpreter cannot be run
+        return f"the pyvista renderer could not be started ({type(exc).__name__}: {exc})"
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or ["no message"])[-1][:200]
         how = (f"crashed (signal {-proc.returncode})" if proc.returncode < 0
@@ -128,12 +130,16 @@ def _render_pyvista(scene_path: str, out_path: str) -> None:
         faces = np.hstack([np.full((len(s["env_tris"]), 1), 3), s["env_tris"]]).ravel()
         plotter.add_mesh(pv.PolyData(s["env_points"], faces).extract_feature_edges(
             boundary_edges=False, non_manifold_edges=False, feature_angle=1.0),
-            color="red", opacity=0.4, line_width=1.0, label="target envelope")
+            color="red", opacity=0.4, line_width=1.0)
+    legend = []
     for name in sorted(set(s["labels"].tolist())):
         sel = s["labels"] == name
         plotter.add_points(pts[sel], color=tuple(colours[sel][0]), point_size=14,
-                           render_points_as_spheres=True, label=str(name))
-    plotter.add_legend(bcolor="white", border=True, size=(0.17, 0.2), face="circle",
+                           render_points_as_spheres=True)
+        legend.append([str(name), tuple(colours[sel][0]), "circle"])
+    if len(s["env_tris"]):
+        legend.append(["target envelope", "red", "line"])  # a line, as drawn, not a dot
+    plotter.add_legend(legend, bcolor="white", border=True, size=(0.17, 0.2),
                        loc="upper right")
     titles = s["titles"].tolist()
     everything = np.vstack([pts, s["env_points"]])
