@@ -15,7 +15,8 @@ def register(subparsers) -> None:
         description="Detect left/right toe-off and heel-strike from the heel and toe markers "
                     "(any direction of travel, running, treadmills). Times are seconds from "
                     "the file's first frame. Exit 0 on success, 1 when the file cannot be "
-                    "read or has no foot markers, 2 on usage errors.")
+                    "read, has no foot markers, or shows no event in less than a second (too "
+                    "short to be rest), 2 on usage errors.")
     add_common_options(parser)
     parser.add_argument("--fit", action="store_true",
                         help="fill missing foot-marker samples from the fitted skeleton "
