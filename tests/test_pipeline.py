@@ -483,6 +483,7 @@ def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_cap
         synthetic_folder, tmp_path, capsys):
     # fit detected the protocol on the static (calibrate's choice), build and cycles on the
     # capture: a static with one more Plug-in Gait label (RBAK) made fit use plugin_gait
+    from mocaplib.calibration import calibrate
     from mocaplib.io.c3d import read_c3d
     from mocaplib.io.c3d_write import write_c3d
     from mocaplib.protocols import detect_protocol
@@ -493,6 +494,8 @@ def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_cap
                        [*rest.labels, "RBAK"], rest.rate)
     assert detect_protocol(read_c3d(static)).protocol.name == "plugin_gait"
     path = synthetic_folder / "side_left_normal.c3d"
+    model = calibrate(read_c3d(path), protocol="auto", static=read_c3d(static))
+    assert model.protocol.name == "fullbody38"      # the Python API resolves it as the CLI
     assert main(["fit", str(path), "--static", str(static), "-o", str(tmp_path / "a.csv"),
                  "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["protocol"] == "fullbody38"
