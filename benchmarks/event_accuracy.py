@@ -3,7 +3,7 @@
     /work/venv/bin/python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR]
     /work/venv/bin/python benchmarks/event_accuracy.py --noise-sd 0     # samples without noise
 
-Runs :func:`mocaplib.events.detect_events` on every synthetic capture of ``--samples`` (their
+Runs :func:`mocaplib.events.capture_events` on every synthetic capture of ``--samples`` (their
 EVENT group holds the true Foot Off / Foot Strike) and on the four real files with lab-recorded
 events under ``--real`` (default ``../shared/data/c3d``; skipped when absent), for each toe-off
 definition, and prints:
@@ -33,7 +33,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mocaplib.events import TOE_OFF_DEFINITIONS, detect_events, event_differences, feet_of  # noqa: E402
+from mocaplib.events import (TOE_OFF_DEFINITIONS, EventSettings, capture_events,  # noqa: E402
+                             event_differences)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.protocols import detect_protocol  # noqa: E402
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
@@ -51,8 +52,7 @@ def differences(paths, toe_off: str) -> dict[str, tuple[dict[str, np.ndarray], f
     out = {}
     for path in paths:
         trial = read_c3d(path)
-        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
-                               toe_off=toe_off, source=path)
+        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
         out[path.stem] = ({kind: event_differences(events, trial.events, kind=kind,
                                                    start_time=trial.start_time)
                            for kind in KINDS}, trial.rate)
@@ -129,7 +129,7 @@ def main(argv=None) -> int:
     for toe_off, (synthetic, real) in verdict.items():
         print(f"{toe_off:14s} synthetic target {'met' if synthetic else 'MISSED'}, "
               f"real target {'met' if real else 'MISSED'}")
-    default = detect_events.__kwdefaults__["toe_off"]
+    default = EventSettings().toe_off
     return 0 if all(verdict[default]) else 1
 
 

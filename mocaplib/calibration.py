@@ -74,7 +74,7 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
-from .protocols import Protocol, detect_protocol, load_protocol, match_protocol
+from .protocols import Protocol, match_protocol, match_trial
 from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
 from .trial import Trial
 
@@ -173,13 +173,12 @@ class SubjectModel:
 
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
-    """The protocol to use: the one given (object, shipped name or TOML path), else the one
-    :func:`mocaplib.protocols.detect_protocol` finds for the trial's labels."""
+    """The protocol to use: the one given (object, shipped name or TOML path), else (None or
+    "auto") the one :func:`mocaplib.protocols.detect_protocol` finds for the trial's labels;
+    resolved by :func:`mocaplib.protocols.match_trial`, as every command resolves it."""
     if isinstance(protocol, Protocol):
         return protocol
-    if protocol not in (None, "auto"):
-        return load_protocol(protocol)
-    return detect_protocol(trial).protocol
+    return match_trial(trial, "auto" if protocol is None else protocol).protocol
 
 
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
@@ -191,7 +190,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     Parameters
     ----------
     trial : the motion trial.
-    protocol : Protocol, shipped name, TOML path, or None / "auto" to detect it.
+    protocol : Protocol, shipped name, TOML path, or None / "auto" to detect it (on the motion
+        trial, also when a static is given).
     static : a static standing trial of the same subject. When given, steps 1-4 (markers,
         height, joint centres, lengths, anatomical offsets) use it and step 5 refines on the
         motion trial; otherwise every step uses the motion trial. Step 0 checks first that
@@ -213,7 +213,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static is not None:
         check_standing(static)
     cal = static if static is not None else trial
-    proto = choose_protocol(cal, protocol)
+    proto = choose_protocol(trial, protocol)   # on the motion, as every command resolves it
     cal_match = match_protocol(cal, proto, check_swaps=False)   # find_swaps decides
     X_all = cal_match.markers(cal)
     seen = np.isfinite(X_all[..., 0]).mean(axis=0) if cal.n_frames else np.zeros(len(proto.labels))

@@ -114,6 +114,18 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
             frames[:, SEGMENT_NAMES.index("humerus_r"), :3, 3])
 
 
+def motion_cycles(events: list[GaitEvent], motion, /, *, ground: np.ndarray | None = None,
+                  shoulders: tuple[np.ndarray, np.ndarray] | None = None,
+                  source: str | os.PathLike | None = None) -> list[Cycle]:
+    """:func:`analyse_cycles` of a fitted :class:`~mocaplib.Motion`: its shoulder joint centres
+    (:func:`shoulder_centres`, or ``shoulders`` when already computed) and joint coordinates;
+    what ``mocaplib cycles`` and ``mocaplib build`` run. ``events`` and ``ground`` as
+    :func:`mocaplib.events.capture_events` gives them."""
+    left, right = shoulder_centres(motion) if shoulders is None else shoulders
+    return analyse_cycles(events, left, right, motion.rate, q=motion.q, ground=ground,
+                          source=source)
+
+
 def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]]:
     """Pairs of consecutive left toe-offs, in time order."""
     offs = sorted((e for e in events if e.side == "left" and e.kind == "toe_off"),
@@ -204,13 +216,22 @@ def _unsteadiness(times: np.ndarray, mid: np.ndarray, heading: np.ndarray) -> fl
     return float(abs(v2 - v1) + STEADINESS_RADIUS * abs(w2 - w1))
 
 
-def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -> Cycle:
-    if n_frames < max(2, round(REST_PERIOD * rate)):
+def check_rest_duration(n_frames: int, rate: float, /, *,
+                        source: str | os.PathLike | None = None) -> None:
+    """Raise :class:`EventError` when a capture of ``n_frames`` at ``rate`` Hz without a gait
+    event is too short to be rest: it spans (first to last frame) less than
+    :data:`REST_PERIOD`, so it may as well be a fragment of walking."""
+    duration = (n_frames - 1) / rate if n_frames else 0.0
+    if duration < REST_PERIOD:
         raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry: "
-                         f"{n_frames / rate:.3g} s without a gait event, shorter than the "
+                         f"{duration:.3g} s without a gait event, shorter than the "
                          f"{REST_PERIOD:g} s a rest entry spans", path=source,
                          hint="capture at least a second of standing, or two full strides")
-    times = cycle_times(0.0, min(REST_PERIOD, (n_frames - 1) / rate), rate)
+
+
+def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -> Cycle:
+    check_rest_duration(n_frames, rate, source=source)
+    times = cycle_times(0.0, REST_PERIOD, rate)
     mid, _ = sample_shoulders(left, right, rate, times, source=source)
     pattern = Pattern("point", {"point": mid[:, :2].mean(axis=0)})
     velocities = CycleVelocities(pattern, REST_PERIOD, 0.0, 0.0, 0.0, 0.0)

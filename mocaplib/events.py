@@ -15,7 +15,7 @@ running, overground or on a treadmill:
 3. **Swings.** On low-passed points (:func:`mocaplib.filtering.lowpass`: zero-lag Butterworth,
    gap-aware, ``cutoff_hz`` its -3 dB point),
    the foot is in contact when its lowest point is within ``min_clearance`` of the floor *and*
-   its centre moves slower than ``still_speed`` relative to the ground.
+   its centre moves slower than ``contact_speed`` relative to the ground.
    A swing is a run of at least ``min_swing_s`` out of contact. No swing (standing) = no
    events = rest.
 4. **Coarse times.** Toe-off: the peak upward velocity of the foot centre (mean of heel and toe)
@@ -86,8 +86,8 @@ class GaitEvent:
     frame : int
         Nearest frame index (0-based).
     quality : float
-        Fraction (0..1) of the heel and toe samples within 50 ms of the event that were measured
-        rather than gap-filled.
+        Fraction (0..1) of the frames within 50 ms of the event where the capture measured both
+        the heel and the toe (not filled in, linearly or from a fitted model).
     """
 
     side: str
@@ -97,11 +97,42 @@ class GaitEvent:
     quality: float
 
 
+@dataclass(frozen=True)
+class EventSettings:
+    """The detector's settings (module docstring), each with its default.
+
+    toe_off : ``"foot_velocity"`` (force-plate-like, default) or ``"lift"`` (a rigid foot's
+        lift-off).
+    cutoff_hz : the detection's low-pass cutoff (Hz, -3 dB point).
+    min_clearance, contact_speed : a foot is in contact when its lowest point is within
+        ``min_clearance`` of the floor (m) and its centre moves slower than ``contact_speed``
+        relative to the ground (m/s).
+    min_swing_s : shortest swing (s).
+    refine_s : half-width of the window the kinks are fitted on (s).
+    max_gap_s : longest gap filled linearly (s).
+    """
+
+    toe_off: str = "foot_velocity"
+    cutoff_hz: float = 12.0
+    min_clearance: float = 0.01
+    contact_speed: float = 0.5
+    min_swing_s: float = 0.08
+    refine_s: float = 0.08
+    max_gap_s: float = 0.25
+
+    def __post_init__(self):
+        if self.toe_off not in TOE_OFF_DEFINITIONS:
+            raise EventError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
+                             f"got {self.toe_off!r}")
+
+
+#: Slowest ground velocity (m/s) taken for a treadmill belt's; slower estimates are overground.
+MIN_BELT_SPEED = 0.2
+
+
 def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
-                  toe_off: str = "foot_velocity", cutoff_hz: float = 12.0,
-                  min_clearance: float = 0.01, min_swing_s: float = 0.08, still_speed: float = 0.5,
-                  refine_s: float = 0.08, max_gap_s: float = 0.25,
-                  source: str | os.PathLike | None = None) -> list[GaitEvent]:
+                  measured: Mapping[str, np.ndarray] | None = None,
+                  source: str | os.PathLike | None = None, **settings) -> list[GaitEvent]:
     """Toe-offs and heel-strikes of both feet, sorted by time.
 
     Parameters
@@ -111,54 +142,129 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
         Z up, NaN where missing. A side may be left out.
     rate
         Frame rate, Hz.
-    toe_off
-        ``"foot_velocity"`` (force-plate-like, default) or ``"lift"`` (the toe marker's
-        lift-off), see the module docstring.
-    cutoff_hz, min_clearance, min_swing_s, still_speed, refine_s, max_gap_s
-        See the module docstring (Hz, m, s, m/s, s, s).
+    measured
+        ``{side: (F,) bool}``: the frames where that foot's heel and toe were both measured
+        (:func:`feet_of` gives it); the events' ``quality`` counts only them. Default: where
+        both are finite (nothing was filled in before).
     source
         The capture's file, named in errors.
+    settings
+        Fields of :class:`EventSettings` to change, e.g. ``toe_off="lift"``.
     """
+    config = EventSettings(**settings)
+    return _events(_prepared_feet(feet, rate, config, source), measured, rate, config, source)
+
+
+def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
+                measured: np.ndarray | None = None, source: str | os.PathLike | None = None,
+                **settings) -> list[GaitEvent]:
+    """Toe-offs and heel-strikes of one foot from its heel and toe points (F, 3), metres;
+    ``measured`` (F,) bool and ``settings`` as for :func:`detect_events`."""
+    return detect_events({side: (heel, toe)}, rate, source=source, **settings,
+                         measured=None if measured is None else {side: measured})
+
+
+def ground_velocity(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
+                    min_speed: float = MIN_BELT_SPEED, source: str | os.PathLike | None = None,
+                    **settings) -> np.ndarray:
+    """Horizontal velocity (3,) m/s of the surface the feet stand on: a treadmill belt's, or
+    zeros overground (an estimate slower than ``min_speed`` counts as overground).
+
+    ``feet`` and ``settings`` as for :func:`detect_events`. The estimate is the median, over
+    the feet, of each foot's median horizontal velocity while low (module docstring, step 2).
+    Pass it to :func:`mocaplib.cycles.analyse_cycles` so treadmill cycles are measured relative
+    to the belt (a runner on a belt at 2.2 m/s runs at 2.2 m/s, not on the spot).
+    """
+    return _ground(_prepared_feet(feet, rate, EventSettings(**settings), source), min_speed)
+
+
+def capture_events(trial, match, /, *, motion=None, **settings
+                   ) -> tuple[list[GaitEvent], np.ndarray]:
+    """A capture's gait events (:func:`detect_events`) and the velocity (3,) m/s of the ground
+    under it (:func:`ground_velocity`), each foot prepared once; what ``mocaplib events``,
+    ``mocaplib cycles`` and ``mocaplib build`` run.
+
+    The feet are the markers ``match`` (:class:`mocaplib.protocols.ProtocolMatch`) names, gaps
+    filled from the fitted ``motion`` when given (:func:`feet_of`); the events' ``quality``
+    counts only the samples the capture measured. ``settings`` as for :func:`detect_events`.
+    """
+    config = EventSettings(**settings)
+    feet, measured = feet_of(trial, match, motion=motion)
+    prepared = _prepared_feet(feet, trial.rate, config, trial.source)
+    return (_events(prepared, measured, trial.rate, config, trial.source),
+            _ground(prepared, MIN_BELT_SPEED))
+
+
+@dataclass(frozen=True)
+class _Foot:
+    """One foot ready for detection: the frames (F,) bool where heel and toe were both given,
+    the gap-filled raw heel and toe (2, F, 3) m, their low-passed version and its velocity
+    (m/s), their heights above the floor (2, F) m and the floor's horizontal velocity (3,) m/s.
+    """
+
+    side: str
+    given: np.ndarray
+    raw: np.ndarray
+    points: np.ndarray
+    velocity: np.ndarray
+    heights: np.ndarray
+    ground: np.ndarray
+
+
+def _prepared_feet(feet, rate, config: EventSettings, source) -> list[_Foot]:
+    """Each foot of ``feet`` checked and prepared (steps 1-2 of the module docstring)."""
     unknown = set(feet) - set(SIDES)
     if unknown:
         raise EventError(f"unknown foot side(s) {sorted(unknown)}; use 'left' and 'right'",
                          path=source)
+    prepared = []
+    for side in (side for side in SIDES if side in feet):
+        heel, toe = _checked_points(*feet[side], rate, side, source)
+        given = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
+        raw, points, velocity = _prepared(heel, toe, rate, config.cutoff_hz, config.max_gap_s)
+        prepared.append(_Foot(side, given, raw, points, velocity, *_floor(points, velocity)))
+    return prepared
+
+
+def _ground(feet: list[_Foot], min_speed: float) -> np.ndarray:
+    """The median of the feet's ground velocities (3,) m/s; zeros below ``min_speed``."""
+    if not feet:
+        return np.zeros(3)
+    ground = np.median([foot.ground for foot in feet], axis=0)
+    return ground if np.hypot(*ground[:2]) >= min_speed else np.zeros(3)
+
+
+def _events(feet: list[_Foot], measured, rate: float, config: EventSettings,
+            source=None) -> list[GaitEvent]:
+    """Every foot's events, sorted by time; ``measured`` as for :func:`detect_events`."""
     events: list[GaitEvent] = []
-    for side in SIDES:
-        if side in feet:
-            heel, toe = feet[side]
-            events += foot_events(heel, toe, rate, side=side, toe_off=toe_off,
-                                  cutoff_hz=cutoff_hz,
-                                  min_clearance=min_clearance, min_swing_s=min_swing_s,
-                                  still_speed=still_speed, refine_s=refine_s,
-                                  max_gap_s=max_gap_s, source=source)
+    for foot in feet:
+        seen = foot.given
+        if measured is not None:
+            mask = np.asarray(measured[foot.side], dtype=bool)
+            if mask.shape != seen.shape:
+                raise EventError(f"{foot.side} measured mask has shape {mask.shape}, the foot "
+                                 f"{seen.shape}", path=source)
+            seen = seen & mask
+        events += _foot_events(foot, seen, rate, config)
     return sorted(events, key=lambda e: (e.time_s, e.side))
 
 
-def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
-                toe_off: str = "foot_velocity", cutoff_hz: float = 12.0,
-                min_clearance: float = 0.01, min_swing_s: float = 0.08, still_speed: float = 0.5,
-                refine_s: float = 0.08, max_gap_s: float = 0.25,
-                source: str | os.PathLike | None = None) -> list[GaitEvent]:
-    """Toe-offs and heel-strikes of one foot from its heel and toe points (F, 3), metres."""
-    if toe_off not in TOE_OFF_DEFINITIONS:
-        raise EventError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
-                         f"got {toe_off!r}", path=source)
-    heel, toe = _checked_points(heel, toe, rate, side, source)
-    measured = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
-    raw, points, velocity = _prepared(heel, toe, rate, cutoff_hz, max_gap_s)
-    heights, ground = _floor(points, velocity)
+def _foot_events(foot: _Foot, measured: np.ndarray, rate: float,
+                 config: EventSettings) -> list[GaitEvent]:
+    """Steps 3-5 of the module docstring on one prepared foot; ``measured`` (F,) bool."""
+    raw, velocity, heights = foot.raw, foot.velocity, foot.heights
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
-    speeds = np.linalg.norm(velocity - ground, axis=2)                          # (2, F)
-    centre_speed = np.linalg.norm(centre_velocity - ground, axis=1)
+    speeds = np.linalg.norm(velocity - foot.ground, axis=2)                     # (2, F)
+    centre_speed = np.linalg.norm(centre_velocity - foot.ground, axis=1)
     with np.errstate(invalid="ignore"):
-        contact = (clearance < min_clearance) & (centre_speed < still_speed)
+        contact = (clearance < config.min_clearance) & (centre_speed < config.contact_speed)
 
     events: list[GaitEvent] = []
-    swings = _swings(contact, clearance, max(1, round(min_swing_s * rate)))
+    swings = _swings(contact, clearance, max(1, round(config.min_swing_s * rate)))
     window = max(3, round(0.15 * rate))
-    half = max(3, round(refine_s * rate))
+    half = max(3, round(config.refine_s * rate))
     for n, (start, end) in enumerate(swings):
         before = swings[n - 1][1] if n else 0
         after = swings[n + 1][0] if n + 1 < len(swings) else len(clearance)
@@ -167,37 +273,15 @@ def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
             t = _peak_time(centre_velocity[:, 2], max(before, start - window), top + 1)
             if t is not None:
                 last = int(np.argmin(heights[:, start]))  # the point that left last
-                t = (_lift_time(velocity[last, :, 2], t, rate) if toe_off == "lift" else
+                t = (_lift_time(velocity[last, :, 2], t, rate) if config.toe_off == "lift" else
                      _median_kink(raw, last, t, half))
-                events.append(_event(side, "toe_off", t / rate, measured, rate))
+                events.append(_event(foot.side, "toe_off", t / rate, measured, rate))
         if end < len(clearance) and np.isfinite(clearance[end]):
             first = int(np.argmin(heights[:, end]))  # the point that touched first
             t = _arrival_time(speeds[first], top, end, min(after, end + window), window)
             t = _median_kink(raw, first, float(end) if t is None else t, half)
-            events.append(_event(side, "heel_strike", t / rate, measured, rate))
+            events.append(_event(foot.side, "heel_strike", t / rate, measured, rate))
     return events
-
-
-def ground_velocity(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
-                    cutoff_hz: float = 12.0, max_gap_s: float = 0.25, min_speed: float = 0.2,
-                    source: str | os.PathLike | None = None) -> np.ndarray:
-    """Horizontal velocity (3,) m/s of the surface the feet stand on: a treadmill belt's, or
-    zeros overground (an estimate slower than ``min_speed`` counts as overground).
-
-    ``feet`` as for :func:`detect_events`. The estimate is the median, over the feet, of each
-    foot's median horizontal velocity while low (module docstring, step 2). Pass it to
-    :func:`mocaplib.cycles.analyse_cycles` so treadmill cycles are measured relative to the
-    belt (a runner on a belt at 2.2 m/s runs at 2.2 m/s, not on the spot).
-    """
-    estimates = []
-    for side, (heel, toe) in feet.items():
-        heel, toe = _checked_points(heel, toe, rate, side, source)
-        _, points, velocity = _prepared(heel, toe, rate, cutoff_hz, max_gap_s)
-        estimates.append(_floor(points, velocity)[1])
-    if not estimates:
-        return np.zeros(3)
-    ground = np.median(estimates, axis=0)
-    return ground if np.hypot(*ground[:2]) >= min_speed else np.zeros(3)
 
 
 def _prepared(heel, toe, rate, cutoff_hz, max_gap_s):
@@ -211,8 +295,6 @@ def _prepared(heel, toe, rate, cutoff_hz, max_gap_s):
 
 
 def _checked_points(heel, toe, rate, side, source):
-    if side not in SIDES:
-        raise EventError(f"side must be 'left' or 'right', got {side!r}", path=source)
     check_gait_rate(rate, source, EventError)
     heel = np.asarray(heel, dtype=np.float64)
     toe = np.asarray(toe, dtype=np.float64)
@@ -483,16 +565,20 @@ FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
                   "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}
 
 
-def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """``{"left": (heel, toe), "right": ...}`` (F, 3) m from a trial's protocol-matched markers.
+def feet_of(trial, match, /, *, motion=None
+            ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, np.ndarray]]:
+    """The feet of a trial's protocol-matched markers, and where they were measured.
 
-    ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the first present of
-    :data:`FOOT_LANDMARKS`. With a fitted ``motion`` (:class:`mocaplib.Motion`), samples where a
-    marker is missing are taken from the fitted skeleton's position of that marker, except in
-    frames the fit flagged as failed (they stay missing); the events' ``quality`` then counts
-    those model samples as measured; and a left/right pair the calibration found exchanged
-    (``motion.swapped``, e.g. LHEE/RHEE) is read exchanged back, as the fit reads it. Raises
-    :class:`EventError` naming the missing landmark, or the marker missing in every frame.
+    Returns ``{"left": (heel, toe), "right": ...}`` (F, 3) m and ``{"left": (F,) bool, ...}``,
+    the frames where the capture measured both (pass it as :func:`detect_events`'s
+    ``measured``). ``match`` is a :class:`mocaplib.protocols.ProtocolMatch`; the toe is the
+    first present of :data:`FOOT_LANDMARKS`. With a fitted ``motion``
+    (:class:`mocaplib.Motion`), samples where a marker is missing are taken from the fitted
+    skeleton's position of that marker, except in frames the fit flagged as failed (they stay
+    missing), and a left/right pair the calibration found exchanged (``motion.swapped``, e.g.
+    LHEE/RHEE) is read exchanged back, as the fit reads it. Raises :class:`EventError` naming
+    the landmark the capture has no label for (and the labels the protocol gives for it), or
+    the marker missing in every frame.
     """
     present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
@@ -500,25 +586,48 @@ def feet_of(trial, match, /, *, motion=None) -> dict[str, tuple[np.ndarray, np.n
                                          for a, b in (pair, pair[::-1])}
 
     def track(side, label):
-        points = match.marker(trial, partner.get(label, label))
+        measured = match.marker(trial, partner.get(label, label))
+        points = measured
         if modelled is not None and label in motion.marker_labels:
             model_points = modelled[:, motion.marker_labels.index(label)]
-            usable = np.isnan(points) & ~np.asarray(motion.failed, dtype=bool)[:, None]
-            points = np.where(usable, model_points, points)
+            usable = np.isnan(measured) & ~np.asarray(motion.failed, dtype=bool)[:, None]
+            points = np.where(usable, model_points, measured)
         if np.isnan(points[:, 2]).all():
             raise EventError(f"{side} foot marker {label} is missing in every frame",
                              path=trial.source,
                              hint="gait events need it: check the capture's gaps with `mocaplib "
                                   "inspect`; samples at exactly 0,0,0 count as missing")
-        return points
+        return points, np.isfinite(measured).all(axis=1)
 
-    feet = {}
+    feet, measured = {}, {}
     for side, (heel, toes) in FOOT_LANDMARKS.items():
         toe = next((name for name in toes if name in present), None)
-        if heel not in present or toe is None:
-            what = f"heel ({heel})" if heel not in present else f"toe ({'/'.join(toes)})"
-            raise EventError(f"no {side} {what} marker in protocol {match.protocol.name!r}",
-                             path=trial.source,
-                             hint="gait events need a heel and a toe marker on each foot")
-        feet[side] = (track(side, present[heel]), track(side, present[toe]))
-    return feet
+        if heel not in present:
+            _no_foot_marker(trial, match, f"{side} heel", (heel,))
+        if toe is None:
+            _no_foot_marker(trial, match, f"{side} toe", toes)
+        (heel_points, heel_seen), (toe_points, toe_seen) = (track(side, present[heel]),
+                                                            track(side, present[toe]))
+        feet[side] = (heel_points, toe_points)
+        measured[side] = heel_seen & toe_seen
+    return feet, measured
+
+
+def _no_foot_marker(trial, match, what: str, landmarks: tuple[str, ...]) -> None:
+    """Raise the :class:`EventError` for a capture without a ``what`` marker (any of
+    ``landmarks``), blaming the capture's labels or, when it has none, the protocol."""
+    protocol = match.protocol
+    labels = [key for m in protocol.markers if m.landmark.name in landmarks
+              for key in (m.label, *m.aliases)]
+    named = f"{what} ({'/'.join(landmarks)})"
+    need = "gait events need a heel and a toe marker on each foot"
+    if not labels:
+        raise EventError(f"protocol {protocol.name!r} has no {named} marker", path=trial.source,
+                         hint=f"{need}: pass --protocol with a protocol that has one, or add "
+                              "one to this protocol")
+    raise EventError(f"the capture has no {named} marker: none of the labels protocol "
+                     f"{protocol.name!r} gives for it ({', '.join(labels)}) is in the file",
+                     path=trial.source,
+                     hint=f"{need}: rename the capture's {what} label to one of those, add it "
+                          "to the protocol as an alias, or pass --protocol (`mocaplib inspect` "
+                          "lists the capture's labels)")

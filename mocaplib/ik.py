@@ -726,20 +726,22 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
                 ) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
     :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
-    ``static_pose``; ``protocol`` as calibrate takes it), then :func:`fit_filtered`.
-    ``static`` may also be a list of static trials, one per subject or session: the one that
-    shows this capture's subject is used (:func:`mocaplib.calibration.choose_static`).
+    ``static_pose``), then :func:`fit_filtered`. ``protocol`` (a Protocol, shipped name, TOML
+    path or "auto") is resolved on the capture (:func:`mocaplib.protocols.match_trial`), as
+    ``mocaplib build`` resolves it, whatever the static's labels. ``static`` may also be a list
+    of static trials, one per subject or session: the one that shows this capture's subject is
+    used (:func:`mocaplib.calibration.choose_static`).
 
     Returns the motion, the subject model (its ``source`` names the static used) and the
     cutoff used (Hz; None: unfiltered).
     """
-    from .calibration import calibrate, choose_protocol, choose_static
+    from .calibration import calibrate, choose_static
     from .filtering import filter_trial
+    from .protocols import match_trial
 
+    protocol = match_trial(trial, protocol).protocol
     filtered, used = filter_trial(trial, cutoff=cutoff)
     if isinstance(static, (list, tuple)):
-        if len(static) > 1:
-            protocol = choose_protocol(filtered, protocol)
         chosen = choose_static(filtered, static, protocol)
         static = None if chosen is None else static[chosen]
     model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose)

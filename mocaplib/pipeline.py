@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from . import __version__
-from .errors import MocapError
+from .errors import MocapError, ProtocolError
 from .events import TOE_OFF_DEFINITIONS
 from .io import special_file
 from .io.atomic import atomic_write_text
@@ -226,12 +226,13 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture).
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
-    spelled out, so each stage is timed), so both give the same cycles.
+    spelled out, so each stage is timed; then the same :func:`mocaplib.events.capture_events`
+    and :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles.
     """
     from .calibration import calibrate, check_static, choose_static, static_names
-    from .cycles import analyse_cycles, shoulder_centres
+    from .cycles import motion_cycles, shoulder_centres
     from .filtering import filter_trial
-    from .events import detect_events, feet_of, ground_velocity
+    from .events import capture_events
     from .ik import fit_filtered
     from .io.c3d import read_c3d
     from .protocols import match_trial
@@ -244,6 +245,9 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     result.warnings.extend(trial.warnings)
     with clock.stage("protocol"):
         match = match_trial(trial, settings.protocol)
+        missing = missing_landmarks_error(match, path)
+        if missing is not None:
+            raise missing
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
@@ -271,19 +275,46 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.warnings.append(f"{int(motion.rejected.sum())} marker samples removed as "
                                "outliers (jumping or mislabelled trajectories)")
     with clock.stage("events"):
-        feet = feet_of(trial, match, motion=motion)
-        events = detect_events(feet, trial.rate, toe_off=settings.toe_off, source=path)
+        events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off)
         shoulders = shoulder_centres(motion)
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
-        cycles = analyse_cycles(events, *shoulders, trial.rate, q=motion.q,
-                                ground=ground_velocity(feet, trial.rate), source=path)
+        cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
         result.entries = _entries(path, result, kept, motion, settings)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+
+
+def missing_landmarks_error(match, source: str | os.PathLike | None) -> ProtocolError | None:
+    """The error for a capture (``source``) whose protocol ``match``
+    (:class:`mocaplib.protocols.ProtocolMatch`) misses required landmarks, naming each with
+    the labels the protocol expects for it and saying what to do; None when none is missing.
+
+    ``mocaplib build`` and ``mocaplib cycles`` fail such a capture (its calibration, fit and
+    cycles would quietly lose what the pipeline needs), ``fit`` and ``events`` warn.
+    """
+    protocol = match.protocol
+
+    def expected(labels):
+        markers = [protocol.marker(label) for label in labels]
+        keys = [key for m in markers for key in (m.label, *m.aliases)]
+        either = ", ".join(keys[:-1]) + " or " + keys[-1] if len(keys) > 1 else keys[0]
+        return f"{'|'.join(m.landmark.name for m in markers)} (expects {either})"
+
+    groups = dict(protocol.any_of)
+    missing = ([expected([label]) for label in match.missing_required]
+               + [f"one of {expected(groups[group])}" for group in match.missing_any_of])
+    if not missing:
+        return None
+    return ProtocolError(
+        f"the capture has no label for required landmark{'s' if len(missing) > 1 else ''} of "
+        f"protocol {protocol.name!r}: {'; '.join(missing)}", path=source,
+        hint="rename the capture's label to the one the protocol expects, add the capture's "
+             "label to the protocol as an alias, or pass --protocol with a protocol for this "
+             "marker set (`mocaplib inspect` lists the capture's labels)")
 
 
 def _static_sha256(path: str) -> str:

@@ -12,7 +12,7 @@ from conftest import SAMPLES
 
 @lru_cache(maxsize=1)
 def _load():
-    from mocaplib.events import detect_events, feet_of
+    from mocaplib.events import capture_events
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 
@@ -25,7 +25,7 @@ def _load():
         match = detect_protocol(trial)
         # the synthetic foot is rigid and its truth's toe-off is the instant it lifts: the
         # "lift" definition (the default, foot_velocity, is tested on its own)
-        events = detect_events(feet_of(trial, match), trial.rate, toe_off="lift")
+        events, _ = capture_events(trial, match, toe_off="lift")
         out.append((path.stem, trial, match, events, json.loads(truth_path.read_text())))
     return out
 

@@ -282,15 +282,35 @@ def test_an_address_that_is_not_a_scheduler_is_a_clear_error(tmp_path, capsys):
     assert "cannot connect to the Dask scheduler" in capsys.readouterr().err
 
 
-def test_a_walk_given_as_the_static_is_refused(tmp_path, capsys):
+#: The output options each processing command needs, for the usage-error tests below.
+OUTPUTS = {"fit": ["-o", "{d}/a.csv"], "events": [], "cycles": [],
+           "build": ["-o", "{d}/l.json", "--no-cache", "-q"]}
+
+
+@pytest.mark.parametrize("command", ["fit", "cycles", "build"])
+def test_a_bad_static_is_a_usage_error_in_every_command(command, tmp_path, capsys):
+    # fit and cycles exited 1 (after reading the capture), build 2, for the same static
     walk = sample("walk_straight_normal", tmp_path)
     other = sample("walk_straight_slow", tmp_path)
-    assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--static", str(other),
-                 "--static-pose", "neutral", "--no-cache", "-q"]) == 2
-    assert main(["fit", str(walk), "-o", str(tmp_path / "a.csv"), "--static", str(other)]) == 1
-    errors = capsys.readouterr().err
-    assert errors.count(f"{other}: is not a standing static trial") == 2
+    (tmp_path / "empty.c3d").write_bytes(b"")
+    outputs = [option.format(d=tmp_path) for option in OUTPUTS[command]]
+    for static, message in [(other, f"--static: {other}: is not a standing static trial"),
+                            (tmp_path / "gone.c3d",
+                             f"--static: {tmp_path / 'gone.c3d'}: no such file or folder"),
+                            (tmp_path / "empty.c3d",
+                             f"--static: {tmp_path / 'empty.c3d'}: the file is empty")]:
+        assert main([command, str(walk), *outputs, "--static", str(static)]) == 2, static
+        captured = capsys.readouterr()
+        assert message in captured.err and not captured.out
     assert not list(tmp_path.glob("l.*")) and not (tmp_path / "a.csv").exists()
+
+
+@pytest.mark.parametrize("command", ["fit", "events", "cycles", "build"])
+def test_a_missing_input_is_a_usage_error_in_every_command(command, tmp_path, capsys):
+    outputs = [option.format(d=tmp_path) for option in OUTPUTS[command]]
+    assert main([command, str(tmp_path / "nope.c3d"), *outputs]) == 2
+    assert f"{tmp_path / 'nope.c3d'}: no such file or folder" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
 
 
 def test_the_statics_at_hand_count_as_standing():
@@ -335,3 +355,39 @@ def test_an_envelope_file_that_is_not_text_is_a_clear_error(tmp_path, library, c
     assert main(["report", str(library), "-o", str(tmp_path / "r"), "--envelope",
                  str(envelope), "--no-opengl"]) == 2
     assert f"{envelope}: the envelope file is not UTF-8 text" in capsys.readouterr().err
+
+
+def test_a_capture_missing_required_landmarks_fails_cycles_and_is_named_by_fit_and_events(
+        tmp_path, capsys):
+    # fit, events and cycles went through such a capture without a word
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(sample("walk_straight_normal", tmp_path))
+    path = write_c3d(tmp_path / "renamed.c3d", trial.markers,
+                     ["LSHX" if label == "LSHO" else label for label in trial.labels], trial.rate)
+    named = (f"{path}: the capture has no label for required landmark of protocol "
+             "'fullbody38': L_ACROMION (expects LSHO)")
+    assert main(["cycles", str(path)]) == 1
+    captured = capsys.readouterr()
+    assert f"mocaplib cycles: error: {named}" in captured.err and not captured.out
+    for command in (["fit", str(path), "-o", str(tmp_path / "a.csv")], ["events", str(path)]):
+        assert main(command) == 0
+        captured = capsys.readouterr()
+        assert f"warning: {named}" in captured.err and captured.out
+        assert all(remedy in captured.err for remedy in ("rename", "alias", "--protocol"))
+
+
+def test_events_and_cycles_agree_that_a_few_frames_are_not_rest(tmp_path, capsys):
+    # events called 5 frames (0.04 s) "standing still (rest)", cycles and build refused them
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(sample("rest", tmp_path))
+    path = write_c3d(tmp_path / "short.c3d", trial.markers[:5], trial.labels, trial.rate)
+    message = f"{path}: a capture of 5 frame(s) cannot be a rest entry"
+    for command in ("events", "cycles"):
+        assert main([command, str(path)]) == 1
+        assert message in capsys.readouterr().err, command
+    assert main(["events", str(SAMPLES / "rest.c3d")]) == 0
+    assert "none: standing still (rest)" in capsys.readouterr().out

@@ -74,11 +74,14 @@ def test_fit_takes_the_static_that_shows_the_subject(tmp_path, capsys):
     # --static repeated (one per subject or session), as in build: the matching one is used
     from conftest import SAMPLES, plan_capture
 
-    other_rest, _ = plan_capture("rest", 1.85, tmp_path)
+    made, _ = plan_capture("rest", 1.85, tmp_path)
+    other_rest = made.rename(tmp_path / "rest.c3d")     # the same file name as the right one
     walk = SAMPLES / "walk_straight_normal.c3d"
     args = ["fit", str(walk), "-o", str(tmp_path / "a.csv"), "--static-pose", "neutral"]
     assert main([*args, "--static", str(other_rest), "--static", str(SAMPLES / "rest.c3d"),
                  "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["static"] == "rest.c3d"
+    # named as build names it (calibration.static_names): both files are rest.c3d, so the
+    # folder tells them apart (fit said only "rest.c3d")
+    assert json.loads(capsys.readouterr().out)["static"] == f"{SAMPLES.name}/rest.c3d"
     assert main([*args, "--static", str(other_rest)]) == 1          # the other subject's only
     assert "does not match the motion trial" in capsys.readouterr().err

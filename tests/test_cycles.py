@@ -90,16 +90,17 @@ def test_standing_gives_one_rest_entry():
                                atol=1e-9)
 
 
-@pytest.mark.parametrize("n_frames", [1, 2, 30, 99])
+@pytest.mark.parametrize("n_frames", [1, 2, 30, 99, 100])
 def test_a_capture_shorter_than_the_rest_period_is_not_a_rest_entry(n_frames):
-    # 2 frames of walking (no gait event in 0.02 s) became a 1 s rest entry in the library
+    # 2 frames of walking (no gait event in 0.02 s) became a 1 s rest entry in the library;
+    # 100 frames at 100 Hz span 0.99 s (first to last frame) and were accepted
     left, right = shoulders(TIME, v_f=1.2, period=PERIOD)
     q = np.zeros((len(TIME), len(DOF_NAMES)))
     with pytest.raises(EventError, match=rf"short.c3d: a capture of {n_frames} frame\(s\) "
                                          r"cannot be a rest entry: .* s without a gait event"):
         analyse_cycles([], left[:n_frames], right[:n_frames], RATE, q=q[:n_frames],
                        source="short.c3d")
-    (rest,) = analyse_cycles([], left[:100], right[:100], RATE, q=q[:100])  # 1 s is enough
+    (rest,) = analyse_cycles([], left[:101], right[:101], RATE, q=q[:101])  # 1 s is enough
     assert rest.rest
 
 
@@ -160,7 +161,7 @@ def test_synthetic_captures_from_markers():
         # overground gait (0.25 m/s of belt) would take that much off v
         cycles = analyse_cycles(events, match.marker(trial, label["L_ACROMION"]),
                                 match.marker(trial, label["R_ACROMION"]), trial.rate,
-                                ground=ground_velocity(feet_of(trial, match), trial.rate),
+                                ground=ground_velocity(feet_of(trial, match)[0], trial.rate),
                                 source=name)
         assert sum(c.chosen for c in cycles) == 1, name
         if not truth["cycles"]:

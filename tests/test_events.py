@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import EventError
-from mocaplib.events import GaitEvent, detect_events, event_differences, feet_of, foot_events
+from mocaplib.events import (GaitEvent, capture_events, detect_events, event_differences, feet_of,
+                             foot_events)
 
 from conftest import real_file
 from gait_model import foot
@@ -129,6 +130,123 @@ def test_a_foot_marker_missing_in_every_frame_is_named():
         feet_of(trial, match_trial(trial, "fullbody38"))
 
 
+def test_a_capture_without_a_heel_label_is_told_what_to_do():
+    # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
+    # when the protocol has LHEE and the capture does not
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+    from mocaplib.trial import Trial
+    from conftest import SAMPLES
+
+    trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    labels = ["LHEX" if label == "LHEE" else label for label in trial.labels]
+    renamed = Trial(trial.markers, labels, trial.rate, source="renamed.c3d")
+    for protocol, expected in (("fullbody38", "LHEE"), ("padova30", "LCA")):
+        with pytest.raises(EventError) as error:
+            feet_of(renamed, match_trial(renamed, protocol))
+        assert str(error.value).startswith(
+            f"renamed.c3d: the capture has no left heel (L_HEEL) marker: none of the labels "
+            f"protocol {protocol!r} gives for it ({expected}) is in the file")
+        assert all(remedy in str(error.value) for remedy in ("rename", "alias", "--protocol"))
+
+
+def test_the_measured_mask_sets_the_quality():
+    heel, toe, offs, _ = foot(TIME, noise=0.0007)
+    measured = np.ones(len(TIME), dtype=bool)
+    gap = (TIME > offs[1] - 0.1) & (TIME < offs[1] + 0.1)
+    measured[gap] = False                  # filled in by the caller, e.g. from a fitted model
+    plain = foot_events(heel, toe, RATE, side="left")
+    masked = foot_events(heel, toe, RATE, side="left", measured=measured)
+    assert [e.time_s for e in masked] == [e.time_s for e in plain]   # the same detection
+    assert all(e.quality == 1.0 for e in plain)
+    near = [e for e in masked if abs(e.time_s - offs[1]) < 0.05]
+    assert [e.quality for e in near] == [0.0]
+    assert all(e.quality == 1.0 for e in masked if abs(e.time_s - offs[1]) > 0.2)
+    with pytest.raises(EventError, match="measured mask has shape"):
+        foot_events(heel, toe, RATE, side="left", measured=measured[:-1])
+
+
+def test_settings_reach_the_detector_and_are_checked():
+    heel, toe, *_ = foot(TIME, noise=0.0007)
+    assert foot_events(heel, toe, RATE, side="left")
+    assert foot_events(heel, toe, RATE, side="left", min_swing_s=2.0) == []  # no swing so long
+    with pytest.raises(EventError, match="toe_off must be one of foot_velocity, lift"):
+        foot_events(heel, toe, RATE, side="left", toe_off="heel")
+    with pytest.raises(TypeError, match="still_speed"):
+        detect_events({"left": (heel, toe)}, RATE, still_speed=0.5)
+
+
+def test_model_filled_samples_do_not_count_as_measured():
+    # with the fit filling the gaps (build, cycles, events --fit), every event had quality 1.0,
+    # so the event-quality QC and choice rule could never act
+    from mocaplib.ik import fit_capture
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+    from conftest import SAMPLES
+
+    trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    match = detect_protocol(trial)
+    before, _ = capture_events(trial, match)
+    toe_off = [e for e in before if e.side == "left" and e.kind == "toe_off"][1]
+    gap = slice(toe_off.frame - 15, toe_off.frame + 16)   # 0.31 s: too long to fill linearly
+    trial.markers[gap, trial.labels.index("LTOE")] = np.nan
+    motion = fit_capture(trial, protocol=match.protocol)[0]
+    feet, measured = feet_of(trial, match, motion=motion)
+    assert np.isfinite(feet["left"][1][gap]).all()          # filled from the fitted skeleton
+    assert not measured["left"][gap].any() and measured["right"][gap].all()
+    filled, _ = capture_events(trial, match, motion=motion)
+    found = min((e for e in filled if e.side == "left" and e.kind == "toe_off"),
+                key=lambda e: abs(e.time_s - toe_off.time_s))
+    assert abs(found.time_s - toe_off.time_s) < 0.02 and found.quality == 0.0
+    assert all(e.quality == 1.0 for e in filled if e.side == "right")
+
+
+def test_event_quality_on_a_gappy_real_file_falls_below_one_with_the_fit_filling():
+    # BTS.c3d's foot markers are missing in 40-70 % of its frames: filled from the fitted
+    # skeleton, all its events had quality 1.0 (cycles' event_quality too)
+    from mocaplib.cycles import MIN_EVENT_QUALITY, motion_cycles
+    from mocaplib.ik import fit_capture
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+
+    trial = read_c3d(real_file("ezc3d_testfiles/BTS.c3d"))
+    match = detect_protocol(trial)
+    motion = fit_capture(trial, protocol=match.protocol)[0]
+    markers_only, _ = capture_events(trial, match)
+    filled, ground = capture_events(trial, match, motion=motion)
+    assert len(filled) > len(markers_only)     # the model shows events the markers do not
+    assert min(e.quality for e in filled) < MIN_EVENT_QUALITY
+    # the same samples measured, so an event found at the same frame has the same quality
+    key = {(e.side, e.kind, e.frame): e.quality for e in markers_only}
+    same = [(e.quality, key[e.side, e.kind, e.frame]) for e in filled
+            if (e.side, e.kind, e.frame) in key]
+    assert len(same) >= 6 and all(a == b for a, b in same), same
+    cycles = motion_cycles(filled, motion, ground=ground, source=trial.source)
+    assert min(c.event_quality for c in cycles) < MIN_EVENT_QUALITY
+    chosen = next(c for c in cycles if c.chosen)
+    assert chosen.event_quality >= MIN_EVENT_QUALITY   # the rule passes over the poor cycle
+
+
+def test_events_and_ground_velocity_prepare_each_foot_once(monkeypatch):
+    # build and cycles prepared every foot twice (detect_events, then ground_velocity)
+    from mocaplib import events as events_module
+    from mocaplib.events import ground_velocity
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+
+    trial = read_c3d(real_file("c3dviewer_examples/running.c3d"))   # a treadmill
+    match = detect_protocol(trial)
+    feet, measured = feet_of(trial, match)
+    separate = (detect_events(feet, trial.rate, measured=measured),
+                ground_velocity(feet, trial.rate))
+    calls = []
+    floor = events_module._floor
+    monkeypatch.setattr(events_module, "_floor", lambda *a, **k: calls.append(1) or floor(*a, **k))
+    found, ground = capture_events(trial, match)
+    assert len(calls) == 2                         # one per foot
+    assert found == separate[0] and np.array_equal(ground, separate[1]) and ground.any()
+
+
 LAB_FILES = ["biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
              "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d"]
 
@@ -142,8 +260,7 @@ def lab_differences(kind, toe_off="foot_velocity"):
     out = []
     for name in LAB_FILES:
         trial = read_c3d(real_file(name))
-        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
-                               toe_off=toe_off)
+        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
         out.append(event_differences(events, trial.events, kind=kind,
                                      start_time=trial.start_time))
     diff = np.concatenate(out)
@@ -195,7 +312,7 @@ def synthetic_toe_off_errors(toe_off):
 
     by_type: dict[str, list[float]] = {}
     for name, trial, match, _, truth in samples():
-        events = detect_events(feet_of(trial, match), trial.rate, toe_off=toe_off)
+        events, _ = capture_events(trial, match, toe_off=toe_off)
         for true in truth["events"]:
             if true["kind"] != "toe_off":
                 continue
@@ -259,8 +376,7 @@ def test_noise_free_synthetic_toe_offs_within_one_frame(noise_free_captures, toe
     assert len(noise_free_captures) == len(NOISE_FREE)
     for capture in noise_free_captures:
         trial = capture.trial
-        events = detect_events(feet_of(trial, detect_protocol(trial)), trial.rate,
-                               toe_off=toe_off)
+        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
         truths = [e for e in capture.truth["events"] if e["kind"] == "toe_off"]
         assert truths, capture.truth["name"]
         for true in truths:
@@ -346,7 +462,7 @@ def test_overground_captures_are_not_treadmills():
         # every synthetic capture is overground, running at 3.5 m/s included: the frames near
         # the floor there include the foot arriving and leaving (median 0.25 m/s), which
         # alone must not be taken for a belt
-        assert np.all(ground_velocity(feet_of(trial, match), trial.rate) == 0), name
+        assert np.all(ground_velocity(feet_of(trial, match)[0], trial.rate) == 0), name
 
 
 def test_real_treadmill_jogging_is_recognised():
@@ -355,7 +471,7 @@ def test_real_treadmill_jogging_is_recognised():
     from mocaplib.protocols import detect_protocol
 
     trial = read_c3d(real_file("c3dviewer_examples/running.c3d"))
-    belt = ground_velocity(feet_of(trial, detect_protocol(trial)), trial.rate)
+    belt = ground_velocity(feet_of(trial, detect_protocol(trial))[0], trial.rate)
     # a jog on a treadmill (SOURCES.md): recognised as one; measured 2.35 m/s
     assert 2.0 <= np.hypot(*belt[:2]) <= 2.7, belt
 
@@ -380,8 +496,8 @@ def test_feet_follow_the_calibrations_left_right_exchange():
     assert ("LHEE", "RHEE") in model.swapped or ("RHEE", "LHEE") in model.swapped
     motion = fit(swapped, model)
     assert motion.swapped == model.swapped
-    feet = feet_of(swapped, detect_protocol(swapped), motion=motion)
-    true_feet = feet_of(trial, detect_protocol(trial))
+    feet, _ = feet_of(swapped, detect_protocol(swapped), motion=motion)
+    true_feet, _ = feet_of(trial, detect_protocol(trial))
     for side in ("left", "right"):
         np.testing.assert_array_equal(feet[side][0], true_feet[side][0])   # the same samples
     found = detect_events(feet, trial.rate)

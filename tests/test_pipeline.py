@@ -353,13 +353,13 @@ def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
         assert main(usage) == 2
     assert main(["build", str(folder), "-o", str(out), "--protocol", "no_such_set"]) == 2
     assert main(["build", str(folder), "-o", str(out), "--static", str(tmp_path / "x.c3d")]) == 2
-    assert "--static: no such file" in capsys.readouterr().err
+    assert f"--static: {tmp_path / 'x.c3d'}: no such file" in capsys.readouterr().err
     real_static = tmp_path / "real.c3d"
     real_static.write_bytes(b"")
     assert main(["build", str(folder), "-o", str(out), "--static", str(real_static),
                  "--static", str(tmp_path / "y.c3d")]) == 2
     error = capsys.readouterr().err
-    assert "--static: no such file: " + str(tmp_path / "y.c3d") in error and "real.c3d" not in error
+    assert f"--static: {tmp_path / 'y.c3d'}: no such file" in error and "real.c3d" not in error
     # a static that is there but not a C3D file: named before any capture is processed
     assert main(["build", str(folder), "-o", str(tmp_path / "z.json"), "--static",
                  str(real_static)]) == 2
@@ -477,6 +477,57 @@ def test_process_capture_gives_the_cycles_of_mocaplib_cycles(synthetic_folder, c
             np.testing.assert_allclose(entry[key], cycle[key], rtol=1e-9, atol=1e-12)
         assert entry["chosen"] == cycle["chosen"]
         assert entry["fourier"]["n"] == cycle["fourier_n"]
+
+
+def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_capture(
+        synthetic_folder, tmp_path, capsys):
+    # fit detected the protocol on the static (calibrate's choice), build and cycles on the
+    # capture: a static with one more Plug-in Gait label (RBAK) made fit use plugin_gait
+    from mocaplib.calibration import calibrate
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+    from mocaplib.protocols import detect_protocol
+
+    rest = read_c3d(synthetic_folder / "rest.c3d")
+    back = rest.markers[:, [rest.labels.index("T10")]] + [-0.05, -0.05, 0.0]
+    static = write_c3d(tmp_path / "static_rbak.c3d", np.concatenate([rest.markers, back], 1),
+                       [*rest.labels, "RBAK"], rest.rate)
+    assert detect_protocol(read_c3d(static)).protocol.name == "plugin_gait"
+    path = synthetic_folder / "side_left_normal.c3d"
+    model = calibrate(read_c3d(path), protocol="auto", static=read_c3d(static))
+    assert model.protocol.name == "fullbody38"      # the Python API resolves it as the CLI
+    assert main(["fit", str(path), "--static", str(static), "-o", str(tmp_path / "a.csv"),
+                 "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["protocol"] == "fullbody38"
+    assert main(["cycles", str(path), "--static", str(static), "--json"]) == 0
+    expected = json.loads(capsys.readouterr().out)["cycles"]
+    result = process_capture(path, BuildSettings(static=str(static), all_cycles=True))
+    assert result.ok and result.static == "static_rbak.c3d"
+    got = {e["cycle_index"]: e for e in result.entries}
+    assert len(got) == len(expected) == result.n_cycles
+    for cycle in expected:
+        for key in ("start_s", "end_s", "v", "omega", "v_l", "v_f"):
+            np.testing.assert_allclose(got[cycle["index"]][key], cycle[key], rtol=1e-9,
+                                       atol=1e-12)
+
+
+def test_a_capture_missing_required_landmarks_fails_alone_naming_them(synthetic_folder,
+                                                                      tmp_path):
+    # it went through silently: the shoulders of the cycles' velocities came from a guess
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(synthetic_folder / "side_left_normal.c3d")
+    renamed = {"LSHO": "LSHX", "LASI": "L_ASIS_X"}
+    bad = write_c3d(tmp_path / "renamed.c3d", trial.markers,
+                    [renamed.get(label, label) for label in trial.labels], trial.rate)
+    result = build([bad, synthetic_folder / "rest.c3d"], BuildSettings(), progress=False)
+    failed, rest = result.captures
+    assert not failed.ok and failed.stage == "protocol" and rest.ok and len(result.library) == 1
+    assert failed.error.startswith(
+        f"{bad}: the capture has no label for required landmarks of protocol 'fullbody38': "
+        "L_ASIS (expects LASI); L_ACROMION (expects LSHO)")
+    assert all(remedy in failed.error for remedy in ("rename", "alias", "--protocol"))
 
 
 def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder, tmp_path):

@@ -156,8 +156,26 @@ def add_cutoff_option(parser) -> None:
                              "analysis per capture) or 'none'")
 
 
-def read_statics(args) -> list:
-    """The ``--static`` trials (empty when none was given)."""
+def check_inputs(inputs: list[str], statics: list[str] | None = None) -> list:
+    """Raise :class:`UsageError` before any work when a path given on the command line does
+    not exist, or a ``--static`` cannot be read or is not standing still
+    (:func:`mocaplib.calibration.check_standing`). Returns the static trials, each file read
+    once (the same file given twice counts once)."""
+    from ..calibration import check_standing
     from ..io.c3d import read_c3d
 
-    return [read_c3d(path) for path in args.static or ()]
+    unique: dict[str, str] = {}
+    for path in statics or ():
+        unique.setdefault(os.path.abspath(path), path)
+    for option, path in [*(("", path) for path in inputs),
+                         *(("--static: ", path) for path in unique.values())]:
+        if not Path(path).exists():
+            raise UsageError(f"{option}{path}: no such file or folder (check the path)")
+    trials = []
+    for path in unique.values():
+        try:
+            trials.append(read_c3d(path))
+            check_standing(trials[-1])
+        except MocapError as exc:
+            raise UsageError(f"--static: {exc}") from None
+    return trials

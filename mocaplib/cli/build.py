@@ -6,7 +6,8 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      add_toe_off_option, check_output_folder, check_outputs, positive, warn)
+                      add_toe_off_option, check_inputs, check_output_folder, check_outputs,
+                      positive, warn)
 
 
 def register(subparsers) -> None:
@@ -45,25 +46,13 @@ def register(subparsers) -> None:
 
 def _check_usage(args) -> None:
     """Raise :class:`UsageError` for what would fail or do harm before any capture is
-    processed: a --static that is missing or cannot be read (every capture would fail on it),
-    an output that would overwrite an input, a --report folder that cannot take the report."""
-    from ..calibration import check_standing
-    from ..errors import MocapError
-    from ..io.c3d import read_c3d
+    processed: a missing input, a --static that is missing, cannot be read or is not standing
+    (every capture would fail on it), an output that would overwrite an input, a --report folder
+    that cannot take the report."""
     from ..pipeline import diagnostics_path, find_captures
 
-    missing = [static for static in args.static or () if not Path(static).exists()]
-    if missing:
-        raise UsageError(f"--static: no such file: {', '.join(missing)}")
-    for static in args.static or ():
-        try:
-            check_standing(read_c3d(static))
-        except MocapError as exc:
-            raise UsageError(f"--static: {exc}") from None
-    try:
-        captures = find_captures(args.inputs)
-    except MocapError as exc:
-        raise UsageError(str(exc)) from None
+    check_inputs(args.inputs, args.static)
+    captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import add_cutoff_option, add_static_options, read_statics
+from ._common import add_cutoff_option, add_static_options, check_inputs
 from .events import add_common_options
 
 
@@ -34,20 +34,20 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..cycles import analyse_cycles, shoulder_centres
-    from ..events import detect_events, feet_of, ground_velocity
+    from ..cycles import motion_cycles
+    from ..events import capture_events
     from ..ik import fit_capture
     from ._common import print_json
     from .events import load
 
-    trial, match = load(args)
-    motion = fit_capture(trial, protocol=match.protocol, static=read_statics(args),
+    statics = check_inputs([args.file], args.static)
+    trial, match, missing = load(args)
+    if missing is not None:
+        raise missing
+    motion = fit_capture(trial, protocol=match.protocol, static=statics,
                          static_pose=args.static_pose, cutoff=args.cutoff)[0]
-    feet = feet_of(trial, match, motion=motion)
-    events = detect_events(feet, trial.rate, toe_off=args.toe_off, source=args.file)
-    left, right = shoulder_centres(motion)
-    cycles = analyse_cycles(events, left, right, trial.rate, q=motion.q,
-                            ground=ground_velocity(feet, trial.rate), source=args.file)
+    events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
+    cycles = motion_cycles(events, motion, ground=ground, source=args.file)
     rows = [c.to_dict() for c in cycles]
     if args.json:
         print_json({"file": args.file, "cycles": rows})

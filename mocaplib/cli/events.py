@@ -1,12 +1,12 @@
 """``mocaplib events FILE``: left/right toe-offs and heel-strikes detected from the foot markers.
 
-Parses options and formats; the work is :func:`mocaplib.events.detect_events` on the heel and toe
-markers the protocol names (:func:`mocaplib.events.feet_of`).
+Parses options and formats; the work is :func:`mocaplib.events.capture_events` on the heel and
+toe markers the protocol names (:func:`mocaplib.events.feet_of`).
 """
 
 from __future__ import annotations
 
-from ._common import add_protocol_option, add_toe_off_option
+from ._common import add_protocol_option, add_toe_off_option, check_inputs, warn
 
 
 def register(subparsers) -> None:
@@ -15,7 +15,8 @@ def register(subparsers) -> None:
         description="Detect left/right toe-off and heel-strike from the heel and toe markers "
                     "(any direction of travel, running, treadmills). Times are seconds from "
                     "the file's first frame. Exit 0 on success, 1 when the file cannot be "
-                    "read or has no foot markers, 2 on usage errors.")
+                    "read, has no foot markers, or shows no event in less than a second (too "
+                    "short to be rest), 2 on usage errors.")
     add_common_options(parser)
     parser.add_argument("--fit", action="store_true",
                         help="fill missing foot-marker samples from the fitted skeleton "
@@ -33,29 +34,31 @@ def add_common_options(parser) -> None:
 
 
 def load(args):
-    """(trial, protocol match) of ``args.file`` with ``args.protocol``."""
+    """(trial, protocol match, missing-landmarks error or None) of ``args.file`` with
+    ``args.protocol`` (:func:`mocaplib.pipeline.missing_landmarks_error`)."""
     from ..io.c3d import read_c3d
+    from ..pipeline import missing_landmarks_error
     from ..protocols import match_trial
 
     trial = read_c3d(args.file)
-    return trial, match_trial(trial, args.protocol)
-
-
-def detect(args, trial, match, motion=None):
-    """Events of ``trial`` from its foot markers (gaps filled from ``motion`` when given)."""
-    from ..events import detect_events, feet_of
-
-    return detect_events(feet_of(trial, match, motion=motion), trial.rate,
-                         toe_off=args.toe_off, source=args.file)
+    match = match_trial(trial, args.protocol)
+    return trial, match, missing_landmarks_error(match, args.file)
 
 
 def _run(args) -> int:
+    from ..cycles import check_rest_duration
+    from ..events import capture_events
     from ..ik import fit_capture
     from ._common import print_json
 
-    trial, match = load(args)
+    check_inputs([args.file])
+    trial, match, missing = load(args)
     motion = fit_capture(trial, protocol=match.protocol)[0] if args.fit else None
-    events = detect(args, trial, match, motion)
+    events, _ = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
+    if missing is not None:  # events need only the foot markers, which capture_events checked
+        warn(str(missing))
+    if not events:
+        check_rest_duration(trial.n_frames, trial.rate, source=args.file)
     if args.json:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,

@@ -6,10 +6,8 @@ Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_captu
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
-                      check_outputs, read_statics)
+                      check_inputs, check_outputs)
 
 
 def register(subparsers) -> None:
@@ -38,18 +36,27 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
+    from ..calibration import static_names
     from ..ik import fit_capture, fit_quality
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
+    from ..pipeline import missing_landmarks_error
+    from ..protocols import match_trial
     from ._common import print_json, warn
 
+    statics = check_inputs([args.input], args.static)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ())])
     trial = read_c3d(args.input)
-    motion, model, cutoff = fit_capture(trial, protocol=args.protocol, static=read_statics(args),
+    match = match_trial(trial, args.protocol)
+    missing = missing_landmarks_error(match, args.input)
+    if missing is not None:
+        warn(str(missing))
+    motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
                                         static_pose=args.static_pose, cutoff=args.cutoff)
-    static = Path(model.source).name if args.static else None
+    sources = [static.source for static in statics]
+    static = static_names(sources)[sources.index(model.source)] if statics else None
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
