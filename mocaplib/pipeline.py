@@ -281,7 +281,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, motion, settings)
+        result.entries = _entries(path, result, kept, motion, settings, trial.first_frame)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
@@ -314,8 +314,10 @@ def _neutral_model(path: str, sha256: str, protocol):
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
 
 
-def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):
-    """Library entries of the kept cycles; cycles failing QC are dropped or waived."""
+def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings,
+             first_frame: int):
+    """Library entries of the kept cycles; cycles failing QC are dropped or waived.
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
     entries = []
     for cycle in cycles:
         qc = cycle_qc(cycle, motion)
@@ -335,9 +337,10 @@ def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildS
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=_pattern(vel.pattern), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
-            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift, cycle.period),
+            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
-            segment_lengths_m=motion.skeleton.lengths))
+            segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
+            first_frame=first_frame))
     return entries
 
 
@@ -348,14 +351,9 @@ def _pattern(pattern) -> dict:
             "arc_angle_rad": data["arc_angle"]}
 
 
-def _drift(drift, period: float) -> dict:
-    """Displacement of the moving frame over one cycle in the start frame, and its rates."""
-    x, y, psi = drift.frame(np.array([period]))
-    c, s = np.cos(drift.psi0), np.sin(drift.psi0)
-    dx, dy = float(x[0]) - drift.x0, float(y[0]) - drift.y0
-    return {"dx_m": c * dx + s * dy, "dy_m": -s * dx + c * dy,
-            "dheading_rad": float(psi[0]) - drift.psi0,
-            "u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
+def _drift(drift) -> dict:
+    """The moving frame's velocities (its displacement per cycle follows: ``make_entry``)."""
+    return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
 #: Low-pass cut-off applied to the fitted angles before the jerk QC, Hz (Winter 2009's usual
