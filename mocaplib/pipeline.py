@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from . import __version__
-from .errors import MocapError
+from .errors import LibraryError, MocapError
 from .events import TOE_OFF_DEFINITIONS
 from .io import special_file
 from .io.atomic import atomic_write_text
@@ -562,8 +562,18 @@ class BuildResult:
 
     def write(self, path: str | os.PathLike) -> tuple[Path, Path]:
         """Write ``<stem>.diagnostics.json`` and then the library beside it (both atomically:
-        if either write fails, the library file is left as it was)."""
+        if either write fails, the library file is left as it was).
+
+        Raises :class:`LibraryError` and writes nothing when the library has no entry (every
+        capture failed, or no cycle was kept): an empty library never replaces one.
+        """
         path = Path(path)
+        if not len(self.library):
+            why = ("every capture failed" if not any(c.ok for c in self.captures) else
+                   "no capture gave a library entry (see the warnings)")
+            raise LibraryError(f"nothing written: {why}", path=path,
+                               hint="fix what the summary names and build again; a library "
+                                    "already there is left as it was")
         sidecar = diagnostics_path(path)
         atomic_write_text(sidecar, json_text(self.diagnostics(path.name)))
         self.library.write(path)
