@@ -665,10 +665,6 @@ def _control_space_problems(doc: dict) -> list[Problem]:
     points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
     points = points[np.isfinite(points).all(axis=1)]
     x = points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
-    if not np.isfinite(x).all():
-        return [Problem("control_space.scale", "scales so small that normalised velocities "
-                                               "overflow (the default scales are 1.5, "
-                                               "1.570796327, 0.5)")]
     what = f"the control space of the {len(x)} chosen entries with finite velocities"
     reason = degeneracy(x)
     if reason:

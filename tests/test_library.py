@@ -301,6 +301,8 @@ def line_pattern(d):
      .__setitem__(0, 30.0), "mean knee_flexion_r 30 rad lies outside its range"),
     (lambda d: d["entries"].reverse(), "entries must be sorted by id"),
     (lambda d: d["entries"][0].update(source_file="../../etc/passwd"), "without its folder"),
+    # 1e-320 made normalised velocities overflow on the way to query's SVD
+    (lambda d: d["control_space"]["scale"].__setitem__(0, 1e-320), "minimum of 0.001"),
     (lambda d: d["settings"].update(static_pose=42), "42 is not one of"),
     (lambda d: d["settings"].update(cutoff=-6), "cutoff"),
     (lambda d: d["settings"].update(static=["S1.c3d", 2]), "2 is not of type 'string'"),
