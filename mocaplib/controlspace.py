@@ -83,6 +83,17 @@ ROTATIONAL = np.array([not d.translation for d in DOFS])
 #: The joint angles compared by :func:`leave_one_out`: the rotational DOFs except the root's
 #: heading ``pelvis_rotation``, which is compared apart (it is stored relative to the path frame).
 JOINT_ANGLES = ROTATIONAL & (np.asarray(DOF_NAMES) != "pelvis_rotation")
+#: Largest ratio s3/s1 of the singular values of centred, normalised points that counts as
+#: flat (on a plane or a line: no tetrahedra). Measured (12 points on a plane, 6 of them moved
+#: off it by ±eps, 3 draws): the triangulation fails at s3/s1 ≈ 1e-12 and "succeeds" above,
+#: but at 1e-6 its thinnest tetrahedra have radius ratios ≤ 1e-13, a slab no query falls into;
+#: the chosen entries of the libraries at hand have s3/s1 ≥ 0.13 (17 real files; the 68 samples
+#: 0.49). Values are stored with 10 significant digits, so points on a plane before rounding
+#: stay below 1e-9 after it.
+DEGENERACY_TOLERANCE = 1e-6
+#: What to do about a degenerate control space (see :func:`degeneracy`).
+DEGENERACY_HINT = ("add captures with other speeds, turns and side-steps so the entries span "
+                   "all three axes")
 #: Keys of an entry's ``root_drift`` blended here: the path frame's constant velocity in its own
 #: axes (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
 DRIFT_KEYS = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
@@ -91,6 +102,29 @@ DRIFT_KEYS = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
 def drift_velocities(drift: dict) -> np.ndarray:
     """(u_f, u_l, omega) of an entry's ``root_drift`` (:data:`DRIFT_KEYS`), NaN when absent."""
     return np.array([np.nan if drift.get(k) is None else float(drift[k]) for k in DRIFT_KEYS])
+
+
+def degeneracy(x) -> str | None:
+    """Why finite normalised points x (E, 3) have no 3-D triangulation, or None when they have.
+
+    The one rule of library validation and :class:`ControlSpace`: fewer than 4 distinct points
+    (equal to 12 decimals, relative to the largest coordinate when it exceeds 1), or distinct
+    points within a plane or a line (singular values of the centred points: s3 <=
+    :data:`DEGENERACY_TOLERANCE` · s1). The reason completes "the control space is degenerate:
+    it …": "needs at least 4 entries with distinct velocities, got 3" or "lies on a plane, so
+    there are no tetrahedra".
+    """
+    x = np.asarray(x, dtype=float).reshape(-1, 3)
+    size = max(float(np.abs(x).max(initial=0.0)), 1.0)
+    distinct = np.unique(np.round(x / size, 12), axis=0)
+    if len(distinct) < 4:
+        return f"needs at least 4 entries with distinct velocities, got {len(distinct)}"
+    centred = distinct - distinct.mean(axis=0)
+    sv = np.linalg.svd(centred / np.abs(centred).max(), compute_uv=False)
+    if sv[2] <= DEGENERACY_TOLERANCE * sv[0]:
+        flat = "a line" if sv[1] <= DEGENERACY_TOLERANCE * sv[0] else "a plane"
+        return f"lies on {flat}, so there are no tetrahedra"
+    return None
 
 
 def _stack_padded(arrays) -> np.ndarray:
@@ -353,13 +387,19 @@ class ControlSpace:
         if chosen_only:
             usable &= df["chosen"].to_numpy(bool)
         a, b = library.coefficient_arrays()
-        rows = [library.entry(i) for i in df.index[usable]]
-        drift = np.array([drift_velocities(e["root_drift"]) for e in rows])
+        ids = df.index[usable].tolist()
+        drift = np.array([drift_velocities(library.entry(i)["root_drift"]) for i in ids])
+        drift = drift.reshape(-1, 3)
+        lacking = [i for i, row in zip(ids, drift) if not np.isfinite(row).all()]
+        if lacking:  # blending without it would drop every entry's root motion
+            raise LibraryError(f"entries without a finite root_drift "
+                               f"{'/'.join(DRIFT_KEYS)}: {', '.join(lacking[:5])}"
+                               + (" …" if len(lacking) > 5 else ""), path=source,
+                               hint="build the library again with mocaplib build (run "
+                                    "`mocaplib validate` on it for every problem)")
         return cls(df.loc[usable, cols].to_numpy(float), a=a[usable], b=b[usable],
-                   T=df.loc[usable, "T"].to_numpy(float),
-                   drift=drift.reshape(-1, 3) if np.isfinite(drift).all() else None,
-                   ids=df.index[usable].tolist(),
-                   classes=df.loc[usable, "locomotion_class"].tolist(), axes=axes,
+                   T=df.loc[usable, "T"].to_numpy(float), drift=drift,
+                   ids=ids, classes=df.loc[usable, "locomotion_class"].tolist(), axes=axes,
                    scale=library.control_scale, source=source)
 
     def normalise(self, x) -> np.ndarray:
@@ -368,20 +408,11 @@ class ControlSpace:
 
     def _triangulate(self) -> Triangulation:
         x = self.normalise(self.points)
-        distinct = np.unique(np.round(x, 12), axis=0)
-        if len(distinct) < 4:
-            raise LibraryError(
-                f"the control space needs at least 4 entries with distinct velocities, "
-                f"got {len(distinct)}", path=self.source,
-                hint="add captures with other speeds, turns or side-steps")
-        sv = np.linalg.svd(distinct - distinct.mean(axis=0), compute_uv=False)
-        if sv[2] <= 1e-9 * max(sv[0], 1e-300):
-            kind = "a line" if sv[1] <= 1e-9 * sv[0] else "a plane"
-            raise LibraryError(
-                f"the control space is degenerate: the entries' ({', '.join(self.axes)}) "
-                f"lie on {kind}, so there are no tetrahedra", path=self.source,
-                hint="capture turning, side-stepping and different speeds so the entries "
-                     "span all three axes")
+        reason = degeneracy(x)
+        if reason:
+            raise LibraryError(f"the control space of the entries' ({', '.join(self.axes)}) "
+                               f"is degenerate: it {reason}", path=self.source,
+                               hint=DEGENERACY_HINT)
         return delaunay_tetrahedra(x, source=self.source)
 
     # ----------------------------------------------------------------- queries

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
@@ -49,6 +50,19 @@ FOURIER_FORMULA = ("q_d(t) = a[d][0] + sum_{k=1..N} (a[d][k] cos(2 pi k t / T) "
                    "+ b[d][k] sin(2 pi k t / T)), t in s from the cycle start")
 ROOT_DRIFT_TEXT = ("displacement of the path frame over one cycle, expressed in the frame at the "
                    "cycle start: dx_m forward, dy_m left, dheading_rad counter-clockwise")
+#: Keys of an entry's ``root_drift``: the path frame's velocities (given to :func:`make_entry`)
+#: and its displacement over one cycle (derived from them and T).
+DRIFT_VELOCITIES = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
+DRIFT_DISPLACEMENT = ("dx_m", "dy_m", "dheading_rad")
+#: Largest difference between a stored root-drift displacement and the one its velocities and T
+#: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
+#: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
+DRIFT_TOLERANCE = 1e-6
+#: Turn rates (rad/s) above which an entry's ω̂ and its root drift's ω must share a sign. ω̂
+#: follows the shoulder line, the drift the pelvis: on those files they differ by up to 0.11
+#: rad/s (running.c3d), and opposite signs occur only where the smaller is at most 0.039 rad/s
+#: (BTS.c3d with --all-cycles), 5 times below this.
+TURN_SIGN_RATE = 0.2
 
 #: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
 #: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
@@ -87,13 +101,20 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                start_s: float, end_s: float, T: float, pattern: dict, v: float, omega: float,
                v_l: float, v_f: float, a: np.ndarray, b: np.ndarray, root_drift: dict,
                qc: dict, locomotion_class: str | None = None, chosen: bool = True,
-               segment_lengths_m: dict | None = None, qc_waived: dict | None = None) -> dict:
+               segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
+               rate_hz: float | None = None, first_frame: int | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
     (line/arc/point), ``parameters`` (dict of numbers or number lists), ``residual_m``,
-    ``arc_angle_rad``; velocities m/s and rad/s; ``qc``: values keyed by :data:`QC_NAMES`.
+    ``arc_angle_rad``; velocities m/s and rad/s; ``root_drift``: the path frame's velocities
+    :data:`DRIFT_VELOCITIES` (its displacement over T is derived); ``qc``: values keyed by
+    :data:`QC_NAMES`; ``rate_hz``, ``first_frame``: the capture's frame rate and first frame
+    number (stored when given, so ``start_s`` maps to C3D frames).
     """
+    if set(root_drift) != set(DRIFT_VELOCITIES):
+        raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
+                           f"got {', '.join(sorted(root_drift)) or 'nothing'}")
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     if a.ndim != 2 or a.shape != b.shape or a.shape[1] < 1:
@@ -112,11 +133,25 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                     "arc_angle_rad": pattern.get("arc_angle_rad")},
         "v": v, "omega": omega, "v_l": v_l, "v_f": v_f,
         "fourier": {"n": a.shape[1] - 1, "a": a, "b": b},
-        "root_drift": dict(root_drift), "qc": dict(qc), "qc_waived": dict(qc_waived or {}),
+        "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
+        "qc_waived": dict(qc_waived or {}),
     }
-    if segment_lengths_m is not None:
-        entry["segment_lengths_m"] = dict(segment_lengths_m)
+    for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
+                       ("first_frame", first_frame)):
+        if value is not None:
+            entry[key] = value
     return to_json_data(entry)
+
+
+def drift_displacement(drift: dict, T: float) -> dict:
+    """``dx_m``, ``dy_m`` (m, forward and left in the frame at the cycle start) and
+    ``dheading_rad`` of the path frame moving for ``T`` s with an entry's root-drift velocities
+    (:data:`DRIFT_VELOCITIES`; see :class:`mocaplib.fourier.RootDrift`)."""
+    from .fourier import RootDrift
+
+    velocities = (_float(drift[key]) for key in DRIFT_VELOCITIES)
+    x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(_float(T))
+    return {"dx_m": float(x), "dy_m": float(y), "dheading_rad": float(turned)}
 
 
 def qc_failures(qc: dict, thresholds: dict, waived: dict | None = None) -> list[str]:
@@ -164,7 +199,9 @@ def assemble_library(entries: list[dict], *, settings: dict,
         "skeleton": {
             "dof_names": [d.name for d in DOFS],
             "dof_units": ["m" if d.translation else "rad" for d in DOFS],
-            "dof_ranges": [[d.lower, d.upper] for d in DOFS],
+            # null = unbounded: the root's rotation, and its position (the solver's ±1000 m
+            # guard is no joint limit)
+            "dof_ranges": [[None, None] if d.translation else [d.lower, d.upper] for d in DOFS],
             "segment_lengths_m": segment_lengths,
         },
         "fourier": {"formula": FOURIER_FORMULA, "time_origin": "cycle_start",
@@ -315,14 +352,15 @@ def _matrix(rows) -> np.ndarray:
 def load_library(path: str | os.PathLike) -> Library:
     """Read a library file. Raises :class:`LibraryError` when it is not a valid library.
 
-    The file is checked against the schema and for what would make its numbers unusable
-    (coefficient shapes, non-finite or implausible values, periods), so a table built from it
-    can be trusted; a QC metric over its threshold or a degenerate control space does not
-    prevent loading — run :func:`validate_library` for those.
+    The file is checked for numbers JSON cannot hold (NaN, Infinity), against the schema and
+    for what would make its numbers unusable (coefficient shapes, non-finite or implausible
+    values, periods), so a table built from it can be trusted; a QC metric over its threshold,
+    fields that disagree with each other or a degenerate control space do not prevent loading
+    — run :func:`validate_library` for those.
     """
     document = _read_document(path)
-    problems = _schema_problems(document) or (_skeleton_problems(document)
-                                              + _entry_problems(document, qc=False))
+    problems = _structure_problems(document) or _named(document, _skeleton_problems(document)
+                                                       + _entry_problems(document, qc=False))
     if problems:
         raise LibraryError(f"not a valid mocaplib library: {problems[0]}"
                            + (f" (and {len(problems) - 1} more problems)" if len(problems) > 1
@@ -331,6 +369,8 @@ def load_library(path: str | os.PathLike) -> Library:
 
 
 def _read_document(path: str | os.PathLike) -> dict:
+    """The file's JSON data; NaN and ±Infinity tokens are read as floats, for
+    :func:`_non_finite_problems` to name where they are."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
@@ -358,14 +398,28 @@ def schema() -> dict:
 
 
 # --------------------------------------------------------------------------- validation
+#: Parameters of each pattern type (``entries[i].pattern.parameters``).
+PATTERN_PARAMETERS = {"line": ("direction", "length", "point"),
+                      "arc": ("centre", "length", "radius", "turn"),
+                      "point": ("length", "point")}
+#: How far (rad) an angle DOF's mean ``a[d][0]`` may lie outside its ``dof_ranges``: rounding
+#: only. The fitted angles stay within the ranges, so does their mean: the closest measured is
+#: 0.88 deg inside (17 real files), so a mean outside is a unit slip (degrees stored as rad).
+RANGE_TOLERANCE = 1e-6
+
+
 def validate_library(library) -> list[Problem]:
     """Schema and semantic problems of a library (path, JSON dict or :class:`Library`).
 
-    Checks, after the schema: DOF names unique and units/ranges one per DOF; every entry's
-    coefficients of shape (D, N+1) with N the header's, finite, ``b[:, 0] = 0``; ``T > 0`` and
-    ``end_s - start_s = T`` (1 ms); velocities finite; ids unique; control-space scales finite
-    and > 0 and the entries' normalised (v, omega, v_l) points of affine rank 3 (a 3-D
-    triangulation needs them); every QC metric within ``qc_thresholds`` or listed in the
+    Checks, after the numbers (no NaN or Infinity: JSON has none) and the schema: DOF names
+    unique, units/ranges one per DOF, ranges lo <= hi; every entry's coefficients of shape
+    (D, N+1) with N the header's, finite, ``b[:, 0] = 0``, zero beyond the entry's ``n``, each
+    angle DOF's mean ``a[d][0]`` within its range; ``T > 0`` and ``end_s - start_s = T``
+    (1 ms); velocities finite; ids unique and ``cycle_index`` the id's ``_c<k>``; the pattern's
+    parameters those of its type; the root drift's displacement the one its velocities give
+    over T, its turn rate of the entry's ω̂'s sign; the chosen entries' normalised
+    (v, omega, v_l) points not degenerate (:func:`mocaplib.controlspace.degeneracy`: the rule
+    the control space uses); every QC metric within ``qc_thresholds`` or listed in the
     entry's ``qc_waived`` with a reason. Returns an empty list for a valid library.
     """
     if isinstance(library, Library):
@@ -377,11 +431,34 @@ def validate_library(library) -> list[Problem]:
             document = _read_document(library)
         except LibraryError as exc:
             return [Problem("file", exc.message)]
-    problems = _schema_problems(document)
+    problems = _structure_problems(document)
     if problems:
         return problems
-    return (_skeleton_problems(document) + _entry_problems(document)
-            + _control_space_problems(document))
+    return _named(document, _skeleton_problems(document) + _entry_problems(document)
+                  + _consistency_problems(document) + _control_space_problems(document))
+
+
+def _structure_problems(document) -> list[Problem]:
+    """Numbers JSON cannot hold, then the schema's problems."""
+    return _named(document, _non_finite_problems(document) + _schema_problems(document))
+
+
+def _non_finite_problems(document) -> list[Problem]:
+    """Every NaN or ±Infinity (read from the non-standard JSON tokens), in document order."""
+    problems, stack = [], [((), document)]
+    while stack:
+        parts, value = stack.pop()
+        if isinstance(value, dict):
+            stack += [((*parts, key), item) for key, item in reversed(value.items())]
+        elif isinstance(value, list):
+            stack += [((*parts, i), item) for i, item in reversed(list(enumerate(value)))]
+        elif isinstance(value, float) and not math.isfinite(value):
+            token = "NaN" if value != value else "Infinity" if value > 0 else "-Infinity"
+            problems.append(Problem(_json_path(parts), f"{token} is not a JSON number (JSON "
+                                    "readers such as nlohmann::json and System.Text.Json "
+                                    "refuse the file): write null for a number that could "
+                                    "not be computed"))
+    return problems
 
 
 def _schema_problems(document) -> list[Problem]:
@@ -397,6 +474,20 @@ def _json_path(parts) -> str:
     for part in parts:
         text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
     return text or "(document)"
+
+
+def _named(document, problems: list[Problem]) -> list[Problem]:
+    """``problems`` with the entry's id before the message of those about an entry."""
+    entries = document.get("entries") if isinstance(document, dict) else None
+    named = []
+    for problem in problems:
+        found = re.match(r"entries\[(\d+)\]", problem.where)
+        i = int(found.group(1)) if found else -1
+        if (isinstance(entries, list) and 0 <= i < len(entries)
+                and isinstance(entries[i], dict) and isinstance(entries[i].get("id"), str)):
+            problem = Problem(problem.where, f"entry {entries[i]['id']!r}: {problem.message}")
+        named.append(problem)
+    return named
 
 
 def _skeleton_problems(doc: dict) -> list[Problem]:
@@ -462,6 +553,9 @@ def _fourier_problems(fourier: dict, where: str, n_dof: int, n_harm: int) -> lis
             problems.append(Problem(f"{where}.{key}", f"coefficients beyond "
                                                       f"±{PLAUSIBLE_COEFFICIENT:g} (rad or m) "
                                                       "are not a joint's"))
+        elif np.any(values[:, int(fourier["n"]) + 1:]):
+            problems.append(Problem(f"{where}.{key}", f"harmonics beyond the fitted order n = "
+                                                      f"{fourier['n']} must be 0 (padding)"))
     if any(row[0] not in (0, 0.0) for row in b):
         problems.append(Problem(f"{where}.b", "b[:, 0] must be 0 (there is no sin(0) term)"))
     if fourier["n"] > n_harm:
@@ -470,23 +564,116 @@ def _fourier_problems(fourier: dict, where: str, n_dof: int, n_harm: int) -> lis
     return problems
 
 
+def _consistency_problems(doc: dict) -> list[Problem]:
+    """Fields that must agree with each other or lie in their documented ranges: what a hand
+    edit or a unit slip breaks while the schema still holds."""
+    skel = doc["skeleton"]
+    ranges = [[-math.inf if lo is None else lo, math.inf if hi is None else hi]
+              for lo, hi in skel["dof_ranges"]]
+    problems = [Problem(f"skeleton.dof_ranges[{d}]", f"{name}: lower limit {lo} > upper {hi}")
+                for d, (name, (lo, hi)) in enumerate(zip(skel["dof_names"], ranges)) if lo > hi]
+    angles = [(d, name, lo, hi) for d, (name, unit, (lo, hi))
+              in enumerate(zip(skel["dof_names"], skel["dof_units"], ranges)) if unit == "rad"]
+    ids = [e["id"] for e in doc["entries"]]
+    if ids != sorted(ids):
+        first = next(i for i in range(1, len(ids)) if ids[i] < ids[i - 1])
+        problems.append(Problem(f"entries[{first}].id", f"entries must be sorted by id: "
+                                                        f"{ids[first]!r} follows "
+                                                        f"{ids[first - 1]!r}"))
+    for i, e in enumerate(doc["entries"]):
+        where = f"entries[{i}]"
+        found = re.search(r"_c(\d+)(@[0-9a-f]+)?$", e["id"])
+        if found and int(found.group(1)) != e["cycle_index"]:
+            problems.append(Problem(f"{where}.cycle_index", f"{e['cycle_index']}, but the id "
+                                                            f"names cycle {found.group(1)}"))
+        if re.search(r"[/\\]", e["source_file"]):
+            problems.append(Problem(f"{where}.source_file", "must be a file name, without "
+                                                            "its folder"))
+        problems += _pattern_problems(e["pattern"], f"{where}.pattern")
+        problems += _drift_problems(e, f"{where}.root_drift")
+        rows = e["fourier"]["a"]
+        for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
+            mean = _float(rows[d][0]) if rows[d] else math.nan
+            if not lo - RANGE_TOLERANCE <= mean <= hi + RANGE_TOLERANCE and math.isfinite(mean):
+                problems.append(Problem(f"{where}.fourier.a[{d}][0]", f"mean {name} {mean:.6g} "
+                                        f"rad lies outside its range [{lo:.4g}, {hi:.4g}] rad "
+                                        "(degrees stored as radians?)"))
+    return problems
+
+
+def _pattern_problems(pattern: dict, where: str) -> list[Problem]:
+    """The parameters of the pattern's type (:data:`PATTERN_PARAMETERS`) and their values."""
+    kind, params = pattern["type"], pattern["parameters"]
+    if sorted(params) != list(PATTERN_PARAMETERS[kind]):
+        return [Problem(f"{where}.parameters", f"the parameters of {kind} patterns are "
+                                               f"{', '.join(PATTERN_PARAMETERS[kind])}; got "
+                                               f"{', '.join(sorted(params)) or 'none'}")]
+    problems = []
+    for key in sorted(set(params) & {"centre", "direction", "point"}):
+        xy = params[key]
+        if not (isinstance(xy, list) and len(xy) == 2 and all(map(_is_number, xy))):
+            problems.append(Problem(f"{where}.parameters.{key}", f"must be [x, y], got {xy!r}"))
+        elif key == "direction" and abs(math.hypot(*xy) - 1.0) > 1e-6:
+            # stored to 10 digits, the unit vectors of the files at hand are within 7e-11 of 1
+            problems.append(Problem(f"{where}.parameters.direction", f"must be a unit vector, "
+                                                                     f"its length is "
+                                                                     f"{math.hypot(*xy):.6g}"))
+    if not (_is_number(params["length"]) and params["length"] >= 0):
+        problems.append(Problem(f"{where}.parameters.length", f"must be a number of metres "
+                                                              f">= 0, got {params['length']!r}"))
+    if "radius" in params and not (_is_number(params["radius"]) and params["radius"] > 0):
+        problems.append(Problem(f"{where}.parameters.radius", f"must be a number of metres "
+                                                              f"> 0, got {params['radius']!r}"))
+    if kind == "arc" and not (_is_number(params["turn"]) and params["turn"] in (1, -1)):
+        problems.append(Problem(f"{where}.parameters.turn", f"must be 1 (counter-clockwise) "
+                                                            f"or -1, got {params['turn']!r}"))
+    return problems
+
+
+def _drift_problems(e: dict, where: str) -> list[Problem]:
+    """The root drift's displacement against its velocities over T, and its turn's sign."""
+    drift, period = e["root_drift"], _float(e["T"])
+    problems = []
+    if math.isfinite(period):
+        expected = drift_displacement(drift, period)
+        wrong = [key for key in DRIFT_DISPLACEMENT if not abs(drift[key] - expected[key])
+                 <= DRIFT_TOLERANCE * max(1.0, abs(expected[key]))]
+        if wrong:
+            problems.append(Problem(where, "the displacement does not follow from u_f_m_s, "
+                                           f"u_l_m_s, omega_rad_s over T = {period} s: " +
+                                           ", ".join(f"{k} {drift[k]:.6g}, expected "
+                                                     f"{expected[k]:.6g}" for k in wrong)))
+    omega, turn = _float(e["omega"]), drift["omega_rad_s"]
+    if min(abs(omega), abs(turn)) > TURN_SIGN_RATE and omega * turn < 0:
+        problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
+                                                        f"from the entry's omega {omega:.4g} "
+                                                        "rad/s (a sign flipped?)"))
+    return problems
+
+
+def _is_number(value) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
 def _control_space_problems(doc: dict) -> list[Problem]:
-    scale = np.asarray(doc["control_space"]["scale"], dtype=np.float64)
-    points = _control_points(doc["entries"])
-    points = points[np.isfinite(points).all(axis=1)] / scale
-    if len(points) < 4:
-        return [Problem("control_space", f"{len(points)} entries with finite velocities; a 3-D "
-                                         "control space needs at least 4")]
-    centred = points - points.mean(axis=0)
-    singular = np.linalg.svd(centred, compute_uv=False)
-    # Normalised axes span about 1; a singular value below 1e-6 of the largest means the
-    # points lie on a plane or a line (e.g. all v_l = 0) and Delaunay would be degenerate.
-    rank = int((singular > 1e-6 * singular[0]).sum()) if singular[0] > 0 else 0
-    if rank < 3:
-        return [Problem("control_space", f"entries span only {rank} dimension(s) of "
-                                         "(v, omega, v_l); add captures off that "
-                                         f"{'plane' if rank == 2 else 'subspace'} "
-                                         "(e.g. side-steps or turns)")]
+    """The chosen entries' control space, as :class:`mocaplib.controlspace.ControlSpace`
+    builds it for queries: degenerate (:func:`~mocaplib.controlspace.degeneracy`), or failing
+    to triangulate."""
+    from .controlspace import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
+
+    points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
+    points = points[np.isfinite(points).all(axis=1)]
+    x = points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
+    what = f"the control space of the {len(x)} chosen entries with finite velocities"
+    reason = degeneracy(x)
+    if reason:
+        return [Problem("control_space", f"{what} is degenerate: it {reason}; "
+                                         f"{DEGENERACY_HINT}")]
+    try:
+        delaunay_tetrahedra(x)
+    except LibraryError as exc:
+        return [Problem("control_space", f"{what}: {exc.message}")]
     return []
 
 

@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from . import __version__
-from .errors import MocapError, ProtocolError
+from .errors import LibraryError, MocapError, ProtocolError
 from .events import TOE_OFF_DEFINITIONS
 from .io import special_file
 from .io.atomic import atomic_write_text
@@ -283,7 +283,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, motion, settings)
+        result.entries = _entries(path, result, kept, motion, settings, trial.first_frame)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
@@ -345,8 +345,10 @@ def _neutral_model(path: str, sha256: str, protocol):
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
 
 
-def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings):
-    """Library entries of the kept cycles; cycles failing QC are dropped or waived."""
+def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings,
+             first_frame: int):
+    """Library entries of the kept cycles; cycles failing QC are dropped or waived.
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
     entries = []
     for cycle in cycles:
         qc = cycle_qc(cycle, motion)
@@ -366,9 +368,10 @@ def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildS
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=_pattern(vel.pattern), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
-            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift, cycle.period),
+            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
-            segment_lengths_m=motion.skeleton.lengths))
+            segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
+            first_frame=first_frame))
     return entries
 
 
@@ -379,14 +382,9 @@ def _pattern(pattern) -> dict:
             "arc_angle_rad": data["arc_angle"]}
 
 
-def _drift(drift, period: float) -> dict:
-    """Displacement of the moving frame over one cycle in the start frame, and its rates."""
-    x, y, psi = drift.frame(np.array([period]))
-    c, s = np.cos(drift.psi0), np.sin(drift.psi0)
-    dx, dy = float(x[0]) - drift.x0, float(y[0]) - drift.y0
-    return {"dx_m": c * dx + s * dy, "dy_m": -s * dx + c * dy,
-            "dheading_rad": float(psi[0]) - drift.psi0,
-            "u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
+def _drift(drift) -> dict:
+    """The moving frame's velocities (its displacement per cycle follows: ``make_entry``)."""
+    return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
 def cycle_qc(cycle, motion) -> dict:
@@ -593,8 +591,18 @@ class BuildResult:
 
     def write(self, path: str | os.PathLike) -> tuple[Path, Path]:
         """Write ``<stem>.diagnostics.json`` and then the library beside it (both atomically:
-        if either write fails, the library file is left as it was)."""
+        if either write fails, the library file is left as it was).
+
+        Raises :class:`LibraryError` and writes nothing when the library has no entry (every
+        capture failed, or no cycle was kept): an empty library never replaces one.
+        """
         path = Path(path)
+        if not len(self.library):
+            why = ("every capture failed" if not any(c.ok for c in self.captures) else
+                   "no capture gave a library entry (see the warnings)")
+            raise LibraryError(f"nothing written: {why}", path=path,
+                               hint="fix what the summary names and build again; a library "
+                                    "already there is left as it was")
         sidecar = diagnostics_path(path)
         atomic_write_text(sidecar, json_text(self.diagnostics(path.name)))
         self.library.write(path)

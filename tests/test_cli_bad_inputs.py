@@ -235,8 +235,9 @@ def test_a_pipe_named_like_a_capture_is_refused_not_read_forever(tmp_path, capsy
     assert main(["events", str(pipe)]) == 1
     assert "not a regular file" in capsys.readouterr().err
     out = tmp_path / "lib.json"
-    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 0
-    assert "captures 1" in capsys.readouterr().out  # the pipe is not taken for a capture
+    # one capture: written, exit 1 only because one entry is no control space
+    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 1
+    assert "captures 1  ok 1" in capsys.readouterr().out  # the pipe is not taken for a capture
     assert main(["build", str(pipe), str(walk), "-o", str(out), "--no-cache", "-q"]) == 1
     assert "pipe.c3d [read]: cannot read: not a regular file" in capsys.readouterr().out
 
@@ -270,8 +271,10 @@ def test_an_unusable_cache_folder_does_not_stop_the_build(tmp_path, capsys):
     (tmp_path / "cache").write_text("a file where the cache folder should be")
     out = tmp_path / "lib.json"
     assert main(["build", str(walk), "-o", str(out), "--cache-dir", str(tmp_path / "cache"),
-                 "-q"]) == 0
-    assert "note: results not cached" in capsys.readouterr().out and out.is_file()
+                 "-q"]) == 1  # one entry: a degenerate control space, the only failure
+    printed = capsys.readouterr()
+    assert "note: results not cached" in printed.out and out.is_file()
+    assert "failed 0" in printed.out and "control_space" in printed.err
 
 
 def test_an_address_that_is_not_a_scheduler_is_a_clear_error(tmp_path, capsys):

@@ -6,6 +6,7 @@ import copy
 import json
 import math
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -26,17 +27,19 @@ TRIPLES = [(1.2, 0.0, 0.0), (0.6, 0.5, 0.0), (0.3, 0.0, 0.4), (0.8, -0.4, -0.2),
 def entry(i: int, *, n: int = 3, v=None, omega=None, v_l=None, **overrides) -> dict:
     rng = np.random.default_rng(i)
     a = rng.normal(scale=0.3, size=(D, n + 1))
+    a[:, 0] = rng.uniform(-0.1, 0.1, D)  # mean poses within every DOF's range
     b = rng.normal(scale=0.3, size=(D, n + 1))
     b[:, 0] = 0.0
     tv, tw, tl = TRIPLES[i % len(TRIPLES)]
     fields = dict(
         id=f"capture{i:02d}_c0", source_file=f"capture{i:02d}.c3d", source_sha256=f"{i:064x}",
         cycle_index=0, start_s=0.5, end_s=1.6, T=1.1,
-        pattern={"type": "arc", "parameters": {"centre_m": [0.0, 2.0], "radius_m": 2.0},
+        pattern={"type": "arc", "parameters": {"centre": [0.0, 2.0], "radius": 2.0,
+                                               "turn": 1, "length": 1.4},
                  "residual_m": 0.004, "arc_angle_rad": 0.7},
         v=tv if v is None else v, omega=tw if omega is None else omega,
         v_l=tl if v_l is None else v_l, v_f=0.9, a=a, b=b,
-        root_drift={"dx_m": 1.3, "dy_m": 0.1, "dheading_rad": 0.2},
+        root_drift={"u_f_m_s": 1.2, "u_l_m_s": 0.1, "omega_rad_s": tw if omega is None else omega},
         qc={"marker_rms_m": 0.008, "marker_max_m": 0.02, "gap_fraction": 0.01,
             "event_quality": 1.0, "fourier_rms_rad": 0.003, "cycle_closure_rad": 0.02,
             "jerk_rms_rad_s3": 40.0},
@@ -99,10 +102,14 @@ def test_floats_are_written_with_ten_significant_digits_and_nan_as_null():
 
 
 def test_unbounded_dof_range_is_null():
+    # the root's position was written [-1000, 1000] (the solver's guard) while the doc says
+    # null = unbounded
     doc = library().document
-    i = doc["skeleton"]["dof_names"].index("pelvis_rotation")
-    assert doc["skeleton"]["dof_ranges"][i] == [None, None]
-    assert doc["skeleton"]["dof_units"][doc["skeleton"]["dof_names"].index("pelvis_tx")] == "m"
+    names, ranges = doc["skeleton"]["dof_names"], doc["skeleton"]["dof_ranges"]
+    for name in ("pelvis_rotation", "pelvis_tx", "pelvis_ty", "pelvis_tz"):
+        assert ranges[names.index(name)] == [None, None]
+    assert ranges[names.index("knee_flexion_r")] == pytest.approx([-0.1745329252, 2.617993878])
+    assert doc["skeleton"]["dof_units"][names.index("pelvis_tx")] == "m"
 
 
 def test_atomic_write_failure_leaves_old_file_and_no_temporary(tmp_path, monkeypatch):
@@ -196,7 +203,7 @@ def broken(mutate) -> dict:
     (lambda d: d["entries"][0].update(T=None), "period must be finite and > 0"),
     (lambda d: d["entries"][0].update(end_s=1.7), "end_s - start_s"),
     (lambda d: d["entries"][3].update(omega=None), "velocity is missing"),
-    (lambda d: [e.update(v_l=0.0) for e in d["entries"]], "span only 2 dimension"),
+    (lambda d: [e.update(v_l=0.0) for e in d["entries"]], "degenerate: it lies on a plane"),
     (lambda d: d["entries"].__delitem__(slice(3, None)), "needs at least 4"),
     (lambda d: d["entries"][0]["qc"].update(marker_rms_m=0.031), "marker_rms_m 0.031 > 0.02"),
     (lambda d: d["entries"][0]["qc"].update(fourier_rms_rad=None), "fourier_rms_rad is not fin"),
@@ -209,7 +216,7 @@ def broken(mutate) -> dict:
 ])
 def test_validate_catches(mutate, expected):
     problems = problems_of(broken(mutate))
-    assert any(__import__("re").search(expected, p) for p in problems), problems
+    assert any(re.search(expected, p) for p in problems), problems
 
 
 def test_valid_library_has_no_problems_and_waiver_accepts_a_qc_failure():
@@ -230,3 +237,188 @@ def test_validate_reports_unreadable_file(tmp_path):
     path = tmp_path / "x.json"
     path.write_bytes(b"\xff\xfe garbage")
     assert "not UTF-8" in str(validate_library(path)[0])
+
+
+# --------------------------------------------------------------------------- semantic checks
+def test_make_entry_derives_the_drift_displacement_from_its_velocities():
+    from mocaplib.fourier import RootDrift
+
+    e = entry(1)  # u_f 1.2, u_l 0.1, omega 0.5 rad/s over T 1.1 s
+    x, y, turned = RootDrift(0.0, 0.0, 0.0, 1.2, 0.1, 0.5).frame(1.1)
+    assert e["root_drift"] == pytest.approx({"dx_m": x, "dy_m": y, "dheading_rad": turned,
+                                             "u_f_m_s": 1.2, "u_l_m_s": 0.1, "omega_rad_s": 0.5})
+    assert e["root_drift"]["dheading_rad"] == pytest.approx(0.55)
+    with pytest.raises(LibraryError, match="root_drift must give u_f_m_s"):
+        entry(0, root_drift={"dx_m": 1.3, "dy_m": 0.1, "dheading_rad": 0.2})
+
+
+def test_entries_keep_the_capture_frame_numbering_when_given():
+    e = entry(0, rate_hz=100.0, first_frame=286)
+    assert (e["rate_hz"], e["first_frame"]) == (100.0, 286)
+    assert "rate_hz" not in entry(0) and "first_frame" not in entry(0)  # optional
+    lib = assemble_library([entry(i, rate_hz=100.0, first_frame=286) for i in range(5)],
+                           settings={})
+    assert problems_of(lib.document) == []
+    assert problems_of(broken(lambda d: d["entries"][0].update(first_frame=-1)))
+
+
+def arc(d) -> dict:
+    return d["entries"][0]["pattern"]["parameters"]
+
+
+def line_pattern(d):
+    parameters = {"point": [0.0, 0.0], "direction": [0.6, 0.8], "length": 1.3}
+    d["entries"][0]["pattern"] = {"type": "line", "parameters": parameters,
+                                  "residual_m": 0.01, "arc_angle_rad": 0.0}
+
+
+@pytest.mark.parametrize("mutate, expected", [
+    # a reader truncating at fourier.n gets other angles
+    (lambda d: d["entries"][0]["fourier"].update(n=1), r"harmonics beyond the fitted order n = 1"),
+    (lambda d: d["entries"][0].update(cycle_index=4), "4, but the id names cycle 0"),
+    (lambda d: d["entries"][1]["root_drift"].update(dheading_rad=1.0),
+     r"dheading_rad 1, expected 0\.55"),
+    (lambda d: d["entries"][1]["root_drift"].update(dx_m=5.0), "dx_m 5, expected"),
+    (lambda d: d["entries"][1]["root_drift"].update(omega_rad_s=-0.5), "turns the other way"),
+    (lambda d: d["entries"][1]["root_drift"].pop("u_f_m_s"), "'u_f_m_s' is a required"),
+    (lambda d: d["entries"][1]["root_drift"].update(u_f_m_s=None), "None is not of type"),
+    (lambda d: d["entries"][1]["root_drift"].update(dz_m=3.0), "'dz_m' was unexpected"),
+    (lambda d: arc(d).pop("radius"), "parameters of arc patterns are centre, length, radius"),
+    (lambda d: arc(d).update(radius="2 m"), "radius: .*must be a number of metres > 0"),
+    (lambda d: arc(d).update(radius=-2.0), "radius: .*got -2.0"),
+    (lambda d: arc(d).update(turn=0), "turn: .*must be 1"),
+    (lambda d: arc(d).update(centre=[1.0]), r"centre: .*must be \[x, y\]"),
+    (lambda d: d["entries"][0]["pattern"].update(type="line"), "parameters of line patterns"),
+    (lambda d: (line_pattern(d), arc(d).update(direction=[1.0, 1.0])), "a unit vector"),
+    (lambda d: d["entries"][0]["qc"].update(event_quality=2.0), "greater than the maximum of 1"),
+    (lambda d: d["entries"][0]["qc"].update(gap_fraction=-0.3), "less than the minimum of 0"),
+    (lambda d: d["qc_thresholds"].update(marker_rms_m=-1.0), "less than the minimum of 0"),
+    (lambda d: d["entries"][0].update(v=-1.2), "less than the minimum of 0"),
+    (lambda d: d["entries"][0].update(start_s=-99.5, end_s=-98.4), "less than the minimum"),
+    (lambda d: d["skeleton"]["dof_ranges"].__setitem__(29, [2.6, -0.17]), "lower limit 2.6 > "),
+    # a mean pose in degrees: knee_flexion_r 30 "rad"
+    (lambda d: d["entries"][2]["fourier"]["a"][DOF_NAMES.index("knee_flexion_r")]
+     .__setitem__(0, 30.0), "mean knee_flexion_r 30 rad lies outside its range"),
+    (lambda d: d["entries"].reverse(), "entries must be sorted by id"),
+    (lambda d: d["entries"][0].update(source_file="../../etc/passwd"), "without its folder"),
+    # 1e-320 made normalised velocities overflow on the way to query's SVD
+    (lambda d: d["control_space"]["scale"].__setitem__(0, 1e-320), "minimum of 0.001"),
+    (lambda d: d["settings"].update(static_pose=42), "42 is not one of"),
+    (lambda d: d["settings"].update(cutoff=-6), "cutoff"),
+    (lambda d: d["settings"].update(static=["S1.c3d", 2]), "2 is not of type 'string'"),
+])
+def test_validate_catches_fields_that_disagree_or_leave_their_range(mutate, expected):
+    problems = problems_of(broken(mutate))
+    assert any(re.search(expected, p) for p in problems), problems
+
+
+def test_problems_about_an_entry_name_it():
+    doc = broken(lambda d: d["entries"][3]["root_drift"].pop("omega_rad_s"))
+    assert problems_of(doc) == ["entries[3].root_drift: entry 'capture03_c0': schema: "
+                                "'omega_rad_s' is a required property"]
+
+
+def test_turn_signs_may_differ_on_a_nearly_straight_walk():
+    # the shoulder line's and the pelvis' turn rates differ by up to 0.11 rad/s on real files
+    doc = broken(lambda d: d["entries"][1]["root_drift"].update(omega_rad_s=-0.1))
+    assert not any("turns the other way" in p for p in problems_of(doc))
+
+
+def test_the_validator_is_silent_on_what_the_build_writes():
+    # every check above holds on an entry as make_entry and assemble_library write it, for
+    # every pattern type and a waived metric
+    line = {"type": "line", "parameters": {"point": [0.1, -0.2], "direction": [0.6, -0.8],
+                                           "length": 1.3}, "residual_m": 0.01,
+            "arc_angle_rad": 0.0}
+    point = {"type": "point", "parameters": {"point": [0.0, 0.0], "length": 0.0},
+             "residual_m": 0.0, "arc_angle_rad": 0.0}
+    entries = [entry(0, pattern=line), entry(1, pattern=point),
+               entry(2, cycle_index=3, id="capture02_c3"),
+               entry(3, id="capture03_c0@0a1b2c3d"), entry(4)]
+    assert problems_of(assemble_library(entries, settings={"static": None}).document) == []
+
+
+# --------------------------------------------------------------------------- NaN, Infinity
+def write_text(tmp_path, doc) -> os.PathLike:
+    path = tmp_path / "lib.json"
+    path.write_text(json.dumps(doc, allow_nan=True))  # NaN / Infinity tokens, as Python writes
+    return path
+
+
+@pytest.mark.parametrize("mutate, where, token", [
+    (lambda d: d["entries"][0].update(start_s=float("nan")), "entries[0].start_s", "NaN"),
+    (lambda d: d["entries"][0]["segment_lengths_m"].update(thigh=float("nan")),
+     "entries[0].segment_lengths_m.thigh", "NaN"),
+    (lambda d: d["qc_thresholds"].update(marker_rms_m=float("nan")), "qc_thresholds.marker_rms_m",
+     "NaN"),
+    (lambda d: d["control_space"]["scale"].__setitem__(0, float("nan")), "control_space.scale[0]",
+     "NaN"),
+    (lambda d: d["control_space"]["scale"].__setitem__(1, float("inf")), "control_space.scale[1]",
+     "Infinity"),
+    (lambda d: arc(d).update(radius=-float("inf")), "entries[0].pattern.parameters.radius",
+     "-Infinity"),
+])
+def test_nan_and_infinity_are_refused_where_they_are(mutate, where, token, tmp_path):
+    # json.loads took them; C++ and C# JSON readers refuse the file; a NaN scale crashed
+    # validate (SVD did not converge)
+    path = write_text(tmp_path, broken(mutate))
+    assert token in path.read_text()
+    problems = [str(p) for p in validate_library(path)]
+    assert any(p.startswith(f"{where}: ") and f"{token} is not a JSON number" in p
+               for p in problems), problems
+    with pytest.raises(LibraryError, match=re.escape(where)):
+        load_library(path)
+    assert problems_of(broken(mutate))  # the same document in memory
+
+
+# --------------------------------------------------------------------------- control space
+def test_validation_and_the_control_space_use_the_chosen_entries():
+    from mocaplib.controlspace import ControlSpace
+
+    # --all-cycles: 3 chosen entries (one per capture) and 3 more cycles that span 3-D
+    entries = [entry(i, chosen=i < 3) for i in range(6)]
+    lib = assemble_library(entries, settings={})
+    problems = problems_of(lib.document)
+    assert problems == ["control_space: the control space of the 3 chosen entries with finite "
+                        "velocities is degenerate: it needs at least 4 entries with distinct "
+                        "velocities, got 3; add captures with other speeds, turns and "
+                        "side-steps so the entries span all three axes"]
+    with pytest.raises(LibraryError, match="needs at least 4 entries with distinct velocities, "
+                                           "got 3"):
+        ControlSpace.from_library(lib)
+    none_chosen = broken(lambda d: [e.update(chosen=False) for e in d["entries"]])
+    assert any("got 0" in p for p in problems_of(none_chosen))
+
+
+@pytest.mark.parametrize("thickness", [0.0, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3])
+def test_validation_refuses_exactly_the_control_spaces_query_refuses(thickness):
+    # the validator counted rank with 1e-6 of all entries, the control space with 1e-9 of the
+    # chosen ones: a library 1e-7 thick passed one and not the other
+    from mocaplib.controlspace import ControlSpace
+
+    rng = np.random.default_rng(7)
+    points = rng.uniform([0.0, -1.0, -0.3], [1.8, 1.0, 0.3], (8, 3))
+    points[:, 2] = 0.25 * points[:, 0] + thickness * rng.choice([-1.0, 1.0], 8)
+    doc = library(8).document
+    for e, (v, w, vl) in zip(doc["entries"], points.tolist()):
+        e.update(v=v, omega=w, v_l=vl)  # full precision: 10 digits would hide the thinnest
+    lib = Library(doc)
+    invalid = any(p.startswith("control_space") for p in problems_of(lib.document))
+    try:
+        ControlSpace.from_library(lib)
+        refused = False
+    except LibraryError:
+        refused = True
+    assert invalid == refused
+    assert refused == (thickness < 1e-5)
+
+
+def test_a_library_without_drift_is_an_error_not_a_walk_on_the_spot():
+    # one entry without u_f_m_s made the whole library's root motion vanish at query time
+    from mocaplib.controlspace import ControlSpace
+
+    doc = copy.deepcopy(library().document)
+    assert ControlSpace.from_library(Library(doc)).drift.shape == (5, 3)
+    del doc["entries"][2]["root_drift"]["u_f_m_s"]
+    with pytest.raises(LibraryError, match="without a finite root_drift .*: capture02_c0"):
+        ControlSpace.from_library(Library(doc))

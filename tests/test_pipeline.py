@@ -45,15 +45,18 @@ def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
     n = 2
     rng = np.random.default_rng(int(data["v"] * 1000 + data["omega"] * 100 + data["v_l"] * 10))
     a = rng.normal(size=(len(DOF_NAMES), n + 1))
+    a[:, 0] = 0  # mean pose neutral: within every DOF's range
     b = rng.normal(size=(len(DOF_NAMES), n + 1))
     b[:, 0] = 0
     entry_id = f"{path.stem}_c0"
     result.entries = [make_entry(
         id=entry_id, source_file=path.name, source_sha256=result.sha256, cycle_index=0,
-        start_s=0.2, end_s=1.3, T=1.1, pattern={"type": "line", "parameters": {},
-                                                "residual_m": 0.01, "arc_angle_rad": 0.0},
+        start_s=0.2, end_s=1.3, T=1.1,
+        pattern={"type": "line", "parameters": {"point": [0.0, 0.0], "direction": [1.0, 0.0],
+                                                "length": 1.0},
+                 "residual_m": 0.01, "arc_angle_rad": 0.0},
         v=data["v"], omega=data["omega"], v_l=data["v_l"], v_f=data["v"], a=a, b=b,
-        root_drift={"dx_m": 1.0, "dy_m": 0.0, "dheading_rad": 0.0},
+        root_drift={"u_f_m_s": data["v"], "u_l_m_s": data["v_l"], "omega_rad_s": data["omega"]},
         qc={"marker_rms_m": 0.01})]
     result.diagnostics = {"rate_hz": 100.0, "time_s": [0.0, 0.01],
                           "cycles": [{"start_s": 0.2, "end_s": 1.3, "chosen": True,
@@ -548,8 +551,9 @@ def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder,
     assert start_errors("lift").max() <= 1.0
     assert start_errors("foot_velocity").max() > 2.0
     out = tmp_path / "lib.json"
+    # one entry: the library is written, but its control space is degenerate (exit 1)
     assert main(["build", str(path), "-o", str(out), "--toe-off", "lift", "--no-cache",
-                 "-q"]) == 0
+                 "-q"]) == 1
     assert load_library(out).settings["toe_off"] == "lift"
     with pytest.raises(MocapError, match="toe_off must be one of foot_velocity, lift"):
         BuildSettings(toe_off="heel")

@@ -334,7 +334,8 @@ def test_report_of_a_degenerate_library_still_builds(tmp_path):
         entries.append(make_entry(
             id=f"s{i}", source_file=f"s{i}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=v, omega=0.0, v_l=0.0,
-            v_f=v, a=a, b=b, root_drift={}, qc={}))
+            v_f=v, a=a, b=b, root_drift={"u_f_m_s": v, "u_l_m_s": 0.0, "omega_rad_s": 0.0},
+            qc={}))
     path = tmp_path / "line.json"
     assemble_library(entries, settings={}).write(path)
     html = write_report(path, tmp_path, renderer="matplotlib").read_text()

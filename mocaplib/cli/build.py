@@ -16,7 +16,9 @@ def register(subparsers) -> None:
         description="Process every capture (import, calibrate, fit, events, cycles, "
                     "velocities, Fourier) and write the library JSON plus its diagnostics "
                     "sidecar. A failing capture is reported and the build goes on. "
-                    "Exit 0 when every capture succeeded, 1 when some failed, 2 on usage errors.")
+                    "Exit 0 when every capture succeeded and the library is valid, 1 when some "
+                    "failed or the library is not valid (no library is written when no capture "
+                    "gave an entry), 2 on usage errors.")
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help="C3D files or folders (searched recursively for *.c3d)")
     parser.add_argument("-o", "--output", required=True, metavar="LIBRARY.json",
@@ -77,13 +79,18 @@ def _run(args) -> int:
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())
-    library_path, sidecar = result.write(output)
     print(result.summary_text())
+    library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry
     print(f"wrote {library_path} ({len(result.library)} entries) and {sidecar}")
-    for problem in validate_library(result.library):
+    problems = validate_library(result.library)
+    for problem in problems:
         warn(f"library: {problem}")
+    if problems:
+        print(f"mocaplib build: error: {library_path} was written but is not valid "
+              f"({len(problems)} problem(s) above): fix what they name and build again",
+              file=sys.stderr)
     if args.report:
         from ..report import write_report
 
         print(f"report: {write_report(library_path, args.report)}")
-    return 0 if result.ok else 1
+    return 0 if result.ok and not problems else 1
