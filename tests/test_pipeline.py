@@ -445,9 +445,9 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     # the policy acts only on the entries: process once, keep the cycles for the other policy
     stage, entries = {}, pipeline._entries
 
-    def recorded(path, result, cycles, motion, settings):
-        stage.update(path=path, cycles=cycles, motion=motion)
-        return entries(path, result, cycles, motion, settings)
+    def recorded(path, result, cycles, motion, settings, first_frame):
+        stage.update(path=path, cycles=cycles, motion=motion, first_frame=first_frame)
+        return entries(path, result, cycles, motion, settings, first_frame)
 
     monkeypatch.setattr(pipeline, "_entries", recorded)
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
@@ -461,7 +461,8 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     assert [c["entry_id"] for c in kept.diagnostics["cycles"] if c["chosen"]] == [entry["id"]]
     dropped = CaptureResult(source=str(path))
     drop = BuildSettings(qc_policy="drop", qc_thresholds=strict)
-    assert entries(stage["path"], dropped, stage["cycles"], stage["motion"], drop) == []
+    assert entries(stage["path"], dropped, stage["cycles"], stage["motion"], drop,
+                   stage["first_frame"]) == []
     assert any("left out of the library" in w for w in dropped.warnings)
 
 

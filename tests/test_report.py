@@ -603,7 +603,8 @@ def test_entries_at_the_fourier_order_cap_are_flagged():
         entries.append(make_entry(
             id=f"e{n}", source_file=f"e{n}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=1.0, omega=0.0, v_l=0.0,
-            v_f=1.0, a=a, b=b, root_drift={}, qc={}))
+            v_f=1.0, a=a, b=b, root_drift={"u_f_m_s": 1.0, "u_l_m_s": 0.0, "omega_rad_s": 0.0},
+            qc={}))
     lib = assemble_library(entries, settings={})
     rows = _entry_rows(lib.entries, lambda i: "unknown")
     assert [(r["fourier_n"], r["at_cap"]) for r in rows] == [(cap, True), (3, False)]
