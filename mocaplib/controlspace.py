@@ -635,7 +635,7 @@ class Envelope:
         axes = [_grid_through_zero(a, b, n) for a, b in zip(lo, hi)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         x = self.vertices / scale
-        if np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9) < 3:
+        if degeneracy(x) is not None:
             return grid  # a flat envelope: its bounding box is the envelope
         inside = locate(delaunay_tetrahedra(x, source=self.source), grid / scale)[0] >= 0
         return grid[inside]
