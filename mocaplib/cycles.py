@@ -14,7 +14,10 @@ first and second half of the cycle and ω₁, ω₂ the mean rates of θ_S; ``r�
 difference the shoulders feel from a change of turn rate. Gait initiation and termination,
 stumbles and turns that start mid-cycle all raise it. The chosen cycle is the one with the
 lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
-if none qualifies); ties go to the earlier cycle. Every cycle is returned, with ``chosen`` set
+if none qualifies); ties go to the earlier cycle. ``mocaplib cycles`` and ``mocaplib build``
+first narrow the candidates to the cycles that pass the library's QC, when any does
+(:func:`mocaplib.pipeline.qc_and_choice`), so a capture whose steadiest cycle fails QC
+contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
 on one, so callers keep all of them on request (``--all-cycles``).
 
 **Rest.** A capture with no gait event at all (standing) gives one rest entry: v̂ = ω̂ = v̂_l =
@@ -195,11 +198,16 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     return cycles
 
 
-def choose_cycle(cycles: list[Cycle], /) -> Cycle:
-    """Mark and return the steadiest cycle (module docstring's rule); clears other marks."""
+def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) -> Cycle:
+    """Mark and return the steadiest cycle (module docstring's rule); clears other marks.
+
+    ``eligible``: indices of the cycles that may be chosen (those passing the library's QC,
+    :func:`mocaplib.pipeline.qc_and_choice`); every cycle when None or when none is eligible.
+    """
     if not cycles:
         raise EventError("no cycle to choose from")
-    good = [c for c in cycles if c.event_quality >= MIN_EVENT_QUALITY] or cycles
+    pool = [c for c in cycles if eligible is None or c.index in eligible] or cycles
+    good = [c for c in pool if c.event_quality >= MIN_EVENT_QUALITY] or pool
     best = min(good, key=lambda c: (c.unsteadiness, c.index))
     for cycle in cycles:
         cycle.chosen = cycle is best

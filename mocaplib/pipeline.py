@@ -282,8 +282,10 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, motion, settings, trial.first_frame)
+        result.entries = _entries(path, result, kept, qcs, settings, trial.first_frame,
+                                  motion.skeleton.lengths, motion.rate)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
@@ -345,13 +347,29 @@ def _neutral_model(path: str, sha256: str, protocol):
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
 
 
-def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildSettings,
-             first_frame: int):
+def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
+    """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
+    chosen cycle re-chosen among those that pass ``thresholds`` when any does
+    (:func:`mocaplib.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
+    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run."""
+    from .cycles import choose_cycle
+
+    qcs = {c.index: cycle_qc(c, motion) for c in cycles}
+    if len(cycles) > 1:
+        choose_cycle(cycles, eligible={i for i, qc in qcs.items()
+                                       if not qc_failures(qc, thresholds)})
+    return qcs
+
+
+def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
+             settings: BuildSettings, first_frame: int, lengths: dict, rate: float):
     """Library entries of the kept cycles; cycles failing QC are dropped or waived.
-    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
+    ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`); ``first_frame``: the capture's
+    first C3D frame number (``start_s`` counts from it); ``lengths``: the fitted skeleton's
+    segment lengths (m); ``rate``: frames per second."""
     entries = []
     for cycle in cycles:
-        qc = cycle_qc(cycle, motion)
+        qc = qcs[cycle.index]
         failures = qc_failures(qc, settings.qc_thresholds)
         where = f"cycle {cycle.index} ({cycle.start_s:.2f}-{cycle.end_s:.2f} s)"
         waived = {}
@@ -370,7 +388,7 @@ def _entries(path: Path, result: CaptureResult, cycles, motion, settings: BuildS
             pattern=_pattern(vel.pattern), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
-            segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
+            segment_lengths_m=lengths, rate_hz=rate,
             first_frame=first_frame))
     return entries
 

@@ -17,7 +17,8 @@ import pytest
 from mocaplib import pipeline
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
-from mocaplib.library import load_library, make_entry, validate_library
+from mocaplib.library import (DEFAULT_QC_THRESHOLDS, load_library, make_entry, qc_failures,
+                              validate_library)
 from mocaplib.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
                                file_sha256, find_captures, process_capture)
 from mocaplib.skeleton import DOF_NAMES
@@ -437,7 +438,6 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
 @pytest.mark.real
 def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     from conftest import real_file
-    from mocaplib.library import DEFAULT_QC_THRESHOLDS
 
     path = real_file("btkdata/Gait.c3d")
     # 1 mm marker RMS: no real capture with skin markers meets it, so QC must fail.
@@ -445,9 +445,9 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     # the policy acts only on the entries: process once, keep the cycles for the other policy
     stage, entries = {}, pipeline._entries
 
-    def recorded(path, result, cycles, motion, settings, first_frame):
-        stage.update(path=path, cycles=cycles, motion=motion, first_frame=first_frame)
-        return entries(path, result, cycles, motion, settings, first_frame)
+    def recorded(path, result, cycles, qcs, settings, *args):
+        stage.update(path=path, cycles=cycles, qcs=qcs, args=args)
+        return entries(path, result, cycles, qcs, settings, *args)
 
     monkeypatch.setattr(pipeline, "_entries", recorded)
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
@@ -461,9 +461,31 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
     assert [c["entry_id"] for c in kept.diagnostics["cycles"] if c["chosen"]] == [entry["id"]]
     dropped = CaptureResult(source=str(path))
     drop = BuildSettings(qc_policy="drop", qc_thresholds=strict)
-    assert entries(stage["path"], dropped, stage["cycles"], stage["motion"], drop,
-                   stage["first_frame"]) == []
+    assert entries(stage["path"], dropped, stage["cycles"], stage["qcs"], drop,
+                   *stage["args"]) == []
     assert any("left out of the library" in w for w in dropped.warnings)
+
+
+def test_a_capture_contributes_its_steadiest_cycle_that_passes_qc(synthetic_folder):
+    path = synthetic_folder / "side_left_normal.c3d"
+    every = process_capture(path, BuildSettings(all_cycles=True)).entries
+    closure = {e["cycle_index"]: e["qc"]["cycle_closure_rad"] for e in every}
+    steadiest = next(e["cycle_index"] for e in every if e["chosen"])
+    others = [i for i in closure if closure[i] < closure[steadiest]]
+    assert len(every) >= 2 and others  # a cycle that closes better than the steadiest
+    # a closure limit the steadiest cycle fails and another passes: that one is chosen
+    limit = 0.5 * (closure[steadiest] + max(closure[i] for i in others))
+    strict = BuildSettings(qc_thresholds={**DEFAULT_QC_THRESHOLDS, "cycle_closure_rad": limit})
+    result = process_capture(path, strict)
+    assert len(result.entries) == 1
+    assert result.entries[0]["cycle_index"] in others and result.entries[0]["chosen"]
+    assert not any("left out" in w for w in result.warnings)
+    # when no cycle passes, the steadiest is still the chosen one, and it is left out
+    none_pass = BuildSettings(qc_thresholds={**DEFAULT_QC_THRESHOLDS,
+                                             "cycle_closure_rad": 0.5 * min(closure.values())})
+    result = process_capture(path, none_pass)
+    assert result.entries == []
+    assert any(f"cycle {steadiest} " in w and "left out" in w for w in result.warnings)
 
 
 @pytest.mark.parametrize("toe_off", ["foot_velocity", "lift"])
@@ -481,6 +503,7 @@ def test_process_capture_gives_the_cycles_of_mocaplib_cycles(synthetic_folder, c
             np.testing.assert_allclose(entry[key], cycle[key], rtol=1e-9, atol=1e-12)
         assert entry["chosen"] == cycle["chosen"]
         assert entry["fourier"]["n"] == cycle["fourier_n"]
+        assert cycle["qc_failures"] == qc_failures(entry["qc"], DEFAULT_QC_THRESHOLDS)
 
 
 def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_capture(

@@ -21,8 +21,8 @@ def register(subparsers) -> None:
         description="Cut a capture at consecutive left toe-offs; for every cycle fit a line or "
                     "arc to the path of the midpoint of the fitted shoulder joint centres, "
                     "measure v, omega, v_l, v_f, encode the "
-                    "fitted joint angles as Fourier series, and mark the steadiest cycle as "
-                    "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
+                    "fitted joint angles as Fourier series, and mark the steadiest cycle that "
+                    "passes the library's QC as chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
                     "the capture cannot be processed, 2 on usage errors.")
     add_common_options(parser)
     add_static_options(parser)
@@ -37,6 +37,8 @@ def _run(args) -> int:
     from ..cycles import motion_cycles
     from ..events import capture_events
     from ..ik import fit_capture
+    from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
+    from ..pipeline import qc_and_choice
     from ._common import print_json
     from .events import load
 
@@ -48,7 +50,9 @@ def _run(args) -> int:
                          static_pose=args.static_pose, cutoff=args.cutoff)[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)
-    rows = [c.to_dict() for c in cycles]
+    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS)
+    rows = [{**c.to_dict(), "qc_failures": qc_failures(qcs[c.index], DEFAULT_QC_THRESHOLDS)}
+            for c in cycles]
     if args.json:
         print_json({"file": args.file, "cycles": rows})
         return 0
@@ -60,5 +64,8 @@ def _run(args) -> int:
               f"{np.rad2deg(r['pattern']['arc_angle']):6.1f}"
               f"  {r['v']:6.3f} {np.rad2deg(r['omega']):6.1f}  {r['v_l']:7.3f}  {r['v_f']:7.3f}"
               f"  {r['fourier_n']:2d} {r['fourier_rms_deg']:5.2f}  {r['fourier_worst_dof']}")
-    print("  (* = chosen for the library: the steadiest cycle)")
+    for r in rows:
+        if r["qc_failures"]:
+            print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
+    print("  (* = chosen for the library: the steadiest cycle that passes QC, if any does)")
     return 0
