@@ -52,7 +52,7 @@ def test_inspect_a_path_that_does_not_exist_is_a_usage_error(tmp_path, capsys):
     walk = SAMPLES / "walk_straight_normal.c3d"
     assert main(["inspect", str(walk), str(tmp_path / "missing.c3d")]) == 2
     out, err = capsys.readouterr()
-    assert out == "" and f"no such file or folder: {tmp_path / 'missing.c3d'}" in err
+    assert out == "" and f"{tmp_path / 'missing.c3d'}: no such file or folder" in err
     (tmp_path / "empty").mkdir()
     assert main(["inspect", str(tmp_path / "empty")]) == 1
     assert "no *.c3d files in this folder or its subfolders (give C3D files" in \
@@ -60,7 +60,8 @@ def test_inspect_a_path_that_does_not_exist_is_a_usage_error(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["{missing}", "1", "0", "0"], "missing.json: no such library file (check the path"),
+    (["{missing}", "1", "0", "0"], "missing.json: no such file or folder (check the path; "
+                                   "`mocaplib build` writes a library)"),
     (["{lib}", "1", "0", "0", "--cycles", "2"], "--cycles only apply to the BVH output"),
     (["{lib}", "1", "0", "0", "--cycles", "2", "--rate", "50"], "--cycles and --rate only"),
     (["{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--rate", "0.01"],
@@ -82,3 +83,16 @@ def test_c3d_errors_say_what_to_give_instead(tmp_path, capsys):
     assert main(["fit", str(tmp_path), "-o", str(tmp_path / "a.csv")]) == 1
     assert "is a folder, not a C3D file (give a .c3d file; build and inspect also search " \
         "folders)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args", [
+    ["validate", "{missing}"], ["report", "{missing}", "-o", "{d}/reports"],
+    ["query", "{missing}", "1", "0", "0"], ["inspect", "{missing}"],
+    ["synth", "{missing}", "-o", "{d}/out"],
+])
+def test_a_path_that_does_not_exist_is_a_usage_error_in_every_command(args, tmp_path, capsys):
+    missing = tmp_path / "missing.json"
+    assert main([a.format(missing=missing, d=tmp_path) for a in args]) == 2
+    out, err = capsys.readouterr()
+    assert f"{missing}: no such file or folder (check the path" in err and out == ""
+    assert list(tmp_path.iterdir()) == []

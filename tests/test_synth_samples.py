@@ -129,7 +129,8 @@ def test_a_plan_with_a_bad_capture_writes_nothing(tmp_path, capsys):
      "argument --protocol: unknown protocol 'bogus'"),
     (["{plan}", "-o", "{d}/afile", "--only", "rest"], "it is a file, not a folder"),
     (["{plan}", "-o", "{d}/afile/sub", "--only", "rest"], "it is a file, not a folder"),
-    (["{d}/nope.toml", "-o", "{d}"], "nope.toml: no such capture plan"),
+    (["{d}/nope.toml", "-o", "{d}"],
+     "nope.toml: no such file or folder (check the path; protocols/paper_plan.toml is a "),
     (["{plan}", "-o", "{d}", "--only", "rest", "-j"], "usage: mocaplib synth"),
 ])
 def test_synth_usage_errors_exit_2_before_writing(args, message, tmp_path, capsys):

@@ -156,11 +156,16 @@ def add_cutoff_option(parser) -> None:
                              "analysis per capture) or 'none'")
 
 
-def check_inputs(inputs: list[str], statics: list[str] | None = None) -> list:
+#: What to do about a library path that does not exist.
+LIBRARY_HINT = "check the path; `mocaplib build` writes a library"
+
+
+def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
+                 hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
-    not exist, or a ``--static`` cannot be read or is not standing still
-    (:func:`mocaplib.calibration.check_standing`). Returns the static trials, each file read
-    once (the same file given twice counts once)."""
+    not exist (the message ends with ``hint``), or a ``--static`` cannot be read or is not
+    standing still (:func:`mocaplib.calibration.check_standing`). Returns the static trials,
+    each file read once (the same file given twice counts once)."""
     from ..calibration import check_standing
     from ..io.c3d import read_c3d
 
@@ -170,7 +175,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None) -> list:
     for option, path in [*(("", path) for path in inputs),
                          *(("--static: ", path) for path in unique.values())]:
         if not Path(path).exists():
-            raise UsageError(f"{option}{path}: no such file or folder (check the path)")
+            raise UsageError(f"{option}{path}: no such file or folder ({hint})")
     trials = []
     for path in unique.values():
         try:

@@ -20,10 +20,10 @@ def register(subparsers) -> None:
         "cycles", help="cut a capture into cycles: pattern, v, omega, v_l, Fourier order",
         description="Cut a capture at consecutive left toe-offs; for every cycle fit a line or "
                     "arc to the path of the midpoint of the fitted shoulder joint centres, "
-                    "measure v, omega, v_l, v_f, encode the "
-                    "fitted joint angles as Fourier series, and mark the steadiest cycle that "
-                    "passes the library's QC as chosen. A standing capture gives one rest entry. Exit 0 on success, 1 when "
-                    "the capture cannot be processed, 2 on usage errors.")
+                    "measure v, omega, v_l, v_f, encode the fitted joint angles as Fourier "
+                    "series, and mark the steadiest cycle that passes the library's QC as "
+                    "chosen. A standing capture gives one rest entry. Exit 0 on success, 1 "
+                    "when the capture cannot be processed, 2 on usage errors.")
     add_common_options(parser)
     add_static_options(parser)
     add_cutoff_option(parser)

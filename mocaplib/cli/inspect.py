@@ -6,7 +6,6 @@ Only parses options and formats: the per-file work is :func:`mocaplib.inspection
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from ._common import add_protocol_option
 
@@ -31,11 +30,9 @@ def _run(args) -> int:
     from ..inspection import failed_summary, format_summary, inspect_c3d
     from ..protocols import load_protocol
     from ..pipeline import find_captures
-    from ._common import UsageError, print_json
+    from ._common import check_inputs, print_json
 
-    missing = [item for item in args.inputs if not Path(item).exists()]
-    if missing:
-        raise UsageError(f"no such file or folder: {', '.join(missing)} (check the path)")
+    check_inputs(args.inputs)
     protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     summaries = []
     for item in args.inputs:

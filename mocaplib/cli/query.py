@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
 
-from ._common import UsageError, bounded, check_outputs, positive
+from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
 
 
 #: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
@@ -70,9 +69,7 @@ def _run(args) -> int:
     if ignored and not args.bvh:
         raise UsageError(f"{' and '.join(ignored)} only apply to the BVH output: add "
                          f"--bvh OUT.bvh, or leave {'it' if len(ignored) == 1 else 'them'} out")
-    if not Path(args.library).exists():
-        raise UsageError(f"{args.library}: no such library file (check the path; `mocaplib "
-                         "build` writes one)")
+    check_inputs([args.library], hint=LIBRARY_HINT)
     check_outputs({"--bvh": args.bvh}, [args.library])
     library = load_library(args.library)
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)

@@ -24,8 +24,9 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..report import report_name, write_report
-    from ._common import check_output_folder
+    from ._common import LIBRARY_HINT, check_inputs, check_output_folder
 
+    check_inputs([args.library], hint=LIBRARY_HINT)
     check_output_folder("-o", args.output, report_name(args.library), [args.library])
     _check_envelope(args.envelope)
     path = write_report(args.library, args.output, envelope=args.envelope,

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import UsageError, add_protocol_option, check_outputs
+from ._common import UsageError, add_protocol_option, check_inputs, check_outputs
 
 
 def register(subparsers) -> None:
@@ -37,9 +37,7 @@ def _run(args) -> int:
     from ..errors import SynthError
     from ..synth import check_targets, generate_plan, load_plan
 
-    if not Path(args.plan).exists():
-        raise UsageError(f"{args.plan}: no such capture plan (check the path; "
-                         "protocols/paper_plan.toml is one)")
+    check_inputs([args.plan], hint="check the path; protocols/paper_plan.toml is a capture plan")
     plan = load_plan(args.plan)
     output = Path(args.output)
     try:

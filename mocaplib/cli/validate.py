@@ -17,8 +17,9 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..library import validate_library
-    from ._common import print_json
+    from ._common import LIBRARY_HINT, check_inputs, print_json
 
+    check_inputs([args.library], hint=LIBRARY_HINT)
     problems = validate_library(args.library)
     if args.json:
         print_json({"file": args.library, "valid": not problems,
