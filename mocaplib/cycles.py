@@ -38,6 +38,7 @@ import numpy as np
 from .errors import EventError
 from .events import GaitEvent
 from .fourier import ROOT_X, ROOT_Y, TRANSLATIONS, CycleEncoding, encode_cycle
+from .library import QC_LIMITS
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
                        sample_shoulders)
 
@@ -45,8 +46,9 @@ from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, pat
 REST_PERIOD = 1.0
 #: Lever arm converting a turn-rate difference into a shoulder speed difference, metres.
 STEADINESS_RADIUS = 0.2
-#: Cycles bounded by toe-offs of lower quality are chosen only when no other qualifies.
-MIN_EVENT_QUALITY = 0.5
+#: Cycles bounded by toe-offs of lower quality are chosen only when no other qualifies: the
+#: library's QC limit on event quality.
+MIN_EVENT_QUALITY = QC_LIMITS["event_quality"][0]
 
 
 @dataclass

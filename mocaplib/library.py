@@ -75,7 +75,7 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "marker_rms_m": (0.02, "max"),
     "marker_max_m": (0.04, "max"),
     "gap_fraction": (0.5, "max"),
-    "event_quality": (0.5, "min"),   # as mocaplib.cycles.MIN_EVENT_QUALITY
+    "event_quality": (0.5, "min"),   # also mocaplib.cycles.MIN_EVENT_QUALITY (the choice)
     "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),

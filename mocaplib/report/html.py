@@ -26,6 +26,7 @@ from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlS
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
 from ..library import load_library, validate_library
+from ..pipeline import DIAGNOSTICS_FORMAT
 from . import figures, report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
@@ -101,9 +102,9 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
                       f"(`mocaplib build` writes it beside the library)"]
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != "mocaplib-diagnostics" or not isinstance(
+        if data.get("format") != DIAGNOSTICS_FORMAT or not isinstance(
                 data.get("captures"), list):
-            raise ValueError("not a mocaplib-diagnostics file")
+            raise ValueError(f"not a {DIAGNOSTICS_FORMAT} file")
     except (OSError, ValueError, AttributeError, RecursionError) as exc:
         return None, [f"diagnostics sidecar {path.name} unreadable ({exc}); "
                       "per-capture plots skipped"]
