@@ -60,8 +60,8 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
 from .io.tomlfile import read_toml
-from .fourier import ROOT_HEADING, TRANSLATIONS, RootDrift, synthesize
-from .skeleton import DOF_NAMES, DOFS
+from .fourier import ROOT_HEADING, RootDrift, synthesize
+from .skeleton import DOF_NAMES, JOINT_ANGLES, TRANSLATION
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
@@ -78,11 +78,6 @@ CLOSE_DISTANCE = 0.02
 #: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
 #: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
 LIFT_PERTURBATION = 1e-8
-#: Rotational DOFs (pelvis_t* are metres).
-ROTATIONAL = np.array([not d.translation for d in DOFS])
-#: The joint angles compared by :func:`leave_one_out`: the rotational DOFs except the root's
-#: heading ``pelvis_rotation``, which is compared apart (it is stored relative to the path frame).
-JOINT_ANGLES = ROTATIONAL & (np.asarray(DOF_NAMES) != "pelvis_rotation")
 #: Largest ratio s3/s1 of the singular values of centred, normalised points that counts as
 #: flat (on a plane or a line: no tetrahedra). Measured (12 points on a plane, 6 of them moved
 #: off it by ±eps, 3 draws): the triangulation fails at s3/s1 ≈ 1e-12 and "succeeds" above,
@@ -505,7 +500,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     channel in the units they are stored in (the Fourier convention: root in the path frame,
     per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
     the hull of the others, or the others are degenerate), ``neighbours`` (ids), ``weights``;
-    joint angles (:data:`JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs and phases),
+    joint angles (:data:`mocaplib.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs and phases),
     ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation`` relative to the
     path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS over the three
     and the phases); drift over one cycle: ``stride_error_mm`` (distance between the blended
@@ -545,7 +540,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
                        worst_dof=str(joint_names[np.argmax(per_dof)]),
                        heading_rms_deg=float(np.degrees(np.sqrt(np.mean(
                            err[:, ROOT_HEADING] ** 2)))),
-                       root_rms_mm=float(1000 * np.sqrt(np.mean(err[:, TRANSLATIONS] ** 2))),
+                       root_rms_mm=float(1000 * np.sqrt(np.mean(err[:, TRANSLATION] ** 2))),
                        T_error_s=float(bl.T[0] - cs.T[i]))
             if bl.drift is not None:
                 xb, yb, turned_b = _cycle_displacement(bl.drift[0], bl.T[0])

@@ -37,8 +37,9 @@ import numpy as np
 
 from .errors import EventError
 from .events import GaitEvent
-from .fourier import ROOT_X, ROOT_Y, TRANSLATIONS, CycleEncoding, encode_cycle
+from .fourier import ROOT_X, ROOT_Y, CycleEncoding, encode_cycle
 from .library import QC_LIMITS
+from .skeleton import TRANSLATION
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
                        sample_shoulders)
 
@@ -255,11 +256,11 @@ def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -
 
 
 def _unwrapped(q: np.ndarray, n_frames: int, source) -> np.ndarray:
-    if q.ndim != 2 or len(q) != n_frames or q.shape[1] != len(TRANSLATIONS):
-        raise EventError(f"q must have shape ({n_frames}, {len(TRANSLATIONS)}), got {q.shape}",
+    if q.ndim != 2 or len(q) != n_frames or q.shape[1] != len(TRANSLATION):
+        raise EventError(f"q must have shape ({n_frames}, {len(TRANSLATION)}), got {q.shape}",
                          path=source)
     out = q.copy()
-    rotations = ~TRANSLATIONS
+    rotations = ~TRANSLATION
     for d in np.flatnonzero(rotations):
         valid = np.isfinite(q[:, d])
         out[valid, d] = np.unwrap(q[valid, d])

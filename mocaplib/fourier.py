@@ -26,12 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import FitError
-from .skeleton import DOF_NAMES
+from .skeleton import DOF_NAMES, TRANSLATION
 
 #: Root channels re-expressed in the moving frame (indices into :data:`DOF_NAMES`).
 ROOT_X, ROOT_Y, ROOT_HEADING = (DOF_NAMES.index(n) for n in
                                 ("pelvis_tx", "pelvis_ty", "pelvis_rotation"))
-TRANSLATIONS = np.array([n in ("pelvis_tx", "pelvis_ty", "pelvis_tz") for n in DOF_NAMES])
 
 
 @dataclass(frozen=True)
@@ -220,7 +219,7 @@ class CycleEncoding:
     @property
     def rms_deg(self) -> float:
         """Largest reconstruction RMS over the rotational DOFs, degrees."""
-        return float(np.rad2deg(self.series.rms[~TRANSLATIONS].max()))
+        return float(np.rad2deg(self.series.rms[~TRANSLATION].max()))
 
     def synthesize_world(self, t) -> np.ndarray:
         """Joint coordinates (n, D) at times ``t`` (n,) in [0, T], drift put back (world frame)."""
@@ -242,10 +241,10 @@ def encode_cycle(q: np.ndarray, time_s: np.ndarray, period: float, q_end: np.nda
         raise FitError(f"q must have shape (n, {len(DOF_NAMES)}), got {q.shape}")
     q_end = np.asarray(q_end, dtype=np.float64)
     both = np.unwrap(np.vstack([q, q_end[None]]), axis=0)
-    both[:, TRANSLATIONS] = np.vstack([q, q_end[None]])[:, TRANSLATIONS]
+    both[:, TRANSLATION] = np.vstack([q, q_end[None]])[:, TRANSLATION]
     drift = root_drift(both[0], both[-1], period)
     local = drift.remove(both[:-1], time_s)
-    tolerance = np.where(TRANSLATIONS, tol_length, tol_angle)
+    tolerance = np.where(TRANSLATION, tol_length, tol_angle)
     series = encode(local, time_s, period, tolerance=tolerance, max_order=max_order)
     worst = int(np.argmax(series.rms / tolerance))
     return CycleEncoding(series, drift, DOF_NAMES[worst])

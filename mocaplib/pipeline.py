@@ -417,13 +417,12 @@ def cycle_qc(cycle, motion) -> dict:
     is too short to be filtered): the jerk of unfiltered angles would measure fit noise only.
     """
     from .filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from .fourier import TRANSLATIONS
+    from .skeleton import JOINT_ANGLES, TRANSLATION
 
     frames = np.arange(motion.n_frames) / motion.rate
     inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
     residuals = motion.residuals[inside]
-    joints = ~TRANSLATIONS & (np.asarray(motion.angles.columns) != "pelvis_rotation")
-    q = np.unwrap(motion.q[:, joints], axis=0)
+    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
     ends = np.array([[np.interp(t, frames, q[:, d]) for d in range(q.shape[1])]
                      for t in (cycle.start_s, cycle.end_s)])
     jerk = None
@@ -440,7 +439,7 @@ def cycle_qc(cycle, motion) -> dict:
             "marker_max_m": float(np.nanmax(residuals)),
             "gap_fraction": float(np.isnan(residuals).mean()),
             "event_quality": float(cycle.event_quality),
-            "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATIONS].max()),
+            "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATION].max()),
             "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
             "jerk_rms_rad_s3": jerk,
         }

@@ -143,6 +143,10 @@ _DOF_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 TRANSLATION = np.array([d.translation for d in DOFS])
 #: The translation DOFs' indices (the root's pelvis_t*).
 SHIFTS = np.flatnonzero(TRANSLATION)
+#: The joint angles (D,) bool: the rotational DOFs except the root's heading
+#: ``pelvis_rotation``, which the library stores relative to the path frame and QC and
+#: leave-one-out treat apart.
+JOINT_ANGLES = ~TRANSLATION & (np.asarray(DOF_NAMES) != "pelvis_rotation")
 
 
 def _moves() -> np.ndarray:

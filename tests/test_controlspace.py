@@ -9,13 +9,13 @@ import pytest
 
 from scipy.spatial import ConvexHull, Delaunay
 
-from mocaplib.controlspace import (DEFAULT_SCALE, JOINT_ANGLES, Blend, ControlSpace, Envelope,
-                                   coverage, delaunay_tetrahedra, drift_velocities,
+from mocaplib.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, Envelope, coverage,
+                                   delaunay_tetrahedra, drift_velocities,
                                    leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.fourier import root_drift, synthesize
 from mocaplib.library import assemble_library, make_entry
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES
 
 D = len(DOF_NAMES)
 CUBE = np.array(list(itertools.product((0.0, 1.0), repeat=3)))

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.fourier import (ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATIONS, encode, encode_cycle,
+from mocaplib.fourier import (ROOT_HEADING, ROOT_X, ROOT_Y, encode, encode_cycle,
                               fit_series, root_drift, synthesize)
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES, TRANSLATION
 
 T = 1.1
 D = len(DOF_NAMES)
@@ -90,8 +90,8 @@ def test_cycle_encoding_is_periodic_and_restores_the_drift():
     np.testing.assert_allclose(enc.drift.omega, 0.5, atol=1e-9)  # exact heading change / T
     world = enc.synthesize_world(time)
     # restoring the drift gives back the world coordinates (heading unwrapped)
-    np.testing.assert_allclose(world[:, TRANSLATIONS], q[:, TRANSLATIONS], atol=0.002)
-    np.testing.assert_allclose(np.angle(np.exp(1j * (world - q)))[:, ~TRANSLATIONS], 0,
+    np.testing.assert_allclose(world[:, TRANSLATION], q[:, TRANSLATION], atol=0.002)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (world - q)))[:, ~TRANSLATION], 0,
                                atol=np.deg2rad(0.5))
 
 

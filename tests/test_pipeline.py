@@ -380,7 +380,7 @@ def test_cli_validate_prints_problems(tmp_path, capsys):
     assert main(["validate", str(path), "--json"]) == 1
     report = json.loads(capsys.readouterr().out)
     assert report["valid"] is False and report["problems"][0]["where"] == "control_space"
-    assert main(["validate", str(tmp_path / "absent")]) == 1
+    assert main(["validate", str(tmp_path / "absent")]) == 2   # a usage error: no such file
 
 
 # --------------------------------------------------------------------------- real stages

@@ -25,7 +25,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
 from .atomic import atomic_write_text
 
 if TYPE_CHECKING:
@@ -157,8 +157,7 @@ def write_trc(markers: np.ndarray, labels: list[str], rate: float, path: str | o
 def write_mot(motion: "Motion", path: str | os.PathLike):
     """Write joint angles as an OpenSim .mot: time, then one column per DOF, angles in degrees."""
     q = motion.q.copy()
-    rot = [not d.translation for d in DOFS]
-    q[:, rot] = np.degrees(q[:, rot])
+    q[:, ~TRANSLATION] = np.degrees(q[:, ~TRANSLATION])
     header = [os.path.basename(os.fspath(path)), "version=1", f"nRows={len(q)}",
               f"nColumns={len(DOF_NAMES) + 1}", "inDegrees=yes", "endheader",
               "time\t" + "\t".join(DOF_NAMES)]
