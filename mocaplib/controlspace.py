@@ -500,12 +500,13 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     channel in the units they are stored in (the Fourier convention: root in the path frame,
     per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
     the hull of the others, or the others are degenerate), ``neighbours`` (ids), ``weights``;
-    joint angles (:data:`mocaplib.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs and phases),
-    ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation`` relative to the
-    path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS over the three
-    and the phases); drift over one cycle: ``stride_error_mm`` (distance between the blended
-    and the entry's displacement per cycle), ``turn_error_deg`` (heading change per cycle,
-    blended minus entry's; NaN without drift); ``T_error_s`` (blended minus entry's period).
+    joint angles (:data:`mocaplib.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs
+    and phases), ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation``
+    relative to the path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS
+    over the three and the phases); drift over one cycle: ``stride_error_mm`` (distance
+    between the blended and the entry's displacement per cycle), ``turn_error_deg`` (heading
+    change per cycle, blended minus entry's; NaN without drift); ``T_error_s`` (blended minus
+    entry's period).
     """
     if cs.a is None:
         raise MocapError("leave-one-out needs Fourier coefficients", path=cs.source)

@@ -37,6 +37,7 @@ import numpy as np
 
 from .errors import EventError
 from .events import GaitEvent
+from .filtering import resample
 from .fourier import ROOT_X, ROOT_Y, CycleEncoding, encode_cycle
 from .library import QC_LIMITS
 from .skeleton import TRANSLATION
@@ -271,12 +272,9 @@ def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> 
     """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
     from .skeleton import DOF_NAMES
 
-    frames = np.arange(len(q)) / rate
-    out = np.empty((len(times), q.shape[1]))
-    for d in range(q.shape[1]):
-        valid = np.isfinite(q[:, d])
-        if not valid.any():
-            raise EventError(f"joint coordinate {DOF_NAMES[d]} is missing in every frame",
-                             path=source, hint="check the fit: this DOF was never fitted")
-        out[:, d] = np.interp(times, frames[valid], q[valid, d])
-    return out
+    never = ~np.isfinite(q).any(axis=0)
+    if never.any():
+        name = DOF_NAMES[int(np.argmax(never))]
+        raise EventError(f"joint coordinate {name} is missing in every frame", path=source,
+                         hint="check the fit: this DOF was never fitted")
+    return resample(q, rate, times)

@@ -65,6 +65,20 @@ def valid_runs(valid: np.ndarray) -> np.ndarray:
     return edges.reshape(-1, 2)
 
 
+def resample(values: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
+    """``values`` (F, C), frame k at ``k / rate`` s, at ``times`` (n,) s: linear between the
+    finite samples of each column, gaps bridged, held flat beyond the first and last. Returns
+    (n, C); a column without any finite sample is NaN."""
+    values = np.asarray(values, dtype=np.float64)
+    frames = np.arange(len(values)) / rate
+    out = np.full((len(times), values.shape[1]), np.nan)
+    for column in range(values.shape[1]):
+        valid = np.isfinite(values[:, column])
+        if valid.any():
+            out[:, column] = np.interp(times, frames[valid], values[valid, column])
+    return out
+
+
 def longest_run(data: np.ndarray) -> int:
     """Frames in the longest run of finite samples of any column of ``data`` (F, ...)."""
     flat = np.isfinite(np.asarray(data, dtype=np.float64).reshape(len(data), -1))

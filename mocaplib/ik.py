@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import FitError
-from .filtering import valid_runs
+from .filtering import resample, valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, SHIFTS,
@@ -520,17 +520,9 @@ def _bracket(keys: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _fill_gaps(values: np.ndarray) -> np.ndarray:
     """Linearly interpolate NaN rows over time per column (0 where a column is all NaN)."""
-    out = values.copy()
-    if not np.isnan(out).any():
-        return out
-    idx = np.arange(len(values))
-    for c in range(values.shape[1]):
-        good = np.isfinite(values[:, c])
-        if not good.any():
-            out[:, c] = 0.0
-        elif not good.all():
-            out[~good, c] = np.interp(idx[~good], idx[good], values[good, c])
-    return out
+    if not np.isnan(values).any():
+        return values.copy()
+    return np.nan_to_num(resample(values, 1.0, np.arange(len(values))), nan=0.0)
 
 
 # ----------------------------------------------------------------------------- the fit

@@ -46,6 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .errors import EventError
+from .filtering import resample
 from .io.jsonvalues import json_values
 
 
@@ -339,8 +340,7 @@ def sample_shoulders(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate
             raise EventError(f"{name} shoulder missing in more than {1 - min_valid:.0%} of "
                              f"{times[0]:.3f}-{times[-1]:.3f} s", path=source,
                              hint="check the shoulder markers or fill the gaps")
-        sampled.append(np.column_stack([np.interp(times, frames[valid], points[valid, k])
-                                        for k in range(3)]))
+        sampled.append(resample(np.where(valid[:, None], points, np.nan), rate, times))
     left_s, right_s = sampled
     mid = 0.5 * (left_s + right_s)
     if ground is not None:

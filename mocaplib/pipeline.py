@@ -416,15 +416,14 @@ def cycle_qc(cycle, motion) -> dict:
     low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (rad/s^3; None when the capture
     is too short to be filtered): the jerk of unfiltered angles would measure fit noise only.
     """
-    from .filtering import WALKING_CUTOFF, lowpass, shortest_run
+    from .filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
     from .skeleton import JOINT_ANGLES, TRANSLATION
 
     frames = np.arange(motion.n_frames) / motion.rate
     inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
     residuals = motion.residuals[inside]
     q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
-    ends = np.array([[np.interp(t, frames, q[:, d]) for d in range(q.shape[1])]
-                     for t in (cycle.start_s, cycle.end_s)])
+    ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
     jerk = None
     if motion.n_frames >= shortest_run(motion.rate, WALKING_CUTOFF) \
             and motion.rate > 2 * WALKING_CUTOFF:
@@ -464,13 +463,12 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
 
 def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
     """Every cycle's summary and the chosen cycle's angles (root in the moving frame)."""
+    from .filtering import resample
     from .patterns import cycle_times
 
     chosen = next(c for c in cycles if c.chosen)
     times = cycle_times(chosen.start_s, chosen.end_s, motion.rate)[:-1]
-    frames = np.arange(motion.n_frames) / motion.rate
-    q = np.column_stack([np.interp(times, frames, column) for column in
-                         np.unwrap(motion.q, axis=0).T])
+    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
     local = chosen.encoding.drift.remove(q, times - chosen.start_s)
     pick = downsample(len(times), MAX_CYCLE_POINTS)
     angles = {"time_s": times[pick] - chosen.start_s}

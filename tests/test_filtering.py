@@ -183,3 +183,14 @@ def test_fit_reports_no_cutoff_for_a_capture_too_short_to_filter(tmp_path, capsy
     assert main(["fit", str(short), "-o", str(tmp_path / "b.csv"), "--cutoff", "6"]) == 1
     assert "a 6 Hz low-pass needs at least 17 frames" in capsys.readouterr().err
     assert not (tmp_path / "b.csv").exists()
+
+
+def test_resample_bridges_gaps_per_column_and_keeps_empty_columns_nan():
+    from mocaplib.filtering import resample
+
+    values = np.array([[0.0, np.nan, np.nan], [1.0, 10.0, np.nan], [np.nan, 20.0, np.nan],
+                       [3.0, np.nan, np.nan]])
+    got = resample(values, 2.0, np.array([0.0, 0.25, 1.0, 2.0]))   # frames at 0, 0.5, 1, 1.5 s
+    np.testing.assert_allclose(got[:, 0], [0.0, 0.5, 2.0, 3.0])       # the gap at 1 s bridged
+    np.testing.assert_allclose(got[:, 1], [10.0, 10.0, 20.0, 20.0])   # held beyond the ends
+    assert np.isnan(got[:, 2]).all()
