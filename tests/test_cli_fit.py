@@ -65,6 +65,11 @@ def test_cutoff_option(tmp_path, capsys):
     assert 2.0 <= reports["auto"]["cutoff_hz"] <= 20.0
     # low-passed markers lose their 0.5 mm white noise, so they lie closer to the model
     assert reports["8"]["marker_rms_mm"] < reports["none"]["marker_rms_mm"]
+    for cutoff, said in (("none", "markers not low-passed ->"),
+                         ("8", "markers low-passed at 8 Hz ->")):
+        assert main(["fit", str(path), "--protocol", "fullbody38", "--cutoff", cutoff,
+                     "-o", str(tmp_path / "text.csv")]) == 0
+        assert said in capsys.readouterr().out
     # argparse: a usage error
     assert main(["fit", str(path), "--cutoff", "-3", "-o", str(tmp_path / "x.csv")]) == 2
     assert "--cutoff: must be > 0 Hz" in capsys.readouterr().err

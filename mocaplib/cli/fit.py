@@ -80,6 +80,7 @@ def _run(args) -> int:
         print(f"{args.input}: protocol {model.protocol.name}"
               f"{f', static {static}' if static else ''}, {motion.n_frames} frames, "
               f"marker RMS {quality['marker_rms_mm']:.1f} mm, "
-              f"max {quality['max_marker_error_mm']:.1f} mm, markers low-passed at "
-              f"{'(none)' if cutoff is None else f'{cutoff:g} Hz'} -> {args.output}")
+              f"max {quality['max_marker_error_mm']:.1f} mm, markers "
+              f"{'not low-passed' if cutoff is None else f'low-passed at {cutoff:g} Hz'} "
+              f"-> {args.output}")
     return 0
