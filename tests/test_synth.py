@@ -269,6 +269,8 @@ def test_bad_commands_and_durations_raise_synth_error():
         Command.from_kind("curve", speed=1.0)
     with pytest.raises(SynthError, match="unknown locomotion kind"):
         Command.from_kind("moonwalk", speed=1.0)
+    with pytest.raises(SynthError, match="speed is a magnitude, >= 0, got -50"):
+        Command.from_kind("straight", speed=-50.0)
 
 
 def test_soft_tissue_artefact_grows_with_body_mass():

@@ -82,6 +82,9 @@ class Command:
         sign = {"left": 1.0, "right": -1.0}.get(side)
         if sign is None:
             raise SynthError(f"side must be 'left' or 'right', got {side!r}")
+        if not speed >= 0:
+            raise SynthError(f"speed is a magnitude, >= 0, got {speed}",
+                             hint="give the way with side = \"left\"/\"right\" or direction")
         if kind in ("straight", "run"):
             return cls(v_f=speed, gait="run" if kind == "run" else "walk")
         if kind == "curve":
