@@ -161,3 +161,35 @@ def test_chain_equals_joint_by_joint_composition():
             np.testing.assert_allclose(T[f, s, :3, :3], R, atol=1e-12)
             np.testing.assert_allclose(T[f, s, :3, 3], p, atol=1e-12)
             np.testing.assert_array_equal(T[f, s, 3], [0.0, 0.0, 0.0, 1.0])
+
+
+def test_the_library_format_doc_poses_the_skeleton_as_mocaplib_does():
+    """docs/library-format.md, *Posing the skeleton*: its table and formula alone (parsed
+    here, no mocaplib kinematics) put every segment where Skeleton.forward does."""
+    import re
+    from pathlib import Path
+    from scipy.spatial.transform import Rotation
+
+    doc = (Path(__file__).parents[1] / "docs" / "library-format.md").read_text()
+    section = doc[doc.index("### Posing the skeleton"):]
+    rows = re.findall(r"^\| `(\w+)` \| (?:`(\w+)`|—) \| \(([^)]*)\) \| (.*) \|$", section, re.M)
+    assert [r[0] for r in rows] == list(SEGMENT_NAMES)
+    skeleton = Skeleton.from_height(1.68)
+    q = np.random.default_rng(4).uniform(-0.6, 0.6, len(DOF_NAMES))
+    world = {}
+    for name, parent, offset, dofs in rows:
+        expression = offset.replace("−", "-")
+        centre = [eval(part, {}, dict(skeleton.lengths)) for part in expression.split(",")]
+        pose = np.eye(4) if not parent else world[parent].copy()
+        pose[:3, 3] += pose[:3, :3] @ np.array(centre, dtype=float)
+        for dof, sign, letter in re.findall(r"`(\w+)` ([+−])([XYZ])", dofs):
+            value = q[DOF_NAMES.index(dof)] * (1 if sign == "+" else -1)
+            axis = np.eye(3)["XYZ".index(letter)]
+            if dof in ("pelvis_tx", "pelvis_ty", "pelvis_tz"):
+                pose[:3, 3] += value * axis                       # along the world axis
+            else:
+                pose[:3, :3] = pose[:3, :3] @ Rotation.from_rotvec(value * axis).as_matrix()
+        world[name] = pose
+    expected = skeleton.forward(q)[0]
+    for s, name in enumerate(SEGMENT_NAMES):
+        np.testing.assert_allclose(world[name], expected[s], atol=1e-12, err_msg=name)
