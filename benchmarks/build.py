@@ -13,8 +13,9 @@ Usage (from the repository root)::
    frames, and the time per 1000 frames (flat means linear growth).
 
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
-``--static`` / ``--static-pose`` build as the README's main command does (default: calibrate
-from each capture, as ``mocaplib build`` without ``--static``).
+``--static`` / ``--static-pose`` calibrate as the README's main command does (default: calibrate
+from each capture, as ``mocaplib build`` without ``--static``); cycles are cut at the default
+toe-offs, not at the main command's ``--toe-off lift``.
 """
 
 from __future__ import annotations

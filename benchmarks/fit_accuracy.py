@@ -20,8 +20,8 @@ the filter alone costs). Other statures (``--only statures``): one capture of ea
 type of the sample plan (:data:`STATURE_CAPTURES`) and its static regenerated for subjects of
 1.55 m and 1.95 m (same seeds and marker placement; a capture too short for the taller
 subject's slower cadence is lengthened to two cycles), built as the README's main command
-builds (static, neutral pose), with each capture's angle errors as above and its v̂, ω̂, v̂_l
-errors against the truth. Prints Markdown tables.
+builds (static, neutral pose) but cut at the default toe-offs, with each capture's angle errors
+as above and its v̂, ω̂, v̂_l errors against the truth. Prints Markdown tables.
 """
 
 from __future__ import annotations
