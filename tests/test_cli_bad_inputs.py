@@ -308,6 +308,17 @@ def test_a_bad_static_is_a_usage_error_in_every_command(command, tmp_path, capsy
     assert not list(tmp_path.glob("l.*")) and not (tmp_path / "a.csv").exists()
 
 
+@pytest.mark.parametrize("command", ["fit", "cycles", "build"])
+def test_a_neutral_static_pose_without_a_static_is_a_usage_error(command, tmp_path, capsys):
+    walk = sample("walk_straight_normal", tmp_path)
+    outputs = [option.format(d=tmp_path) for option in OUTPUTS[command]]
+    assert main([command, str(walk), *outputs, "--static-pose", "neutral"]) == 2
+    captured = capsys.readouterr()
+    assert "--static-pose neutral describes the static trial: give it with --static FILE" \
+        in captured.err and not captured.out
+    assert not list(tmp_path.glob("l.*")) and not (tmp_path / "a.csv").exists()
+
+
 @pytest.mark.parametrize("command", ["fit", "events", "cycles", "build"])
 def test_a_missing_input_is_a_usage_error_in_every_command(command, tmp_path, capsys):
     outputs = [option.format(d=tmp_path) for option in OUTPUTS[command]]

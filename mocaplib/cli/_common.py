@@ -161,11 +161,15 @@ LIBRARY_HINT = "check the path; `mocaplib build` writes a library"
 
 
 def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
-                 hint: str = "check the path") -> list:
+                 static_pose: str = "free", hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
-    not exist (the message ends with ``hint``), or a ``--static`` cannot be read or is not
-    standing still (:func:`mocaplib.calibration.check_standing`). Returns the static trials,
-    each file read once (the same file given twice counts once)."""
+    not exist (the message ends with ``hint``), a ``--static`` cannot be read or is not
+    standing still (:func:`mocaplib.calibration.check_standing`), or ``--static-pose neutral``
+    comes without a static. Returns the static trials, each file read once (the same file
+    given twice counts once)."""
+    if static_pose == "neutral" and not statics:
+        raise UsageError("--static-pose neutral describes the static trial: give it with "
+                         "--static FILE, or leave --static-pose out")
     from ..calibration import check_standing
     from ..io.c3d import read_c3d
 

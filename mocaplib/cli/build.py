@@ -53,7 +53,7 @@ def _check_usage(args) -> None:
     that cannot take the report."""
     from ..pipeline import diagnostics_path, find_captures
 
-    check_inputs(args.inputs, args.static)
+    check_inputs(args.inputs, args.static, static_pose=args.static_pose)
     captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")

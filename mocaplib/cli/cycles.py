@@ -42,7 +42,7 @@ def _run(args) -> int:
     from ._common import print_json
     from .events import load
 
-    statics = check_inputs([args.file], args.static)
+    statics = check_inputs([args.file], args.static, static_pose=args.static_pose)
     trial, match, missing = load(args)
     if missing is not None:
         raise missing

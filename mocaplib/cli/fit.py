@@ -45,7 +45,7 @@ def _run(args) -> int:
     from ..protocols import match_trial
     from ._common import print_json, warn
 
-    statics = check_inputs([args.input], args.static)
+    statics = check_inputs([args.input], args.static, static_pose=args.static_pose)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ())])
     trial = read_c3d(args.input)
