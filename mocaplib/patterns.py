@@ -89,10 +89,12 @@ class Pattern:
         return np.full(len(xy), np.nan)
 
     def to_dict(self) -> dict:
-        """JSON-ready description: ``type``, ``params``, ``residual`` (m), ``arc_angle`` (rad)."""
-        return {"type": self.kind, "params": json_values(self.params),
-                "residual": float(self.residual), "arc_angle": float(self.arc_angle),
-                "length": float(self.length)}
+        """JSON-ready description, as the library stores it (docs/library-format.md):
+        ``type``, ``parameters`` (the fit's, m / rad, and the path ``length`` along it, m),
+        ``residual_m`` and ``arc_angle_rad``."""
+        return {"type": self.kind,
+                "parameters": json_values({**self.params, "length": float(self.length)}),
+                "residual_m": float(self.residual), "arc_angle_rad": float(self.arc_angle)}
 
 
 @dataclass(frozen=True)

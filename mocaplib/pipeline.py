@@ -385,19 +385,12 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             id=f"{path.stem}_c{cycle.index}", source_file=path.name,
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
-            pattern=_pattern(vel.pattern), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
+            pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=lengths, rate_hz=rate,
             first_frame=first_frame))
     return entries
-
-
-def _pattern(pattern) -> dict:
-    data = pattern.to_dict()
-    parameters = dict(data["params"], length=data["length"])
-    return {"type": data["type"], "parameters": parameters, "residual_m": data["residual"],
-            "arc_angle_rad": data["arc_angle"]}
 
 
 def _drift(drift) -> dict:
@@ -476,7 +469,7 @@ def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
     return to_json_data({
         "cycles": [{"index": c.index, "start_s": c.start_s, "end_s": c.end_s,
                     "chosen": c.chosen, "rest": c.rest, "entry_id": entry_ids.get(c.index),
-                    "pattern": _pattern(c.velocities.pattern), "v": c.velocities.v,
+                    "pattern": c.velocities.pattern.to_dict(), "v": c.velocities.v,
                     "omega": c.velocities.omega, "v_l": c.velocities.v_l,
                     "v_f": c.velocities.v_f, "unsteadiness": c.unsteadiness,
                     "event_quality": c.event_quality,

@@ -51,7 +51,7 @@ def test_every_cycle_measured_one_chosen():
     for key in ("start_s", "end_s", "T", "pattern", "v", "omega", "v_l", "v_f",
                 "fourier_n", "fourier_rms_deg", "chosen"):
         assert key in data
-    assert data["pattern"]["type"] == "arc" and data["pattern"]["arc_angle"] > 0
+    assert data["pattern"]["type"] == "arc" and data["pattern"]["arc_angle_rad"] > 0
 
 
 def test_steadiest_cycle_is_chosen_not_gait_initiation():
@@ -197,7 +197,7 @@ def test_cli_cycles_json(capsys):
     for row in out["cycles"]:
         assert {"start_s", "end_s", "T", "pattern", "v", "omega", "v_l", "v_f", "fourier_n",
                 "fourier_rms_deg", "chosen"} <= set(row)
-        assert row["pattern"]["type"] == "arc" and row["pattern"]["arc_angle"] > 0
+        assert row["pattern"]["type"] == "arc" and row["pattern"]["arc_angle_rad"] > 0
         np.testing.assert_allclose(row["omega"], 0.5, atol=0.02)  # 1.0 m/s on a 2 m radius
         # fitted shoulder centres: the 0.02 m/s on v_l (truth 0 to 1e-3)
         np.testing.assert_allclose(row["v_l"], 0.0, atol=0.02)

@@ -504,6 +504,11 @@ def test_process_capture_gives_the_cycles_of_mocaplib_cycles(synthetic_folder, c
         assert entry["chosen"] == cycle["chosen"]
         assert entry["fourier"]["n"] == cycle["fourier_n"]
         assert cycle["qc_failures"] == qc_failures(entry["qc"], DEFAULT_QC_THRESHOLDS)
+        # one JSON shape for a pattern: the library's
+        assert entry["pattern"].keys() == cycle["pattern"].keys()
+        assert entry["pattern"]["parameters"].keys() == cycle["pattern"]["parameters"].keys()
+        np.testing.assert_allclose(entry["pattern"]["arc_angle_rad"],
+                                   cycle["pattern"]["arc_angle_rad"], rtol=1e-9, atol=1e-12)
 
 
 def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_capture(

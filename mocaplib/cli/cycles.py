@@ -61,7 +61,7 @@ def _run(args) -> int:
     for r in rows:
         print(f"{'*' if r['chosen'] else ' '} {r['index']:<2d} {r['start_s']:6.2f} "
               f"{r['T']:5.2f}  {r['pattern']['type']:6s} "
-              f"{np.rad2deg(r['pattern']['arc_angle']):6.1f}"
+              f"{np.rad2deg(r['pattern']['arc_angle_rad']):6.1f}"
               f"  {r['v']:6.3f} {np.rad2deg(r['omega']):6.1f}  {r['v_l']:7.3f}  {r['v_f']:7.3f}"
               f"  {r['fourier_n']:2d} {r['fourier_rms_deg']:5.2f}  {r['fourier_worst_dof']}")
     for r in rows:
