@@ -467,14 +467,7 @@ def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
     angles = {"time_s": times[pick] - chosen.start_s}
     angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
     return to_json_data({
-        "cycles": [{"index": c.index, "start_s": c.start_s, "end_s": c.end_s,
-                    "chosen": c.chosen, "rest": c.rest, "entry_id": entry_ids.get(c.index),
-                    "pattern": c.velocities.pattern.to_dict(), "v": c.velocities.v,
-                    "omega": c.velocities.omega, "v_l": c.velocities.v_l,
-                    "v_f": c.velocities.v_f, "unsteadiness": c.unsteadiness,
-                    "event_quality": c.event_quality,
-                    "fourier_n": c.encoding.order if c.encoding else None}
-                   for c in cycles],
+        "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
         "angles": angles,
     }, DIAGNOSTICS_DIGITS)
 
