@@ -631,3 +631,16 @@ def test_a_sidecar_of_another_build_is_not_used(tmp_path):
         diagnostics, warnings = read_diagnostics(lib_path, library)
         assert diagnostics is None and len(warnings) == 1
         assert "does not belong to this library" in warnings[0] and why in warnings[0]
+
+
+def test_the_capture_figure_draws_the_pattern_the_sidecar_stores():
+    from mocaplib.patterns import fit_pattern
+    from mocaplib.report.figures import pattern_curve
+
+    angle = np.linspace(0.0, 1.2, 60)
+    path = np.column_stack([1.0 + 2.0 * np.cos(angle), -0.5 + 2.0 * np.sin(angle)])
+    stored = json.loads(json.dumps(fit_pattern(path).to_dict()))   # as in the sidecar
+    curve = pattern_curve(stored, path)
+    assert stored["type"] == "arc" and curve is not None and len(curve) > 10
+    np.testing.assert_allclose(np.hypot(curve[:, 0] - 1.0, curve[:, 1] + 0.5), 2.0, atol=1e-6)
+    assert pattern_curve({"type": "arc", "parameters": {}}, path) is None

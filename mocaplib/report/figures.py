@@ -236,10 +236,10 @@ def _path_panel(ax, record, cycles):
 def pattern_curve(pattern: dict, seg: np.ndarray) -> np.ndarray | None:
     """Points (K, 2) of a fitted pattern over the stretch of path ``seg`` (n, 2) it was fitted to.
 
-    ``pattern``: ``type`` line (``point``, ``direction``), arc (``centre``, ``radius``) or point
-    (``point``), parameters under ``params`` or ``parameters`` (or at the top level); None when
-    the parameters are missing."""
-    p = pattern.get("params") or pattern.get("parameters") or pattern
+    ``pattern``: as the library stores it, ``type`` line (``parameters``: ``point``,
+    ``direction``), arc (``centre``, ``radius``) or point (``point``); None when the parameters
+    are missing."""
+    p = pattern.get("parameters") or {}
     kind = pattern.get("type")
     try:
         if kind == "line":
