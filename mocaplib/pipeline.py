@@ -785,7 +785,7 @@ def _run(process, work: list[tuple[int, Path]], settings: BuildSettings, jobs: i
 
         # "spawn" rather than fork: the parent may hold threads (progress bar, BLAS).
         context = multiprocessing.get_context("spawn")
-        with _single_threaded_workers(), ProcessPoolExecutor(
+        with single_threaded_workers(), ProcessPoolExecutor(
                 max_workers=min(jobs, len(work)), mp_context=context) as pool:
             futures = {pool.submit(process, os.fspath(path), settings): i for i, path in work}
             for future in as_completed(futures):
@@ -797,7 +797,7 @@ _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS
 
 
 @contextmanager
-def _single_threaded_workers():
+def single_threaded_workers():
     """Worker processes started inside get one BLAS thread each (unless the user chose a
     number): with one process per core, more threads only compete for the same cores."""
     unset = [name for name in _THREAD_VARIABLES if name not in os.environ]

@@ -89,8 +89,8 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
                                    ("left", "toe_off", 0.5 + T))],
         "cycles": [{"index": 0, "start_s": 0.5, "end_s": 0.5 + T, "chosen": True,
                     "entry_id": entry_id,
-                    "pattern": {"type": "arc", "params": {"centre": [0.0, R], "radius": R,
-                                                          "turn": 1}}}],
+                    "pattern": {"type": "arc", "parameters": {"centre": [0.0, R], "radius": R,
+                                                              "turn": 1}}}],
         "angles": {"time_s": t_cycle.tolist(),
                    **{n: q[:, j].tolist() for j, n in enumerate(DOF_NAMES)}},
         "warnings": [f"label {EVIL} renamed"], "static": "Static1.c3d",
@@ -644,3 +644,22 @@ def test_the_capture_figure_draws_the_pattern_the_sidecar_stores():
     assert stored["type"] == "arc" and curve is not None and len(curve) > 10
     np.testing.assert_allclose(np.hypot(curve[:, 0] - 1.0, curve[:, 1] + 0.5), 2.0, atol=1e-6)
     assert pattern_curve({"type": "arc", "parameters": {}}, path) is None
+
+
+def test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one(tmp_path):
+    from mocaplib.library import load_library
+    from mocaplib.report.html import _captures, read_diagnostics
+
+    path = make_library(tmp_path)
+    library = load_library(path)
+    diagnostics = read_diagnostics(path, library)[0]
+    series = diagnostics["captures"][0]
+    diagnostics["captures"][1:1] = [{**series, "source": f"copy{k}.c3d",
+                                     "frame_rms_m": (np.array(series["frame_rms_m"])
+                                                     + 0.004 * (k + 1)).tolist()}
+                                    for k in range(3)]
+    one, two = (_captures(diagnostics, library, jobs=jobs) for jobs in (1, 2))
+    figures = [c["figure"] for c in one if c["figure"]]
+    assert len(figures) == 4 and len(set(figures)) == 4     # four different figures, in order
+    assert [c["figure"] for c in two if c["figure"]] == figures
+    assert [c["source"] for c in two] == [c["source"] for c in one]

@@ -29,7 +29,8 @@ def register(subparsers) -> None:
     add_toe_off_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
-                        help="worker processes (default 1)")
+                        help="worker processes, for the captures and the report's figures "
+                             "(default 1)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
@@ -92,5 +93,5 @@ def _run(args) -> int:
     if args.report:
         from ..report import write_report
 
-        print(f"report: {write_report(library_path, args.report)}")
+        print(f"report: {write_report(library_path, args.report, jobs=args.jobs)}")
     return 0 if result.ok and not problems else 1

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ._common import positive
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -17,6 +19,8 @@ def register(subparsers) -> None:
                         help="target envelope: a TOML file with an [envelope] table, or your "
                              "capture plan (default: the plan of mocaplib's synthetic sample "
                              "captures, shipped with it)")
+    parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
+                        help="processes drawing the per-capture figures (default 1)")
     parser.add_argument("--no-opengl", action="store_true",
                         help="draw the 3-D view with matplotlib instead of pyvista/VTK")
     parser.set_defaults(run=_run)
@@ -30,7 +34,8 @@ def _run(args) -> int:
     check_output_folder("-o", args.output, report_name(args.library), [args.library])
     _check_envelope(args.envelope)
     path = write_report(args.library, args.output, envelope=args.envelope,
-                        renderer="matplotlib" if args.no_opengl else "auto")
+                        renderer="matplotlib" if args.no_opengl else "auto",
+                        jobs=args.jobs)
     print(f"report: {path}")
     return 0
 

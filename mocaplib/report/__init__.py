@@ -10,12 +10,13 @@ import os
 from pathlib import Path
 
 
-def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"):
+def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto",
+                 jobs: int = 1):
     """Write ``<out_dir>/<library stem>-report.html``; see
     :func:`mocaplib.report.html.write_report`."""
     from .html import write_report as _write
 
-    return _write(library_path, out_dir, envelope=envelope, renderer=renderer)
+    return _write(library_path, out_dir, envelope=envelope, renderer=renderer, jobs=jobs)
 
 
 def report_name(library_path: str | os.PathLike) -> str:

@@ -39,20 +39,21 @@ MAX_SLIVER_ROWS = 10
 
 
 def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
-                 envelope=None, renderer: str = "auto") -> Path:
+                 envelope=None, renderer: str = "auto", jobs: int = 1) -> Path:
     """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
 
     ``envelope``: an :class:`~mocaplib.controlspace.Envelope`, a TOML file (an ``[envelope]``
     table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
-    back to matplotlib without OpenGL) or ``"matplotlib"``. Reads the diagnostics sidecar
+    back to matplotlib without OpenGL) or ``"matplotlib"``. ``jobs``: processes drawing the
+    per-capture figures (the report's slowest part). Reads the diagnostics sidecar
     ``<stem>.diagnostics.json`` beside the library when it exists and belongs to it.
     """
     library_path = Path(library_path)
     library = load_library(library_path)
     diagnostics, diag_warnings = read_diagnostics(library_path, library)
     context = build_context(library, library_path, diagnostics, envelope=envelope,
-                            renderer=renderer)
+                            renderer=renderer, jobs=jobs)
     context["warnings"][:0] = diag_warnings
     html = render_html(context)
     return atomic_write_text(Path(out_dir) / report_name(library_path), html)
@@ -187,7 +188,7 @@ def _sidecar_mismatch(records: list[dict], library_ids: set[str], *,
 
 # --------------------------------------------------------------------------- context
 def build_context(library, library_path: Path, diagnostics: dict | None, *, envelope=None,
-                  renderer: str = "auto") -> dict:
+                  renderer: str = "auto", jobs: int = 1) -> dict:
     """Every number, table and figure of the report (values still unescaped).
 
     ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
@@ -212,7 +213,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         "entries": _entry_rows(df, label),
         "coverage": None, "loo": None, "three_d": None, "viewer": None, "projections": None,
         "planned": planned_status(env_note["plan"], env_note["plan_name"], df, diagnostics),
-        "captures": _captures(diagnostics, library),
+        "captures": _captures(diagnostics, library, jobs=jobs),
     }
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
@@ -615,15 +616,16 @@ def _unique_edges(cells: np.ndarray) -> np.ndarray:
     return np.unique(np.sort(np.vstack(pairs), axis=1), axis=0).reshape(-1, 2)
 
 
-def _captures(diagnostics: dict | None, library) -> list[dict]:
-    """Per-capture sections: status, warnings, cycles and the quality figure.
+def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]:
+    """Per-capture sections: status, warnings, cycles and the quality figure (drawn by
+    ``jobs`` processes).
 
     ``diagnostics``: as :func:`read_diagnostics` returns it (its records' shape checked).
     Cycles are numbered by their ``index`` in the capture, from 0, as in the entry ids
     (``<stem>_c<index>``) and the warnings."""
     if not diagnostics:
         return []
-    out = []
+    out, drawn = [], []
     known = set(library.entries.index)
     for k, record in enumerate(diagnostics.get("captures") or []):
         cycles = [{"index": c.get("index", n), "start": c.get("start_s"),
@@ -637,15 +639,40 @@ def _captures(diagnostics: dict | None, library) -> list[dict]:
                 "cycles": cycles, "n_entries": sum(c["entry"] is not None for c in cycles),
                 "figure": None, "figure_error": None, "anchor": f"capture-{k}"}
         if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
-            try:
-                item["figure"] = _data_uri(figures.capture_figure(
-                    record, _reconstructions(record, library, known)))
-            except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
-                # a hand-edited or foreign sidecar: this capture's plots only are lost
-                item["figure_error"] = (f"its record in the diagnostics sidecar is malformed "
-                                        f"({type(exc).__name__}: {str(exc)[:200]})")
+            drawn.append((item, record, _reconstructions(record, library, known)))
         out.append(item)
+    results = _in_processes(_capture_figure, [(r, recon) for _, r, recon in drawn], jobs)
+    for (item, _, _), (png, error) in zip(drawn, results):
+        item["figure"] = None if png is None else _data_uri(png)
+        item["figure_error"] = error
     return out
+
+
+def _capture_figure(record: dict, reconstructions: dict) -> tuple[bytes | None, str | None]:
+    """A capture's quality figure (PNG), or why its sidecar record could not be drawn."""
+    try:
+        return figures.capture_figure(record, reconstructions), None
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
+        # a hand-edited or foreign sidecar: this capture's plots only are lost
+        return None, (f"its record in the diagnostics sidecar is malformed "
+                      f"({type(exc).__name__}: {str(exc)[:200]})")
+
+
+def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
+    """``[function(*a) for a in arguments]``, by ``jobs`` worker processes when more than one
+    (spawned, one BLAS thread each, as the build's: see :func:`mocaplib.pipeline.build`)."""
+    if jobs <= 1 or len(arguments) <= 1:
+        return [function(*a) for a in arguments]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..pipeline import single_threaded_workers
+
+    workers = min(jobs, len(arguments))
+    with single_threaded_workers(), ProcessPoolExecutor(
+            workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return list(pool.map(function, *zip(*arguments),
+                             chunksize=max(1, len(arguments) // (4 * workers))))
 
 
 def _reconstructions(record: dict, library, known: set) -> dict:
