@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from . import __version__
-from .errors import LibraryError, MocapError, ProtocolError
+from .errors import LibraryError, MocapError
 from .events import TOE_OFF_DEFINITIONS
 from .io import special_file
 from .io.atomic import atomic_write_text
@@ -235,7 +235,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     from .events import capture_events
     from .ik import fit_filtered
     from .io.c3d import read_c3d
-    from .protocols import match_trial
+    from .protocols import match_trial, missing_landmarks_error
 
     with clock.stage("import"):
         trial = read_c3d(path)
@@ -288,35 +288,6 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                                   motion.skeleton.lengths, motion.rate)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
-
-
-def missing_landmarks_error(match, source: str | os.PathLike | None) -> ProtocolError | None:
-    """The error for a capture (``source``) whose protocol ``match``
-    (:class:`mocaplib.protocols.ProtocolMatch`) misses required landmarks, naming each with
-    the labels the protocol expects for it and saying what to do; None when none is missing.
-
-    ``mocaplib build`` and ``mocaplib cycles`` fail such a capture (its calibration, fit and
-    cycles would quietly lose what the pipeline needs), ``fit`` and ``events`` warn.
-    """
-    protocol = match.protocol
-
-    def expected(labels):
-        markers = [protocol.marker(label) for label in labels]
-        keys = [key for m in markers for key in (m.label, *m.aliases)]
-        either = ", ".join(keys[:-1]) + " or " + keys[-1] if len(keys) > 1 else keys[0]
-        return f"{'|'.join(m.landmark.name for m in markers)} (expects {either})"
-
-    groups = dict(protocol.any_of)
-    missing = ([expected([label]) for label in match.missing_required]
-               + [f"one of {expected(groups[group])}" for group in match.missing_any_of])
-    if not missing:
-        return None
-    return ProtocolError(
-        f"the capture has no label for required landmark{'s' if len(missing) > 1 else ''} of "
-        f"protocol {protocol.name!r}: {'; '.join(missing)}", path=source,
-        hint="rename the capture's label to the one the protocol expects, add the capture's "
-             "label to the protocol as an alias, or pass --protocol with a protocol for this "
-             "marker set (`mocaplib inspect` lists the capture's labels)")
 
 
 def _static_sha256(path: str) -> str:

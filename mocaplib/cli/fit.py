@@ -41,8 +41,7 @@ def _run(args) -> int:
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
-    from ..pipeline import missing_landmarks_error
-    from ..protocols import match_trial
+    from ..protocols import match_trial, missing_landmarks_error
     from ._common import print_json, warn
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose)
