@@ -47,11 +47,12 @@ def register(subparsers) -> None:
     parser.set_defaults(run=_run)
 
 
-def _check_usage(args) -> None:
-    """Raise :class:`UsageError` for what would fail or do harm before any capture is
-    processed: a missing input, a --static that is missing, cannot be read or is not standing
-    (every capture would fail on it), an output that would overwrite an input, a --report folder
-    that cannot take the report."""
+def _check_usage(args) -> list[Path]:
+    """The captures the inputs name (C3D files, and those found in folders); raise
+    :class:`UsageError` for what would fail or do harm before any capture is processed: a
+    missing input, a --static that is missing, cannot be read or is not standing (every capture
+    would fail on it), an output that would overwrite an input, a --report folder that cannot
+    take the report."""
     from ..pipeline import diagnostics_path, find_captures
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose)
@@ -65,20 +66,21 @@ def _check_usage(args) -> None:
 
         check_output_folder("--report", args.report, report_name(args.output),
                             [*captures, *(args.static or ())])
+    return captures
 
 
 def _run(args) -> int:
     from ..library import validate_library
     from ..pipeline import BuildSettings, build
 
-    _check_usage(args)
+    captures = _check_usage(args)
     output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              static_pose=args.static_pose, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
                              qc_policy=args.qc)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
-    result = build(args.inputs, settings, jobs=args.jobs, scheduler=args.scheduler,
+    result = build(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry
