@@ -40,6 +40,8 @@ from .skeleton import DOFS
 
 FORMAT = "mocaplib-library"
 FORMAT_VERSION = 1
+#: The ``format`` of a build's diagnostics sidecar (``<stem>.diagnostics.json``), not a library.
+DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 CONTROL_AXES = ("v", "omega", "v_l")
 CONTROL_UNITS = ("m/s", "rad/s", "m/s")
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
@@ -380,7 +382,7 @@ def _read_document(path: str | os.PathLike) -> dict:
         raise LibraryError("library is not UTF-8 text", path=path,
                            hint="a library is a JSON file written by `mocaplib build`") from exc
     try:
-        return json.loads(text)
+        document = json.loads(text)
     except json.JSONDecodeError as exc:
         raise LibraryError(f"library is not valid JSON: {exc.msg} at line {exc.lineno}",
                            path=path, hint="a library is a JSON file written by "
@@ -389,6 +391,12 @@ def _read_document(path: str | os.PathLike) -> dict:
         raise LibraryError("library is not a mocaplib library: its JSON is nested too deep",
                            path=path, hint="a library is a JSON file written by "
                                            "`mocaplib build`") from None
+    if isinstance(document, dict) and document.get("format") == DIAGNOSTICS_FORMAT:
+        library = document.get("library")
+        raise LibraryError("this is a build's diagnostics sidecar, not a library", path=path,
+                           hint=f"give the library beside it"
+                                f"{f', {library}' if isinstance(library, str) else ''}")
+    return document
 
 
 def schema() -> dict:
@@ -430,7 +438,8 @@ def validate_library(library) -> list[Problem]:
         try:
             document = _read_document(library)
         except LibraryError as exc:
-            return [Problem("file", exc.message)]
+            return [Problem("file", exc.message if not exc.hint else
+                            f"{exc.message} ({exc.hint})")]
     problems = _structure_problems(document)
     if problems:
         return problems

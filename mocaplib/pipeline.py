@@ -36,10 +36,9 @@ from .io import special_file
 from .io.atomic import atomic_write_text
 import numpy as np
 
-from .library import (DEFAULT_QC_THRESHOLDS, Library, assemble_library, json_text, make_entry,
-                      qc_failures, to_json_data)
+from .library import (DEFAULT_QC_THRESHOLDS, DIAGNOSTICS_FORMAT, Library, assemble_library,
+                      json_text, make_entry, qc_failures, to_json_data)
 
-DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 DIAGNOSTICS_VERSION = 1
 #: Long series in the diagnostics are downsampled to at most this many points.
 MAX_SERIES_POINTS = 300

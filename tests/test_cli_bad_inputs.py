@@ -405,3 +405,15 @@ def test_events_and_cycles_agree_that_a_few_frames_are_not_rest(tmp_path, capsys
         assert message in capsys.readouterr().err, command
     assert main(["events", str(SAMPLES / "rest.c3d")]) == 0
     assert "none: standing still (rest)" in capsys.readouterr().out
+
+
+def test_the_diagnostics_sidecar_given_for_the_library_is_named_as_such(tmp_path, capsys):
+    sidecar = tmp_path / "lib.diagnostics.json"
+    sidecar.write_text(json.dumps({"format": "mocaplib-diagnostics", "version": 1,
+                                   "library": "lib.json", "captures": []}))
+    said = "this is a build's diagnostics sidecar, not a library (give the library beside it, " \
+        "lib.json)"
+    assert main(["validate", str(sidecar)]) == 1
+    assert said in capsys.readouterr().out
+    assert main(["query", str(sidecar), "1", "0", "0"]) == 1
+    assert said in capsys.readouterr().err

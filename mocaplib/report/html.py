@@ -25,8 +25,7 @@ from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlS
                             close_entries, coverage, leave_one_out)
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
-from ..library import load_library, validate_library
-from ..pipeline import DIAGNOSTICS_FORMAT
+from ..library import DIAGNOSTICS_FORMAT, load_library, validate_library
 from . import figures, report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
