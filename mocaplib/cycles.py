@@ -38,7 +38,8 @@ import numpy as np
 from .errors import EventError
 from .events import GaitEvent
 from .filtering import resample
-from .fourier import ROOT_X, ROOT_Y, CycleEncoding, encode_cycle
+from .fourier import (ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding,
+                      encode_cycle)
 from .library import QC_LIMITS
 from .skeleton import TRANSLATION
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
@@ -143,7 +144,7 @@ def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]
 def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                    right_shoulder: np.ndarray, rate: float, /, *, q: np.ndarray | None = None,
                    ground: np.ndarray | None = None,
-                   tol_angle: float = np.deg2rad(0.5), tol_length: float = 0.002,
+                   tol_angle: float = ANGLE_TOLERANCE, tol_length: float = LENGTH_TOLERANCE,
                    point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0),
                    source: str | os.PathLike | None = None) -> list[Cycle]:
     """Every complete cycle of a capture, measured and rated, one of them ``chosen``.

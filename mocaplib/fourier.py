@@ -31,6 +31,9 @@ from .skeleton import DOF_NAMES, TRANSLATION
 #: Root channels re-expressed in the moving frame (indices into :data:`DOF_NAMES`).
 ROOT_X, ROOT_Y, ROOT_HEADING = (DOF_NAMES.index(n) for n in
                                 ("pelvis_tx", "pelvis_ty", "pelvis_rotation"))
+#: The encoder's defaults: the reconstruction tolerance of angles (rad) and of translations (m),
+#: and the highest order it may reach.
+ANGLE_TOLERANCE, LENGTH_TOLERANCE, MAX_ORDER = float(np.deg2rad(0.5)), 0.002, 20
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ def fit_series(values: np.ndarray, time_s: np.ndarray, period: float,
 
 
 def encode(values: np.ndarray, time_s: np.ndarray, period: float, /, *, tolerance,
-           max_order: int = 20) -> FourierSeries:
+           max_order: int = MAX_ORDER) -> FourierSeries:
     """Series of the smallest order N whose RMS is within ``tolerance`` for every channel.
 
     ``values`` (n, D) sampled at ``time_s`` (n,) in [0, period); ``tolerance`` scalar or (D,) in
@@ -228,8 +231,8 @@ class CycleEncoding:
 
 
 def encode_cycle(q: np.ndarray, time_s: np.ndarray, period: float, q_end: np.ndarray, /, *,
-                 tol_angle: float = np.deg2rad(0.5), tol_length: float = 0.002,
-                 max_order: int = 20) -> CycleEncoding:
+                 tol_angle: float = ANGLE_TOLERANCE, tol_length: float = LENGTH_TOLERANCE,
+                 max_order: int = MAX_ORDER) -> CycleEncoding:
     """Encode one cycle of joint coordinates.
 
     ``q`` (n, D) in :data:`DOF_NAMES` order (rad; ``pelvis_t*`` m) at ``time_s`` (n,) seconds

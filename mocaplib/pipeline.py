@@ -283,8 +283,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.n_cycles = sum(not c.rest for c in cycles)
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, qcs, settings, trial.first_frame,
-                                  motion.skeleton.lengths, motion.rate)
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
 
@@ -324,7 +323,8 @@ def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
     contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run."""
     from .cycles import choose_cycle
 
-    qcs = {c.index: cycle_qc(c, motion) for c in cycles}
+    series = _qc_series(motion)
+    qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
     if len(cycles) > 1:
         choose_cycle(cycles, eligible={i for i, qc in qcs.items()
                                        if not qc_failures(qc, thresholds)})
@@ -332,11 +332,10 @@ def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, first_frame: int, lengths: dict, rate: float):
-    """Library entries of the kept cycles; cycles failing QC are dropped or waived.
-    ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`); ``first_frame``: the capture's
-    first C3D frame number (``start_s`` counts from it); ``lengths``: the fitted skeleton's
-    segment lengths (m); ``rate``: frames per second."""
+             settings: BuildSettings, motion, first_frame: int):
+    """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
+    dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
@@ -358,7 +357,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
-            segment_lengths_m=lengths, rate_hz=rate,
+            segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
             first_frame=first_frame))
     return entries
 
@@ -368,33 +367,47 @@ def _drift(drift) -> dict:
     return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
-def cycle_qc(cycle, motion) -> dict:
+def _qc_series(motion) -> tuple[np.ndarray, np.ndarray | None]:
+    """The capture-wide series the QC of its cycles reads: the unwrapped joint angles
+    (:data:`mocaplib.skeleton.JOINT_ANGLES`, (F, J) rad) and their third time derivative (F, J)
+    rad/s^3, centred differences of the angles low-passed at
+    :data:`mocaplib.filtering.WALKING_CUTOFF` (NaN at the two frames of each end; None when
+    the capture is too short to be filtered): the jerk of unfiltered angles would measure fit
+    noise only."""
+    from .filtering import WALKING_CUTOFF, lowpass, shortest_run
+    from .skeleton import JOINT_ANGLES
+
+    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
+    if motion.n_frames < shortest_run(motion.rate, WALKING_CUTOFF) \
+            or motion.rate <= 2 * WALKING_CUTOFF:
+        return q, None
+    smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
+    third = np.full_like(q, np.nan)
+    # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
+    third[2:-2] = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
+        * motion.rate ** 3 / 2
+    return q, third
+
+
+def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
     marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
     DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
     over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
-    those DOFs of the third time derivative (centred differences) of the fitted angles
-    low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (rad/s^3; None when the capture
-    is too short to be filtered): the jerk of unfiltered angles would measure fit noise only.
+    those DOFs of their third time derivative (rad/s^3; None when the capture is too short to
+    be filtered). ``series``: the capture's :func:`_qc_series`, when already computed.
     """
-    from .filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
-    from .skeleton import JOINT_ANGLES, TRANSLATION
+    from .filtering import resample
+    from .skeleton import TRANSLATION
 
+    q, third = _qc_series(motion) if series is None else series
     frames = np.arange(motion.n_frames) / motion.rate
     inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
     residuals = motion.residuals[inside]
-    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
     ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
-    jerk = None
-    if motion.n_frames >= shortest_run(motion.rate, WALKING_CUTOFF) \
-            and motion.rate > 2 * WALKING_CUTOFF:
-        smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
-        # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
-        third = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
-            * motion.rate ** 3 / 2
-        jerk = float(np.sqrt(np.mean(third[inside[2:-2]] ** 2)))
+    jerk = None if third is None else float(np.sqrt(np.nanmean(third[inside] ** 2)))
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),

@@ -592,10 +592,10 @@ def test_the_headline_blending_error_leaves_rest_out_and_flags_cross_mode_blends
 
 def test_entries_at_the_fourier_order_cap_are_flagged():
     from mocaplib.library import assemble_library, make_entry
-    from mocaplib.report.html import _entry_rows, _summary, fourier_limits
+    from mocaplib.fourier import ANGLE_TOLERANCE, MAX_ORDER as cap
+    from mocaplib.report.html import _entry_rows, _summary
 
-    cap, tolerance = fourier_limits()
-    assert (cap, round(np.degrees(tolerance), 6)) == (20, 0.5)  # the encoder's defaults
+    assert (cap, round(np.degrees(ANGLE_TOLERANCE), 6)) == (20, 0.5)  # the encoder's defaults
     entries = []
     for n in (3, cap):
         a, b = np.zeros((D, n + 1)), np.zeros((D, n + 1))

@@ -10,7 +10,6 @@ with ``tojson`` (which escapes ``<``, ``>``, ``&`` and quotes).
 from __future__ import annotations
 
 import base64
-import inspect
 import json
 import math
 import os
@@ -25,6 +24,7 @@ from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlS
                             close_entries, coverage, leave_one_out)
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
+from ..fourier import ANGLE_TOLERANCE, MAX_ORDER
 from ..library import DIAGNOSTICS_FORMAT, load_library, validate_library
 from . import figures, report_name
 from .plan import default_envelope, planned_status
@@ -307,27 +307,17 @@ def _resolve_envelope(envelope) -> tuple[Envelope, dict]:
 def _summary(library, df, diagnostics, cs) -> dict:
     captures = (diagnostics or {}).get("captures") or []
     failed = [c for c in captures if not c.get("ok", True)]
-    cap, tolerance = fourier_limits()
     return {
         "entries": len(df), "in_control_space": len(cs.points) if cs else 0,
         "captures": len(captures) if captures else len(set(df["source_file"])),
         "failed": len(failed), "fourier_n": library.n_harmonics,
-        "fourier_cap": cap, "fourier_tolerance_deg": math.degrees(tolerance),
-        "at_cap": [str(i) for i in df.index[df["fourier_n"] >= cap]],
+        "fourier_cap": MAX_ORDER, "fourier_tolerance_deg": math.degrees(ANGLE_TOLERANCE),
+        "at_cap": [str(i) for i in df.index[df["fourier_n"] >= MAX_ORDER]],
         "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
             {"axis": a, "scale": s, "unit": AXIS_UNITS[a]} for a, s in zip(cs.axes, cs.scale)],
         "tetrahedra": 0 if cs is None else len(cs.tri.simplices),
     }
-
-
-def fourier_limits() -> tuple[int, float]:
-    """The encoder's cap on the Fourier order and its joint-angle tolerance (rad): the
-    defaults of :func:`mocaplib.fourier.encode_cycle`, which the build uses."""
-    from ..fourier import encode_cycle
-
-    defaults = inspect.signature(encode_cycle).parameters
-    return int(defaults["max_order"].default), float(defaults["tol_angle"].default)
 
 
 def _built_with(settings: dict) -> list[str]:
@@ -358,7 +348,6 @@ def _built_with(settings: dict) -> list[str]:
 
 
 def _entry_rows(df, label) -> list[dict]:
-    cap, _ = fourier_limits()
     rows = []
     for entry_id, r in df.iterrows():
         rows.append({"id": entry_id, "class": label(entry_id),
@@ -366,7 +355,7 @@ def _entry_rows(df, label) -> list[dict]:
                      "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
                      else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
                      "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
-                     "fourier_n": int(r["fourier_n"]), "at_cap": int(r["fourier_n"]) >= cap,
+                     "fourier_n": int(r["fourier_n"]), "at_cap": int(r["fourier_n"]) >= MAX_ORDER,
                      "fourier_deg": math.degrees(r["qc_fourier_rms_rad"])
                      if r["qc_fourier_rms_rad"] == r["qc_fourier_rms_rad"] else None})
     return rows
