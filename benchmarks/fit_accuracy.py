@@ -20,7 +20,8 @@ the filter alone costs). Other statures (``--only statures``): one capture of ea
 type of the sample plan (:data:`STATURE_CAPTURES`) and its static regenerated for subjects of
 1.55 m and 1.95 m (same seeds and marker placement; a capture too short for the taller
 subject's slower cadence is lengthened to two cycles), built as the README's main command
-builds (static, neutral pose) but cut at the default toe-offs, with each capture's angle errors
+builds (static, neutral pose, walk_straight_normal as forward reference) but cut at the default
+toe-offs, with each capture's angle errors
 as above and its v̂, ω̂, v̂_l errors against the truth. Prints Markdown tables.
 """
 
@@ -202,15 +203,17 @@ def statures(plan_path: Path) -> None:
             folder = Path(tmp)
             for planned in plan:
                 write_capture(planned.for_height(height).generate(), folder, planned.name)
-            settings = BuildSettings(static=str(folder / "rest.c3d"), static_pose="neutral")
-            build([folder], settings, jobs=2, cache_dir=None, progress=False).write(
-                folder / "library.json")
+            settings = BuildSettings(static=str(folder / "rest.c3d"), static_pose="neutral",
+                                     forward_reference=str(folder / "walk_straight_normal.c3d"))
+            result = build([folder], settings, jobs=2, cache_dir=None, progress=False)
+            result.write(folder / "library.json")
             velocities = {row["name"]: row for row in compare(folder / "library.json", folder)}
             static = read_c3d(folder / "rest.c3d")
             for planned in plan:
                 path = folder / f"{planned.name}.c3d"
                 truth = json.loads(path.with_suffix(".truth.json").read_text())
-                motion, _, _ = fit_capture(read_c3d(path), static=static, static_pose="neutral")
+                motion, _, _ = fit_capture(read_c3d(path), static=static, static_pose="neutral",
+                                           heading_offsets=result.settings.heading_offsets)
                 error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
                 rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
                 row = velocities.get(planned.name)

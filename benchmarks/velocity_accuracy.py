@@ -8,7 +8,9 @@ is given, then matches every entry with the truth cycle of its capture whose sta
 nearest (``*.truth.json`` beside each ``*.c3d``) and prints, per locomotion type, the number of
 entries and the worst |Δv̂| (also as % of the truth), |Δω̂| and |Δv̂_l|, each against the
 issue's targets: v̂ within 2 % (0.02 m/s where the truth is near 0: under 1 m/s), ω̂ within
-0.02 rad/s, v̂_l within 0.02 m/s. Exit code 1 when a target is missed.
+0.02 rad/s, v̂_l within 0.02 m/s. Exit code 1 when a target is missed. With ``--static``
+(neutral) the build also gets ``--forward-reference SAMPLES/walk_straight_normal.c3d``
+(``--forward-reference NAME``, or ``none``).
 
 ``--placement-draws N``: the static calibration's heading error against v̂_l. The capture
 (``--capture``) and the session's static are regenerated from the sample plan with N other
@@ -16,8 +18,11 @@ marker placements (session seeds 1..N, everything else as shipped; the shipped s
 for reference), calibrated from that static in the neutral pose, fitted (markers low-passed at
 Winter's cutoff), and per draw it prints δ, the mean heading error of the fitted shoulder
 line on the static itself, and the v̂_l error of the capture's true cycles (the pipeline's
-pattern and velocity stages on the fitted shoulder centres); then the sd of δ, its
-correlation with the v̂_l error and how many draws miss.
+pattern and velocity stages on the fitted shoulder centres); then the same with the heading
+offset the forward reference (``--forward-reference``, regenerated with the same placement
+and written as C3D, ``lift`` toe-offs as on the synthetic feet) measures through
+:func:`mocaplib.pipeline.forward_offsets`. Last, the sd of δ, its correlation with the v̂_l
+error, and how many draws miss with and without the reference.
 """
 
 from __future__ import annotations
@@ -41,6 +46,8 @@ from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.ik import fit  # noqa: E402
 from mocaplib.library import load_library  # noqa: E402
 from mocaplib.patterns import cycle_samples, path_velocities, shoulder_heading  # noqa: E402
+from mocaplib.pipeline import BuildSettings, forward_offsets  # noqa: E402
+from mocaplib.synth.capture import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan, locomotion_type  # noqa: E402
 
 V_REL, V_ABS, OMEGA_TOL, V_L_TOL = 0.02, 0.02, 0.02, 0.02
@@ -104,24 +111,16 @@ def report(rows: list[dict]) -> bool:
     return ok
 
 
-def placement_draws(plan_path: Path, capture_name: str, draws: int) -> None:
-    """Per marker placement (session seed): δ of the static and the v̂_l error (module doc)."""
+def placement_draws(plan_path: Path, capture_name: str, draws: int, reference: str) -> None:
+    """Per marker placement (session seed): δ of the static, the v̂_l error, the forward
+    reference's heading offset and the v̂_l error with it (module doc)."""
     planned = {c.name: c for c in load_plan(plan_path).captures}
 
     def generate(name, session_seed):
         return dataclasses.replace(planned[name], session_seed=session_seed).generate()
 
-    print("| session seed | δ static heading (deg) | Δv̂_l (m/s) | −v̂·δ (m/s) |")
-    print("|---|---|---|---|")
-    rows = []
-    shipped = planned["rest"].session_seed
-    for seed in [shipped, *range(1, draws + 1)]:
-        rest, capture = generate("rest", seed), generate(capture_name, seed)
-        trial, _ = filter_trial(capture.trial, cutoff="auto")
-        model = calibrate(trial, static=rest.trial, static_pose="neutral")
-        on_static = shoulder_heading(*shoulder_centres(fit(rest.trial, model)))
-        true_static = shoulder_heading(rest.body.shoulders[:, 0], rest.body.shoulders[:, 1])
-        delta = float(np.mean(np.angle(np.exp(1j * (on_static - true_static)))))
+    def v_l_error(trial, model, capture) -> tuple[float, float]:
+        """Mean v̂_l error over the capture's true cycles, and their mean v̂."""
         left, right = shoulder_centres(fit(trial, model))
         errors, speeds = [], []
         for cycle in capture.truth["cycles"]:
@@ -129,17 +128,46 @@ def placement_draws(plan_path: Path, capture_name: str, draws: int) -> None:
                                                 cycle["end_s"])
             errors.append(path_velocities(times, mid, heading).v_l - cycle["v_l"])
             speeds.append(cycle["v"])
-        rows.append((delta, float(np.mean(errors)), -float(np.mean(speeds)) * delta))
-        label = f"{seed} (shipped)" if seed == shipped else str(seed)
-        print(f"| {label} | {np.degrees(delta):+.3f} | {rows[-1][1]:+.4f} | "
-              f"{rows[-1][2]:+.4f} |")
+        return float(np.mean(errors)), float(np.mean(speeds))
+
+    print(f"| session seed | δ static heading (deg) | Δv̂_l (m/s) | −v̂·δ (m/s) | "
+          f"offset from {reference} (deg) | Δv̂_l with it (m/s) |")
+    print("|---|---|---|---|---|---|")
+    rows = []
+    shipped = planned["rest"].session_seed
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in [shipped, *range(1, draws + 1)]:
+            rest, capture = generate("rest", seed), generate(capture_name, seed)
+            static_path, _ = write_capture(rest, tmp, "rest")
+            reference_path, _ = write_capture(generate(reference, seed), tmp, reference)
+            offset, = forward_offsets(BuildSettings(
+                static=str(static_path), static_pose="neutral", toe_off="lift",
+                forward_reference=str(reference_path)))
+            trial, _ = filter_trial(capture.trial, cutoff="auto")
+            model = calibrate(trial, static=rest.trial, static_pose="neutral")
+            on_static = shoulder_heading(*shoulder_centres(fit(rest.trial, model)))
+            true_static = shoulder_heading(rest.body.shoulders[:, 0], rest.body.shoulders[:, 1])
+            delta = float(np.mean(np.angle(np.exp(1j * (on_static - true_static)))))
+            error, speed = v_l_error(trial, model, capture)
+            corrected, _ = v_l_error(trial, calibrate(trial, static=rest.trial,
+                                                      static_pose="neutral",
+                                                      heading_offset=offset), capture)
+            rows.append((delta, error, -speed * delta, offset, corrected))
+            label = f"{seed} (shipped)" if seed == shipped else str(seed)
+            print(f"| {label} | {np.degrees(delta):+.3f} | {error:+.4f} | {-speed * delta:+.4f} "
+                  f"| {np.degrees(offset):+.3f} | {corrected:+.4f} |")
     if draws < 2:
         return
-    delta, error, _ = np.array(rows[1:]).T                   # the N new draws
+    delta, error, _, offset, corrected = np.array(rows[1:]).T     # the N new draws
     print(f"\n{capture_name}, {draws} placements (3 mm sd per axis): sd of δ "
           f"{np.degrees(delta.std()):.3f} deg, correlation of δ with Δv̂_l "
           f"{np.corrcoef(delta, error)[0, 1]:+.3f}, |Δv̂_l| > {V_L_TOL} m/s in "
           f"{int((np.abs(error) > V_L_TOL).sum())} of {draws}")
+    print(f"with the forward reference {reference}: correlation of its offset with −δ "
+          f"{np.corrcoef(offset, -delta)[0, 1]:+.3f}; |Δv̂_l| median "
+          f"{np.median(np.abs(corrected)):.4f} m/s (without: {np.median(np.abs(error)):.4f}), "
+          f"max {np.abs(corrected).max():.4f} (without: {np.abs(error).max():.4f}), "
+          f"> {V_L_TOL} m/s in {int((np.abs(corrected) > V_L_TOL).sum())} of {draws}")
 
 
 def main() -> int:
@@ -152,10 +180,15 @@ def main() -> int:
     parser.add_argument("--placement-draws", type=int, metavar="N",
                         help="instead: the static's heading error over N marker placements")
     parser.add_argument("--capture", default="run_3p5", help="capture for --placement-draws")
+    parser.add_argument("--forward-reference", default="walk_straight_normal", metavar="NAME",
+                        help="the capture (by name) that is the forward reference: with "
+                             "--placement-draws regenerated with each placement, otherwise "
+                             "SAMPLES/NAME.c3d passed to mocaplib build with --static; 'none': "
+                             "no reference (with --placement-draws it is always used)")
     parser.add_argument("--plan", type=Path, default=ROOT / "protocols" / "paper_plan.toml")
     args = parser.parse_args()
     if args.placement_draws:
-        placement_draws(args.plan, args.capture, args.placement_draws)
+        placement_draws(args.plan, args.capture, args.placement_draws, args.forward_reference)
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         library = args.library
@@ -165,6 +198,9 @@ def main() -> int:
                        str(library), "--jobs", "2", "--no-cache"]
             if args.static:
                 command += ["--static", str(args.static), "--static-pose", args.static_pose]
+                if args.forward_reference != "none" and args.static_pose == "neutral":
+                    command += ["--forward-reference",
+                                str(args.samples / f"{args.forward_reference}.c3d")]
             subprocess.run(command, check=True, cwd=ROOT, capture_output=True)
         return 0 if report(compare(library, args.samples)) else 1
 

@@ -75,7 +75,8 @@ from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, match_protocol, match_trial
-from .skeleton import DOF_NAMES, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from .skeleton import (DOF_NAMES, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
+                       SEGMENTS, Skeleton)
 from .trial import Trial
 
 #: Markers seen in fewer than this fraction of frames are not used.
@@ -184,7 +185,7 @@ def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Pro
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               static: Trial | None = None, static_pose: str = "free",
               height: float | None = None, n_frames: int = 60,
-              max_rounds: int = 8) -> SubjectModel:
+              max_rounds: int = 8, heading_offset: float = 0.0) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -202,6 +203,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     height : standing height, metres; estimated from the markers when None.
     n_frames : calibration frames (the most complete ones, spread over the trial).
     max_rounds : refinement rounds at most (step 5).
+    heading_offset : radians added to the neutral static's fitted heading before the offsets
+        are measured (step 4'), turning every segment frame about the vertical: the correction
+        a forward reference measures (:func:`mocaplib.pipeline.forward_offsets`). Only with a
+        static in the neutral pose.
 
     Returns
     -------
@@ -210,6 +215,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static_pose not in STATIC_POSES:
         raise CalibrationError(f"static_pose must be one of {', '.join(STATIC_POSES)}, "
                                f"got {static_pose!r}", path=getattr(static, "source", None))
+    if heading_offset and (static is None or static_pose != "neutral"):
+        raise CalibrationError("a heading offset turns the frame of a static in the neutral pose: "
+                               "give the static with static_pose='neutral'",
+                               path=getattr(static, "source", None) or trial.source)
     if static is not None:
         check_standing(static)
     cal = static if static is not None else trial
@@ -255,7 +264,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
     if static is not None and static_pose == "neutral":
-        offsets, rms = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled)
+        offsets, rms = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
+                                       heading_offset=heading_offset)
         return SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
                             [rms], cal.source, swapped)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
@@ -468,19 +478,22 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) ->
 
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
-                    nominal: np.ndarray) -> tuple[np.ndarray, float]:
+                    nominal: np.ndarray, heading_offset: float = 0.0
+                    ) -> tuple[np.ndarray, float]:
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
     ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
     (scaled) for the start. Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
-    fitted to all markers with the nominal offsets, then each offset is the mean of
-    ``R_s^T (x − t_s)`` over the frames where its marker is seen (not turned onto the
-    catalogue: the pose, not the layout, defines the segment frames). Returns the offsets and
-    the RMS (m) of the static markers about the neutral model with them.
+    fitted to all markers with the nominal offsets, its heading turned by ``heading_offset``
+    (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
+    frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
+    defines the segment frames). Returns the offsets and the RMS (m) of the static markers
+    about the neutral model with them.
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
     q0 = np.where(root, initial_pose(skeleton, X, segments, nominal), 0.0)
     q = solve_poses(skeleton, X, segments, nominal, q0=q0, free=root, smoothing=0.0).q
+    q[:, ROOT_HEADING] += heading_offset
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
     return offsets, float(np.sqrt(np.nanmean(residual ** 2)))

@@ -60,8 +60,8 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import LibraryError, MocapError
 from .io.tomlfile import read_toml
-from .fourier import ROOT_HEADING, RootDrift, synthesize
-from .skeleton import DOF_NAMES, JOINT_ANGLES, TRANSLATION
+from .fourier import RootDrift, synthesize
+from .skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}

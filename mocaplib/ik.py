@@ -39,8 +39,8 @@ from .errors import FitError
 from .filtering import resample, valid_runs
 from .motion import Motion, angles_frame
 from .protocols import match_protocol
-from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, SEGMENT_NAMES, SEGMENTS, SHIFTS,
-                       Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
+from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
+                       SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
 
 if TYPE_CHECKING:
     from .calibration import SubjectModel
@@ -440,8 +440,7 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         rot[:, segs] = R
         pos[:, segs] = q[:, None, SHIFTS] if parents is None else centre
     q = q[:, :-1]
-    heading = DOF_NAMES.index("pelvis_rotation")
-    q[:, heading] = np.unwrap(q[:, heading])
+    q[:, ROOT_HEADING] = np.unwrap(q[:, ROOT_HEADING])
     return np.clip(q, _LOWER, _UPPER)
 
 
@@ -714,15 +713,17 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
 
 
 def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
-                static_pose: str = "free", cutoff: float | str | None = "auto"
-                ) -> tuple[Motion, "SubjectModel", float | None]:
+                static_pose: str = "free", cutoff: float | str | None = "auto",
+                heading_offsets=None) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
     :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
     ``static_pose``), then :func:`fit_filtered`. ``protocol`` (a Protocol, shipped name, TOML
     path or "auto") is resolved on the capture (:func:`mocaplib.protocols.match_trial`), as
     ``mocaplib build`` resolves it, whatever the static's labels. ``static`` may also be a list
     of static trials, one per subject or session: the one that shows this capture's subject is
-    used (:func:`mocaplib.calibration.choose_static`).
+    used (:func:`mocaplib.calibration.choose_static`). ``heading_offsets``: per static (one
+    for a single static), the heading correction of a forward reference, radians
+    (:func:`mocaplib.pipeline.forward_offsets`; the static in the neutral pose).
 
     Returns the motion, the subject model (its ``source`` names the static used) and the
     cutoff used (Hz; None: unfiltered).
@@ -733,10 +734,13 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
 
     protocol = match_trial(trial, protocol).protocol
     filtered, used = filter_trial(trial, cutoff=cutoff)
+    chosen = 0
     if isinstance(static, (list, tuple)):
         chosen = choose_static(filtered, static, protocol)
         static = None if chosen is None else static[chosen]
-    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose)
+    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
+                      heading_offset=0.0 if heading_offsets is None or static is None
+                      else heading_offsets[chosen])
     motion, _ = fit_filtered(trial, model, cutoff=used)
     return motion, model, used
 

@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from functools import lru_cache
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from . import __version__
@@ -48,6 +48,22 @@ MAX_CYCLE_POINTS = 100
 DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 20
+#: A forward reference whose subject faces further than this (degrees) from the direction of
+#: travel is refused: that is a side-step or a diagonal (the paper's diagonals start at 60°),
+#: not a forward walk. Measured uncorrected: 0.23° on the samples (placement error alone), up
+#: to 7.7° on lab walks with their static taken as neutral (README, Velocities).
+FORWARD_LIMIT_DEG = 15.0
+#: A forward reference's cycles slower than this (m/s) show no direction of travel.
+MIN_FORWARD_SPEED = 0.3
+#: The QC metrics a forward reference's cycles must pass (at the build's thresholds): the
+#: marker fit, the gaps and the events, which speak for the shoulder line and the cycle. The
+#: marker maximum and the Fourier metrics judge the encoding and would leave out every lab walk
+#: at hand with its static taken as neutral (non-periodic arms, one marker 52-60 mm off).
+FORWARD_QC = ("marker_rms_m", "gap_fraction", "event_quality")
+#: A forward reference's heading correction is repeated until the reference faces its path
+#: within this (degrees), at most FORWARD_PASSES times.
+FORWARD_TOLERANCE_DEG = 0.01
+FORWARD_PASSES = 4
 
 
 @dataclass(frozen=True)
@@ -60,6 +76,11 @@ class BuildSettings:
         or None to calibrate from each motion capture.
     static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
         angle 0; see :func:`mocaplib.calibration.calibrate`).
+    forward_reference : one or several captures in which the subject walks forwards (straight
+        or curving, not side-stepping), or None: each turns the heading of the neutral static
+        that shows its subject (see :func:`forward_offsets`).
+    heading_offsets : per static, the heading correction (radians) the forward references
+        measured; None: not measured (:func:`build` measures it when references are given).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
@@ -74,6 +95,8 @@ class BuildSettings:
     protocol: str = "auto"
     static: str | tuple[str, ...] | None = None
     static_pose: str = "free"
+    forward_reference: str | tuple[str, ...] | None = None
+    heading_offsets: tuple[float, ...] | None = None
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
     all_cycles: bool = False
@@ -81,16 +104,17 @@ class BuildSettings:
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
 
     def __post_init__(self):
-        if self.static is not None and not isinstance(self.static, str):
-            given = (self.static,) if isinstance(self.static, os.PathLike) else self.static
-            unique: dict[str, str] = {}   # the same file given twice (relative, absolute) once
-            for static in map(os.fspath, given):
-                if static:
-                    unique.setdefault(os.path.abspath(static), static)
-            statics = tuple(unique.values())
-            object.__setattr__(self, "static", statics[0] if len(statics) == 1 else statics or None)
-        if self.static == "":
-            object.__setattr__(self, "static", None)
+        for name in ("static", "forward_reference"):
+            object.__setattr__(self, name, _files(getattr(self, name)))
+        if self.heading_offsets is not None:
+            object.__setattr__(self, "heading_offsets", tuple(map(float, self.heading_offsets)))
+            if len(self.heading_offsets) != len(self.statics):
+                raise MocapError(f"heading_offsets needs one angle per static "
+                                 f"({len(self.statics)}), got {len(self.heading_offsets)}")
+        if self.forward_reference is not None and (not self.statics
+                                                   or self.static_pose != "neutral"):
+            raise MocapError("a forward reference turns the heading of a static in the neutral "
+                             "pose: give the static, with static_pose 'neutral'")
         if self.toe_off not in TOE_OFF_DEFINITIONS:
             raise MocapError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
                              f"got {self.toe_off!r}")
@@ -102,15 +126,40 @@ class BuildSettings:
         """The static trials given: none, one, or one per subject or session."""
         return (self.static,) if isinstance(self.static, str) else self.static or ()
 
+    @property
+    def forward_references(self) -> tuple[str, ...]:
+        """The forward references given (none, one or several)."""
+        return ((self.forward_reference,) if isinstance(self.forward_reference, str)
+                else self.forward_reference or ())
+
+    def heading_offset(self, static: int) -> float:
+        """The heading correction (radians) of static number ``static``; 0 when unmeasured."""
+        return 0.0 if self.heading_offsets is None else self.heading_offsets[static]
+
     def to_dict(self) -> dict:
-        """The settings as JSON data, as stored in the library (static files by name only: one
-        name, a list of names when several were given, or None)."""
+        """The settings as JSON data, as stored in the library (static files and forward
+        references by name only: one name, a list of names when several were given, or None)."""
         data = asdict(self)
         from .calibration import static_names
 
-        names = static_names(self.statics)
-        data["static"] = names if len(names) > 1 else names[0] if names else None
+        for key, paths in (("static", self.statics),
+                           ("forward_reference", self.forward_references)):
+            names = static_names(paths)
+            data[key] = names if len(names) > 1 else names[0] if names else None
         return to_json_data(data)
+
+
+def _files(given) -> str | tuple[str, ...] | None:
+    """One path, several (each file once: the same file given relative and absolute counts
+    once), or None for none or an empty one."""
+    if given is None or isinstance(given, (str, os.PathLike)):
+        given = () if given is None else (given,)
+    unique: dict[str, str] = {}
+    for path in map(os.fspath, given):
+        if path:
+            unique.setdefault(os.path.abspath(path), path)
+    paths = tuple(unique.values())
+    return paths[0] if len(paths) == 1 else paths or None
 
 
 @dataclass
@@ -221,8 +270,22 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
+    """:func:`_cut_capture`, then the entries; fills ``result`` (raises MocapError for a bad
+    capture)."""
+    trial, motion, cycles = _cut_capture(path, settings, result, clock)
+    with clock.stage("entries"):
+        result.n_cycles = sum(not c.rest for c in cycles)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        kept = [c for c in cycles if c.chosen or settings.all_cycles]
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
+        result.diagnostics.update(_cycle_diagnostics(
+            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+
+
+def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier) -> entries; fills ``result`` (raises MocapError for a bad capture).
+    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion` and its cycles, and puts
+    the warnings, the static used and the capture's diagnostic series in ``result``.
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed; then the same :func:`mocaplib.events.capture_events`
@@ -253,7 +316,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         chosen = choose_static(filtered, static_trials, match.protocol)
         static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
-            model = _neutral_model(*statics[chosen], match.protocol)
+            model = _neutral_model(*statics[chosen], match.protocol,
+                                   settings.heading_offset(chosen))
             check_static(filtered, static, model)
         else:
             model = calibrate(filtered, protocol=match.protocol, static=static,
@@ -279,13 +343,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
-    with clock.stage("entries"):
-        result.n_cycles = sum(not c.rest for c in cycles)
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
-        kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
-        result.diagnostics.update(_cycle_diagnostics(
-            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+    return trial, motion, cycles
 
 
 def _static_sha256(path: str) -> str:
@@ -307,13 +365,86 @@ def _read_static(path: str, sha256: str):
 
 
 @lru_cache(maxsize=None)
-def _neutral_model(path: str, sha256: str, protocol):
-    """The model calibrated on the neutral-pose static ``path``, once per worker process for
-    each content and protocol: it depends on nothing else, so each capture only checks that it
-    shows the same subject (:func:`mocaplib.calibration.check_static`)."""
+def _neutral_model(path: str, sha256: str, protocol, heading_offset: float):
+    """The model calibrated on the neutral-pose static ``path`` with its heading turned by
+    ``heading_offset`` (radians), once per worker process for each content, protocol and
+    offset: it depends on nothing else, so each capture only checks that it shows the same
+    subject (:func:`mocaplib.calibration.check_static`)."""
     from .calibration import calibrate
     static = _read_static(path, sha256)
-    return calibrate(static, protocol=protocol, static=static, static_pose="neutral")
+    return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
+                     heading_offset=heading_offset)
+
+
+def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
+    """Per static of ``settings``, the heading correction (radians) that its forward references
+    measure; 0 for a static that none shows.
+
+    A neutral static fixes the heading of every segment frame by fitting the root to all
+    markers at their catalogue positions, so the placement error turns it by a fraction of a
+    degree, and v̂_l of every capture is off by about −v̂ times that angle (README,
+    Velocities). A forward reference — a capture in which the subject walks forwards —
+    measures the angle: it is taken through the build's stages with the static that shows its
+    subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
+    face where they walk. Several references of one static are averaged. The turn is repeated
+    on the turned static until each reference faces its path within
+    :data:`FORWARD_TOLERANCE_DEG` (one turn leaves 1 % on the samples, 5 % on a lab walk,
+    whose poses are further from the static's), at most :data:`FORWARD_PASSES` times.
+    Raises :class:`~mocaplib.errors.CalibrationError` naming a reference that cannot be
+    processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
+    its path.
+    """
+    offsets = tuple(0.0 for _ in settings.statics)
+    for _ in range(FORWARD_PASSES):
+        residuals = _facing_angles(replace(settings, heading_offsets=offsets))
+        offsets = tuple(offset + residual for offset, residual in zip(offsets, residuals))
+        if max(map(abs, residuals)) < np.deg2rad(FORWARD_TOLERANCE_DEG):
+            break
+    return offsets
+
+
+def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
+    """Per static, the mean over its forward references of where the subject moves relative
+    to where they face (radians, to the left; 0 for a static without a reference): the mean
+    atan2(v̂_l, v̂_f) of each reference's complete cycles that are at least
+    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`."""
+    from .calibration import static_names
+    from .errors import CalibrationError
+
+    names = static_names(settings.statics)
+    found: list[list[float]] = [[] for _ in names]
+    hint = "give a capture in which the subject walks forwards, straight or curving"
+    limits = {name: settings.qc_thresholds.get(name) for name in FORWARD_QC}
+    for reference in settings.forward_references:
+        result = CaptureResult(source=reference)
+        try:
+            _, motion, cycles = _cut_capture(Path(reference), settings, result, _Clock())
+        except OSError as exc:
+            raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
+                                   path=reference, hint="check the path") from None
+        except MocapError as exc:
+            where = "" if exc.path in (None, reference) else f"{exc.path}: "
+            raise CalibrationError(f"the forward reference cannot be processed: "
+                                   f"{where}{exc.message}", path=reference,
+                                   hint=exc.hint or hint) from None
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        moving = [c.velocities for c in cycles
+                  if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED
+                  and not qc_failures({name: qcs[c.index][name] for name in FORWARD_QC}, limits)]
+        if not moving:
+            raise CalibrationError(f"the forward reference has no complete gait cycle at "
+                                   f"{MIN_FORWARD_SPEED} m/s or faster that passes QC",
+                                   path=reference, hint=hint)
+        angle = float(np.mean([np.arctan2(c.v_l, c.v_f) for c in moving]))
+        if abs(np.rad2deg(angle)) > FORWARD_LIMIT_DEG:
+            raise CalibrationError(
+                f"in the forward reference the subject moves {abs(np.rad2deg(angle)):.1f}° to "
+                f"the {'left' if angle > 0 else 'right'} of where they face (limit "
+                f"{FORWARD_LIMIT_DEG:g}°): a side-step or a diagonal, not a forward walk",
+                path=reference, hint=hint)
+        found[names.index(result.static)].append(angle)
+    return tuple(float(np.mean(angles)) if angles else 0.0 for angles in found)
 
 
 def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
@@ -542,12 +673,16 @@ class BuildResult:
         lines = [f"captures {s['captures']}  ok {s['succeeded']}  failed {s['failed']}  "
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
                  f"({s['seconds']:.1f} s)"]
-        if len(self.settings.statics) > 1:
-            from .calibration import static_names
+        from .calibration import static_names
 
+        names = static_names(self.settings.statics)
+        if len(names) > 1:
             lines.append("captures per static: " + ", ".join(
-                f"{name} {s['statics'].get(name, 0)}"
-                for name in static_names(self.settings.statics)))
+                f"{name} {s['statics'].get(name, 0)}" for name in names))
+        if self.settings.heading_offsets is not None:
+            lines.append("heading turned by the forward reference: " + ", ".join(
+                f"{name} {np.rad2deg(offset):+.3f}°"
+                for name, offset in zip(names, self.settings.heading_offsets)))
         if s["failures"]:
             lines.append("failures:")
             lines += [f"  {f['file']} [{f['stage']}]: "
@@ -666,7 +801,8 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     inputs
         C3D files and folders (searched recursively for ``*.c3d``).
     settings
-        :class:`BuildSettings` (defaults when None).
+        :class:`BuildSettings` (defaults when None). Forward references are measured first
+        (:func:`forward_offsets`; its CalibrationError is raised, nothing is processed).
     jobs
         Worker processes (1 = in this process).
     scheduler
@@ -689,6 +825,8 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     if jobs < 1:
         raise MocapError(f"jobs must be >= 1, got {jobs}")
     started = time.perf_counter()
+    if settings.forward_reference is not None and settings.heading_offsets is None:
+        settings = replace(settings, heading_offsets=forward_offsets(settings))
     paths = find_captures(inputs)
     if not paths:
         raise MocapError("no C3D captures found in the inputs",

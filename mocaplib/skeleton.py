@@ -143,10 +143,11 @@ _DOF_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 TRANSLATION = np.array([d.translation for d in DOFS])
 #: The translation DOFs' indices (the root's pelvis_t*).
 SHIFTS = np.flatnonzero(TRANSLATION)
-#: The joint angles (D,) bool: the rotational DOFs except the root's heading
-#: ``pelvis_rotation``, which the library stores relative to the path frame and QC and
-#: leave-one-out treat apart.
-JOINT_ANGLES = ~TRANSLATION & (np.asarray(DOF_NAMES) != "pelvis_rotation")
+#: Index of the root's heading ``pelvis_rotation`` (radians about +Z; 0 faces +X).
+ROOT_HEADING = DOF_NAMES.index("pelvis_rotation")
+#: The joint angles (D,) bool: the rotational DOFs except the root's heading, which the library
+#: stores relative to the path frame and QC and leave-one-out treat apart.
+JOINT_ANGLES = ~TRANSLATION & (np.arange(len(DOF_NAMES)) != ROOT_HEADING)
 
 
 def _moves() -> np.ndarray:

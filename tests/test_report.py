@@ -35,6 +35,7 @@ ENTRIES = [
 
 #: Build settings as a build records them (the static's name untrusted text).
 SETTINGS = {"protocol": "fullbody38", "static": f"S{EVIL}.c3d", "static_pose": "neutral",
+            "forward_reference": "walk.c3d", "heading_offsets": [-0.0041],
             "cutoff": "auto", "toe_off": "lift", "all_cycles": False, "qc_policy": "drop"}
 
 
@@ -159,7 +160,8 @@ def test_report_contents(report):
                  "joint RMS (°)", "heading RMS (°)", "root RMS (mm)", "stride error (mm)",
                  "For comparison, on the frontal axes", "calibrated with Static1.c3d",
                  "Built with protocol fullbody38; static S&lt;script&gt;",
-                 ".c3d (neutral pose); marker low-pass by Winter&#39;s residual analysis; "
+                 ".c3d (neutral pose); heading set by the forward reference walk.c3d (static "
+                 "turned -0.235°); marker low-pass by Winter&#39;s residual analysis; "
                  "cycles cut at lift toe-offs; one cycle per capture; QC failures dropped."):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',

@@ -135,8 +135,9 @@ def cutoff_type(text: str) -> float | str | None:
 
 
 def add_static_options(parser) -> None:
-    """``--static FILE`` (repeatable: one static per subject or session) and
-    ``--static-pose``, shared by ``fit``, ``cycles`` and ``build``."""
+    """``--static FILE`` (repeatable: one static per subject or session), ``--static-pose``
+    and ``--forward-reference FILE`` (repeatable), shared by ``fit``, ``cycles`` and
+    ``build``."""
     parser.add_argument("--static", metavar="FILE", action="append",
                         help="static calibration C3D of the subject (default: calibrate from "
                              "each capture); repeat it for several subjects or sessions: each "
@@ -147,6 +148,12 @@ def add_static_options(parser) -> None:
                              "pose (every joint angle 0) and each marker's offset is measured "
                              "on it, placement error included; 'free' (default): the static "
                              "pose is fitted, then refined on the motion")
+    parser.add_argument("--forward-reference", metavar="FILE", action="append",
+                        help="a capture in which the subject walks forwards (straight or "
+                             "curving, not side-stepping): the neutral static's heading is "
+                             "turned so that the subject faces where they walk in it, which "
+                             "removes the heading error of marker placement from v_l; repeat "
+                             "it for several subjects or sessions (needs --static-pose neutral)")
 
 
 def add_cutoff_option(parser) -> None:
@@ -161,15 +168,20 @@ LIBRARY_HINT = "check the path; `mocaplib build` writes a library"
 
 
 def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
-                 static_pose: str = "free", hint: str = "check the path") -> list:
+                 static_pose: str = "free", references: list[str] | None = None,
+                 hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
     not exist (the message ends with ``hint``), a ``--static`` cannot be read or is not
-    standing still (:func:`mocaplib.calibration.check_standing`), or ``--static-pose neutral``
-    comes without a static. Returns the static trials, each file read once (the same file
-    given twice counts once)."""
+    standing still (:func:`mocaplib.calibration.check_standing`), ``--static-pose neutral``
+    comes without a static or ``--forward-reference`` without a neutral static. Returns the
+    static trials, each file read once (the same file given twice counts once)."""
     if static_pose == "neutral" and not statics:
         raise UsageError("--static-pose neutral describes the static trial: give it with "
                          "--static FILE, or leave --static-pose out")
+    if references and static_pose != "neutral":
+        raise UsageError("--forward-reference turns the heading of a static in the neutral "
+                         "pose: give --static FILE --static-pose neutral, or leave "
+                         "--forward-reference out")
     from ..calibration import check_standing
     from ..io.c3d import read_c3d
 
@@ -177,7 +189,8 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
     for path in statics or ():
         unique.setdefault(os.path.abspath(path), path)
     for option, path in [*(("", path) for path in inputs),
-                         *(("--static: ", path) for path in unique.values())]:
+                         *(("--static: ", path) for path in unique.values()),
+                         *(("--forward-reference: ", path) for path in references or ())]:
         if not Path(path).exists():
             raise UsageError(f"{option}{path}: no such file or folder ({hint})")
     trials = []
@@ -188,3 +201,17 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         except MocapError as exc:
             raise UsageError(f"--static: {exc}") from None
     return trials
+
+
+def heading_offsets(args) -> tuple[float, ...] | None:
+    """Per ``--static``, the heading correction (radians) its ``--forward-reference`` captures
+    measure, through the stages ``mocaplib build`` runs with these options
+    (:func:`mocaplib.pipeline.forward_offsets`); None without a reference."""
+    if not args.forward_reference:
+        return None
+    from ..pipeline import BuildSettings, forward_offsets
+
+    return forward_offsets(BuildSettings(
+        protocol=args.protocol, static=args.static, static_pose=args.static_pose,
+        forward_reference=args.forward_reference, cutoff=args.cutoff,
+        toe_off=getattr(args, "toe_off", "foot_velocity")))

@@ -55,17 +55,18 @@ def _check_usage(args) -> list[Path]:
     take the report."""
     from ..pipeline import diagnostics_path, find_captures
 
-    check_inputs(args.inputs, args.static, static_pose=args.static_pose)
+    check_inputs(args.inputs, args.static, static_pose=args.static_pose,
+                 references=args.forward_reference)
     captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
+    inputs = [*captures, *(args.static or ()), *(args.forward_reference or ())]
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
-                   diagnostics_path(args.output)}, [*captures, *(args.static or ())])
+                   diagnostics_path(args.output)}, inputs)
     if args.report:
         from ..report import report_name
 
-        check_output_folder("--report", args.report, report_name(args.output),
-                            [*captures, *(args.static or ())])
+        check_output_folder("--report", args.report, report_name(args.output), inputs)
     return captures
 
 
@@ -76,7 +77,8 @@ def _run(args) -> int:
     captures = _check_usage(args)
     output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
-                             static_pose=args.static_pose, cutoff=args.cutoff,
+                             static_pose=args.static_pose,
+                             forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
                              qc_policy=args.qc)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")

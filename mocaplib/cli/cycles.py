@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import add_cutoff_option, add_static_options, check_inputs
+from ._common import add_cutoff_option, add_static_options, check_inputs, heading_offsets
 from .events import add_common_options
 
 
@@ -42,12 +42,14 @@ def _run(args) -> int:
     from ._common import print_json
     from .events import load
 
-    statics = check_inputs([args.file], args.static, static_pose=args.static_pose)
+    statics = check_inputs([args.file], args.static, static_pose=args.static_pose,
+                           references=args.forward_reference)
     trial, match, missing = load(args)
     if missing is not None:
         raise missing
     motion = fit_capture(trial, protocol=match.protocol, static=statics,
-                         static_pose=args.static_pose, cutoff=args.cutoff)[0]
+                         static_pose=args.static_pose, cutoff=args.cutoff,
+                         heading_offsets=heading_offsets(args))[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)
     qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS)

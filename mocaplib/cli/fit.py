@@ -7,7 +7,7 @@ Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_captu
 from __future__ import annotations
 
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
-                      check_inputs, check_outputs)
+                      check_inputs, check_outputs, heading_offsets)
 
 
 def register(subparsers) -> None:
@@ -44,16 +44,18 @@ def _run(args) -> int:
     from ..protocols import match_trial, missing_landmarks_error
     from ._common import print_json, warn
 
-    statics = check_inputs([args.input], args.static, static_pose=args.static_pose)
+    statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
+                           references=args.forward_reference)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
-                  [args.input, *(args.static or ())])
+                  [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
     match = match_trial(trial, args.protocol)
     missing = missing_landmarks_error(match, args.input)
     if missing is not None:
         warn(str(missing))
     motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
-                                        static_pose=args.static_pose, cutoff=args.cutoff)
+                                        static_pose=args.static_pose, cutoff=args.cutoff,
+                                        heading_offsets=heading_offsets(args))
     sources = [static.source for static in statics]
     static = static_names(sources)[sources.index(model.source)] if statics else None
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))

@@ -332,6 +332,13 @@ def _built_with(settings: dict) -> list[str]:
         phrases.append(f"static {', '.join(map(str, names))} "
                        f"({settings.get('static_pose', 'free')} pose)" if names else
                        "each capture calibrated from itself")
+    reference = settings.get("forward_reference")
+    if reference:
+        names = reference if isinstance(reference, list) else [reference]
+        offsets = [f"{math.degrees(o):+.3f}°" for o in settings.get("heading_offsets") or []
+                   if isinstance(o, (int, float))]
+        phrases.append(f"heading set by the forward reference {', '.join(map(str, names))}"
+                       + (f" (static turned {', '.join(offsets)})" if offsets else ""))
     if "cutoff" in settings:
         cutoff = settings["cutoff"]
         phrases.append("markers unfiltered" if cutoff is None else
