@@ -200,12 +200,16 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
                  "--forward-reference", str(WALK)]) == 0
     cycles = json.loads(capsys.readouterr().out)["cycles"]
     assert abs(np.rad2deg(facing(cycles))) < 0.02
+    reported = {}
     for name, extra in (("plain", []), ("turned", ["--forward-reference", str(WALK)])):
-        assert main(["fit", str(STATIC), "-o", str(tmp_path / f"{name}.csv"), *common,
-                     *extra]) == 0
+        assert main(["fit", str(STATIC), "-o", str(tmp_path / f"{name}.csv"), "--json",
+                     *common, *extra]) == 0
+        reported[name] = json.loads(capsys.readouterr().out)["heading_offset_rad"]
     import pandas as pd
 
     plain, turned = (pd.read_csv(tmp_path / f"{n}.csv")["pelvis_rotation"]
                      for n in ("plain", "turned"))
     # fit measures the reference with the default toe-off, so its offset differs a little
     assert (turned - plain).mean() == pytest.approx(offset, abs=np.deg2rad(0.05))
+    assert reported["plain"] is None
+    assert (turned - plain).mean() == pytest.approx(reported["turned"], abs=1e-4)

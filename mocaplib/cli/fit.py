@@ -6,6 +6,8 @@ Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_captu
 
 from __future__ import annotations
 
+import numpy as np
+
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
                       check_inputs, check_outputs, heading_offsets)
 
@@ -53,11 +55,13 @@ def _run(args) -> int:
     missing = missing_landmarks_error(match, args.input)
     if missing is not None:
         warn(str(missing))
+    offsets = heading_offsets(args)
     motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
                                         static_pose=args.static_pose, cutoff=args.cutoff,
-                                        heading_offsets=heading_offsets(args))
+                                        heading_offsets=offsets)
     sources = [static.source for static in statics]
     static = static_names(sources)[sources.index(model.source)] if statics else None
+    offset = None if offsets is None else offsets[sources.index(model.source)]
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
@@ -76,10 +80,12 @@ def _run(args) -> int:
              f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
     if args.json:
         print_json({"file": args.input, "protocol": model.protocol.name, "static": static,
-                    "cutoff_hz": cutoff, **quality})
+                    "heading_offset_rad": offset, "cutoff_hz": cutoff, **quality})
     else:
         print(f"{args.input}: protocol {model.protocol.name}"
-              f"{f', static {static}' if static else ''}, {motion.n_frames} frames, "
+              f"{f', static {static}' if static else ''}"
+              f"{'' if offset is None else f' turned {np.rad2deg(offset):+.3f}°'}, "
+              f"{motion.n_frames} frames, "
               f"marker RMS {quality['marker_rms_mm']:.1f} mm, "
               f"max {quality['max_marker_error_mm']:.1f} mm, markers "
               f"{'not low-passed' if cutoff is None else f'low-passed at {cutoff:g} Hz'} "
