@@ -188,6 +188,8 @@ def main() -> int:
     parser.add_argument("--plan", type=Path, default=ROOT / "protocols" / "paper_plan.toml")
     args = parser.parse_args()
     if args.placement_draws:
+        if args.forward_reference == "none":
+            parser.error("--placement-draws always measures with a forward reference: name one")
         placement_draws(args.plan, args.capture, args.placement_draws, args.forward_reference)
         return 0
     with tempfile.TemporaryDirectory() as tmp:

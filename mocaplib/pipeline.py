@@ -32,7 +32,7 @@ from pathlib import Path
 from . import __version__
 from .errors import LibraryError, MocapError
 from .events import TOE_OFF_DEFINITIONS
-from .io import special_file
+from .io import special_file, unique_paths
 from .io.atomic import atomic_write_text
 import numpy as np
 
@@ -111,8 +111,8 @@ class BuildSettings:
             if len(self.heading_offsets) != len(self.statics):
                 raise MocapError(f"heading_offsets needs one angle per static "
                                  f"({len(self.statics)}), got {len(self.heading_offsets)}")
-        if self.forward_reference is not None and (not self.statics
-                                                   or self.static_pose != "neutral"):
+        if ((self.forward_reference is not None or self.heading_offsets is not None)
+                and (not self.statics or self.static_pose != "neutral")):
             raise MocapError("a forward reference turns the heading of a static in the neutral "
                              "pose: give the static, with static_pose 'neutral'")
         if self.toe_off not in TOE_OFF_DEFINITIONS:
@@ -150,15 +150,11 @@ class BuildSettings:
 
 
 def _files(given) -> str | tuple[str, ...] | None:
-    """One path, several (each file once: the same file given relative and absolute counts
-    once), or None for none or an empty one."""
+    """One path, several (each file once: :func:`mocaplib.io.unique_paths`), or None for none
+    or an empty one."""
     if given is None or isinstance(given, (str, os.PathLike)):
         given = () if given is None else (given,)
-    unique: dict[str, str] = {}
-    for path in map(os.fspath, given):
-        if path:
-            unique.setdefault(os.path.abspath(path), path)
-    paths = tuple(unique.values())
+    paths = tuple(unique_paths(given))
     return paths[0] if len(paths) == 1 else paths or None
 
 
@@ -289,8 +285,13 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
     spelled out, so each stage is timed; then the same :func:`mocaplib.events.capture_events`
-    and :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles.
+    and :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles. Settings with a
+    forward reference must carry its measured ``heading_offsets`` (:func:`build` measures
+    them).
     """
+    if settings.forward_reference is not None and settings.heading_offsets is None:
+        raise MocapError("the forward reference's heading offsets are not measured: build with "
+                         "pipeline.build, or set heading_offsets=forward_offsets(settings)")
     from .calibration import calibrate, check_static, choose_static, static_names
     from .cycles import motion_cycles, shoulder_centres
     from .filtering import filter_trial
@@ -389,19 +390,29 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
     (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
     face where they walk. Several references of one static are averaged. The turn is repeated
     on the turned static until each reference faces its path within
-    :data:`FORWARD_TOLERANCE_DEG` (one turn leaves 1 % on the samples, 5 % on a lab walk,
-    whose poses are further from the static's), at most :data:`FORWARD_PASSES` times.
+    :data:`FORWARD_TOLERANCE_DEG` (one turn leaves 4 % on the samples, 5 % on a lab walk,
+    whose poses are further from the static's); the offset is the sum of the turns.
     Raises :class:`~mocaplib.errors.CalibrationError` naming a reference that cannot be
     processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
-    its path.
+    its path, or the references when :data:`FORWARD_PASSES` turns do not settle it.
     """
+    from .calibration import static_names
+    from .errors import CalibrationError
+
     offsets = tuple(0.0 for _ in settings.statics)
     for _ in range(FORWARD_PASSES):
         residuals = _facing_angles(replace(settings, heading_offsets=offsets))
         offsets = tuple(offset + residual for offset, residual in zip(offsets, residuals))
         if max(map(abs, residuals)) < np.deg2rad(FORWARD_TOLERANCE_DEG):
-            break
-    return offsets
+            return offsets
+    unsettled = ", ".join(f"{name} {np.rad2deg(r):+.3f}°" for name, r in
+                          zip(static_names(settings.statics), residuals)
+                          if abs(r) >= np.deg2rad(FORWARD_TOLERANCE_DEG))
+    raise CalibrationError(f"the forward references do not settle the heading of the static: "
+                           f"after {FORWARD_PASSES} turns they still face off their paths by "
+                           f"{unsettled}", path=", ".join(settings.forward_references),
+                           hint="give references whose cycles pass QC steadily (more cycles, "
+                                "a better fit), or build without --forward-reference")
 
 
 def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
@@ -425,17 +436,23 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
                                    path=reference, hint="check the path") from None
         except MocapError as exc:
             where = "" if exc.path in (None, reference) else f"{exc.path}: "
+            own = ("give a forward walk of a subject whose static you pass with --static"
+                   if isinstance(exc, CalibrationError) else exc.hint)
             raise CalibrationError(f"the forward reference cannot be processed: "
                                    f"{where}{exc.message}", path=reference,
-                                   hint=exc.hint or hint) from None
+                                   hint=own or hint) from None
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
-        moving = [c.velocities for c in cycles
-                  if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED
-                  and not qc_failures({name: qcs[c.index][name] for name in FORWARD_QC}, limits)]
+        walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
+        failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
+                                         limits) for c in walking}
+        moving = [c.velocities for c in walking if not failures[c.index]]
         if not moving:
-            raise CalibrationError(f"the forward reference has no complete gait cycle at "
-                                   f"{MIN_FORWARD_SPEED} m/s or faster that passes QC",
-                                   path=reference, hint=hint)
+            why = "; ".join(f"cycle {i}: {', '.join(f)}" for i, f in failures.items())
+            raise CalibrationError(
+                f"the forward reference has no complete gait cycle at {MIN_FORWARD_SPEED} m/s "
+                f"or faster that passes QC" + (f" ({why})" if why else ""), path=reference,
+                hint="the fit of its markers must pass QC: check the static is this subject's "
+                     "and the labels" if why else hint)
         angle = float(np.mean([np.arctan2(c.v_l, c.v_f) for c in moving]))
         if abs(np.rad2deg(angle)) > FORWARD_LIMIT_DEG:
             raise CalibrationError(
@@ -679,7 +696,7 @@ class BuildResult:
         if len(names) > 1:
             lines.append("captures per static: " + ", ".join(
                 f"{name} {s['statics'].get(name, 0)}" for name in names))
-        if self.settings.heading_offsets is not None:
+        if self.settings.forward_reference is not None:
             lines.append("heading turned by the forward reference: " + ", ".join(
                 f"{name} {np.rad2deg(offset):+.3f}°"
                 for name, offset in zip(names, self.settings.heading_offsets)))
@@ -825,12 +842,12 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     if jobs < 1:
         raise MocapError(f"jobs must be >= 1, got {jobs}")
     started = time.perf_counter()
-    if settings.forward_reference is not None and settings.heading_offsets is None:
-        settings = replace(settings, heading_offsets=forward_offsets(settings))
     paths = find_captures(inputs)
     if not paths:
         raise MocapError("no C3D captures found in the inputs",
                          hint="give .c3d files or folders that contain some")
+    if settings.forward_reference is not None and settings.heading_offsets is None:
+        settings = replace(settings, heading_offsets=forward_offsets(settings))
     results: dict[int, CaptureResult] = {}
     keys: dict[int, str] = {}
     cache = None if cache_dir is None else Path(cache_dir)

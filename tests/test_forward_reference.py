@@ -68,7 +68,7 @@ def test_the_corrected_reference_faces_where_it_walks(offset):
     before = process_capture(WALK, neutral(all_cycles=True))
     after = process_capture(WALK, neutral(all_cycles=True, heading_offsets=(offset,)))
     assert before.ok and after.ok and len(after.entries) >= 2
-    assert abs(np.rad2deg(facing(before.entries) - offset)) < 0.02    # one turn: 99 %
+    assert abs(np.rad2deg(facing(before.entries) - offset)) < 0.02    # one turn: 96 %
     assert abs(np.rad2deg(facing(after.entries))) < FORWARD_TOLERANCE_DEG
 
 
@@ -87,9 +87,11 @@ def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path):
     assert abs(np.rad2deg(facing(turned.entries))) < FORWARD_TOLERANCE_DEG
     assert abs(np.rad2deg(facing(plain.entries))) > 1.0
     motonms = real_file("motonms_unipd/Walking3.c3d")
-    with pytest.raises(CalibrationError, match="no complete gait cycle .* that passes QC"):
+    with pytest.raises(CalibrationError, match=r"no complete gait cycle .* that passes QC "
+                                               r"\(cycle 0: marker_rms_m 0\.\d+ > 0\.02") as e:
         forward_offsets(BuildSettings(static=str(motonms.with_name("Static1.c3d")),
                                       static_pose="neutral", forward_reference=str(motonms)))
+    assert "the fit of its markers must pass QC" in str(e.value)
 
 
 def test_the_offset_measured_on_a_walk_corrects_the_fastest_run(offset):
@@ -132,7 +134,7 @@ def test_each_static_gets_the_offset_of_its_subjects_references(tmp_path, offset
                                          forward_reference=[str(taller_walk), str(WALK)]))
     tolerance = np.deg2rad(FORWARD_TOLERANCE_DEG)
     assert both[0] == pytest.approx(offset, abs=tolerance)
-    assert both[1] != 0.0 and abs(np.rad2deg(both[1])) < 1.0
+    assert 0.01 < abs(np.rad2deg(both[1])) < 1.0
     only_taller = forward_offsets(BuildSettings(static=statics, static_pose="neutral",
                                                 toe_off="lift", forward_reference=taller_walk))
     assert only_taller[0] == 0.0 and only_taller[1] == pytest.approx(both[1], abs=tolerance)
@@ -140,6 +142,16 @@ def test_each_static_gets_the_offset_of_its_subjects_references(tmp_path, offset
     two = forward_offsets(neutral(forward_reference=[str(WALK), str(fast)]))
     alone = forward_offsets(neutral(forward_reference=str(fast)))
     assert two[0] == pytest.approx((offset + alone[0]) / 2, abs=np.deg2rad(0.01))
+
+
+def test_a_reference_of_a_subject_without_a_static_is_refused(tmp_path):
+    taller_walk, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
+    with pytest.raises(CalibrationError) as caught:
+        forward_offsets(neutral(forward_reference=str(taller_walk)))
+    text = str(caught.value)
+    assert text.startswith(f"{taller_walk}: the forward reference cannot be processed: ")
+    assert "rest.c3d" in text and text.endswith(
+        "(give a forward walk of a subject whose static you pass with --static)")
 
 
 def test_settings_record_the_references_and_the_offsets():
@@ -157,9 +169,14 @@ def test_settings_record_the_references_and_the_offsets():
         BuildSettings(static_pose="neutral", forward_reference=str(WALK))
     with pytest.raises(MocapError, match="one angle per static"):
         neutral(heading_offsets=(0.1, 0.2))
+    with pytest.raises(MocapError, match="neutral pose"):           # a free static ignores it
+        BuildSettings(static=str(STATIC), heading_offsets=(0.1,))
+    # a capture processed with a reference but no measured offset fails, saying so
+    unmeasured = process_capture(WALK, neutral(forward_reference=str(WALK)))
+    assert not unmeasured.ok and "heading offsets are not measured" in unmeasured.error
 
 
-def test_build_measures_the_offset_once_and_the_library_records_it(tmp_path, offset):
+def test_build_measures_the_offset_and_the_library_records_it(tmp_path, offset):
     out = tmp_path / "lib.json"
     spread = [SAMPLES / f"{name}.c3d" for name in ("side_left_normal", "turn_spot_left_normal",
                                                    "walk_curve_r1_left_normal")]
@@ -174,6 +191,22 @@ def test_build_measures_the_offset_once_and_the_library_records_it(tmp_path, off
     assert f"rest.c3d {np.rad2deg(offset):+.3f}°" in result.summary_text()
 
 
+def test_a_changed_reference_is_measured_again_and_the_cache_follows(tmp_path, offset):
+    reference = tmp_path / "forward.c3d"
+    reference.write_bytes(WALK.read_bytes())
+    settings = neutral(forward_reference=str(reference))
+    run = SAMPLES / "run_3p5.c3d"
+    first = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    assert first.settings.heading_offsets == (offset,)
+    again = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    assert again.summary()["from_cache"] == 1
+    reference.write_bytes((SAMPLES / "walk_straight_fast.c3d").read_bytes())
+    changed = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    assert changed.settings.heading_offsets != (offset,)
+    assert changed.summary()["from_cache"] == 0
+    assert changed.captures[0].entries[0]["v_l"] != first.captures[0].entries[0]["v_l"]
+
+
 @pytest.mark.parametrize("extra, code, message", [
     (["--static-pose", "free"], 2,
      "--forward-reference turns the heading of a static in the neutral pose"),
@@ -181,17 +214,25 @@ def test_build_measures_the_offset_once_and_the_library_records_it(tmp_path, off
      "--forward-reference: {d}/missing.c3d: no such file"),
     (["--forward-reference", "{s}/side_left_normal.c3d"], 1,
      "side_left_normal.c3d: in the forward reference"),
+    (["--forward-reference", "{s}"], 2, "--forward-reference: {s}: is a folder: give one C3D"),
+    (["--forward-reference", "{s}/README.md"], 2, "--forward-reference: {s}/README.md: "),
+    (["--forward-reference", ""], 2, "--forward-reference: an empty path"),
 ])
 def test_the_cli_refuses_a_bad_reference_and_writes_nothing(tmp_path, capsys, extra, code,
                                                             message):
     out = tmp_path / "lib.json"
-    argv = ["build", str(WALK), "-o", str(out), "--static", str(STATIC), "--static-pose",
-            "neutral", "--forward-reference", str(WALK), "--no-cache", "-q"]
-    argv += [a.format(d=tmp_path, s=SAMPLES) for a in extra]
-    assert main(argv) == code
+    calibration = ["--static", str(STATIC), "--static-pose", "neutral", "--forward-reference",
+                   str(WALK), *(a.format(d=tmp_path, s=SAMPLES) for a in extra)]
+    assert main(["build", str(WALK), "-o", str(out), "--no-cache", "-q", *calibration]) == code
     err = capsys.readouterr().err
-    assert message.format(d=tmp_path) in err and "Traceback" not in err
+    assert message.format(d=tmp_path, s=SAMPLES) in err and "Traceback" not in err
     assert not out.exists()
+    # fit and cycles refuse it alike; fit writes nothing
+    angles = tmp_path / "angles.csv"
+    for command in (["fit", str(WALK), "-o", str(angles)], ["cycles", str(WALK)]):
+        assert main([*command, *calibration]) == code
+        assert message.format(d=tmp_path, s=SAMPLES) in capsys.readouterr().err
+    assert not angles.exists()
 
 
 def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):

@@ -160,9 +160,10 @@ def test_report_contents(report):
                  "joint RMS (°)", "heading RMS (°)", "root RMS (mm)", "stride error (mm)",
                  "For comparison, on the frontal axes", "calibrated with Static1.c3d",
                  "Built with protocol fullbody38; static S&lt;script&gt;",
-                 ".c3d (neutral pose); heading set by the forward reference walk.c3d (static "
-                 "turned -0.235°); marker low-pass by Winter&#39;s residual analysis; "
-                 "cycles cut at lift toe-offs; one cycle per capture; QC failures dropped."):
+                 ".c3d (neutral pose); heading set by the forward reference walk.c3d "
+                 "(S&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;.c3d -0.235°); "
+                 "marker low-pass by Winter&#39;s residual analysis; cycles cut at lift toe-offs; "
+                 "one cycle per capture; QC failures dropped."):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
                                 html, re.S).group(1))

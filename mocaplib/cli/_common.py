@@ -172,9 +172,11 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
                  hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
     not exist (the message ends with ``hint``), a ``--static`` cannot be read or is not
-    standing still (:func:`mocaplib.calibration.check_standing`), ``--static-pose neutral``
-    comes without a static or ``--forward-reference`` without a neutral static. Returns the
-    static trials, each file read once (the same file given twice counts once)."""
+    standing still (:func:`mocaplib.calibration.check_standing`), a ``--forward-reference``
+    cannot be read, or ``--static-pose neutral`` comes without a static or
+    ``--forward-reference`` without a neutral static; a static or reference must be one C3D
+    file. Returns the static trials, each file read once (the same file given twice counts
+    once: :func:`mocaplib.io.unique_paths`)."""
     if static_pose == "neutral" and not statics:
         raise UsageError("--static-pose neutral describes the static trial: give it with "
                          "--static FILE, or leave --static-pose out")
@@ -183,23 +185,32 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
                          "pose: give --static FILE --static-pose neutral, or leave "
                          "--forward-reference out")
     from ..calibration import check_standing
+    from ..io import unique_paths
     from ..io.c3d import read_c3d
 
-    unique: dict[str, str] = {}
-    for path in statics or ():
-        unique.setdefault(os.path.abspath(path), path)
+    calibration = [("--static", path) for path in statics or ()] + [
+        ("--forward-reference", path) for path in references or ()]
+    for option, path in calibration:
+        if not path:
+            raise UsageError(f"{option}: an empty path: give a C3D file")
     for option, path in [*(("", path) for path in inputs),
-                         *(("--static: ", path) for path in unique.values()),
-                         *(("--forward-reference: ", path) for path in references or ())]:
+                         *((f"{option}: ", path) for option, path in calibration)]:
         if not Path(path).exists():
             raise UsageError(f"{option}{path}: no such file or folder ({hint})")
+    for option, path in calibration:
+        if Path(path).is_dir():
+            raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
-    for path in unique.values():
-        try:
-            trials.append(read_c3d(path))
-            check_standing(trials[-1])
-        except MocapError as exc:
-            raise UsageError(f"--static: {exc}") from None
+    for option, paths in (("--static", unique_paths(statics or ())),
+                          ("--forward-reference", unique_paths(references or ()))):
+        for path in paths:
+            try:
+                trial = read_c3d(path)
+                if option == "--static":
+                    check_standing(trial)
+                    trials.append(trial)
+            except MocapError as exc:
+                raise UsageError(f"{option}: {exc}") from None
     return trials
 
 

@@ -334,11 +334,14 @@ def _built_with(settings: dict) -> list[str]:
                        "each capture calibrated from itself")
     reference = settings.get("forward_reference")
     if reference:
-        names = reference if isinstance(reference, list) else [reference]
-        offsets = [f"{math.degrees(o):+.3f}°" for o in settings.get("heading_offsets") or []
-                   if isinstance(o, (int, float))]
-        phrases.append(f"heading set by the forward reference {', '.join(map(str, names))}"
-                       + (f" (static turned {', '.join(offsets)})" if offsets else ""))
+        references = reference if isinstance(reference, list) else [reference]
+        static = settings.get("static")
+        statics = static if isinstance(static, list) else [static] if static else []
+        offsets = settings.get("heading_offsets") or []
+        turned = [f"{name} {math.degrees(o):+.3f}°" for name, o in zip(statics, offsets)
+                  if isinstance(o, (int, float))] if len(offsets) == len(statics) else []
+        phrases.append(f"heading set by the forward reference {', '.join(map(str, references))}"
+                       + (f" ({'; '.join(turned)})" if turned else ""))
     if "cutoff" in settings:
         cutoff = settings["cutoff"]
         phrases.append("markers unfiltered" if cutoff is None else
