@@ -409,8 +409,9 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
                           zip(static_names(settings.statics), residuals)
                           if abs(r) >= np.deg2rad(FORWARD_TOLERANCE_DEG))
     raise CalibrationError(f"the forward references do not settle the heading of the static: "
-                           f"after {FORWARD_PASSES} turns they still face off their paths by "
-                           f"{unsettled}", path=", ".join(settings.forward_references),
+                           f"turn {FORWARD_PASSES} of {FORWARD_PASSES} was still {unsettled} "
+                           f"(the turns stop below {FORWARD_TOLERANCE_DEG:g}°)",
+                           path=", ".join(settings.forward_references),
                            hint="give references whose cycles pass QC steadily (more cycles, "
                                 "a better fit), or build without --forward-reference")
 

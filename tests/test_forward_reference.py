@@ -254,3 +254,15 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
     assert (turned - plain).mean() == pytest.approx(offset, abs=np.deg2rad(0.05))
     assert reported["plain"] is None
     assert (turned - plain).mean() == pytest.approx(reported["turned"], abs=1e-4)
+
+
+def test_references_that_do_not_settle_are_an_error(monkeypatch):
+    # the sample reference needs a second turn (0.009°, under the 0.01° that ends the turns);
+    # allowed a single turn, it is refused
+    from mocaplib import pipeline
+
+    monkeypatch.setattr(pipeline, "FORWARD_PASSES", 1)
+    with pytest.raises(CalibrationError, match=r"turn 1 of 1 was still rest\.c3d -0\.2\d\d° "
+                                               r"\(the turns stop below 0\.01°\)") as caught:
+        forward_offsets(neutral(forward_reference=str(WALK)))
+    assert str(caught.value).startswith(f"{WALK}: ")
