@@ -201,16 +201,17 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         if Path(path).is_dir():
             raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
-    for option, paths in (("--static", unique_paths(statics or ())),
-                          ("--forward-reference", unique_paths(references or ()))):
-        for path in paths:
-            try:
-                trial = read_c3d(path)
-                if option == "--static":
-                    check_standing(trial)
-                    trials.append(trial)
-            except MocapError as exc:
-                raise UsageError(f"{option}: {exc}") from None
+    for path in unique_paths(statics or ()):
+        try:
+            trials.append(read_c3d(path))
+            check_standing(trials[-1])
+        except MocapError as exc:
+            raise UsageError(f"--static: {exc}") from None
+    for path in unique_paths(references or ()):
+        try:
+            read_c3d(path)
+        except MocapError as exc:
+            raise UsageError(f"--forward-reference: {exc}") from None
     return trials
 
 

@@ -323,20 +323,21 @@ def _summary(library, df, diagnostics, cs) -> dict:
 def _built_with(settings: dict) -> list[str]:
     """The build settings the library records (``settings``, see ``docs/library-format.md``),
     as short phrases for the summary; a setting the library lacks is left out."""
+    def names(key: str) -> list:
+        """A setting that is one file name, a list of them or null, as a list."""
+        value = settings.get(key)
+        return value if isinstance(value, list) else [value] if value else []
+
     phrases = []
     if "protocol" in settings:
         phrases.append(f"protocol {settings['protocol']}")
+    statics = names("static")
     if "static" in settings:
-        static = settings["static"]
-        names = static if isinstance(static, list) else [static] if static else []
-        phrases.append(f"static {', '.join(map(str, names))} "
-                       f"({settings.get('static_pose', 'free')} pose)" if names else
+        phrases.append(f"static {', '.join(map(str, statics))} "
+                       f"({settings.get('static_pose', 'free')} pose)" if statics else
                        "each capture calibrated from itself")
-    reference = settings.get("forward_reference")
-    if reference:
-        references = reference if isinstance(reference, list) else [reference]
-        static = settings.get("static")
-        statics = static if isinstance(static, list) else [static] if static else []
+    references = names("forward_reference")
+    if references:
         offsets = settings.get("heading_offsets") or []
         turned = [f"{name} {math.degrees(o):+.3f}°" for name, o in zip(statics, offsets)
                   if isinstance(o, (int, float))] if len(offsets) == len(statics) else []
