@@ -5,10 +5,12 @@ calibration, fit, events, cycles, pattern and velocities, Fourier, library entri
 pure, picklable function of the file's content and the settings: it never raises for a bad
 capture but returns a :class:`CaptureResult` carrying the error (file, stage, reason).
 
-:func:`build` runs it over many captures — serially, in a process pool (``jobs``) or on a Dask
-cluster (``scheduler``) — caches each capture's result (JSON, keyed by the SHA-256 of the file,
-the settings and the tool version), and assembles the :class:`~mocaplib.library.Library` and the
-per-capture diagnostics the HTML report reads (see ``docs/library-format.md``).
+:func:`build` runs it over many captures — serially, in worker processes (``jobs``,
+:mod:`mocaplib.workers`: a dead worker fails only its capture) or on a Dask cluster
+(``scheduler``) — caches each capture's result (JSON, keyed by the SHA-256 of the file, the
+settings, the tool version and the code, verified by the hash of its content when read), and
+assembles the :class:`~mocaplib.library.Library` and the per-capture diagnostics the HTML report
+reads, written as one unit (see ``docs/library-format.md`` and ``docs/reliability.md``).
 """
 
 from __future__ import annotations
@@ -874,7 +876,7 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         raise MocapError("no C3D captures found in the inputs",
                          hint="give .c3d files or folders that contain some")
     if settings.forward_reference is not None and settings.heading_offsets is None:
-        settings = replace(settings, heading_offsets=forward_offsets(settings))
+        settings = replace(settings, heading_offsets=pinned(forward_offsets, settings))
     results: dict[int, CaptureResult] = {}
     keys: dict[int, str] = {}
     notes: list[str] = []

@@ -21,6 +21,7 @@ What it guarantees
 from __future__ import annotations
 
 import os
+import pickle
 import signal
 import sys
 import threading
@@ -123,13 +124,18 @@ class _Worker:
             pass
         return None
 
-    def death(self) -> str:
-        """How the (dead) process ended, for people."""
+    def bury(self) -> str:
+        """Release a dead worker; how it ended, for people."""
         self.process.join(STOP_TIMEOUT_S)
         code = self.process.exitcode
+        self.connection.close()
+        if self.process.is_alive():  # not dead after all: it broke its pipe
+            self.process.kill()
+            self.process.join()
+        self.process.close()
         if code is not None and code < 0:
             name = signal.Signals(-code).name if -code in signal.valid_signals() else -code
-            kill = " (the system kills the largest process when out of memory)" \
+            kill = ", as the system's out-of-memory killer does" \
                 if -code == getattr(signal, "SIGKILL", None) else ""
             return f"killed by signal {name}{kill}"
         return f"exited with code {code}"
@@ -165,11 +171,11 @@ class _Pool:
                         if reply is not None:
                             if not worker.process.is_alive():  # died right after replying
                                 self.workers.remove(worker)
-                                worker.death()
+                                worker.bury()
                             yield reply
                             continue
                         self.workers.remove(worker)
-                        how = worker.death()
+                        how = worker.bury()
                         if attempts[index] < MAX_ATTEMPTS:
                             pending.appendleft(index)
                         else:
@@ -200,7 +206,7 @@ class _Pool:
             attempts[index] += 1
             idle.task = index
             try:
-                idle.send((index, function, tasks[index]))
+                idle.send((index, pickle.dumps((function, tasks[index]))))
             except (BrokenPipeError, ConnectionError, EOFError):
                 pass  # died meanwhile: its sentinel says so and the task is given again
 
@@ -239,8 +245,9 @@ def _serve(connection, parent: int) -> None:
             return
         if task is None:
             return
-        index, function, arguments = task
-        try:
+        index, payload = task
+        try:  # unpickled here, so that a function this process cannot import fails its task
+            function, arguments = pickle.loads(payload)
             reply = (index, pinned(function, *arguments), None)
         except Exception as exc:
             reply = (index, None, exc)

@@ -172,3 +172,18 @@ def session_processes(session: int) -> list[int]:
         if int(fields[3]) == session and fields[0] != "Z":
             found.append(int(entry.name))
     return found
+
+
+@needs_two
+def test_a_function_workers_cannot_import_fails_its_tasks(capfd):
+    import types
+
+    ghost = types.ModuleType("ghost_module")  # exists in this process only
+    exec("def same(x):\n    return x\n", ghost.__dict__)
+    sys.modules["ghost_module"] = ghost
+    try:
+        results = outcomes(ghost.same, [(1,), (2,)], jobs=2)
+    finally:
+        del sys.modules["ghost_module"]
+    assert all(isinstance(r, ModuleNotFoundError) for r in results)
+    assert "Traceback" not in capfd.readouterr().err
