@@ -119,12 +119,6 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     except ValueError as exc:
         return None, [f"diagnostics sidecar {path.name} unreadable ({exc}); "
                       "per-capture plots skipped"]
-    other = _other_build(data, library)
-    if other:
-        return None, [f"diagnostics sidecar {path.name} does not belong to this library "
-                      f"({other}): it was written by another build, so its captures, counts "
-                      "and plots are not shown (keep each library with the sidecar its build "
-                      "wrote, or rebuild)"]
     warnings, records = [], []
     for k, record in enumerate(data["captures"]):
         problem = _record_problem(record)
@@ -135,14 +129,12 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
             record.get("source"), str) else ""
         warnings.append(f"diagnostics sidecar {path.name}: capture record {k}{name} left out "
                         f"of the report: {problem}")
-    if data.get("library_sha256") is None:
-        mismatch = _sidecar_mismatch(records, set(library.entries.index),
-                                     complete=len(records) == len(data["captures"]))
-        if mismatch:
-            return None, [f"diagnostics sidecar {path.name} does not belong to this library "
-                          f"({mismatch}): it was written by another build, so its captures, "
-                          "counts and plots are not shown (keep each library with the "
-                          "sidecar its build wrote, or rebuild)"]
+    other = _other_build(data, records, library)
+    if other:
+        return None, [f"diagnostics sidecar {path.name} does not belong to this library "
+                      f"({other}): it was written by another build, so its captures, counts "
+                      "and plots are not shown (keep each library with the sidecar its build "
+                      "wrote, or rebuild)"]
     return {**data, "captures": records}, warnings
 
 
@@ -150,14 +142,18 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
 MAX_SIDECAR_BYTES = 1 << 30
 
 
-def _other_build(sidecar: dict, library) -> str | None:
-    """Why the sidecar names another library than ``library`` by its hash, or None (the same
-    one, or no hash to compare)."""
+def _other_build(sidecar: dict, records: list[dict], library) -> str | None:
+    """Why the sidecar (its well-formed capture ``records``) is not ``library``'s, or None:
+    it names another library's SHA-256; or, when there is no hash to compare (a sidecar
+    written before it was stored, a library built in memory), its entry ids are not the
+    library's (:func:`_sidecar_mismatch`)."""
     named = sidecar.get("library_sha256")
-    if named is None or library.file_sha256 is None or named == library.file_sha256:
-        return None
-    return (f"it names the library whose SHA-256 is {str(named)[:12]}…, this file's is "
+    if named is not None and library.file_sha256 is not None:
+        return None if named == library.file_sha256 else (
+            f"it names the library whose SHA-256 is {str(named)[:12]}…, this file's is "
             f"{library.file_sha256[:12]}…")
+    return _sidecar_mismatch(records, set(library.entries.index),
+                             complete=len(records) == len(sidecar["captures"]))
 
 
 def _record_problem(record) -> str | None:
