@@ -717,7 +717,7 @@ class BuildResult:
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
         return "\n".join(lines)
 
-    def diagnostics(self, library_name: str = "library.json",
+    def diagnostics(self, library_name: str = "library.json", *,
                     library_sha256: str | None = None) -> dict:
         """The diagnostics sidecar's content (see ``docs/library-format.md``);
         ``library_sha256``: the SHA-256 of the library file's bytes it belongs to."""
@@ -754,7 +754,8 @@ class BuildResult:
                                     "already there is left as it was")
         sidecar = diagnostics_path(path)
         library = self.library.to_json().encode("utf-8")
-        diagnostics = self.diagnostics(path.name, hashlib.sha256(library).hexdigest())
+        diagnostics = self.diagnostics(path.name,
+                                       library_sha256=hashlib.sha256(library).hexdigest())
         atomic_write_files([(path, library), (sidecar, json_text(diagnostics).encode("utf-8"))])
         return path, sidecar
 

@@ -1,7 +1,7 @@
 """Worker processes that survive one another and never outlive their parent.
 
 :func:`run_tasks` runs ``function(*arguments)`` for a list of tasks, in this process
-(``jobs=1``) or in ``jobs`` spawned worker processes, and yields each task's outcome as it
+(``jobs=1``) or in ``jobs`` worker processes (new interpreters), and yields each task's outcome as it
 finishes. The batch build and the report's figures use it.
 
 What it guarantees
@@ -11,9 +11,10 @@ What it guarantees
       (:data:`MAX_ATTEMPTS`), and fails with :class:`WorkerDied` if that worker dies too. The
       other tasks go on.
     * No worker outlives the pool: they are stopped when the pool ends, also on an error or
-      Ctrl-C (workers ignore SIGINT; the parent stops them), and a worker whose parent dies
-      (``kill -9``) ends too: on Linux the kernel kills it (``PR_SET_PDEATHSIG``), elsewhere
-      it notices within :data:`PARENT_POLL_S` that its parent changed.
+      Ctrl-C (workers ignore SIGINT and, on POSIX, run in their own process group; the parent
+      stops them), and a worker whose parent dies (``kill -9``) ends too: on Linux the kernel
+      kills it (``PR_SET_PDEATHSIG``), elsewhere it notices within :data:`PARENT_POLL_S` that
+      its parent changed.
     * Every task runs with one BLAS/OpenMP thread (:func:`pinned`), in a worker or not, so its
       floating-point results do not depend on ``jobs`` or on the machine's thread settings.
 """
@@ -23,6 +24,8 @@ from __future__ import annotations
 import os
 import pickle
 import signal
+import socket
+import subprocess
 import sys
 import threading
 import time
@@ -101,22 +104,49 @@ def run_tasks(function: Callable, tasks: list[tuple], *, jobs: int = 1
     yield from _Pool(jobs).run(function, tasks)
 
 
-class _Worker:
-    """One spawned worker process and the parent's end of its pipe."""
+#: What a worker process runs (POSIX): the parent's import path, then :func:`_serve` on the
+#: socket it inherited. SIGINT is ignored first: Ctrl-C is the parent's to handle.
+_BOOTSTRAP = ("import signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+              "sys.path[:] = {path!r}; from mocaplib.workers import _serve_socket; "
+              "_serve_socket({fd}, {parent})")
 
-    def __init__(self, context):
-        self.connection, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, os.getpid()), daemon=True,
-                                       name="mocaplib-worker")
-        self.process.start()
-        child.close()
+
+class _Worker:
+    """One worker process and the parent's end of the connection to it.
+
+    On POSIX systems the worker is a new interpreter started with :data:`_BOOTSTRAP` in its own
+    process group (a terminal's Ctrl-C reaches the parent only), talking over a socket pair:
+    nothing it runs before :func:`_serve` can fail on a parent killed meanwhile. Elsewhere it
+    is a ``multiprocessing`` "spawn" process.
+    """
+
+    def __init__(self):
+        if os.name == "posix":
+            from multiprocessing.connection import Connection
+
+            ours, theirs = socket.socketpair()
+            with theirs:
+                code = _BOOTSTRAP.format(path=sys.path, fd=theirs.fileno(), parent=os.getpid())
+                self.process = subprocess.Popen([sys.executable, "-c", code],
+                                                pass_fds=(theirs.fileno(),),
+                                                stdin=subprocess.DEVNULL, process_group=0)
+            self.connection = Connection(ours.detach())
+        else:
+            import multiprocessing
+
+            context = multiprocessing.get_context("spawn")
+            self.connection, child = context.Pipe()
+            self.process = context.Process(target=_serve, args=(child, os.getpid()),
+                                           daemon=True, name="mocaplib-worker")
+            self.process.start()
+            child.close()
         self.task: int | None = None
 
     def send(self, message) -> None:
         self.connection.send(message)
 
     def receive(self):
-        """The worker's reply, or None when it died before sending one."""
+        """The worker's reply, or None when it died (or closed its end) before sending one."""
         try:
             if self.connection.poll():
                 return self.connection.recv()
@@ -124,16 +154,33 @@ class _Worker:
             pass
         return None
 
-    def bury(self) -> str:
-        """Release a dead worker; how it ended, for people."""
-        self.process.join(STOP_TIMEOUT_S)
-        code = self.process.exitcode
-        self.connection.close()
-        if self.process.is_alive():  # not dead after all: it broke its pipe
+    def exit_code(self, timeout: float | None) -> int | None:
+        """The process's exit code (negative: the signal that killed it) once it ended,
+        waiting at most ``timeout`` s (None: as long as it takes); None if it still runs."""
+        if isinstance(self.process, subprocess.Popen):
+            try:
+                return self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                return None
+        self.process.join(timeout)
+        return self.process.exitcode
+
+    def end(self, timeout: float | None) -> int:
+        """Wait at most ``timeout`` s for the process to end, kill it if it has not, release
+        it; its exit code."""
+        code = self.exit_code(timeout)
+        if code is None:
             self.process.kill()
-            self.process.join()
-        self.process.close()
-        if code is not None and code < 0:
+            code = self.exit_code(None)
+        self.connection.close()
+        if hasattr(self.process, "close"):  # multiprocessing.Process
+            self.process.close()
+        return code
+
+    def bury(self) -> str:
+        """Release a worker that died; how it ended, for people."""
+        code = self.end(STOP_TIMEOUT_S)
+        if code < 0:
             name = signal.Signals(-code).name if -code in signal.valid_signals() else -code
             kill = ", as the system's out-of-memory killer does" \
                 if -code == getattr(signal, "SIGKILL", None) else ""
@@ -142,11 +189,10 @@ class _Worker:
 
 
 class _Pool:
-    def __init__(self, jobs: int):
-        import multiprocessing
+    """Workers started on demand, up to ``jobs``. New processes rather than forks of this one:
+    the parent may hold threads (progress bar, BLAS) that a fork would copy mid-operation."""
 
-        # "spawn" rather than fork: the parent may hold threads (progress bar, BLAS).
-        self.context = multiprocessing.get_context("spawn")
+    def __init__(self, jobs: int):
         self.jobs = jobs
         self.workers: list[_Worker] = []
 
@@ -161,15 +207,16 @@ class _Pool:
                 while pending or any(w.task is not None for w in self.workers):
                     self._hand_out(pending, function, tasks, attempts)
                     busy = [w for w in self.workers if w.task is not None]
-                    ready = set(wait([w.connection for w in busy]
-                                     + [w.process.sentinel for w in busy]))
+                    # a worker's connection is ready with its reply, or at its end (EOF) when
+                    # it died: only the worker holds the other end
+                    ready = set(wait([w.connection for w in busy]))
                     for worker in busy:
-                        if worker.connection not in ready and worker.process.sentinel not in ready:
+                        if worker.connection not in ready:
                             continue
                         index, reply = worker.task, worker.receive()
                         worker.task = None
                         if reply is not None:
-                            if not worker.process.is_alive():  # died right after replying
+                            if worker.exit_code(0) is not None:  # died right after replying
                                 self.workers.remove(worker)
                                 worker.bury()
                             yield reply
@@ -192,7 +239,7 @@ class _Pool:
             idle = next((w for w in self.workers if w.task is None), None)
             if idle is None and len(self.workers) < self.jobs:
                 try:
-                    idle = _Worker(self.context)
+                    idle = _Worker()
                 except OSError as exc:  # no more processes or memory: go on with fewer
                     if not self.workers:
                         raise MocapError(f"cannot start a worker process: {exc}",
@@ -208,7 +255,7 @@ class _Pool:
             try:
                 idle.send((index, pickle.dumps((function, tasks[index]))))
             except (BrokenPipeError, ConnectionError, EOFError):
-                pass  # died meanwhile: its sentinel says so and the task is given again
+                pass  # died meanwhile: its connection says so and the task is given again
 
     def _stop(self, *, graceful: bool) -> None:
         """End every worker: idle ones are asked to exit, others (or all, when the pool ends
@@ -223,16 +270,18 @@ class _Pool:
                 worker.process.terminate()
         deadline = time.monotonic() + STOP_TIMEOUT_S
         for worker in self.workers:
-            worker.process.join(max(0.0, deadline - time.monotonic()))
-            if worker.process.is_alive():
-                worker.process.kill()
-                worker.process.join()
-            worker.connection.close()
-            worker.process.close()
+            worker.end(max(0.0, deadline - time.monotonic()))
         self.workers = []
 
 
 # --------------------------------------------------------------------------- worker side
+def _serve_socket(fd: int, parent: int) -> None:
+    """:func:`_serve` on the socket ``fd`` a POSIX worker inherited (:data:`_BOOTSTRAP`)."""
+    from multiprocessing.connection import Connection
+
+    _serve(Connection(fd), parent)
+
+
 def _serve(connection, parent: int) -> None:
     """A worker's loop: run each task received, send back ``(index, value, error)``; stop at
     None or when the parent's end of the pipe closes."""
