@@ -122,6 +122,7 @@ class _Worker:
 
     def __init__(self):
         if os.name == "posix":
+            from multiprocessing import spawn
             from multiprocessing.connection import Connection
 
             ours, theirs = socket.socketpair()
@@ -131,6 +132,11 @@ class _Worker:
                                                 pass_fds=(theirs.fileno(),),
                                                 stdin=subprocess.DEVNULL, process_group=0)
             self.connection = Connection(ours.detach())
+            # as multiprocessing's spawn: the worker imports this process's main module too,
+            # so that functions defined in a script can be sent
+            preparation = spawn.get_preparation_data("mocaplib-worker")
+            preparation.pop("authkey", None)  # multiprocessing's own secret: not needed
+            self.connection.send(preparation)
         else:
             import multiprocessing
 
@@ -276,17 +282,38 @@ class _Pool:
 
 # --------------------------------------------------------------------------- worker side
 def _serve_socket(fd: int, parent: int) -> None:
-    """:func:`_serve` on the socket ``fd`` a POSIX worker inherited (:data:`_BOOTSTRAP`)."""
+    """A POSIX worker (:data:`_BOOTSTRAP`): watch the parent, prepare as multiprocessing's
+    spawn does (the parent's path, folder and main module), then :func:`_serve_tasks` on the
+    socket ``fd`` it inherited. Nothing here can fail on a parent killed meanwhile: the
+    connection just ends."""
+    from multiprocessing import spawn
     from multiprocessing.connection import Connection
 
-    _serve(Connection(fd), parent)
+    _end_with_parent(parent)
+    connection = Connection(fd)
+    try:
+        preparation = connection.recv()
+    except (EOFError, OSError):
+        return
+    try:
+        spawn.prepare(preparation)
+    except Exception as exc:  # the parent's main module fails here: each task says so
+        _serve_tasks(connection, failure=exc)
+    else:
+        _serve_tasks(connection)
 
 
 def _serve(connection, parent: int) -> None:
-    """A worker's loop: run each task received, send back ``(index, value, error)``; stop at
-    None or when the parent's end of the pipe closes."""
+    """A ``multiprocessing`` worker (not POSIX): ignore Ctrl-C, watch the parent, then
+    :func:`_serve_tasks`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     _end_with_parent(parent)
+    _serve_tasks(connection)
+
+
+def _serve_tasks(connection, *, failure: Exception | None = None) -> None:
+    """Run each task received, send back ``(index, value, error)`` (``failure``, when given,
+    is every task's error); stop at None or when the parent's end of the connection closes."""
     while True:
         try:
             task = connection.recv()
@@ -296,6 +323,8 @@ def _serve(connection, parent: int) -> None:
             return
         index, payload = task
         try:  # unpickled here, so that a function this process cannot import fails its task
+            if failure is not None:
+                raise failure
             function, arguments = pickle.loads(payload)
             reply = (index, pinned(function, *arguments), None)
         except Exception as exc:

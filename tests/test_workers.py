@@ -187,3 +187,22 @@ def test_a_function_workers_cannot_import_fails_its_tasks(capfd):
         del sys.modules["ghost_module"]
     assert all(isinstance(r, ModuleNotFoundError) for r in results)
     assert "Traceback" not in capfd.readouterr().err
+
+
+@needs_two
+def test_a_function_defined_in_a_script_runs_in_workers(tmp_path):
+    # as with multiprocessing's spawn, workers import the script's main module (its
+    # `if __name__ == "__main__":` part does not run there)
+    script = tmp_path / "script.py"
+    script.write_text(textwrap.dedent("""
+        from mocaplib.workers import run_tasks
+
+        def triple(x):
+            return 3 * x
+
+        if __name__ == "__main__":
+            print(sorted(value for _, value, _ in run_tasks(triple, [(1,), (2,)], jobs=2)))
+        """))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout == "[3, 6]\n", done.stderr
