@@ -81,6 +81,7 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
+    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
 }
 QC_NAMES = tuple(QC_LIMITS)
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}

@@ -268,10 +268,10 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """:func:`_cut_capture`, then the entries; fills ``result`` (raises MocapError for a bad
     capture)."""
-    trial, motion, cycles = _cut_capture(path, settings, result, clock)
+    trial, motion, cycles, ground = _cut_capture(path, settings, result, clock)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
         result.diagnostics.update(_cycle_diagnostics(
@@ -280,7 +280,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
 
 def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion` and its cycles, and puts
+    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles and the
+    floor's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
@@ -344,7 +345,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
-    return trial, motion, cycles
+    return trial, motion, cycles, ground
 
 
 def _static_sha256(path: str) -> str:
@@ -431,7 +432,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles = _cut_capture(Path(reference), settings, result, _Clock())
+            _, motion, cycles, ground = _cut_capture(Path(reference), settings, result,
+                                                     _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -442,7 +444,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
             raise CalibrationError(f"the forward reference cannot be processed: "
                                    f"{where}{exc.message}", path=reference,
                                    hint=own or hint) from None
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
         failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
                                          limits) for c in walking}
@@ -465,14 +467,17 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     return tuple(float(np.mean(angles)) if angles else 0.0 for angles in found)
 
 
-def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
+def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
+                  ) -> dict[int, dict]:
     """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
     chosen cycle re-chosen among those that pass ``thresholds`` when any does
     (:func:`mocaplib.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
-    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run."""
+    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
+    ``ground``: the floor's velocity (3,) m/s on a treadmill
+    (:func:`mocaplib.events.capture_events`), for the internal power."""
     from .cycles import choose_cycle
 
-    series = _qc_series(motion)
+    series = _qc_series(motion, ground)
     qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
     if len(cycles) > 1:
         choose_cycle(cycles, eligible={i for i, qc in qcs.items()
@@ -516,47 +521,55 @@ def _drift(drift) -> dict:
     return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
-def _qc_series(motion) -> tuple[np.ndarray, np.ndarray | None]:
-    """The capture-wide series the QC of its cycles reads: the unwrapped joint angles
-    (:data:`mocaplib.skeleton.JOINT_ANGLES`, (F, J) rad) and their third time derivative (F, J)
-    rad/s^3, centred differences of the angles low-passed at
-    :data:`mocaplib.filtering.WALKING_CUTOFF` (NaN at the two frames of each end; None when
-    the capture is too short to be filtered): the jerk of unfiltered angles would measure fit
-    noise only."""
+def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
+    """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
+    rotations unwrapped; ``third`` the third time derivative (F, J) rad/s^3 of the joint angles
+    (:data:`mocaplib.skeleton.JOINT_ANGLES`) and ``energies`` each body segment's energy (F, B)
+    J/kg (:func:`mocaplib.criteria.segment_energies`, positions relative to the floor moving at
+    ``ground`` m/s), both from the coordinates low-passed at
+    :data:`mocaplib.filtering.WALKING_CUTOFF` (None when the capture is too short to be
+    filtered): derivatives of unfiltered angles would measure fit noise only."""
+    from .criteria import segment_energies, third_derivative
     from .filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from .skeleton import JOINT_ANGLES
+    from .fourier import ROOT_X, ROOT_Y
+    from .skeleton import JOINT_ANGLES, TRANSLATION
 
-    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
+    q = motion.q.copy()
+    q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)
+    if ground is not None:
+        q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(len(q)) / motion.rate, ground[:2])
     if motion.n_frames < shortest_run(motion.rate, WALKING_CUTOFF) \
             or motion.rate <= 2 * WALKING_CUTOFF:
-        return q, None
+        return {"q": q, "third": None, "energies": None}
     smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
-    third = np.full_like(q, np.nan)
-    # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
-    third[2:-2] = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
-        * motion.rate ** 3 / 2
-    return q, third
+    return {"q": q, "third": third_derivative(smooth[:, JOINT_ANGLES], motion.rate),
+            "energies": segment_energies(motion.skeleton, smooth, motion.rate)}
 
 
-def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
+def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
     marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
-    DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
-    over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
-    those DOFs of their third time derivative (rad/s^3; None when the capture is too short to
-    be filtered). ``series``: the capture's :func:`_qc_series`, when already computed.
+    DOF's reconstruction RMS (rad); closure (C2): norm of the joint-angle change from start to
+    end (rad, :func:`mocaplib.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
+    joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
+    energy changes of every body segment between the cycle's consecutive frames over their
+    span, W/kg (:func:`mocaplib.criteria.internal_power`); jerk and power are None when the
+    capture is too short to be filtered. ``series``: the capture's :func:`_qc_series`, when
+    already computed.
     """
+    from .criteria import closure, internal_power, jerk_rms
     from .filtering import resample
     from .skeleton import TRANSLATION
 
-    q, third = _qc_series(motion) if series is None else series
+    series = _qc_series(motion) if series is None else series
     frames = np.arange(motion.n_frames) / motion.rate
     inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
     residuals = motion.residuals[inside]
-    ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
-    jerk = None if third is None else float(np.sqrt(np.nanmean(third[inside] ** 2)))
+    ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
+    third, energies = series["third"], series["energies"]
+    spanned = (np.count_nonzero(inside) - 1) / motion.rate
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),
@@ -564,8 +577,10 @@ def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
             "gap_fraction": float(np.isnan(residuals).mean()),
             "event_quality": float(cycle.event_quality),
             "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATION].max()),
-            "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
-            "jerk_rms_rad_s3": jerk,
+            "cycle_closure_rad": closure(ends[0], ends[1]),
+            "jerk_rms_rad_s3": None if third is None else jerk_rms(third[inside]),
+            "internal_power_w_kg": None if energies is None or spanned <= 0
+            else internal_power(energies[inside], spanned),
         }
 
 

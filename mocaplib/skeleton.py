@@ -254,6 +254,9 @@ HEIGHT_PROPORTIONS: dict[str, float] = {
     "ankle_height": 0.039,     # ankle centre above the sole
     "foot_length": 0.152,      # heel to toe tip
 }
+#: Where the heel and the toe tip lie along the foot, as fractions of ``foot_length`` ahead of the
+#: ankle centre, both on the sole (``ankle_height`` below it).
+HEEL_AHEAD, TOE_AHEAD = -0.25, 0.75
 
 
 def _joint_offsets(L) -> np.ndarray:
