@@ -96,8 +96,8 @@ def bodies(skeleton: Skeleton) -> Bodies:
         length = float(np.linalg.norm(second - first))
         radii = [sagittal, transverse, longitudinal] if long_axis == 2 else \
             [longitudinal, sagittal, transverse]
-        rows.append((f"{key}_{side}" if side else key, SEGMENT_NAMES.index(segment), fraction, first + at * (second - first),
-                     fraction * (np.asarray(radii) * length) ** 2))
+        rows.append((f"{key}_{side}" if side else key, SEGMENT_NAMES.index(segment), fraction,
+                     first + at * (second - first), fraction * (np.asarray(radii) * length) ** 2))
 
     lumbar = joints[SEGMENT_NAMES.index("torso")]     # in the pelvis frame
     neck = joints[SEGMENT_NAMES.index("head")]        # in the torso frame

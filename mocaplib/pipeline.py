@@ -44,6 +44,8 @@ DIAGNOSTICS_VERSION = 1
 MAX_SERIES_POINTS = 300
 #: The chosen cycle's angles are downsampled to at most this many points per DOF.
 MAX_CYCLE_POINTS = 100
+#: The chosen cycle's measured ankle paths are downsampled to at most this many points.
+MAX_POULAINE_POINTS = 60
 #: Significant digits of the diagnostics' numbers (plots need no more).
 DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
@@ -273,9 +275,13 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.n_cycles = sum(not c.rest for c in cycles)
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
+    with clock.stage("poulaines"):
+        shapes = {c.index: _cycle_shape(motion, c) for c in cycles if c in kept or c.chosen}
+    with clock.stage("entries"):
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
+                                  shapes)
         result.diagnostics.update(_cycle_diagnostics(
-            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}, shapes))
 
 
 def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
@@ -486,10 +492,11 @@ def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int):
+             settings: BuildSettings, motion, first_frame: int, shapes: dict):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
-    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
+    ``shapes``: :func:`_cycle_shape` by cycle index."""
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
@@ -512,8 +519,28 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
-            first_frame=first_frame))
+            first_frame=first_frame,
+            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict()))
     return entries
+
+
+def _cycle_shape(motion, cycle) -> dict:
+    """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
+    path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
+    (:class:`mocaplib.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
+    models (:func:`mocaplib.poulaine.cycle_poulaine`)."""
+    from .filtering import resample
+    from .patterns import cycle_times
+    from .poulaine import cycle_poulaine
+
+    times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
+    shape = {"phase": (times - cycle.start_s) / cycle.period,
+             "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
+    if not cycle.rest:
+        shape["poulaine"], shape["measured"] = cycle_poulaine(
+            motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
+    return shape
 
 
 def _drift(drift) -> dict:
@@ -601,21 +628,22 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
     }, DIAGNOSTICS_DIGITS)
 
 
-def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
-    """Every cycle's summary and the chosen cycle's angles (root in the moving frame)."""
-    from .filtering import resample
-    from .patterns import cycle_times
-
+def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
+    """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
+    measured ankle paths (``shapes``: :func:`_cycle_shape` by cycle index)."""
     chosen = next(c for c in cycles if c.chosen)
-    times = cycle_times(chosen.start_s, chosen.end_s, motion.rate)[:-1]
-    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
-    local = chosen.encoding.drift.remove(q, times - chosen.start_s)
-    pick = downsample(len(times), MAX_CYCLE_POINTS)
-    angles = {"time_s": times[pick] - chosen.start_s}
-    angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
+    shape = shapes[chosen.index]
+    pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
+    angles = {"time_s": shape["phase"][pick] * chosen.period}
+    angles.update({name: shape["q"][pick, d] for d, name in enumerate(motion.angles.columns)})
+    poulaine = None
+    if "measured" in shape:
+        pick = downsample(len(shape["phase"]), MAX_POULAINE_POINTS)
+        poulaine = {"phase": shape["phase"][pick], "left_m": shape["measured"][pick, 0],
+                    "right_m": shape["measured"][pick, 1]}
     return to_json_data({
         "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
-        "angles": angles,
+        "angles": angles, "poulaine": poulaine,
     }, DIAGNOSTICS_DIGITS)
 
 
@@ -733,7 +761,7 @@ class BuildResult:
         for c in self.captures:
             record = {key: None for key in ("rate_hz",)}
             record.update({"time_s": [], "shoulder_mid_xy": [], "frame_rms_m": [],
-                           "events": [], "cycles": [], "angles": {}})
+                           "events": [], "cycles": [], "angles": {}, "poulaine": None})
             record.update(c.diagnostics)
             record.update({"source": c.file, "ok": c.ok, "error": c.error, "stage": c.stage,
                            "static": c.static, "warnings": list(c.warnings)})

@@ -69,6 +69,10 @@ TIMING_KNOTS = 5
 #: Alternations of tangent solving and parameter correction; how far (in s) a sample's parameter
 #: may move in one correction; Newton steps of each correction (:func:`_closest`).
 FIT_ITERATIONS, PROJECTION_WINDOW, NEWTON_STEPS = 20, 0.1, 3
+#: The first iterations solve the tangents on the whole distance to each sample's point of the
+#: curve, the others on its part across the curve only (which converges much faster).
+POINT_ITERATIONS = 3
+ALONG_WEIGHT = 0.3
 #: Curve points per segment among which the closest to a sample is refined into its distance to
 #: the curve.
 DISTANCE_SAMPLES = 50
@@ -127,9 +131,9 @@ class AnklePath:
     tangents : ndarray, shape (4, 2, 3)
         Segment k's start and end tangents A_k, B_k (segment k joins point k to point k + 1,
         the last to the first), m per unit parameter.
-    timing : ndarray, shape (4, TIMING_KNOTS)
-        Segment k's speed profile: its parameter s at the fractions j / (TIMING_KNOTS + 1),
-        j = 1..TIMING_KNOTS, of its duration.
+    timing : ndarray, shape (4, J)
+        Segment k's speed profile: its parameter s at the fractions j / (J + 1), j = 1..J, of
+        its duration (J = :data:`TIMING_KNOTS` when fitted here).
     fit_rms, fit_max, timed_rms : float
         Fit errors, m (module docstring).
     """
@@ -161,7 +165,7 @@ class AnklePath:
     def _profiles(self) -> list:
         from scipy.interpolate import PchipInterpolator
 
-        r = np.arange(TIMING_KNOTS + 2) / (TIMING_KNOTS + 1)
+        r = np.arange(self.timing.shape[1] + 2) / (self.timing.shape[1] + 1)
         return [PchipInterpolator(r, np.concatenate([[0.0], row, [1.0]])) for row in self.timing]
 
     def parameter(self, phase) -> np.ndarray:
@@ -250,12 +254,21 @@ def fit_ankle(path: np.ndarray, phase: np.ndarray, /) -> AnklePath:
     k, r = _segment_fractions(phases, phase)
     s = r.copy()
     rows = np.arange(len(path))
-    for _ in range(FIT_ITERATIONS):
+    model = None
+    for iteration in range(FIT_ITERATIONS):
         h = _hermite(s)
         design = np.zeros((len(path), 8))
         design[rows, 2 * k], design[rows, 2 * k + 1] = h[:, 1], h[:, 3]
         rest = path - h[:, 0, None] * points[k] - h[:, 2, None] * points[(k + 1) % 4]
-        tangents = np.linalg.lstsq(design, rest, rcond=None)[0].reshape(4, 2, 3)
+        if model is None or iteration < POINT_ITERATIONS:
+            tangents = np.linalg.lstsq(design, rest, rcond=None)[0].reshape(4, 2, 3)
+        else:   # the residuals along the curve count ALONG_WEIGHT² as much as across it
+            along = model.curve(k + s, 1)
+            along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-12)
+            across = np.eye(3) - (1 - ALONG_WEIGHT) * along[:, :, None] * along[:, None, :]
+            system = np.einsum("nij,nt->nitj", across, design).reshape(3 * len(path), 24)
+            tangents = np.linalg.lstsq(system, np.einsum("nij,nj->ni", across, rest).ravel(),
+                                       rcond=None)[0].reshape(4, 2, 3)
         model = AnklePath(tuple(order), phases, points, tangents, np.zeros((4, TIMING_KNOTS)))
         s = _closest(model, path, k, s, np.clip(s - PROJECTION_WINDOW, 0.0, 1.0),
                      np.clip(s + PROJECTION_WINDOW, 0.0, 1.0))
@@ -335,23 +348,50 @@ def cycle_poulaine(skeleton: Skeleton, q_path: np.ndarray, phase: np.ndarray,
 
 
 # --------------------------------------------------------------------------- blending
+def aligned_phases(phase, timing: AnklePath, path: AnklePath) -> np.ndarray:
+    """The phases of ``path`` at which it is where ``timing`` is at ``phase``: each segment
+    between characteristic points mapped onto the segment between the same points of ``path``,
+    in proportion to time. Unchanged when the two meet their points in another order."""
+    phase = np.asarray(phase, dtype=np.float64)
+    offset = path.kinds.index(timing.kinds[0])
+    if path.kinds != timing.kinds[-offset:] + timing.kinds[:-offset]:
+        return phase
+    k, r = _segment_fractions(timing.phases, np.mod(phase, 1.0))
+    k = (k + offset) % 4
+    duration = np.mod(np.roll(path.phases, -1) - path.phases, 1.0)
+    return np.mod(path.phases[k] + r * duration[k], 1.0)
+
+
 @dataclass(frozen=True)
 class Blend:
     """A poulaine with requested parameters built from others, axis by axis: x from
     ``sources[0]`` scaled by ``x_scale`` about the pelvis, y from ``sources[1]`` with the left
     ankle moved ``y_shift`` m to the left and the right one as far to the right, z from
-    ``sources[2]`` scaled by ``z_scale``; each source evaluated at the same phase."""
+    ``sources[2]`` scaled by ``z_scale``. Each source is evaluated at the same phase or, with a
+    ``timing`` poulaine, at the phases where it passes its characteristic points when
+    ``timing`` passes its own (:func:`aligned_phases`): heel strikes and toe-offs then stay
+    together across the axes."""
 
     sources: tuple[Poulaine, Poulaine, Poulaine]
     x_scale: float
     y_shift: float
     z_scale: float
     names: tuple[str, str, str] = field(default=("", "", ""))
+    timing: Poulaine | None = None
+
+    def _component(self, axis: int, phase: np.ndarray) -> np.ndarray:
+        """Coordinate ``axis`` of both ankles of source ``axis`` at ``phase``: (n, 2)."""
+        source = self.sources[axis]
+        paths = (source.left, source.right)
+        if self.timing is not None:
+            return np.stack([p(aligned_phases(phase, t, p))[..., axis] for p, t in
+                             zip(paths, (self.timing.left, self.timing.right))], axis=-1)
+        return np.stack([p(phase)[..., axis] for p in paths], axis=-1)
 
     def __call__(self, phase) -> np.ndarray:
         """Both ankle centres at phases ``phase`` (n,): (n, 2, 3) m, left then right."""
         phase = np.asarray(phase, dtype=np.float64)
-        out = np.stack([self.sources[axis](phase)[..., axis] for axis in range(3)], axis=-1)
+        out = np.stack([self._component(axis, phase) for axis in range(3)], axis=-1)
         out[..., 0] *= self.x_scale
         out[..., 0, 1] += self.y_shift
         out[..., 1, 1] -= self.y_shift
@@ -373,7 +413,8 @@ def blend(poulaines: dict[str, Poulaine], /, *, step_length: float, foot_spacing
     """Pronost et al.'s interpolation: per axis, the poulaine of ``poulaines`` (by name) closest
     in that axis's parameter (x: step length, y: foot spacing, z: stance; ties go to ``prefer``,
     then to the first name in sorted order), corrected exactly to the requested values (m):
-    x scaled, y shifted symmetrically, z scaled (:class:`Blend`)."""
+    x scaled, y shifted symmetrically, z scaled (:class:`Blend`), timed on ``prefer``'s
+    characteristic points when given."""
     if not poulaines:
         raise MocapError("no poulaine to blend from",
                          hint="the library's entries carry none: rebuild it with this mocaplib")
@@ -390,4 +431,5 @@ def blend(poulaines: dict[str, Poulaine], /, *, step_length: float, foot_spacing
         chosen.append(min(usable, key=lambda n: abs(poulaines[n].parameters[axis] - wanted)))
     x, y, z = (poulaines[name] for name in chosen)
     return Blend((x, y, z), step_length / x.parameters[0],
-                 (foot_spacing - y.parameters[1]) / 2, stance / z.parameters[2], tuple(chosen))
+                 (foot_spacing - y.parameters[1]) / 2, stance / z.parameters[2], tuple(chosen),
+                 poulaines.get(prefer))

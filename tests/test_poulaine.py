@@ -130,3 +130,21 @@ def test_cycle_poulaine_of_a_skeleton_standing_still_in_the_travel_frame():
     expected = np.column_stack([c * forward + s * hip_y, -s * forward + c * hip_y,
                                 -leg * np.cos(q[:, hip])])
     np.testing.assert_allclose(measured[:, 0], expected, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- targets
+def test_fit_error_target_on_the_synthetic_walks():
+    from walking_library import synthetic_walks
+
+    errors = synthetic_walks()[0].entries["poulaine_fit_rms_m"]
+    assert len(errors) == 21 and errors.notna().all()
+    assert errors.max() <= 0.005, f"worst {errors.max() * 1000:.2f} mm ({errors.idxmax()})"
+
+
+@pytest.mark.real
+def test_fit_error_target_on_the_real_walks():
+    from walking_library import real_walks
+
+    errors = real_walks()[0].entries["poulaine_fit_rms_m"]
+    assert len(errors) >= 10 and errors.notna().all()     # every cycle passing QC
+    assert errors.max() <= 0.005, f"worst {errors.max() * 1000:.2f} mm ({errors.idxmax()})"
