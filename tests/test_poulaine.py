@@ -148,3 +148,16 @@ def test_fit_error_target_on_the_real_walks():
     errors = real_walks()[0].entries["poulaine_fit_rms_m"]
     assert len(errors) >= 10 and errors.notna().all()     # every cycle passing QC
     assert errors.max() <= 0.005, f"worst {errors.max() * 1000:.2f} mm ({errors.idxmax()})"
+
+
+def test_aligned_phases_put_a_source_s_points_where_the_timing_has_its_own():
+    from mocaplib.poulaine import aligned_phases
+
+    phase = np.arange(120) / 120
+    timing = fit_ankle(loop(phase), phase)
+    late = fit_ankle(loop(phase - 0.1), phase)     # the same loop, 0.1 of a cycle later
+    aligned = aligned_phases(phase, timing, late)
+    np.testing.assert_allclose(np.mod(aligned - phase, 1.0), 0.1, atol=1 / 120)
+    np.testing.assert_allclose(late(aligned), timing(phase), atol=2e-3)
+    np.testing.assert_allclose(aligned_phases(timing.phases, timing, late),
+                               np.mod(timing.phases + 0.1, 1.0), atol=1 / 120)
