@@ -348,6 +348,15 @@ class Library:
         data = self.entry(entry_id).get("poulaine")
         return None if data is None else Poulaine.from_dict(data)
 
+    def root_drift(self, entry_id: str):
+        """The entry's path frame as a :class:`mocaplib.fourier.RootDrift` starting at the
+        origin facing +X: ``root_drift(e).restore(angles(e, t), t)`` puts the cycle in that
+        world frame."""
+        from .fourier import RootDrift
+
+        drift = self.entry(entry_id)["root_drift"]
+        return RootDrift(0.0, 0.0, 0.0, *(_float(drift[key]) for key in DRIFT_VELOCITIES))
+
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
         """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
 

@@ -276,7 +276,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
     with clock.stage("poulaines"):
-        shapes = {c.index: _cycle_shape(motion, c) for c in cycles if c in kept or c.chosen}
+        shapes = {c.index: cycle_shape(motion, c) for c in kept}
     with clock.stage("entries"):
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes)
@@ -496,7 +496,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
     ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
-    ``shapes``: :func:`_cycle_shape` by cycle index."""
+    ``shapes``: :func:`cycle_shape` by cycle index."""
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
@@ -524,7 +524,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
     return entries
 
 
-def _cycle_shape(motion, cycle) -> dict:
+def cycle_shape(motion, cycle) -> dict:
     """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
     path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
     (:class:`mocaplib.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
@@ -630,7 +630,7 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
 
 def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
     """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
-    measured ankle paths (``shapes``: :func:`_cycle_shape` by cycle index)."""
+    measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
     chosen = next(c for c in cycles if c.chosen)
     shape = shapes[chosen.index]
     pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)

@@ -316,6 +316,15 @@ class Poulaine:
         """(step length, foot spacing, stance), m (module docstring)."""
         return _parameters(self.left, self.right)
 
+    @property
+    def duty_factor(self) -> float:
+        """The fraction of the cycle an ankle spends moving back from ``foremost`` to
+        ``rearmost`` (about heel strike to toe-off: in support), mean of both: above ½ when
+        walking, below when running."""
+        return float(np.mean([np.mod(p.phases[p.kinds.index("rearmost")]
+                                     - p.phases[p.kinds.index("foremost")], 1.0)
+                              for p in (self.left, self.right)]))
+
     def __call__(self, phase) -> np.ndarray:
         """Both modelled ankle centres at phases ``phase`` (n,): (n, 2, 3) m, left then right."""
         return np.stack([self.left(phase), self.right(phase)], axis=-2)

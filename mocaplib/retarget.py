@@ -7,8 +7,8 @@
    length and stance by the ratio of leg lengths (thigh + shank), foot spacing by the ratio of
    hip widths. :func:`mocaplib.poulaine.blend` picks, per axis, the poulaine of the library
    closest in that parameter among the entries of the same locomotion class that move (or
-   stay on the spot), turn and travel like the entry (:data:`SIMILAR_TURN`,
-   :data:`SIMILAR_TRAVEL`; the entry itself wins ties), corrects it exactly to the requested
+   stay on the spot), turn, travel and support themselves like the entry (:data:`SIMILAR_TURN`,
+   :data:`SIMILAR_TRAVEL`, :data:`SIMILAR_SUPPORT`; the entry itself wins ties), corrects it exactly to the requested
    values and times it on the entry's characteristic points. Sampled over the cycle, it is
    low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (:func:`periodic_lowpass`; the
    four Hermite curves meet at corners) and corrected again the same way, so that the ankle
@@ -32,7 +32,8 @@
       (:mod:`mocaplib.anthropometry`), A_b the world axes of the task DOFs that turn body b.
 
    Up to :data:`ITERATIONS` steps per frame, each clamped to the joint limits; the other DOFs
-   (trunk, head, arms, ankles) keep the entry's angles.
+   (trunk, head, arms, ankles) keep the entry's angles, clipped to the joint limits (a Fourier
+   series may ring past one by a fraction of a degree).
 3. **Root.** The path frame's speed (the entry's root drift) and the pelvis's excursions in it
    are scaled so that the pelvis covers per cycle the stride of the poulaine's x-source times
    its x-correction (the stance ankle then moves back under the pelvis as fast as the pelvis
@@ -72,8 +73,13 @@ MAX_STEP = 0.2
 #: poulaine and the step is below 1e-7 rad.
 ITERATIONS, TOLERANCE = 10, 1e-6
 #: The entries whose poulaines a cycle is retargeted from turn within this (rad/s) of its turn
-#: rate ω̂ and travel within this (rad) of its direction relative to the pelvis.
-SIMILAR_TURN, SIMILAR_TRAVEL = 0.25, np.deg2rad(30.0)
+#: rate ω̂, travel within this (rad) of its direction relative to the pelvis and spend within
+#: this share of the cycle in support: walks spend 0.60-0.67 of it, runs 0.49-0.54 (measured
+#: on the samples and the shared real files; docs/poulaines.md).
+SIMILAR_TURN, SIMILAR_TRAVEL, SIMILAR_SUPPORT = 0.25, np.deg2rad(20.0), 0.04
+#: A foot is in support where its ankle centre is within this (m) of its lowest
+#: (:func:`foot_skate`; the gait events' contact rule takes 1 cm above the floor too).
+SUPPORT_HEIGHT = 0.01
 #: Default output rate, Hz.
 RATE = 100.0
 #: Output file types (suffix -> description).
@@ -228,7 +234,7 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
     solved, error, clamped = solve(skeleton, targets,
                                    travel_coordinates(reference, own.travel),
                                    weights=weights, step=period / steps)
-    out = reference.copy()
+    out = np.clip(reference, *Skeleton.bounds())   # a Fourier series may ring past a limit
     out[:, list(TASK_DOFS)] = solved[:, list(TASK_DOFS)]
     out[:, ROOT_HEADING] += own.travel
     scale = _stride_scale(library, entry, path)
@@ -236,14 +242,25 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
     lowest = ankle_centres(source, reference)[..., 2].min(axis=1)          # world z
     out[:, _ROOT_Z] = (lowest + skeleton.lengths["ankle_height"] - source.lengths["ankle_height"]
                        - targets[..., 2].min(axis=1))
-    drift = entry["root_drift"]
-    velocities = (drift["u_f_m_s"], drift["u_l_m_s"], drift["omega_rad_s"])
-    moved = RootDrift(0.0, 0.0, 0.0, velocities[0] * scale, velocities[1] * scale, velocities[2])
-    still = RootDrift(0.0, 0.0, 0.0, *velocities)
+    still = library.root_drift(entry_id)
+    moved = RootDrift(0.0, 0.0, 0.0, still.u_f * scale, still.u_l * scale, still.omega)
     criteria = {"input": cycle_criteria(source, reference, still, period),
                 "output": cycle_criteria(skeleton, out, moved, period)}
     return Retargeted(entry_id, skeleton, times, moved.restore(out, times), requested,
                       path.names, float(error.max()), clamped, criteria, moved, weights)
+
+
+def foot_skate(skeleton: Skeleton, q: np.ndarray, time_s: np.ndarray, /) -> float:
+    """How fast the feet slide in support, m/s: per foot, the median speed of its ankle centre
+    over the frames where it is within :data:`SUPPORT_HEIGHT` of its lowest over ``q`` (n, D)
+    at ``time_s`` (n,) (world frame); the larger of the two feet's."""
+    from .poulaine import ankle_centres
+
+    ankles = ankle_centres(skeleton, q)
+    speed = np.linalg.norm(np.gradient(ankles, time_s, axis=0), axis=-1)
+    height = ankles[..., 2]
+    support = height <= height.min(axis=0) + SUPPORT_HEIGHT
+    return float(max(np.median(speed[support[:, side], side]) for side in (0, 1)))
 
 
 def _requested(own: tuple, source: Skeleton, target: Skeleton, step_length, foot_spacing,
@@ -279,8 +296,9 @@ def _candidates(library, entry: dict, own) -> dict:
     """The poulaines :func:`~mocaplib.poulaine.blend` chooses from: the library's entries with
     one, of ``entry``'s locomotion class, moving if it moves (v̂ at least
     :data:`~mocaplib.poulaine.MIN_TRAVEL_SPEED`) and on the spot if it does not, turning within
-    :data:`SIMILAR_TURN` of its ω̂ and travelling within :data:`SIMILAR_TRAVEL` of its
-    direction relative to the pelvis (``own``: its poulaine)."""
+    :data:`SIMILAR_TURN` of its ω̂, travelling within :data:`SIMILAR_TRAVEL` of its direction
+    relative to the pelvis and in support within :data:`SIMILAR_SUPPORT` of its share of the
+    cycle (``own``: its poulaine; :attr:`~mocaplib.poulaine.Poulaine.duty_factor`)."""
     from .poulaine import MIN_TRAVEL_SPEED
 
     table = library.entries
@@ -290,7 +308,8 @@ def _candidates(library, entry: dict, own) -> dict:
                        & ((table["omega"] - entry["omega"]).abs() <= SIMILAR_TURN)]
     found = {name: library.poulaine(name) for name in same}
     return {name: p for name, p in found.items()
-            if abs(np.angle(np.exp(1j * (p.travel - own.travel)))) <= SIMILAR_TRAVEL}
+            if abs(np.angle(np.exp(1j * (p.travel - own.travel)))) <= SIMILAR_TRAVEL
+            and abs(p.duty_factor - own.duty_factor) <= SIMILAR_SUPPORT}
 
 
 def _targets(path, own, requested: tuple, phase: np.ndarray, period: float) -> np.ndarray:

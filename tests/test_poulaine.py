@@ -87,6 +87,8 @@ def test_parameters_are_read_on_the_characteristic_points():
     assert (stored["step_length_m"], stored["foot_spacing_m"], stored["stance_m"]) == \
         p.parameters and Poulaine.from_dict(stored).parameters == p.parameters
     assert p(np.array([0.0, 0.5])).shape == (2, 2, 3)
+    # each loop moves back from its foremost (φ = 0) to its rearmost point (φ = ½)
+    assert p.duty_factor == pytest.approx(0.5, abs=0.011)
 
 
 def test_blend_takes_each_axis_from_the_closest_and_corrects_it_exactly():
