@@ -19,7 +19,8 @@ its captured cycles. Then, per cycle:
   ankles' median speed in support, :func:`mocaplib.retarget.foot_skate`) of the entry and of
   the result, joint-limit violations and IK steps a limit stopped, C1-C3 of entry and result;
 * C3 of every entry as the QC stores it, against Pronost et al.'s 5.1-7.2 W/kg for natural
-  walking, and the same on the unfiltered fitted angles (how much the 6 Hz low-pass takes).
+  walking, and the same on the unfiltered fitted angles (how much the 6 Hz low-pass takes);
+* the weights of the IK's secondary tasks varied one at a time on two sample walks.
 
 Prints Markdown tables; ``--markdown PATH`` also writes them as a page stamped with the commit
 and the command. Exit code 1 when a target is missed.
@@ -47,7 +48,7 @@ from mocaplib.ik import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build, cycle_shape  # noqa: E402
 from mocaplib.protocols import match_trial  # noqa: E402
-from mocaplib.retarget import TASK_DOFS, foot_skate, retarget  # noqa: E402
+from mocaplib.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
 
@@ -86,6 +87,19 @@ def captured_cycles(paths: list[Path], settings: BuildSettings) -> dict:
     return out
 
 
+def self_rms(library, entry_id: str, own: Skeleton, phase: np.ndarray, q_captured: np.ndarray,
+             weights: Weights = Weights()) -> tuple[dict, object]:
+    """RMS (rad) per pelvis, hip and knee DOF between the entry retargeted to its own body and
+    its captured cycle (path-frame coordinates ``q_captured`` at cycle phases ``phase``), and
+    the retargeted cycle."""
+    result = retarget(library, entry_id, skeleton=own, weights=weights)
+    q = result.path_coordinates()
+    t = phase * float(library.entry(entry_id)["T"])
+    return {DOF_NAMES[j]: float(np.sqrt(np.mean((np.interp(t, result.time_s, q[:, j])
+                                                 - q_captured[:, j]) ** 2)))
+            for j in TASK_DOFS}, result
+
+
 def group_of(entry_id: str, real: bool) -> str:
     if real:
         return "real walk"
@@ -105,12 +119,7 @@ def measure(library, captured: dict, *, real: bool) -> pd.DataFrame:
                "fit_rms_m": entry["poulaine_fit_rms_m"],
                "timed_rms_m": max(p.timed_rms for p in (model.left, model.right)),
                "qc_c3": entry["qc_internal_power_w_kg"], "raw_c3": raw_c3}
-        result = retarget(library, entry_id, skeleton=own)
-        q = result.path_coordinates()
-        t = phase * entry["T"]
-        rms = {DOF_NAMES[j]: float(np.sqrt(np.mean((np.interp(t, result.time_s, q[:, j])
-                                                    - q_captured[:, j]) ** 2)))
-               for j in TASK_DOFS}
+        rms, result = self_rms(library, entry_id, own, phase, q_captured)
         row.update(self_rms=max(rms.values()), self_dof=max(rms, key=rms.get),
                    **{f"in_{k}": v for k, v in result.criteria["input"].items()},
                    **{f"self_{k}": v for k, v in result.criteria["output"].items()})
@@ -197,6 +206,36 @@ C3_COLUMNS = ["n", "speed (m/s)", "C3, QC (W/kg): min-max", "median", "in 5.1-7.
               "C3 unfiltered: min-max"]
 
 
+#: The weights varied one at a time by :func:`weights_rows`, against the defaults.
+WEIGHT_VARIANTS = ({}, {"joint_limits": 0.0}, {"joint_limits": 0.01}, {"reference": 0.1},
+                   {"reference": 10.0}, {"kinetic": 0.0}, {"kinetic": 0.1}, {"kinetic": 1.0})
+WEIGHT_WALKS = ("walk_straight_normal", "walk_curve_r2_left_normal")
+
+
+def weights_rows(library, captured: dict) -> list[str]:
+    """The weights' effect on two sample walks: the worst pelvis/hip/knee RMS retargeted to
+    their own body, the ankle error, foot skate, C1 and C3 retargeted to a body 15 % taller."""
+    lines = ["| entry | weights (joint limits, reference, kinetic) | self: worst-DOF RMS (rad) | "
+             "×1.15: ankle error (mm) | skate (m/s) | C1 (rad/s³) | C3 (W/kg) |",
+             "|---|---|---|---|---|---|---|"]
+    for entry_id in (e for e in library.entries.index if e.rsplit("_c", 1)[0] in WEIGHT_WALKS
+                     and library.entries.loc[e, "chosen"]):
+        own = Skeleton(library.entry(entry_id)["segment_lengths_m"])
+        tall = Skeleton({k: v * 1.15 for k, v in own.lengths.items()})
+        phase, q_captured, _ = captured[entry_id]
+        for variant in WEIGHT_VARIANTS:
+            weights = Weights(**variant)
+            rms = self_rms(library, entry_id, own, phase, q_captured, weights)[0]
+            scaled = retarget(library, entry_id, skeleton=tall, weights=weights)
+            lines.append(f"| {entry_id} | {weights.joint_limits:g}, {weights.reference:g}, "
+                         f"{weights.kinetic:g} | {max(rms.values()):.4f} | "
+                         f"{_mm(scaled.ankle_error_m)} | "
+                         f"{foot_skate(tall, scaled.q, scaled.time_s):.3f} | "
+                         f"{scaled.criteria['output']['jerk_rms_rad_s3']:.0f} | "
+                         f"{scaled.criteria['output']['internal_power_w_kg']:.2f} |")
+    return lines
+
+
 def commit() -> str:
     try:
         return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
@@ -218,7 +257,9 @@ def main() -> int:
                               toe_off="lift", all_cycles=True)
     samples = sorted(p for p in args.samples.glob("*.c3d") if p.stem != "rest")
     library = build(samples, synthetic, jobs=args.jobs, progress=False).library
-    frames.append(measure(library, captured_cycles(samples, synthetic), real=False))
+    captured = captured_cycles(samples, synthetic)
+    frames.append(measure(library, captured, real=False))
+    weights = weights_rows(library, captured)
     real = [args.real / name for name in REAL_WALKS if (args.real / name).is_file()]
     if real:
         settings = BuildSettings(all_cycles=True)
@@ -247,6 +288,7 @@ def main() -> int:
              "### Self-retargeting (own body, own step parameters)", "",
              *table(df, SELF_COLUMNS, self_rows), "",
              "### Bodies 15 % shorter and taller", "", *table(df, BODIES_COLUMNS, bodies_rows),
+             "", "### The weights, one at a time", "", *weights,
              "", "### C3 internal power", "", *table(df, C3_COLUMNS, c3_rows), "",
              "Natural walks (the samples at normal speed, the real walks but CMU 07_12, a brisk "
              f"walk): C3 {natural.qc_c3.min():.2f}-{natural.qc_c3.max():.2f} W/kg "
