@@ -26,9 +26,12 @@ Taken in the order they occur, consecutive points P_k, P_k+1 are joined by cubic
 
 s ∈ [0, 1]; the curve parameter is u = k + s ∈ [0, 4). The tangents minimise the distance from
 the measured samples to the curve: each sample first gets the fraction of its segment's
-duration as parameter, the tangents are solved by linear least squares, each sample's parameter
-moves to its closest point on its segment (within ±:data:`PROJECTION_WINDOW`), and the two steps
-repeat :data:`FIT_ITERATIONS` times. **Speed profile**: within segment k, s = f_k(r), r the
+duration as parameter, the tangents are solved by linear least squares (the curve is linear in
+them), each sample's parameter moves to its closest point on its segment (Newton steps, within
+±:data:`PROJECTION_WINDOW`), and the two steps repeat :data:`FIT_ITERATIONS` times; after the
+first :data:`POINT_ITERATIONS`, the least squares weigh each residual's component along the
+curve by :data:`ALONG_WEIGHT` only (the distance across the curve is the one to minimise; the
+whole distance converges slowly, the across part alone is unstable). **Speed profile**: within segment k, s = f_k(r), r the
 fraction of the segment's duration, f_k monotone from 0 to 1, stored at
 :data:`TIMING_KNOTS` evenly spaced r and interpolated by PCHIP; so the model gives the ankle at
 any phase φ = t/T of the cycle (:meth:`AnklePath.__call__`), passing through each
@@ -70,9 +73,9 @@ TIMING_KNOTS = 5
 #: may move in one correction; Newton steps of each correction (:func:`_closest`).
 FIT_ITERATIONS, PROJECTION_WINDOW, NEWTON_STEPS = 20, 0.1, 3
 #: The first iterations solve the tangents on the whole distance to each sample's point of the
-#: curve, the others on its part across the curve only (which converges much faster).
-POINT_ITERATIONS = 3
-ALONG_WEIGHT = 0.3
+#: curve, the others on its part across the curve and ALONG_WEIGHT of its part along it (much
+#: faster than the whole distance; the across part alone diverges on some real walks).
+POINT_ITERATIONS, ALONG_WEIGHT = 3, 0.3
 #: Curve points per segment among which the closest to a sample is refined into its distance to
 #: the curve.
 DISTANCE_SAMPLES = 50
