@@ -96,11 +96,11 @@ def _run(args) -> int:
           f"{summary['clamped_steps']} IK steps stopped by a joint limit, "
           f"{summary['limit_violations']} samples outside the limits")
     print("  criterion                      entry      result")
-    for key, label in (("jerk_rms_rad_s3", "C1 jerk RMS (rad/s³)"),
-                       ("cycle_closure_rad", "C2 closure (rad)"),
-                       ("internal_power_w_kg", "C3 internal power (W/kg)")):
-        print(f"  {label:28s} {summary['criteria']['input'][key]:9.4g}  "
-              f"{summary['criteria']['output'][key]:9.4g}")
+    for key, label, digits in (("jerk_rms_rad_s3", "C1 jerk RMS (rad/s³)", 0),
+                               ("cycle_closure_rad", "C2 closure (rad)", 4),
+                               ("internal_power_w_kg", "C3 internal power (W/kg)", 2)):
+        print(f"  {label:28s} {summary['criteria']['input'][key]:9.{digits}f}  "
+              f"{summary['criteria']['output'][key]:9.{digits}f}")
     for path in written:
         print(f"  wrote {path}")
     return 0
