@@ -565,7 +565,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
-                        max_iter=max_iter)
+                        max_iter=max_iter, weights=model.marker_weights)
         # coarse to fine in time: keyframes from rigid-fit starts, then all frames from their
         # predictions (a warm start, as frame-by-frame solvers use)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
@@ -632,7 +632,7 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
     moved = MOVES[segments].astype(np.float64)
     r = target[keys] - about - origin[:, :, None]
-    w = valid[keys] * _soft_l1_weight(_norm3(r), settings["robust_scale"])
+    w = valid[keys] * settings["weights"] * _soft_l1_weight(_norm3(r), settings["robust_scale"])
     A = _normal_equations(twist, about, moved, r, w)[0]
     A[:, np.arange(len(free)), np.arange(len(free))] += settings["smoothing"] ** 2 + 1e-9
     A[:, ~free] = A[:, :, ~free] = 0.0

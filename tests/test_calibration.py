@@ -174,7 +174,7 @@ def test_neutral_static_measures_each_offset_with_its_placement_error():
     q[:, :4] = [0.4, -0.3, 0.95, 30 * DEG]
     X = cap.skeleton.points(q, cap.segments, cap.offsets)
     nominal = load_protocol("fullbody38").nominal_offsets(1.70)[1]
-    offsets, rms = neutral_offsets(cap.skeleton, X, cap.segments, nominal=nominal)
+    offsets, rms, _ = neutral_offsets(cap.skeleton, X, cap.segments, nominal=nominal)
     assert rms < 1e-9   # the neutral model reproduces the static markers exactly
     true_layout = _neutral_layout(cap.skeleton, cap.segments, cap.offsets)
     ours = _neutral_layout(cap.skeleton, cap.segments, offsets)
