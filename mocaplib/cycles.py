@@ -167,7 +167,10 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
 
-    Raises :class:`EventError` when there are events but fewer than two left toe-offs.
+    Raises
+    ------
+    EventError
+        When there are events but fewer than two left toe-offs.
     """
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:

@@ -834,7 +834,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
 
-    Returns a :class:`BuildResult`; captures that failed are in it, not raised.
+    Returns
+    -------
+    BuildResult
+        Captures that failed are in it, not raised.
     """
     from tqdm import tqdm
 
