@@ -113,7 +113,7 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
 
     The humerus origins of the fitted skeleton: on the synthetic captures they give v̂_l about
     twice as close to the truth as the acromion markers (whose placement error yaws the
-    shoulder line), see the README.
+    shoulder line), see docs/results/velocity_accuracy.md.
     """
     from .skeleton import SEGMENT_NAMES
 

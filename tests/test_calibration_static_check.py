@@ -84,10 +84,10 @@ def test_real_static_of_another_person_is_refused():
 
 
 def test_the_quoted_limit_is_the_constant():
-    # the module docstring and the README state the limit in mm next to the constant's name
+    # the module docstring and the user guide state the limit in mm next to the constant's name
     docstring = re.search(r"SAME_SUBJECT_LIMIT`\s+\(([\d.]+) mm\)", calibration.__doc__)
     readme = re.search(r"above\s+\*\*([\d.]+) mm\*\*\s+\(`SAME_SUBJECT_LIMIT`\)",
-                       (REPO / "README.md").read_text(encoding="utf-8"))
+                       (REPO / "docs" / "guide" / "fitting.md").read_text(encoding="utf-8"))
     assert docstring and readme                       # still quoted where they were
     assert float(docstring.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)
     assert float(readme.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)

@@ -175,7 +175,7 @@ def test_synthetic_captures_from_markers():
                                        err_msg=name)
             np.testing.assert_allclose(vel.omega, true["omega"], atol=0.02, err_msg=name)
             # v_l from skin markers carries their placement error (3 mm per marker yaws the
-            # shoulder line by up to ~1°: 0.07 m/s at 3.5 m/s); the README reports it
+            # shoulder line by up to ~1°: 0.07 m/s at 3.5 m/s); docs/results/velocity_accuracy.md reports it
             np.testing.assert_allclose(vel.v_l, true["v_l"], atol=0.02 + 0.02 * true["v"],
                                        err_msg=name)
             checked += 1

@@ -339,7 +339,7 @@ def test_synthetic_toe_offs_default_foot_velocity():
     by_type = synthetic_toe_off_errors("foot_velocity")
     everything = np.concatenate(list(by_type.values()))
     # the default misses the synthetic target (>= 95 % within 1 frame): measured 90 %
-    # within 1 frame, 95 % within 2 (README); these bounds catch a regression from there
+    # within 1 frame, 95 % within 2 (docs/results/event_accuracy.md); these bounds catch a regression from there
     assert np.mean(everything <= 1.0) >= 0.85, np.mean(everything <= 1.0)
     assert np.mean(everything <= 2.0) >= 0.93, np.mean(everything <= 2.0)
     assert min(np.mean(e <= 2.0) for e in by_type.values()) >= 0.8
@@ -370,7 +370,7 @@ def test_noise_free_synthetic_toe_offs_within_one_frame(noise_free_captures, toe
     # Without marker noise both definitions find the rigid foot's lift (measured: 100 % of the
     # 335 toe-offs of all 68 captures within 1 frame, worst 0.9: `benchmarks/event_accuracy.py
     # --noise-sd 0`); the synthetic misses of the
-    # default are noise (README, Gait events), so this pins the detector on exact data.
+    # default are noise (docs/results/event_accuracy.md), so this pins the detector on exact data.
     from mocaplib.protocols import detect_protocol
 
     assert len(noise_free_captures) == len(NOISE_FREE)

@@ -1,7 +1,7 @@
 """The forward reference: a forward walk turns the heading of a neutral static.
 
-The shipped session's marker placement turns the neutral static's frame by δ = +0.316° (README,
-Velocities); v̂_l of every capture is then off by about −v̂·δ. A forward reference measures the
+The shipped session's marker placement turns the neutral static's frame by δ = +0.316°
+(docs/guide/patterns.md); v̂_l of every capture is then off by about −v̂·δ. A forward reference measures the
 angle from a walk in which the subject faces where they walk.
 """
 
@@ -95,7 +95,7 @@ def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path):
 
 
 def test_the_offset_measured_on_a_walk_corrects_the_fastest_run(offset):
-    # run_3p5's v̂_l misses the issue's 0.02 m/s without the reference (README); the offset
+    # run_3p5's v̂_l misses the issue's 0.02 m/s without the reference (docs/results/velocity_accuracy.md); the offset
     # measured on a walk at 1.2 m/s carries over to the run at 3.5 m/s
     truth = json.loads((SAMPLES / "run_3p5.truth.json").read_text())["cycles"]
 

@@ -564,7 +564,7 @@ def test_a_capture_missing_required_landmarks_fails_alone_naming_them(synthetic_
 
 def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder, tmp_path):
     # The synthetic foot is rigid: its true toe-off is the instant it lifts, which `lift` finds
-    # (README, Gait events). On this slow curve the default's first left toe-off is 4.8 frames
+    # (docs/guide/events-cycles.md). On this slow curve the default's first left toe-off is 4.8 frames
     # late (measured), so its first cycle starts late; with --toe-off lift every cycle starts
     # within a frame of a true left toe-off, and the library records the definition.
     path = synthetic_folder / "walk_curve_r1_left_slow.c3d"

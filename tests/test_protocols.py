@@ -223,8 +223,8 @@ def test_a_technicians_protocol_file(tmp_path):
     assert match.complete and match.found == 3 and match.swaps == ()
 
 
-def test_readme_protocol_example_matches_its_capture(tmp_path):
-    readme = (REPO / "README.md").read_text()
+def test_the_guide_protocol_example_matches_its_capture(tmp_path):
+    readme = (REPO / "docs" / "guide" / "protocols.md").read_text(encoding="utf-8")
     block = readme.split("<!-- protocol-example -->", 1)[1].split("```toml\n", 1)[1]
     path = tmp_path / "mylab_lower16.toml"
     path.write_text(block.split("```", 1)[0])
