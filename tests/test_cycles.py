@@ -306,9 +306,8 @@ def test_cli_cycles_with_static_meet_the_targets(name, capsys):
     truth = json.loads(path.with_suffix(".truth.json").read_text())["cycles"]
     for row in json.loads(capsys.readouterr().out)["cycles"]:
         true = min(truth, key=lambda c: abs(c["start_s"] - row["start_s"]))
-        # the issue's targets, end to end from markers; both captures missed before (run_2p0:
-        # v 0.25 m/s low, a false treadmill; the curve: v_l 0.024 m/s off). Measured v within
-        # 0.001, v_l within 0.011 (run) and 0.005 (curve)
+        # the velocity targets, end to end from markers (a false treadmill would put run_2p0's
+        # v 0.25 m/s low). Measured v within 0.001, v_l within 0.011 (run) and 0.005 (curve)
         np.testing.assert_allclose(row["v"], true["v"], atol=0.02 * true["v"], err_msg=name)
         np.testing.assert_allclose(row["omega"], true["omega"], atol=0.02, err_msg=name)
         np.testing.assert_allclose(row["v_l"], true["v_l"], atol=0.02, err_msg=name)

@@ -478,7 +478,7 @@ def test_real_treadmill_jogging_is_recognised():
 
 def test_feet_follow_the_calibrations_left_right_exchange():
     # heel labels exchanged in the file: the calibration finds it, the fit reads each heel from
-    # the other's trajectory, and the gait events must too (they used the raw labels before)
+    # the other's trajectory, and the gait events must too (not the file's raw labels)
     from conftest import SAMPLES
 
     from mocaplib.calibration import calibrate
