@@ -17,7 +17,7 @@ start's library: ``--static sample_c3d/rest.c3d --toe-off lift``). Prints Markdo
 
 ``--placement-draws N``: the static calibration's heading error against v̂_l. The capture
 (``--capture``) and the session's static are regenerated from the sample plan with N other
-marker placements (session seeds 1..N, everything else as shipped; the shipped session first,
+marker placements, session seeds 1..N (everything else as shipped; the shipped session first,
 for reference), calibrated from that static in the neutral pose, fitted (markers low-passed at
 Winter's cutoff), and per draw it prints δ, the mean heading error of the fitted shoulder
 line on the static itself, and the v̂_l error of the capture's true cycles (the pipeline's
@@ -117,7 +117,7 @@ def report(rows: list[dict]) -> bool:
 
 
 def placement_draws(plan_path: Path, capture_name: str, draws: int, reference: str) -> None:
-    """Per marker placement (session seed): δ of the static, the v̂_l error, the forward
+    """Per marker placement, that is per session seed: δ of the static, the v̂_l error, the forward
     reference's heading offset and the v̂_l error with it (module doc)."""
     planned = {c.name: c for c in load_plan(plan_path).captures}
 
