@@ -168,6 +168,7 @@ def test_bad_cutoff_names_the_file(cutoff):
         filter_trial(trial, cutoff=cutoff)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_fit_reports_no_cutoff_for_a_capture_too_short_to_filter(tmp_path, capsys):
     import json
 
