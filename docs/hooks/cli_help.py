@@ -13,7 +13,7 @@ PLACEHOLDER = re.compile(r"<!-- cli-help: ([a-z]+) -->")
 def on_page_markdown(markdown: str, page, config, files) -> str:
     if "<!-- cli-help:" not in markdown:
         return markdown
-    os.environ["COLUMNS"] = "96"  # argparse wraps to the terminal width; fix it for the page
+    os.environ["COLUMNS"] = "84"  # argparse wraps to the terminal width; fix it for the page
     from mocaplib.cli import build_parser
 
     parser = build_parser()
