@@ -44,8 +44,8 @@ Steps (all in metres, world Z up):
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
    static's. Only for statics recorded in that pose: real lab statics often are not (arms
-   abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default, ``static_pose="free"``, runs
-   step 4 on the static and step 5 on the motion.
+   abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
+   ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
    Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
    feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their

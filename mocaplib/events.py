@@ -49,8 +49,8 @@ stiff shoe's) leaves in one step, its velocity jumping upward at the lift.
   On real feet it is the forefoot's fastest upswing, ~18 ms before Foot Off.
 
 No one definition serves both kinds of foot, and the toe marker's path does not tell them apart
-under marker noise (docs/results/event_accuracy.md). Real captures are what the product measures, hence
-the default.
+under marker noise (docs/results/event_accuracy.md). Real captures are what the product
+measures, hence the default.
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """

@@ -384,9 +384,9 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
     A neutral static fixes the heading of every segment frame by fitting the root to all
     markers at their catalogue positions, so the placement error turns it by a fraction of a
     degree, and v̂_l of every capture is off by about −v̂ times that angle
-    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks forwards —
-    measures the angle: it is taken through the build's stages with the static that shows its
-    subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks
+    forwards — measures the angle: it is taken through the build's stages with the static that
+    shows its subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
     (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
     face where they walk. Several references of one static are averaged. The turn is repeated
     on the turned static until each reference faces its path within
