@@ -81,10 +81,10 @@ LENGTH_PRIOR = 0.015
 #: Typical marker residual (soft tissue + noise), metres: scales the length prior.
 MARKER_SIGMA = 0.005
 #: A DOF that one frame's markers determine with a standard deviation above this (radians;
-#: :func:`unobservable_dofs`, markers off by MARKER_SIGMA) is held at 0. Measured on the shared
-#: real files at 5 mm: 0.7-4.1 degrees for every DOF but ankle inversion with only a heel and a
-#: toe marker on the foot (14-22 degrees).
-UNOBSERVABLE_SD = np.deg2rad(8.0)
+#: :func:`unobservable_dofs`, markers off by MARKER_SIGMA) is held at 0: about the half-range
+#: of ankle inversion in walking, the smallest motion among the DOFs such markers can miss
+#: (the lab-agreement results page lists the values per capture).
+UNOBSERVABLE_SD = np.deg2rad(5.0)
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
 
@@ -356,21 +356,38 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
     DOFs, W their weights, σ_m = :data:`MARKER_SIGMA` (soft tissue and noise), over the
     markers the protocol trusts (weight 1 or more: markers it weights down, such as the
     Oxford Foot Model's midfoot markers on mocaplib's one-piece foot, steady the fit but do
-    not make a DOF seen). The median over the poses is compared. Ankle inversion with only a heel and a toe marker on the foot
-    (Plug-in Gait) is the typical case: its markers lie almost on the line the inversion axis
-    runs along.
+    not make a DOF seen); the median over the poses counts. The worst DOF above the limit is
+    held with its mirror image (both sides of a library have the same DOFs) and the others
+    are judged again without them, until none is above. Ankle inversion with only a heel and
+    a toe marker on the foot (Plug-in Gait) is the typical case: its markers lie almost on
+    the line the inversion axis runs along.
     """
-    free = model.free & ~np.isin(np.arange(len(DOF_NAMES)), SHIFTS)
     trusted = model.marker_weights >= 1.0
     _, J = model.skeleton.marker_jacobian(q, model.marker_segments[trusted],
                                           model.marker_offsets[trusted])
-    J = J[..., free] * np.sqrt(model.marker_weights[trusted])[None, :, None, None]
+    J = J * np.sqrt(model.marker_weights[trusted])[None, :, None, None]
     A = np.einsum("fmci,fmcj->fij", J, J)
-    A += 1e-12 * np.eye(A.shape[1])
-    sd = MARKER_SIGMA * np.sqrt(np.median(np.diagonal(np.linalg.inv(A), axis1=1, axis2=2),
-                                          axis=0))
-    names = np.array(DOF_NAMES)[free]
-    return {str(n): float(v) for n, v in zip(names, sd) if v > UNOBSERVABLE_SD}
+    free = model.free & ~np.isin(np.arange(len(DOF_NAMES)), SHIFTS)
+    held: dict[str, float] = {}
+    while free.any():
+        sub = A[:, free][:, :, free] + 1e-12 * np.eye(int(free.sum()))
+        sd = MARKER_SIGMA * np.sqrt(np.median(
+            np.diagonal(np.linalg.inv(sub), axis1=1, axis2=2), axis=0))
+        worst = int(np.argmax(sd))
+        if sd[worst] <= UNOBSERVABLE_SD:
+            return held
+        name = DOF_NAMES[np.flatnonzero(free)[worst]]
+        for dof in {name, _mirror(name)} & set(DOF_NAMES):
+            held[dof] = float(sd[worst])
+            free[DOF_NAMES.index(dof)] = False
+    return held
+
+
+def _mirror(name: str) -> str:
+    """The mirror-image DOF's name (``hip_flexion_l`` -> ``hip_flexion_r``); central ones keep
+    theirs."""
+    side = {"_l": "_r", "_r": "_l"}.get(name[-2:])
+    return name[:-2] + side if side else name
 
 
 def _hold_unobservable(model: SubjectModel, q: np.ndarray) -> SubjectModel:

@@ -35,10 +35,14 @@ def test_calibration_from_the_motion_recovers_lengths_and_angles(walk):
     model = calibrate(walk.trial, protocol="fullbody38")
     true, ours = walk.skeleton.lengths, model.skeleton.lengths
     for key in ("hip_width", "thigh", "shank", "forearm"):
-        # Harrington + lateral knee/ankle landmarks, refined by the alternating fit: the
+        # Harrington hips, chord knee/ankle centres and the wrist from the landmarks: the
         # generator's ±4 % length changes (≈17 mm) come back within 6 mm
         assert abs(ours[key] - true[key]) < 0.006, (key, ours[key], true[key])
-    assert model.locked_dofs == [] and model.left_out == []
+    # a heel, a toe and one metatarsal marker leave the foot's inversion 5.8° uncertain in one
+    # frame at 5 mm of marker noise: held, on both sides
+    assert sorted(model.locked_dofs) == sorted(model.unobservable) == [
+        "ankle_inversion_l", "ankle_inversion_r"]
+    assert model.left_out == []
     assert model.history[0] >= model.rms and model.rms < 0.004
     motion = fit(walk.trial, model)
     rms = _rms_deg(motion, walk.q)
@@ -63,7 +67,8 @@ def test_segments_without_markers_are_reported():
             if label not in ("LFHD", "RFHD", "LBHD", "RBHD")]
     model = calibrate(select(cap.trial, keep), protocol="fullbody38")
     assert model.left_out == ["head"]
-    assert model.locked_dofs == ["neck_flexion", "neck_bending", "neck_rotation"]
+    assert [d for d in model.locked_dofs if d not in model.unobservable] == [
+        "neck_flexion", "neck_bending", "neck_rotation"]
     assert "LFHD" not in model.labels
 
 
@@ -192,18 +197,18 @@ def test_neutral_static_absorbs_marker_placement():
     # 4 mm placement error, 6 mm soft tissue, 1 mm noise; the static sways 0.2 deg per DOF
     walk = fk_trial(n_frames=200, placement_mm=4, sta_mm=6, noise_mm=1, seed=0)
     static = fk_trial(n_frames=60, placement_mm=4, sta_mm=6, noise_mm=1, seed=0, static=True)
-    neutral = _rms_deg(fit(walk.trial, calibrate(walk.trial, static=static.trial,
-                                                 static_pose="neutral", protocol="fullbody38")),
-                       walk.q)
-    free = _rms_deg(fit(walk.trial, calibrate(walk.trial, static=static.trial,
-                                              static_pose="free", protocol="fullbody38")),
-                    walk.q)
-    # measured: neutral 0.81 / 2.64 deg (flexion / other worst), free 2.36 / 7.76 deg: the
-    # placement error of the foot markers turns into a constant ankle offset unless the
-    # static's known pose reveals it
-    assert free[FLEXION].max() > 1.5 and free[OTHER].max() > 5.0
-    assert neutral[FLEXION].max() < 1.0 and neutral[OTHER].max() < 3.0
-    assert neutral[OTHER].mean() < 0.5 * free[OTHER].mean()
+    models = {pose: calibrate(walk.trial, static=static.trial, static_pose=pose,
+                              protocol="fullbody38") for pose in ("neutral", "free")}
+    neutral, free = (_rms_deg(fit(walk.trial, models[pose]), walk.q) for pose in models)
+    # the DOFs fitted (ankle inversion is held: a heel, toe and fifth-metatarsal marker
+    # cannot see it, see test_calibration_from_the_motion_recovers_lengths_and_angles)
+    other = [j for j in OTHER if DOF_NAMES[j] not in models["neutral"].unobservable]
+    # measured: neutral 0.59 / 1.16 deg (flexion / other worst), free 2.14 / 3.53 deg: the
+    # placement error of the markers turns into constant angle offsets (anatomical frames
+    # from misplaced landmarks) unless the static's known pose reveals it
+    assert free[FLEXION].max() > 1.5 and free[other].max() > 2.5
+    assert neutral[FLEXION].max() < 1.0 and neutral[other].max() < 2.0
+    assert neutral[other].mean() < 0.5 * free[other].mean()
 
 
 def test_unknown_static_pose_is_an_error(walk):
