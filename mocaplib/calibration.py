@@ -70,7 +70,7 @@ from .errors import UNITS_HINT, CalibrationError
 from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in_frames, segment_frames
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, match_protocol, match_trial
-from .skeleton import (DOF_NAMES, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
+from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, _joint_offsets)
 from .trial import Trial
 
@@ -81,10 +81,13 @@ LENGTH_PRIOR = 0.015
 #: Typical marker residual (soft tissue + noise), metres: scales the length prior.
 MARKER_SIGMA = 0.005
 #: A DOF that one frame's markers determine with a standard deviation above this (radians;
-#: :func:`unobservable_dofs`, markers off by MARKER_SIGMA) is held at 0: about the half-range
-#: of ankle inversion in walking, the smallest motion among the DOFs such markers can miss
-#: (the lab-agreement results page lists the values per capture).
-UNOBSERVABLE_SD = np.deg2rad(5.0)
+#: :func:`unobservable_dofs`, markers off by MARKER_SIGMA) is held at 0: the largest amplitude
+#: of ankle inversion in walking, which it would drown.
+UNOBSERVABLE_SD = np.deg2rad(8.0)
+#: An end segment's markers lie on one line when all are within this distance (m) of it...
+LINE_TOLERANCE = 0.01
+#: ...and a DOF turns the segment about that line when its axis is within this angle (rad).
+LINE_ANGLE = np.deg2rad(30.0)
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
 
@@ -348,19 +351,24 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
 
 
 def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
-    """The free rotation DOFs that one frame's markers determine worse than
-    :data:`UNOBSERVABLE_SD`, with that standard deviation (radians).
+    """The free rotation DOFs the markers cannot see, with the standard deviation (radians)
+    one frame's fit would leave each at.
 
-    For poses ``q`` (F, D) the weighted least-squares fit of one frame leaves DOF d with the
-    standard deviation ``σ_m sqrt((JᵀWJ)⁻¹_dd)``: J the markers' Jacobian (3M, D) over the free
-    DOFs, W their weights, σ_m = :data:`MARKER_SIGMA` (soft tissue and noise), over the
-    markers the protocol trusts (weight 1 or more: markers it weights down, such as the
-    Oxford Foot Model's midfoot markers on mocaplib's one-piece foot, steady the fit but do
-    not make a DOF seen); the median over the poses counts. The worst DOF above the limit is
-    held with its mirror image (both sides of a library have the same DOFs) and the others
-    are judged again without them, until none is above. Ankle inversion with only a heel and
-    a toe marker on the foot (Plug-in Gait) is the typical case: its markers lie almost on
-    the line the inversion axis runs along.
+    Two rules, on the markers the protocol trusts (weight 1 or more: markers it weights down,
+    such as the Oxford Foot Model's midfoot markers on mocaplib's one-piece foot, steady the
+    fit but do not make a DOF seen):
+
+    * **On a line.** An end segment (a foot, a forearm, the head) whose markers lie on one line
+      (fewer than three, or all within :data:`LINE_TOLERANCE` of a line) cannot show a turn
+      about that line: a DOF whose axis is within :data:`LINE_ANGLE` of it is held (ankle
+      inversion with only a heel and a toe marker, as Plug-in Gait's foot).
+    * **Uncertain.** For poses ``q`` (F, D) the weighted least-squares fit of one frame leaves
+      DOF d with the standard deviation ``σ_m sqrt((JᵀWJ)⁻¹_dd)`` (J the markers' Jacobian
+      over the free DOFs, W their weights, σ_m = :data:`MARKER_SIGMA`; median over the
+      poses); the worst above :data:`UNOBSERVABLE_SD` is held and the others judged again.
+
+    A left or right DOF is held with its mirror image, so that both sides of a library have
+    the same DOFs.
     """
     trusted = model.marker_weights >= 1.0
     _, J = model.skeleton.marker_jacobian(q, model.marker_segments[trusted],
@@ -368,19 +376,57 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
     J = J * np.sqrt(model.marker_weights[trusted])[None, :, None, None]
     A = np.einsum("fmci,fmcj->fij", J, J)
     free = model.free & ~np.isin(np.arange(len(DOF_NAMES)), SHIFTS)
-    held: dict[str, float] = {}
-    while free.any():
-        sub = A[:, free][:, :, free] + 1e-12 * np.eye(int(free.sum()))
-        sd = MARKER_SIGMA * np.sqrt(np.median(
+
+    def sd_of(mask):
+        sub = A[:, mask][:, :, mask] + 1e-12 * np.eye(int(mask.sum()))
+        return MARKER_SIGMA * np.sqrt(np.median(
             np.diagonal(np.linalg.inv(sub), axis1=1, axis2=2), axis=0))
+
+    held: dict[str, float] = {}
+
+    def hold(name, value):
+        for dof in {name, _mirror(name)} & set(DOF_NAMES):
+            held[dof] = float(value)
+            free[DOF_NAMES.index(dof)] = False
+
+    on_line = _turns_about_marker_lines(model.marker_segments[trusted],
+                                        model.marker_offsets[trusted])
+    sd = dict(zip(np.array(DOF_NAMES)[free], sd_of(free)))
+    for name in sorted(on_line & set(sd)):
+        hold(name, max(sd[name], sd.get(_mirror(name), 0.0)))
+    while free.any():
+        sd = sd_of(free)
         worst = int(np.argmax(sd))
         if sd[worst] <= UNOBSERVABLE_SD:
-            return held
-        name = DOF_NAMES[np.flatnonzero(free)[worst]]
-        for dof in {name, _mirror(name)} & set(DOF_NAMES):
-            held[dof] = float(sd[worst])
-            free[DOF_NAMES.index(dof)] = False
+            break
+        hold(DOF_NAMES[np.flatnonzero(free)[worst]], sd[worst])
     return held
+
+
+def _turns_about_marker_lines(segments: np.ndarray, offsets: np.ndarray) -> set[str]:
+    """Rotation DOFs of end segments (no segment below them) whose markers (``segments`` (M,),
+    ``offsets`` (M, 3) in the segment frames) lie on one line along the DOF's axis."""
+    out = set()
+    parents = {seg.parent for seg in SEGMENTS}
+    for s, seg in enumerate(SEGMENTS):
+        points = offsets[segments == s]
+        if seg.name in parents or not len(points) or not seg.dofs:
+            continue
+        if len(points) == 1:                 # a lone marker and the joint centre: their line
+            direction, spread = points[0] / np.linalg.norm(points[0]), 0.0
+        else:
+            centred = points - points.mean(axis=0)
+            _, values, vt = np.linalg.svd(centred, full_matrices=False)
+            direction = vt[0]
+            spread = np.abs(centred - np.outer(centred @ direction, direction)).max() \
+                if len(points) > 2 else 0.0
+        if spread > LINE_TOLERANCE:
+            continue
+        for name in seg.dofs:
+            axis = np.asarray(DOFS[DOF_NAMES.index(name)].axis)
+            if abs(axis @ direction) > np.cos(LINE_ANGLE):
+                out.add(name)
+    return out
 
 
 def _mirror(name: str) -> str:

@@ -38,11 +38,8 @@ def test_calibration_from_the_motion_recovers_lengths_and_angles(walk):
         # Harrington hips, chord knee/ankle centres and the wrist from the landmarks: the
         # generator's ±4 % length changes (≈17 mm) come back within 6 mm
         assert abs(ours[key] - true[key]) < 0.006, (key, ours[key], true[key])
-    # a heel, a toe and one metatarsal marker leave the foot's inversion 5.8° uncertain in one
-    # frame at 5 mm of marker noise: held, on both sides
-    assert sorted(model.locked_dofs) == sorted(model.unobservable) == [
-        "ankle_inversion_l", "ankle_inversion_r"]
-    assert model.left_out == []
+    # a heel, a toe and a fifth-metatarsal marker are off one line: the foot's inversion is seen
+    assert model.locked_dofs == [] and model.unobservable == {} and model.left_out == []
     assert model.history[0] >= model.rms and model.rms < 0.004
     motion = fit(walk.trial, model)
     rms = _rms_deg(motion, walk.q)
@@ -67,8 +64,7 @@ def test_segments_without_markers_are_reported():
             if label not in ("LFHD", "RFHD", "LBHD", "RBHD")]
     model = calibrate(select(cap.trial, keep), protocol="fullbody38")
     assert model.left_out == ["head"]
-    assert [d for d in model.locked_dofs if d not in model.unobservable] == [
-        "neck_flexion", "neck_bending", "neck_rotation"]
+    assert model.locked_dofs == ["neck_flexion", "neck_bending", "neck_rotation"]
     assert "LFHD" not in model.labels
 
 
@@ -200,14 +196,12 @@ def test_neutral_static_absorbs_marker_placement():
     models = {pose: calibrate(walk.trial, static=static.trial, static_pose=pose,
                               protocol="fullbody38") for pose in ("neutral", "free")}
     neutral, free = (_rms_deg(fit(walk.trial, models[pose]), walk.q) for pose in models)
-    # the DOFs fitted (ankle inversion is held: a heel, toe and fifth-metatarsal marker
-    # cannot see it, see test_calibration_from_the_motion_recovers_lengths_and_angles)
     other = [j for j in OTHER if DOF_NAMES[j] not in models["neutral"].unobservable]
-    # measured: neutral 0.59 / 1.16 deg (flexion / other worst), free 2.14 / 3.53 deg: the
+    # measured: neutral 0.61 / 2.68 deg (flexion / other worst), free 2.16 / 5.70 deg: the
     # placement error of the markers turns into constant angle offsets (anatomical frames
     # from misplaced landmarks) unless the static's known pose reveals it
-    assert free[FLEXION].max() > 1.5 and free[other].max() > 2.5
-    assert neutral[FLEXION].max() < 1.0 and neutral[other].max() < 2.0
+    assert free[FLEXION].max() > 1.5 and free[other].max() > 5.0
+    assert neutral[FLEXION].max() < 1.0 and neutral[other].max() < 3.0
     assert neutral[other].mean() < 0.5 * free[other].mean()
 
 
@@ -234,3 +228,16 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
         warnings.simplefilter("error")
         offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     np.testing.assert_allclose(offsets, nominal, atol=1e-12)
+
+
+def test_a_foot_with_a_heel_and_a_toe_marker_only_holds_its_inversion():
+    # Plug-in Gait's foot: the two markers lie on the line the inversion axis runs along
+    cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=2)
+    keep = [i for i, label in enumerate(cap.trial.labels) if label not in ("LMT5", "RMT5")]
+    model = calibrate(select(cap.trial, keep), protocol="fullbody38")
+    assert sorted(model.unobservable) == sorted(model.locked_dofs) == [
+        "ankle_inversion_l", "ankle_inversion_r"]
+    motion = fit(select(cap.trial, keep), model)
+    assert (motion.angles[["ankle_inversion_l", "ankle_inversion_r"]] == 0.0).all().all()
+    # with the fifth metatarsal on, the same capture fits its inversion
+    assert calibrate(cap.trial, protocol="fullbody38").unobservable == {}
