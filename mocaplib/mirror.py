@@ -45,11 +45,17 @@ from dataclasses import replace
 
 import numpy as np
 
+from .controlspace import CLOSE_DISTANCE
 from .errors import MocapError
 from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: The reflection of the mirror: y -> -y (3, 3).
 REFLECTION = np.diag([1.0, -1.0, 1.0])
+#: A mirror image closer than this to its source in the control space (normalised distance:
+#: :data:`mocaplib.controlspace.CLOSE_DISTANCE`, entries too close to tell apart) is left out:
+#: the cycle is its own mirror image (straight walks, runs, rest), and the twin would only make
+#: sliver tetrahedra.
+SYMMETRIC_DISTANCE = CLOSE_DISTANCE
 _SIDES = (("_l", "_r"), ("_r", "_l"))
 
 
@@ -158,3 +164,211 @@ def mirror_id(entry_id: str, /) -> str:
     stem, tail = (found["stem"], found["cycle"] + (found["sha"] or "")) if found else (entry_id, "")
     stem = stem[:-len(MIRROR_TAG)] if stem.endswith(MIRROR_TAG) else stem + MIRROR_TAG
     return stem + tail
+
+
+def image_distance(source: dict, image: dict, /, *, scale=None) -> float:
+    """Normalised control-space distance between a library entry and its mirror image
+    (entries as JSON data, or dicts of their ``v``, ``omega``, ``v_l``); ``scale``: the
+    control space's (3,), :func:`mocaplib.library.control_scale` by default."""
+    from .library import CONTROL_AXES, control_scale
+
+    a, b = (np.array([float(e[axis]) for axis in CONTROL_AXES]) for e in (source, image))
+    return float(np.linalg.norm((a - b) / np.asarray(control_scale() if scale is None
+                                                     else scale)))
+
+
+def mirror_library(library, /):
+    """The library with the mirror image (:func:`mirror_entry`) of every entry added, and
+    notes on what was not added: ``(Library, list[str])``.
+
+    Left out: entries that are mirror images, or have one in the library; entries whose image
+    would lie within :data:`SYMMETRIC_DISTANCE` of them in the control space (reflected
+    velocities: straight walks, runs, rest). The header (settings, skeleton, scales) is kept.
+    Raises :class:`MocapError` naming the entries without ``right_toe_off_s`` (nothing is
+    added then), or an image whose id another entry has.
+    """
+    from .library import Library, to_json_data
+
+    if library.dof_names != list(DOF_NAMES):
+        raise MocapError("the library's DOFs are not this mocaplib's skeleton's: its entries "
+                         "cannot be mirrored with this version",
+                         hint="mirror it with the mocaplib version that wrote it")
+    entries = library.document["entries"]
+    ids = {e["id"] for e in entries}
+    imaged = {e.get("mirror_of") for e in entries if e.get("mirrored")}
+    todo, notes = [], []
+    for entry in entries:
+        if entry.get("mirrored") or entry["id"] in imaged:
+            continue
+        reflected = {"v": entry["v"], "omega": -entry["omega"], "v_l": -entry["v_l"]}
+        distance = image_distance(entry, reflected, scale=library.control_scale)
+        if distance < SYMMETRIC_DISTANCE:
+            notes.append(f"{entry['id']}: its mirror image would lie {distance:.3f} "
+                         f"(normalised) from it, within {SYMMETRIC_DISTANCE}: left out")
+        else:
+            todo.append(entry)
+    missing = [e["id"] for e in todo if e.get("right_toe_off_s") is None]
+    if missing:
+        raise MocapError(f"{len(missing)} entries do not record their right toe-off "
+                         f"(right_toe_off_s), where their mirror image would start: "
+                         f"{', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}",
+                         hint="build the library again (entries record it now), or build it "
+                              "with --mirror, which cuts mirror images from the captures")
+    images = [mirror_entry(entry) for entry in todo]
+    taken = sorted(ids & {image["id"] for image in images})
+    if taken:
+        raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
+                         "another entry has", hint="rename that entry's capture")
+    document = {**library.document,
+                "entries": sorted(entries + images, key=lambda e: e["id"])}
+    return Library(to_json_data(document)), notes
+
+
+
+# --------------------------------------------------------------------------- library entries
+def mirror_entry(entry: dict, /) -> dict:
+    """The mirror image of a library entry (JSON data, Fourier rows in :data:`DOF_NAMES`
+    order, as :func:`mocaplib.library.make_entry` makes it), from its stored series: the module
+    docstring says how. Its id is :func:`mirror_id`'s, ``mirror_of`` the entry's id,
+    ``mirror_method`` ``"series"``; its cycle starts at the entry's right toe-off
+    (``start_s + right_toe_off_s``, and ``right_toe_off_s`` becomes ``T - right_toe_off_s``);
+    the QC metrics are the entry's. The image of such an image is its source again (its window
+    is the source's: ``start_s`` moves back). Values are not rounded (the library's writer
+    rounds them).
+
+    Raises :class:`MocapError` for an entry without ``right_toe_off_s`` (a library written
+    before entries recorded it, or a cycle whose right toe-off was not detected): there is no
+    start for its mirror image.
+    """
+    from .fourier import ROOT_X, ROOT_Y, synthesize
+    from .library import drift_displacement
+    from .skeleton import ROOT_HEADING
+
+    tau = entry.get("right_toe_off_s")
+    if tau is None:
+        raise MocapError(f"entry {entry['id']} does not record its right toe-off "
+                         "(right_toe_off_s), where its mirror image would start",
+                         hint="build the library again (entries record it now), or build it "
+                              "with --mirror, which cuts mirror images from the captures")
+    period, tau = float(entry["T"]), float(tau)
+    a, b = (np.array(entry["fourier"][key], dtype=np.float64) for key in ("a", "b"))
+    root = [ROOT_X, ROOT_Y, ROOT_HEADING]
+    (x0, y0, heading0), (xt, yt, heading_t) = synthesize(a[root], b[root], period, [0.0, tau])
+    # the series from the right toe-off on: q(t + tau)
+    phase = 2 * np.pi * np.arange(a.shape[1]) * tau / period
+    a, b = a * np.cos(phase) + b * np.sin(phase), b * np.cos(phase) - a * np.sin(phase)
+    # re-anchored: root channels c·L(t + tau), c = L(0)·L(tau)^-1 in SE(2)
+    turn = heading0 - heading_t
+    rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    shift = np.array([x0, y0]) - rotation @ [xt, yt]
+    for coefficients in (a, b):
+        coefficients[[ROOT_X, ROOT_Y]] = rotation @ coefficients[[ROOT_X, ROOT_Y]]
+    a[[ROOT_X, ROOT_Y], 0] += shift
+    a[ROOT_HEADING, 0] += turn
+    drift = entry["root_drift"]
+    omega = float(drift["omega_rad_s"])
+    u_f, u_l = rotation @ [drift["u_f_m_s"], drift["u_l_m_s"]] + omega * np.array(
+        [shift[1], -shift[0]])
+    start = float(entry["start_s"]) + tau - (period if _series_image(entry) else 0.0)
+    image = {key: value for key, value in entry.items()
+             if key not in ("mirrored", "mirror_of", "mirror_method")}
+    if not _series_image(entry):
+        image.update(mirrored=True, mirror_of=entry["id"], mirror_method="series")
+    image.update(
+        id=mirror_id(entry["id"]), start_s=start, end_s=start + period,
+        right_toe_off_s=period - tau, pattern=mirror_pattern(entry["pattern"]),
+        omega=-entry["omega"], v_l=-entry["v_l"],
+        fourier={**entry["fourier"], "a": mirror_dofs(a, axis=0).tolist(),
+                 "b": mirror_dofs(b, axis=0).tolist()})
+    velocities = {"u_f_m_s": float(u_f), "u_l_m_s": -float(u_l), "omega_rad_s": -omega}
+    image["root_drift"] = drift_displacement(velocities, period) | velocities
+    return image
+
+
+def _series_image(entry: dict) -> bool:
+    return entry.get("mirror_method") == "series"
+
+
+def image_distance(source: dict, image: dict, /, *, scale=None) -> float:
+    """Normalised control-space distance between a library entry and its mirror image
+    (entries as JSON data, or dicts of their ``v``, ``omega``, ``v_l``); ``scale``: the
+    control space's (3,), :func:`mocaplib.library.control_scale` by default."""
+    from .library import CONTROL_AXES, control_scale
+
+    a, b = (np.array([float(e[axis]) for axis in CONTROL_AXES]) for e in (source, image))
+    return float(np.linalg.norm((a - b) / np.asarray(control_scale() if scale is None
+                                                     else scale)))
+
+
+def mirror_library(library, /):
+    """The library with the mirror image (:func:`mirror_entry`) of every entry added, and
+    notes on what was not added: ``(Library, list[str])``.
+
+    Left out: entries that are mirror images, or have one in the library; entries whose image
+    would lie within :data:`SYMMETRIC_DISTANCE` of them in the control space (reflected
+    velocities: straight walks, runs, rest). The header (settings, skeleton, scales) is kept.
+    Raises :class:`MocapError` naming the entries without ``right_toe_off_s`` (nothing is
+    added then), or an image whose id another entry has.
+    """
+    from .library import Library, to_json_data
+
+    if library.dof_names != list(DOF_NAMES):
+        raise MocapError("the library's DOFs are not this mocaplib's skeleton's: its entries "
+                         "cannot be mirrored with this version",
+                         hint="mirror it with the mocaplib version that wrote it")
+    entries = library.document["entries"]
+    ids = {e["id"] for e in entries}
+    imaged = {e.get("mirror_of") for e in entries if e.get("mirrored")}
+    todo, notes = [], []
+    for entry in entries:
+        if entry.get("mirrored") or entry["id"] in imaged:
+            continue
+        reflected = {"v": entry["v"], "omega": -entry["omega"], "v_l": -entry["v_l"]}
+        distance = image_distance(entry, reflected, scale=library.control_scale)
+        if distance < SYMMETRIC_DISTANCE:
+            notes.append(f"{entry['id']}: its mirror image would lie {distance:.3f} "
+                         f"(normalised) from it, within {SYMMETRIC_DISTANCE}: left out")
+        else:
+            todo.append(entry)
+    missing = [e["id"] for e in todo if e.get("right_toe_off_s") is None]
+    if missing:
+        raise MocapError(f"{len(missing)} entries do not record their right toe-off "
+                         f"(right_toe_off_s), where their mirror image would start: "
+                         f"{', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}",
+                         hint="build the library again (entries record it now), or build it "
+                              "with --mirror, which cuts mirror images from the captures")
+    images = [mirror_entry(entry) for entry in todo]
+    taken = sorted(ids & {image["id"] for image in images})
+    if taken:
+        raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
+                         "another entry has", hint="rename that entry's capture")
+    document = {**library.document,
+                "entries": sorted(entries + images, key=lambda e: e["id"])}
+    return Library(to_json_data(document)), notes
+
+
+def mirror_sidecar(library_path, out_path, /):
+    """Copy the diagnostics sidecar of ``library_path`` (when there is one) beside
+    ``out_path``, naming that library; returns the written path or None. The series images
+    :func:`mirror_library` adds have no capture record: the report knows them by their
+    ``mirror_method``."""
+    import json
+    from pathlib import Path
+
+    from .io.atomic import atomic_write_text
+    from .library import json_text
+    from .pipeline import diagnostics_path
+
+    source = diagnostics_path(library_path)
+    if not source.is_file():
+        return None
+    try:
+        data = json.loads(source.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise MocapError(f"cannot read the diagnostics sidecar: {exc}", path=source,
+                         hint="move it away to mirror the library without it") from None
+    if not isinstance(data, dict):
+        raise MocapError("not a diagnostics sidecar", path=source,
+                         hint="move it away to mirror the library without it")
+    return atomic_write_text(diagnostics_path(out_path),
+                             json_text({**data, "library": Path(out_path).name}))
