@@ -540,10 +540,11 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     The fitted ``motion`` is reflected (world y -> -y, :func:`mocaplib.mirror.mirror_motion`)
     and its gait events exchange sides, so its cycles run between the capture's *right*
     toe-offs; patterns, velocities, Fourier series and QC are measured on them as on any
-    capture (:func:`mocaplib.cycles.motion_cycles`, :func:`cycle_qc`). Which become entries:
-    the image overlapping the capture's chosen cycle most in time (chosen, as its source),
-    or with ``settings.all_cycles`` every image. Each names in ``mirror_of`` the capture's
-    entry (``result.entries``) it overlaps most. QC failures are dropped or waived as for the
+    capture (:func:`mocaplib.cycles.motion_cycles`, :func:`cycle_qc`). Each names in
+    ``mirror_of`` the capture's entry (in ``result.entries``) whose cycle overlaps it most in
+    time (the nearest when none overlaps). Which become entries: the image of the capture's
+    chosen cycle, the one overlapping it most (chosen when its source is in the library), or
+    with ``settings.all_cycles`` every image. QC failures are dropped or waived as for the
     capture's own cycles; an image within :data:`mocaplib.mirror.SYMMETRIC_DISTANCE` of its
     source in the control space is left out (the cycle is its own mirror image: straight
     walks, runs, rest). What is left out is said in ``result.warnings``.
@@ -563,16 +564,12 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
         return [], []
     sources = {e["cycle_index"]: e for e in result.entries}
     chosen = next(c for c in cycles if c.chosen)
-    partner = _most_overlap(chosen, images)
+    partner = _nearest(chosen, images)
     for image in images:
         image.chosen = image is partner and chosen.index in sources
+    kept = images if settings.all_cycles else [partner]
     own = [c for c in cycles if c.index in sources]
-    kept = [image for image in (images if settings.all_cycles else [partner])
-            if image is not None and _most_overlap(image, own) is not None]
-    if not kept:
-        result.warnings.append("no mirror image: no cycle between right toe-offs overlaps the "
-                               "capture's cycles in the library")
-    mirror_of = {image.index: sources[_most_overlap(image, own).index]["id"] for image in kept}
+    mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
     series = _qc_series(mirrored)
     qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
     entries = []
@@ -590,13 +587,12 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     return images, entries
 
 
-def _most_overlap(cycle, others):
-    """The cycle of ``others`` overlapping ``cycle`` longest in time (the earlier of equals),
-    or None when none overlaps it."""
+def _nearest(cycle, others):
+    """The cycle of ``others`` (not empty) overlapping ``cycle`` longest in time, or nearest
+    to it when none overlaps (the earlier of equals)."""
     def overlap(other):
         return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
-    best = max(others, key=lambda other: (overlap(other), -other.start_s), default=None)
-    return best if best is not None and overlap(best) > 0 else None
+    return max(others, key=lambda other: (overlap(other), -other.start_s))
 
 
 def _drift(drift) -> dict:

@@ -58,3 +58,99 @@ def test_mirroring_twice_is_the_identity():
 def test_mirror_ids(entry_id, mirrored):
     assert mirror_id(entry_id) == mirrored
     assert mirror_id(mirrored) == entry_id
+
+
+# --------------------------------------------------------------------------- entries
+def _entry(seed: int = 3, n: int = 6) -> dict:
+    """A library entry with gait-sized random coefficients, a turning drift and a right
+    toe-off (JSON data as a build writes it)."""
+    from mocaplib.library import make_entry
+
+    rng = np.random.default_rng(seed)
+    a, b = rng.normal(0, 0.1, (2, len(DOF_NAMES), n + 1))
+    b[:, 0] = 0.0
+    return make_entry(
+        id="walk_curve_r2_left_normal_c1", source_file="walk_curve_r2_left_normal.c3d",
+        source_sha256="0" * 64, cycle_index=1, start_s=1.43, end_s=2.6, T=1.17,
+        pattern={"type": "arc", "parameters": {"centre": [0.3, 2.1], "radius": 2.0,
+                                                "turn": 1.0, "length": 1.17},
+                 "residual_m": 0.002, "arc_angle_rad": 0.58},
+        v=1.0, omega=0.5, v_l=-0.006, v_f=1.0, a=a, b=b,
+        root_drift={"u_f_m_s": 0.98, "u_l_m_s": 0.05, "omega_rad_s": 0.49},
+        qc={"marker_rms_m": 0.004}, locomotion_class="nonholonomic", right_toe_off_s=0.587)
+
+
+def _numbers(x, y, path=""):
+    """(|x - y|, where) over every number of two JSON values of the same shape."""
+    if isinstance(x, dict):
+        assert sorted(x) == sorted(y), path
+        for key in x:
+            yield from _numbers(x[key], y[key], f"{path}.{key}")
+    elif isinstance(x, list):
+        assert len(x) == len(y), path
+        for i, (p, q) in enumerate(zip(x, y)):
+            yield from _numbers(p, q, f"{path}[{i}]")
+    elif isinstance(x, (int, float)) and not isinstance(x, bool):
+        yield abs(x - y), path
+    else:
+        assert x == y, path
+
+
+def test_mirroring_an_entry_twice_gives_it_back():
+    from mocaplib.mirror import mirror_entry
+
+    entry = _entry()
+    image = mirror_entry(entry)
+    assert image["id"] == "walk_curve_r2_left_normal_mirror_c1"
+    assert (image["mirrored"], image["mirror_of"], image["mirror_method"]) == (
+        True, entry["id"], "series")
+    assert image["omega"] == -0.5 and image["v_l"] == 0.006 and image["v"] == 1.0
+    np.testing.assert_allclose(image["start_s"], 1.43 + 0.587)
+    np.testing.assert_allclose(image["right_toe_off_s"], 1.17 - 0.587)
+    back = mirror_entry(image)
+    derived = {".root_drift.dx_m", ".root_drift.dy_m", ".root_drift.dheading_rad"}
+    for difference, where in _numbers(entry, back):
+        # The displacement is derived from the drift's velocities; the entry stores it
+        # rounded to 10 significant digits, the image recomputes it (1e-10 m apart).
+        assert difference <= (1e-9 if where in derived else 1e-12), where
+
+
+def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
+    """Put back in the world (library-format.md's root-drift formula), the image's motion is
+    the source's from its right toe-off on, reflected, up to one rigid motion of the floor:
+    joints equal, root pose a constant SE(2) transform away."""
+    from mocaplib.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
+    from mocaplib.mirror import mirror_entry
+    from mocaplib.skeleton import ROOT_HEADING
+
+    def world(entry, t):
+        d = entry["root_drift"]
+        q = synthesize(entry["fourier"]["a"], entry["fourier"]["b"], entry["T"], t)
+        return RootDrift(0, 0, 0, d["u_f_m_s"], d["u_l_m_s"], d["omega_rad_s"]).restore(q, t)
+
+    entry = _entry(seed=5)
+    t = np.linspace(0.0, 2.5, 60)
+    source = mirror_dofs(world(entry, t + entry["right_toe_off_s"]))
+    image = world(mirror_entry(entry), t)
+    root = [ROOT_X, ROOT_Y, ROOT_HEADING]
+    np.testing.assert_allclose(np.delete(image, root, axis=1), np.delete(source, root, axis=1),
+                               atol=1e-12)
+    turn = image[:, ROOT_HEADING] - source[:, ROOT_HEADING]
+    c, s = np.cos(turn), np.sin(turn)
+    moved = np.column_stack([image[:, ROOT_X] - (c * source[:, ROOT_X] - s * source[:, ROOT_Y]),
+                             image[:, ROOT_Y] - (s * source[:, ROOT_X] + c * source[:, ROOT_Y])])
+    assert np.ptp(turn) < 1e-12 and np.ptp(moved, axis=0).max() < 1e-12
+    # the image's path frame starts at its root pose, as every entry's (the series' L(0))
+    np.testing.assert_allclose(image[0, root] * [1, -1, -1],
+                               world(entry, np.zeros(1))[0, root], atol=1e-12)
+
+
+def test_an_entry_without_its_right_toe_off_cannot_be_mirrored():
+    from mocaplib.errors import MocapError
+    from mocaplib.mirror import mirror_entry
+
+    entry = _entry()
+    del entry["right_toe_off_s"]
+    with pytest.raises(MocapError, match="walk_curve_r2_left_normal_c1 does not record its "
+                                         "right toe-off.*build the library again"):
+        mirror_entry(entry)
