@@ -68,7 +68,9 @@ def render_html(context: dict) -> str:
         lstrip_blocks=True)
     env.filters["fmt"] = _fmt
     template = env.get_template("report.html.j2")
-    return template.render(**context, viewer_js=env.loader.get_source(env, "viewer.js")[0],
+    scripts = {f"{name}_js": env.loader.get_source(env, f"{name}.js")[0]
+               for name in ("viewer", "motion", "figure")}
+    return template.render(**context, **scripts,
                            css=env.loader.get_source(env, "report.css")[0])
 
 
@@ -227,6 +229,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
     _add_control_space(context, cs, env, library, label, classes_all, renderer)
+    context["motion"] = _motion(library, cs, classes_all, warnings)
     _shorten_paths(context)
     return context
 
@@ -603,8 +606,7 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                                                   envelope=env.vertices))
     png = rendered.png if rendered.renderer == "matplotlib" else figures.compress_png(rendered.png)
     viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
-              "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
-                          for k, v in colours.items()},
+              "colours": _css_colours(colours),
               "edges": edges.tolist(),
               "axes": [f"{figures.axis_label(a)}: {lo:.2f} to {hi:.2f}" if a != "omega" else
                        f"{figures.axis_label(a)}: {lo:.0f} to {hi:.0f}"
@@ -614,6 +616,25 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                            "edges": _unique_edges(env_tris).tolist()}}
     return ({"png": _data_uri(png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def _css_colours(colours: dict) -> dict[str, str]:
+    """Class -> CSS colour ``#rrggbb`` of :func:`mocaplib.report.figures.class_colours`."""
+    return {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v) for k, v in colours.items()}
+
+
+def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
+    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
+    warning, when the library's DOFs are not this mocaplib's skeleton's."""
+    from ..skeleton import DOF_NAMES
+    from .figureview import viewer_data
+
+    if library.dof_names != list(DOF_NAMES):
+        warnings.append("motion viewer left out: the library's DOFs are not this mocaplib's "
+                        "skeleton's (report it with the mocaplib version that wrote it)")
+        return None
+    colours = _css_colours(figures.class_colours(classes))
+    return viewer_data(library, cs, classes, colours)
 
 
 def nice_range(lo: float, hi: float) -> tuple[float, float, int]:
