@@ -268,8 +268,9 @@ class Library:
     entries : DataFrame
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
         source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
-        pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and one ``qc_<metric>`` column per QC
-        metric, and ``qc_waived`` (comma-separated metric names).
+        pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
+        one ``qc_<metric>`` column per QC metric, and ``qc_waived`` (comma-separated metric
+        names).
     """
 
     def __init__(self, document: dict):
@@ -312,8 +313,8 @@ class Library:
             row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
-                   "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type", "pattern_residual_m",
-                   "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
+                   "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
+                   "pattern_residual_m", "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
                    *(f"qc_{name}" for name in QC_NAMES), "qc_waived"]
         return pd.DataFrame(rows, columns=columns).set_index("id")
 

@@ -166,65 +166,6 @@ def mirror_id(entry_id: str, /) -> str:
     return stem + tail
 
 
-def image_distance(source: dict, image: dict, /, *, scale=None) -> float:
-    """Normalised control-space distance between a library entry and its mirror image
-    (entries as JSON data, or dicts of their ``v``, ``omega``, ``v_l``); ``scale``: the
-    control space's (3,), :func:`mocaplib.library.control_scale` by default."""
-    from .library import CONTROL_AXES, control_scale
-
-    a, b = (np.array([float(e[axis]) for axis in CONTROL_AXES]) for e in (source, image))
-    return float(np.linalg.norm((a - b) / np.asarray(control_scale() if scale is None
-                                                     else scale)))
-
-
-def mirror_library(library, /):
-    """The library with the mirror image (:func:`mirror_entry`) of every entry added, and
-    notes on what was not added: ``(Library, list[str])``.
-
-    Left out: entries that are mirror images, or have one in the library; entries whose image
-    would lie within :data:`SYMMETRIC_DISTANCE` of them in the control space (reflected
-    velocities: straight walks, runs, rest). The header (settings, skeleton, scales) is kept.
-    Raises :class:`MocapError` naming the entries without ``right_toe_off_s`` (nothing is
-    added then), or an image whose id another entry has.
-    """
-    from .library import Library, to_json_data
-
-    if library.dof_names != list(DOF_NAMES):
-        raise MocapError("the library's DOFs are not this mocaplib's skeleton's: its entries "
-                         "cannot be mirrored with this version",
-                         hint="mirror it with the mocaplib version that wrote it")
-    entries = library.document["entries"]
-    ids = {e["id"] for e in entries}
-    imaged = {e.get("mirror_of") for e in entries if e.get("mirrored")}
-    todo, notes = [], []
-    for entry in entries:
-        if entry.get("mirrored") or entry["id"] in imaged:
-            continue
-        reflected = {"v": entry["v"], "omega": -entry["omega"], "v_l": -entry["v_l"]}
-        distance = image_distance(entry, reflected, scale=library.control_scale)
-        if distance < SYMMETRIC_DISTANCE:
-            notes.append(f"{entry['id']}: its mirror image would lie {distance:.3f} "
-                         f"(normalised) from it, within {SYMMETRIC_DISTANCE}: left out")
-        else:
-            todo.append(entry)
-    missing = [e["id"] for e in todo if e.get("right_toe_off_s") is None]
-    if missing:
-        raise MocapError(f"{len(missing)} entries do not record their right toe-off "
-                         f"(right_toe_off_s), where their mirror image would start: "
-                         f"{', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}",
-                         hint="build the library again (entries record it now), or build it "
-                              "with --mirror, which cuts mirror images from the captures")
-    images = [mirror_entry(entry) for entry in todo]
-    taken = sorted(ids & {image["id"] for image in images})
-    if taken:
-        raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
-                         "another entry has", hint="rename that entry's capture")
-    document = {**library.document,
-                "entries": sorted(entries + images, key=lambda e: e["id"])}
-    return Library(to_json_data(document)), notes
-
-
-
 # --------------------------------------------------------------------------- library entries
 def mirror_entry(entry: dict, /) -> dict:
     """The mirror image of a library entry (JSON data, Fourier rows in :data:`DOF_NAMES`

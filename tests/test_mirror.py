@@ -154,3 +154,46 @@ def test_an_entry_without_its_right_toe_off_cannot_be_mirrored():
     with pytest.raises(MocapError, match="walk_curve_r2_left_normal_c1 does not record its "
                                          "right toe-off.*build the library again"):
         mirror_entry(entry)
+
+
+def test_docs_mirroring_states_the_derived_map():
+    """docs/mirroring.md's table of the DOF map is what the derivation gives."""
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).parents[1] / "docs" / "mirroring.md").read_text()
+    stated = {}
+    for names, partner, sign in re.findall(r"^\| (`.*?) \| (itself|its `…_l`, and back) \| "
+                                           r"([+−]1) \|$", doc, re.M):
+        for name in re.findall(r"`(\w+)`", names):
+            stated[name] = (partner, 1 if sign == "+1" else -1)
+    unsided = [n for n in DOF_NAMES if partner_name(n) == n]
+    assert sorted(stated) == sorted(unsided)
+    for k, name in enumerate(DOF_NAMES):
+        if name in stated:
+            assert (DOF_NAMES[MIRROR_INDEX[k]], MIRROR_SIGN[k]) == (name, stated[name][1]), name
+        else:  # the sided row: each side takes its partner's value, sign +1
+            assert "every `…_r`" in doc and DOF_NAMES[MIRROR_INDEX[k]] == partner_name(name)
+            assert MIRROR_SIGN[k] == 1, name
+
+
+def test_the_mirror_command_refuses_what_it_cannot_mirror(tmp_path, capsys):
+    """An entry without its right toe-off (an older library): exit 1, the entries named,
+    nothing written; the output naming the input: a usage error (2) before any work."""
+    from mocaplib.cli import main
+    from mocaplib.library import assemble_library
+
+    old = _entry()
+    del old["right_toe_off_s"]
+    straight = {**_entry(seed=4), "id": "walk_straight_normal_c0", "omega": 0.001, "v_l": 0.0}
+    path = tmp_path / "old.json"
+    assemble_library([old, straight], settings={}).write(path)
+    out = tmp_path / "out.json"
+    assert main(["mirror", str(path), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "1 entries do not record their right toe-off" in err
+    assert "walk_curve_r2_left_normal_c1" in err and "Traceback" not in err
+    assert not out.exists()
+    assert main(["mirror", str(path), "-o", str(path)]) == 2
+    assert "is an input of this command" in capsys.readouterr().err
+    assert main(["mirror", str(tmp_path / "none.json"), "-o", str(out)]) == 2

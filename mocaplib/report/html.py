@@ -405,6 +405,7 @@ def _coverage_context(cov, cs, library, label) -> dict:
         "slivers": _sliver_context(cov.slivers),
         "n_tetra": len(cs.tri.simplices), "next": next_rows,
         "close": _close_rows(cs), "other_axes": _other_axes(cs, library, label),
+        "without_mirrors": None,
     }
 
 

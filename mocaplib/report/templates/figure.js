@@ -31,9 +31,15 @@
 
   function degrees(x) { return x * 180 / Math.PI; }
 
+  function fixed(x, digits) {   // x.toFixed(digits) without "-0"
+    var text = x.toFixed(digits);
+    return /^-0(\.0*)?$/.test(text) ? text.slice(1) : text;
+  }
+
   function play(motion, label) {
+    var root = M.forward(skeleton, M.synthesize(motion.a, motion.b, motion.T, 0))[0];
     viewer.playing = { a: motion.a, b: motion.b, T: motion.T, drift: motion.drift, label: label,
-                       started: performance.now() };
+                       started: performance.now(), height: root[11] };
   }
 
   function playEntry(index) {
@@ -54,8 +60,8 @@
   var fctx = figure.getContext("2d");
 
   function project(p) {
-    // look at (0, 0, 0.9) m, the pelvis' height, from yaw / pitch; z up; 1 m = 40 % of the canvas
-    var x = p[0], y = p[1], z = p[2] - 0.9;
+    // look at the pelvis' height at the cycle start from yaw / pitch; z up; 1 m = 40 % of the canvas
+    var x = p[0], y = p[1], z = p[2] - viewer.playing.height;
     var c = Math.cos(camera.yaw), s = Math.sin(camera.yaw), cp = Math.cos(camera.pitch), sp = Math.sin(camera.pitch);
     var u = -s * x + c * y, w = c * x + s * y;
     var v = cp * z - sp * w;
@@ -120,10 +126,10 @@
     box = { v: [lo[0] - pad[0], hi[0] + pad[0]], w: [lo[1] - pad[1], hi[1] + pad[1]], margin: 40 };
     slider.min = lo[2].toFixed(3); slider.max = hi[2].toFixed(3); slider.step = "0.005"; slider.value = "0";
     slider.addEventListener("input", function () {
-      sliderText.textContent = Number(slider.value).toFixed(3) + " m/s";
+      sliderText.textContent = fixed(Number(slider.value), 3) + " m/s";
       if (picked) { pick(picked[0], picked[1], Number(slider.value)); }
     });
-    sliderText.textContent = Number(slider.value).toFixed(3) + " m/s";
+    sliderText.textContent = fixed(Number(slider.value), 3) + " m/s";
     pickCanvas.addEventListener("click", function (ev) {
       var r = pickCanvas.getBoundingClientRect();
       var px = (ev.clientX - r.left) * pickCanvas.width / r.width, py = (ev.clientY - r.top) * pickCanvas.height / r.height;
@@ -147,8 +153,8 @@
     pctx.strokeStyle = "#000000"; pctx.lineWidth = 1;
     pctx.strokeRect(m, m, pickCanvas.width - 2 * m, pickCanvas.height - 2 * m);
     pctx.fillStyle = "#000000"; pctx.font = "12px sans-serif";
-    pctx.fillText("ω̂ " + degrees(box.w[0]).toFixed(0) + " … " + degrees(box.w[1]).toFixed(0) + " °/s (> 0 left)", m, pickCanvas.height - 12);
-    pctx.fillText("v̂ " + box.v[0].toFixed(2) + " … " + box.v[1].toFixed(2) + " m/s", 4, 16);
+    pctx.fillText("ω̂ " + fixed(degrees(box.w[0]), 0) + " … " + fixed(degrees(box.w[1]), 0) + " °/s (> 0 left)", m, pickCanvas.height - 12);
+    pctx.fillText("v̂ " + fixed(box.v[0], 2) + " … " + fixed(box.v[1], 2) + " m/s", 4, 16);
     space.entries.forEach(function (i) {
       var e = data.entries[i], p = toPick(e.velocity[0], e.velocity[1]);
       pctx.beginPath(); pctx.arc(p[0], p[1], 4, 0, 2 * Math.PI);
@@ -169,7 +175,7 @@
     picked = [v, omega, vl];
     var point = [v, omega, vl], x = point.map(function (p, k) { return p / space.scale[k]; });
     var found = M.locate(space, x);
-    var where = "v̂ " + v.toFixed(2) + " m/s, ω̂ " + degrees(omega).toFixed(0) + " °/s, v̂_l " + vl.toFixed(3) + " m/s";
+    var where = "v̂ " + fixed(v, 2) + " m/s, ω̂ " + fixed(degrees(omega), 0) + " °/s, v̂_l " + fixed(vl, 3) + " m/s";
     if (found.simplex < 0) {
       weightsText.textContent = where + ": outside the control space (no entries around it to blend)";
       return null;
