@@ -149,8 +149,10 @@ def test_report_escapes_untrusted_names(report):
     _, html = report
     assert EVIL not in html
     assert "&lt;script&gt;alert(" in html  # shown as text in the capture heading and warnings
-    # The only <script> elements are the viewer's data and code.
-    assert len(re.findall(r"<script\b", html)) == 2
+    # The only <script> elements are the two viewers' data and code.
+    assert re.findall(r"<script\b[^>]*>", html) == [
+        '<script type="application/json" id="cs-data">', "<script>",
+        '<script type="application/json" id="mv-data">', "<script>", "<script>"]
 
 
 def test_report_contents(report):

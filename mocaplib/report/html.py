@@ -626,10 +626,13 @@ def _css_colours(colours: dict) -> dict[str, str]:
 
 def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
     """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
-    warning, when the library's DOFs are not this mocaplib's skeleton's."""
+    warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
     from ..skeleton import DOF_NAMES
     from .figureview import viewer_data
 
+    if not len(library):
+        warnings.append("motion viewer left out: the library has no entry")
+        return None
     if library.dof_names != list(DOF_NAMES):
         warnings.append("motion viewer left out: the library's DOFs are not this mocaplib's "
                         "skeleton's (report it with the mocaplib version that wrote it)")
