@@ -528,7 +528,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
             first_frame=first_frame, right_toe_off_s=cycle.right_toe_off,
-            mirror_of=image_of, mirror_method=image_of and "capture"))
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture"))
     return entries
 
 
@@ -550,7 +550,6 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     walks, runs, rest). What is left out is said in ``result.warnings``.
     """
     from .cycles import motion_cycles
-    from .errors import EventError
     from .mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
                          mirror_motion)
 
@@ -559,7 +558,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
         images = motion_cycles(mirror_events(events), mirrored,
                                ground=None if ground is None else REFLECTION @ ground,
                                source=path)
-    except EventError as exc:
+    except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
         result.warnings.append(f"no mirror image: {exc.message}")
         return [], []
     sources = {e["cycle_index"]: e for e in result.entries}

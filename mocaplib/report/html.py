@@ -141,7 +141,8 @@ def _record_problem(record) -> str | None:
     """What makes a capture record of the sidecar unusable (None when its shape is right).
 
     Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
-    null); ``ok`` true or false; ``cycles`` a list of objects whose ``start_s``/``end_s``
+    null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
+    list of objects whose ``start_s``/``end_s``
     are numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
     ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
     (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
