@@ -6,14 +6,9 @@ Steps (all in metres, world Z up):
    the motion only if it shows the same person with the same markers on: the distance between
    two markers on one segment is then the same in both trials, up to soft tissue and noise.
    The median over all such pairs of |d_motion − d_static| (each distance the median over its
-   trial's frames) above :data:`SAME_SUBJECT_LIMIT` (5 mm) is a :class:`CalibrationError`.
-   Measured: 0.2 mm or less between the synthetic session's static and its 68 captures; 0.5-2.0
-   mm on the real sessions of ../shared/data/c3d (biomechzoo HC030A01 with A05/A22, motonms
-   Static1 with Walking1/3, CMU 07_01 with 07_12); 17-33 mm between different people (CMU
-   subjects 07 and 16; btkdata's two statics against PiG_Motion-FlatFoot-Full, ASIS–ASIS 228
-   and 227 mm against 200 mm); 5.4-5.7 mm for a synthetic subject 3 % taller or shorter, and
-   4.2-4.7 mm for the same synthetic subject with markers taken off and put back (3 mm sd),
-   which passes: it is the same person (the ``free`` static pose then absorbs the new
+   trial's frames) above :data:`SAME_SUBJECT_LIMIT` (5 mm) is a :class:`CalibrationError`
+   (the figures behind the limit: docs/guide/fitting.md, Calibration). The same markers taken
+   off and put back pass: it is the same person (the ``free`` static pose then absorbs the new
    placement). The same difference picks, among several statics (one per subject or session),
    the one that shows a capture's subject (:func:`choose_static`).
 
@@ -49,9 +44,8 @@ Steps (all in metres, world Z up):
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
    static's. Only for statics recorded in that pose: real lab statics often are not (arms
-   abducted, feet turned out; measured on ../shared/data/c3d's statics: 11-68 mm marker RMS
-   with "neutral" against 4-9 mm with "free"), so the default, ``static_pose="free"``, runs
-   step 4 on the static and step 5 on the motion.
+   abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
+   ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
    Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
    feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their

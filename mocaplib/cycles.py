@@ -117,7 +117,7 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
 
     The humerus origins of the fitted skeleton: on the synthetic captures they give v̂_l about
     twice as close to the truth as the acromion markers (whose placement error yaws the
-    shoulder line), see the README.
+    shoulder line), see docs/results/velocity_accuracy.md.
     """
     from .skeleton import SEGMENT_NAMES
 
@@ -171,7 +171,10 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
 
-    Raises :class:`EventError` when there are events but fewer than two left toe-offs.
+    Raises
+    ------
+    EventError
+        When there are events but fewer than two left toe-offs.
     """
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:

@@ -530,6 +530,11 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         q0: np.ndarray | None = None) -> Motion:
     """Fit the calibrated model's joint angles to every frame of ``trial``.
 
+    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
+    with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
+    samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
+    further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
+
     Parameters
     ----------
     trial : Trial with the model's protocol labels (matched as :func:`match_protocol` does).
@@ -540,11 +545,6 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     chunk : frames solved together.
     q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
         start described above.
-
-    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
-    with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
-    samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
-    further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
 
     Returns
     -------

@@ -51,7 +51,7 @@ SCHEDULER_TIMEOUT_S = 20
 #: A forward reference whose subject faces further than this (degrees) from the direction of
 #: travel is refused: that is a side-step or a diagonal (the paper's diagonals start at 60°),
 #: not a forward walk. Measured uncorrected: 0.23° on the samples (placement error alone), up
-#: to 7.7° on lab walks with their static taken as neutral (README, Velocities).
+#: to 7.7° on lab walks with their static taken as neutral (docs/guide/patterns.md).
 FORWARD_LIMIT_DEG = 15.0
 #: A forward reference's cycles slower than this (m/s) show no direction of travel.
 MIN_FORWARD_SPEED = 0.3
@@ -395,10 +395,10 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
 
     A neutral static fixes the heading of every segment frame by fitting the root to all
     markers at their catalogue positions, so the placement error turns it by a fraction of a
-    degree, and v̂_l of every capture is off by about −v̂ times that angle (README,
-    Velocities). A forward reference — a capture in which the subject walks forwards —
-    measures the angle: it is taken through the build's stages with the static that shows its
-    subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    degree, and v̂_l of every capture is off by about −v̂ times that angle
+    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks
+    forwards — measures the angle: it is taken through the build's stages with the static that
+    shows its subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
     (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
     face where they walk. Several references of one static are averaged. The turn is repeated
     on the turned static until each reference faces its path within
@@ -917,7 +917,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
 
-    Returns a :class:`BuildResult`; captures that failed are in it, not raised.
+    Returns
+    -------
+    BuildResult
+        Captures that failed are in it, not raised.
     """
     from tqdm import tqdm
 

@@ -408,7 +408,7 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
         raise ProtocolError(
             "no protocol matches any marker label", path=trial.source,
             hint=f"labels are {_few(trial.labels)}; write a protocol for this marker set "
-                 "(see the README, 'Marker-set protocols') and pass it with --protocol")
+                 "(see docs/guide/protocols.md) and pass it with --protocol")
     return match_protocol(trial, best.protocol)
 
 

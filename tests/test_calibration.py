@@ -77,7 +77,7 @@ def test_too_few_pelvis_markers_is_an_error():
 @pytest.mark.parametrize("factor", [1000.0, 0.001])
 def test_coordinates_in_the_wrong_units_are_refused(factor):
     # millimetres labelled as metres (x1000) or the reverse: a subject 1750 m or 1.75 mm tall
-    # was clipped to 2.3 / 0.8 m and fitted with residuals of metres, or failed in the fit
+    # is refused with the units named, not clipped to a plausible height and fitted badly
     cap = fk_trial(n_frames=10)
     trial = dataclasses.replace(cap.trial, markers=cap.trial.markers * factor)
     with pytest.raises(CalibrationError, match=r"fk_fullbody38_0.c3d: .* subject .* m tall.*"

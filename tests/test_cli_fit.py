@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 from fk_data import fk_trial
 
 from mocaplib.cli import main
@@ -75,6 +76,7 @@ def test_cutoff_option(tmp_path, capsys):
     assert "--cutoff: must be > 0 Hz" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_fit_takes_the_static_that_shows_the_subject(tmp_path, capsys):
     # --static repeated (one per subject or session), as in build: the matching one is used
     from conftest import SAMPLES, plan_capture

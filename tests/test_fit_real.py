@@ -1,17 +1,12 @@
 """Calibrate + fit on real captures from ../shared/data/c3d (skipped when absent)."""
 
-import pytest
-from conftest import real_file
-
 from mocaplib.calibration import calibrate
 from mocaplib.ik import fit, fit_quality
 from mocaplib.io.c3d import read_c3d
 
-pytestmark = pytest.mark.real
 
-
-def test_plug_in_gait_walk_fits_within_opensim_best_practice():
-    trial = read_c3d(real_file("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+def test_plug_in_gait_walk_fits_within_opensim_best_practice(real_c3d):
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     model = calibrate(trial)
     quality = fit_quality(fit(trial, model))
     assert model.protocol.name == "plugin_gait" and model.locked_dofs == []
@@ -21,9 +16,9 @@ def test_plug_in_gait_walk_fits_within_opensim_best_practice():
     assert quality["failed_frames"] == []
 
 
-def test_swapped_acromion_labels_are_undone():
+def test_swapped_acromion_labels_are_undone(real_c3d):
     # SOURCES.md: in Walking3 the left acromion is labelled RA and the right one LA
-    trial = read_c3d(real_file("motonms_unipd/Walking3.c3d"))
+    trial = read_c3d(real_c3d("motonms_unipd/Walking3.c3d"))
     model = calibrate(trial)
     assert model.swapped == [("LA", "RA")]
     assert model.left_out == ["head", "humerus_r", "forearm_r", "humerus_l", "forearm_l"]

@@ -446,7 +446,6 @@ def _chromium(url: str, tmp: Path, *extra: str) -> subprocess.CompletedProcess:
         capture_output=True, text=True, timeout=120)
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
 def test_report_in_headless_chromium(report, tmp_path):
     from matplotlib.image import imread
