@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import SAMPLES, real_file
+from conftest import SAMPLES
 from mocaplib.fourier import synthesize
 from mocaplib.skeleton import JOINT_ANGLES
 
@@ -157,8 +157,7 @@ def test_the_mirror_command_adds_the_series_images_once(mirrored_samples, tmp_pa
     assert "0 mirror images added" in capsys.readouterr().out
 
 
-@pytest.mark.real
-def test_the_right_turns_of_a_real_session_gain_left_turns():
+def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
     """biomechZoo's walks turn right only (HC030A22, −88°). Its chosen right turn (ω̂ −0.22
     rad/s) has as mirror image, cut at right toe-offs, the stride into the turn (ω̂ +0.65
     rad/s), whose Fourier RMS is 1.03°, over the 1° limit: kept with --qc waive. The series
@@ -167,8 +166,8 @@ def test_the_right_turns_of_a_real_session_gain_left_turns():
     from mocaplib.mirror import mirror_library
     from mocaplib.pipeline import BuildSettings, build
 
-    static = real_file("biomechzoo/HC030A01.c3d")
-    walks = [real_file("biomechzoo/HC030A05.c3d"), real_file("biomechzoo/HC030A22.c3d")]
+    static = real_c3d("biomechzoo/HC030A01.c3d")
+    walks = [real_c3d("biomechzoo/HC030A05.c3d"), real_c3d("biomechzoo/HC030A22.c3d")]
     result = build(walks, BuildSettings(static=str(static), mirror=True, qc_policy="waive"),
                    progress=False)
     df = result.library.entries
