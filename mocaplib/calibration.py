@@ -71,7 +71,7 @@ from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, match_protocol, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
-                       SEGMENTS, SHIFTS, Skeleton, _joint_offsets)
+                       SEGMENTS, SHIFTS, Skeleton, partner_name)
 from .trial import Trial
 
 #: Markers seen in fewer than this fraction of frames are not used.
@@ -385,7 +385,7 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
     held: dict[str, float] = {}
 
     def hold(name, value):
-        for dof in {name, _mirror(name)} & set(DOF_NAMES):
+        for dof in {name, partner_name(name)} & set(DOF_NAMES):
             held[dof] = float(value)
             free[DOF_NAMES.index(dof)] = False
 
@@ -393,7 +393,7 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
                                         model.marker_offsets[trusted])
     sd = dict(zip(np.array(DOF_NAMES)[free], sd_of(free)))
     for name in sorted(on_line & set(sd)):
-        hold(name, max(sd[name], sd.get(_mirror(name), 0.0)))
+        hold(name, max(sd[name], sd.get(partner_name(name), 0.0)))
     while free.any():
         sd = sd_of(free)
         worst = int(np.argmax(sd))
@@ -427,13 +427,6 @@ def _turns_about_marker_lines(segments: np.ndarray, offsets: np.ndarray) -> set[
             if abs(axis @ direction) > np.cos(LINE_ANGLE):
                 out.add(name)
     return out
-
-
-def _mirror(name: str) -> str:
-    """The mirror-image DOF's name (``hip_flexion_l`` -> ``hip_flexion_r``); central ones keep
-    theirs."""
-    side = {"_l": "_r", "_r": "_l"}.get(name[-2:])
-    return name[:-2] + side if side else name
 
 
 def _hold_unobservable(model: SubjectModel, q: np.ndarray) -> SubjectModel:
@@ -842,7 +835,7 @@ def joint_shifts(skeleton: Skeleton, frames: dict[str, tuple[np.ndarray, np.ndar
     ``frames`` (:func:`mocaplib.anatomy.segment_frames`: the origin of a segment's frame is its
     joint centre) place it in its parent's frame: the median over frames, minus where the
     lengths alone put it."""
-    joints = _joint_offsets(skeleton.lengths)
+    joints = Skeleton(skeleton.lengths).joint_offsets()
     out = {}
     for name, (_, origin) in frames.items():
         parent = SEGMENTS[SEGMENT_NAMES.index(name)].parent

@@ -83,6 +83,11 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "jerk_rms_rad_s3": (None, "max"),
 }
 QC_NAMES = tuple(QC_LIMITS)
+#: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
+#: at its right toe-offs (``build --mirror``: every value measured again); ``series``, from the
+#: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
+#: reflected, QC the source's). See :mod:`mocaplib.mirror`.
+MIRROR_METHODS = ("capture", "series")
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
 
@@ -106,7 +111,8 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
                rate_hz: float | None = None, first_frame: int | None = None,
                joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
-               dofs_at_limit: dict | None = None) -> dict:
+               dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
+               mirror_of: str | None = None, mirror_method: str | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
@@ -118,7 +124,11 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     skeleton's :attr:`~mocaplib.skeleton.Skeleton.shifts` (segment -> 3 numbers, m);
     ``held_dofs``: DOFs held at 0 because the markers cannot see them (name -> the standard
     deviation they would have had, rad); ``dofs_at_limit``: share of the cycle's frames each
-    DOF that reaches a joint limit spends there. Empty mappings are not stored.
+    DOF that reaches a joint limit spends there (empty mappings are not stored);
+    ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
+    known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
+    ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
+    ``mirrored``.
     """
     if set(root_drift) != set(DRIFT_VELOCITIES):
         raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
@@ -144,14 +154,22 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
         "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
         "qc_waived": dict(qc_waived or {}),
     }
+    if (mirror_of is None) != (mirror_method is None) or mirror_method not in (
+            None, *MIRROR_METHODS):
+        raise LibraryError(f"entry {id}: a mirror image needs both mirror_of and mirror_method "
+                           f"(one of {', '.join(MIRROR_METHODS)}), got {mirror_of!r} and "
+                           f"{mirror_method!r}")
     for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
-                       ("first_frame", first_frame)):
+                       ("first_frame", first_frame), ("right_toe_off_s", right_toe_off_s),
+                       ("mirror_of", mirror_of), ("mirror_method", mirror_method)):
         if value is not None:
             entry[key] = value
     for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
                        ("dofs_at_limit", dofs_at_limit)):
         if value:
             entry[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
+    if mirror_of is not None:
+        entry["mirrored"] = True
     return to_json_data(entry)
 
 
@@ -263,15 +281,25 @@ class Library:
         The file's content as JSON data (see ``docs/library-format.md``).
     entries : DataFrame
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
-        source_sha256, cycle_index, chosen, start_s, end_s, T, pattern_type, pattern_residual_m,
-        arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and one ``qc_<metric>`` column per QC
-        metric, and ``qc_waived`` (comma-separated metric names).
+        source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
+        pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
+        one ``qc_<metric>`` column per QC metric, and ``qc_waived`` (comma-separated metric
+        names).
     """
 
     def __init__(self, document: dict):
         self.document = document
 
     # ------------------------------------------------------------------ views
+    @property
+    def skeleton(self):
+        """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
+        joint shifts."""
+        from .skeleton import Skeleton
+
+        header = self.document["skeleton"]
+        return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
+
     @property
     def dof_names(self) -> list[str]:
         return list(self.document["skeleton"]["dof_names"])
@@ -296,6 +324,8 @@ class Library:
             row = {key: e[key] for key in ("id", "locomotion_class", "source_file",
                                            "source_sha256", "cycle_index")}
             row["chosen"] = bool(e.get("chosen", True))
+            row["mirrored"] = bool(e.get("mirrored", False))
+            row["mirror_of"] = e.get("mirror_of")
             row.update({key: _float(e[key]) for key in ("start_s", "end_s", "T")})
             row["pattern_type"] = e["pattern"]["type"]
             row["pattern_residual_m"] = _float(e["pattern"]["residual_m"])
@@ -306,8 +336,8 @@ class Library:
             row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
-                   "chosen", "start_s", "end_s", "T", "pattern_type", "pattern_residual_m",
-                   "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
+                   "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
+                   "pattern_residual_m", "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
                    *(f"qc_{name}" for name in QC_NAMES), "qc_waived"]
         return pd.DataFrame(rows, columns=columns).set_index("id")
 
@@ -613,6 +643,13 @@ def _consistency_problems(doc: dict) -> list[Problem]:
         if re.search(r"[/\\]", e["source_file"]):
             problems.append(Problem(f"{where}.source_file", "must be a file name, without "
                                                             "its folder"))
+        if e.get("mirror_of") == e["id"]:
+            problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
+                                                          "image"))
+        toe_off = e.get("right_toe_off_s")
+        if toe_off is not None and math.isfinite(_float(e["T"])) and not toe_off < e["T"]:
+            problems.append(Problem(f"{where}.right_toe_off_s", f"{toe_off} s is not inside "
+                                                                f"the cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
         problems += _drift_problems(e, f"{where}.root_drift")
         rows = e["fourier"]["a"]

@@ -86,6 +86,7 @@ class BuildSettings:
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
         ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
     all_cycles : keep every complete cycle, not only the one chosen per capture.
+    mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
@@ -102,6 +103,7 @@ class BuildSettings:
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
     all_cycles: bool = False
+    mirror: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
     measurements: dict = field(default_factory=dict)
@@ -269,9 +271,9 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
-    """:func:`_cut_capture`, then the entries; fills ``result`` (raises MocapError for a bad
-    capture)."""
-    trial, motion, cycles = _cut_capture(path, settings, result, clock)
+    """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
+    image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
+    trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
@@ -279,11 +281,21 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+    if settings.mirror and result.entries:
+        with clock.stage("mirror"):
+            images, entries = mirror_entries(path, result, cycles, motion, events, ground,
+                                             settings, trial.first_frame)
+            result.entries += entries
+            ids = {e["cycle_index"]: e["id"] for e in entries}
+            result.diagnostics["mirror_cycles"] = to_json_data(
+                [{**c.to_dict(), "entry_id": ids.get(c.index)} for c in images],
+                DIAGNOSTICS_DIGITS)
 
 
 def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion` and its cycles, and puts
+    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles, its gait
+    events and the ground's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
@@ -350,7 +362,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
-    return trial, motion, cycles
+    return trial, motion, cycles, events, ground
 
 
 def _static_sha256(path: str) -> str:
@@ -439,7 +451,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles = _cut_capture(Path(reference), settings, result, _Clock())
+            _, motion, cycles, *_ = _cut_capture(Path(reference), settings, result, _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -489,15 +501,22 @@ def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int):
+             settings: BuildSettings, motion, first_frame: int, *,
+             mirror_of: dict[int, str] | None = None):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
-    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
+    ``mirror_of``: for the cycles of a mirror image (``motion`` mirrored), the id of the entry
+    each one mirrors, by cycle index."""
+    from .mirror import MIRROR_TAG
+
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
         failures = qc_failures(qc, settings.qc_thresholds)
-        where = f"cycle {cycle.index} ({cycle.start_s:.2f}-{cycle.end_s:.2f} s)"
+        image_of = None if mirror_of is None else mirror_of[cycle.index]
+        where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
+                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
         waived = {}
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: {'; '.join(failures)}")
@@ -508,7 +527,8 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(make_entry(
-            id=f"{path.stem}_c{cycle.index}", source_file=path.name,
+            id=f"{path.stem}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
+            source_file=path.name,
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
@@ -517,8 +537,72 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
             first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
             held_dofs=motion.unobservable,
-            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion))))
+            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
+            right_toe_off_s=cycle.right_toe_off,
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture"))
     return entries
+
+
+def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
+                   settings: BuildSettings, first_frame: int) -> tuple[list, list[dict]]:
+    """The capture's mirror image, cut and measured as a capture: its cycles (all of them,
+    :class:`~mocaplib.cycles.Cycle`) and the entries they give.
+
+    The fitted ``motion`` is reflected (world y -> -y, :func:`mocaplib.mirror.mirror_motion`)
+    and its gait events exchange sides, so its cycles run between the capture's *right*
+    toe-offs; patterns, velocities, Fourier series and QC are measured on them as on any
+    capture (:func:`mocaplib.cycles.motion_cycles`, :func:`cycle_qc`). Each names in
+    ``mirror_of`` the capture's entry (in ``result.entries``) whose cycle overlaps it most in
+    time (the nearest when none overlaps). Which become entries: the image of the capture's
+    chosen cycle, the one overlapping it most (chosen when its source is in the library), or
+    with ``settings.all_cycles`` every image. QC failures are dropped or waived as for the
+    capture's own cycles; an image within :data:`mocaplib.mirror.SYMMETRIC_DISTANCE` of its
+    source in the control space is left out (the cycle is its own mirror image: straight
+    walks, runs, rest). What is left out is said in ``result.warnings``.
+    """
+    from .cycles import motion_cycles
+    from .mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
+                         mirror_motion)
+
+    mirrored = mirror_motion(motion)
+    try:
+        images = motion_cycles(mirror_events(events), mirrored,
+                               ground=None if ground is None else REFLECTION @ ground,
+                               source=path)
+    except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
+        result.warnings.append(f"no mirror image: {exc.message}")
+        return [], []
+    sources = {e["cycle_index"]: e for e in result.entries}
+    chosen = next(c for c in cycles if c.chosen)
+    partner = _nearest(chosen, images)
+    for image in images:
+        image.chosen = image is partner and chosen.index in sources
+    kept = images if settings.all_cycles else [partner]
+    own = [c for c in cycles if c.index in sources]
+    mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
+    series = _qc_series(mirrored)
+    qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
+    entries = []
+    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame,
+                          mirror_of=mirror_of):
+        source = next(e for e in result.entries if e["id"] == entry["mirror_of"])
+        distance = image_distance(source, entry)
+        if distance < SYMMETRIC_DISTANCE:
+            result.warnings.append(f"mirror image cycle {entry['cycle_index']} left out: it "
+                                   f"lies {distance:.3f} (normalised) from {source['id']} in "
+                                   f"the control space, within {SYMMETRIC_DISTANCE}: that "
+                                   "cycle is its own mirror image")
+        else:
+            entries.append(entry)
+    return images, entries
+
+
+def _nearest(cycle, others):
+    """The cycle of ``others`` (not empty) overlapping ``cycle`` longest in time, or nearest
+    to it when none overlaps (the earlier of equals)."""
+    def overlap(other):
+        return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
+    return max(others, key=lambda other: (overlap(other), -other.start_s))
 
 
 def _drift(drift) -> dict:
@@ -1008,7 +1092,7 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
             c.warnings.append(f"same content as {first_with_content[c.sha256]}: "
                               "its cycles are not added twice")
             c.entries = []
-            for cycle in c.diagnostics.get("cycles", []):
+            for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
                 cycle["entry_id"] = None
         elif c.entries:
             first_with_content[c.sha256] = c.source
@@ -1019,7 +1103,9 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
                    if len(names[e["id"]]) > 1}
         for e in c.entries:
             e["id"] = renamed.get(e["id"], e["id"])
-        for cycle in c.diagnostics.get("cycles", []):
+            if "mirror_of" in e:
+                e["mirror_of"] = renamed.get(e["mirror_of"], e["mirror_of"])
+        for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
             cycle["entry_id"] = renamed.get(cycle.get("entry_id"), cycle.get("entry_id"))
 
 

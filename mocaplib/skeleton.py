@@ -150,6 +150,13 @@ ROOT_HEADING = DOF_NAMES.index("pelvis_rotation")
 JOINT_ANGLES = ~TRANSLATION & (np.arange(len(DOF_NAMES)) != ROOT_HEADING)
 
 
+def partner_name(name: str) -> str:
+    """The other side's name of a sided DOF or segment name (``hip_flexion_l`` ↔
+    ``hip_flexion_r``, ``foot_l`` ↔ ``foot_r``); an unsided name is its own partner."""
+    side = {"_l": "_r", "_r": "_l"}.get(name[-2:])
+    return name[:-2] + side if side else name
+
+
 def _moves() -> np.ndarray:
     """(S, D) bool: DOF ``j`` moves segment ``s`` (it belongs to ``s`` or to an ancestor)."""
     out = np.zeros((len(SEGMENTS), len(DOFS)), dtype=bool)
