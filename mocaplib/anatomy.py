@@ -36,9 +36,11 @@ the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requi
       foot's X is perpendicular to the tibia's long axis; the foot's turn about the tibia's long
       axis (toe-out) is a fixed part of the marker offsets, as Plug-in Gait's static
       rotation offset.
-    * **humerus, forearm**: as the femur and tibia, from the shoulder, elbow and wrist
-      centres and the elbow's epicondyles (or lateral marker): the elbow is a hinge about the
-      humerus's Y.
+
+The arms keep frames turned onto the landmark catalogue's layout (:mod:`mocaplib.calibration`):
+built from the elbow's markers, an upper arm's frame turns by several degrees for each
+millimetre a lateral elbow marker is misplaced (measured on the synthetic samples: 7.8° mean
+shoulder-rotation error against 2.3°).
 """
 
 from __future__ import annotations
@@ -138,7 +140,7 @@ def frame(primary: np.ndarray, secondary: np.ndarray, *, order: str) -> np.ndarr
 
 def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
                    *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """The anatomical frames of the pelvis, legs and arms that the landmarks define.
+    """The anatomical frames of the pelvis and legs that the landmarks define.
 
     ``where`` maps landmark names (``L_ASIS``...) to positions (F, 3); ``centres`` maps
     ``(segment, 0.0)`` to that segment's joint centre (F, 3), as
@@ -157,39 +159,23 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
         out["pelvis"] = (pelvis_axes(where["L_ASIS"], where["R_ASIS"], back),
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        upper = _limb(out, where, centres, side, sign, ("femur", "tibia", "foot"), "KNEE")
-        if upper is not None:
-            heel, toe = _foot_line(where, side.upper())
-            if heel is not None:
-                along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
-                out[f"foot_{side}"] = (frame(upper[..., 1], along, order="yx"),
-                                       centres[(f"foot_{side}", 0.0)])
-        _limb(out, where, centres, side, sign, ("humerus", "forearm", "forearm"), "ELBOW")
+        hip, knee, ankle = (centres.get((f"{n}_{side}", 0.0)) for n in ("femur", "tibia", "foot"))
+        lateral = where.get(f"{side.upper()}_KNEE_LAT")
+        if hip is None or knee is None or lateral is None:
+            continue
+        medial = where.get(f"{side.upper()}_KNEE_MED")
+        femur = frame(hip - knee, sign * (lateral - (knee if medial is None else medial)),
+                      order="zy")
+        out[f"femur_{side}"] = (femur, hip)
+        if ankle is None:
+            continue
+        tibia = frame(femur[..., 1], knee - ankle, order="yz")
+        out[f"tibia_{side}"] = (tibia, knee)
+        heel, toe = _foot_line(where, side.upper())
+        if heel is not None:
+            along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
+            out[f"foot_{side}"] = (frame(tibia[..., 1], along, order="yx"), ankle)
     return out
-
-
-def _limb(out: dict, where: dict[str, np.ndarray], centres: dict, side: str, sign: float,
-          names: tuple[str, str, str], hinge: str) -> np.ndarray | None:
-    """Adds to ``out`` the frames of one limb's upper segment (``names[0]``: femur, humerus)
-    and lower segment (``names[1]``: tibia, forearm), the hinge between them (``hinge``: KNEE,
-    ELBOW) about the upper segment's Y; ``names[2]`` holds the lower segment's distal centre
-    (the ankle: the foot's origin; the wrist: the forearm's end). Returns the lower segment's
-    rotation (F, 3, 3), or None when its frame cannot be built."""
-    proximal, middle = (centres.get((f"{n}_{side}", 0.0)) for n in names[:2])
-    distal = next((c for (n, z), c in centres.items()
-                   if n == f"{names[2]}_{side}" and (z != 0.0) == (names[2] == names[1])), None)
-    lateral = where.get(f"{side.upper()}_{hinge}_LAT")
-    if proximal is None or middle is None or lateral is None:
-        return None
-    medial = where.get(f"{side.upper()}_{hinge}_MED")
-    leftward = sign * (lateral - (middle if medial is None else medial))
-    upper = frame(proximal - middle, leftward, order="zy")
-    out[f"{names[0]}_{side}"] = (upper, proximal)
-    if distal is None:
-        return None
-    lower = frame(upper[..., 1], middle - distal, order="yz")
-    out[f"{names[1]}_{side}"] = (lower, middle)
-    return lower
 
 
 def _foot_line(where: dict[str, np.ndarray], side: str):
