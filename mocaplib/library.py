@@ -110,8 +110,9 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                qc: dict, locomotion_class: str | None = None, chosen: bool = True,
                segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
                rate_hz: float | None = None, first_frame: int | None = None,
-               right_toe_off_s: float | None = None, mirror_of: str | None = None,
-               mirror_method: str | None = None) -> dict:
+               joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
+               dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
+               mirror_of: str | None = None, mirror_method: str | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
@@ -119,9 +120,13 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     ``arc_angle_rad``; velocities m/s and rad/s; ``root_drift``: the path frame's velocities
     :data:`DRIFT_VELOCITIES` (its displacement over T is derived); ``qc``: values keyed by
     :data:`QC_NAMES`; ``rate_hz``, ``first_frame``: the capture's frame rate and first frame
-    number (stored when given, so ``start_s`` maps to C3D frames); ``right_toe_off_s``: the
-    first right toe-off in the cycle, s from its start (stored when known); ``mirror_of``: for
-    a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
+    number (stored when given, so ``start_s`` maps to C3D frames); ``joint_shifts_m``: the
+    skeleton's :attr:`~mocaplib.skeleton.Skeleton.shifts` (segment -> 3 numbers, m);
+    ``held_dofs``: DOFs held at 0 because the markers cannot see them (name -> the standard
+    deviation they would have had, rad); ``dofs_at_limit``: share of the cycle's frames each
+    DOF that reaches a joint limit spends there (empty mappings are not stored);
+    ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
+    known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
     ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
     ``mirrored``.
     """
@@ -159,6 +164,10 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                        ("mirror_of", mirror_of), ("mirror_method", mirror_method)):
         if value is not None:
             entry[key] = value
+    for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
+                       ("dofs_at_limit", dofs_at_limit)):
+        if value:
+            entry[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
     if mirror_of is not None:
         entry["mirrored"] = True
     return to_json_data(entry)
@@ -197,7 +206,8 @@ def assemble_library(entries: list[dict], *, settings: dict,
     """A library from entries (made by :func:`make_entry`); entries are sorted by id.
 
     The header's segment lengths are the per-length median over entries (or the nominal
-    1.75 m skeleton's when no entry carries lengths); the Fourier order N is the largest
+    1.75 m skeleton's when no entry carries lengths), its joint shifts the per-segment median
+    over the entries that carry them; the Fourier order N is the largest
     entry order and smaller orders are zero-padded (exact); control-space scales are
     :func:`control_scale`.
     """
@@ -214,6 +224,9 @@ def assemble_library(entries: list[dict], *, settings: dict,
         segment_lengths = {k: float(np.median([lens[k] for lens in lengths])) for k in lengths[0]}
     else:
         segment_lengths = Skeleton.from_height(1.75).lengths
+    shifts = [e["joint_shifts_m"] for e in entries if e.get("joint_shifts_m")]
+    joint_shifts = {name: np.median([s[name] for s in shifts if name in s], axis=0).tolist()
+                    for name in sorted({name for s in shifts for name in s})}
     doc = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
         "settings": settings,
@@ -224,6 +237,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
             # guard is no joint limit)
             "dof_ranges": [[None, None] if d.translation else [d.lower, d.upper] for d in DOFS],
             "segment_lengths_m": segment_lengths,
+            **({"joint_shifts_m": joint_shifts} if joint_shifts else {}),
         },
         "fourier": {"formula": FOURIER_FORMULA, "time_origin": "cycle_start",
                     "n_harmonics": n_max, "coefficient_shape": "D x (N+1)",
@@ -277,6 +291,15 @@ class Library:
         self.document = document
 
     # ------------------------------------------------------------------ views
+    @property
+    def skeleton(self):
+        """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
+        joint shifts."""
+        from .skeleton import Skeleton
+
+        header = self.document["skeleton"]
+        return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
+
     @property
     def dof_names(self) -> list[str]:
         return list(self.document["skeleton"]["dof_names"])

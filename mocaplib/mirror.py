@@ -47,7 +47,7 @@ import numpy as np
 
 from .controlspace import CLOSE_DISTANCE
 from .errors import MocapError
-from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from .skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
 
 #: The reflection of the mirror: y -> -y (3, 3).
 REFLECTION = np.diag([1.0, -1.0, 1.0])
@@ -56,16 +56,6 @@ REFLECTION = np.diag([1.0, -1.0, 1.0])
 #: the cycle is its own mirror image (straight walks, runs, rest), and the twin would only make
 #: sliver tetrahedra.
 SYMMETRIC_DISTANCE = CLOSE_DISTANCE
-_SIDES = (("_l", "_r"), ("_r", "_l"))
-
-
-def partner_name(name: str) -> str:
-    """The other side's name of a sided name (``hip_flexion_l`` ↔ ``hip_flexion_r``,
-    ``foot_l`` ↔ ``foot_r``); an unsided name is its own partner."""
-    for own, other in _SIDES:
-        if name.endswith(own):
-            return name[:-len(own)] + other
-    return name
 
 
 def _dof_mirror() -> tuple[np.ndarray, np.ndarray]:
@@ -124,9 +114,26 @@ def mirror_motion(motion, /):
 
     angles = angles_frame(mirror_dofs(motion.q), motion.rate)
     angles.index = motion.angles.index
-    return replace(motion, angles=angles, marker_segments=None, marker_offsets=None,
+    return replace(motion, angles=angles, skeleton=mirror_skeleton(motion.skeleton),
+                   marker_segments=None, marker_offsets=None,
                    locked_dofs=[partner_name(name) for name in motion.locked_dofs],
-                   swapped=[])
+                   unobservable=mirror_names(motion.unobservable), swapped=[])
+
+
+def mirror_skeleton(skeleton: Skeleton, /) -> Skeleton:
+    """The mirror-image subject: the same lengths (they serve both sides), each joint shift
+    moved to the partner segment with its y negated."""
+    return Skeleton(skeleton.lengths, mirror_shifts(skeleton.shifts))
+
+
+def mirror_shifts(shifts: dict, /) -> dict:
+    """Joint shifts (segment -> [x, y, z], m) of the mirror image."""
+    return {partner_name(name): [x, -y, z] for name, (x, y, z) in shifts.items()}
+
+
+def mirror_names(values: dict, /) -> dict:
+    """A mapping keyed by DOF or segment names with the keys of the mirror image."""
+    return {partner_name(name): value for name, value in values.items()}
 
 
 def mirror_events(events, /) -> list:
@@ -221,6 +228,10 @@ def mirror_entry(entry: dict, /) -> dict:
         omega=-entry["omega"], v_l=-entry["v_l"],
         fourier={**entry["fourier"], "a": mirror_dofs(a, axis=0).tolist(),
                  "b": mirror_dofs(b, axis=0).tolist()})
+    for key, mirrored in (("joint_shifts_m", mirror_shifts), ("held_dofs", mirror_names),
+                          ("dofs_at_limit", mirror_names)):
+        if key in entry:
+            image[key] = mirrored(entry[key])
     velocities = {"u_f_m_s": float(u_f), "u_l_m_s": -float(u_l), "omega_rad_s": -omega}
     image["root_drift"] = drift_displacement(velocities, period) | velocities
     return image

@@ -91,6 +91,8 @@ class BuildSettings:
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
         :data:`mocaplib.library.QC_LIMITS`.
+    measurements : subject measurements (metres, kilograms) overriding those each
+        calibration file stores (see :func:`mocaplib.calibration.calibrate`).
     """
 
     protocol: str = "auto"
@@ -104,6 +106,7 @@ class BuildSettings:
     mirror: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
+    measurements: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("static", "forward_reference"):
@@ -330,11 +333,13 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
             model = _neutral_model(*statics[chosen], match.protocol,
-                                   settings.heading_offset(chosen))
+                                   settings.heading_offset(chosen),
+                                   tuple(sorted(settings.measurements.items())))
             check_static(filtered, static, model)
         else:
             model = calibrate(filtered, protocol=match.protocol, static=static,
-                              static_pose=settings.static_pose)
+                              static_pose=settings.static_pose,
+                              measurements=settings.measurements)
         if chosen is not None:
             result.static = static_names(settings.statics)[chosen]
     result.warnings.extend(model.swap_warnings)
@@ -344,6 +349,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
                                f"{', '.join(motion.locked_dofs)}")
+    result.warnings.extend(motion.limit_warnings())
     if motion.failed.any():
         result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
                                "(interpolated)")
@@ -378,15 +384,17 @@ def _read_static(path: str, sha256: str):
 
 
 @lru_cache(maxsize=None)
-def _neutral_model(path: str, sha256: str, protocol, heading_offset: float):
+def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
+                   measurements: tuple = ()):
     """The model calibrated on the neutral-pose static ``path`` with its heading turned by
     ``heading_offset`` (radians), once per worker process for each content, protocol and
-    offset: it depends on nothing else, so each capture only checks that it shows the same
-    subject (:func:`mocaplib.calibration.check_static`)."""
+    offset and measurements ((name, value) pairs): it depends on nothing else, so each
+    capture only checks that it shows the same subject
+    (:func:`mocaplib.calibration.check_static`)."""
     from .calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
-                     heading_offset=heading_offset)
+                     heading_offset=heading_offset, measurements=dict(measurements))
 
 
 def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
@@ -527,7 +535,10 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
-            first_frame=first_frame, right_toe_off_s=cycle.right_toe_off,
+            first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
+            held_dofs=motion.unobservable,
+            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
+            right_toe_off_s=cycle.right_toe_off,
             mirror_of=image_of, mirror_method=None if image_of is None else "capture"))
     return entries
 
@@ -621,6 +632,12 @@ def _qc_series(motion) -> tuple[np.ndarray, np.ndarray | None]:
     return q, third
 
 
+def inside_cycle(cycle, motion) -> np.ndarray:
+    """The frames (F,) bool of ``motion`` from the cycle's start to its end."""
+    frames = np.arange(motion.n_frames) / motion.rate
+    return (frames >= cycle.start_s) & (frames <= cycle.end_s)
+
+
 def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
@@ -635,8 +652,7 @@ def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
     from .skeleton import TRANSLATION
 
     q, third = _qc_series(motion) if series is None else series
-    frames = np.arange(motion.n_frames) / motion.rate
-    inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
+    inside = inside_cycle(cycle, motion)
     residuals = motion.residuals[inside]
     ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
     jerk = None if third is None else float(np.sqrt(np.nanmean(third[inside] ** 2)))

@@ -60,6 +60,7 @@ SLOW = {
     ("test_forward_reference.py", "test_a_lab_walk_sets_its_static_within_the_tolerance"),
     ("test_report.py", "test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one"),
     ("test_report.py", "test_report_in_headless_chromium"),
+    ("test_lab_agreement.py", "test_every_target_is_checked"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

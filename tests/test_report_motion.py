@@ -34,12 +34,14 @@ def test_forward_kinematics_in_javascript_is_mocaplibs():
     products of rotations in either language)."""
     from mocaplib.report.figureview import skeleton_data
 
-    skeleton = Skeleton.from_height(1.63)
+    # a calibrated subject's joint shifts (ankle centres off the knee's plane) included
+    skeleton = Skeleton(Skeleton.from_height(1.63).lengths,
+                        {"foot_l": (0.0, 0.03, -0.004), "foot_r": (0.002, -0.02, 0.0)})
     lo, hi = skeleton.bounds()
     lo, hi = np.where(np.isfinite(lo), lo, -3.0), np.where(np.isfinite(hi), hi, 3.0)
     lo[TRANSLATION], hi[TRANSLATION] = -5.0, 5.0
     q = np.random.default_rng(16).uniform(lo, hi, (20, len(DOF_NAMES)))
-    description = skeleton_data(skeleton.lengths)
+    description = skeleton_data(skeleton)
     js = np.array(_node([("forward", [description, pose]) for pose in q.tolist()]))
     expected = skeleton.forward(q)
     js = js.reshape(expected.shape)

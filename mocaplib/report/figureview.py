@@ -22,12 +22,12 @@ FIRST_SHOWN = (1.2, 0.0, 0.0)
 EXTRA_LINES = (("femur_l", "femur_r"), ("humerus_l", "humerus_r"))
 
 
-def skeleton_data(lengths: dict) -> dict:
+def skeleton_data(skeleton: Skeleton) -> dict:
     """The skeleton for the page's forward kinematics: ``segments`` (name, parent index or -1,
     joint centre ``offset`` in the parent's frame (m), ``dofs`` as [DOF index, axis, is a
     translation], parents before children), ``ends`` (segment index -> points drawn in its
     frame, m: head top, finger tip, heel and toe) and ``lines`` (pairs of segment indices)."""
-    skeleton = Skeleton(lengths)
+    lengths = skeleton.lengths
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -80,7 +80,7 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,
-            "skeleton": skeleton_data(library.document["skeleton"]["segment_lengths_m"])}
+            "skeleton": skeleton_data(library.skeleton)}
 
 
 def _rounded(rows) -> list:
