@@ -88,6 +88,11 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
 }
 QC_NAMES = tuple(QC_LIMITS)
+#: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
+#: at its right toe-offs (``build --mirror``: every value measured again); ``series``, from the
+#: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
+#: reflected, QC the source's). See :mod:`mocaplib.mirror`.
+MIRROR_METHODS = ("capture", "series")
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
 
@@ -110,6 +115,9 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                qc: dict, locomotion_class: str | None = None, chosen: bool = True,
                segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
                rate_hz: float | None = None, first_frame: int | None = None,
+               joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
+               dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
+               mirror_of: str | None = None, mirror_method: str | None = None,
                poulaine: dict | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
@@ -118,7 +126,15 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     ``arc_angle_rad``; velocities m/s and rad/s; ``root_drift``: the path frame's velocities
     :data:`DRIFT_VELOCITIES` (its displacement over T is derived); ``qc``: values keyed by
     :data:`QC_NAMES`; ``rate_hz``, ``first_frame``: the capture's frame rate and first frame
-    number (stored when given, so ``start_s`` maps to C3D frames); ``poulaine``: the cycle's
+    number (stored when given, so ``start_s`` maps to C3D frames); ``joint_shifts_m``: the
+    skeleton's :attr:`~mocaplib.skeleton.Skeleton.shifts` (segment -> 3 numbers, m);
+    ``held_dofs``: DOFs held at 0 because the markers cannot see them (name -> the standard
+    deviation they would have had, rad); ``dofs_at_limit``: share of the cycle's frames each
+    DOF that reaches a joint limit spends there (empty mappings are not stored);
+    ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
+    known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
+    ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
+    ``mirrored``; ``poulaine``: the cycle's
     :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none).
     """
     if set(root_drift) != set(DRIFT_VELOCITIES):
@@ -145,10 +161,23 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
         "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
         "qc_waived": dict(qc_waived or {}),
     }
+    if (mirror_of is None) != (mirror_method is None) or mirror_method not in (
+            None, *MIRROR_METHODS):
+        raise LibraryError(f"entry {id}: a mirror image needs both mirror_of and mirror_method "
+                           f"(one of {', '.join(MIRROR_METHODS)}), got {mirror_of!r} and "
+                           f"{mirror_method!r}")
     for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
-                       ("first_frame", first_frame), ("poulaine", poulaine)):
+                       ("first_frame", first_frame), ("right_toe_off_s", right_toe_off_s),
+                       ("mirror_of", mirror_of), ("mirror_method", mirror_method),
+                       ("poulaine", poulaine)):
         if value is not None:
             entry[key] = value
+    for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
+                       ("dofs_at_limit", dofs_at_limit)):
+        if value:
+            entry[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
+    if mirror_of is not None:
+        entry["mirrored"] = True
     return to_json_data(entry)
 
 
@@ -185,7 +214,8 @@ def assemble_library(entries: list[dict], *, settings: dict,
     """A library from entries (made by :func:`make_entry`); entries are sorted by id.
 
     The header's segment lengths are the per-length median over entries (or the nominal
-    1.75 m skeleton's when no entry carries lengths); the Fourier order N is the largest
+    1.75 m skeleton's when no entry carries lengths), its joint shifts the per-segment median
+    over the entries that carry them; the Fourier order N is the largest
     entry order and smaller orders are zero-padded (exact); control-space scales are
     :func:`control_scale`.
     """
@@ -202,6 +232,9 @@ def assemble_library(entries: list[dict], *, settings: dict,
         segment_lengths = {k: float(np.median([lens[k] for lens in lengths])) for k in lengths[0]}
     else:
         segment_lengths = Skeleton.from_height(1.75).lengths
+    shifts = [e["joint_shifts_m"] for e in entries if e.get("joint_shifts_m")]
+    joint_shifts = {name: np.median([s[name] for s in shifts if name in s], axis=0).tolist()
+                    for name in sorted({name for s in shifts for name in s})}
     doc = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
         "settings": settings,
@@ -212,6 +245,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
             # guard is no joint limit)
             "dof_ranges": [[None, None] if d.translation else [d.lower, d.upper] for d in DOFS],
             "segment_lengths_m": segment_lengths,
+            **({"joint_shifts_m": joint_shifts} if joint_shifts else {}),
         },
         "fourier": {"formula": FOURIER_FORMULA, "time_origin": "cycle_start",
                     "n_harmonics": n_max, "coefficient_shape": "D x (N+1)",
@@ -255,17 +289,27 @@ class Library:
         The file's content as JSON data (see ``docs/library-format.md``).
     entries : DataFrame
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
-        source_sha256, cycle_index, chosen, start_s, end_s, T, pattern_type, pattern_residual_m,
-        arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and one ``qc_<metric>`` column per QC
-        metric, the poulaine's ``step_length_m, foot_spacing_m, stance_m`` and
-        ``poulaine_fit_rms_m`` (the larger of the two ankles' fit errors; all NaN for an entry
-        without a poulaine), and ``qc_waived`` (comma-separated metric names).
+        source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
+        pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
+        one ``qc_<metric>`` column per QC metric, the poulaine's ``step_length_m,
+        foot_spacing_m, stance_m`` and ``poulaine_fit_rms_m`` (the larger of the two ankles' fit
+        errors; all NaN for an entry without a poulaine), and ``qc_waived`` (comma-separated
+        metric names).
     """
 
     def __init__(self, document: dict):
         self.document = document
 
     # ------------------------------------------------------------------ views
+    @property
+    def skeleton(self):
+        """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
+        joint shifts."""
+        from .skeleton import Skeleton
+
+        header = self.document["skeleton"]
+        return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
+
     @property
     def dof_names(self) -> list[str]:
         return list(self.document["skeleton"]["dof_names"])
@@ -290,6 +334,8 @@ class Library:
             row = {key: e[key] for key in ("id", "locomotion_class", "source_file",
                                            "source_sha256", "cycle_index")}
             row["chosen"] = bool(e.get("chosen", True))
+            row["mirrored"] = bool(e.get("mirrored", False))
+            row["mirror_of"] = e.get("mirror_of")
             row.update({key: _float(e[key]) for key in ("start_s", "end_s", "T")})
             row["pattern_type"] = e["pattern"]["type"]
             row["pattern_residual_m"] = _float(e["pattern"]["residual_m"])
@@ -305,8 +351,8 @@ class Library:
             row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
-                   "chosen", "start_s", "end_s", "T", "pattern_type", "pattern_residual_m",
-                   "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
+                   "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
+                   "pattern_residual_m", "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
                    *(f"qc_{name}" for name in QC_NAMES), *POULAINE_PARAMETERS,
                    "poulaine_fit_rms_m", "qc_waived"]
         return pd.DataFrame(rows, columns=columns).set_index("id")
@@ -631,6 +677,13 @@ def _consistency_problems(doc: dict) -> list[Problem]:
         if re.search(r"[/\\]", e["source_file"]):
             problems.append(Problem(f"{where}.source_file", "must be a file name, without "
                                                             "its folder"))
+        if e.get("mirror_of") == e["id"]:
+            problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
+                                                          "image"))
+        toe_off = e.get("right_toe_off_s")
+        if toe_off is not None and math.isfinite(_float(e["T"])) and not toe_off < e["T"]:
+            problems.append(Problem(f"{where}.right_toe_off_s", f"{toe_off} s is not inside "
+                                                                f"the cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
         problems += _drift_problems(e, f"{where}.root_drift")
         if e.get("poulaine") is not None:

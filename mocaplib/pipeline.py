@@ -53,7 +53,7 @@ SCHEDULER_TIMEOUT_S = 20
 #: A forward reference whose subject faces further than this (degrees) from the direction of
 #: travel is refused: that is a side-step or a diagonal (the paper's diagonals start at 60°),
 #: not a forward walk. Measured uncorrected: 0.23° on the samples (placement error alone), up
-#: to 7.7° on lab walks with their static taken as neutral (README, Velocities).
+#: to 7.7° on lab walks with their static taken as neutral (docs/guide/patterns.md).
 FORWARD_LIMIT_DEG = 15.0
 #: A forward reference's cycles slower than this (m/s) show no direction of travel.
 MIN_FORWARD_SPEED = 0.3
@@ -88,10 +88,13 @@ class BuildSettings:
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
         ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
     all_cycles : keep every complete cycle, not only the one chosen per capture.
+    mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
         :data:`mocaplib.library.QC_LIMITS`.
+    measurements : subject measurements (metres, kilograms) overriding those each
+        calibration file stores (see :func:`mocaplib.calibration.calibrate`).
     """
 
     protocol: str = "auto"
@@ -102,8 +105,10 @@ class BuildSettings:
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
     all_cycles: bool = False
+    mirror: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
+    measurements: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("static", "forward_reference"):
@@ -268,9 +273,9 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
-    """:func:`_cut_capture`, then the entries; fills ``result`` (raises MocapError for a bad
-    capture)."""
-    trial, motion, cycles, ground = _cut_capture(path, settings, result, clock)
+    """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
+    image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
+    trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
         qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
@@ -282,12 +287,21 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                                   shapes)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}, shapes))
+    if settings.mirror and result.entries:
+        with clock.stage("mirror"):
+            images, entries = mirror_entries(path, result, cycles, motion, events, ground,
+                                             settings, trial.first_frame)
+            result.entries += entries
+            ids = {e["cycle_index"]: e["id"] for e in entries}
+            result.diagnostics["mirror_cycles"] = to_json_data(
+                [{**c.to_dict(), "entry_id": ids.get(c.index)} for c in images],
+                DIAGNOSTICS_DIGITS)
 
 
 def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles and the
-    floor's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
+    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles, its gait
+    events and the ground's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
@@ -325,11 +339,13 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
             model = _neutral_model(*statics[chosen], match.protocol,
-                                   settings.heading_offset(chosen))
+                                   settings.heading_offset(chosen),
+                                   tuple(sorted(settings.measurements.items())))
             check_static(filtered, static, model)
         else:
             model = calibrate(filtered, protocol=match.protocol, static=static,
-                              static_pose=settings.static_pose)
+                              static_pose=settings.static_pose,
+                              measurements=settings.measurements)
         if chosen is not None:
             result.static = static_names(settings.statics)[chosen]
     result.warnings.extend(model.swap_warnings)
@@ -339,6 +355,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
                                f"{', '.join(motion.locked_dofs)}")
+    result.warnings.extend(motion.limit_warnings())
     if motion.failed.any():
         result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
                                "(interpolated)")
@@ -351,7 +368,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
-    return trial, motion, cycles, ground
+    return trial, motion, cycles, events, ground
 
 
 def _static_sha256(path: str) -> str:
@@ -373,15 +390,17 @@ def _read_static(path: str, sha256: str):
 
 
 @lru_cache(maxsize=None)
-def _neutral_model(path: str, sha256: str, protocol, heading_offset: float):
+def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
+                   measurements: tuple = ()):
     """The model calibrated on the neutral-pose static ``path`` with its heading turned by
     ``heading_offset`` (radians), once per worker process for each content, protocol and
-    offset: it depends on nothing else, so each capture only checks that it shows the same
-    subject (:func:`mocaplib.calibration.check_static`)."""
+    offset and measurements ((name, value) pairs): it depends on nothing else, so each
+    capture only checks that it shows the same subject
+    (:func:`mocaplib.calibration.check_static`)."""
     from .calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
-                     heading_offset=heading_offset)
+                     heading_offset=heading_offset, measurements=dict(measurements))
 
 
 def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
@@ -390,10 +409,10 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
 
     A neutral static fixes the heading of every segment frame by fitting the root to all
     markers at their catalogue positions, so the placement error turns it by a fraction of a
-    degree, and v̂_l of every capture is off by about −v̂ times that angle (README,
-    Velocities). A forward reference — a capture in which the subject walks forwards —
-    measures the angle: it is taken through the build's stages with the static that shows its
-    subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    degree, and v̂_l of every capture is off by about −v̂ times that angle
+    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks
+    forwards — measures the angle: it is taken through the build's stages with the static that
+    shows its subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
     (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
     face where they walk. Several references of one static are averaged. The turn is repeated
     on the turned static until each reference faces its path within
@@ -438,8 +457,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles, ground = _cut_capture(Path(reference), settings, result,
-                                                     _Clock())
+            _, motion, cycles, _, ground = _cut_capture(Path(reference), settings, result,
+                                                        _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -492,16 +511,22 @@ def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int, shapes: dict):
+             settings: BuildSettings, motion, first_frame: int, shapes: dict, *,
+             mirror_of: dict[int, str] | None = None):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
     ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
-    ``shapes``: :func:`cycle_shape` by cycle index."""
+    ``shapes``: :func:`cycle_shape` by cycle index; ``mirror_of``: for the cycles of a mirror
+    image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
+    from .mirror import MIRROR_TAG
+
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
         failures = qc_failures(qc, settings.qc_thresholds)
-        where = f"cycle {cycle.index} ({cycle.start_s:.2f}-{cycle.end_s:.2f} s)"
+        image_of = None if mirror_of is None else mirror_of[cycle.index]
+        where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
+                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
         waived = {}
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: {'; '.join(failures)}")
@@ -512,14 +537,19 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(make_entry(
-            id=f"{path.stem}_c{cycle.index}", source_file=path.name,
+            id=f"{path.stem}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
+            source_file=path.name,
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
-            first_frame=first_frame,
+            first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
+            held_dofs=motion.unobservable,
+            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
+            right_toe_off_s=cycle.right_toe_off,
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture",
             poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict()))
     return entries
 
@@ -541,6 +571,69 @@ def cycle_shape(motion, cycle) -> dict:
         shape["poulaine"], shape["measured"] = cycle_poulaine(
             motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
     return shape
+
+
+def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
+                   settings: BuildSettings, first_frame: int) -> tuple[list, list[dict]]:
+    """The capture's mirror image, cut and measured as a capture: its cycles (all of them,
+    :class:`~mocaplib.cycles.Cycle`) and the entries they give.
+
+    The fitted ``motion`` is reflected (world y -> -y, :func:`mocaplib.mirror.mirror_motion`)
+    and its gait events exchange sides, so its cycles run between the capture's *right*
+    toe-offs; patterns, velocities, Fourier series and QC are measured on them as on any
+    capture (:func:`mocaplib.cycles.motion_cycles`, :func:`cycle_qc`). Each names in
+    ``mirror_of`` the capture's entry (in ``result.entries``) whose cycle overlaps it most in
+    time (the nearest when none overlaps). Which become entries: the image of the capture's
+    chosen cycle, the one overlapping it most (chosen when its source is in the library), or
+    with ``settings.all_cycles`` every image. QC failures are dropped or waived as for the
+    capture's own cycles; an image within :data:`mocaplib.mirror.SYMMETRIC_DISTANCE` of its
+    source in the control space is left out (the cycle is its own mirror image: straight
+    walks, runs, rest). What is left out is said in ``result.warnings``.
+    """
+    from .cycles import motion_cycles
+    from .mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
+                         mirror_motion)
+
+    mirrored = mirror_motion(motion)
+    try:
+        images = motion_cycles(mirror_events(events), mirrored,
+                               ground=None if ground is None else REFLECTION @ ground,
+                               source=path)
+    except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
+        result.warnings.append(f"no mirror image: {exc.message}")
+        return [], []
+    sources = {e["cycle_index"]: e for e in result.entries}
+    chosen = next(c for c in cycles if c.chosen)
+    partner = _nearest(chosen, images)
+    for image in images:
+        image.chosen = image is partner and chosen.index in sources
+    kept = images if settings.all_cycles else [partner]
+    own = [c for c in cycles if c.index in sources]
+    mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
+    series = _qc_series(mirrored, None if ground is None else REFLECTION @ ground)
+    qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
+    shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
+    entries = []
+    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
+                          mirror_of=mirror_of):
+        source = next(e for e in result.entries if e["id"] == entry["mirror_of"])
+        distance = image_distance(source, entry)
+        if distance < SYMMETRIC_DISTANCE:
+            result.warnings.append(f"mirror image cycle {entry['cycle_index']} left out: it "
+                                   f"lies {distance:.3f} (normalised) from {source['id']} in "
+                                   f"the control space, within {SYMMETRIC_DISTANCE}: that "
+                                   "cycle is its own mirror image")
+        else:
+            entries.append(entry)
+    return images, entries
+
+
+def _nearest(cycle, others):
+    """The cycle of ``others`` (not empty) overlapping ``cycle`` longest in time, or nearest
+    to it when none overlaps (the earlier of equals)."""
+    def overlap(other):
+        return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
+    return max(others, key=lambda other: (overlap(other), -other.start_s))
 
 
 def _drift(drift) -> dict:
@@ -573,7 +666,6 @@ def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
             "energies": segment_energies(motion.skeleton, smooth, motion.rate)}
 
 
-def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
@@ -590,9 +682,6 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     from .filtering import resample
     from .skeleton import TRANSLATION
 
-    series = _qc_series(motion) if series is None else series
-    frames = np.arange(motion.n_frames) / motion.rate
-    inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
     residuals = motion.residuals[inside]
     ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
     third, energies = series["third"], series["energies"]
@@ -877,7 +966,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
 
-    Returns a :class:`BuildResult`; captures that failed are in it, not raised.
+    Returns
+    -------
+    BuildResult
+        Captures that failed are in it, not raised.
     """
     from tqdm import tqdm
 
@@ -1033,7 +1125,7 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
             c.warnings.append(f"same content as {first_with_content[c.sha256]}: "
                               "its cycles are not added twice")
             c.entries = []
-            for cycle in c.diagnostics.get("cycles", []):
+            for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
                 cycle["entry_id"] = None
         elif c.entries:
             first_with_content[c.sha256] = c.source
@@ -1044,7 +1136,9 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
                    if len(names[e["id"]]) > 1}
         for e in c.entries:
             e["id"] = renamed.get(e["id"], e["id"])
-        for cycle in c.diagnostics.get("cycles", []):
+            if "mirror_of" in e:
+                e["mirror_of"] = renamed.get(e["mirror_of"], e["mirror_of"])
+        for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
             cycle["entry_id"] = renamed.get(cycle.get("entry_id"), cycle.get("entry_id"))
 
 

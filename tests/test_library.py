@@ -102,8 +102,8 @@ def test_floats_are_written_with_ten_significant_digits_and_nan_as_null():
 
 
 def test_unbounded_dof_range_is_null():
-    # the root's position was written [-1000, 1000] (the solver's guard) while the doc says
-    # null = unbounded
+    # the root's position has no range: written as null (unbounded), as the doc says, not as
+    # the solver's internal guard [-1000, 1000]
     doc = library().document
     names, ranges = doc["skeleton"]["dof_names"], doc["skeleton"]["dof_ranges"]
     for name in ("pelvis_rotation", "pelvis_tx", "pelvis_ty", "pelvis_tz"):

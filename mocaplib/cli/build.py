@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
+                      measurements,
                       add_toe_off_option, check_inputs, check_output_folder, check_outputs,
                       positive, warn)
 
@@ -35,6 +36,10 @@ def register(subparsers) -> None:
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
                         help="keep every complete cycle, not only the one chosen per capture")
+    parser.add_argument("--mirror", action="store_true",
+                        help="also add each capture's left-right mirror image, cut at its right "
+                             "toe-offs (fills the turns and side-steps a session made to one "
+                             "side only; entries flagged 'mirrored')")
     parser.add_argument("--qc", choices=("drop", "waive"), default="drop",
                         help="cycles failing a QC threshold: leave out (default) or keep with "
                              "a recorded waiver")
@@ -80,7 +85,8 @@ def _run(args) -> int:
                              static_pose=args.static_pose,
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
-                             qc_policy=args.qc)
+                             mirror=args.mirror, qc_policy=args.qc,
+                             measurements=measurements(args))
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())

@@ -48,7 +48,9 @@ def _file_axis(axis) -> tuple[int, float]:
     return j, float(np.sign(f[j]))
 
 
-def _end_sites(skeleton: Skeleton) -> dict[str, np.ndarray]:
+def end_sites(skeleton: Skeleton) -> dict[str, tuple]:
+    """The end segments' tips in their frames (m), for display: the top of the head, the
+    finger tips, the toes (3/4 of the foot length ahead of the ankle, on the sole)."""
     L = skeleton.lengths
     hand = (0.0, 0.0, -(L["forearm"] + L["hand"]))
     toe = (TOE_AHEAD * L["foot_length"], 0.0, -L["ankle_height"])
@@ -92,7 +94,7 @@ def bvh_text(q: np.ndarray, skeleton: Skeleton, *, rate: float, units: str = "m"
         raise MocapError(f"BVH frame rate must be > 0 Hz, got {rate}")
     scale = UNIT_SCALE[units]
     offsets = skeleton.joint_offsets()
-    ends = _end_sites(skeleton)
+    ends = end_sites(skeleton)
     channels = _channels()
     children = {s.name: [c.name for c in SEGMENTS if c.parent == s.name] for s in SEGMENTS}
 

@@ -70,7 +70,9 @@ def render_html(context: dict) -> str:
         lstrip_blocks=True)
     env.filters["fmt"] = _fmt
     template = env.get_template("report.html.j2")
-    return template.render(**context, viewer_js=env.loader.get_source(env, "viewer.js")[0],
+    scripts = {f"{name}_js": env.loader.get_source(env, f"{name}.js")[0]
+               for name in ("viewer", "motion", "figure")}
+    return template.render(**context, **scripts,
                            css=env.loader.get_source(env, "report.css")[0])
 
 
@@ -120,7 +122,7 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
             record.get("source"), str) else ""
         warnings.append(f"diagnostics sidecar {path.name}: capture record {k}{name} left out "
                         f"of the report: {problem}")
-    mismatch = _sidecar_mismatch(records, set(library.entries.index),
+    mismatch = _sidecar_mismatch(records, set(library.entries.index) - _series_images(library),
                                  complete=len(records) == len(data["captures"]))
     if mismatch:
         return None, [f"diagnostics sidecar {path.name} does not belong to this library "
@@ -130,11 +132,19 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     return {**data, "captures": records}, warnings
 
 
+def _series_images(library) -> set[str]:
+    """Ids of the mirror images made from a stored series (``mocaplib mirror``), which no
+    capture record of the sidecar names (those of ``build --mirror`` it does)."""
+    return {e["id"] for e in library.document["entries"]
+            if e.get("mirror_method") == "series"}
+
+
 def _record_problem(record) -> str | None:
     """What makes a capture record of the sidecar unusable (None when its shape is right).
 
     Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
-    null); ``ok`` true or false; ``cycles`` a list of objects whose ``start_s``/``end_s``
+    null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
+    list of objects whose ``start_s``/``end_s``
     are numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
     ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
     (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
@@ -147,15 +157,17 @@ def _record_problem(record) -> str | None:
         return f"ok = {json.dumps(record['ok'])[:40]} is not true or false"
     if not isinstance(record.get("warnings") or [], list):
         return "its warnings are not a list"
-    cycles = record.get("cycles") or []
-    if not isinstance(cycles, list):
-        return "its cycles are not a list"
-    for n, cycle in enumerate(cycles):
-        if not isinstance(cycle, dict):
-            return f"cycle {n} is a {type(cycle).__name__}, not an object"
-        for key, ok in _CYCLE_FIELDS.items():
-            if cycle.get(key) is not None and not ok(cycle[key]):
-                return f"cycle {n}: {key} = {json.dumps(cycle[key])[:40]} has the wrong type"
+    for field, what in (("cycles", "cycle"), ("mirror_cycles", "mirror image cycle")):
+        cycles = record.get(field) or []
+        if not isinstance(cycles, list):
+            return f"its {field} are not a list"
+        for n, cycle in enumerate(cycles):
+            if not isinstance(cycle, dict):
+                return f"{what} {n} is a {type(cycle).__name__}, not an object"
+            for key, ok in _CYCLE_FIELDS.items():
+                if cycle.get(key) is not None and not ok(cycle[key]):
+                    return (f"{what} {n}: {key} = {json.dumps(cycle[key])[:40]} has the "
+                            "wrong type")
     return None
 
 
@@ -174,7 +186,8 @@ def _sidecar_mismatch(records: list[dict], library_ids: set[str], *,
     """Why the sidecar's ``records`` are not the library's build, or None: the entry ids they
     name must all be in the library and, when no record was left out (``complete``), name
     every library entry."""
-    named = {c["entry_id"] for r in records for c in r.get("cycles") or []
+    named = {c["entry_id"] for r in records
+             for c in (r.get("cycles") or []) + (r.get("mirror_cycles") or [])
              if c.get("entry_id") is not None}
     unknown, unnamed = sorted(named - library_ids), sorted(library_ids - named)
     reasons = []
@@ -219,6 +232,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
     _add_control_space(context, cs, env, library, label, classes_all, renderer)
+    context["motion"] = _motion(library, cs, classes_all, warnings)
     _shorten_paths(context)
     return context
 
@@ -240,6 +254,8 @@ def _add_control_space(context, cs, env, library, label, classes_all, renderer) 
         holes=cov.samples[~cov.samples_inside],
         suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
     context["coverage"] = _coverage_context(cov, cs, library, label)
+    if library.entries["mirrored"].any():
+        context["coverage"]["without_mirrors"] = _coverage_without_mirrors(library, env)
     if context["coverage"]["close"]:
         warnings.append(_close_warning(context["coverage"]["close"]))
     context["loo"] = _loo_context(leave_one_out(cs))
@@ -355,6 +371,8 @@ def _built_with(settings: dict) -> list[str]:
     if "all_cycles" in settings:
         phrases.append("every complete cycle" if settings["all_cycles"] else
                        "one cycle per capture")
+    if settings.get("mirror"):
+        phrases.append("each capture's mirror image added")
     if "qc_policy" in settings:
         phrases.append(f"QC failures {'waived' if settings['qc_policy'] == 'waive' else 'dropped'}")
     return phrases
@@ -365,6 +383,7 @@ def _entry_rows(df, label) -> list[dict]:
     for entry_id, r in df.iterrows():
         rows.append({"id": entry_id, "class": label(entry_id),
                      "source": r["source_file"], "chosen": bool(r["chosen"]),
+                     "mirror_of": r["mirror_of"] if r["mirrored"] else None,
                      "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
                      else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
                      "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
@@ -389,7 +408,26 @@ def _coverage_context(cov, cs, library, label) -> dict:
         "slivers": _sliver_context(cov.slivers),
         "n_tetra": len(cs.tri.simplices), "next": next_rows,
         "close": _close_rows(cs), "other_axes": _other_axes(cs, library, label),
+        "without_mirrors": None,
     }
+
+
+def _coverage_without_mirrors(library, env: Envelope) -> dict:
+    """Coverage of ``env`` by the chosen entries that are not mirror images: ``fraction``
+    (None when they have no control space, ``reason`` then says why), ``n_entries`` and
+    ``n_mirrored`` (the chosen mirror images left out)."""
+    df = library.entries
+    chosen = df["chosen"].to_numpy(bool)
+    out = {"n_mirrored": int((chosen & df["mirrored"].to_numpy(bool)).sum()),
+           "n_entries": int((chosen & ~df["mirrored"].to_numpy(bool)).sum()),
+           "fraction": None, "reason": None}
+    try:
+        own = ControlSpace.from_library(library, mirrored=False)
+    except MocapError as exc:
+        out["reason"] = exc.message
+        return out
+    out["fraction"] = coverage(own, env).fraction_inside
+    return out
 
 
 def _sliver_context(slivers) -> dict:
@@ -572,8 +610,7 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                                                   envelope=env.vertices))
     png = rendered.png if rendered.renderer == "matplotlib" else figures.compress_png(rendered.png)
     viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
-              "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
-                          for k, v in colours.items()},
+              "colours": _css_colours(colours),
               "edges": edges.tolist(),
               "axes": [f"{figures.axis_label(a)}: {lo:.2f} to {hi:.2f}" if a != "omega" else
                        f"{figures.axis_label(a)}: {lo:.0f} to {hi:.0f}"
@@ -583,6 +620,28 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                            "edges": _unique_edges(env_tris).tolist()}}
     return ({"png": _data_uri(png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def _css_colours(colours: dict) -> dict[str, str]:
+    """Class -> CSS colour ``#rrggbb`` of :func:`mocaplib.report.figures.class_colours`."""
+    return {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v) for k, v in colours.items()}
+
+
+def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
+    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
+    warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
+    from ..skeleton import DOF_NAMES
+    from .figureview import viewer_data
+
+    if not len(library):
+        warnings.append("motion viewer left out: the library has no entry")
+        return None
+    if library.dof_names != list(DOF_NAMES):
+        warnings.append("motion viewer left out: the library's DOFs are not this mocaplib's "
+                        "skeleton's (report it with the mocaplib version that wrote it)")
+        return None
+    colours = _css_colours(figures.class_colours(classes))
+    return viewer_data(library, cs, classes, colours)
 
 
 def nice_range(lo: float, hi: float) -> tuple[float, float, int]:
