@@ -666,6 +666,13 @@ def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
             "energies": segment_energies(motion.skeleton, smooth, motion.rate)}
 
 
+def inside_cycle(cycle, motion) -> np.ndarray:
+    """The frames (F,) bool of ``motion`` from the cycle's start to its end."""
+    frames = np.arange(motion.n_frames) / motion.rate
+    return (frames >= cycle.start_s) & (frames <= cycle.end_s)
+
+
+def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
@@ -682,6 +689,8 @@ def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
     from .filtering import resample
     from .skeleton import TRANSLATION
 
+    series = _qc_series(motion) if series is None else series
+    inside = inside_cycle(cycle, motion)
     residuals = motion.residuals[inside]
     ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
     third, energies = series["third"], series["energies"]
