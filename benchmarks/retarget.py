@@ -114,7 +114,7 @@ def measure(library, captured: dict, *, real: bool) -> pd.DataFrame:
         if model is None or entry_id not in captured:
             continue
         phase, q_captured, raw_c3 = captured[entry_id]
-        own = Skeleton(library.entry(entry_id)["segment_lengths_m"])
+        own = library.entry_skeleton(entry_id)
         row = {"id": entry_id, "group": group_of(entry_id, real), "v": entry["v"],
                "fit_rms_m": entry["poulaine_fit_rms_m"],
                "timed_rms_m": max(p.timed_rms for p in (model.left, model.right)),
@@ -127,7 +127,7 @@ def measure(library, captured: dict, *, real: bool) -> pd.DataFrame:
         row["in_skate"] = foot_skate(own, library.root_drift(entry_id).restore(
             library.angles(entry_id, times), times), times)
         for factor in BODIES:
-            body = Skeleton({k: v * factor for k, v in own.lengths.items()})
+            body = own.scaled(factor)
             scaled = retarget(library, entry_id, skeleton=body)
             tag = f"x{factor:.2f}"
             row.update({f"{tag}_error": scaled.ankle_error_m,
@@ -220,8 +220,8 @@ def weights_rows(library, captured: dict) -> list[str]:
              "|---|---|---|---|---|---|---|"]
     for entry_id in (e for e in library.entries.index if e.rsplit("_c", 1)[0] in WEIGHT_WALKS
                      and library.entries.loc[e, "chosen"]):
-        own = Skeleton(library.entry(entry_id)["segment_lengths_m"])
-        tall = Skeleton({k: v * 1.15 for k, v in own.lengths.items()})
+        own = library.entry_skeleton(entry_id)
+        tall = own.scaled(1.15)
         phase, q_captured, _ = captured[entry_id]
         for variant in WEIGHT_VARIANTS:
             weights = Weights(**variant)

@@ -310,6 +310,15 @@ class Library:
         header = self.document["skeleton"]
         return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
 
+    def entry_skeleton(self, entry_id: str):
+        """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
+        own segment lengths and joint shifts when it records them, the header's otherwise."""
+        from .skeleton import Skeleton
+
+        entry, header = self.entry(entry_id), self.document["skeleton"]
+        return Skeleton(entry.get("segment_lengths_m") or header["segment_lengths_m"],
+                        entry.get("joint_shifts_m", header.get("joint_shifts_m", {})))
+
     @property
     def dof_names(self) -> list[str]:
         return list(self.document["skeleton"]["dof_names"])

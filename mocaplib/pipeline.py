@@ -675,8 +675,9 @@ def inside_cycle(cycle, motion) -> np.ndarray:
 def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
-    marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
-    marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
+    marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
+    follows (:meth:`mocaplib.motion.Motion.trusted`); gap fraction: missing marker samples
+    among them; event quality: the cycle's; Fourier RMS: the worst rotational
     DOF's reconstruction RMS (rad); closure (C2): norm of the joint-angle change from start to
     end (rad, :func:`mocaplib.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
     joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
@@ -691,7 +692,7 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
 
     series = _qc_series(motion) if series is None else series
     inside = inside_cycle(cycle, motion)
-    residuals = motion.residuals[inside]
+    residuals = motion.residuals[inside][:, motion.trusted()]
     ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
     third, energies = series["third"], series["energies"]
     spanned = (np.count_nonzero(inside) - 1) / motion.rate

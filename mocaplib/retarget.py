@@ -220,8 +220,7 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
                          hint="choose a walking entry, or rebuild the library with this mocaplib")
     if not (np.isfinite(rate) and rate > 0):
         raise MocapError(f"the output rate must be > 0 Hz, got {rate}")
-    source = Skeleton(entry.get("segment_lengths_m")
-                      or library.document["skeleton"]["segment_lengths_m"])
+    source = library.entry_skeleton(entry_id)
     requested = _requested(own.parameters, source, skeleton, step_length, foot_spacing, stance)
     path = blend(_candidates(library, entry, own), step_length=requested[0],
                  foot_spacing=requested[1], stance=requested[2], prefer=entry_id)

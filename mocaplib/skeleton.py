@@ -330,6 +330,11 @@ class Skeleton:
         for name, value in shifts.items():
             self._shift_array[_SEGMENT_INDEX[name]] = value
 
+    def scaled(self, factor: float) -> "Skeleton":
+        """This skeleton with every length and joint shift multiplied by ``factor``."""
+        return Skeleton({k: v * factor for k, v in self.lengths.items()},
+                        {k: tuple(factor * x for x in v) for k, v in self.shifts.items()})
+
     @classmethod
     def from_height(cls, height: float = 1.75) -> "Skeleton":
         """A nominal skeleton scaled from standing height in metres."""
