@@ -43,7 +43,7 @@ def test_self_retargeting_target_on_the_synthetic_walks():
     worst = _self_retargeting(*synthetic_walks())
     assert len(worst) == 21
     assert (worst <= SELF_RMS).mean() >= 0.9, worst.round(3).to_dict()
-    assert worst.max() < 0.03     # measured 0.017 rad at most (docs/retarget-results.md)
+    assert worst.max() < 0.03     # measured 0.017 rad at most (docs/results/retarget.md)
 
 
 @pytest.mark.real
