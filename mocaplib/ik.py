@@ -592,6 +592,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_labels=list(model.labels), residuals=residuals, failed=failed,
                   rejected=rejected,
                   locked_dofs=list(model.locked_dofs), unobservable=dict(model.unobservable),
+                  marker_weights=model.marker_weights,
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets),
                   swapped=list(model.swapped), source=trial.source)

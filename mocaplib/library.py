@@ -60,6 +60,10 @@ DRIFT_DISPLACEMENT = ("dx_m", "dy_m", "dheading_rad")
 #: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
 #: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
 DRIFT_TOLERANCE = 1e-6
+#: An entry poulaine's parameters (m), read on its characteristic points; stored values must
+#: agree with the points to this (m): stored with 10 significant digits they agree to 1e-10.
+POULAINE_PARAMETERS = ("step_length_m", "foot_spacing_m", "stance_m")
+POULAINE_TOLERANCE = 1e-6
 #: Turn rates (rad/s) above which an entry's ω̂ and its root drift's ω must share a sign. ω̂
 #: follows the shoulder line, the drift the pelvis: on those files they differ by up to 0.11
 #: rad/s (running.c3d), and opposite signs occur only where the smaller is at most 0.039 rad/s
@@ -81,6 +85,7 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
+    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
 }
 QC_NAMES = tuple(QC_LIMITS)
 #: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
@@ -112,7 +117,8 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                rate_hz: float | None = None, first_frame: int | None = None,
                joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
                dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
-               mirror_of: str | None = None, mirror_method: str | None = None) -> dict:
+               mirror_of: str | None = None, mirror_method: str | None = None,
+               poulaine: dict | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
@@ -128,7 +134,8 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
     known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
     ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
-    ``mirrored``.
+    ``mirrored``; ``poulaine``: the cycle's
+    :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none).
     """
     if set(root_drift) != set(DRIFT_VELOCITIES):
         raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
@@ -161,7 +168,8 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                            f"{mirror_method!r}")
     for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
                        ("first_frame", first_frame), ("right_toe_off_s", right_toe_off_s),
-                       ("mirror_of", mirror_of), ("mirror_method", mirror_method)):
+                       ("mirror_of", mirror_of), ("mirror_method", mirror_method),
+                       ("poulaine", poulaine)):
         if value is not None:
             entry[key] = value
     for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
@@ -283,8 +291,10 @@ class Library:
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
         source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
         pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
-        one ``qc_<metric>`` column per QC metric, and ``qc_waived`` (comma-separated metric
-        names).
+        one ``qc_<metric>`` column per QC metric, the poulaine's ``step_length_m,
+        foot_spacing_m, stance_m`` and ``poulaine_fit_rms_m`` (the larger of the two ankles' fit
+        errors; all NaN for an entry without a poulaine), and ``qc_waived`` (comma-separated
+        metric names).
     """
 
     def __init__(self, document: dict):
@@ -299,6 +309,15 @@ class Library:
 
         header = self.document["skeleton"]
         return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
+
+    def entry_skeleton(self, entry_id: str):
+        """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
+        own segment lengths and joint shifts when it records them, the header's otherwise."""
+        from .skeleton import Skeleton
+
+        entry, header = self.entry(entry_id), self.document["skeleton"]
+        return Skeleton(entry.get("segment_lengths_m") or header["segment_lengths_m"],
+                        entry.get("joint_shifts_m", header.get("joint_shifts_m", {})))
 
     @property
     def dof_names(self) -> list[str]:
@@ -333,12 +352,18 @@ class Library:
             row.update({key: _float(e[key]) for key in ("v", "omega", "v_l", "v_f")})
             row["fourier_n"] = int(e["fourier"]["n"])
             row.update({f"qc_{name}": _float(e["qc"].get(name)) for name in QC_NAMES})
+            poulaine = e.get("poulaine") or {}
+            row.update({key: _float(poulaine.get(key)) for key in POULAINE_PARAMETERS})
+            row["poulaine_fit_rms_m"] = max((_float(poulaine[side]["fit_rms_m"])
+                                             for side in ("left", "right")), default=math.nan) \
+                if poulaine else math.nan
             row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
                    "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
                    "pattern_residual_m", "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
-                   *(f"qc_{name}" for name in QC_NAMES), "qc_waived"]
+                   *(f"qc_{name}" for name in QC_NAMES), *POULAINE_PARAMETERS,
+                   "poulaine_fit_rms_m", "qc_waived"]
         return pd.DataFrame(rows, columns=columns).set_index("id")
 
     def __len__(self) -> int:
@@ -369,6 +394,23 @@ class Library:
         a = np.stack([_matrix(e["fourier"]["a"]) for e in self.document["entries"]])
         b = np.stack([_matrix(e["fourier"]["b"]) for e in self.document["entries"]])
         return a, b
+
+    def poulaine(self, entry_id: str):
+        """The entry's :class:`mocaplib.poulaine.Poulaine`, or None when it has none (a rest
+        entry, or a library written before poulaines were stored)."""
+        from .poulaine import Poulaine
+
+        data = self.entry(entry_id).get("poulaine")
+        return None if data is None else Poulaine.from_dict(data)
+
+    def root_drift(self, entry_id: str):
+        """The entry's path frame as a :class:`mocaplib.fourier.RootDrift` starting at the
+        origin facing +X: ``root_drift(e).restore(angles(e, t), t)`` puts the cycle in that
+        world frame."""
+        from .fourier import RootDrift
+
+        drift = self.entry(entry_id)["root_drift"]
+        return RootDrift(0.0, 0.0, 0.0, *(_float(drift[key]) for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
         """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
@@ -470,7 +512,8 @@ def validate_library(library) -> list[Problem]:
     angle DOF's mean ``a[d][0]`` within its range; ``T > 0`` and ``end_s - start_s = T``
     (1 ms); velocities finite; ids unique and ``cycle_index`` the id's ``_c<k>``; the pattern's
     parameters those of its type; the root drift's displacement the one its velocities give
-    over T, its turn rate of the entry's ω̂'s sign; the chosen entries' normalised
+    over T, its turn rate of the entry's ω̂'s sign; a poulaine's phases in order, speed
+    profiles rising and parameters those of its characteristic points; the chosen entries' normalised
     (v, omega, v_l) points not degenerate (:func:`mocaplib.controlspace.degeneracy`: the rule
     the control space uses); every QC metric within ``qc_thresholds`` or listed in the
     entry's ``qc_waived`` with a reason. Returns an empty list for a valid library.
@@ -652,6 +695,8 @@ def _consistency_problems(doc: dict) -> list[Problem]:
                                                                 f"the cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
         problems += _drift_problems(e, f"{where}.root_drift")
+        if e.get("poulaine") is not None:
+            problems += _poulaine_problems(e["poulaine"], f"{where}.poulaine")
         rows = e["fourier"]["a"]
         for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
             mean = _float(rows[d][0]) if rows[d] else math.nan
@@ -709,6 +754,35 @@ def _drift_problems(e: dict, where: str) -> list[Problem]:
         problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
                                                         f"from the entry's omega {omega:.4g} "
                                                         "rad/s (a sign flipped?)"))
+    return problems
+
+
+def _poulaine_problems(poulaine: dict, where: str) -> list[Problem]:
+    """Phases in order, speed profiles rising, rows of one length, and the stored parameters
+    those of the characteristic points."""
+    from .poulaine import Poulaine
+
+    problems = []
+    for side in ("left", "right"):
+        path = poulaine[side]
+        if any(b < a for a, b in zip(path["phases"], path["phases"][1:])):
+            problems.append(Problem(f"{where}.{side}.phases", "must increase: the points are "
+                                                              "stored in the order they occur"))
+        if len({len(row) for row in path["timing"]}) > 1 or any(
+                b < a for row in path["timing"] for a, b in zip(row, row[1:])):
+            problems.append(Problem(f"{where}.{side}.timing", "every segment's speed profile "
+                                                              "must rise from 0 to 1, with as "
+                                                              "many knots as the others'"))
+    if problems:
+        return problems
+    computed = dict(zip(POULAINE_PARAMETERS, Poulaine.from_dict(poulaine).parameters))
+    wrong = [key for key in POULAINE_PARAMETERS
+             if not abs(poulaine[key] - computed[key]) <= POULAINE_TOLERANCE]
+    if wrong:
+        problems.append(Problem(where, "parameters that are not those of its characteristic "
+                                       "points: " + ", ".join(f"{k} {poulaine[k]:.6g}, the "
+                                                              f"points give {computed[k]:.6g}"
+                                                              for k in wrong)))
     return problems
 
 

@@ -232,9 +232,32 @@ def mirror_entry(entry: dict, /) -> dict:
                           ("dofs_at_limit", mirror_names)):
         if key in entry:
             image[key] = mirrored(entry[key])
+    if "poulaine" in entry:
+        image["poulaine"] = mirror_poulaine(entry["poulaine"], tau / period)
     velocities = {"u_f_m_s": float(u_f), "u_l_m_s": -float(u_l), "omega_rad_s": -omega}
     image["root_drift"] = drift_displacement(velocities, period) | velocities
     return image
+
+
+def mirror_poulaine(poulaine: dict, start: float, /) -> dict:
+    """A poulaine as an entry stores it (``docs/library-format.md``) seen in the mirror and
+    from phase ``start`` (t/T of the cycle it now starts at): the left ankle's path becomes
+    the right one's with y negated (points and tangents), phases shift by ``-start`` (points
+    rolled to keep their order), the travel direction is negated; the fit errors and the step
+    parameters are unchanged. Exact, so mirroring twice gives the poulaine back."""
+    from .poulaine import AnklePath, Poulaine
+
+    def path(data: dict) -> AnklePath:
+        ankle = AnklePath.from_dict(data)
+        phases = np.mod(ankle.phases - start, 1.0)
+        order = np.roll(np.arange(4), -int(np.argmin(phases)))
+        flip = np.array([1.0, -1.0, 1.0])
+        return AnklePath(tuple(ankle.kinds[k] for k in order), phases[order],
+                         ankle.points[order] * flip, ankle.tangents[order] * flip,
+                         ankle.timing[order], ankle.fit_rms, ankle.fit_max, ankle.timed_rms)
+
+    return Poulaine(-float(poulaine["travel_rad"]), path(poulaine["right"]),
+                    path(poulaine["left"])).to_dict()
 
 
 def _series_image(entry: dict) -> bool:

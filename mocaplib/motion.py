@@ -46,6 +46,9 @@ class Motion:
     unobservable : dict[str, float]
         Of those, the ones the markers on hand determine too poorly to fit, with the standard
         deviation (radians) they would have had (:func:`mocaplib.calibration.unobservable_dofs`).
+    marker_weights : ndarray, shape (M,), optional
+        Each marker's weight in the fit (the protocol's); markers weighted below 1 only steady
+        the fit, and quality figures leave them out (:meth:`trusted`).
     marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
         Each marker's segment index and its position in that segment's frame (metres).
     swapped : list of (label, label)
@@ -68,6 +71,7 @@ class Motion:
     swapped: list[tuple[str, str]] = field(default_factory=list)
     source: str | None = None
     unobservable: dict[str, float] = field(default_factory=dict)
+    marker_weights: np.ndarray | None = None
 
     def __post_init__(self):
         if list(self.angles.columns) != list(DOF_NAMES):
@@ -97,6 +101,12 @@ class Motion:
     @property
     def n_frames(self) -> int:
         return len(self.angles)
+
+    def trusted(self) -> np.ndarray:
+        """Markers (M,) bool the fit follows closely: weight 1 or more (all without weights)."""
+        if self.marker_weights is None:
+            return np.ones(len(self.marker_labels), dtype=bool)
+        return np.asarray(self.marker_weights) >= 1.0
 
     def frame_rms(self) -> np.ndarray:
         """Root-mean-square marker residual of each frame, shape (F,), metres (NaN if none)."""

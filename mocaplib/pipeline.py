@@ -44,6 +44,8 @@ DIAGNOSTICS_VERSION = 1
 MAX_SERIES_POINTS = 300
 #: The chosen cycle's angles are downsampled to at most this many points per DOF.
 MAX_CYCLE_POINTS = 100
+#: The chosen cycle's measured ankle paths are downsampled to at most this many points.
+MAX_POULAINE_POINTS = 60
 #: Significant digits of the diagnostics' numbers (plots need no more).
 DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
@@ -276,11 +278,15 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
+    with clock.stage("poulaines"):
+        shapes = {c.index: cycle_shape(motion, c) for c in kept}
+    with clock.stage("entries"):
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
+                                  shapes)
         result.diagnostics.update(_cycle_diagnostics(
-            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}, shapes))
     if settings.mirror and result.entries:
         with clock.stage("mirror"):
             images, entries = mirror_entries(path, result, cycles, motion, events, ground,
@@ -451,7 +457,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles, *_ = _cut_capture(Path(reference), settings, result, _Clock())
+            _, motion, cycles, _, ground = _cut_capture(Path(reference), settings, result,
+                                                        _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -462,7 +469,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
             raise CalibrationError(f"the forward reference cannot be processed: "
                                    f"{where}{exc.message}", path=reference,
                                    hint=own or hint) from None
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
         failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
                                          limits) for c in walking}
@@ -485,14 +492,17 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     return tuple(float(np.mean(angles)) if angles else 0.0 for angles in found)
 
 
-def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
+def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
+                  ) -> dict[int, dict]:
     """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
     chosen cycle re-chosen among those that pass ``thresholds`` when any does
     (:func:`mocaplib.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
-    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run."""
+    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
+    ``ground``: the floor's velocity (3,) m/s on a treadmill
+    (:func:`mocaplib.events.capture_events`), for the internal power."""
     from .cycles import choose_cycle
 
-    series = _qc_series(motion)
+    series = _qc_series(motion, ground)
     qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
     if len(cycles) > 1:
         choose_cycle(cycles, eligible={i for i, qc in qcs.items()
@@ -501,13 +511,13 @@ def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int, *,
+             settings: BuildSettings, motion, first_frame: int, shapes: dict, *,
              mirror_of: dict[int, str] | None = None):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
     ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
-    ``mirror_of``: for the cycles of a mirror image (``motion`` mirrored), the id of the entry
-    each one mirrors, by cycle index."""
+    ``shapes``: :func:`cycle_shape` by cycle index; ``mirror_of``: for the cycles of a mirror
+    image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
     from .mirror import MIRROR_TAG
 
     entries = []
@@ -539,8 +549,28 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             held_dofs=motion.unobservable,
             dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
             right_toe_off_s=cycle.right_toe_off,
-            mirror_of=image_of, mirror_method=None if image_of is None else "capture"))
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture",
+            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict()))
     return entries
+
+
+def cycle_shape(motion, cycle) -> dict:
+    """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
+    path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
+    (:class:`mocaplib.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
+    models (:func:`mocaplib.poulaine.cycle_poulaine`)."""
+    from .filtering import resample
+    from .patterns import cycle_times
+    from .poulaine import cycle_poulaine
+
+    times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
+    shape = {"phase": (times - cycle.start_s) / cycle.period,
+             "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
+    if not cycle.rest:
+        shape["poulaine"], shape["measured"] = cycle_poulaine(
+            motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
+    return shape
 
 
 def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
@@ -580,10 +610,11 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     kept = images if settings.all_cycles else [partner]
     own = [c for c in cycles if c.index in sources]
     mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
-    series = _qc_series(mirrored)
+    series = _qc_series(mirrored, None if ground is None else REFLECTION @ ground)
     qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
+    shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
     entries = []
-    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame,
+    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
                           mirror_of=mirror_of):
         source = next(e for e in result.entries if e["id"] == entry["mirror_of"])
         distance = image_distance(source, entry)
@@ -610,26 +641,29 @@ def _drift(drift) -> dict:
     return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
-def _qc_series(motion) -> tuple[np.ndarray, np.ndarray | None]:
-    """The capture-wide series the QC of its cycles reads: the unwrapped joint angles
-    (:data:`mocaplib.skeleton.JOINT_ANGLES`, (F, J) rad) and their third time derivative (F, J)
-    rad/s^3, centred differences of the angles low-passed at
-    :data:`mocaplib.filtering.WALKING_CUTOFF` (NaN at the two frames of each end; None when
-    the capture is too short to be filtered): the jerk of unfiltered angles would measure fit
-    noise only."""
+def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
+    """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
+    rotations unwrapped; ``third`` the third time derivative (F, J) rad/s^3 of the joint angles
+    (:data:`mocaplib.skeleton.JOINT_ANGLES`) and ``energies`` each body segment's energy (F, B)
+    J/kg (:func:`mocaplib.criteria.segment_energies`, positions relative to the floor moving at
+    ``ground`` m/s), both from the coordinates low-passed at
+    :data:`mocaplib.filtering.WALKING_CUTOFF` (None when the capture is too short to be
+    filtered): derivatives of unfiltered angles would measure fit noise only."""
+    from .criteria import segment_energies, third_derivative
     from .filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from .skeleton import JOINT_ANGLES
+    from .fourier import ROOT_X, ROOT_Y
+    from .skeleton import JOINT_ANGLES, TRANSLATION
 
-    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
+    q = motion.q.copy()
+    q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)
+    if ground is not None:
+        q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(len(q)) / motion.rate, ground[:2])
     if motion.n_frames < shortest_run(motion.rate, WALKING_CUTOFF) \
             or motion.rate <= 2 * WALKING_CUTOFF:
-        return q, None
+        return {"q": q, "third": None, "energies": None}
     smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
-    third = np.full_like(q, np.nan)
-    # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
-    third[2:-2] = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
-        * motion.rate ** 3 / 2
-    return q, third
+    return {"q": q, "third": third_derivative(smooth[:, JOINT_ANGLES], motion.rate),
+            "energies": segment_energies(motion.skeleton, smooth, motion.rate)}
 
 
 def inside_cycle(cycle, motion) -> np.ndarray:
@@ -638,24 +672,30 @@ def inside_cycle(cycle, motion) -> np.ndarray:
     return (frames >= cycle.start_s) & (frames <= cycle.end_s)
 
 
-def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
+def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
-    marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
-    marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
-    DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
-    over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
-    those DOFs of their third time derivative (rad/s^3; None when the capture is too short to
-    be filtered). ``series``: the capture's :func:`_qc_series`, when already computed.
+    marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
+    follows (:meth:`mocaplib.motion.Motion.trusted`); gap fraction: missing marker samples
+    among them; event quality: the cycle's; Fourier RMS: the worst rotational
+    DOF's reconstruction RMS (rad); closure (C2): norm of the joint-angle change from start to
+    end (rad, :func:`mocaplib.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
+    joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
+    energy changes of every body segment between the cycle's consecutive frames over their
+    span, W/kg (:func:`mocaplib.criteria.internal_power`); jerk and power are None when the
+    capture is too short to be filtered. ``series``: the capture's :func:`_qc_series`, when
+    already computed.
     """
+    from .criteria import closure, internal_power, jerk_rms
     from .filtering import resample
     from .skeleton import TRANSLATION
 
-    q, third = _qc_series(motion) if series is None else series
+    series = _qc_series(motion) if series is None else series
     inside = inside_cycle(cycle, motion)
-    residuals = motion.residuals[inside]
-    ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
-    jerk = None if third is None else float(np.sqrt(np.nanmean(third[inside] ** 2)))
+    residuals = motion.residuals[inside][:, motion.trusted()]
+    ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
+    third, energies = series["third"], series["energies"]
+    spanned = (np.count_nonzero(inside) - 1) / motion.rate
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),
@@ -663,8 +703,10 @@ def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
             "gap_fraction": float(np.isnan(residuals).mean()),
             "event_quality": float(cycle.event_quality),
             "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATION].max()),
-            "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
-            "jerk_rms_rad_s3": jerk,
+            "cycle_closure_rad": closure(ends[0], ends[1]),
+            "jerk_rms_rad_s3": None if third is None else jerk_rms(third[inside]),
+            "internal_power_w_kg": None if energies is None or spanned <= 0
+            else internal_power(energies[inside], spanned),
         }
 
 
@@ -685,21 +727,22 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
     }, DIAGNOSTICS_DIGITS)
 
 
-def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
-    """Every cycle's summary and the chosen cycle's angles (root in the moving frame)."""
-    from .filtering import resample
-    from .patterns import cycle_times
-
+def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
+    """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
+    measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
     chosen = next(c for c in cycles if c.chosen)
-    times = cycle_times(chosen.start_s, chosen.end_s, motion.rate)[:-1]
-    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
-    local = chosen.encoding.drift.remove(q, times - chosen.start_s)
-    pick = downsample(len(times), MAX_CYCLE_POINTS)
-    angles = {"time_s": times[pick] - chosen.start_s}
-    angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
+    shape = shapes[chosen.index]
+    pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
+    angles = {"time_s": shape["phase"][pick] * chosen.period}
+    angles.update({name: shape["q"][pick, d] for d, name in enumerate(motion.angles.columns)})
+    poulaine = None
+    if "measured" in shape:
+        pick = downsample(len(shape["phase"]), MAX_POULAINE_POINTS)
+        poulaine = {"phase": shape["phase"][pick], "left_m": shape["measured"][pick, 0],
+                    "right_m": shape["measured"][pick, 1]}
     return to_json_data({
         "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
-        "angles": angles,
+        "angles": angles, "poulaine": poulaine,
     }, DIAGNOSTICS_DIGITS)
 
 
@@ -817,7 +860,7 @@ class BuildResult:
         for c in self.captures:
             record = {key: None for key in ("rate_hz",)}
             record.update({"time_s": [], "shoulder_mid_xy": [], "frame_rms_m": [],
-                           "events": [], "cycles": [], "angles": {}})
+                           "events": [], "cycles": [], "angles": {}, "poulaine": None})
             record.update(c.diagnostics)
             record.update({"source": c.file, "ok": c.ok, "error": c.error, "stage": c.stage,
                            "static": c.static, "warnings": list(c.warnings)})

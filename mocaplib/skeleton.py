@@ -261,6 +261,9 @@ HEIGHT_PROPORTIONS: dict[str, float] = {
     "ankle_height": 0.039,     # ankle centre above the sole
     "foot_length": 0.152,      # heel to toe tip
 }
+#: Where the heel and the toe tip lie along the foot, as fractions of ``foot_length`` ahead of the
+#: ankle centre, both on the sole (``ankle_height`` below it).
+HEEL_AHEAD, TOE_AHEAD = -0.25, 0.75
 
 
 def _joint_offsets(L) -> np.ndarray:
@@ -326,6 +329,11 @@ class Skeleton:
         self._shift_array = np.zeros((len(SEGMENTS), 3))
         for name, value in shifts.items():
             self._shift_array[_SEGMENT_INDEX[name]] = value
+
+    def scaled(self, factor: float) -> "Skeleton":
+        """This skeleton with every length and joint shift multiplied by ``factor``."""
+        return Skeleton({k: v * factor for k, v in self.lengths.items()},
+                        {k: tuple(factor * x for x in v) for k, v in self.shifts.items()})
 
     @classmethod
     def from_height(cls, height: float = 1.75) -> "Skeleton":

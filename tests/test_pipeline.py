@@ -437,6 +437,22 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
     assert set(side["angles"]) == {"time_s", *DOF_NAMES}
     assert len(side["time_s"]) == len(side["shoulder_mid_xy"]) == len(side["frame_rms_m"])
     assert not by_name["broken.c3d"]["ok"] and by_name["broken.c3d"]["stage"] == "import"
+    # every entry's QC has the internal power; the moving ones a poulaine, measured in the
+    # sidecar (the chosen cycle's ankle paths) and modelled in the library within 5 mm
+    assert table["qc_internal_power_w_kg"].notna().all()
+    for entry_id, row in table.iterrows():
+        model = lib.poulaine(entry_id)
+        record = by_name[row["source_file"]]
+        if row["locomotion_class"] == "rest":
+            assert model is None and record["poulaine"] is None
+            continue
+        measured = record["poulaine"]
+        assert len(measured["phase"]) == len(measured["left_m"]) == len(measured["right_m"])
+        assert 30 <= len(measured["phase"]) <= 60
+        np.testing.assert_allclose(model(np.asarray(measured["phase"])),
+                                   np.stack([measured["left_m"], measured["right_m"]], axis=1),
+                                   atol=0.03)   # the speed profile's error, a few mm RMS
+        assert row["poulaine_fit_rms_m"] <= 0.005
 
 
 def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):

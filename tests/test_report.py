@@ -669,6 +669,38 @@ def test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one(tmp_path)
     assert [c["source"] for c in two] == [c["source"] for c in one]
 
 
+def test_the_capture_figure_draws_both_ankles_poulaines_measured_and_modelled():
+    from matplotlib.image import imread
+
+    from mocaplib.report import figures
+    from test_library import poulaine as stored_poulaine
+    from mocaplib.poulaine import Poulaine
+
+    model = Poulaine.from_dict(stored_poulaine())
+    phase = np.linspace(0.0, 1.0, 40)
+    measured = model(phase)
+    record = {"time_s": [0.0, 1.0], "events": [], "cycles": [],
+              "poulaine": {"phase": phase.tolist(), "left_m": measured[:, 0].tolist(),
+                           "right_m": measured[:, 1].tolist()}}
+    drawn = {"path": model(np.linspace(0.0, 1.0, 121)),
+             "points": np.stack([model.left.points, model.right.points])}
+
+    def coloured(png, colour) -> int:      # pixels of ``colour`` in the bottom row of panels
+        image = imread(io.BytesIO(png))[..., :3]
+        bottom = image[int(0.72 * len(image)):]
+        return int(np.sum(np.abs(bottom - np.asarray(colour) / 255).max(axis=-1) < 0.08))
+
+    left, right = (31, 119, 180), (255, 127, 14)           # tab:blue, tab:orange: the model
+    pale = (188, 214, 232)                                  # tab:blue at 30 %: measured, left
+    with_both = figures.capture_figure(record, {}, drawn)
+    assert coloured(with_both, left) > 300 and coloured(with_both, right) > 300
+    assert coloured(with_both, pale) > 300
+    measured_only = figures.capture_figure(record, {}, None)
+    assert coloured(measured_only, pale) > 300 and coloured(measured_only, left) == 0
+    without = figures.capture_figure({**record, "poulaine": None}, {}, None)
+    assert coloured(without, left) == coloured(without, right) == coloured(without, pale) == 0
+
+
 def test_report_marks_mirror_images_and_counts_coverage_without_them(tmp_path):
     """Two right curves flagged as the series mirror images of the left ones: the Entries
     table names their sources, the coverage is given without them too (as computed on the

@@ -19,8 +19,8 @@ from ..errors import MocapError
 from ._common import UsageError
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
-COMMANDS = ("inspect", "fit", "events", "cycles", "build", "mirror", "validate", "query", "report",
-            "synth")
+COMMANDS = ("inspect", "fit", "events", "cycles", "build", "mirror", "validate", "query",
+            "retarget", "report", "synth")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -54,7 +54,7 @@ def _run(args) -> int:
                          heading_offsets=heading_offsets(args))[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)
-    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS)
+    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)
     rows = [{**c.to_dict(), "qc_failures": qc_failures(qcs[c.index], DEFAULT_QC_THRESHOLDS)}
             for c in cycles]
     if args.json:

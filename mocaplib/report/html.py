@@ -33,6 +33,8 @@ from .scene3d import render_control_space
 #: Captures drawn in detail; beyond this the rest are listed without figures (keeps the file
 #: small enough to mail; the library's own numbers are still all in the tables).
 MAX_CAPTURE_FIGURES = 80
+#: Points of each modelled poulaine drawn per capture.
+POULAINE_POINTS = 121
 #: Sliver tetrahedra listed one by one (the worst first); the rest are summarised.
 MAX_SLIVER_ROWS = 10
 
@@ -697,19 +699,21 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
                 "cycles": cycles, "n_entries": sum(c["entry"] is not None for c in cycles),
                 "figure": None, "figure_error": None, "anchor": f"capture-{k}"}
         if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
-            drawn.append((item, record, _reconstructions(record, library, known)))
+            drawn.append((item, (record, _reconstructions(record, library, known),
+                                 _poulaine(record, library, known))))
         out.append(item)
-    results = _in_processes(_capture_figure, [(r, recon) for _, r, recon in drawn], jobs)
-    for (item, _, _), (png, error) in zip(drawn, results):
+    results = _in_processes(_capture_figure, [arguments for _, arguments in drawn], jobs)
+    for (item, _), (png, error) in zip(drawn, results):
         item["figure"] = None if png is None else _data_uri(png)
         item["figure_error"] = error
     return out
 
 
-def _capture_figure(record: dict, reconstructions: dict) -> tuple[bytes | None, str | None]:
+def _capture_figure(record: dict, reconstructions: dict, poulaine: dict | None
+                    ) -> tuple[bytes | None, str | None]:
     """A capture's quality figure (PNG), or why its sidecar record could not be drawn."""
     try:
-        return figures.capture_figure(record, reconstructions), None
+        return figures.capture_figure(record, reconstructions, poulaine), None
     except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
         # a hand-edited or foreign sidecar: this capture's plots only are lost
         return None, (f"its record in the diagnostics sidecar is malformed "
@@ -731,6 +735,17 @@ def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
             workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         return list(pool.map(function, *zip(*arguments),
                              chunksize=max(1, len(arguments) // (4 * workers))))
+
+
+def _poulaine(record: dict, library, known: set) -> dict | None:
+    """The model of the poulaines of the capture's chosen cycle, if it is an entry with one:
+    ``path`` (n, 2, 3) m over the cycle and the characteristic ``points`` (2, 4, 3) m."""
+    chosen = [c.get("entry_id") for c in record.get("cycles") or [] if c.get("chosen")]
+    model = library.poulaine(chosen[0]) if chosen and chosen[0] in known else None
+    if model is None:
+        return None
+    return {"path": model(np.linspace(0.0, 1.0, POULAINE_POINTS)),
+            "points": np.stack([model.left.points, model.right.points])}
 
 
 def _reconstructions(record: dict, library, known: set) -> dict:
