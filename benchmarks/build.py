@@ -3,7 +3,7 @@
 Usage (from the repository root)::
 
     python benchmarks/build.py [SAMPLES] [--static FILE [--static-pose neutral]]
-                               [--growth-captures N] [--repeat R]
+                               [--growth-captures N] [--repeat R] [--markdown PATH]
 
 1. Builds every capture in SAMPLES (default ``sample_c3d/``) with 1 job and with 2 jobs, cache
    off, and prints wall time, captures/s and the speed-up (ratio of the two wall times).
@@ -13,9 +13,10 @@ Usage (from the repository root)::
    frames, and the time per 1000 frames (flat means linear growth).
 
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
-``--static`` / ``--static-pose`` calibrate as the README's main command does (default: calibrate
-from each capture, as ``mocaplib build`` without ``--static``); cycles are cut at the default
-toe-offs, not at the main command's ``--toe-off lift``.
+``--static`` / ``--static-pose`` calibrate as the quick start's main command does (default:
+calibrate from each capture, as ``mocaplib build`` without ``--static``); cycles are cut at the
+default toe-offs, not at the main command's ``--toe-off lift``. Prints Markdown tables;
+``--markdown PATH`` also writes them into a results page (:mod:`markdown_results`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from markdown_results import add_markdown_option, markdown_page, shown  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build, find_captures  # noqa: E402
 
 STAGES = ("read", "import", "protocol", "filter", "calibrate", "fit", "events", "cycles",
@@ -54,35 +56,44 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--static", default=None, help="static calibration capture")
     parser.add_argument("--static-pose", default="free", choices=("free", "neutral"))
+    add_markdown_option(parser)
     args = parser.parse_args()
-    settings = BuildSettings(static=args.static, static_pose=args.static_pose)
-
     captures = find_captures([args.samples])
     if not captures:
         print(f"no captures in {args.samples}; generate the samples first", file=sys.stderr)
         return 1
-    print(f"{len(captures)} captures in {args.samples}; static {args.static} "
+    with markdown_page(args.markdown, __file__):
+        report(args, captures)
+    return 0
+
+
+def report(args, captures) -> None:
+    """Print the three tables for the parsed ``args`` and the ``captures`` found."""
+    settings = BuildSettings(static=args.static, static_pose=args.static_pose)
+    print(f"{len(captures)} captures in {shown(args.samples)}; static {args.static} "
           f"({args.static_pose})")
 
     one, result = timed_build([args.samples], settings, 1, args.repeat)
     two, result2 = timed_build([args.samples], settings, 2, args.repeat)
     same = result.library.to_json() == result2.library.to_json()
     n = len(captures)
-    print(f"\njobs  wall_s  captures/s   (ok {sum(c.ok for c in result.captures)}, "
-          f"entries {len(result.library)})")
-    print(f"1     {one:6.1f}  {n / one:10.2f}")
-    print(f"2     {two:6.1f}  {n / two:10.2f}")
-    print(f"speed-up jobs=2 / jobs=1: {one / two:.2f}x; byte-identical libraries: {same}")
+    print(f"\n{sum(c.ok for c in result.captures)} captures processed, "
+          f"{len(result.library)} entries\n")
+    print("| jobs | wall time (s) | captures/s |\n|---|---|---|")
+    print(f"| 1 | {one:.1f} | {n / one:.2f} |")
+    print(f"| 2 | {two:.1f} | {n / two:.2f} |")
+    print(f"\nspeed-up jobs=2 / jobs=1: {one / two:.2f}x; byte-identical libraries: {same}")
 
     totals = {s: sum(c.stage_times.get(s, 0.0) for c in result.captures) for s in STAGES}
     frames = sum(c.n_frames for c in result.captures)
-    print(f"\nstage      seconds  share   (1 job, {frames} frames in total)")
+    print(f"\nTime per stage (1 job, {frames} frames in total):\n")
+    print("| stage | seconds | share |\n|---|---|---|")
     for stage, seconds in totals.items():
-        print(f"{stage:<10} {seconds:7.2f}  {seconds / max(sum(totals.values()), 1e-9):5.1%}")
+        print(f"| {stage} | {seconds:.2f} | {seconds / max(sum(totals.values()), 1e-9):.1%} |")
 
     subset = captures[:args.growth_captures] if args.growth_captures else captures
-    print(f"\ngrowth (2 jobs, {len(subset)} captures copied k times)")
-    print("data  captures  frames   wall_s  s/1000 frames")
+    print(f"\nGrowth (2 jobs, {len(subset)} captures copied k times):\n")
+    print("| data | captures | frames | wall time (s) | s / 1000 frames |\n|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for k in (1, 2, 4):
             folder = Path(tmp) / f"x{k}"
@@ -93,9 +104,8 @@ def main() -> int:
                     shutil.copy2(path, target / path.name)
             wall, grown = timed_build([folder], settings, 2, args.repeat)
             total = sum(c.n_frames for c in grown.captures)
-            print(f"{k}x    {len(grown.captures):8d}  {total:6d}  {wall:7.1f}  "
-                  f"{1000 * wall / total:13.3f}")
-    return 0
+            print(f"| {k}x | {len(grown.captures)} | {total} | {wall:.1f} | "
+                  f"{1000 * wall / total:.3f} |")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Toe-off and heel-strike accuracy of both toe-off definitions, against the issue's targets.
 
-    /work/venv/bin/python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR]
-    /work/venv/bin/python benchmarks/event_accuracy.py --noise-sd 0     # samples without noise
+    python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR] [--markdown PATH]
+    python benchmarks/event_accuracy.py --noise-sd 0     # samples without noise
 
 Runs :func:`mocaplib.events.capture_events` on every synthetic capture of ``--samples`` (their
 EVENT group holds the true Foot Off / Foot Strike) and on the four real files with lab-recorded
@@ -17,7 +17,8 @@ definition, and prints:
 folder with marker noise ``SD`` metres instead of reading ``--samples`` (the plan's 0.0007):
 ``0`` shows what the detector does on exact marker paths.
 
-Exit code 1 when the default definition misses a target.
+Prints Markdown tables (``--markdown PATH`` also writes them into a results page,
+:mod:`markdown_results`). Exit code 1 when the default definition misses a target.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.events import (TOE_OFF_DEFINITIONS, EventSettings, capture_events,  # noqa: E402
                              event_differences)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
@@ -68,15 +70,16 @@ def synthetic_table(samples: Path, toe_off: str) -> bool:
         frames = np.where(np.isnan(diff), np.inf, np.abs(diff) * rate)
         if frames.size:  # the standing capture has none
             by_type.setdefault(locomotion_type(name), []).extend(frames)
-    print(f"\nsynthetic toe-offs ({samples}), toe_off={toe_off!r}")
-    print(f"{'type':26s} {'n':>4s} {'<=1 fr':>7s} {'<=2 fr':>7s} {'worst fr':>9s}")
+    print(f"\nSynthetic toe-offs ({samples.name}), `toe_off={toe_off!r}`:\n")
+    print("| type | toe-offs | within 1 frame | within 2 frames | worst (frames) |\n"
+          "|---|---|---|---|---|")
     met = True
     for kind, errors in sorted(by_type.items()) + [("ALL", sum(by_type.values(), []))]:
         errors = np.array(errors)
         within = np.mean(errors <= 1.0)
         met &= kind == "ALL" or within >= SYNTHETIC_TARGET
-        print(f"{kind:26s} {len(errors):4d} {100 * within:6.1f}%"
-              f" {100 * np.mean(errors <= 2.0):6.1f}% {errors.max():9.1f}")
+        print(f"| {kind} | {len(errors)} | {100 * within:.1f} % | "
+              f"{100 * np.mean(errors <= 2.0):.1f} % | {errors.max():.1f} |")
     return met
 
 
@@ -86,9 +89,9 @@ def real_table(real: Path, toe_off: str) -> bool:
     if len(paths) < len(LAB_FILES):
         print(f"\nreal lab files not found under {real}: skipped")
         return True
-    print(f"\nreal files with lab events ({len(paths)}), toe_off={toe_off!r}")
-    print(f"{'kind':12s} {'n':>3s} {'median ms':>10s} {'med |d| ms':>11s} {'<=10 ms':>8s}"
-          f" {'max |d| ms':>11s}")
+    print(f"\nReal files with lab events ({len(paths)}), `toe_off={toe_off!r}`:\n")
+    print("| kind | events | median (ms) | median \\|Δ\\| (ms) | within 10 ms "
+          "| max \\|Δ\\| (ms) |\n|---|---|---|---|---|---|")
     met = True
     found = differences(paths, toe_off)
     for kind in KINDS:
@@ -97,8 +100,8 @@ def real_table(real: Path, toe_off: str) -> bool:
         median_abs = np.median(np.abs(diff))
         if kind == "toe_off":
             met = median_abs <= 1000.0 * REAL_TARGET_S
-        print(f"{kind:12s} {len(diff):3d} {np.median(diff):+10.1f} {median_abs:11.1f}"
-              f" {np.sum(np.abs(diff) <= 10.0):4d}/{len(diff):<3d} {np.abs(diff).max():11.1f}")
+        print(f"| {kind} | {len(diff)} | {np.median(diff):+.1f} | {median_abs:.1f} | "
+              f"{np.sum(np.abs(diff) <= 10.0)}/{len(diff)} | {np.abs(diff).max():.1f} |")
     return met
 
 
@@ -117,7 +120,17 @@ def main(argv=None) -> int:
     parser.add_argument("--real", type=Path, default=ROOT.parent / "shared" / "data" / "c3d")
     parser.add_argument("--noise-sd", type=float, default=None, metavar="SD",
                         help="regenerate the sample plan with this marker noise (m) instead")
+    add_markdown_option(parser)
     args = parser.parse_args(argv)
+    with markdown_page(args.markdown, __file__, argv):
+        verdict = tables(args)
+    default = EventSettings().toe_off
+    return 0 if all(verdict[default]) else 1
+
+
+def tables(args) -> dict[str, tuple[bool, bool]]:
+    """Print every table for the parsed ``args``; {toe-off definition: (synthetic target met,
+    real target met)}."""
     with tempfile.TemporaryDirectory() as folder:
         samples = args.samples
         if args.noise_sd is not None:
@@ -127,10 +140,9 @@ def main(argv=None) -> int:
                    for toe_off in TOE_OFF_DEFINITIONS}
     print()
     for toe_off, (synthetic, real) in verdict.items():
-        print(f"{toe_off:14s} synthetic target {'met' if synthetic else 'MISSED'}, "
+        print(f"- `{toe_off}`: synthetic target {'met' if synthetic else 'MISSED'}, "
               f"real target {'met' if real else 'MISSED'}")
-    default = EventSettings().toe_off
-    return 0 if all(verdict[default]) else 1
+    return verdict
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """Accuracy of calibrate + fit: synthetic captures against their truth, real files' residuals.
 
-    /work/venv/bin/python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR]
-    /work/venv/bin/python benchmarks/fit_accuracy.py --only budget     # running error budget
-    /work/venv/bin/python benchmarks/fit_accuracy.py --only statures   # 1.55 m and 1.95 m subjects
+    python benchmarks/fit_accuracy.py [--synth sample_c3d] [--real DIR] [--markdown PATH]
+    python benchmarks/fit_accuracy.py --only budget     # running error budget
+    python benchmarks/fit_accuracy.py --only statures   # 1.55 m and 1.95 m subjects
 
 Forward kinematics: the tests' gait-like walk (``tests/fk_data.py``) with markers on the
 catalogue landmarks, 6 mm soft-tissue artefact and 1 mm noise, ``--fk-seeds`` subjects.
@@ -10,7 +10,7 @@ Synthetic (every ``*.c3d`` with a ``.truth.json`` beside it): per capture, calib
 capture itself, each DOF's joint-angle RMS error against the truth, in degrees, summarised per
 locomotion class for the flexions (hip, knee, ankle) and the other rotations; "tracking" is the
 same after removing each capture's mean error (the constant offset a placement error of the
-markers leaves; see the README). Real files (the walking captures in ``../shared/data/c3d``):
+markers leaves). Real files (the walking captures of ``--real``, the shared lab files):
 protocol, markers, fitted/failed frames, mean per-frame marker RMS, largest marker error and the
 marker holding it. Running error budget (``--only budget``): each running capture of the
 sample plan regenerated with the artefacts switched off one group at a time (same seeds,
@@ -19,10 +19,11 @@ or low-passed at Winter's cutoff, and the true angles themselves low-passed at t
 the filter alone costs). Other statures (``--only statures``): one capture of each locomotion
 type of the sample plan (:data:`STATURE_CAPTURES`) and its static regenerated for subjects of
 1.55 m and 1.95 m (same seeds and marker placement; a capture too short for the taller
-subject's slower cadence is lengthened to two cycles), built as the README's main command
+subject's slower cadence is lengthened to two cycles), built as the quick start's main command
 builds (static, neutral pose, walk_straight_normal as forward reference) but cut at the default
 toe-offs, with each capture's angle errors
-as above and its v̂, ω̂, v̂_l errors against the truth. Prints Markdown tables.
+as above and its v̂, ω̂, v̂_l errors against the truth. Prints Markdown tables (``--markdown
+PATH`` also writes them into a results page, :mod:`markdown_results`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
 from mocaplib.filtering import filter_trial, lowpass  # noqa: E402
@@ -284,8 +286,16 @@ def main() -> int:
                         help="the sample plan, for the running budget and statures")
     parser.add_argument("--only", choices=("fk", "synth", "real", "budget", "statures"),
                         help="one table only (the budget and statures only when asked)")
+    add_markdown_option(parser)
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
+    with markdown_page(args.markdown, __file__):
+        tables(args)
+    return 0
+
+
+def tables(args) -> None:
+    """Print the tables the parsed ``args`` ask for."""
     if args.only in (None, "fk"):
         print("| data | captures | flexion RMS mean / max (deg) | other RMS mean / max (deg) "
               "| marker RMS (mm) |\n|---|---|---|---|---|")
@@ -300,7 +310,6 @@ def main() -> int:
         running_budget(Path(args.plan))
     if args.only == "statures":
         statures(Path(args.plan))
-    return 0
 
 
 if __name__ == "__main__":

@@ -7,19 +7,20 @@ accuracy 1e-5) and with ``mocaplib.ik.fit``, alternately ``--repeat`` times each
 print each one's frames/s, the speed ratio and both joint-angle RMS errors
 against the truth.
 
-Data: synthetic captures with ground truth (``--c3d FILE...``, each with ``FILE.truth.json``
-beside it, as mocaplib.synth writes them; times and frames are summed over them), or by
-default the tests' forward-kinematics walk (gait-like angles, 6 mm soft-tissue artefact, 1 mm
-noise; ``--frames`` long).
+Data: synthetic captures with ground truth (``--c3d FILE...``, files or folders of them, each
+with ``FILE.truth.json`` beside it, as mocaplib.synth writes them; times and frames are summed
+over them), or by default the tests' forward-kinematics walk (gait-like angles, 6 mm
+soft-tissue artefact, 1 mm noise; ``--frames`` long).
 
-    /work/venv/bin/python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE...]
-        [--static FILE] [--cutoff HZ|auto|none]
+    python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE...]
+        [--static FILE] [--cutoff HZ|auto|none] [--markdown PATH]
 
 ``--static`` calibrates from a static trial in the anatomical neutral pose (as ``mocaplib build
 --static`` does); ``--cutoff`` low-passes the markers first (:mod:`mocaplib.filtering`), and
 both solvers then get the same filtered markers (the filter's time is not in either figure).
 
-Needs the bench extra (``pip install ".[bench]"``: opensim).
+Prints Markdown tables (``--markdown PATH`` also writes them into a results page,
+:mod:`markdown_results`). Needs the bench extra (``pip install ".[bench]"``: opensim).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.ik import fit, model_markers  # noqa: E402
 from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
@@ -58,7 +60,9 @@ def load_captures(args) -> list[tuple]:
         from mocaplib.io.c3d import read_c3d
 
         out = []
-        for path in args.c3d:
+        paths = [p for arg in map(Path, args.c3d)
+                 for p in (sorted(arg.glob("*.c3d")) if arg.is_dir() else [arg])]
+        for path in paths:
             truth_path = Path(path).with_suffix(".truth.json")
             q = None
             if truth_path.exists():
@@ -140,11 +144,20 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--c3d", nargs="+", metavar="FILE",
-                        help="synthetic captures, each with a .truth.json beside it")
+                        help="synthetic captures, each with a .truth.json beside it, or "
+                             "folders of them")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--static", metavar="FILE", help="static trial (neutral pose)")
     parser.add_argument("--cutoff", default="none", help="marker low-pass: Hz, auto or none")
+    add_markdown_option(parser)
     args = parser.parse_args()
+    with markdown_page(args.markdown, __file__):
+        compare(args)
+    return 0
+
+
+def compare(args) -> None:
+    """Time both solvers on the captures the parsed ``args`` name and print the tables."""
     from mocaplib.filtering import filter_trial
     from mocaplib.io.c3d import read_c3d
 
@@ -154,7 +167,7 @@ def main() -> int:
     totals = {"OpenSim": 0.0, "mocaplib": 0.0}
     errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
     n = 0
-    ratios = []
+    ratios, rows = [], []
     for raw, truth in load_captures(args):
         trial, _ = filter_trial(raw, cutoff=cutoff)
         model = calibrate(trial, static=static, static_pose="neutral")
@@ -177,26 +190,27 @@ def main() -> int:
             if truth is not None and len(q) == len(truth):
                 errors[name].append(angle_errors(q, truth))
         ratios.append((min(osim_times) / min(our_times), Path(trial.source).stem))
-        print(f"capture: {trial.source}  frames: {trial.n_frames}  markers: "
-              f"{len(model.labels)}  protocol: {model.protocol.name}  ratio: "
-              f"{ratios[-1][0]:.1f}x")
-    print(f"\nall: {n} frames; joint-angle RMS error vs truth (deg), mean over captures of the "
-          "mean over DOFs / max over captures and DOFs / max over flexions")
-    print(f"{'':10s}{'frames/s':>10s}{'mean RMS deg':>14s}{'max RMS deg':>13s}"
-          f"{'max flexion':>13s}")
+        rows.append(f"| {Path(trial.source).name} | {trial.n_frames} | {len(model.labels)} | "
+                    f"{model.protocol.name} | {ratios[-1][0]:.1f}x |")
+        print(rows[-1], file=sys.stderr)
+    print(f"{n} frames. Joint-angle RMS error against the truth (degrees): mean over captures "
+          "of the mean over DOFs / max over captures and DOFs / max over flexions.\n")
+    print("| solver | frames/s | mean RMS (deg) | max RMS (deg) | max flexion (deg) |\n"
+          "|---|---|---|---|---|")
     for name, seconds in totals.items():
         if errors[name]:
             e = np.array(errors[name])
-            text = f"{e[:, 0].mean():14.2f}{e[:, 1].max():13.2f}{e[:, 2].max():13.2f}"
+            text = f"{e[:, 0].mean():.2f} | {e[:, 1].max():.2f} | {e[:, 2].max():.2f}"
         else:
-            text = f"{'(no truth)':>14s}"
-        print(f"{name:10s}{n / seconds:10.0f}{text}")
+            text = "(no truth) | | "
+        print(f"| {name} | {n / seconds:.0f} | {text} |")
     t_osim, t_ours = totals["OpenSim"], totals["mocaplib"]
-    print(f"speed ratio mocaplib / OpenSim: {t_osim / t_ours:.1f}x")
+    print(f"\nSpeed ratio mocaplib / OpenSim: **{t_osim / t_ours:.1f}x**.")
     if len(ratios) > 1:
-        print("lowest per capture: " + ", ".join(f"{name} {r:.1f}x" for r, name in
-                                                 sorted(ratios)[:4]))
-    return 0
+        print("Lowest per capture: " + ", ".join(f"{name} {r:.1f}x" for r, name in
+                                                 sorted(ratios)[:4]) + ".")
+    print("\n| capture | frames | markers | protocol | speed ratio |\n|---|---|---|---|---|")
+    print("\n".join(rows))
 
 
 if __name__ == "__main__":

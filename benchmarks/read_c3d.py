@@ -3,9 +3,11 @@
 Writes a 6,000-frame, 40-marker capture (a person-like cloud walking along X, with gaps) in
 float and in integer storage with mocaplib's writer into a temporary folder, then times reading
 each file completely into memory (median of --repeats runs) and checks mocaplib's coordinates
-against ezc3d's. When ../shared/data/c3d exists, also times the real files (mocaplib vs ezc3d).
+against ezc3d's. When the real files are present (the folder ``shared/data/c3d`` beside the
+repository), also times them (mocaplib vs ezc3d). Prints a Markdown table (``--markdown PATH``
+also writes it into a results page, :mod:`markdown_results`).
 
-    python benchmarks/read_c3d.py [--repeats 7] [--frames 6000] [--markers 40]
+    python benchmarks/read_c3d.py [--repeats 7] [--frames 6000] [--markers 40] [--markdown PATH]
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.io.c3d_write import write_c3d  # noqa: E402
 
@@ -68,8 +71,15 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--frames", type=int, default=6000)
     parser.add_argument("--markers", type=int, default=40)
+    add_markdown_option(parser)
     args = parser.parse_args()
+    with markdown_page(args.markdown, __file__):
+        compare(args)
+    return 0
 
+
+def compare(args) -> None:
+    """Time the three readers as the parsed ``args`` ask and print the table."""
     rate = 100.0
     cloud = walking_cloud(args.frames, args.markers, rate)
     labels = [f"M{i:02d}" for i in range(args.markers)]
@@ -98,7 +108,6 @@ def main() -> int:
         theirs = sum(median_time(read_ezc3d, path, args.repeats) for path in real)
         print(f"| all {len(real)} real files (sum of medians) | {ours * 1e3:.1f} ms | "
               f"{theirs * 1e3:.1f} ms | - | {theirs / ours:.1f}x | - | see tests (<= 1e-6 m) |")
-    return 0
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """End-to-end accuracy of v̂, ω̂, v̂_l against the synthetic truth, per locomotion type.
 
-    /work/venv/bin/python benchmarks/velocity_accuracy.py [LIBRARY.json] [--samples sample_c3d]
-    /work/venv/bin/python benchmarks/velocity_accuracy.py --placement-draws 20 [--capture run_3p5]
+    python benchmarks/velocity_accuracy.py [LIBRARY.json] [--samples sample_c3d]
+                                           [--static FILE] [--toe-off lift] [--markdown PATH]
+    python benchmarks/velocity_accuracy.py --placement-draws 20 [--capture run_3p5]
 
 Builds the library from ``--samples`` (``mocaplib build ... --jobs 2``) unless a library file
 is given, then matches every entry with the truth cycle of its capture whose start time is
@@ -10,11 +11,13 @@ entries and the worst |Δv̂| (also as % of the truth), |Δω̂| and |Δv̂_l|, 
 issue's targets: v̂ within 2 % (0.02 m/s where the truth is near 0: under 1 m/s), ω̂ within
 0.02 rad/s, v̂_l within 0.02 m/s. Exit code 1 when a target is missed. With ``--static``
 (neutral) the build also gets ``--forward-reference SAMPLES/walk_straight_normal.c3d``
-(``--forward-reference NAME``, or ``none``).
+(``--forward-reference NAME``, or ``none``); ``--toe-off`` is passed to the build (the quick
+start's library: ``--static sample_c3d/rest.c3d --toe-off lift``). Prints Markdown tables
+(``--markdown PATH`` also writes them into a results page, :mod:`markdown_results`).
 
 ``--placement-draws N``: the static calibration's heading error against v̂_l. The capture
 (``--capture``) and the session's static are regenerated from the sample plan with N other
-marker placements (session seeds 1..N, everything else as shipped; the shipped session first,
+marker placements, session seeds 1..N (everything else as shipped; the shipped session first,
 for reference), calibrated from that static in the neutral pose, fitted (markers low-passed at
 Winter's cutoff), and per draw it prints δ, the mean heading error of the fitted shoulder
 line on the static itself, and the v̂_l error of the capture's true cycles (the pipeline's
@@ -40,8 +43,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.cycles import shoulder_centres  # noqa: E402
+from mocaplib.events import TOE_OFF_DEFINITIONS  # noqa: E402
 from mocaplib.filtering import filter_trial  # noqa: E402
 from mocaplib.ik import fit  # noqa: E402
 from mocaplib.library import load_library  # noqa: E402
@@ -112,7 +117,7 @@ def report(rows: list[dict]) -> bool:
 
 
 def placement_draws(plan_path: Path, capture_name: str, draws: int, reference: str) -> None:
-    """Per marker placement (session seed): δ of the static, the v̂_l error, the forward
+    """Per marker placement, that is per session seed: δ of the static, the v̂_l error, the forward
     reference's heading offset and the v̂_l error with it (module doc)."""
     planned = {c.name: c for c in load_plan(plan_path).captures}
 
@@ -186,12 +191,23 @@ def main() -> int:
                              "SAMPLES/NAME.c3d passed to mocaplib build with --static; 'none': "
                              "no reference (with --placement-draws it is always used)")
     parser.add_argument("--plan", type=Path, default=ROOT / "protocols" / "paper_plan.toml")
+    parser.add_argument("--toe-off", choices=TOE_OFF_DEFINITIONS, default=None,
+                        help="passed to mocaplib build (default: its own)")
+    add_markdown_option(parser)
     args = parser.parse_args()
-    if args.placement_draws:
-        if args.forward_reference == "none":
-            parser.error("--placement-draws always measures with a forward reference: name one")
-        placement_draws(args.plan, args.capture, args.placement_draws, args.forward_reference)
-        return 0
+    if args.placement_draws and args.forward_reference == "none":
+        parser.error("--placement-draws always measures with a forward reference: name one")
+    with markdown_page(args.markdown, __file__):
+        if args.placement_draws:
+            placement_draws(args.plan, args.capture, args.placement_draws,
+                            args.forward_reference)
+            return 0
+        return 0 if entries_table(args) else 1
+
+
+def entries_table(args) -> bool:
+    """Compare the library the parsed ``args`` name (or one built now from ``--samples``) with
+    the truth and print the table; True when every target is met."""
     with tempfile.TemporaryDirectory() as tmp:
         library = args.library
         if library is None:
@@ -203,8 +219,10 @@ def main() -> int:
                 if args.forward_reference != "none" and args.static_pose == "neutral":
                     command += ["--forward-reference",
                                 str(args.samples / f"{args.forward_reference}.c3d")]
+            if args.toe_off:
+                command += ["--toe-off", args.toe_off]
             subprocess.run(command, check=True, cwd=ROOT, capture_output=True)
-        return 0 if report(compare(library, args.samples)) else 1
+        return report(compare(library, args.samples))
 
 
 if __name__ == "__main__":

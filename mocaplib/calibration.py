@@ -6,14 +6,9 @@ Steps (all in metres, world Z up):
    the motion only if it shows the same person with the same markers on: the distance between
    two markers on one segment is then the same in both trials, up to soft tissue and noise.
    The median over all such pairs of |d_motion − d_static| (each distance the median over its
-   trial's frames) above :data:`SAME_SUBJECT_LIMIT` (5 mm) is a :class:`CalibrationError`.
-   Measured: 0.2 mm or less between the synthetic session's static and its 68 captures; 0.5-2.0
-   mm on the real sessions of ../shared/data/c3d (biomechzoo HC030A01 with A05/A22, motonms
-   Static1 with Walking1/3, CMU 07_01 with 07_12); 17-33 mm between different people (CMU
-   subjects 07 and 16; btkdata's two statics against PiG_Motion-FlatFoot-Full, ASIS–ASIS 228
-   and 227 mm against 200 mm); 5.4-5.7 mm for a synthetic subject 3 % taller or shorter, and
-   4.2-4.7 mm for the same synthetic subject with markers taken off and put back (3 mm sd),
-   which passes: it is the same person (the ``free`` static pose then absorbs the new
+   trial's frames) above :data:`SAME_SUBJECT_LIMIT` (5 mm) is a :class:`CalibrationError`
+   (the figures behind the limit: docs/guide/fitting.md, Calibration). The same markers taken
+   off and put back pass: it is the same person (the ``free`` static pose then absorbs the new
    placement). The same difference picks, among several statics (one per subject or session),
    the one that shows a capture's subject (:func:`choose_static`).
 
@@ -49,9 +44,8 @@ Steps (all in metres, world Z up):
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
    static's. Only for statics recorded in that pose: real lab statics often are not (arms
-   abducted, feet turned out; measured on ../shared/data/c3d's statics: 11-68 mm marker RMS
-   with "neutral" against 4-9 mm with "free"), so the default, ``static_pose="free"``, runs
-   step 4 on the static and step 5 on the motion.
+   abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
+   ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
    Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
    feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their
@@ -73,10 +67,11 @@ import numpy as np
 
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
+from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in_frames, segment_frames
 from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
 from .protocols import Protocol, match_protocol, match_trial
-from .skeleton import (DOF_NAMES, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
-                       SEGMENTS, Skeleton)
+from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
+                       SEGMENTS, SHIFTS, Skeleton, partner_name)
 from .trial import Trial
 
 #: Markers seen in fewer than this fraction of frames are not used.
@@ -85,6 +80,14 @@ MIN_PRESENCE = 0.10
 LENGTH_PRIOR = 0.015
 #: Typical marker residual (soft tissue + noise), metres: scales the length prior.
 MARKER_SIGMA = 0.005
+#: A DOF that one frame's markers determine with a standard deviation above this (radians;
+#: :func:`unobservable_dofs`, markers off by MARKER_SIGMA) is held at 0: the largest amplitude
+#: of ankle inversion in walking, which it would drown.
+UNOBSERVABLE_SD = np.deg2rad(8.0)
+#: An end segment's markers lie on one line when all are within this distance (m) of it...
+LINE_TOLERANCE = 0.01
+#: ...and a DOF turns the segment about that line when its axis is within this angle (rad).
+LINE_ANGLE = np.deg2rad(30.0)
 #: Weight of anatomical joint centres (virtual markers) against real markers in step 4.
 CENTRE_WEIGHT = 10.0
 
@@ -127,6 +130,16 @@ _LANDMARK_JOINTS = {
     "humerus": ("ACROMION", None),
     "forearm": ("ELBOW_LAT", "ELBOW_MED"),
 }
+#: The joint at each child segment's origin, as named in joint widths and reports.
+_JOINT_NAMES = {"tibia": "knee", "foot": "ankle", "humerus": "shoulder", "forearm": "elbow"}
+#: Marker diameter (m) assumed when a file gives joint widths but no diameter: Plug-in Gait's.
+DEFAULT_MARKER_DIAMETER = 0.014
+#: Lengths the joint centres of the pelvis and legs set, which refinement keeps when both
+#: centres (the origins of the two segments named) are known on both sides.
+_ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibia"),
+                       "shank": ("tibia", "foot")}
+#: Joints whose centre a lateral marker and a segment wand give by the chord.
+_CHORD_JOINTS = ("tibia", "foot", "forearm")
 
 
 @dataclass
@@ -147,6 +160,11 @@ class SubjectModel:
     source : str or None. The calibration trial's file (the static one when given).
     swapped : list of (label, label). Left/right pairs whose labels the trial exchanges; their
         data are exchanged back when fitting (:func:`mocaplib.ik.model_markers`).
+    centre_methods : dict[str, str]. How each joint centre was found (``"knee_l"``: ``"chord,
+        knee width from the measurements"``...), see :func:`joint_centres`.
+    unobservable : dict[str, float]. DOFs the markers cannot see well enough, held at 0 (also
+        in ``locked_dofs``), with the standard deviation (radians) one frame's markers would
+        leave them at (:func:`unobservable_dofs`).
     """
 
     skeleton: Skeleton
@@ -160,6 +178,14 @@ class SubjectModel:
     history: list[float] = field(default_factory=list)
     source: str | None = None
     swapped: list[tuple[str, str]] = field(default_factory=list)
+    centre_methods: dict[str, str] = field(default_factory=dict)
+    unobservable: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def marker_weights(self) -> np.ndarray:
+        """Each marker's weight in the fit (M,), from the protocol
+        (:attr:`mocaplib.protocols.ProtocolMarker.weight`)."""
+        return np.array([self.protocol.marker(label).weight for label in self.labels])
 
     @property
     def free(self) -> np.ndarray:
@@ -185,7 +211,8 @@ def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Pro
 def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               static: Trial | None = None, static_pose: str = "free",
               height: float | None = None, n_frames: int = 60,
-              max_rounds: int = 8, heading_offset: float = 0.0) -> SubjectModel:
+              max_rounds: int = 8, heading_offset: float = 0.0,
+              measurements: dict[str, float] | None = None) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -207,6 +234,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         are measured (step 4'), turning every segment frame about the vertical: the correction
         a forward reference measures (:func:`mocaplib.pipeline.forward_offsets`). Only with a
         static in the neutral pose.
+    measurements : subject measurements (metres, kilograms;
+        :data:`mocaplib.anatomy.MEASUREMENTS` keys) that override those the calibration
+        trial's file stores (:attr:`Trial.measurements`); knee and ankle widths and the marker
+        diameter place the knee and ankle centres (:func:`joint_centres`).
 
     Returns
     -------
@@ -222,6 +253,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static is not None:
         check_standing(static)
     cal = static if static is not None else trial
+    measurements = {**cal.measurements, **(measurements or {})}
     proto = choose_protocol(trial, protocol)   # on the motion, as every command resolves it
     cal_match = match_protocol(cal, proto, check_swaps=False)   # find_swaps decides
     X_all = cal_match.markers(cal)
@@ -260,14 +292,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if swapped:
         X = exchange(X, labels, swapped)
         first = solve_poses(skeleton, X, segments, offsets, free=free)
-    centres = joint_centres(X, landmarks, skeleton, first.q, scale=scale)
+    centres, methods = joint_centres(X, landmarks, segments, skeleton, first.q, scale=scale,
+                                     measurements=measurements)
     anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
     if static is not None and static_pose == "neutral":
-        offsets, rms = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
-                                       heading_offset=heading_offset)
-        return SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
-                            [rms], cal.source, swapped)
+        offsets, rms, poses = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
+                                              heading_offset=heading_offset)
+        return _hold_unobservable(SubjectModel(skeleton, proto, labels, segments, offsets, locked,
+                                               left_out, rms, [rms], cal.source, swapped,
+                                               methods), poses)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
     v_seg, v_off, v_pos = _virtual_markers(skeleton, centres, len(X))
     poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
@@ -275,6 +309,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+    # the pelvis and legs: offsets in their anatomical frames, kept by the refinement
+    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)}, centres,
+                            level_feet=static is not None)
+    in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
+    anatomical_markers = np.isfinite(in_frames).all(axis=1)
+    offsets[anatomical_markers] = in_frames[anatomical_markers]
+    skeleton = Skeleton(skeleton.lengths, joint_shifts(skeleton, frames))
+    fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
+                     if all(((name + side, 0.0) in centres) for name in (a, b)
+                            for side in ("_l", "_r"))]
     if static is not None:
         # the static pose fixed the anatomy; the motion shows the functional axes and the
         # soft tissue of the movement, so step 5 runs on the motion's frames
@@ -292,15 +336,105 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if best is not None and rms >= best.rms:
             break
         best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
-                            rms, [], cal.source, swapped)
+                            rms, [], cal.source, swapped, methods)
+        best_poses = fit.q
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
-        offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
-                                   align=ALIGNED_IN_REFINEMENT)
-        skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical)
+        registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
+                                      align=ALIGNED_IN_REFINEMENT)
+        offsets = np.where(anatomical_markers[:, None], offsets, registered)
+        skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
+                                  fixed=fixed_lengths)
     best.history = history
-    return best
+    return _hold_unobservable(best, best_poses)
+
+
+def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
+    """The free rotation DOFs the markers cannot see, with the standard deviation (radians)
+    one frame's fit would leave each at.
+
+    Two rules, on the markers the protocol trusts (weight 1 or more: markers it weights down,
+    such as the Oxford Foot Model's midfoot markers on mocaplib's one-piece foot, steady the
+    fit but do not make a DOF seen):
+
+    * **On a line.** An end segment (a foot, a forearm, the head) whose markers lie on one line
+      (fewer than three, or all within :data:`LINE_TOLERANCE` of a line) cannot show a turn
+      about that line: a DOF whose axis is within :data:`LINE_ANGLE` of it is held (ankle
+      inversion with only a heel and a toe marker, as Plug-in Gait's foot).
+    * **Uncertain.** For poses ``q`` (F, D) the weighted least-squares fit of one frame leaves
+      DOF d with the standard deviation ``σ_m sqrt((JᵀWJ)⁻¹_dd)`` (J the markers' Jacobian
+      over the free DOFs, W their weights, σ_m = :data:`MARKER_SIGMA`; median over the
+      poses); the worst above :data:`UNOBSERVABLE_SD` is held and the others judged again.
+
+    A left or right DOF is held with its mirror image, so that both sides of a library have
+    the same DOFs.
+    """
+    trusted = model.marker_weights >= 1.0
+    _, J = model.skeleton.marker_jacobian(q, model.marker_segments[trusted],
+                                          model.marker_offsets[trusted])
+    J = J * np.sqrt(model.marker_weights[trusted])[None, :, None, None]
+    A = np.einsum("fmci,fmcj->fij", J, J)
+    free = model.free & ~np.isin(np.arange(len(DOF_NAMES)), SHIFTS)
+
+    def sd_of(mask):
+        sub = A[:, mask][:, :, mask] + 1e-12 * np.eye(int(mask.sum()))
+        return MARKER_SIGMA * np.sqrt(np.median(
+            np.diagonal(np.linalg.inv(sub), axis1=1, axis2=2), axis=0))
+
+    held: dict[str, float] = {}
+
+    def hold(name, value):
+        for dof in {name, partner_name(name)} & set(DOF_NAMES):
+            held[dof] = float(value)
+            free[DOF_NAMES.index(dof)] = False
+
+    on_line = _turns_about_marker_lines(model.marker_segments[trusted],
+                                        model.marker_offsets[trusted])
+    sd = dict(zip(np.array(DOF_NAMES)[free], sd_of(free)))
+    for name in sorted(on_line & set(sd)):
+        hold(name, max(sd[name], sd.get(partner_name(name), 0.0)))
+    while free.any():
+        sd = sd_of(free)
+        worst = int(np.argmax(sd))
+        if sd[worst] <= UNOBSERVABLE_SD:
+            break
+        hold(DOF_NAMES[np.flatnonzero(free)[worst]], sd[worst])
+    return held
+
+
+def _turns_about_marker_lines(segments: np.ndarray, offsets: np.ndarray) -> set[str]:
+    """Rotation DOFs of end segments (no segment below them) whose markers (``segments`` (M,),
+    ``offsets`` (M, 3) in the segment frames) lie on one line along the DOF's axis."""
+    out = set()
+    parents = {seg.parent for seg in SEGMENTS}
+    for s, seg in enumerate(SEGMENTS):
+        points = offsets[segments == s]
+        if seg.name in parents or not len(points) or not seg.dofs:
+            continue
+        if len(points) == 1:                 # a lone marker and the joint centre: their line
+            direction, spread = points[0] / np.linalg.norm(points[0]), 0.0
+        else:
+            centred = points - points.mean(axis=0)
+            _, values, vt = np.linalg.svd(centred, full_matrices=False)
+            direction = vt[0]
+            spread = np.abs(centred - np.outer(centred @ direction, direction)).max() \
+                if len(points) > 2 else 0.0
+        if spread > LINE_TOLERANCE:
+            continue
+        for name in seg.dofs:
+            axis = np.asarray(DOFS[DOF_NAMES.index(name)].axis)
+            if abs(axis @ direction) > np.cos(LINE_ANGLE):
+                out.add(name)
+    return out
+
+
+def _hold_unobservable(model: SubjectModel, q: np.ndarray) -> SubjectModel:
+    """``model`` with its :func:`unobservable_dofs` at poses ``q`` (F, D) held at 0."""
+    held = unobservable_dofs(model, q)
+    model.unobservable = held
+    model.locked_dofs = list(model.locked_dofs) + [d for d in held if d not in model.locked_dofs]
+    return model
 
 
 # ----------------------------------------------------------------------------- pieces
@@ -487,8 +621,8 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     fitted to all markers with the nominal offsets, its heading turned by ``heading_offset``
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
-    defines the segment frames). Returns the offsets and the RMS (m) of the static markers
-    about the neutral model with them.
+    defines the segment frames). Returns the offsets, the RMS (m) of the static markers
+    about the neutral model with them, and the poses (F, D).
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
     q0 = np.where(root, initial_pose(skeleton, X, segments, nominal), 0.0)
@@ -496,7 +630,7 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     q[:, ROOT_HEADING] += heading_offset
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
-    return offsets, float(np.sqrt(np.nanmean(residual ** 2)))
+    return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q
 
 
 def find_swaps(fit_without, residuals: np.ndarray, X: np.ndarray, labels: list[str],
@@ -598,60 +732,122 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
     return float(np.clip(height, 0.8, 2.3))
 
 
-def harrington_hips(lasi, rasi, back) -> tuple[np.ndarray, np.ndarray]:
-    """Left and right hip centres (F, 3) from ASIS (F, 3) and mid-PSIS or sacrum ``back`` (F, 3).
-
-    Harrington et al. 2007: in the frame at mid-ASIS with Y to the left ASIS, X forward (from
-    ``back`` to mid-ASIS, made orthogonal to Y) and Z up, a hip centre is at
-    x = −0.24 PD − 9.9 mm, |y| = 0.33 PW + 7.3 mm, z = −0.30 PW − 10.9 mm.
-    """
-    origin = 0.5 * (lasi + rasi)
-    y = _unit(lasi - rasi)
-    fwd = origin - back
-    x = _unit(fwd - (fwd * y).sum(axis=1, keepdims=True) * y)
-    z = np.cross(x, y)
-    pw = np.linalg.norm(lasi - rasi, axis=1)[:, None]
-    pd = np.linalg.norm(fwd, axis=1)[:, None]
-    ax, ay, az = -0.24 * pd - 0.0099, 0.33 * pw + 0.0073, -0.30 * pw - 0.0109
-    left = origin + ax * x + ay * y + az * z
-    right = origin + ax * x - ay * y + az * z
-    return left, right
-
-
-def joint_centres(X: np.ndarray, landmarks: list[str], skeleton: Skeleton, q: np.ndarray, *,
-                  scale: float) -> dict[tuple[str, float], np.ndarray]:
-    """Anatomical joint centres per frame, world (F, 3) metres.
+def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
+                  skeleton: Skeleton, q: np.ndarray, *, scale: float,
+                  measurements: dict[str, float] | None = None
+                  ) -> tuple[dict[tuple[str, float], np.ndarray], dict[str, str]]:
+    """Anatomical joint centres per frame, world (F, 3) metres, and how each was found.
 
     Keys are ``(segment, z)``: the point ``(0, 0, z)`` of that segment's frame (z = 0: its
-    joint; the wrist is the forearm's end). ``q`` (F, D) is a nominal fit giving the segments'
-    orientation for single-landmark offsets; ``scale`` = height / 1.75 scales catalogue offsets.
+    joint; the wrist is the forearm's end). Hip: :func:`mocaplib.anatomy.harrington_hips`.
+    Knee and ankle: the midpoint of the lateral and medial landmarks; else the chord
+    (:func:`mocaplib.anatomy.chord_centre`) from the proximal centre, the lateral marker and
+    the segment's other markers, with ``delta`` = (joint width + marker diameter) / 2 from
+    ``measurements`` (metres; :data:`mocaplib.anatomy.MEASUREMENTS`) or, without them, the
+    catalogue's distance from the lateral landmark to the joint; else (no other marker on
+    the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
+    ``q`` (F, D). Elbow: midpoint or catalogue offset; shoulder: the acromion's catalogue
+    offset; wrist: mid-styloids. ``scale`` = height / 1.75 scales catalogue offsets. The
+    methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
+    are returned beside the centres.
     """
     where = {name: X[:, i] for i, name in enumerate(landmarks)}
     catalogue = _protocols.load_landmarks()
+    measurements = measurements or {}
     T = skeleton.forward(q)
     joints = skeleton.joint_offsets()
     out: dict[tuple[str, float], np.ndarray] = {}
+    methods: dict[str, str] = {}
     back = _mean_of(where, ["L_PSIS", "R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= set(where) \
         else where.get("SACRUM")
     if {"L_ASIS", "R_ASIS"} <= set(where) and back is not None:
-        out[("femur_l", 0.0)], out[("femur_r", 0.0)] = harrington_hips(
-            where["L_ASIS"], where["R_ASIS"], back)
+        hips = dict(zip("lr", harrington_hips(where["L_ASIS"], where["R_ASIS"], back)))
+        for side, centre in hips.items():
+            leg = measurements.get(f"leg_length_{side}")
+            if leg:
+                centre = davis_hip(
+                    where["L_ASIS"], where["R_ASIS"], back, side=side, leg_length=leg,
+                    marker_radius=0.5 * measurements.get("marker_diameter",
+                                                         DEFAULT_MARKER_DIAMETER),
+                    asis_trochanter=measurements.get(f"asis_trochanter_{side}"),
+                    asis_distance=measurements.get("inter_asis_distance"))
+            out[(f"femur_{side}", 0.0)] = centre
+            methods[f"hip_{side}"] = ("Davis (conventional gait model), leg length from the "
+                                      "measurements" if leg else "Harrington regression")
+
+    def from_catalogue(lat, child):
+        mark = catalogue[lat]
+        s = SEGMENT_NAMES.index(mark.segment)
+        local = np.asarray(mark.position) * scale - joints[SEGMENT_NAMES.index(child)]
+        return where[lat] - T[:, s, :3, :3] @ local, local
+
     for side in ("L", "R"):
         suffix = "_" + side.lower()
         for child, (lateral, medial) in _LANDMARK_JOINTS.items():
             lat, med = f"{side}_{lateral}", f"{side}_{medial}"
+            joint = _JOINT_NAMES.get(child, child) + suffix
             if lat in where and med in where:
                 out[(child + suffix, 0.0)] = 0.5 * (where[lat] + where[med])
+                methods[joint] = "midpoint of the lateral and medial landmarks"
             elif lat in where:
-                mark = catalogue[lat]
-                s = SEGMENT_NAMES.index(mark.segment)
-                local = (np.asarray(mark.position) * scale
-                         - joints[SEGMENT_NAMES.index(child + suffix)])
-                out[(child + suffix, 0.0)] = where[lat] - T[:, s, :3, :3] @ local
+                centre, local = from_catalogue(lat, child + suffix)
+                parent = SEGMENT_NAMES.index(catalogue[lat].segment)
+                proximal = out.get((SEGMENT_NAMES[parent], 0.0))
+                wand = _wand(landmarks, segments, parent, side, (lat, med))
+                if child in _CHORD_JOINTS and proximal is not None and wand:
+                    width = measurements.get(f"{_JOINT_NAMES[child]}_width{suffix}")
+                    delta = (0.5 * (width + measurements.get("marker_diameter",
+                                                             DEFAULT_MARKER_DIAMETER))
+                             if width else float(np.linalg.norm(local)))
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", RuntimeWarning)  # wand unseen: NaN
+                        wand_mean = np.nanmean(X[:, wand], axis=1)
+                    centre = chord_centre(proximal, wand_mean, where[lat], delta,
+                                          medial_hint=centre - where[lat])
+                    methods[joint] = (f"chord, {_JOINT_NAMES[child]} width "
+                                      + ("from the measurements" if width
+                                         else "from the landmark catalogue"))
+                else:
+                    methods[joint] = "lateral landmark and its catalogue offset"
+                out[(child + suffix, 0.0)] = centre
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
             out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
                 0.5 * (where[rad] + where[uln]))
+            methods["wrist" + suffix] = "midpoint of the styloids"
+    return out, methods
+
+
+def _wand(landmarks: list[str], segments: np.ndarray, parent: int, side: str,
+          joint_landmarks: tuple[str, str]) -> list[int]:
+    """Markers (indices) whose plane with a joint line sets a chord's medial direction: the
+    segment's wand landmarks (:data:`mocaplib.anatomy.WANDS`) when on, else its other
+    markers (not the joint's own ``joint_landmarks``)."""
+    names = {f"{side}_{w}" for w in WANDS.get(SEGMENT_NAMES[parent][:-2], ())}
+    wand = [i for i, name in enumerate(landmarks) if name in names]
+    return wand or [i for i, name in enumerate(landmarks)
+                    if segments[i] == parent and name not in joint_landmarks]
+
+
+def joint_shifts(skeleton: Skeleton, frames: dict[str, tuple[np.ndarray, np.ndarray]]
+                 ) -> dict[str, tuple[float, float, float]]:
+    """:attr:`Skeleton.shifts` (metres) that put each joint centre where the anatomical
+    ``frames`` (:func:`mocaplib.anatomy.segment_frames`: the origin of a segment's frame is its
+    joint centre) place it in its parent's frame: the median over frames, minus where the
+    lengths alone put it."""
+    joints = Skeleton(skeleton.lengths).joint_offsets()
+    out = {}
+    for name, (_, origin) in frames.items():
+        parent = SEGMENTS[SEGMENT_NAMES.index(name)].parent
+        if parent not in frames:
+            continue
+        R, at = frames[parent]
+        local = np.einsum("fji,fj->fi", R, origin - at)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)         # never seen together
+            shift = np.nanmedian(local, axis=0) - joints[SEGMENT_NAMES.index(name)]
+        if np.isfinite(shift).all():
+            out[name] = tuple(float(x) for x in shift)
     return out
 
 
@@ -737,25 +933,27 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
 
 
 def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,
-                   offsets: np.ndarray, *, prior: dict[str, float]) -> Skeleton:
+                   offsets: np.ndarray, *, prior: dict[str, float], fixed=()) -> Skeleton:
     """Segment lengths by linear least squares for fixed poses q (F, D) and offsets (M, 3).
 
     Marker positions are affine in the lengths (joint offsets are linear in them), so one
     solve is exact: minimise Σ ||x − p(L)||² / σ_m² + Σ (L − prior)² / σ_L² with
-    σ_m = :data:`MARKER_SIGMA`, σ_L = :data:`LENGTH_PRIOR`.
+    σ_m = :data:`MARKER_SIGMA`, σ_L = :data:`LENGTH_PRIOR`. Lengths named in ``fixed`` keep
+    their value.
     """
     keys = list(HEIGHT_PROPORTIONS)
     L0 = np.array([skeleton.lengths[k] for k in keys])
     base = skeleton.points(q, segments, offsets)
     valid = np.isfinite(X).all(axis=2)
     G = skeleton.length_jacobian(q, segments)[valid].reshape(-1, len(keys))
+    G[:, np.isin(keys, list(fixed))] = 0.0
     r = (X - base)[valid].reshape(-1)
     prior_vec = np.array([prior[k] for k in keys])
     A = G.T @ G / MARKER_SIGMA ** 2 + np.eye(len(keys)) / LENGTH_PRIOR ** 2
     b = G.T @ r / MARKER_SIGMA ** 2 + (prior_vec - L0) / LENGTH_PRIOR ** 2
-    L = L0 + np.linalg.solve(A, b)
+    L = L0 + np.where(np.isin(keys, list(fixed)), 0.0, np.linalg.solve(A, b))
     L = np.maximum(L, 0.2 * prior_vec)
-    return Skeleton(dict(zip(keys, L.tolist())))
+    return Skeleton(dict(zip(keys, L.tolist())), skeleton.shifts)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

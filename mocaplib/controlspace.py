@@ -369,18 +369,21 @@ class ControlSpace:
 
     @classmethod
     def from_library(cls, library, *, axes: str = "tangential", chosen_only: bool = True,
-                     source=None) -> "ControlSpace":
+                     mirrored: bool = True, source=None) -> "ControlSpace":
         """Control space of a :class:`mocaplib.library.Library`.
 
         Uses the entries with finite velocities and period (only those marked ``chosen`` when
-        ``chosen_only``), their Fourier coefficients and root drift, and the library's stored
-        ``control_space.scale`` (for the frontal variant the same scales, v̂_f taking v̂'s).
+        ``chosen_only``; without the mirror images unless ``mirrored``), their Fourier
+        coefficients and root drift, and the library's stored ``control_space.scale`` (for
+        the frontal variant the same scales, v̂_f taking v̂'s).
         """
         df = library.entries
         cols = list(AXES[axes])
         usable = df[cols + ["T"]].notna().all(axis=1).to_numpy().copy()
         if chosen_only:
             usable &= df["chosen"].to_numpy(bool)
+        if not mirrored:
+            usable &= ~df["mirrored"].to_numpy(bool)
         a, b = library.coefficient_arrays()
         ids = df.index[usable].tolist()
         drift = np.array([drift_velocities(library.entry(i)["root_drift"]) for i in ids])

@@ -76,6 +76,9 @@ class Cycle:
         True for the rest entry of a standing capture.
     chosen : bool
         True for the cycle chosen for the library.
+    right_toe_off : float or None
+        The first right toe-off inside the cycle, seconds from its start (None when none was
+        detected, and for rest): where its mirror image starts (:mod:`mocaplib.mirror`).
     """
 
     index: int
@@ -87,6 +90,7 @@ class Cycle:
     encoding: CycleEncoding | None = None
     rest: bool = False
     chosen: bool = False
+    right_toe_off: float | None = None
 
     @property
     def period(self) -> float:
@@ -101,7 +105,7 @@ class Cycle:
                "omega": vel.omega, "v_l": vel.v_l, "v_f": vel.v_f,
                "fourier_n": None, "fourier_rms_deg": None, "fourier_worst_dof": None,
                "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
-               "rest": self.rest, "chosen": self.chosen}
+               "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off}
         if self.encoding is not None:
             out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
                        fourier_worst_dof=self.encoding.worst_dof)
@@ -113,7 +117,7 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
 
     The humerus origins of the fitted skeleton: on the synthetic captures they give v̂_l about
     twice as close to the truth as the acromion markers (whose placement error yaws the
-    shoulder line), see the README.
+    shoulder line), see docs/results/velocity_accuracy.md.
     """
     from .skeleton import SEGMENT_NAMES
 
@@ -167,7 +171,10 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
 
-    Raises :class:`EventError` when there are events but fewer than two left toe-offs.
+    Raises
+    ------
+    EventError
+        When there are events but fewer than two left toe-offs.
     """
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:
@@ -198,7 +205,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
                                     tol_angle=tol_angle, tol_length=tol_length)
         cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
-                            min(first.quality, last.quality), encoding))
+                            min(first.quality, last.quality), encoding,
+                            right_toe_off=_first_inside(events, "right", start, end)))
     choose_cycle(cycles)
     return cycles
 
@@ -217,6 +225,15 @@ def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) ->
     for cycle in cycles:
         cycle.chosen = cycle is best
     return best
+
+
+def _first_inside(events: list[GaitEvent], side: str, start: float, end: float
+                  ) -> float | None:
+    """Seconds from ``start`` to the first toe-off of ``side`` strictly between ``start`` and
+    ``end`` (s), or None."""
+    inside = [e.time_s for e in events
+              if e.side == side and e.kind == "toe_off" and start < e.time_s < end]
+    return min(inside) - start if inside else None
 
 
 def _unsteadiness(times: np.ndarray, mid: np.ndarray, heading: np.ndarray) -> float:

@@ -41,7 +41,7 @@ stiff shoe's) leaves in one step, its velocity jumping upward at the lift.
   stays on the toes' release: within a few ms of force-plate Foot Off on the real files
   (median |difference| 5 ms). On the synthetic walker, whose truth is the instant its rigid
   foot lifts, 90 % of toe-offs within 1 frame, 96 % within 2 (100 % within 1 frame without
-  marker noise: the misses are noise, README).
+  marker noise: the misses are noise; docs/results/event_accuracy.md).
 * ``"lift"``: where the low-passed upward velocity of the point that left last rises fastest,
   from 0.1 s before to 0.05 s after the velocity peak. A rigid foot's velocity step is an
   acceleration spike, which the zero-lag low-pass spreads symmetrically, so the peak stays on
@@ -49,8 +49,8 @@ stiff shoe's) leaves in one step, its velocity jumping upward at the lift.
   On real feet it is the forefoot's fastest upswing, ~18 ms before Foot Off.
 
 No one definition serves both kinds of foot, and the toe marker's path does not tell them apart
-under marker noise (README: gates tried). Real captures are what the product measures, hence
-the default.
+under marker noise (docs/results/event_accuracy.md). Real captures are what the product
+measures, hence the default.
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """

@@ -530,6 +530,11 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         q0: np.ndarray | None = None) -> Motion:
     """Fit the calibrated model's joint angles to every frame of ``trial``.
 
+    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
+    with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
+    samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
+    further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
+
     Parameters
     ----------
     trial : Trial with the model's protocol labels (matched as :func:`match_protocol` does).
@@ -540,11 +545,6 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     chunk : frames solved together.
     q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
         start described above.
-
-    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
-    with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
-    samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
-    further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
 
     Returns
     -------
@@ -565,7 +565,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
-                        max_iter=max_iter)
+                        max_iter=max_iter, weights=model.marker_weights)
         # coarse to fine in time: keyframes from rigid-fit starts, then all frames from their
         # predictions (a warm start, as frame-by-frame solvers use)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
@@ -591,7 +591,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     return Motion(angles_frame(q, trial.rate), model.skeleton, trial.rate,
                   marker_labels=list(model.labels), residuals=residuals, failed=failed,
                   rejected=rejected,
-                  locked_dofs=list(model.locked_dofs),
+                  locked_dofs=list(model.locked_dofs), unobservable=dict(model.unobservable),
+                  marker_weights=model.marker_weights,
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets),
                   swapped=list(model.swapped), source=trial.source)
@@ -632,7 +633,7 @@ def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarra
     target = np.where(valid[:, None], markers.transpose(0, 2, 1), 0.0)
     moved = MOVES[segments].astype(np.float64)
     r = target[keys] - about - origin[:, :, None]
-    w = valid[keys] * _soft_l1_weight(_norm3(r), settings["robust_scale"])
+    w = valid[keys] * settings["weights"] * _soft_l1_weight(_norm3(r), settings["robust_scale"])
     A = _normal_equations(twist, about, moved, r, w)[0]
     A[:, np.arange(len(free)), np.arange(len(free))] += settings["smoothing"] ** 2 + 1e-9
     A[:, ~free] = A[:, :, ~free] = 0.0
@@ -714,7 +715,8 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
 
 def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto",
-                heading_offsets=None) -> tuple[Motion, "SubjectModel", float | None]:
+                heading_offsets=None, measurements: dict | None = None
+                ) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
     :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
     ``static_pose``), then :func:`fit_filtered`. ``protocol`` (a Protocol, shipped name, TOML
@@ -724,6 +726,8 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
     used (:func:`mocaplib.calibration.choose_static`). ``heading_offsets``: per static (one
     for a single static), the heading correction of a forward reference, radians
     (:func:`mocaplib.pipeline.forward_offsets`; the static in the neutral pose).
+    ``measurements``: subject measurements overriding the calibration file's (see
+    :func:`mocaplib.calibration.calibrate`).
 
     Returns the motion, the subject model (its ``source`` names the static used) and the
     cutoff used (Hz; None: unfiltered).
@@ -740,7 +744,7 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
         static = None if chosen is None else static[chosen]
     model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
                       heading_offset=0.0 if heading_offsets is None or static is None
-                      else heading_offsets[chosen])
+                      else heading_offsets[chosen], measurements=measurements)
     motion, _ = fit_filtered(trial, model, cutoff=used)
     return motion, model, used
 
@@ -872,6 +876,9 @@ def fit_quality(motion: Motion) -> dict:
     ``marker_rms_mm``: mean over frames of each frame's marker RMS (OpenSim's "marker error
     RMS", averaged); ``max_marker_error_mm``: the largest residual of any marker in any frame;
     ``per_marker_rms_mm``: each marker's RMS over the capture; ``locked_dofs``;
+    ``held_dofs``: those the markers cannot see (:attr:`Motion.unobservable`) with the
+    standard deviation they would have had, degrees; ``at_limit``: the share of frames each
+    DOF that reaches a joint limit spends there;
     ``failed_frames``: indices of frames that could not be fitted; ``rejected_samples``:
     samples removed as outliers (not in the residual figures), ``rejected_per_marker``: their
     count per marker label (markers with any).
@@ -885,6 +892,8 @@ def fit_quality(motion: Motion) -> dict:
         "per_marker_rms_mm": {label: float(v * 1000)
                               for label, v in zip(motion.marker_labels, marker_rms)},
         "locked_dofs": list(motion.locked_dofs),
+        "held_dofs": {k: float(np.degrees(v)) for k, v in motion.unobservable.items()},
+        "at_limit": motion.limit_shares(),
         "failed_frames": np.flatnonzero(motion.failed).tolist(),
         "rejected_samples": int(motion.rejected.sum()),
         "rejected_per_marker": {label: int(n) for label, n in

@@ -64,6 +64,10 @@ DRIFT_DISPLACEMENT = ("dx_m", "dy_m", "dheading_rad")
 #: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
 #: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
 DRIFT_TOLERANCE = 1e-6
+#: An entry poulaine's parameters (m), read on its characteristic points; stored values must
+#: agree with the points to this (m): stored with 10 significant digits they agree to 1e-10.
+POULAINE_PARAMETERS = ("step_length_m", "foot_spacing_m", "stance_m")
+POULAINE_TOLERANCE = 1e-6
 #: Turn rates (rad/s) above which an entry's ω̂ and its root drift's ω must share a sign. ω̂
 #: follows the shoulder line, the drift the pelvis: on those files they differ by up to 0.11
 #: rad/s (running.c3d), and opposite signs occur only where the smaller is at most 0.039 rad/s
@@ -85,8 +89,14 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
+    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
 }
 QC_NAMES = tuple(QC_LIMITS)
+#: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
+#: at its right toe-offs (``build --mirror``: every value measured again); ``series``, from the
+#: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
+#: reflected, QC the source's). See :mod:`mocaplib.mirror`.
+MIRROR_METHODS = ("capture", "series")
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
 #: The top-level key of the content checksum (:func:`content_sha256`).
@@ -113,7 +123,11 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                v_l: float, v_f: float, a: np.ndarray, b: np.ndarray, root_drift: dict,
                qc: dict, locomotion_class: str | None = None, chosen: bool = True,
                segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
-               rate_hz: float | None = None, first_frame: int | None = None) -> dict:
+               rate_hz: float | None = None, first_frame: int | None = None,
+               joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
+               dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
+               mirror_of: str | None = None, mirror_method: str | None = None,
+               poulaine: dict | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
@@ -121,7 +135,16 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     ``arc_angle_rad``; velocities m/s and rad/s; ``root_drift``: the path frame's velocities
     :data:`DRIFT_VELOCITIES` (its displacement over T is derived); ``qc``: values keyed by
     :data:`QC_NAMES`; ``rate_hz``, ``first_frame``: the capture's frame rate and first frame
-    number (stored when given, so ``start_s`` maps to C3D frames).
+    number (stored when given, so ``start_s`` maps to C3D frames); ``joint_shifts_m``: the
+    skeleton's :attr:`~mocaplib.skeleton.Skeleton.shifts` (segment -> 3 numbers, m);
+    ``held_dofs``: DOFs held at 0 because the markers cannot see them (name -> the standard
+    deviation they would have had, rad); ``dofs_at_limit``: share of the cycle's frames each
+    DOF that reaches a joint limit spends there (empty mappings are not stored);
+    ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
+    known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
+    ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
+    ``mirrored``; ``poulaine``: the cycle's
+    :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none).
     """
     if set(root_drift) != set(DRIFT_VELOCITIES):
         raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
@@ -147,10 +170,23 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
         "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
         "qc_waived": dict(qc_waived or {}),
     }
+    if (mirror_of is None) != (mirror_method is None) or mirror_method not in (
+            None, *MIRROR_METHODS):
+        raise LibraryError(f"entry {id}: a mirror image needs both mirror_of and mirror_method "
+                           f"(one of {', '.join(MIRROR_METHODS)}), got {mirror_of!r} and "
+                           f"{mirror_method!r}")
     for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
-                       ("first_frame", first_frame)):
+                       ("first_frame", first_frame), ("right_toe_off_s", right_toe_off_s),
+                       ("mirror_of", mirror_of), ("mirror_method", mirror_method),
+                       ("poulaine", poulaine)):
         if value is not None:
             entry[key] = value
+    for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
+                       ("dofs_at_limit", dofs_at_limit)):
+        if value:
+            entry[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
+    if mirror_of is not None:
+        entry["mirrored"] = True
     return to_json_data(entry)
 
 
@@ -187,7 +223,8 @@ def assemble_library(entries: list[dict], *, settings: dict,
     """A library from entries (made by :func:`make_entry`); entries are sorted by id.
 
     The header's segment lengths are the per-length median over entries (or the nominal
-    1.75 m skeleton's when no entry carries lengths); the Fourier order N is the largest
+    1.75 m skeleton's when no entry carries lengths), its joint shifts the per-segment median
+    over the entries that carry them; the Fourier order N is the largest
     entry order and smaller orders are zero-padded (exact); control-space scales are
     :func:`control_scale`.
     """
@@ -204,6 +241,9 @@ def assemble_library(entries: list[dict], *, settings: dict,
         segment_lengths = {k: float(np.median([lens[k] for lens in lengths])) for k in lengths[0]}
     else:
         segment_lengths = Skeleton.from_height(1.75).lengths
+    shifts = [e["joint_shifts_m"] for e in entries if e.get("joint_shifts_m")]
+    joint_shifts = {name: np.median([s[name] for s in shifts if name in s], axis=0).tolist()
+                    for name in sorted({name for s in shifts for name in s})}
     doc = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
         "settings": settings,
@@ -214,6 +254,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
             # guard is no joint limit)
             "dof_ranges": [[None, None] if d.translation else [d.lower, d.upper] for d in DOFS],
             "segment_lengths_m": segment_lengths,
+            **({"joint_shifts_m": joint_shifts} if joint_shifts else {}),
         },
         "fourier": {"formula": FOURIER_FORMULA, "time_origin": "cycle_start",
                     "n_harmonics": n_max, "coefficient_shape": "D x (N+1)",
@@ -259,9 +300,12 @@ class Library:
         The file's content as JSON data (see ``docs/library-format.md``).
     entries : DataFrame
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
-        source_sha256, cycle_index, chosen, start_s, end_s, T, pattern_type, pattern_residual_m,
-        arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and one ``qc_<metric>`` column per QC
-        metric, and ``qc_waived`` (comma-separated metric names).
+        source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
+        pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
+        one ``qc_<metric>`` column per QC metric, the poulaine's ``step_length_m,
+        foot_spacing_m, stance_m`` and ``poulaine_fit_rms_m`` (the larger of the two ankles' fit
+        errors; all NaN for an entry without a poulaine), and ``qc_waived`` (comma-separated
+        metric names).
     """
 
     def __init__(self, document: dict, *, file_sha256: str | None = None):
@@ -271,6 +315,24 @@ class Library:
         self.file_sha256 = file_sha256
 
     # ------------------------------------------------------------------ views
+    @property
+    def skeleton(self):
+        """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
+        joint shifts."""
+        from .skeleton import Skeleton
+
+        header = self.document["skeleton"]
+        return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
+
+    def entry_skeleton(self, entry_id: str):
+        """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
+        own segment lengths and joint shifts when it records them, the header's otherwise."""
+        from .skeleton import Skeleton
+
+        entry, header = self.entry(entry_id), self.document["skeleton"]
+        return Skeleton(entry.get("segment_lengths_m") or header["segment_lengths_m"],
+                        entry.get("joint_shifts_m", header.get("joint_shifts_m", {})))
+
     @property
     def dof_names(self) -> list[str]:
         return list(self.document["skeleton"]["dof_names"])
@@ -295,6 +357,8 @@ class Library:
             row = {key: e[key] for key in ("id", "locomotion_class", "source_file",
                                            "source_sha256", "cycle_index")}
             row["chosen"] = bool(e.get("chosen", True))
+            row["mirrored"] = bool(e.get("mirrored", False))
+            row["mirror_of"] = e.get("mirror_of")
             row.update({key: _float(e[key]) for key in ("start_s", "end_s", "T")})
             row["pattern_type"] = e["pattern"]["type"]
             row["pattern_residual_m"] = _float(e["pattern"]["residual_m"])
@@ -302,12 +366,18 @@ class Library:
             row.update({key: _float(e[key]) for key in ("v", "omega", "v_l", "v_f")})
             row["fourier_n"] = int(e["fourier"]["n"])
             row.update({f"qc_{name}": _float(e["qc"].get(name)) for name in QC_NAMES})
+            poulaine = e.get("poulaine") or {}
+            row.update({key: _float(poulaine.get(key)) for key in POULAINE_PARAMETERS})
+            row["poulaine_fit_rms_m"] = max((_float(poulaine[side]["fit_rms_m"])
+                                             for side in ("left", "right")), default=math.nan) \
+                if poulaine else math.nan
             row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
-                   "chosen", "start_s", "end_s", "T", "pattern_type", "pattern_residual_m",
-                   "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
-                   *(f"qc_{name}" for name in QC_NAMES), "qc_waived"]
+                   "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
+                   "pattern_residual_m", "arc_angle_rad", "v", "omega", "v_l", "v_f", "fourier_n",
+                   *(f"qc_{name}" for name in QC_NAMES), *POULAINE_PARAMETERS,
+                   "poulaine_fit_rms_m", "qc_waived"]
         return pd.DataFrame(rows, columns=columns).set_index("id")
 
     def __len__(self) -> int:
@@ -338,6 +408,23 @@ class Library:
         a = np.stack([_matrix(e["fourier"]["a"]) for e in self.document["entries"]])
         b = np.stack([_matrix(e["fourier"]["b"]) for e in self.document["entries"]])
         return a, b
+
+    def poulaine(self, entry_id: str):
+        """The entry's :class:`mocaplib.poulaine.Poulaine`, or None when it has none (a rest
+        entry, or a library written before poulaines were stored)."""
+        from .poulaine import Poulaine
+
+        data = self.entry(entry_id).get("poulaine")
+        return None if data is None else Poulaine.from_dict(data)
+
+    def root_drift(self, entry_id: str):
+        """The entry's path frame as a :class:`mocaplib.fourier.RootDrift` starting at the
+        origin facing +X: ``root_drift(e).restore(angles(e, t), t)`` puts the cycle in that
+        world frame."""
+        from .fourier import RootDrift
+
+        drift = self.entry(entry_id)["root_drift"]
+        return RootDrift(0.0, 0.0, 0.0, *(_float(drift[key]) for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
         """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
@@ -440,7 +527,8 @@ def validate_library(library) -> list[Problem]:
     angle DOF's mean ``a[d][0]`` within its range; ``T > 0`` and ``end_s - start_s = T``
     (1 ms); velocities finite; ids unique and ``cycle_index`` the id's ``_c<k>``; the pattern's
     parameters those of its type; the root drift's displacement the one its velocities give
-    over T, its turn rate of the entry's ω̂'s sign; the chosen entries' normalised
+    over T, its turn rate of the entry's ω̂'s sign; a poulaine's phases in order, speed
+    profiles rising and parameters those of its characteristic points; the chosen entries' normalised
     (v, omega, v_l) points not degenerate (:func:`mocaplib.controlspace.degeneracy`: the rule
     the control space uses); every QC metric within ``qc_thresholds`` or listed in the
     entry's ``qc_waived`` with a reason. Returns an empty list for a valid library.
@@ -655,8 +743,17 @@ def _consistency_problems(doc: dict) -> list[Problem]:
         if re.search(r"[/\\]", e["source_file"]):
             problems.append(Problem(f"{where}.source_file", "must be a file name, without "
                                                             "its folder"))
+        if e.get("mirror_of") == e["id"]:
+            problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
+                                                          "image"))
+        toe_off = e.get("right_toe_off_s")
+        if toe_off is not None and math.isfinite(_float(e["T"])) and not toe_off < e["T"]:
+            problems.append(Problem(f"{where}.right_toe_off_s", f"{toe_off} s is not inside "
+                                                                f"the cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
         problems += _drift_problems(e, f"{where}.root_drift")
+        if e.get("poulaine") is not None:
+            problems += _poulaine_problems(e["poulaine"], f"{where}.poulaine")
         rows = e["fourier"]["a"]
         for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
             mean = _float(rows[d][0]) if rows[d] else math.nan
@@ -714,6 +811,35 @@ def _drift_problems(e: dict, where: str) -> list[Problem]:
         problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
                                                         f"from the entry's omega {omega:.4g} "
                                                         "rad/s (a sign flipped?)"))
+    return problems
+
+
+def _poulaine_problems(poulaine: dict, where: str) -> list[Problem]:
+    """Phases in order, speed profiles rising, rows of one length, and the stored parameters
+    those of the characteristic points."""
+    from .poulaine import Poulaine
+
+    problems = []
+    for side in ("left", "right"):
+        path = poulaine[side]
+        if any(b < a for a, b in zip(path["phases"], path["phases"][1:])):
+            problems.append(Problem(f"{where}.{side}.phases", "must increase: the points are "
+                                                              "stored in the order they occur"))
+        if len({len(row) for row in path["timing"]}) > 1 or any(
+                b < a for row in path["timing"] for a, b in zip(row, row[1:])):
+            problems.append(Problem(f"{where}.{side}.timing", "every segment's speed profile "
+                                                              "must rise from 0 to 1, with as "
+                                                              "many knots as the others'"))
+    if problems:
+        return problems
+    computed = dict(zip(POULAINE_PARAMETERS, Poulaine.from_dict(poulaine).parameters))
+    wrong = [key for key in POULAINE_PARAMETERS
+             if not abs(poulaine[key] - computed[key]) <= POULAINE_TOLERANCE]
+    if wrong:
+        problems.append(Problem(where, "parameters that are not those of its characteristic "
+                                       "points: " + ", ".join(f"{k} {poulaine[k]:.6g}, the "
+                                                              f"points give {computed[k]:.6g}"
+                                                              for k in wrong)))
     return problems
 
 

@@ -13,6 +13,11 @@ import pandas as pd
 from .errors import MocapError
 from .skeleton import DOF_NAMES, Skeleton
 
+#: A DOF within this distance (radians or metres) of a joint limit counts as at the limit.
+AT_LIMIT = 1e-3
+#: A DOF at a limit in more than this share of a capture's frames is warned about.
+LIMIT_WARNING_SHARE = 0.02
+
 
 @dataclass
 class Motion:
@@ -38,6 +43,12 @@ class Motion:
         Samples the fit removed as outliers (mislabelled or jumping); their residuals are NaN.
     locked_dofs : list[str]
         DOFs held at zero because the protocol lacks the markers to see them.
+    unobservable : dict[str, float]
+        Of those, the ones the markers on hand determine too poorly to fit, with the standard
+        deviation (radians) they would have had (:func:`mocaplib.calibration.unobservable_dofs`).
+    marker_weights : ndarray, shape (M,), optional
+        Each marker's weight in the fit (the protocol's); markers weighted below 1 only steady
+        the fit, and quality figures leave them out (:meth:`trusted`).
     marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
         Each marker's segment index and its position in that segment's frame (metres).
     swapped : list of (label, label)
@@ -59,6 +70,8 @@ class Motion:
     marker_offsets: np.ndarray | None = None
     swapped: list[tuple[str, str]] = field(default_factory=list)
     source: str | None = None
+    unobservable: dict[str, float] = field(default_factory=dict)
+    marker_weights: np.ndarray | None = None
 
     def __post_init__(self):
         if list(self.angles.columns) != list(DOF_NAMES):
@@ -89,6 +102,12 @@ class Motion:
     def n_frames(self) -> int:
         return len(self.angles)
 
+    def trusted(self) -> np.ndarray:
+        """Markers (M,) bool the fit follows closely: weight 1 or more (all without weights)."""
+        if self.marker_weights is None:
+            return np.ones(len(self.marker_labels), dtype=bool)
+        return np.asarray(self.marker_weights) >= 1.0
+
     def frame_rms(self) -> np.ndarray:
         """Root-mean-square marker residual of each frame, shape (F,), metres (NaN if none)."""
         with np.errstate(invalid="ignore"):
@@ -98,6 +117,22 @@ class Motion:
         """Root-mean-square residual of each marker over the capture, shape (M,), metres."""
         with np.errstate(invalid="ignore"):
             return np.sqrt(np.nanmean(self.residuals ** 2, axis=0))
+
+    def limit_shares(self, frames: np.ndarray | slice = slice(None)) -> dict[str, float]:
+        """Share of ``frames`` (default all) each DOF spends at one of its joint limits
+        (within :data:`AT_LIMIT` of it), for the DOFs that reach one: {name: fraction}."""
+        lower, upper = self.skeleton.bounds()
+        q = self.q[frames]
+        at = ((q <= lower + AT_LIMIT) | (q >= upper - AT_LIMIT)).mean(axis=0) if len(q) else \
+            np.zeros(len(DOF_NAMES))
+        return {name: float(share) for name, share in zip(DOF_NAMES, at) if share > 0}
+
+    def limit_warnings(self) -> list[str]:
+        """One sentence per DOF at a joint limit in more than :data:`LIMIT_WARNING_SHARE` of
+        the frames: a DOF the fit pushes against its range is not measured there."""
+        return [f"{name} sits at a joint limit in {share:.0%} of the frames: its angles there "
+                "are not measured; check the markers of that joint"
+                for name, share in self.limit_shares().items() if share > LIMIT_WARNING_SHARE]
 
     def segment_transforms(self) -> np.ndarray:
         """Segment-to-world transforms, shape (F, S, 4, 4)."""

@@ -46,6 +46,8 @@ DIAGNOSTICS_VERSION = 1
 MAX_SERIES_POINTS = 300
 #: The chosen cycle's angles are downsampled to at most this many points per DOF.
 MAX_CYCLE_POINTS = 100
+#: The chosen cycle's measured ankle paths are downsampled to at most this many points.
+MAX_POULAINE_POINTS = 60
 #: Significant digits of the diagnostics' numbers (plots need no more).
 DIAGNOSTICS_DIGITS = 6
 #: Seconds to wait for a Dask scheduler to answer.
@@ -53,7 +55,7 @@ SCHEDULER_TIMEOUT_S = 20
 #: A forward reference whose subject faces further than this (degrees) from the direction of
 #: travel is refused: that is a side-step or a diagonal (the paper's diagonals start at 60°),
 #: not a forward walk. Measured uncorrected: 0.23° on the samples (placement error alone), up
-#: to 7.7° on lab walks with their static taken as neutral (README, Velocities).
+#: to 7.7° on lab walks with their static taken as neutral (docs/guide/patterns.md).
 FORWARD_LIMIT_DEG = 15.0
 #: A forward reference's cycles slower than this (m/s) show no direction of travel.
 MIN_FORWARD_SPEED = 0.3
@@ -88,10 +90,13 @@ class BuildSettings:
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
         ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
     all_cycles : keep every complete cycle, not only the one chosen per capture.
+    mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
         :data:`mocaplib.library.QC_LIMITS`.
+    measurements : subject measurements (metres, kilograms) overriding those each
+        calibration file stores (see :func:`mocaplib.calibration.calibrate`).
     """
 
     protocol: str = "auto"
@@ -102,8 +107,10 @@ class BuildSettings:
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
     all_cycles: bool = False
+    mirror: bool = False
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
+    measurements: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("static", "forward_reference"):
@@ -271,21 +278,35 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 
 
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
-    """:func:`_cut_capture`, then the entries; fills ``result`` (raises MocapError for a bad
-    capture)."""
-    trial, motion, cycles = _cut_capture(path, settings, result, clock)
+    """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
+    image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
+    trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
-        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame)
+    with clock.stage("poulaines"):
+        shapes = {c.index: cycle_shape(motion, c) for c in kept}
+    with clock.stage("entries"):
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
+                                  shapes)
         result.diagnostics.update(_cycle_diagnostics(
-            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}))
+            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}, shapes))
+    if settings.mirror and result.entries:
+        with clock.stage("mirror"):
+            images, entries = mirror_entries(path, result, cycles, motion, events, ground,
+                                             settings, trial.first_frame)
+            result.entries += entries
+            ids = {e["cycle_index"]: e["id"] for e in entries}
+            result.diagnostics["mirror_cycles"] = to_json_data(
+                [{**c.to_dict(), "entry_id": ids.get(c.index)} for c in images],
+                DIAGNOSTICS_DIGITS)
 
 
 def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion` and its cycles, and puts
+    Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles, its gait
+    events and the ground's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
     The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.ik.fit_capture`
@@ -323,11 +344,13 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         static = None if chosen is None else static_trials[chosen]
         if static is not None and settings.static_pose == "neutral":
             model = _neutral_model(*statics[chosen], match.protocol,
-                                   settings.heading_offset(chosen))
+                                   settings.heading_offset(chosen),
+                                   tuple(sorted(settings.measurements.items())))
             check_static(filtered, static, model)
         else:
             model = calibrate(filtered, protocol=match.protocol, static=static,
-                              static_pose=settings.static_pose)
+                              static_pose=settings.static_pose,
+                              measurements=settings.measurements)
         if chosen is not None:
             result.static = static_names(settings.statics)[chosen]
     result.warnings.extend(model.swap_warnings)
@@ -337,6 +360,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
                                f"{', '.join(motion.locked_dofs)}")
+    result.warnings.extend(motion.limit_warnings())
     if motion.failed.any():
         result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
                                "(interpolated)")
@@ -349,7 +373,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
-    return trial, motion, cycles
+    return trial, motion, cycles, events, ground
 
 
 def _static_sha256(path: str) -> str:
@@ -371,15 +395,17 @@ def _read_static(path: str, sha256: str):
 
 
 @lru_cache(maxsize=None)
-def _neutral_model(path: str, sha256: str, protocol, heading_offset: float):
+def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
+                   measurements: tuple = ()):
     """The model calibrated on the neutral-pose static ``path`` with its heading turned by
     ``heading_offset`` (radians), once per worker process for each content, protocol and
-    offset: it depends on nothing else, so each capture only checks that it shows the same
-    subject (:func:`mocaplib.calibration.check_static`)."""
+    offset and measurements ((name, value) pairs): it depends on nothing else, so each
+    capture only checks that it shows the same subject
+    (:func:`mocaplib.calibration.check_static`)."""
     from .calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
-                     heading_offset=heading_offset)
+                     heading_offset=heading_offset, measurements=dict(measurements))
 
 
 def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
@@ -388,10 +414,10 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
 
     A neutral static fixes the heading of every segment frame by fitting the root to all
     markers at their catalogue positions, so the placement error turns it by a fraction of a
-    degree, and v̂_l of every capture is off by about −v̂ times that angle (README,
-    Velocities). A forward reference — a capture in which the subject walks forwards —
-    measures the angle: it is taken through the build's stages with the static that shows its
-    subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    degree, and v̂_l of every capture is off by about −v̂ times that angle
+    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks
+    forwards — measures the angle: it is taken through the build's stages with the static that
+    shows its subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
     (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
     face where they walk. Several references of one static are averaged. The turn is repeated
     on the turned static until each reference faces its path within
@@ -436,7 +462,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles = _cut_capture(Path(reference), settings, result, _Clock())
+            _, motion, cycles, _, ground = _cut_capture(Path(reference), settings, result,
+                                                        _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -447,7 +474,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
             raise CalibrationError(f"the forward reference cannot be processed: "
                                    f"{where}{exc.message}", path=reference,
                                    hint=own or hint) from None
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
         failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
                                          limits) for c in walking}
@@ -470,14 +497,17 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     return tuple(float(np.mean(angles)) if angles else 0.0 for angles in found)
 
 
-def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
+def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
+                  ) -> dict[int, dict]:
     """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
     chosen cycle re-chosen among those that pass ``thresholds`` when any does
     (:func:`mocaplib.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
-    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run."""
+    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
+    ``ground``: the floor's velocity (3,) m/s on a treadmill
+    (:func:`mocaplib.events.capture_events`), for the internal power."""
     from .cycles import choose_cycle
 
-    series = _qc_series(motion)
+    series = _qc_series(motion, ground)
     qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
     if len(cycles) > 1:
         choose_cycle(cycles, eligible={i for i, qc in qcs.items()
@@ -486,15 +516,22 @@ def qc_and_choice(cycles, motion, thresholds: dict) -> dict[int, dict]:
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int):
+             settings: BuildSettings, motion, first_frame: int, shapes: dict, *,
+             mirror_of: dict[int, str] | None = None):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
-    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it)."""
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
+    ``shapes``: :func:`cycle_shape` by cycle index; ``mirror_of``: for the cycles of a mirror
+    image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
+    from .mirror import MIRROR_TAG
+
     entries = []
     for cycle in cycles:
         qc = qcs[cycle.index]
         failures = qc_failures(qc, settings.qc_thresholds)
-        where = f"cycle {cycle.index} ({cycle.start_s:.2f}-{cycle.end_s:.2f} s)"
+        image_of = None if mirror_of is None else mirror_of[cycle.index]
+        where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
+                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
         waived = {}
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: {'; '.join(failures)}")
@@ -505,15 +542,103 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(make_entry(
-            id=f"{fs_text(path.stem)}_c{cycle.index}", source_file=fs_text(path.name),
+            id=f"{fs_text(path.stem)}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
+            source_file=fs_text(path.name),
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
             a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
-            first_frame=first_frame))
+            first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
+            held_dofs=motion.unobservable,
+            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
+            right_toe_off_s=cycle.right_toe_off,
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture",
+            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict()))
     return entries
+
+
+def cycle_shape(motion, cycle) -> dict:
+    """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
+    path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
+    (:class:`mocaplib.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
+    models (:func:`mocaplib.poulaine.cycle_poulaine`)."""
+    from .filtering import resample
+    from .patterns import cycle_times
+    from .poulaine import cycle_poulaine
+
+    times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
+    shape = {"phase": (times - cycle.start_s) / cycle.period,
+             "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
+    if not cycle.rest:
+        shape["poulaine"], shape["measured"] = cycle_poulaine(
+            motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
+    return shape
+
+
+def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
+                   settings: BuildSettings, first_frame: int) -> tuple[list, list[dict]]:
+    """The capture's mirror image, cut and measured as a capture: its cycles (all of them,
+    :class:`~mocaplib.cycles.Cycle`) and the entries they give.
+
+    The fitted ``motion`` is reflected (world y -> -y, :func:`mocaplib.mirror.mirror_motion`)
+    and its gait events exchange sides, so its cycles run between the capture's *right*
+    toe-offs; patterns, velocities, Fourier series and QC are measured on them as on any
+    capture (:func:`mocaplib.cycles.motion_cycles`, :func:`cycle_qc`). Each names in
+    ``mirror_of`` the capture's entry (in ``result.entries``) whose cycle overlaps it most in
+    time (the nearest when none overlaps). Which become entries: the image of the capture's
+    chosen cycle, the one overlapping it most (chosen when its source is in the library), or
+    with ``settings.all_cycles`` every image. QC failures are dropped or waived as for the
+    capture's own cycles; an image within :data:`mocaplib.mirror.SYMMETRIC_DISTANCE` of its
+    source in the control space is left out (the cycle is its own mirror image: straight
+    walks, runs, rest). What is left out is said in ``result.warnings``.
+    """
+    from .cycles import motion_cycles
+    from .mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
+                         mirror_motion)
+
+    mirrored = mirror_motion(motion)
+    try:
+        images = motion_cycles(mirror_events(events), mirrored,
+                               ground=None if ground is None else REFLECTION @ ground,
+                               source=path)
+    except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
+        result.warnings.append(f"no mirror image: {exc.message}")
+        return [], []
+    sources = {e["cycle_index"]: e for e in result.entries}
+    chosen = next(c for c in cycles if c.chosen)
+    partner = _nearest(chosen, images)
+    for image in images:
+        image.chosen = image is partner and chosen.index in sources
+    kept = images if settings.all_cycles else [partner]
+    own = [c for c in cycles if c.index in sources]
+    mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
+    series = _qc_series(mirrored, None if ground is None else REFLECTION @ ground)
+    qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
+    shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
+    entries = []
+    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
+                          mirror_of=mirror_of):
+        source = next(e for e in result.entries if e["id"] == entry["mirror_of"])
+        distance = image_distance(source, entry)
+        if distance < SYMMETRIC_DISTANCE:
+            result.warnings.append(f"mirror image cycle {entry['cycle_index']} left out: it "
+                                   f"lies {distance:.3f} (normalised) from {source['id']} in "
+                                   f"the control space, within {SYMMETRIC_DISTANCE}: that "
+                                   "cycle is its own mirror image")
+        else:
+            entries.append(entry)
+    return images, entries
+
+
+def _nearest(cycle, others):
+    """The cycle of ``others`` (not empty) overlapping ``cycle`` longest in time, or nearest
+    to it when none overlaps (the earlier of equals)."""
+    def overlap(other):
+        return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
+    return max(others, key=lambda other: (overlap(other), -other.start_s))
 
 
 def _drift(drift) -> dict:
@@ -521,47 +646,61 @@ def _drift(drift) -> dict:
     return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
-def _qc_series(motion) -> tuple[np.ndarray, np.ndarray | None]:
-    """The capture-wide series the QC of its cycles reads: the unwrapped joint angles
-    (:data:`mocaplib.skeleton.JOINT_ANGLES`, (F, J) rad) and their third time derivative (F, J)
-    rad/s^3, centred differences of the angles low-passed at
-    :data:`mocaplib.filtering.WALKING_CUTOFF` (NaN at the two frames of each end; None when
-    the capture is too short to be filtered): the jerk of unfiltered angles would measure fit
-    noise only."""
+def _qc_series(motion, ground: np.ndarray | None = None) -> dict:
+    """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
+    rotations unwrapped; ``third`` the third time derivative (F, J) rad/s^3 of the joint angles
+    (:data:`mocaplib.skeleton.JOINT_ANGLES`) and ``energies`` each body segment's energy (F, B)
+    J/kg (:func:`mocaplib.criteria.segment_energies`, positions relative to the floor moving at
+    ``ground`` m/s), both from the coordinates low-passed at
+    :data:`mocaplib.filtering.WALKING_CUTOFF` (None when the capture is too short to be
+    filtered): derivatives of unfiltered angles would measure fit noise only."""
+    from .criteria import segment_energies, third_derivative
     from .filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from .skeleton import JOINT_ANGLES
+    from .fourier import ROOT_X, ROOT_Y
+    from .skeleton import JOINT_ANGLES, TRANSLATION
 
-    q = np.unwrap(motion.q[:, JOINT_ANGLES], axis=0)
+    q = motion.q.copy()
+    q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)
+    if ground is not None:
+        q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(len(q)) / motion.rate, ground[:2])
     if motion.n_frames < shortest_run(motion.rate, WALKING_CUTOFF) \
             or motion.rate <= 2 * WALKING_CUTOFF:
-        return q, None
+        return {"q": q, "third": None, "energies": None}
     smooth = lowpass(q, motion.rate, WALKING_CUTOFF)
-    third = np.full_like(q, np.nan)
-    # (q[k+2] - 2 q[k+1] + 2 q[k-1] - q[k-2]) / 2h^3: frame k's third derivative
-    third[2:-2] = (smooth[4:] - 2 * smooth[3:-1] + 2 * smooth[1:-3] - smooth[:-4]) \
-        * motion.rate ** 3 / 2
-    return q, third
+    return {"q": q, "third": third_derivative(smooth[:, JOINT_ANGLES], motion.rate),
+            "energies": segment_energies(motion.skeleton, smooth, motion.rate)}
 
 
-def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
+def inside_cycle(cycle, motion) -> np.ndarray:
+    """The frames (F,) bool of ``motion`` from the cycle's start to its end."""
+    frames = np.arange(motion.n_frames) / motion.rate
+    return (frames >= cycle.start_s) & (frames <= cycle.end_s)
+
+
+def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
 
-    marker RMS / max: fit residuals of the frames in the cycle (m); gap fraction: missing
-    marker samples among them; event quality: the cycle's; Fourier RMS: the worst rotational
-    DOF's reconstruction RMS (rad); closure: norm of the joint-angle change from start to end
-    over the rotational DOFs except the heading (rad); jerk: RMS over the cycle's frames and
-    those DOFs of their third time derivative (rad/s^3; None when the capture is too short to
-    be filtered). ``series``: the capture's :func:`_qc_series`, when already computed.
+    marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
+    follows (:meth:`mocaplib.motion.Motion.trusted`); gap fraction: missing marker samples
+    among them; event quality: the cycle's; Fourier RMS: the worst rotational
+    DOF's reconstruction RMS (rad); closure (C2): norm of the joint-angle change from start to
+    end (rad, :func:`mocaplib.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
+    joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
+    energy changes of every body segment between the cycle's consecutive frames over their
+    span, W/kg (:func:`mocaplib.criteria.internal_power`); jerk and power are None when the
+    capture is too short to be filtered. ``series``: the capture's :func:`_qc_series`, when
+    already computed.
     """
+    from .criteria import closure, internal_power, jerk_rms
     from .filtering import resample
     from .skeleton import TRANSLATION
 
-    q, third = _qc_series(motion) if series is None else series
-    frames = np.arange(motion.n_frames) / motion.rate
-    inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
-    residuals = motion.residuals[inside]
-    ends = resample(q, motion.rate, np.array([cycle.start_s, cycle.end_s]))
-    jerk = None if third is None else float(np.sqrt(np.nanmean(third[inside] ** 2)))
+    series = _qc_series(motion) if series is None else series
+    inside = inside_cycle(cycle, motion)
+    residuals = motion.residuals[inside][:, motion.trusted()]
+    ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
+    third, energies = series["third"], series["energies"]
+    spanned = (np.count_nonzero(inside) - 1) / motion.rate
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(residuals ** 2))),
@@ -569,8 +708,10 @@ def cycle_qc(cycle, motion, series: tuple | None = None) -> dict:
             "gap_fraction": float(np.isnan(residuals).mean()),
             "event_quality": float(cycle.event_quality),
             "fourier_rms_rad": float(cycle.encoding.series.rms[~TRANSLATION].max()),
-            "cycle_closure_rad": float(np.linalg.norm(ends[1] - ends[0])),
-            "jerk_rms_rad_s3": jerk,
+            "cycle_closure_rad": closure(ends[0], ends[1]),
+            "jerk_rms_rad_s3": None if third is None else jerk_rms(third[inside]),
+            "internal_power_w_kg": None if energies is None or spanned <= 0
+            else internal_power(energies[inside], spanned),
         }
 
 
@@ -591,21 +732,22 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
     }, DIAGNOSTICS_DIGITS)
 
 
-def _cycle_diagnostics(motion, cycles, entry_ids) -> dict:
-    """Every cycle's summary and the chosen cycle's angles (root in the moving frame)."""
-    from .filtering import resample
-    from .patterns import cycle_times
-
+def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
+    """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
+    measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
     chosen = next(c for c in cycles if c.chosen)
-    times = cycle_times(chosen.start_s, chosen.end_s, motion.rate)[:-1]
-    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
-    local = chosen.encoding.drift.remove(q, times - chosen.start_s)
-    pick = downsample(len(times), MAX_CYCLE_POINTS)
-    angles = {"time_s": times[pick] - chosen.start_s}
-    angles.update({name: local[pick, d] for d, name in enumerate(motion.angles.columns)})
+    shape = shapes[chosen.index]
+    pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
+    angles = {"time_s": shape["phase"][pick] * chosen.period}
+    angles.update({name: shape["q"][pick, d] for d, name in enumerate(motion.angles.columns)})
+    poulaine = None
+    if "measured" in shape:
+        pick = downsample(len(shape["phase"]), MAX_POULAINE_POINTS)
+        poulaine = {"phase": shape["phase"][pick], "left_m": shape["measured"][pick, 0],
+                    "right_m": shape["measured"][pick, 1]}
     return to_json_data({
         "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
-        "angles": angles,
+        "angles": angles, "poulaine": poulaine,
     }, DIAGNOSTICS_DIGITS)
 
 
@@ -725,7 +867,7 @@ class BuildResult:
         for c in self.captures:
             record = {key: None for key in ("rate_hz",)}
             record.update({"time_s": [], "shoulder_mid_xy": [], "frame_rms_m": [],
-                           "events": [], "cycles": [], "angles": {}})
+                           "events": [], "cycles": [], "angles": {}, "poulaine": None})
             record.update(c.diagnostics)
             record.update({"source": c.file, "ok": c.ok, "error": c.error, "stage": c.stage,
                            "static": c.static, "warnings": list(c.warnings)})
@@ -860,10 +1002,13 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
 
-    Returns a :class:`BuildResult`; captures that failed are in it, not raised. A capture
-    whose worker process dies is run once more in a new worker, then fails alone (stage
-    ``worker``); no worker outlives the build (:mod:`mocaplib.workers`). At most
-    :func:`mocaplib.workers.max_jobs` worker processes are started.
+    Returns
+    -------
+    BuildResult
+        Captures that failed are in it, not raised. A capture whose worker process dies is
+        run once more in a new worker, then fails alone (stage ``worker``); no worker outlives
+        the build (:mod:`mocaplib.workers`). At most :func:`mocaplib.workers.max_jobs` worker
+        processes are started.
     """
     from tqdm import tqdm
 
@@ -1040,7 +1185,7 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
             c.warnings.append(f"same content as {first_with_content[c.sha256]}: "
                               "its cycles are not added twice")
             c.entries = []
-            for cycle in c.diagnostics.get("cycles", []):
+            for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
                 cycle["entry_id"] = None
         elif c.entries:
             first_with_content[c.sha256] = c.source
@@ -1051,7 +1196,9 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
                    if len(names[e["id"]]) > 1}
         for e in c.entries:
             e["id"] = renamed.get(e["id"], e["id"])
-        for cycle in c.diagnostics.get("cycles", []):
+            if "mirror_of" in e:
+                e["mirror_of"] = renamed.get(e["mirror_of"], e["mirror_of"])
+        for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
             cycle["entry_id"] = renamed.get(cycle.get("entry_id"), cycle.get("entry_id"))
 
 

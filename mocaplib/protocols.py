@@ -60,22 +60,27 @@ def protocols_dir() -> Path:
 
 @dataclass(frozen=True)
 class Landmark:
-    """One anatomical landmark: sided name (``L_ASIS``), segment, nominal position (3,) m."""
+    """One anatomical landmark: sided name (``L_ASIS``), segment, nominal position (3,) m, and
+    the weight a marker on it gets in the fit by default (:attr:`ProtocolMarker.weight`)."""
 
     name: str
     segment: str
     position: tuple[float, float, float]
     description: str
+    weight: float = 1.0
 
 
 @dataclass(frozen=True)
 class ProtocolMarker:
-    """One marker of a protocol: its label, aliases, landmark and whether it is required."""
+    """One marker of a protocol: its label, aliases, landmark, whether it is required, and its
+    weight in the joint-angle fit (relative to 1; the protocol's ``weight``, else the
+    landmark's)."""
 
     label: str
     landmark: Landmark
     required: bool
     aliases: tuple[str, ...]
+    weight: float = 1.0
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -133,6 +138,7 @@ def load_landmarks(path: str | os.PathLike | None = None) -> dict[str, Landmark]
         try:
             segment, position = spec["segment"], tuple(float(v) for v in spec["position"])
             sided, description = bool(spec.get("sided", False)), str(spec.get("description", ""))
+            weight = _weight(spec.get("weight", 1.0), f"landmark {key!r}", path)
         except (KeyError, TypeError, ValueError) as exc:
             raise ProtocolError(f"landmark {key!r} needs segment, position [x, y, z] ({exc})",
                                 path=path) from None
@@ -147,7 +153,8 @@ def load_landmarks(path: str | os.PathLike | None = None) -> dict[str, Landmark]
                     hint=f"segments are {', '.join(SEGMENT_NAMES)}; sided landmarks use the "
                          "bare name (femur)")
             x, y, z = position
-            out[prefix + key] = Landmark(prefix + key, seg, (x, mirror * y, z), description)
+            out[prefix + key] = Landmark(prefix + key, seg, (x, mirror * y, z), description,
+                                         weight)
     return out
 
 
@@ -251,7 +258,16 @@ def _protocol_marker(label: str, spec, landmarks: dict[str, Landmark], path: Pat
     required = spec.get("required", False)
     if not isinstance(required, bool):
         raise ProtocolError(f"marker {label!r}: required must be true or false", path=path)
-    return ProtocolMarker(label, landmarks[name], required, tuple(aliases))
+    weight = _weight(spec.get("weight", landmarks[name].weight), f"marker {label!r}", path)
+    return ProtocolMarker(label, landmarks[name], required, tuple(aliases), weight)
+
+
+def _weight(value, what: str, path) -> float:
+    """A fit weight from a TOML file: a finite number > 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1e6:
+        raise ProtocolError(f"{what}: weight must be a number > 0, got {value!r}", path=path,
+                            hint="1 is a typical skin marker; bony landmarks get more")
+    return float(value)
 
 
 @lru_cache(maxsize=None)
@@ -408,7 +424,7 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
         raise ProtocolError(
             "no protocol matches any marker label", path=trial.source,
             hint=f"labels are {_few(trial.labels)}; write a protocol for this marker set "
-                 "(see the README, 'Marker-set protocols') and pass it with --protocol")
+                 "(see docs/guide/protocols.md) and pass it with --protocol")
     return match_protocol(trial, best.protocol)
 
 

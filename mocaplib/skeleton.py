@@ -150,6 +150,13 @@ ROOT_HEADING = DOF_NAMES.index("pelvis_rotation")
 JOINT_ANGLES = ~TRANSLATION & (np.arange(len(DOF_NAMES)) != ROOT_HEADING)
 
 
+def partner_name(name: str) -> str:
+    """The other side's name of a sided DOF or segment name (``hip_flexion_l`` ↔
+    ``hip_flexion_r``, ``foot_l`` ↔ ``foot_r``); an unsided name is its own partner."""
+    side = {"_l": "_r", "_r": "_l"}.get(name[-2:])
+    return name[:-2] + side if side else name
+
+
 def _moves() -> np.ndarray:
     """(S, D) bool: DOF ``j`` moves segment ``s`` (it belongs to ``s`` or to an ancestor)."""
     out = np.zeros((len(SEGMENTS), len(DOFS)), dtype=bool)
@@ -254,6 +261,9 @@ HEIGHT_PROPORTIONS: dict[str, float] = {
     "ankle_height": 0.039,     # ankle centre above the sole
     "foot_length": 0.152,      # heel to toe tip
 }
+#: Where the heel and the toe tip lie along the foot, as fractions of ``foot_length`` ahead of the
+#: ankle centre, both on the sole (``ankle_height`` below it).
+HEEL_AHEAD, TOE_AHEAD = -0.25, 0.75
 
 
 def _joint_offsets(L) -> np.ndarray:
@@ -285,15 +295,21 @@ _OFFSETS_PER_LENGTH = np.stack([_joint_offsets({k: float(k == key) for k in HEIG
 
 @dataclass
 class Skeleton:
-    """The fixed topology with one subject's segment lengths (metres).
+    """The fixed topology with one subject's segment lengths and joint centres (metres).
 
     Attributes
     ----------
     lengths : dict[str, float]
         Every key of :data:`HEIGHT_PROPORTIONS`, in metres.
+    shifts : dict[str, tuple[float, float, float]]
+        Per segment name, how far its joint centre lies from where the lengths put it, in the
+        parent's frame, metres (segments not named: no shift). Calibration measures them where
+        a subject's anatomy differs from the symmetric, straight model: an ankle centre that
+        lies lateral of the knee's sagittal plane, a shank longer on one side.
     """
 
     lengths: dict[str, float] = field(default_factory=dict)
+    shifts: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
     def __post_init__(self):
         missing = set(HEIGHT_PROPORTIONS) - set(self.lengths)
@@ -303,6 +319,21 @@ class Skeleton:
         if bad:
             raise MocapError(f"skeleton lengths must be finite and > 0, got {bad}")
         self.lengths = {k: float(v) for k, v in self.lengths.items()}
+        unknown = set(self.shifts) - set(SEGMENT_NAMES)
+        if unknown:
+            raise MocapError(f"joint shifts for unknown segments: {', '.join(sorted(unknown))}")
+        shifts = {k: tuple(float(x) for x in v) for k, v in self.shifts.items()}
+        if any(len(v) != 3 or not np.isfinite(v).all() for v in shifts.values()):
+            raise MocapError(f"joint shifts must be 3 finite numbers (metres), got {self.shifts}")
+        self.shifts = shifts
+        self._shift_array = np.zeros((len(SEGMENTS), 3))
+        for name, value in shifts.items():
+            self._shift_array[_SEGMENT_INDEX[name]] = value
+
+    def scaled(self, factor: float) -> "Skeleton":
+        """This skeleton with every length and joint shift multiplied by ``factor``."""
+        return Skeleton({k: v * factor for k, v in self.lengths.items()},
+                        {k: tuple(factor * x for x in v) for k, v in self.shifts.items()})
 
     @classmethod
     def from_height(cls, height: float = 1.75) -> "Skeleton":
@@ -320,9 +351,10 @@ class Skeleton:
     def joint_offsets(self) -> np.ndarray:
         """Each segment's joint centre in its parent's frame, neutral pose, shape (S, 3), metres.
 
-        The root's row is zero (its position is the pelvis_t* DOFs).
+        The root's row is zero (its position is the pelvis_t* DOFs). The lengths place each
+        centre (:data:`HEIGHT_PROPORTIONS`), then :attr:`shifts` move it.
         """
-        return _joint_offsets(self.lengths)
+        return _joint_offsets(self.lengths) + self._shift_array
 
     def length_jacobian(self, q: np.ndarray, segments: np.ndarray) -> np.ndarray:
         """Derivative of the position of a point fixed on each of ``segments`` (M,) with respect

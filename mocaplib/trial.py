@@ -83,6 +83,9 @@ class Trial:
         Path of the file the trial was read from.
     warnings : list[str]
         Things a technician should know (duplicate labels, dropped points, axis rotation...).
+    measurements : dict[str, float]
+        Subject measurements the file stores (metres, kilograms), keys of
+        :data:`mocaplib.anatomy.MEASUREMENTS` (``knee_width_l``, ``marker_diameter``...).
     """
 
     markers: np.ndarray
@@ -94,6 +97,7 @@ class Trial:
     events: list[Event] = field(default_factory=list)
     source: str | None = None
     warnings: list[str] = field(default_factory=list)
+    measurements: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self):
         where = self.source

@@ -1,4 +1,12 @@
-"""Shared fixtures: paths to the real C3D files (skipped cleanly when absent) and the samples."""
+"""Shared fixtures (the real C3D files, skipped cleanly when absent; the shipped samples) and
+the test tiers: each test is marked from the fixtures it uses.
+
+* ``real``: it uses :func:`real_c3d` or :func:`shared_c3d` (the real lab captures);
+* ``samples``: it uses :func:`sample_dir` (the shipped synthetic captures, ``sample_c3d/``);
+* ``slow``: it is listed in :data:`SLOW` (over about 4 s on the 2-core development machine).
+
+``pytest -m "not slow"`` is the fast tier; ``pytest`` (all tiers) is what CI runs.
+"""
 
 from __future__ import annotations
 
@@ -27,12 +35,51 @@ def shared_c3d() -> Path:
     return SHARED_C3D
 
 
-def real_file(relative: str) -> Path:
-    """One real file by path relative to the shared folder; skips the test when absent."""
-    path = SHARED_C3D / relative
-    if not path.is_file():
-        pytest.skip(f"real C3D file not found: {path}")
-    return path
+@pytest.fixture(scope="session")
+def real_c3d():
+    """``real_c3d(relative)``: one real file by its path relative to the shared folder; the
+    test is skipped when the file is absent."""
+    def real_file(relative: str) -> Path:
+        path = SHARED_C3D / relative
+        if not path.is_file():
+            pytest.skip(f"real C3D file not found: {path}")
+        return path
+    return real_file
+
+
+@pytest.fixture(scope="session")
+def sample_dir() -> Path:
+    """The shipped sample captures (``sample_c3d/``); they are part of the repository."""
+    assert any(SAMPLES.glob("*.c3d")), f"the shipped samples are missing from {SAMPLES}"
+    return SAMPLES
+
+
+#: Tests that take over about 4 s (``pytest --durations=0`` on the 2-core development machine,
+#: idle), by file and function name (every parametrisation of it).
+SLOW = {
+    ("test_forward_reference.py", "test_a_lab_walk_sets_its_static_within_the_tolerance"),
+    ("test_report.py", "test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one"),
+    ("test_report.py", "test_report_in_headless_chromium"),
+    ("test_lab_agreement.py", "test_every_target_is_checked"),
+}
+#: The marker each fixture gives the tests that use it (directly or through other fixtures).
+FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark each test ``real`` / ``samples`` from its fixtures and ``slow`` from :data:`SLOW`;
+    a name in :data:`SLOW` that its module no longer defines is an error."""
+    for item in items:
+        for fixture in set(getattr(item, "fixturenames", ())) & set(FIXTURE_MARKERS):
+            item.add_marker(FIXTURE_MARKERS[fixture])
+        module = item.module
+        key = (Path(module.__file__).name, getattr(item, "originalname", item.name))
+        if key in SLOW:
+            item.add_marker("slow")
+        for file_name, function in SLOW:
+            if file_name == key[0] and not hasattr(module, function):
+                raise pytest.UsageError(f"tests/conftest.py SLOW names {file_name}::{function}, "
+                                        "which does not exist: update SLOW")
 
 
 def plan_capture(name: str, height: float, folder: Path):

@@ -5,8 +5,6 @@ from __future__ import annotations
 import json
 from functools import lru_cache
 
-import pytest
-
 from conftest import SAMPLES
 
 
@@ -31,9 +29,8 @@ def _load():
 
 
 def samples():
-    """[(name, trial, protocol match, events (toe_off="lift"), truth dict)]; skips when none
-    exist."""
+    """[(name, trial, protocol match, events (toe_off="lift"), truth dict)] of every shipped
+    capture (a test using it takes the ``sample_dir`` fixture)."""
     found = _load()
-    if not found:
-        pytest.skip(f"no synthetic captures with truth in {SAMPLES}")
+    assert found, f"no synthetic captures with truth in {SAMPLES}"
     return found

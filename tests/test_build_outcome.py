@@ -65,6 +65,7 @@ def test_an_invalid_library_is_written_and_the_build_exits_1(tmp_path, fake_buil
     assert main(["validate", str(out)]) == 1
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_entries_keep_the_capture_frame_rate_and_first_frame(tmp_path):
     # start_s counts from the capture's first frame: with rate_hz and first_frame a reader
     # finds the C3D frame (HC030A05.c3d starts at frame 286, 2.85 s on the lab clock)
@@ -72,8 +73,6 @@ def test_entries_keep_the_capture_frame_rate_and_first_frame(tmp_path):
     from mocaplib.io.c3d_write import write_c3d
 
     source = SAMPLES / "walk_straight_normal.c3d"
-    if not source.is_file():
-        pytest.skip(f"sample capture {source} not found")
     trial = read_c3d(source)
     path = write_c3d(tmp_path / "late.c3d", trial.markers, trial.labels, trial.rate,
                      first_frame=286)

@@ -17,7 +17,7 @@ from mocaplib.io.c3d import (MODEL_OUTPUT_PARAMETERS, PointLayout, dec_to_ieee, 
 from mocaplib.io.c3d_write import c3d_bytes
 from mocaplib.trial import Event, Trial
 
-from conftest import SHARED_C3D, real_file, real_files
+from conftest import SHARED_C3D, real_files
 
 Y_UP = {"motonms_unipd/Static1.c3d", "motonms_unipd/Walking1.c3d", "motonms_unipd/Walking3.c3d",
         "ezc3d_testfiles/BTS.c3d", "ezc3d_testfiles/FP_Type1.c3d"}
@@ -43,8 +43,8 @@ def ezc3d_reference(path: Path, units: str):
 
 
 @pytest.mark.parametrize("relative", REAL)
-def test_real_file_equals_ezc3d(relative):
-    path = real_file(relative)
+def test_real_file_equals_ezc3d(relative, real_c3d):
+    path = real_c3d(relative)
     trial = read_c3d(path)
     labels, reference, c3d = ezc3d_reference(path, trial.units)
 
@@ -64,8 +64,8 @@ def test_real_file_equals_ezc3d(relative):
     np.testing.assert_allclose(trial.markers, reference, atol=1e-6, rtol=0, equal_nan=True)
 
 
-def test_all_zero_samples_are_missing():
-    path = real_file("cmu/07_12.c3d")
+def test_all_zero_samples_are_missing(real_c3d):
+    path = real_c3d("cmu/07_12.c3d")
     trial = read_c3d(path)
     _, reference, _ = ezc3d_reference(path, trial.units)
     zero = (reference == 0).all(axis=2)
@@ -74,18 +74,18 @@ def test_all_zero_samples_are_missing():
     assert not np.isnan(trial.markers[~zero & ~np.isnan(reference[..., 0])]).any()
 
 
-def test_labels2_beyond_255_points():
-    trial = read_c3d(real_file("biomechzoo/HC030A01.c3d"))
+def test_labels2_beyond_255_points(real_c3d):
+    trial = read_c3d(real_c3d("biomechzoo/HC030A01.c3d"))
     ezc3d = pytest.importorskip("ezc3d")
-    point = ezc3d.c3d(str(real_file("biomechzoo/HC030A01.c3d")))["parameters"]["POINT"]
+    point = ezc3d.c3d(str(real_c3d("biomechzoo/HC030A01.c3d")))["parameters"]["POINT"]
     assert point["USED"]["value"][0] > 255
     beyond = [label for label in point["LABELS2"]["value"] if label in trial.labels]
     assert beyond, "some kept markers come from POINT:LABELS2"
     assert any("dropped" in note and "model outputs" in note for note in trial.warnings)
 
 
-def test_model_outputs_are_dropped_with_one_warning():
-    trial = read_c3d(real_file("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+def test_model_outputs_are_dropped_with_one_warning(real_c3d):
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     notes = [note for note in trial.warnings if "model outputs" in note]
     assert notes == ["dropped 80 model outputs stored as points "
                      "(POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS, REACTIONS)"]
@@ -94,8 +94,8 @@ def test_model_outputs_are_dropped_with_one_warning():
     assert {"LSHO", "RSHO", "LHEE", "RHEE"} <= set(trial.names)
 
 
-def test_dec_file_with_nul_padded_units():
-    trial = read_c3d(real_file("btkdata/Gait.c3d"))
+def test_dec_file_with_nul_padded_units(real_c3d):
+    trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.units == "mm"  # stored as 'mm\x00\x00'
     assert trial.n_frames == 487 and trial.rate == 100.0
     heel = np.nanmedian(trial.marker("RHEE")[:, 2])
@@ -103,8 +103,8 @@ def test_dec_file_with_nul_padded_units():
     assert 0.0 < heel < 0.15 and 1.2 < shoulder < 1.7
 
 
-def test_duplicate_labels_are_kept_and_flagged():
-    trial = read_c3d(real_file("btkdata/Gait.c3d"))
+def test_duplicate_labels_are_kept_and_flagged(real_c3d):
+    trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.n_markers == 33
     assert trial.labels.count("RKNE") == 2
     assert {n for n in trial.names if trial.names.count(n) > 1} == {
@@ -115,8 +115,8 @@ def test_duplicate_labels_are_kept_and_flagged():
     assert not np.allclose(trial.markers[:, first], trial.markers[:, second], equal_nan=True)
 
 
-def test_units_in_metres():
-    trial = read_c3d(real_file("ezc3d_testfiles/FP_Type1.c3d"))
+def test_units_in_metres(real_c3d):
+    trial = read_c3d(real_c3d("ezc3d_testfiles/FP_Type1.c3d"))
     assert trial.units == "m"
     assert 1.3 < np.nanmedian(trial.marker("c7")[:, 2]) < 1.7  # not scaled by 1e-3
 
@@ -127,8 +127,8 @@ def test_units_in_metres():
     ("ezc3d_testfiles/BTS.c3d", "c7", "r heel"),
     ("ezc3d_testfiles/FP_Type1.c3d", "c7", "l heel"),
 ])
-def test_y_up_files_end_up_z_up(relative, head, heel):
-    trial = read_c3d(real_file(relative))
+def test_y_up_files_end_up_z_up(relative, head, heel, real_c3d):
+    trial = read_c3d(real_c3d(relative))
     assert trial.vertical_axis == "Y"
     assert "Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)" in trial.warnings
     assert np.nanmedian(trial.marker(heel)[:, 2]) < 0.12     # heel on the floor
@@ -140,9 +140,9 @@ def test_y_up_files_end_up_z_up(relative, head, heel):
     ("ezc3d_testfiles/BTS.c3d", "r asis", "l asis", "sacrum"),
     ("cmu/07_01.c3d", "RFWT", "LFWT", "RBWT"),
 ])
-def test_world_frame_is_right_handed(relative, right, left, root):
+def test_world_frame_is_right_handed(relative, right, left, root, real_c3d):
     """The left pelvis marker lies on the walker's left: +Z x walking direction."""
-    trial = read_c3d(real_file(relative))
+    trial = read_c3d(real_c3d(relative))
     path = trial.marker(root)
     seen = np.flatnonzero(np.isfinite(path[:, 0]))
     forward = path[seen[-1], :2] - path[seen[0], :2]
@@ -153,8 +153,8 @@ def test_world_frame_is_right_handed(relative, right, left, root):
 
 
 @pytest.mark.parametrize("relative", REAL)
-def test_events_match_the_event_group(relative):
-    path = real_file(relative)
+def test_events_match_the_event_group(relative, real_c3d):
+    path = real_c3d(relative)
     trial = read_c3d(path)
     ezc3d = pytest.importorskip("ezc3d")
     event = ezc3d.c3d(str(path))["parameters"].get("EVENT")
@@ -176,17 +176,17 @@ def test_events_match_the_event_group(relative):
     ("ezc3d_testfiles/Qualisys.c3d", 7), ("btkdata/PiG_Motion-FlatFoot-Full.c3d", 12),
     ("motonms_unipd/Walking1.c3d", 2),
 ])
-def test_files_with_events_have_them(relative, count):
-    events = read_c3d(real_file(relative)).events
+def test_files_with_events_have_them(relative, count, real_c3d):
+    events = read_c3d(real_c3d(relative)).events
     assert len(events) == count
     assert all(e.time_s > 0 for e in events)
 
 
-def test_files_the_c3d_package_refuses_are_read():
+def test_files_the_c3d_package_refuses_are_read(real_c3d):
     c3d = pytest.importorskip("c3d")
     for relative, refusal in [("btkdata/PiG_Calibration-FlatFoot-One.c3d", KeyError),
                               ("cmu/16_07.c3d", AssertionError)]:
-        path = real_file(relative)
+        path = real_c3d(relative)
         with open(path, "rb") as handle, pytest.raises(refusal):
             c3d.Reader(handle)
         trial = read_c3d(path)
@@ -453,8 +453,8 @@ FUZZ_REAL = ["btkdata/PiG_Calibration-FlatFoot-One.c3d", "btkdata/Gait.c3d", "cm
                     reason="real C3D files not available")
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
-def test_fuzz_real_files(data):
-    original = (SHARED_C3D / data.draw(st.sampled_from(FUZZ_REAL))).read_bytes()
+def test_fuzz_real_files(real_c3d, data):
+    original = real_c3d(data.draw(st.sampled_from(FUZZ_REAL))).read_bytes()
     read_or_c3derror(mutate(original, data.draw, header_bias=(original[0] + 12) * 512))
 
 

@@ -4,7 +4,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import SAMPLES, plan_capture, real_file
+from conftest import SAMPLES, plan_capture
 
 import mocaplib.calibration as calibration
 from mocaplib.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
@@ -30,6 +30,7 @@ def _distance_gap(static, motion):
                               list(proto.labels), static=static, trial=motion)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_the_sessions_own_static_is_accepted():
     motion = read_c3d(SAMPLES / "run_3p5.c3d")
     rest = read_c3d(SAMPLES / "rest.c3d")
@@ -40,11 +41,13 @@ def test_the_sessions_own_static_is_accepted():
     assert model.source == rest.source
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_regenerated_static_matches_the_shipped_one(tmp_path):
     # the helper reproduces the session's static: same subject, same placement, accepted
     assert _distance_gap(_session_rest(tmp_path, 1.75), read_c3d(SAMPLES / "run_3p5.c3d")) < 0.001
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("height", [1.65, 1.85])
 def test_a_static_of_a_differently_sized_subject_is_refused(tmp_path, height):
     # the same session's markers on a subject 10 cm shorter or taller (±6 %): within-segment
@@ -58,6 +61,7 @@ def test_a_static_of_a_differently_sized_subject_is_refused(tmp_path, height):
     assert "leave out --static" in str(info.value)              # and what to do
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_check_is_skipped_without_enough_pairs():
     # one marker per segment: no within-segment distance to compare, nothing is checked
     X = np.random.default_rng(0).normal(size=(5, 3, 3))
@@ -66,28 +70,28 @@ def test_check_is_skipped_without_enough_pairs():
                                        static=trial, trial=trial))
 
 
-def test_real_static_of_the_same_session_is_accepted():
-    motion = read_c3d(real_file("motonms_unipd/Walking1.c3d"))
-    static = read_c3d(real_file("motonms_unipd/Static1.c3d"))
+def test_real_static_of_the_same_session_is_accepted(real_c3d):
+    motion = read_c3d(real_c3d("motonms_unipd/Walking1.c3d"))
+    static = read_c3d(real_c3d("motonms_unipd/Static1.c3d"))
     model = calibrate(motion, static=static)          # measured: 0.7 mm median difference
     assert model.source == static.source
 
 
-def test_real_static_of_another_person_is_refused():
+def test_real_static_of_another_person_is_refused(real_c3d):
     # btkdata's PiG static is another subject than PiG_Motion-FlatFoot-Full (ASIS-ASIS 227 mm
     # against 200 mm): within-segment distances differ by 24 mm (median)
-    motion = read_c3d(real_file("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
-    static = read_c3d(real_file("btkdata/PiG_Calibration2-NoOption.c3d"))
+    motion = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    static = read_c3d(real_c3d("btkdata/PiG_Calibration2-NoOption.c3d"))
     with pytest.raises(CalibrationError, match="PiG_Calibration2-NoOption.*does not match the "
                                                "motion trial .*PiG_Motion-FlatFoot-Full"):
         calibrate(motion, static=static)
 
 
 def test_the_quoted_limit_is_the_constant():
-    # the module docstring and the README state the limit in mm next to the constant's name
+    # the module docstring and the user guide state the limit in mm next to the constant's name
     docstring = re.search(r"SAME_SUBJECT_LIMIT`\s+\(([\d.]+) mm\)", calibration.__doc__)
     readme = re.search(r"above\s+\*\*([\d.]+) mm\*\*\s+\(`SAME_SUBJECT_LIMIT`\)",
-                       (REPO / "README.md").read_text(encoding="utf-8"))
+                       (REPO / "docs" / "guide" / "fitting.md").read_text(encoding="utf-8"))
     assert docstring and readme                       # still quoted where they were
     assert float(docstring.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)
     assert float(readme.group(1)) / 1000 == pytest.approx(SAME_SUBJECT_LIMIT, abs=1e-12)

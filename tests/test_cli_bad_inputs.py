@@ -17,10 +17,8 @@ from conftest import SAMPLES
 
 
 def sample(name: str, folder: Path) -> Path:
-    """A copy of the sample capture ``name`` in ``folder`` (skips when the samples are absent)."""
+    """A copy of the sample capture ``name`` in ``folder``."""
     source = SAMPLES / f"{name}.c3d"
-    if not source.is_file():
-        pytest.skip(f"sample capture {source} not found")
     folder.mkdir(parents=True, exist_ok=True)
     return Path(shutil.copy(source, folder / source.name))
 
@@ -49,6 +47,7 @@ def broken_library(library: Path, folder: Path, edit) -> Path:
     return path
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("args", [
     ["fit", "{w}", "-o", "{w}"],
     ["fit", "{w}", "-o", "{d}/a.csv", "--mot", "{w}"],
@@ -75,6 +74,7 @@ def test_an_output_that_would_overwrite_an_input_is_a_usage_error(args, tmp_path
                                                                    "walk_straight_normal.c3d"]
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("args", [
     ["query", "{lib}", "inf", "0", "0"],
     ["query", "{lib}", "nan", "0", "0"],
@@ -186,6 +186,7 @@ def test_an_envelope_no_command_can_use_is_a_usage_error(table, key, tmp_path, l
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("args", [
     ["report", "{lib}", "-o", "{f}/r"],
     ["build", "{w}", "-o", "{d}/new.json", "--report", "{f}/r", "--no-cache", "-q"],
@@ -218,6 +219,7 @@ def test_a_broken_capture_plan_is_a_clear_error(text, message, tmp_path, capsys)
     assert f"{plan}: " in (error := capsys.readouterr().err) and message in error
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("kind", ["folder", "binary"])
 def test_a_protocol_path_that_is_not_a_toml_text_is_a_usage_error(kind, tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path)
@@ -227,6 +229,7 @@ def test_a_protocol_path_that_is_not_a_toml_text_is_a_usage_error(kind, tmp_path
     assert str(protocol) in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
 def test_a_pipe_named_like_a_capture_is_refused_not_read_forever(tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path / "caps")
@@ -243,6 +246,7 @@ def test_a_pipe_named_like_a_capture_is_refused_not_read_forever(tmp_path, capsy
         assert "pipe.c3d [read]: cannot read: not a regular file" in printed
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("rate", [1.0, 5e5])
 def test_a_frame_rate_no_gait_capture_has_is_an_error(rate, tmp_path, capsys):
     from mocaplib.io.c3d import read_c3d
@@ -256,6 +260,7 @@ def test_a_frame_rate_no_gait_capture_has_is_an_error(rate, tmp_path, capsys):
         assert f"{path}: frame rate {rate:g} Hz is outside" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_corrupt_processor_byte_gives_an_error_and_no_numpy_warning(tmp_path, capsys):
     data = bytearray(sample("walk_straight_normal", tmp_path).read_bytes())
     data[512 + 3] = 85  # DEC floats on an Intel file: the rate decodes to nonsense
@@ -267,6 +272,7 @@ def test_a_corrupt_processor_byte_gives_an_error_and_no_numpy_warning(tmp_path, 
     assert str(path) in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_an_unusable_cache_folder_does_not_stop_the_build(tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path / "caps")
     (tmp_path / "cache").write_text("a file where the cache folder should be")
@@ -278,6 +284,7 @@ def test_an_unusable_cache_folder_does_not_stop_the_build(tmp_path, capsys):
     assert "failed 0" in printed.out and "control_space" in printed.err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_an_address_that_is_not_a_scheduler_is_a_clear_error(tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path)
     pytest.importorskip("distributed")
@@ -291,6 +298,7 @@ OUTPUTS = {"fit": ["-o", "{d}/a.csv"], "events": [], "cycles": [],
            "build": ["-o", "{d}/l.json", "--no-cache", "-q"]}
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("command", ["fit", "cycles", "build"])
 def test_a_bad_static_is_a_usage_error_in_every_command(command, tmp_path, capsys):
     # fit and cycles exited 1 (after reading the capture), build 2, for the same static
@@ -309,6 +317,7 @@ def test_a_bad_static_is_a_usage_error_in_every_command(command, tmp_path, capsy
     assert not list(tmp_path.glob("l.*")) and not (tmp_path / "a.csv").exists()
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("command", ["fit", "cycles", "build"])
 def test_a_neutral_static_pose_without_a_static_is_a_usage_error(command, tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path)
@@ -328,20 +337,19 @@ def test_a_missing_input_is_a_usage_error_in_every_command(command, tmp_path, ca
     assert not list(tmp_path.iterdir())
 
 
-def test_the_statics_at_hand_count_as_standing():
+@pytest.mark.usefixtures("sample_dir")
+def test_the_statics_at_hand_count_as_standing(real_c3d):
     from mocaplib.calibration import check_standing
     from mocaplib.io.c3d import read_c3d
-    from conftest import real_file
 
     rest = SAMPLES / "rest.c3d"
-    if not rest.is_file():
-        pytest.skip("sample captures not found")
     check_standing(read_c3d(rest))
     for name in ("motonms_unipd/Static1.c3d", "biomechzoo/HC030A01.c3d",
                  "btkdata/PiG_Calibration2-NoOption.c3d"):
-        check_standing(read_c3d(real_file(name)))
+        check_standing(read_c3d(real_c3d(name)))
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("inputs, message", [
     (["{w}", "{d}/nope.c3d"], "nope.c3d: no such file or folder"),
     (["{d}/empty"], "no C3D captures (*.c3d) in"),
@@ -355,6 +363,7 @@ def test_build_inputs_that_are_not_captures_are_usage_errors(inputs, message, tm
     assert message in capsys.readouterr().err and not (tmp_path / "l.json").exists()
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_an_output_where_nothing_can_be_written_stops_fit_before_it_writes(tmp_path, capsys):
     walk = sample("walk_straight_normal", tmp_path)
     (tmp_path / "plain").write_text("a file")
@@ -372,6 +381,7 @@ def test_an_envelope_file_that_is_not_text_is_a_clear_error(tmp_path, library, c
     assert f"{envelope}: the envelope file is not UTF-8 text" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_capture_missing_required_landmarks_fails_cycles_and_is_named_by_fit_and_events(
         tmp_path, capsys):
     # fit, events and cycles went through such a capture without a word
@@ -393,6 +403,7 @@ def test_a_capture_missing_required_landmarks_fails_cycles_and_is_named_by_fit_a
         assert all(remedy in captured.err for remedy in ("rename", "alias", "--protocol"))
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_events_and_cycles_agree_that_a_few_frames_are_not_rest(tmp_path, capsys):
     # events called 5 frames (0.04 s) "standing still (rest)", cycles and build refused them
     from mocaplib.io.c3d import read_c3d

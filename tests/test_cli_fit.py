@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 from fk_data import fk_trial
 
 from mocaplib.cli import main
@@ -24,7 +25,8 @@ def test_fit_writes_angles_mot_osim_and_prints_quality(tmp_path, capsys):
                            "locked_dofs", "failed_frames"}
     # 0.5 mm noise per axis: the per-frame RMS sits near sqrt(3) x 0.5 mm, well below 2 mm
     assert 0.3 < report["marker_rms_mm"] < 2.0
-    assert report["locked_dofs"] == [] and report["failed_frames"] == []
+    assert report["locked_dofs"] == [] and report["held_dofs"] == {}
+    assert report["failed_frames"] == [] and report["at_limit"] == {}
     assert set(report["per_marker_rms_mm"]) == set(cap.trial.labels)
     angles = pd.read_csv(out)
     assert list(angles.columns) == ["time_s", *DOF_NAMES]
@@ -76,6 +78,7 @@ def test_cutoff_option(tmp_path, capsys):
     assert "--cutoff: must be > 0 Hz" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_fit_takes_the_static_that_shows_the_subject(tmp_path, capsys):
     # --static repeated (one per subject or session), as in build: the matching one is used
     from conftest import SAMPLES, plan_capture

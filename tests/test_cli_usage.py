@@ -40,6 +40,7 @@ def test_a_console_that_is_not_utf8_gets_replacement_characters_not_a_traceback(
     assert helped.returncode == 0 and b"tangential speed v?" in helped.stdout
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_extra_arguments_show_the_sub_command_usage(capsys):
     walk = SAMPLES / "walk_straight_normal.c3d"
     assert main(["events", str(walk), str(walk)]) == 2
@@ -48,6 +49,7 @@ def test_extra_arguments_show_the_sub_command_usage(capsys):
     assert f"mocaplib events: error: unrecognized arguments: {walk}" in error
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_inspect_a_path_that_does_not_exist_is_a_usage_error(tmp_path, capsys):
     walk = SAMPLES / "walk_straight_normal.c3d"
     assert main(["inspect", str(walk), str(tmp_path / "missing.c3d")]) == 2

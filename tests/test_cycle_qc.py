@@ -10,12 +10,14 @@ import pytest
 
 from mocaplib.filtering import WALKING_CUTOFF
 from mocaplib.pipeline import cycle_qc
-from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES
+from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 
 
 def _motion(q: np.ndarray, rate: float):
     return SimpleNamespace(n_frames=len(q), rate=rate, q=q, residuals=np.zeros((len(q), 4)),
-                           angles=pd.DataFrame(q, columns=DOF_NAMES))
+                           trusted=lambda: np.ones(4, dtype=bool),
+                           angles=pd.DataFrame(q, columns=DOF_NAMES),
+                           skeleton=Skeleton.from_height(1.75))
 
 
 @pytest.mark.parametrize("frequency, gain", [
@@ -35,8 +37,39 @@ def test_jerk_is_that_of_the_angles_low_passed_at_the_walking_cutoff(frequency, 
     assert jerk == pytest.approx(expected, rel=0.01)
 
 
-def test_no_jerk_for_a_capture_too_short_to_filter():
+def test_no_jerk_nor_internal_power_for_a_capture_too_short_to_filter():
     q = np.zeros((12, len(DOF_NAMES)))
     cycle = SimpleNamespace(start_s=0.0, end_s=0.11, event_quality=1.0, encoding=SimpleNamespace(
         series=SimpleNamespace(rms=np.zeros(len(DOF_NAMES)))))
-    assert cycle_qc(cycle, _motion(q, 100.0))["jerk_rms_rad_s3"] is None
+    qc = cycle_qc(cycle, _motion(q, 100.0))
+    assert qc["jerk_rms_rad_s3"] is None and qc["internal_power_w_kg"] is None
+
+
+def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor():
+    from mocaplib.criteria import GRAVITY
+
+    rate, amplitude, w = 200.0, 0.02, 2 * np.pi * 1.0   # 1 Hz bounce: in the pass band
+    t = np.arange(int(4 * rate)) / rate
+    q = np.zeros((len(t), len(DOF_NAMES)))
+    q[:, DOF_NAMES.index("pelvis_tz")] = 0.9 + amplitude * np.sin(w * t)
+    cycle = SimpleNamespace(start_s=1.0, end_s=3.0, event_quality=1.0, encoding=SimpleNamespace(
+        series=SimpleNamespace(rms=np.zeros(len(DOF_NAMES)))))
+    fine = np.linspace(0, 2, 100001)
+    z_dot, z_ddot = amplitude * w * np.cos(w * fine), -amplitude * w ** 2 * np.sin(w * fine)
+    expected = np.mean(np.abs(z_dot * z_ddot + GRAVITY * z_dot))   # W/kg, body mass 1
+    assert cycle_qc(cycle, _motion(q, rate))["internal_power_w_kg"] == pytest.approx(
+        expected, rel=0.01)
+    # on a treadmill belt running backwards at the walking speed, the body stays in place in
+    # the lab: its energy is measured relative to the belt, where it moves steadily forwards
+    from mocaplib.pipeline import _qc_series
+
+    q[:, DOF_NAMES.index("pelvis_tz")] = 0.9
+    q[:, DOF_NAMES.index("hip_flexion_r")] = 0.3 * np.sin(w * t)   # a leg swinging
+    motion = _motion(q, rate)
+    on_belt = cycle_qc(cycle, motion, _qc_series(motion, np.array([-1.3, 0.0, 0.0])))
+    q[:, DOF_NAMES.index("pelvis_tx")] = 1.3 * t
+    overground = cycle_qc(cycle, _motion(q, rate))
+    assert on_belt["internal_power_w_kg"] == pytest.approx(overground["internal_power_w_kg"],
+                                                           rel=1e-6)
+    assert overground["internal_power_w_kg"] > 0.1
+

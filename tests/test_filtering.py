@@ -124,8 +124,8 @@ def test_filter_trial_returns_a_new_trial():
 
 @pytest.mark.parametrize("frames", [1, 5, MIN_RUN - 1])
 def test_auto_cutoff_of_a_capture_too_short_to_filter(frames):
-    # a one-frame static (btkdata's PiG_Calibration-FlatFoot-One) made the candidate list
-    # infinite; now it gets the walking default, nothing is filtered and none is reported
+    # a one-frame static (btkdata's PiG_Calibration-FlatFoot-One) has no residual curve: it
+    # gets the walking default, nothing is filtered and no cutoff is reported
     markers = np.random.default_rng(3).normal(0, 0.1, (frames, 4, 3))
     trial = Trial(markers.copy(), ["A", "B", "C", "D"], RATE, source="static.c3d")
     assert 0 < residual_cutoff(markers, RATE) < RATE / 2
@@ -168,6 +168,7 @@ def test_bad_cutoff_names_the_file(cutoff):
         filter_trial(trial, cutoff=cutoff)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_fit_reports_no_cutoff_for_a_capture_too_short_to_filter(tmp_path, capsys):
     import json
 

@@ -1,8 +1,8 @@
 """The forward reference: a forward walk turns the heading of a neutral static.
 
-The shipped session's marker placement turns the neutral static's frame by δ = +0.316° (README,
-Velocities); v̂_l of every capture is then off by about −v̂·δ. A forward reference measures the
-angle from a walk in which the subject faces where they walk.
+The shipped session's marker placement turns the neutral static's frame by δ = +0.316°
+(docs/guide/patterns.md); v̂_l of every capture is then off by about −v̂·δ. A forward
+reference measures the angle from a walk in which the subject faces where they walk.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import SAMPLES, plan_capture, real_file
+from conftest import SAMPLES, plan_capture
 
 from mocaplib.calibration import calibrate
 from mocaplib.cli import main
@@ -33,7 +33,7 @@ def neutral(**kw) -> BuildSettings:
 
 
 @pytest.fixture(scope="module")
-def offset() -> float:
+def offset(sample_dir) -> float:
     """The heading offset walk_straight_normal measures for the sample rest (radians)."""
     offsets = forward_offsets(neutral(forward_reference=str(WALK)))
     assert len(offsets) == 1
@@ -46,6 +46,7 @@ def facing(entries: list[dict]) -> float:
     return float(np.mean([np.arctan2(e["v_l"], e["v_f"]) for e in entries]))
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_heading_offset_turns_every_segment_frame_of_the_neutral_model():
     static = read_c3d(STATIC)
     plain = calibrate(static, static=static, static_pose="neutral")
@@ -61,6 +62,7 @@ def test_a_heading_offset_turns_every_segment_frame_of_the_neutral_model():
         calibrate(static, static=static, static_pose="free", heading_offset=0.01)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_the_corrected_reference_faces_where_it_walks(offset):
     # the placement error is a fraction of a degree; turning the static by the measured offset
     # leaves the reference facing its path, so the sign and the size are both right
@@ -72,11 +74,11 @@ def test_the_corrected_reference_faces_where_it_walks(offset):
     assert abs(np.rad2deg(facing(after.entries))) < FORWARD_TOLERANCE_DEG
 
 
-def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path):
+def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path, real_c3d):
     # HC030A01 taken as a neutral static turns the lab walk HC030A05 by about 4°; the turn is
     # repeated until the walk faces its path. Walking3 with Static1 fits too badly (marker
     # RMS over the QC's 20 mm) to tell where the subject faces: refused
-    static, walk = real_file("biomechzoo/HC030A01.c3d"), real_file("biomechzoo/HC030A05.c3d")
+    static, walk = real_c3d("biomechzoo/HC030A01.c3d"), real_c3d("biomechzoo/HC030A05.c3d")
     settings = BuildSettings(static=str(static), static_pose="neutral",
                              forward_reference=str(walk))
     offset, = forward_offsets(settings)
@@ -86,7 +88,7 @@ def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path):
     turned = process_capture(walk, replace(settings, heading_offsets=(offset,), **kept))
     assert abs(np.rad2deg(facing(turned.entries))) < FORWARD_TOLERANCE_DEG
     assert abs(np.rad2deg(facing(plain.entries))) > 1.0
-    motonms = real_file("motonms_unipd/Walking3.c3d")
+    motonms = real_c3d("motonms_unipd/Walking3.c3d")
     with pytest.raises(CalibrationError, match=r"no complete gait cycle .* that passes QC "
                                                r"\(cycle 0: marker_rms_m 0\.\d+ > 0\.02") as e:
         forward_offsets(BuildSettings(static=str(motonms.with_name("Static1.c3d")),
@@ -94,9 +96,11 @@ def test_a_lab_walk_sets_its_static_within_the_tolerance(tmp_path):
     assert "the fit of its markers must pass QC" in str(e.value)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_the_offset_measured_on_a_walk_corrects_the_fastest_run(offset):
-    # run_3p5's v̂_l misses the issue's 0.02 m/s without the reference (README); the offset
-    # measured on a walk at 1.2 m/s carries over to the run at 3.5 m/s
+    # run_3p5's v̂_l misses the 0.02 m/s target without the reference
+    # (docs/results/velocity_accuracy.md); the offset measured on a walk at 1.2 m/s carries
+    # over to the run at 3.5 m/s
     truth = json.loads((SAMPLES / "run_3p5.truth.json").read_text())["cycles"]
 
     def v_l_error(settings):
@@ -110,6 +114,7 @@ def test_the_offset_measured_on_a_walk_corrects_the_fastest_run(offset):
     assert abs(after) < 0.01 and abs(after) < 0.5 * abs(before)
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("reference, message", [
     ("side_left_normal", rf"moves [89]\d\.\d° to the left of where they face \(limit "
                          rf"{FORWARD_LIMIT_DEG:g}°\): a side-step or a diagonal"),
@@ -124,6 +129,7 @@ def test_a_reference_that_is_no_forward_walk_is_refused_by_name(reference, messa
     assert "walks forwards" in str(caught.value)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_each_static_gets_the_offset_of_its_subjects_references(tmp_path, offset):
     # two subjects: each reference turns the static showing its subject; two references of
     # one static are averaged; a static without a reference is not turned
@@ -144,6 +150,7 @@ def test_each_static_gets_the_offset_of_its_subjects_references(tmp_path, offset
     assert two[0] == pytest.approx((offset + alone[0]) / 2, abs=np.deg2rad(0.01))
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_reference_of_a_subject_without_a_static_is_refused(tmp_path):
     taller_walk, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
     with pytest.raises(CalibrationError) as caught:
@@ -154,6 +161,7 @@ def test_a_reference_of_a_subject_without_a_static_is_refused(tmp_path):
         "(give a forward walk of a subject whose static you pass with --static)")
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_settings_record_the_references_and_the_offsets():
     settings = neutral(forward_reference=[str(WALK), str(WALK.resolve())], heading_offsets=[0.5])
     assert settings.forward_references == (str(WALK),)          # the same file counts once
@@ -176,6 +184,7 @@ def test_settings_record_the_references_and_the_offsets():
     assert not unmeasured.ok and "heading offsets are not measured" in unmeasured.error
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_build_measures_the_offset_and_the_library_records_it(tmp_path, offset):
     out = tmp_path / "lib.json"
     spread = [SAMPLES / f"{name}.c3d" for name in ("side_left_normal", "turn_spot_left_normal",
@@ -191,6 +200,7 @@ def test_build_measures_the_offset_and_the_library_records_it(tmp_path, offset):
     assert f"rest.c3d {np.rad2deg(offset):+.3f}°" in result.summary_text()
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_changed_reference_is_measured_again_and_the_cache_follows(tmp_path, offset):
     reference = tmp_path / "forward.c3d"
     reference.write_bytes(WALK.read_bytes())
@@ -207,6 +217,7 @@ def test_a_changed_reference_is_measured_again_and_the_cache_follows(tmp_path, o
     assert changed.captures[0].entries[0]["v_l"] != first.captures[0].entries[0]["v_l"]
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("extra, code, message", [
     (["--static-pose", "free"], 2,
      "--forward-reference turns the heading of a static in the neutral pose"),
@@ -235,6 +246,7 @@ def test_the_cli_refuses_a_bad_reference_and_writes_nothing(tmp_path, capsys, ex
     assert not angles.exists()
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
     common = ["--static", str(STATIC), "--static-pose", "neutral"]
     assert main(["cycles", str(WALK), "--toe-off", "lift", "--json", *common,
@@ -256,6 +268,7 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
     assert (turned - plain).mean() == pytest.approx(reported["turned"], abs=1e-4)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_references_that_do_not_settle_are_an_error(monkeypatch):
     # the sample reference needs a second turn (0.009°, under the 0.01° that ends the turns);
     # allowed a single turn, it is refused

@@ -261,7 +261,8 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
     model = true_model(cap)
     motion = fit(cap.trial, model)
     full = solve_poses(cap.skeleton, cap.trial.markers, cap.segments, cap.offsets,
-                       free=model.free, tol=1e-9, step_tol=1e-7)     # every frame, rigid starts
+                       free=model.free, weights=model.marker_weights, tol=1e-9,
+                       step_tol=1e-7)                               # every frame, rigid starts
     off = np.abs(motion.q - full.q)
     # keyframe predictions and their step test stop within step_tol (5e-4 rad) of the minimum,
     # as the iterations do; along the few flat directions (ankle inversion, shoulder rotation:

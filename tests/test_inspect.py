@@ -8,7 +8,6 @@ import json
 import numpy as np
 import pytest
 
-from conftest import real_file
 from protocol_trials import walker_trial
 
 from mocaplib.cli import main
@@ -125,9 +124,9 @@ def test_swap_and_model_outputs_reach_the_warnings():
     assert any("model-output" in w for w in summary["warnings"])
 
 
-def test_real_files_walking3_and_gait(capsys):
-    walking3 = real_file("motonms_unipd/Walking3.c3d")
-    gait = real_file("btkdata/Gait.c3d")
+def test_real_files_walking3_and_gait(capsys, real_c3d):
+    walking3 = real_c3d("motonms_unipd/Walking3.c3d")
+    gait = real_c3d("btkdata/Gait.c3d")
     code, out, _ = _cli(capsys, "inspect", "--json", str(walking3), str(gait))
     assert code == 0
     w3, g = json.loads(out)

@@ -103,8 +103,8 @@ def test_floats_are_written_with_ten_significant_digits_and_nan_as_null():
 
 
 def test_unbounded_dof_range_is_null():
-    # the root's position was written [-1000, 1000] (the solver's guard) while the doc says
-    # null = unbounded
+    # the root's position has no range: written as null (unbounded), as the doc says, not as
+    # the solver's internal guard [-1000, 1000]
     doc = library().document
     names, ranges = doc["skeleton"]["dof_names"], doc["skeleton"]["dof_ranges"]
     for name in ("pelvis_rotation", "pelvis_tx", "pelvis_ty", "pelvis_tz"):
@@ -493,3 +493,83 @@ def test_numbers_beyond_a_double_are_problems_not_crashes(tmp_path, capsys, numb
         printed = capsys.readouterr()
         assert "beyond the range of a double" in printed.out + printed.err
         assert "Traceback" not in printed.err
+
+
+# --------------------------------------------------------------------------- poulaines
+def poulaine() -> dict:
+    """A poulaine as the build stores it, of two analytic ankle loops half a cycle apart."""
+    from mocaplib.poulaine import Poulaine, fit_ankle
+
+    phase = np.arange(80) / 80
+
+    def ankle(shift, y):
+        w = 2 * np.pi * (phase + shift)
+        return np.column_stack([0.3 * np.cos(w), np.full_like(w, y),
+                                -0.85 + 0.1 * np.maximum(0.0, -np.sin(w)) ** 2])
+
+    return Poulaine(-0.05, fit_ankle(ankle(0.0, 0.05), phase),
+                    fit_ankle(ankle(0.5, -0.05), phase)).to_dict()
+
+
+def with_poulaines() -> Library:
+    return assemble_library([entry(i, poulaine=poulaine()) for i in range(5)], settings={})
+
+
+def test_a_stored_poulaine_validates_and_reads_back():
+    lib = with_poulaines()
+    assert problems_of(lib.document) == []
+    model = lib.poulaine("capture00_c0")
+    assert model.travel == -0.05
+    step, spacing, stance = model.parameters
+    row = lib.entries.loc["capture00_c0"]
+    assert (row["step_length_m"], row["foot_spacing_m"], row["stance_m"]) == pytest.approx(
+        (step, spacing, stance)) and step == pytest.approx(0.6, abs=1e-3)
+    assert row["poulaine_fit_rms_m"] == max(model.left.fit_rms, model.right.fit_rms)
+    reread = load_library(_written(lib))
+    np.testing.assert_allclose(reread.poulaine("capture00_c0")(np.linspace(0, 1, 9)),
+                               model(np.linspace(0, 1, 9)), atol=1e-9)
+
+
+def _written(lib: Library) -> str:
+    import tempfile
+
+    path = os.path.join(tempfile.mkdtemp(), "lib.json")
+    lib.write(path)
+    return path
+
+
+def test_a_library_without_poulaines_or_internal_power_still_reads_and_validates():
+    # files written before the poulaine and C3 were stored: same format version, still valid
+    lib = library()
+    assert "poulaine" not in lib.document["entries"][0]
+    assert "internal_power_w_kg" not in lib.document["entries"][0]["qc"]
+    assert problems_of(lib.document) == []
+    assert lib.poulaine("capture00_c0") is None
+    assert lib.entries[["step_length_m", "poulaine_fit_rms_m",
+                        "qc_internal_power_w_kg"]].isna().all().all()
+
+
+def poulaine_of(d, side="left") -> dict:
+    return d["entries"][1]["poulaine"][side]
+
+
+@pytest.mark.parametrize("mutate, expected", [
+    (lambda d: poulaine_of(d)["phases"].reverse(), r"poulaine\.left\.phases: .*must increase"),
+    (lambda d: poulaine_of(d, "right")["timing"][2].reverse(), r"right\.timing: .*every segment"),
+    (lambda d: poulaine_of(d)["timing"][0].pop(), r"left\.timing: .*every segment"),
+    (lambda d: d["entries"][1]["poulaine"].update(stance_m=0.95),
+     r"poulaine: .*stance_m 0\.95, the points give 0\.85"),
+    (lambda d: poulaine_of(d)["points_m"][0].pop(), "should be non-empty|is too short"),
+    (lambda d: poulaine_of(d)["kinds"].__setitem__(0, "lowest"), "'lowest' is not one of"),
+    (lambda d: poulaine_of(d).update(fit_rms_m=-0.001), "less than the minimum of 0"),
+    (lambda d: poulaine_of(d)["phases"].__setitem__(3, 1.0), "greater than or equal to the max"),
+    (lambda d: d["entries"][1]["poulaine"].pop("right"), "'right' is a required property"),
+    (lambda d: d["entries"][1]["qc"].update(internal_power_w_kg=-2.0),
+     "less than the minimum of 0"),
+])
+def test_validate_catches_a_broken_poulaine(mutate, expected):
+    doc = copy.deepcopy(with_poulaines().document)
+    mutate(doc)
+    problems = problems_of(doc)
+    assert any(re.search(expected, p) for p in problems), problems
+    assert all("capture01_c0" in p for p in problems)

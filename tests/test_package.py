@@ -12,7 +12,7 @@ from conftest import REPO
 
 def test_no_public_name_is_also_a_submodule():
     # Importing a submodule binds it on the package under its own name, so an exported name
-    # that is also a submodule's (`calibrate` was both) would give the function or the module
+    # that is also a submodule's (say `calibrate`) would give the function or the module
     # depending on what was imported first.
     clashes = [name for name in mocaplib._EXPORTS
                if importlib.util.find_spec(f"mocaplib.{name}") is not None]

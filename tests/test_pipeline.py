@@ -269,6 +269,7 @@ def test_process_capture_returns_errors_instead_of_raising(tmp_path):
     assert result.to_dict()["ok"] is False  # JSON-ready for the cache
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
     # the fit exchanged them back silently: motonms Walking3's swapped acromions went unreported
     from conftest import SAMPLES
@@ -288,6 +289,7 @@ def test_exchanged_left_right_labels_are_reported(tmp_path, capsys):
     assert "swapped.c3d: labels LSHO and RSHO look exchanged" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_path):
     # build calibrates a neutral static once per worker (the model depends on the static and
     # the protocol alone); a later capture of another subject must still be refused
@@ -305,6 +307,7 @@ def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_pa
     assert "walk_straight_normal_1.85.c3d" in refused.error and "rest.c3d" in refused.error
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     # a batch of two subjects, each with its own static: each capture is calibrated with the
     # static that shows its subject; a capture of a third subject fails, naming every static
@@ -331,6 +334,7 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     assert "captures per static: rest.c3d 1, rest_1.85.c3d 1" in result.summary_text()
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_statics_are_named_apart_and_read_errors_name_them(tmp_path):
     # two sessions' statics of one name are told apart by their folders; the same file given
     # twice counts once; an empty value is no static; an unreadable static is named
@@ -445,13 +449,26 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
     assert set(side["angles"]) == {"time_s", *DOF_NAMES}
     assert len(side["time_s"]) == len(side["shoulder_mid_xy"]) == len(side["frame_rms_m"])
     assert not by_name["broken.c3d"]["ok"] and by_name["broken.c3d"]["stage"] == "import"
+    # every entry's QC has the internal power; the moving ones a poulaine, measured in the
+    # sidecar (the chosen cycle's ankle paths) and modelled in the library within 5 mm
+    assert table["qc_internal_power_w_kg"].notna().all()
+    for entry_id, row in table.iterrows():
+        model = lib.poulaine(entry_id)
+        record = by_name[row["source_file"]]
+        if row["locomotion_class"] == "rest":
+            assert model is None and record["poulaine"] is None
+            continue
+        measured = record["poulaine"]
+        assert len(measured["phase"]) == len(measured["left_m"]) == len(measured["right_m"])
+        assert 30 <= len(measured["phase"]) <= 60
+        np.testing.assert_allclose(model(np.asarray(measured["phase"])),
+                                   np.stack([measured["left_m"], measured["right_m"]], axis=1),
+                                   atol=0.03)   # the speed profile's error, a few mm RMS
+        assert row["poulaine_fit_rms_m"] <= 0.005
 
 
-@pytest.mark.real
-def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch):
-    from conftest import real_file
-
-    path = real_file("btkdata/Gait.c3d")
+def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):
+    path = real_c3d("btkdata/Gait.c3d")
     # 1 mm marker RMS: no real capture with skin markers meets it, so QC must fail.
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.001}
     # the policy acts only on the entries: process once, keep the cycles for the other policy
@@ -576,9 +593,9 @@ def test_a_capture_missing_required_landmarks_fails_alone_naming_them(synthetic_
 
 def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder, tmp_path):
     # The synthetic foot is rigid: its true toe-off is the instant it lifts, which `lift` finds
-    # (README, Gait events). On this slow curve the default's first left toe-off is 4.8 frames
-    # late (measured), so its first cycle starts late; with --toe-off lift every cycle starts
-    # within a frame of a true left toe-off, and the library records the definition.
+    # (docs/guide/events-cycles.md). On this slow curve the default's first left toe-off is 4.8
+    # frames late (measured), so its first cycle starts late; with --toe-off lift every cycle
+    # starts within a frame of a true left toe-off, and the library records the definition.
     path = synthetic_folder / "walk_curve_r1_left_slow.c3d"
     truth = json.loads(path.with_suffix(".truth.json").read_text())
     true_offs = np.array([e["time_s"] for e in truth["events"]

@@ -7,7 +7,7 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from conftest import REPO, real_file, real_files, SHARED_C3D
+from conftest import REPO, real_files
 from protocol_trials import select, walker_trial
 
 from mocaplib.errors import ProtocolError
@@ -39,8 +39,8 @@ EXPECTED = {
 
 
 @lru_cache(maxsize=None)
-def _real(relative: str) -> Trial:
-    return read_c3d(real_file(relative))
+def _read(path) -> Trial:
+    return read_c3d(path)
 
 
 # ---------------------------------------------------------------- shipped files
@@ -68,16 +68,14 @@ def test_extends_inherits_and_overrides():
 
 
 # ---------------------------------------------------------------- real files
-def test_every_real_file_has_an_expected_protocol():
-    found = {p.relative_to(SHARED_C3D).as_posix() for p in real_files()}
-    if not found:
-        pytest.skip("real C3D files absent")
+def test_every_real_file_has_an_expected_protocol(shared_c3d):
+    found = {p.relative_to(shared_c3d).as_posix() for p in real_files()}
     assert found == set(EXPECTED)
 
 
 @pytest.mark.parametrize("relative", sorted(EXPECTED))
-def test_real_file_detects_its_protocol_with_all_required_landmarks(relative):
-    trial = _real(relative)
+def test_real_file_detects_its_protocol_with_all_required_landmarks(relative, real_c3d):
+    trial = _read(real_c3d(relative))
     match = detect_protocol(trial)
     assert match.protocol.name == EXPECTED[relative]
     assert match.complete, match.missing_landmarks
@@ -89,8 +87,8 @@ def test_real_file_detects_its_protocol_with_all_required_landmarks(relative):
         assert match.swaps == (), match.swaps
 
 
-def test_walking3_swap_is_reported_not_fixed():
-    trial = _real("motonms_unipd/Walking3.c3d")
+def test_walking3_swap_is_reported_not_fixed(real_c3d):
+    trial = _read(real_c3d("motonms_unipd/Walking3.c3d"))
     before = trial.markers.copy()
     match = detect_protocol(trial)
     assert any("LA (labelled left)" in w and "RA" in w for w in match.warnings)
@@ -100,19 +98,19 @@ def test_walking3_swap_is_reported_not_fixed():
     np.testing.assert_array_equal(trial.markers, before)
 
 
-def test_pig_model_outputs_are_ignored_not_unknown():
-    trial = _real("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+def test_pig_model_outputs_are_ignored_not_unknown(real_c3d):
+    trial = _read(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     match = detect_protocol(trial)
     for label in ("PELO", "PELA", "LFEO", "TRXP", "CentreOfMass"):
         assert label in match.ignored
     assert match.unknown == ()
-    zoo = detect_protocol(_real("biomechzoo/HC030A22.c3d"))
+    zoo = detect_protocol(_read(real_c3d("biomechzoo/HC030A22.c3d")))
     assert {"*179", "LHJC", "LHLX0", "LTIB1", "CentreOfMassFloor"} <= set(zoo.ignored)
     assert zoo.unknown == ("JUG",)  # a label we cannot classify stays visible
 
 
-def test_duplicates_flagged_and_first_occurrence_used():
-    trial = _real("btkdata/Gait.c3d")
+def test_duplicates_flagged_and_first_occurrence_used(real_c3d):
+    trial = _read(real_c3d("btkdata/Gait.c3d"))
     match = detect_protocol(trial)
     assert set(match.duplicates) == {"RKNE", "RANK", "LKNE", "LANK", "RFOO", "LFOO"}
     rkne = [i for i, label in enumerate(trial.labels) if label == "RKNE"]
@@ -122,8 +120,8 @@ def test_duplicates_flagged_and_first_occurrence_used():
     assert any("duplicate labels" in w for w in match.warnings)
 
 
-def test_cmu_subject_prefix_and_aliases():
-    match = detect_protocol(_real("cmu/07_12.c3d"))
+def test_cmu_subject_prefix_and_aliases(real_c3d):
+    match = detect_protocol(_read(real_c3d("cmu/07_12.c3d")))
     assert match.protocol.name == "plugin_gait" and match.found == 41
     assert match.unknown == ("liu:RWRB-1",)
 
@@ -223,8 +221,8 @@ def test_a_technicians_protocol_file(tmp_path):
     assert match.complete and match.found == 3 and match.swaps == ()
 
 
-def test_readme_protocol_example_matches_its_capture(tmp_path):
-    readme = (REPO / "README.md").read_text()
+def test_the_guide_protocol_example_matches_its_capture(tmp_path):
+    readme = (REPO / "docs" / "guide" / "protocols.md").read_text(encoding="utf-8")
     block = readme.split("<!-- protocol-example -->", 1)[1].split("```toml\n", 1)[1]
     path = tmp_path / "mylab_lower16.toml"
     path.write_text(block.split("```", 1)[0])

@@ -149,8 +149,10 @@ def test_report_escapes_untrusted_names(report):
     _, html = report
     assert EVIL not in html
     assert "&lt;script&gt;alert(" in html  # shown as text in the capture heading and warnings
-    # The only <script> elements are the viewer's data and code.
-    assert len(re.findall(r"<script\b", html)) == 2
+    # The only <script> elements are the two viewers' data and code.
+    assert re.findall(r"<script\b[^>]*>", html) == [
+        '<script type="application/json" id="cs-data">', "<script>",
+        '<script type="application/json" id="mv-data">', "<script>", "<script>"]
 
 
 def test_report_contents(report):
@@ -444,7 +446,6 @@ def _chromium(url: str, tmp: Path, *extra: str) -> subprocess.CompletedProcess:
         capture_output=True, text=True, timeout=120)
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
 def test_report_in_headless_chromium(report, tmp_path):
     from matplotlib.image import imread
@@ -666,3 +667,119 @@ def test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one(tmp_path)
     assert len(figures) == 4 and len(set(figures)) == 4     # four different figures, in order
     assert [c["figure"] for c in two if c["figure"]] == figures
     assert [c["source"] for c in two] == [c["source"] for c in one]
+
+
+def test_the_capture_figure_draws_both_ankles_poulaines_measured_and_modelled():
+    from matplotlib.image import imread
+
+    from mocaplib.report import figures
+    from test_library import poulaine as stored_poulaine
+    from mocaplib.poulaine import Poulaine
+
+    model = Poulaine.from_dict(stored_poulaine())
+    phase = np.linspace(0.0, 1.0, 40)
+    measured = model(phase)
+    record = {"time_s": [0.0, 1.0], "events": [], "cycles": [],
+              "poulaine": {"phase": phase.tolist(), "left_m": measured[:, 0].tolist(),
+                           "right_m": measured[:, 1].tolist()}}
+    drawn = {"path": model(np.linspace(0.0, 1.0, 121)),
+             "points": np.stack([model.left.points, model.right.points])}
+
+    def coloured(png, colour) -> int:      # pixels of ``colour`` in the bottom row of panels
+        image = imread(io.BytesIO(png))[..., :3]
+        bottom = image[int(0.72 * len(image)):]
+        return int(np.sum(np.abs(bottom - np.asarray(colour) / 255).max(axis=-1) < 0.08))
+
+    left, right = (31, 119, 180), (255, 127, 14)           # tab:blue, tab:orange: the model
+    pale = (188, 214, 232)                                  # tab:blue at 30 %: measured, left
+    with_both = figures.capture_figure(record, {}, drawn)
+    assert coloured(with_both, left) > 300 and coloured(with_both, right) > 300
+    assert coloured(with_both, pale) > 300
+    measured_only = figures.capture_figure(record, {}, None)
+    assert coloured(measured_only, pale) > 300 and coloured(measured_only, left) == 0
+    without = figures.capture_figure({**record, "poulaine": None}, {}, None)
+    assert coloured(without, left) == coloured(without, right) == coloured(without, pale) == 0
+
+
+def test_report_marks_mirror_images_and_counts_coverage_without_them(tmp_path):
+    """Two right curves flagged as the series mirror images of the left ones: the Entries
+    table names their sources, the coverage is given without them too (as computed on the
+    captured entries alone), and the sidecar, which names no series image, is still used."""
+    from mocaplib.controlspace import ControlSpace, coverage
+    from mocaplib.library import load_library
+    from mocaplib.report import write_report
+    from mocaplib.report.plan import default_envelope
+
+    path = make_library(tmp_path)
+    document = json.loads(path.read_text())
+    images = {"cap05#0": "cap03#0", "cap06#0": "cap04#0"}
+    for entry in document["entries"]:
+        if entry["id"] in images:
+            entry.update(mirrored=True, mirror_of=images[entry["id"]], mirror_method="series")
+    path.write_text(json.dumps(document))
+    sidecar = tmp_path / "lib.diagnostics.json"      # as `mocaplib mirror` copies it: no
+    diagnostics = json.loads(sidecar.read_text())   # capture record names a series image
+    diagnostics["captures"] = [c for c in diagnostics["captures"]
+                               if c["source"] not in ("cap05.c3d", "cap06.c3d")]
+    sidecar.write_text(json.dumps(diagnostics))
+    html = write_report(path, tmp_path / "out", renderer="matplotlib").read_text()
+    assert "mirror image of cap03#0" in html and "mirror image of cap04#0" in html
+    envelope, _ = default_envelope(None)
+    library = load_library(path)
+    both = coverage(ControlSpace.from_library(library), envelope).fraction_inside
+    alone = coverage(ControlSpace.from_library(library, mirrored=False), envelope)
+    assert alone.fraction_inside < both
+    assert (f"{100 * both:.1f} %</b>of the default target envelope covered "
+            f"({100 * alone.fraction_inside:.1f} % without the 2 mirror images)") in html
+    assert "does not belong to this library" not in html and "quality plots of walk_01" in html
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+def test_the_motion_viewer_animates_and_blends_in_headless_chromium(report, tmp_path):
+    """The report in a real browser (DevTools protocol, tests/browser.py): no console error;
+    the figure moves (two screenshots 0.4 s apart differ in its canvas); a click in the pick
+    panel plays a blend, with its weights shown, which changes the pose; the weights the page
+    finds for a point are the control space's. Screenshots stay in the test's tmp_path."""
+    from browser import Browser
+    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library import load_library
+    from matplotlib.image import imread
+
+    path, _ = report
+    pose = ("(() => { const p = window.mocapViewer.playing; const d = JSON.parse(document."
+            "getElementById('mv-data').textContent); return MocapMotion.forward(d.skeleton, "
+            "MocapMotion.synthesize(p.a, p.b, p.T, 0.3 * p.T)).map(w => [w[3], w[7], w[11]]);"
+            " })()")
+    browser = Browser(tmp_path / "profile")
+    try:
+        browser.open(path.resolve().as_uri())
+        browser.evaluate("new Promise(r => setTimeout(r, 300))")
+        figure = browser.rect("#mv-figure")
+        first = imread(io.BytesIO(browser.screenshot(figure, tmp_path / "figure-1.png")))
+        browser.evaluate("new Promise(r => setTimeout(r, 400))")
+        second = imread(io.BytesIO(browser.screenshot(figure, tmp_path / "figure-2.png")))
+        assert first.shape == second.shape and first.shape[0] > 400
+        moved = np.abs(first[..., :3] - second[..., :3]).max(axis=2) > 0.1
+        assert moved.sum() > 200, "the figure did not move between the screenshots"
+        before = np.array(browser.evaluate(pose))
+        pick = browser.rect("#mv-pick")
+        browser.click(pick["x"] + 0.5 * pick["width"], pick["y"] + 0.45 * pick["height"])
+        shown = browser.evaluate("document.getElementById('mv-weights').textContent")
+        assert "blend of" in shown, shown
+        assert browser.evaluate("window.mocapViewer.playing.label").startswith("blend at")
+        after = np.array(browser.evaluate(pose))
+        assert np.abs(after - before).max() > 0.01        # metres: another motion
+        browser.evaluate("new Promise(r => setTimeout(r, 300))")
+        browser.screenshot(browser.rect("div.motion"), tmp_path / "blend.png")
+        point = (1.1, 0.3, 0.05)
+        weights = browser.evaluate(f"window.mocapViewer.pick{point}")
+        cs = ControlSpace.from_library(load_library(path.parent.parent / "lib.json"))
+        found = cs.query(np.array([point]))
+        expected = {cs.ids[i]: w for i, w in zip(found.entries[0], found.weights[0])}
+        assert weights.keys() == expected.keys()
+        np.testing.assert_allclose([weights[k] for k in expected], list(expected.values()),
+                                   atol=1e-9)
+        assert browser.console_errors == []
+    finally:
+        browser.close()

@@ -174,14 +174,16 @@ def test_the_library_format_doc_poses_the_skeleton_as_mocaplib_does():
     section = doc[doc.index("### Posing the skeleton"):]
     rows = re.findall(r"^\| `(\w+)` \| (?:`(\w+)`|—) \| \(([^)]*)\) \| (.*) \|$", section, re.M)
     assert [r[0] for r in rows] == list(SEGMENT_NAMES)
-    skeleton = Skeleton.from_height(1.68)
+    shifts = {"foot_l": (0.004, 0.03, -0.01), "tibia_r": (0.0, 0.0, 0.006)}
+    skeleton = Skeleton(Skeleton.from_height(1.68).lengths, shifts)
     q = np.random.default_rng(4).uniform(-0.6, 0.6, len(DOF_NAMES))
     world = {}
     for name, parent, offset, dofs in rows:
         expression = offset.replace("−", "-")
-        centre = [eval(part, {}, dict(skeleton.lengths)) for part in expression.split(",")]
+        centre = np.array([eval(part, {}, dict(skeleton.lengths))
+                           for part in expression.split(",")]) + shifts.get(name, 0.0)
         pose = np.eye(4) if not parent else world[parent].copy()
-        pose[:3, 3] += pose[:3, :3] @ np.array(centre, dtype=float)
+        pose[:3, 3] += pose[:3, :3] @ centre
         for dof, sign, letter in re.findall(r"`(\w+)` ([+−])([XYZ])", dofs):
             value = q[DOF_NAMES.index(dof)] * (1 if sign == "+" else -1)
             axis = np.eye(3)["XYZ".index(letter)]
@@ -193,3 +195,18 @@ def test_the_library_format_doc_poses_the_skeleton_as_mocaplib_does():
     expected = skeleton.forward(q)[0]
     for s, name in enumerate(SEGMENT_NAMES):
         np.testing.assert_allclose(world[name], expected[s], atol=1e-12, err_msg=name)
+
+
+def test_joint_shifts_move_a_joint_centre_in_its_parents_frame():
+    plain = Skeleton.from_height(1.75)
+    shifted = Skeleton(plain.lengths, {"foot_r": (0.0, -0.03, 0.002)})
+    q = np.random.default_rng(1).uniform(-0.5, 0.5, (3, len(DOF_NAMES)))
+    a, b = plain.forward(q), shifted.forward(q)
+    foot = SEGMENT_NAMES.index("foot_r")
+    tibia = a[:, SEGMENT_NAMES.index("tibia_r")]
+    # the ankle moves by the shift, expressed in the tibia's frame; nothing above it moves
+    np.testing.assert_allclose(b[:, foot, :3, 3] - a[:, foot, :3, 3],
+                               tibia[:, :3, :3] @ [0.0, -0.03, 0.002], atol=1e-12)
+    np.testing.assert_array_equal(a[:, :foot], b[:, :foot])
+    with pytest.raises(MocapError, match="unknown segments: toe_r"):
+        Skeleton(plain.lengths, {"toe_r": (0.0, 0.0, 0.0)})

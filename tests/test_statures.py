@@ -1,5 +1,6 @@
 """Subjects shorter and taller than the samples' 1.75 m: the subject-scaled skeleton, the fit
-and the velocities hold (all capture types: ``benchmarks/fit_accuracy.py --only statures``)."""
+and the velocities against their targets (all capture types:
+``benchmarks/fit_accuracy.py --only statures``)."""
 
 from __future__ import annotations
 
@@ -18,23 +19,28 @@ OTHER = [j for j, n in enumerate(DOF_NAMES) if j not in FLEXION and not n.starts
 
 
 @pytest.mark.parametrize("height", [1.55, 1.95])
-def test_a_shorter_and_a_taller_subject_are_fitted_and_measured(tmp_path, height):
+def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, height):
     static, _ = plan_capture("rest", height, tmp_path)
     walk, capture = plan_capture("walk_straight_normal", height, tmp_path)
 
-    # the fit, as build does it: the issue's targets hold at both statures (measured: flexion
-    # 0.66° / 0.51° at most, other DOFs 2.02° / 1.79°, ankle inversion: the same millimetres
-    # of marker placement on a smaller foot weigh more); a skeleton left at 1.75 m gives 2.1°
-    # flexion at 1.55 m
+    # the fit, as build does it, against the fit targets: flexion within 1°, other DOFs within
+    # 2° over the DOFs fitted (measured: flexion 0.70° / 0.50° at most, other DOFs 1.80° /
+    # 1.59°); a skeleton left at 1.75 m gives 2.1° flexion at 1.55 m
     motion, model, _ = fit_capture(read_c3d(walk), static=read_c3d(static),
                                    static_pose="neutral")
     assert model.skeleton.lengths["hip_height"] == pytest.approx(0.52 * height, rel=0.03)
     error = motion.q - np.asarray(capture.truth["angles"]["values"])
     rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
-    assert rms[FLEXION].max() < 1.0 and rms[OTHER].max() < 2.5, (rms[FLEXION].max(),
-                                                                 rms[OTHER].max())
+    other = [j for j in OTHER if DOF_NAMES[j] not in model.unobservable]   # fitted, not held
+    assert rms[FLEXION].max() < 1.0, rms[FLEXION].max()
+    assert rms[other].max() < 2.0, rms[other].max()
 
-    # the library entry's velocities against the truth cycle it covers (issue targets)
+
+@pytest.mark.parametrize("height", [1.55, 1.95])
+def test_a_shorter_and_a_taller_subject_get_their_velocities(tmp_path, height):
+    static, _ = plan_capture("rest", height, tmp_path)
+    walk, capture = plan_capture("walk_straight_normal", height, tmp_path)
+    # the library entry's velocities against the truth cycle it covers (velocity targets)
     result = process_capture(walk, BuildSettings(static=str(static), static_pose="neutral"))
     assert result.ok, result.error
     (entry,) = result.entries

@@ -38,6 +38,7 @@ def test_plan_is_not_listed_as_a_protocol():
     assert "paper_plan" not in list_protocols()
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_samples_hold_the_whole_plan_and_stay_small():
     names = {c.name for c in load_plan(PLAN).captures}
     assert {p.name[:-len(".c3d")] for p in SAMPLES.glob("*.c3d")} == names
@@ -46,6 +47,7 @@ def test_samples_hold_the_whole_plan_and_stay_small():
     assert size < 20e6
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_regenerated_samples_are_byte_identical(tmp_path):
     written = generate_plan(load_plan(PLAN), tmp_path, only=REGENERATED)
     assert len(written) == 2 * len(REGENERATED)
@@ -53,6 +55,7 @@ def test_regenerated_samples_are_byte_identical(tmp_path):
         assert path.read_bytes() == (SAMPLES / path.name).read_bytes(), path.name
 
 
+@pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("name", REGENERATED)
 def test_sample_reads_the_same_in_ezc3d_and_mocaplib(name):
     ezc3d = pytest.importorskip("ezc3d")
@@ -73,6 +76,7 @@ def test_sample_reads_the_same_in_ezc3d_and_mocaplib(name):
                                [e["time_s"] for e in truth["events"]], atol=1e-6)
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_truth_file_layout():
     truth = json.loads((SAMPLES / "walk_curve_r1_left_fast.truth.json").read_text())
     angles = np.array(truth["angles"]["values"])
@@ -140,6 +144,7 @@ def test_synth_usage_errors_exit_2_before_writing(args, message, tmp_path, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 
 
+@pytest.mark.usefixtures("sample_dir")
 def test_synth_replaces_only_its_own_earlier_output(tmp_path, capsys):
     rest = ["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest", "-q"]
     assert main(rest) == 0    # a first time, then again over its own output: allowed

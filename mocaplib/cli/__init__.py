@@ -21,7 +21,8 @@ from ..io import printable
 from ._common import UsageError
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
-COMMANDS = ("inspect", "fit", "events", "cycles", "build", "validate", "query", "report", "synth")
+COMMANDS = ("inspect", "fit", "events", "cycles", "build", "mirror", "validate", "query",
+            "retarget", "report", "synth")
 
 
 def build_parser() -> argparse.ArgumentParser:

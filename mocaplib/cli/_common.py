@@ -193,12 +193,51 @@ def add_static_options(parser) -> None:
                              "pose (every joint angle 0) and each marker's offset is measured "
                              "on it, placement error included; 'free' (default): the static "
                              "pose is fitted, then refined on the motion")
+    parser.add_argument("--subject", metavar="NAME=VALUE", action="append", type=measurement,
+                        default=[],
+                        help="a subject measurement, metres or kilograms, that overrides the "
+                             "one the calibration file stores (Plug-in Gait's PROCESSING "
+                             "group): knee_width, ankle_width, elbow_width (both sides, or "
+                             "with _l/_r), marker_diameter, leg_length (Davis hip centres), "
+                             "inter_asis_distance, body_mass, height; repeatable")
     parser.add_argument("--forward-reference", metavar="FILE", action="append",
                         help="a capture in which the subject walks forwards (straight or "
                              "curving, not side-stepping): the neutral static's heading is "
                              "turned so that the subject faces where they walk in it, which "
                              "removes the heading error of marker placement from v_l; repeat "
                              "it for several subjects or sessions (needs --static-pose neutral)")
+
+
+def measurement(text: str) -> tuple[str, float]:
+    """One ``--subject NAME=VALUE``: a known measurement name (sided names without ``_l`` or
+    ``_r`` mean both sides) and a number > 0, SI units."""
+    from ..anatomy import MEASUREMENTS
+
+    name, _, value = text.partition("=")
+    name = name.strip()
+    known = set(MEASUREMENTS) | {m[:-2] for m in MEASUREMENTS if m.endswith(("_l", "_r"))}
+    if name not in known:
+        raise argparse.ArgumentTypeError(f"unknown measurement {name!r}; known: "
+                                         f"{', '.join(sorted(known))}")
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
+    if not 0 < number < 1000:
+        raise argparse.ArgumentTypeError(f"{name}: {value} must be > 0 (metres, kilograms)")
+    return name, number
+
+
+def measurements(args) -> dict[str, float]:
+    """The ``--subject`` values as :attr:`mocaplib.trial.Trial.measurements` keys (a sided
+    name given bare sets both sides)."""
+    from ..anatomy import MEASUREMENTS
+
+    out: dict[str, float] = {}
+    for name, value in args.subject:
+        for key in ([name] if name in MEASUREMENTS else [f"{name}_l", f"{name}_r"]):
+            out[key] = value
+    return out
 
 
 def add_cutoff_option(parser) -> None:
@@ -273,4 +312,5 @@ def heading_offsets(args) -> tuple[float, ...] | None:
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,
         forward_reference=args.forward_reference, cutoff=args.cutoff,
+        measurements=measurements(args),
         toe_off=getattr(args, "toe_off", "foot_velocity")))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
                       add_toe_off_option, check_inputs, check_output_folder, check_outputs,
-                      jobs_count, warn)
+                      jobs_count, measurements, warn)
 
 
 def register(subparsers) -> None:
@@ -35,6 +35,10 @@ def register(subparsers) -> None:
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
                         help="keep every complete cycle, not only the one chosen per capture")
+    parser.add_argument("--mirror", action="store_true",
+                        help="also add each capture's left-right mirror image, cut at its right "
+                             "toe-offs (fills the turns and side-steps a session made to one "
+                             "side only; entries flagged 'mirrored')")
     parser.add_argument("--qc", choices=("drop", "waive"), default="drop",
                         help="cycles failing a QC threshold: leave out (default) or keep with "
                              "a recorded waiver")
@@ -65,7 +69,8 @@ def _check_usage(args):
                              static_pose=args.static_pose,
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
-                             qc_policy=args.qc)
+                             mirror=args.mirror, qc_policy=args.qc,
+                             measurements=measurements(args))
     inputs = build_inputs(captures, settings)
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
                    diagnostics_path(args.output)}, inputs)

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import add_cutoff_option, add_static_options, check_inputs, heading_offsets
+from ._common import (add_cutoff_option, add_static_options, check_inputs, heading_offsets,
+                      measurements)
 from .events import add_common_options
 
 
@@ -49,10 +50,11 @@ def _run(args) -> int:
         raise missing
     motion = fit_capture(trial, protocol=match.protocol, static=statics,
                          static_pose=args.static_pose, cutoff=args.cutoff,
+                         measurements=measurements(args),
                          heading_offsets=heading_offsets(args))[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)
-    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS)
+    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)
     rows = [{**c.to_dict(), "qc_failures": qc_failures(qcs[c.index], DEFAULT_QC_THRESHOLDS)}
             for c in cycles]
     if args.json:

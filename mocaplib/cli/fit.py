@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
-                      check_inputs, check_outputs, heading_offsets)
+                      check_inputs, check_outputs, heading_offsets,
+                      measurements)
 
 
 def register(subparsers) -> None:
@@ -32,7 +33,7 @@ def register(subparsers) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print the fit as JSON: file, protocol, static, cutoff_hz and the "
                              "quality: marker_rms_mm, max_marker_error_mm, per_marker_rms_mm, "
-                             "locked_dofs, failed_frames, rejected_samples, "
+                             "locked_dofs, held_dofs, at_limit, failed_frames, rejected_samples, "
                              "rejected_per_marker")
     parser.set_defaults(run=_run)
 
@@ -58,6 +59,7 @@ def _run(args) -> int:
     offsets = heading_offsets(args)
     motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
                                         static_pose=args.static_pose, cutoff=args.cutoff,
+                                        measurements=measurements(args),
                                         heading_offsets=offsets)
     sources = [static.source for static in statics]
     static = static_names(sources)[sources.index(model.source)] if statics else None
@@ -70,6 +72,11 @@ def _run(args) -> int:
     quality = fit_quality(motion)
     for note in model.swap_warnings:
         warn(f"{model.source}: {note}")
+    if model.unobservable:
+        warn(f"{args.input}: the markers cannot see {', '.join(sorted(model.unobservable))}; "
+             "held at 0")
+    for note in motion.limit_warnings():
+        warn(f"{args.input}: {note}")
     if model.left_out:
         warn(f"{args.input}: no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
     if quality["failed_frames"]:

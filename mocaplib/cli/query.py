@@ -61,7 +61,6 @@ def _run(args) -> int:
     from ..controlspace import ControlSpace
     from ..errors import MocapError
     from ..library import checksum_status, load_library
-    from ..skeleton import Skeleton
     from ._common import print_json, warn
 
     ignored = [option for option, value in (("--cycles", args.cycles), ("--rate", args.rate))
@@ -101,8 +100,7 @@ def _run(args) -> int:
 
         rate = args.rate or BVH_RATE
         _, q = blend.world(0, rate=rate, cycles=args.cycles or BVH_CYCLES)
-        skeleton = Skeleton(library.document["skeleton"]["segment_lengths_m"])
-        answer["bvh"] = str(write_bvh(args.bvh, q, skeleton, rate=rate))
+        answer["bvh"] = str(write_bvh(args.bvh, q, library.skeleton, rate=rate))
     if args.json:
         print_json(answer)
         return 0

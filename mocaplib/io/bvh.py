@@ -20,7 +20,8 @@ whose value is ``sign · degrees(q)``. Joints with fewer than three DOFs get the
 as zero-valued channels (three rotation channels per joint suit every importer). The root has
 ``Xposition Yposition Zposition`` (pelvis_tx, pelvis_tz, -pelvis_ty) first. Joint names are
 :data:`mocaplib.skeleton.SEGMENT_NAMES`; end sites mark the vertex, the finger tips and the toes
-(display only: the toe is placed at 3/4 of the foot length ahead of the ankle, on the sole).
+(display only: the toe tip at :data:`~mocaplib.skeleton.TOE_AHEAD` of the foot length ahead of the
+ankle, on the sole).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
 from .atomic import atomic_write_text
 
 #: Our coordinates to BVH file coordinates (Y up): file = TO_FILE @ ours.
@@ -47,10 +48,12 @@ def _file_axis(axis) -> tuple[int, float]:
     return j, float(np.sign(f[j]))
 
 
-def _end_sites(skeleton: Skeleton) -> dict[str, np.ndarray]:
+def end_sites(skeleton: Skeleton) -> dict[str, tuple]:
+    """The end segments' tips in their frames (m), for display: the top of the head, the
+    finger tips, the toes (3/4 of the foot length ahead of the ankle, on the sole)."""
     L = skeleton.lengths
     hand = (0.0, 0.0, -(L["forearm"] + L["hand"]))
-    toe = (0.75 * L["foot_length"], 0.0, -L["ankle_height"])
+    toe = (TOE_AHEAD * L["foot_length"], 0.0, -L["ankle_height"])
     return {"head": (0.0, 0.0, L["head_length"]), "forearm_r": hand, "forearm_l": hand,
             "foot_r": toe, "foot_l": toe}
 
@@ -91,7 +94,7 @@ def bvh_text(q: np.ndarray, skeleton: Skeleton, *, rate: float, units: str = "m"
         raise MocapError(f"BVH frame rate must be > 0 Hz, got {rate}")
     scale = UNIT_SCALE[units]
     offsets = skeleton.joint_offsets()
-    ends = _end_sites(skeleton)
+    ends = end_sites(skeleton)
     channels = _channels()
     children = {s.name: [c.name for c in SEGMENTS if c.parent == s.name] for s in SEGMENTS}
 

@@ -98,7 +98,7 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
 
     return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
                  vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
-                 warnings=notes)
+                 warnings=notes, measurements=subject_measurements(reader))
 
 
 # ----------------------------------------------------------------------------- file and header
@@ -489,6 +489,32 @@ def _model_outputs(reader, path: Path) -> set[str]:
             declared.update(_strings(param, path, key))
     declared.discard("")
     return declared
+
+
+#: Vicon's PROCESSING parameters (Plug-in Gait subject measurements, mm and kg) and the
+#: :attr:`Trial.measurements` key and factor to SI each becomes.
+PROCESSING_MEASUREMENTS = {
+    "LKNEEWIDTH": ("knee_width_l", 1e-3), "RKNEEWIDTH": ("knee_width_r", 1e-3),
+    "LANKLEWIDTH": ("ankle_width_l", 1e-3), "RANKLEWIDTH": ("ankle_width_r", 1e-3),
+    "LELBOWWIDTH": ("elbow_width_l", 1e-3), "RELBOWWIDTH": ("elbow_width_r", 1e-3),
+    "MARKERDIAMETER": ("marker_diameter", 1e-3), "BODYMASS": ("body_mass", 1.0),
+    "HEIGHT": ("height", 1e-3), "LLEGLENGTH": ("leg_length_l", 1e-3),
+    "RLEGLENGTH": ("leg_length_r", 1e-3), "INTERASISDISTANCE": ("inter_asis_distance", 1e-3),
+    "LASISTROCANTERDISTANCE": ("asis_trochanter_l", 1e-3),
+    "RASISTROCANTERDISTANCE": ("asis_trochanter_r", 1e-3),
+}
+
+
+def subject_measurements(reader) -> dict[str, float]:
+    """The subject measurements in the PROCESSING group (Vicon's Plug-in Gait names, mm and
+    kg) in metres and kilograms; values that are absent, not numbers, zero or negative (how
+    Vicon stores "not measured") are left out."""
+    out = {}
+    for name, (key, factor) in PROCESSING_MEASUREMENTS.items():
+        value = _number(reader, f"PROCESSING:{name}", "float")
+        if value is not None and np.isfinite(value) and value > 0:
+            out[key] = value * factor
+    return out
 
 
 def _events(reader, path: Path, notes: list[str]) -> list[Event]:

@@ -46,8 +46,12 @@ def new_figure(width: float, height: float, *, margins: dict | None = None):
 #: Fixed margins of the per-capture figure (fractions of the figure): laid out once, since its
 #: panels and labels are always the same; constrained layout measured every text of each of the
 #: report's many capture figures again and took ~40 % of their rendering time.
-CAPTURE_MARGINS = {"left": 0.07, "right": 0.98, "bottom": 0.08, "top": 0.95, "wspace": 0.22,
-                   "hspace": 0.35}
+CAPTURE_MARGINS = {"left": 0.07, "right": 0.98, "bottom": 0.06, "top": 0.962, "wspace": 1.1,
+                   "hspace": 0.45}
+#: The poulaine panels: (title, horizontal and vertical coordinate of the travel frame).
+POULAINE_VIEWS = (("poulaines, side view (x-z)", 0, 2), ("top view (x-y)", 0, 1),
+                  ("front view (y-z)", 1, 2))
+SIDE_COLOURS = {"left": "tab:blue", "right": "tab:orange"}
 
 
 def png_bytes(fig) -> bytes:
@@ -183,22 +187,57 @@ def control_space_3d(points, classes, axes, *, edges=(), envelope=None) -> bytes
 
 
 # --------------------------------------------------------------------------- per capture
-def capture_figure(record: dict, reconstructions: dict[str, tuple[np.ndarray, np.ndarray]]
-                   ) -> bytes:
+def capture_figure(record: dict, reconstructions: dict[str, tuple[np.ndarray, np.ndarray]],
+                   poulaine: dict | None = None) -> bytes:
     """Quality panels of one capture: shoulder path (top view) with the fitted pattern and cycle
-    bounds; marker RMS over time; gait events; joint angles with their Fourier reconstruction.
+    bounds; marker RMS over time; gait events; joint angles with their Fourier reconstruction;
+    the chosen cycle's poulaines in three views, measured and modelled.
 
     ``record``: one capture of the diagnostics sidecar. ``reconstructions``: DOF name ->
     (times s, angles rad) of the library entries' Fourier series, placed on the capture's time.
+    ``poulaine``: the chosen cycle's entry's model, ``path`` (n, 2, 3) m over the cycle and its
+    characteristic ``points`` (2, 4, 3) m, left then right; None when it has none.
     """
-    fig = new_figure(11, 6.4, margins=CAPTURE_MARGINS)
-    (ax_path, ax_rms), (ax_events, ax_angles) = fig.subplots(2, 2)
+    fig = new_figure(11, 8.4, margins=CAPTURE_MARGINS)
+    grid = fig.add_gridspec(3, 6, height_ratios=(1.0, 1.0, 0.8))
+    panels = [fig.add_subplot(grid[row, 3 * col:3 * col + 3]) for row in (0, 1) for col in (0, 1)]
     cycles = record.get("cycles") or []
-    _path_panel(ax_path, record, cycles)
-    _rms_panel(ax_rms, record, cycles)
-    _events_panel(ax_events, record, cycles)
-    _angles_panel(ax_angles, record, reconstructions)
+    _path_panel(panels[0], record, cycles)
+    _rms_panel(panels[1], record, cycles)
+    _events_panel(panels[2], record, cycles)
+    _angles_panel(panels[3], record, reconstructions)
+    for k, view in enumerate(POULAINE_VIEWS):
+        _poulaine_panel(fig.add_subplot(grid[2, 2 * k:2 * k + 2]), record.get("poulaine"),
+                        poulaine, view, legend=k == 0)
     return png_bytes(fig)
+
+
+def _poulaine_panel(ax, measured: dict | None, model: dict | None, view, *, legend: bool):
+    """One view of both ankles' poulaines: the sidecar's measured paths (wide, pale) and the
+    entry's model (thin, its characteristic points as dots)."""
+    title, across, up = view
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(f"{'xyz'[across]} (m)")
+    ax.set_ylabel(f"{'xyz'[up]} (m)")
+    if not measured and not model:
+        ax.text(0.5, 0.5, "no poulaine", ha="center", transform=ax.transAxes)
+        return
+    for k, side in enumerate(SIDE_COLOURS):
+        colour = SIDE_COLOURS[side]
+        if measured:
+            path = np.asarray(measured[f"{side}_m"], dtype=float).reshape(-1, 3)
+            ax.plot(path[:, across], path[:, up], color=colour, lw=4, alpha=0.3,
+                    solid_capstyle="butt", label=f"{side}, measured")
+        if model:
+            path = np.asarray(model["path"], dtype=float)[:, k]
+            ax.plot(path[:, across], path[:, up], color=colour, lw=1.1, label=f"{side}, model")
+            points = np.asarray(model["points"], dtype=float)[k]
+            ax.plot(points[:, across], points[:, up], "o", color=colour, ms=3.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.locator_params(nbins=4)     # few ticks: drawing them is most of a panel's time
+    ax.grid(alpha=0.3)
+    if legend:
+        ax.legend(fontsize=7, loc="upper right")
 
 
 def _headroom(ax, share: float = 0.3):

@@ -36,6 +36,8 @@ from .scene3d import render_control_space
 #: Captures drawn in detail; beyond this the rest are listed without figures (keeps the file
 #: small enough to mail; the library's own numbers are still all in the tables).
 MAX_CAPTURE_FIGURES = 80
+#: Points of each modelled poulaine drawn per capture.
+POULAINE_POINTS = 121
 #: Sliver tetrahedra listed one by one (the worst first); the rest are summarised.
 MAX_SLIVER_ROWS = 10
 
@@ -71,7 +73,9 @@ def render_html(context: dict) -> str:
         lstrip_blocks=True)
     env.filters["fmt"] = _fmt
     template = env.get_template("report.html.j2")
-    return template.render(**context, viewer_js=env.loader.get_source(env, "viewer.js")[0],
+    scripts = {f"{name}_js": env.loader.get_source(env, f"{name}.js")[0]
+               for name in ("viewer", "motion", "figure")}
+    return template.render(**context, **scripts,
                            css=env.loader.get_source(env, "report.css")[0])
 
 
@@ -152,16 +156,23 @@ def _other_build(sidecar: dict, records: list[dict], library) -> str | None:
         return None if named == library.file_sha256 else (
             f"it names the library whose SHA-256 is {str(named)[:12]}…, this file's is "
             f"{library.file_sha256[:12]}…")
-    return _sidecar_mismatch(records, set(library.entries.index),
+    return _sidecar_mismatch(records, set(library.entries.index) - _series_images(library),
                              complete=len(records) == len(sidecar["captures"]))
+
+
+def _series_images(library) -> set[str]:
+    """Ids of the mirror images made from a stored series (``mocaplib mirror``), which no
+    capture record of the sidecar names (those of ``build --mirror`` it does)."""
+    return {e["id"] for e in library.document["entries"]
+            if e.get("mirror_method") == "series"}
 
 
 def _record_problem(record) -> str | None:
     """What makes a capture record of the sidecar unusable (None when its shape is right).
 
     Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
-    null); ``ok`` true or false; ``cycles`` a list of objects whose ``start_s``/``end_s``
-    are finite numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
+    null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
+    list of objects whose ``start_s``/``end_s`` are finite numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
     ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
     (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
     if not isinstance(record, dict):
@@ -173,15 +184,17 @@ def _record_problem(record) -> str | None:
         return f"ok = {json.dumps(record['ok'])[:40]} is not true or false"
     if not isinstance(record.get("warnings") or [], list):
         return "its warnings are not a list"
-    cycles = record.get("cycles") or []
-    if not isinstance(cycles, list):
-        return "its cycles are not a list"
-    for n, cycle in enumerate(cycles):
-        if not isinstance(cycle, dict):
-            return f"cycle {n} is a {type(cycle).__name__}, not an object"
-        for key, ok in _CYCLE_FIELDS.items():
-            if cycle.get(key) is not None and not ok(cycle[key]):
-                return f"cycle {n}: {key} = {json.dumps(cycle[key])[:40]} has the wrong type"
+    for field, what in (("cycles", "cycle"), ("mirror_cycles", "mirror image cycle")):
+        cycles = record.get(field) or []
+        if not isinstance(cycles, list):
+            return f"its {field} are not a list"
+        for n, cycle in enumerate(cycles):
+            if not isinstance(cycle, dict):
+                return f"{what} {n} is a {type(cycle).__name__}, not an object"
+            for key, ok in _CYCLE_FIELDS.items():
+                if cycle.get(key) is not None and not ok(cycle[key]):
+                    return (f"{what} {n}: {key} = {json.dumps(cycle[key])[:40]} has the "
+                            "wrong type")
     return None
 
 
@@ -205,7 +218,8 @@ def _sidecar_mismatch(records: list[dict], library_ids: set[str], *,
     """Why the sidecar's ``records`` are not the library's build, or None: the entry ids they
     name must all be in the library and, when no record was left out (``complete``), name
     every library entry."""
-    named = {c["entry_id"] for r in records for c in r.get("cycles") or []
+    named = {c["entry_id"] for r in records
+             for c in (r.get("cycles") or []) + (r.get("mirror_cycles") or [])
              if c.get("entry_id") is not None}
     unknown, unnamed = sorted(named - library_ids), sorted(library_ids - named)
     reasons = []
@@ -252,6 +266,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
     _add_control_space(context, cs, env, library, label, classes_all, renderer)
+    context["motion"] = _motion(library, cs, classes_all, warnings)
     _shorten_paths(context)
     return context
 
@@ -273,6 +288,8 @@ def _add_control_space(context, cs, env, library, label, classes_all, renderer) 
         holes=cov.samples[~cov.samples_inside],
         suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
     context["coverage"] = _coverage_context(cov, cs, library, label)
+    if library.entries["mirrored"].any():
+        context["coverage"]["without_mirrors"] = _coverage_without_mirrors(library, env)
     if context["coverage"]["close"]:
         warnings.append(_close_warning(context["coverage"]["close"]))
     context["loo"] = _loo_context(leave_one_out(cs))
@@ -388,6 +405,8 @@ def _built_with(settings: dict) -> list[str]:
     if "all_cycles" in settings:
         phrases.append("every complete cycle" if settings["all_cycles"] else
                        "one cycle per capture")
+    if settings.get("mirror"):
+        phrases.append("each capture's mirror image added")
     if "qc_policy" in settings:
         phrases.append(f"QC failures {'waived' if settings['qc_policy'] == 'waive' else 'dropped'}")
     return phrases
@@ -398,6 +417,7 @@ def _entry_rows(df, label) -> list[dict]:
     for entry_id, r in df.iterrows():
         rows.append({"id": entry_id, "class": label(entry_id),
                      "source": r["source_file"], "chosen": bool(r["chosen"]),
+                     "mirror_of": r["mirror_of"] if r["mirrored"] else None,
                      "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
                      else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
                      "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
@@ -422,7 +442,26 @@ def _coverage_context(cov, cs, library, label) -> dict:
         "slivers": _sliver_context(cov.slivers),
         "n_tetra": len(cs.tri.simplices), "next": next_rows,
         "close": _close_rows(cs), "other_axes": _other_axes(cs, library, label),
+        "without_mirrors": None,
     }
+
+
+def _coverage_without_mirrors(library, env: Envelope) -> dict:
+    """Coverage of ``env`` by the chosen entries that are not mirror images: ``fraction``
+    (None when they have no control space, ``reason`` then says why), ``n_entries`` and
+    ``n_mirrored`` (the chosen mirror images left out)."""
+    df = library.entries
+    chosen = df["chosen"].to_numpy(bool)
+    out = {"n_mirrored": int((chosen & df["mirrored"].to_numpy(bool)).sum()),
+           "n_entries": int((chosen & ~df["mirrored"].to_numpy(bool)).sum()),
+           "fraction": None, "reason": None}
+    try:
+        own = ControlSpace.from_library(library, mirrored=False)
+    except MocapError as exc:
+        out["reason"] = exc.message
+        return out
+    out["fraction"] = coverage(own, env).fraction_inside
+    return out
 
 
 def _sliver_context(slivers) -> dict:
@@ -605,8 +644,7 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                                                   envelope=env.vertices))
     png = rendered.png if rendered.renderer == "matplotlib" else figures.compress_png(rendered.png)
     viewer = {"points": np.round(x, 5).tolist(), "ids": cs.ids, "classes": classes,
-              "colours": {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v)
-                          for k, v in colours.items()},
+              "colours": _css_colours(colours),
               "edges": edges.tolist(),
               "axes": [f"{figures.axis_label(a)}: {lo:.2f} to {hi:.2f}" if a != "omega" else
                        f"{figures.axis_label(a)}: {lo:.0f} to {hi:.0f}"
@@ -616,6 +654,28 @@ def _three_d(cs: ControlSpace, env: Envelope, renderer: str) -> tuple[dict, dict
                            "edges": _unique_edges(env_tris).tolist()}}
     return ({"png": _data_uri(png), "renderer": rendered.renderer,
              "fallback_reason": rendered.fallback_reason}, viewer)
+
+
+def _css_colours(colours: dict) -> dict[str, str]:
+    """Class -> CSS colour ``#rrggbb`` of :func:`mocaplib.report.figures.class_colours`."""
+    return {k: "#%02x%02x%02x" % tuple(int(255 * c) for c in v) for k, v in colours.items()}
+
+
+def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
+    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
+    warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
+    from ..skeleton import DOF_NAMES
+    from .figureview import viewer_data
+
+    if not len(library):
+        warnings.append("motion viewer left out: the library has no entry")
+        return None
+    if library.dof_names != list(DOF_NAMES):
+        warnings.append("motion viewer left out: the library's DOFs are not this mocaplib's "
+                        "skeleton's (report it with the mocaplib version that wrote it)")
+        return None
+    colours = _css_colours(figures.class_colours(classes))
+    return viewer_data(library, cs, classes, colours)
 
 
 def nice_range(lo: float, hi: float) -> tuple[float, float, int]:
@@ -673,19 +733,21 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
                 "cycles": cycles, "n_entries": sum(c["entry"] is not None for c in cycles),
                 "figure": None, "figure_error": None, "anchor": f"capture-{k}"}
         if (record.get("time_s") or record.get("angles")) and k < MAX_CAPTURE_FIGURES:
-            drawn.append((item, record, _reconstructions(record, library, known)))
+            drawn.append((item, (record, _reconstructions(record, library, known),
+                                 _poulaine(record, library, known))))
         out.append(item)
-    results = _in_processes(_capture_figure, [(r, recon) for _, r, recon in drawn], jobs)
-    for (item, _, _), (png, error) in zip(drawn, results):
+    results = _in_processes(_capture_figure, [arguments for _, arguments in drawn], jobs)
+    for (item, _), (png, error) in zip(drawn, results):
         item["figure"] = None if png is None else _data_uri(png)
         item["figure_error"] = error
     return out
 
 
-def _capture_figure(record: dict, reconstructions: dict) -> tuple[bytes | None, str | None]:
+def _capture_figure(record: dict, reconstructions: dict, poulaine: dict | None
+                    ) -> tuple[bytes | None, str | None]:
     """A capture's quality figure (PNG), or why its sidecar record could not be drawn."""
     try:
-        return figures.capture_figure(record, reconstructions), None
+        return figures.capture_figure(record, reconstructions, poulaine), None
     except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
         # a hand-edited or foreign sidecar: this capture's plots only are lost
         return None, (f"its record in the diagnostics sidecar is malformed "
@@ -703,6 +765,17 @@ def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
         results[i] = value if error is None else (
             None, f"it could not be drawn ({type(error).__name__}: {str(error)[:200]})")
     return results
+
+
+def _poulaine(record: dict, library, known: set) -> dict | None:
+    """The model of the poulaines of the capture's chosen cycle, if it is an entry with one:
+    ``path`` (n, 2, 3) m over the cycle and the characteristic ``points`` (2, 4, 3) m."""
+    chosen = [c.get("entry_id") for c in record.get("cycles") or [] if c.get("chosen")]
+    model = library.poulaine(chosen[0]) if chosen and chosen[0] in known else None
+    if model is None:
+        return None
+    return {"path": model(np.linspace(0.0, 1.0, POULAINE_POINTS)),
+            "points": np.stack([model.left.points, model.right.points])}
 
 
 def _reconstructions(record: dict, library, known: set) -> dict:

@@ -109,7 +109,7 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     t_mid = float(t[-1]) / 2
     body = body_motion(command, params, skeleton, subject.height, t, t_mid=t_mid)
     rng = np.random.default_rng(seed)
-    session = None if session_seed is None else np.random.default_rng(session_seed)
+    session = None if session_seed is None else np.random.default_rng(seed=session_seed)
     xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
                                        rate=rate, mass=subject.mass, placement_rng=session)
     events = _events(body, t[-1])

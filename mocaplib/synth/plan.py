@@ -174,13 +174,13 @@ def load_plan(path: str | os.PathLike) -> Plan:
 
         try:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
-            session = get("session_seed", None)
+            placement_seed = get("session_seed", None)
             captures.append(PlannedCapture(
                 name, str(entry["class"]), _command(entry["command"]),
                 float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
                 str(get("protocol", "fullbody38")),
                 _markers({**defaults.get("markers", {}), **entry.get("markers", {})}),
-                None if session is None else int(session)))
+                None if placement_seed is None else int(placement_seed)))
         except SynthError as exc:
             raise SynthError(f"{where}: {exc.message}", path=path, hint=exc.hint) from None
         except (TypeError, ValueError) as exc:

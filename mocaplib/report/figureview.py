@@ -1,0 +1,87 @@
+"""Data of the report's figure viewer: the skeleton, every entry's series, the tetrahedra.
+
+The viewer (``templates/figure.js`` on ``templates/motion.js``) animates an entry's cycle as a
+stick figure, posed by forward kinematics in JavaScript from :func:`skeleton_data` (the
+description of docs/library-format.md, "Posing the skeleton"), and plays the blend of a
+control-space point picked with the mouse, located in the control space's own tetrahedra
+(:func:`viewer_data`'s ``space``): nothing is triangulated in the browser.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.bvh import end_sites
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+
+#: Significant digits of the Fourier coefficients in the page (1e-6 rad: far below a pixel).
+COEFFICIENT_DIGITS = 6
+#: The entry shown first: the one nearest this (v̂, ω̂, v̂_l) (m/s, rad/s, m/s), normal walking.
+FIRST_SHOWN = (1.2, 0.0, 0.0)
+#: Segment origins joined by a line besides each segment's bone to its parent.
+EXTRA_LINES = (("femur_l", "femur_r"), ("humerus_l", "humerus_r"))
+
+
+def skeleton_data(skeleton: Skeleton) -> dict:
+    """The skeleton for the page's forward kinematics: ``segments`` (name, parent index or -1,
+    joint centre ``offset`` in the parent's frame (m), ``dofs`` as [DOF index, axis, is a
+    translation], parents before children), ``ends`` (segment index -> points drawn in its
+    frame, m: head top, finger tip, heel and toe) and ``lines`` (pairs of segment indices)."""
+    lengths = skeleton.lengths
+    offsets = skeleton.joint_offsets()
+    segments = [{"name": seg.name,
+                 "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
+                 "offset": offsets[s].tolist(),
+                 "dofs": [[DOF_NAMES.index(name), list(DOFS[DOF_NAMES.index(name)].axis),
+                           DOFS[DOF_NAMES.index(name)].translation] for name in seg.dofs]}
+                for s, seg in enumerate(SEGMENTS)]
+    ends = {}
+    for name, tip in end_sites(skeleton).items():
+        points = [list(map(float, tip))]
+        if name.startswith("foot"):        # the heel: a foot length behind the toe
+            points.insert(0, [tip[0] - lengths["foot_length"], tip[1], tip[2]])
+        ends[SEGMENT_NAMES.index(name)] = points
+    return {"segments": segments, "ends": ends,
+            "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES]}
+
+
+def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
+    """Everything the figure viewer needs, as JSON data.
+
+    ``entries``: per library entry (``library.entries`` order) its id, class, colour,
+    ``mirror_of`` (null unless a mirror image), period ``T`` (s), Fourier ``a``/``b`` up to its
+    own order, and root ``drift`` (u_f, u_l, omega); ``space`` (null without a control space):
+    the chosen entries (``entries``: indices into the list above) at their normalised
+    ``points``, the ``simplices`` of its triangulation (rows of 4 indices into them), its
+    ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
+    lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
+    entry's class label; ``colours``: class -> CSS colour.
+    """
+    df = library.entries
+    entries = []
+    for entry_id, cls in zip(df.index, classes):
+        e = library.entry(entry_id)
+        n = int(e["fourier"]["n"]) + 1
+        drift = e["root_drift"]
+        entries.append({
+            "id": entry_id, "class": cls, "colour": colours.get(cls, "#808080"),
+            "mirror_of": e.get("mirror_of"), "T": float(e["T"]),
+            "a": _rounded([row[:n] for row in e["fourier"]["a"]]),
+            "b": _rounded([row[:n] for row in e["fourier"]["b"]]),
+            "drift": [float(drift[k]) for k in ("u_f_m_s", "u_l_m_s", "omega_rad_s")],
+            "velocity": [float(e[axis]) for axis in ("v", "omega", "v_l")]})
+    space = None
+    if cs is not None:
+        row = {entry_id: i for i, entry_id in enumerate(df.index)}
+        space = {"entries": [row[i] for i in cs.ids],
+                 "points": cs.normalise(cs.points).tolist(),
+                 "simplices": cs.tri.simplices.tolist(), "axes": list(cs.axes),
+                 "scale": [float(s) for s in cs.scale]}
+    walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
+    first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
+    return {"entries": entries, "space": space, "first": first,
+            "skeleton": skeleton_data(library.skeleton)}
+
+
+def _rounded(rows) -> list:
+    return [[float(f"{x:.{COEFFICIENT_DIGITS}g}") for x in row] for row in rows]

@@ -1,0 +1,125 @@
+// Motion of library entries, in plain JavaScript (no libraries): the Fourier formula, forward
+// kinematics of the skeleton as docs/library-format.md "Posing the skeleton" describes it, the
+// root drift, and blending by barycentric weights in the library's own tetrahedra.
+// Used by the report's figure viewer (figure.js); also loads in node (module.exports), where
+// tests/test_report_motion.py compares it with mocaplib's Python.
+var MocapMotion = (function () {
+  "use strict";
+
+  // q_d(t) = a[d][0] + sum_k a[d][k] cos(2 pi k t / T) + b[d][k] sin(2 pi k t / T)
+  function synthesize(a, b, T, t) {
+    var q = new Array(a.length);
+    for (var d = 0; d < a.length; d++) {
+      var value = a[d][0];
+      for (var k = 1; k < a[d].length; k++) {
+        var w = 2 * Math.PI * k * t / T;
+        value += a[d][k] * Math.cos(w) + b[d][k] * Math.sin(w);
+      }
+      q[d] = value;
+    }
+    return q;
+  }
+
+  // 4x4 transforms as arrays of 16 numbers, row-major.
+  function multiply(A, B) {
+    var C = new Array(16);
+    for (var i = 0; i < 4; i++) {
+      for (var j = 0; j < 4; j++) {
+        C[4 * i + j] = A[4 * i] * B[j] + A[4 * i + 1] * B[4 + j] + A[4 * i + 2] * B[8 + j] + A[4 * i + 3] * B[12 + j];
+      }
+    }
+    return C;
+  }
+
+  function translation(x, y, z) { return [1, 0, 0, x, 0, 1, 0, y, 0, 0, 1, z, 0, 0, 0, 1]; }
+
+  // Rotation by angle (rad) about a unit axis, right-hand rule (Rodrigues).
+  function rotation(axis, angle) {
+    var x = axis[0], y = axis[1], z = axis[2], c = Math.cos(angle), s = Math.sin(angle), v = 1 - c;
+    return [c + x * x * v, x * y * v - z * s, x * z * v + y * s, 0,
+            y * x * v + z * s, c + y * y * v, y * z * v - x * s, 0,
+            z * x * v - y * s, z * y * v + x * s, c + z * z * v, 0,
+            0, 0, 0, 1];
+  }
+
+  // Segment-to-world transforms of pose q (one value per DOF) for a skeleton
+  // {segments: [{parent (index, -1 for the root), offset [x, y, z] m, dofs: [[dof index,
+  // axis [x, y, z], translation (bool)], ...]}]} with parents listed before children:
+  // W = W_parent . Trans(offset) . (Trans(axis q) for a translation, Rot(axis, q) else) . ...
+  function forward(skeleton, q) {
+    var world = [];
+    skeleton.segments.forEach(function (segment) {
+      var W = segment.parent < 0 ? translation(0, 0, 0) : world[segment.parent];
+      W = multiply(W, translation(segment.offset[0], segment.offset[1], segment.offset[2]));
+      segment.dofs.forEach(function (dof) {
+        var value = q[dof[0]], axis = dof[1];
+        W = multiply(W, dof[2] ? translation(axis[0] * value, axis[1] * value, axis[2] * value)
+                               : rotation(axis, value));
+      });
+      world.push(W);
+    });
+    return world;
+  }
+
+  // A point p (segment frame, m) in the world: W . p.
+  function apply(W, p) {
+    return [W[0] * p[0] + W[1] * p[1] + W[2] * p[2] + W[3],
+            W[4] * p[0] + W[5] * p[1] + W[6] * p[2] + W[7],
+            W[8] * p[0] + W[9] * p[1] + W[10] * p[2] + W[11]];
+  }
+
+  // The path frame after t s of constant body velocity (u_f, u_l) m/s and turn rate omega
+  // rad/s from the origin: [x, y, heading] (docs/library-format.md, root_drift).
+  function frame(drift, t) {
+    var phi = drift[2] * t;
+    var sinc = Math.abs(phi) < 1e-8 ? 1 - phi * phi / 6 : Math.sin(phi) / phi;
+    var vers = Math.abs(phi) < 1e-8 ? phi / 2 : (1 - Math.cos(phi)) / phi;
+    return [t * (sinc * drift[0] - vers * drift[1]), t * (vers * drift[0] + sinc * drift[1]), phi];
+  }
+
+  // The tetrahedron of space.simplices (rows of 4 point indices) holding the normalised point
+  // x, and its barycentric weights, as mocaplib.controlspace.locate finds them: among the
+  // tetrahedra whose smallest weight is >= -tol, the one with the largest smallest weight.
+  // Returns {simplex: index or -1 (outside), weights: [4 numbers] or null}.
+  function locate(space, x, tol) {
+    tol = tol === undefined ? 1e-9 : tol;
+    var best = -1, bestWorst = -Infinity, bestWeights = null;
+    space.simplices.forEach(function (simplex, s) {
+      var p = simplex.map(function (i) { return space.points[i]; });
+      var o = p[3], a = sub(p[0], o), b = sub(p[1], o), c = sub(p[2], o);
+      var rows = [cross(b, c), cross(c, a), cross(a, b)], det = dot(a, rows[0]);
+      var r = sub(x, o);
+      var w = rows.map(function (row) { return dot(row, r) / det; });
+      w.push(1 - w[0] - w[1] - w[2]);
+      var worst = Math.min.apply(null, w);
+      if (worst > bestWorst) { best = s; bestWorst = worst; bestWeights = w; }
+    });
+    return bestWorst >= -tol ? { simplex: best, weights: bestWeights } : { simplex: -1, weights: null };
+  }
+
+  function sub(u, v) { return [u[0] - v[0], u[1] - v[1], u[2] - v[2]]; }
+  function dot(u, v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
+  function cross(u, v) { return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]; }
+
+  // Weighted sum of entries' coefficients (shorter series padded with zeros), periods and
+  // drifts: equations (4)-(6) of Truong et al. 2010, as mocaplib.controlspace blends.
+  function blend(entries, weights) {
+    var D = entries[0].a.length, N = 0;
+    entries.forEach(function (e) { N = Math.max(N, e.a[0].length); });
+    var out = { a: [], b: [], T: 0, drift: [0, 0, 0] };
+    for (var d = 0; d < D; d++) { out.a.push(new Array(N).fill(0)); out.b.push(new Array(N).fill(0)); }
+    entries.forEach(function (e, i) {
+      var w = weights[i];
+      for (var d = 0; d < D; d++) {
+        for (var k = 0; k < e.a[d].length; k++) { out.a[d][k] += w * e.a[d][k]; out.b[d][k] += w * e.b[d][k]; }
+      }
+      out.T += w * e.T;
+      for (var j = 0; j < 3; j++) { out.drift[j] += w * e.drift[j]; }
+    });
+    return out;
+  }
+
+  return { synthesize: synthesize, forward: forward, apply: apply, frame: frame,
+           locate: locate, blend: blend };
+})();
+if (typeof module !== "undefined") { module.exports = MocapMotion; }

@@ -1,0 +1,87 @@
+"""Anatomical joint centres and frames (mocaplib.anatomy) against Plug-in Gait's own points in
+the shared captures, and their geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocaplib.anatomy import chord_centre, davis_hip, frame, pelvis_axes
+from mocaplib.io.c3d import read_c3d
+
+
+@pytest.fixture(scope="module")
+def static(real_c3d):
+    """biomechzoo's static with Plug-in Gait's points (read with ezc3d) and its measurements."""
+    ezc3d = pytest.importorskip("ezc3d")
+    path = real_c3d("biomechzoo/HC030A01.c3d")
+    c3d = ezc3d.c3d(str(path))
+    point = c3d["parameters"]["POINT"]
+    labels = [label for key in ("LABELS", "LABELS2") for label in point[key]["value"]]
+    data = c3d["data"]["points"][:3].transpose(2, 1, 0) / 1000.0
+    return {label: data[:, i] for i, label in enumerate(labels)}, read_c3d(path).measurements
+
+
+def test_processing_measurements_are_read_in_si_units(static):
+    _, measured = static
+    # the file's PROCESSING group: LKneeWidth 102 mm, RAnkleWidth 59 mm, Bodymass 45.8 kg...
+    assert measured["knee_width_l"] == pytest.approx(0.102)
+    assert measured["ankle_width_r"] == pytest.approx(0.059)
+    assert measured["leg_length_l"] == pytest.approx(0.830)
+    assert measured["marker_diameter"] == pytest.approx(0.010)
+    assert measured["body_mass"] == pytest.approx(45.8, rel=1e-6)
+
+
+def test_chord_knee_and_ankle_centres_are_plug_in_gaits(static):
+    points, measured = static
+    for side, other in ("LR", "RL"):
+        s = side.lower()
+        medial = points[f"{other}HJC"] - points[f"{side}HJC"]     # towards the midline
+        delta = 0.5 * (measured[f"knee_width_{s}"] + measured["marker_diameter"])
+        knee = chord_centre(points[f"{side}HJC"], points[f"{side}THI"], points[f"{side}KNE"],
+                            delta, medial_hint=medial)
+        # Plug-in Gait's femur origin is its knee centre; the same definition to round-off of
+        # the file's single-precision coordinates
+        np.testing.assert_allclose(knee, points[f"{side}FEO"], atol=5e-4)
+        delta = 0.5 * (measured[f"ankle_width_{s}"] + measured["marker_diameter"])
+        ankle = chord_centre(points[f"{side}FEO"], points[f"{side}TIB"], points[f"{side}ANK"],
+                             delta, medial_hint=medial)
+        np.testing.assert_allclose(ankle, points[f"{side}TIO"], atol=5e-4)
+
+
+def test_davis_hips_are_plug_in_gaits(static):
+    points, measured = static
+    for side in "LR":
+        s = side.lower()
+        hip = davis_hip(points["LASI"], points["RASI"], points["SACR"], side=s,
+                        leg_length=measured[f"leg_length_{s}"],
+                        marker_radius=0.5 * measured["marker_diameter"],
+                        asis_trochanter=measured.get(f"asis_trochanter_{s}"),
+                        asis_distance=measured["inter_asis_distance"])
+        np.testing.assert_allclose(hip, points[f"{side}HJC"], atol=5e-4)
+
+
+def test_frames_are_right_handed_with_the_asked_axes():
+    rng = np.random.default_rng(0)
+    primary, secondary = rng.normal(size=(2, 50, 3))
+    for order in ("zy", "yz", "yx", "xy", "zx", "xz"):
+        R = frame(primary, secondary, order=order)
+        np.testing.assert_allclose(R.transpose(0, 2, 1) @ R, np.broadcast_to(np.eye(3), R.shape),
+                                   atol=1e-12)
+        np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+        first = R[..., "xyz".index(order[0])]
+        np.testing.assert_allclose(first, primary / np.linalg.norm(primary, axis=1)[:, None],
+                                   atol=1e-12)
+        # the second axis lies in the plane of the two vectors, on the secondary's side
+        second = R[..., "xyz".index(order[1])]
+        assert ((second * secondary).sum(axis=1) > 0).all()
+
+
+def test_the_pelvis_frame_is_level_when_the_asis_and_psis_are():
+    lasi, rasi, back = np.array([[0.05, 0.12, 0.9]]), np.array([[0.05, -0.12, 0.9]]), \
+        np.array([[-0.12, 0.0, 0.9]])
+    np.testing.assert_allclose(pelvis_axes(lasi, rasi, back)[0], np.eye(3), atol=1e-12)
+    # the back 3 cm higher: the pelvis tilts forward (its X axis points down)
+    tilted = pelvis_axes(lasi, rasi, back + [0.0, 0.0, 0.03])[0]
+    assert tilted[2, 0] < 0 and np.degrees(np.arcsin(-tilted[2, 0])) == pytest.approx(
+        np.degrees(np.arctan(0.03 / 0.17)), abs=1e-9)

@@ -1,0 +1,73 @@
+"""Joint angles against the lab's own Plug-in Gait angles in the shared real captures
+(``benchmarks/lab_agreement.py`` computes and prints the same comparisons).
+
+Targets: hip, knee and ankle flexion within 3° median offset (5° on any capture), r ≥ 0.97 and
+3° RMS after the offset; hip adduction and pelvis tilt/obliquity r ≥ 0.8 within 5°; no DOF at
+a joint limit in more than 2 % of frames; the pelvis obliquity's range within 1.3× the ASIS
+line's."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from lab_agreement import CAPTURES, TARGETS, agreement, target_checks  # noqa: E402
+
+#: Targets missed on the shared captures, with the measured figure (honest xfails).
+MISSED = {
+    "knee_flexion: RMS after offset ≤ 3°": "measured 3.9° on HC030A05's right knee (Oxford Foot "
+                                          "Model capture, swing: mocaplib's hinge knee flexes "
+                                          "7° more than Plug-in Gait's 3-DOF knee)",
+    "ankle_dorsiflexion: r ≥ 0.97": "measured 0.958 on PiG_Motion-FlatFoot-Full's right ankle",
+}
+
+
+@pytest.fixture(scope="module")
+def results(real_c3d):
+    return [agreement(real_c3d(motion), static and real_c3d(static), Path(motion).stem)
+            for motion, static in CAPTURES]
+
+
+@pytest.fixture(scope="module")
+def checks(results):
+    return {target: (measured, met) for target, measured, met in target_checks(results)}
+
+
+def test_every_target_is_checked(checks):
+    # 3 flexions x 4 targets, 3 frontal angles x 2, limits, pelvis range
+    assert len(checks) == 3 * 4 + 3 * 2 + 2
+    assert set(MISSED) <= set(checks)
+
+
+@pytest.mark.parametrize("target", [
+    pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=MISSED[t])) if t in MISSED else t
+    for t in (f"{dof}: {what}" for dof in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
+              for what in (f"median abs. offset ≤ {TARGETS['flexion_median_offset']:g}°",
+                           f"every abs. offset ≤ {TARGETS['flexion_worst_offset']:g}°",
+                           f"r ≥ {TARGETS['flexion_r']:g}",
+                           f"RMS after offset ≤ {TARGETS['flexion_rms']:g}°"))])
+def test_flexions_agree_with_plug_in_gait(checks, target):
+    measured, met = checks[target]
+    assert met, f"{target}: {measured}"
+
+
+@pytest.mark.parametrize("dof", ["hip_adduction", "pelvis_tilt", "pelvis_list"])
+def test_frontal_angles_and_the_pelvis_agree_with_plug_in_gait(checks, dof):
+    for target in (f"{dof}: r ≥ {TARGETS['frontal_r']:g}",
+                   f"{dof}: abs. offset ≤ {TARGETS['frontal_offset']:g}°"):
+        measured, met = checks[target]
+        assert met, f"{target}: {measured}"
+
+
+def test_no_dof_sits_at_a_joint_limit_and_the_pelvis_follows_its_markers(checks, results):
+    for target, (measured, met) in checks.items():
+        if target.startswith(("no DOF", "pelvis obliquity range")):
+            assert met, f"{target}: {measured}"
+    # the heel and toe markers of Plug-in Gait cannot show inversion: held, and said so
+    pig = next(r for r in results if r.capture == "PiG_Motion-FlatFoot-Full")
+    assert sorted(pig.held) == ["ankle_inversion_l", "ankle_inversion_r"]
+    assert all(sd > 5.0 for sd in pig.held.values())
