@@ -317,7 +317,10 @@ def mirror_library(library, /):
     if taken:
         raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
                          "another entry has", hint="rename that entry's capture")
-    document = {**library.document,
+    from .library import CHECKSUM_KEY
+
+    # new content: the source's checksum goes (writing the library computes its own)
+    document = {**{k: v for k, v in library.document.items() if k != CHECKSUM_KEY},
                 "entries": sorted(entries + images, key=lambda e: e["id"])}
     return Library(to_json_data(document)), notes
 
