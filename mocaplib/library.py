@@ -15,11 +15,14 @@ metres for ``pelvis_t*``. Root channels are stored in the frame moving along the
 the per-cycle displacement of that frame is stored apart (``root_drift``).
 
 Files are deterministic: keys sorted, floats written with 10 significant digits, no time stamps,
-so the same inputs and settings give byte-identical files. Files are written atomically.
+so the same inputs and settings give byte-identical files. Files are written atomically and
+carry ``content_sha256``, a checksum of their content (:func:`content_sha256`) that
+:func:`validate_library` verifies.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -34,8 +37,9 @@ import pandas as pd
 
 from . import __version__
 from .errors import LibraryError
+from .io import read_regular
 from .io.atomic import atomic_write_text
-from .io.jsonvalues import json_values
+from .io.jsonvalues import OutOfRange, canonical_sha256, json_values, parse_json
 from .skeleton import DOFS
 
 FORMAT = "mocaplib-library"
@@ -95,6 +99,11 @@ QC_NAMES = tuple(QC_LIMITS)
 MIRROR_METHODS = ("capture", "series")
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
+#: The top-level key of the content checksum (:func:`content_sha256`).
+CHECKSUM_KEY = "content_sha256"
+#: Largest library file read (bytes): 68 entries take 1.3 MB, so this is room for about
+#: 100,000 entries, and a link to an endless file cannot exhaust the memory.
+MAX_LIBRARY_BYTES = 2 << 30
 
 
 @dataclass(frozen=True)
@@ -256,7 +265,9 @@ def assemble_library(entries: list[dict], *, settings: dict,
         "qc_thresholds": dict(DEFAULT_QC_THRESHOLDS if qc_thresholds is None else qc_thresholds),
         "entries": entries,
     }
-    return Library(to_json_data(doc))
+    doc = to_json_data(doc)
+    doc[CHECKSUM_KEY] = content_sha256(doc)
+    return Library(doc)
 
 
 def control_scale() -> list[float]:
@@ -297,8 +308,11 @@ class Library:
         metric names).
     """
 
-    def __init__(self, document: dict):
+    def __init__(self, document: dict, *, file_sha256: str | None = None):
         self.document = document
+        #: SHA-256 of the file's bytes when read by :func:`load_library` (None: built in
+        #: memory); a build's diagnostics sidecar names the library it belongs to by it.
+        self.file_sha256 = file_sha256
 
     # ------------------------------------------------------------------ views
     @property
@@ -424,9 +438,11 @@ class Library:
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:
-        """The file's text: deterministic (sorted keys, 10 significant digits), ends with
-        newline."""
-        return json_text(self.document)
+        """The file's text: deterministic (sorted keys, 10 significant digits), with its
+        :func:`content_sha256` (recomputed), ends with a newline."""
+        data = to_json_data({k: v for k, v in self.document.items() if k != CHECKSUM_KEY})
+        data[CHECKSUM_KEY] = content_sha256(data)
+        return _dump(data) + "\n"
 
     def write(self, path: str | os.PathLike) -> Path:
         """Write the library atomically; returns the path."""
@@ -447,43 +463,42 @@ def load_library(path: str | os.PathLike) -> Library:
     fields that disagree with each other or a degenerate control space do not prevent loading
     — run :func:`validate_library` for those.
     """
-    document = _read_document(path)
+    document, sha256 = _read_document(path)
     problems = _structure_problems(document) or _named(document, _skeleton_problems(document)
                                                        + _entry_problems(document, qc=False))
     if problems:
         raise LibraryError(f"not a valid mocaplib library: {problems[0]}"
                            + (f" (and {len(problems) - 1} more problems)" if len(problems) > 1
                               else ""), path=path, hint="run `mocaplib validate` on it")
-    return Library(document)
+    return Library(document, file_sha256=sha256)
 
 
-def _read_document(path: str | os.PathLike) -> dict:
-    """The file's JSON data; NaN and ±Infinity tokens are read as floats, for
-    :func:`_non_finite_problems` to name where they are."""
+def _read_document(path: str | os.PathLike) -> tuple[object, str]:
+    """The file's JSON data (:func:`mocaplib.io.jsonvalues.parse_json`: NaN, ±Infinity and
+    numbers beyond a double are read as floats, for :func:`_non_finite_problems` to name where
+    they are) and the SHA-256 of its bytes."""
+    hint = "a library is a JSON file written by `mocaplib build`"
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        data = read_regular(path, limit=MAX_LIBRARY_BYTES)
     except OSError as exc:
         raise LibraryError(f"cannot read library: {exc.strerror}", path=path,
                            hint="check the path") from exc
-    except UnicodeDecodeError as exc:
-        raise LibraryError("library is not UTF-8 text", path=path,
-                           hint="a library is a JSON file written by `mocaplib build`") from exc
     try:
-        document = json.loads(text)
+        document = parse_json(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise LibraryError("library is not UTF-8 text", path=path, hint=hint) from exc
     except json.JSONDecodeError as exc:
         raise LibraryError(f"library is not valid JSON: {exc.msg} at line {exc.lineno}",
-                           path=path, hint="a library is a JSON file written by "
-                                           "`mocaplib build`") from exc
-    except RecursionError:
-        raise LibraryError("library is not a mocaplib library: its JSON is nested too deep",
-                           path=path, hint="a library is a JSON file written by "
-                                           "`mocaplib build`") from None
+                           path=path, hint=hint) from exc
+    except ValueError as exc:
+        raise LibraryError(f"library is not a mocaplib library: {exc}", path=path,
+                           hint=hint) from None
     if isinstance(document, dict) and document.get("format") == DIAGNOSTICS_FORMAT:
         library = document.get("library")
         raise LibraryError("this is a build's diagnostics sidecar, not a library", path=path,
                            hint=f"give the library beside it"
                                 f"{f', {library}' if isinstance(library, str) else ''}")
-    return document
+    return document, hashlib.sha256(data).hexdigest()
 
 
 def schema() -> dict:
@@ -524,15 +539,54 @@ def validate_library(library) -> list[Problem]:
         document = library
     else:
         try:
-            document = _read_document(library)
+            document, _ = _read_document(library)
         except LibraryError as exc:
             return [Problem("file", exc.message if not exc.hint else
                             f"{exc.message} ({exc.hint})")]
     problems = _structure_problems(document)
     if problems:
         return problems
-    return _named(document, _skeleton_problems(document) + _entry_problems(document)
-                  + _consistency_problems(document) + _control_space_problems(document))
+    return _named(document, _checksum_problems(document) + _skeleton_problems(document)
+                  + _entry_problems(document) + _consistency_problems(document)
+                  + _control_space_problems(document))
+
+
+def content_sha256(document: dict) -> str:
+    """The library's content checksum: :func:`mocaplib.io.jsonvalues.canonical_sha256` of the
+    document without ``content_sha256``. Reformatting a file keeps it; changing a value, a key
+    or an entry changes it."""
+    return canonical_sha256({k: v for k, v in document.items() if k != CHECKSUM_KEY})
+
+
+def checksum_status(library) -> str | None:
+    """Whether a library (path, JSON dict or :class:`Library`) is the content it was written
+    with: ``"verified"`` (its stored :func:`content_sha256` matches), ``"mismatch"`` (it was
+    changed after it was written), ``"absent"`` (no checksum: written by a mocaplib that did
+    not store one, or built in memory by another tool); None when it is no library document
+    (not an object of format ``mocaplib-library``). Raises :class:`LibraryError` for a file
+    that cannot be read as JSON."""
+    document = library.document if isinstance(library, Library) else (
+        library if isinstance(library, dict) else _read_document(library)[0])
+    if not isinstance(document, dict) or document.get("format") != FORMAT:
+        return None
+    stored = document.get(CHECKSUM_KEY)
+    if stored is None:
+        return "absent"
+    return "verified" if stored == content_sha256(document) else "mismatch"
+
+
+#: What a library without a checksum is told (``mocaplib validate``, the report).
+NO_CHECKSUM_NOTE = ("no content checksum (written by a mocaplib that did not store one): its "
+                    "integrity cannot be checked; build it again to add one")
+
+
+def _checksum_problems(document: dict) -> list[Problem]:
+    if checksum_status(document) != "mismatch":
+        return []
+    return [Problem(CHECKSUM_KEY, "the content does not match the checksum the file was "
+                                  "written with: it was changed after `mocaplib build` wrote "
+                                  "it (by hand or by another tool), so its values cannot be "
+                                  "trusted; build it again")]
 
 
 def _structure_problems(document) -> list[Problem]:
@@ -549,6 +603,9 @@ def _non_finite_problems(document) -> list[Problem]:
             stack += [((*parts, key), item) for key, item in reversed(value.items())]
         elif isinstance(value, list):
             stack += [((*parts, i), item) for i, item in reversed(list(enumerate(value)))]
+        elif isinstance(value, OutOfRange):
+            problems.append(Problem(_json_path(parts), "a number beyond the range of a double "
+                                    "(±1.8e308): no reader can hold it"))
         elif isinstance(value, float) and not math.isfinite(value):
             token = "NaN" if value != value else "Infinity" if value > 0 else "-Infinity"
             problems.append(Problem(_json_path(parts), f"{token} is not a JSON number (JSON "

@@ -317,33 +317,43 @@ def mirror_library(library, /):
     if taken:
         raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
                          "another entry has", hint="rename that entry's capture")
-    document = {**library.document,
+    from .library import CHECKSUM_KEY
+
+    # new content: the source's checksum goes (writing the library computes its own)
+    document = {**{k: v for k, v in library.document.items() if k != CHECKSUM_KEY},
                 "entries": sorted(entries + images, key=lambda e: e["id"])}
     return Library(to_json_data(document)), notes
 
 
-def mirror_sidecar(library_path, out_path, /):
-    """Copy the diagnostics sidecar of ``library_path`` (when there is one) beside
-    ``out_path``, naming that library; returns the written path or None. The series images
+def write_mirrored(library, library_path, out_path, /):
+    """Write the mirrored ``library`` to ``out_path`` with a copy of ``library_path``'s
+    diagnostics sidecar (when there is one) beside it, as one unit (as ``build`` writes a
+    library and its sidecar: temporaries first, the sidecar renamed last, naming the new
+    library's name and SHA-256). Returns the sidecar's path, or None. The series images
     :func:`mirror_library` adds have no capture record: the report knows them by their
     ``mirror_method``."""
+    import hashlib
     import json
     from pathlib import Path
 
-    from .io.atomic import atomic_write_text
+    from .io.atomic import atomic_write_files
     from .library import json_text
     from .pipeline import diagnostics_path
 
+    text = library.to_json().encode("utf-8")
+    files = [(Path(out_path), text)]
     source = diagnostics_path(library_path)
-    if not source.is_file():
-        return None
-    try:
-        data = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise MocapError(f"cannot read the diagnostics sidecar: {exc}", path=source,
-                         hint="move it away to mirror the library without it") from None
-    if not isinstance(data, dict):
-        raise MocapError("not a diagnostics sidecar", path=source,
-                         hint="move it away to mirror the library without it")
-    return atomic_write_text(diagnostics_path(out_path),
-                             json_text({**data, "library": Path(out_path).name}))
+    if source.is_file():
+        try:
+            data = json.loads(source.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise MocapError(f"cannot read the diagnostics sidecar: {exc}", path=source,
+                             hint="move it away to mirror the library without it") from None
+        if not isinstance(data, dict):
+            raise MocapError("not a diagnostics sidecar", path=source,
+                             hint="move it away to mirror the library without it")
+        data.update(library=Path(out_path).name,
+                    library_sha256=hashlib.sha256(text).hexdigest())
+        files.append((diagnostics_path(out_path), json_text(data).encode("utf-8")))
+    atomic_write_files(files)
+    return files[1][0] if len(files) > 1 else None

@@ -5,15 +5,16 @@ calibration, fit, events, cycles, pattern and velocities, Fourier, library entri
 pure, picklable function of the file's content and the settings: it never raises for a bad
 capture but returns a :class:`CaptureResult` carrying the error (file, stage, reason).
 
-:func:`build` runs it over many captures — serially, in a process pool (``jobs``) or on a Dask
-cluster (``scheduler``) — caches each capture's result (JSON, keyed by the SHA-256 of the file,
-the settings and the tool version), and assembles the :class:`~mocaplib.library.Library` and the
-per-capture diagnostics the HTML report reads (see ``docs/library-format.md``).
+:func:`build` runs it over many captures — serially, in worker processes (``jobs``,
+:mod:`mocaplib.workers`: a dead worker fails only its capture) or on a Dask cluster
+(``scheduler``) — caches each capture's result (JSON, keyed by the SHA-256 of the file, the
+settings, the tool version and the code, verified by the hash of its content when read), and
+assembles the :class:`~mocaplib.library.Library` and the per-capture diagnostics the HTML report
+reads, written as one unit (see ``docs/library-format.md`` and ``docs/reliability.md``).
 """
 
 from __future__ import annotations
 
-import errno
 import functools
 import hashlib
 import json
@@ -23,7 +24,6 @@ import time
 import warnings
 from collections import Counter
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from functools import lru_cache
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -32,8 +32,10 @@ from pathlib import Path
 from . import __version__
 from .errors import LibraryError, MocapError
 from .events import TOE_OFF_DEFINITIONS
-from .io import special_file, unique_paths
-from .io.atomic import atomic_write_text
+from .io import fs_text, open_regular, read_regular, unique_paths
+from .io.atomic import atomic_write_files, atomic_write_text
+from .io.jsonvalues import canonical_sha256, parse_json
+from .workers import pinned, run_tasks
 import numpy as np
 
 from .library import (DEFAULT_QC_THRESHOLDS, DIAGNOSTICS_FORMAT, Library, assemble_library,
@@ -209,7 +211,8 @@ class CaptureResult:
 
     @property
     def file(self) -> str:
-        return Path(self.source).name
+        """The capture's file name as text (:func:`mocaplib.io.fs_text`)."""
+        return fs_text(Path(self.source).name)
 
     def to_dict(self) -> dict:
         return to_json_data({f.name: getattr(self, f.name) for f in fields(self)})
@@ -239,11 +242,10 @@ class _Clock:
 
 
 def file_sha256(path: str | os.PathLike) -> str:
-    """Hex SHA-256 of a file's bytes; OSError for a pipe or device (it could block)."""
-    if special_file(path):
-        raise OSError(errno.EINVAL, "not a regular file (a pipe, socket or device)", path)
+    """Hex SHA-256 of a file's bytes; OSError for anything but a regular file (a pipe or
+    device could block or never end: :func:`mocaplib.io.open_regular`)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as handle:
+    with open_regular(path) as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
@@ -256,6 +258,9 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     ``ok=False`` with ``stage`` and ``error`` (the error names the file).
     """
     result = CaptureResult(source=os.fspath(path))
+    if result.file != Path(path).name:
+        result.warnings.append(f"the file name is not valid UTF-8: its entries name it "
+                               f"{result.file!r} (the bytes read as Latin-1)")
     clock = _Clock()
     try:
         with clock.stage("read"):
@@ -537,8 +542,8 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(make_entry(
-            id=f"{path.stem}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
-            source_file=path.name,
+            id=f"{fs_text(path.stem)}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
+            source_file=fs_text(path.name),
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
             pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
@@ -854,8 +859,10 @@ class BuildResult:
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
         return "\n".join(lines)
 
-    def diagnostics(self, library_name: str = "library.json") -> dict:
-        """The diagnostics sidecar's content (see ``docs/library-format.md``)."""
+    def diagnostics(self, library_name: str = "library.json", *,
+                    library_sha256: str | None = None) -> dict:
+        """The diagnostics sidecar's content (see ``docs/library-format.md``);
+        ``library_sha256``: the SHA-256 of the library file's bytes it belongs to."""
         records = []
         for c in self.captures:
             record = {key: None for key in ("rate_hz",)}
@@ -866,11 +873,16 @@ class BuildResult:
                            "static": c.static, "warnings": list(c.warnings)})
             records.append(record)
         return to_json_data({"format": DIAGNOSTICS_FORMAT, "version": DIAGNOSTICS_VERSION,
-                             "library": library_name, "captures": records}, DIAGNOSTICS_DIGITS)
+                             "library": library_name, "library_sha256": library_sha256,
+                             "captures": records}, DIAGNOSTICS_DIGITS)
 
     def write(self, path: str | os.PathLike) -> tuple[Path, Path]:
-        """Write ``<stem>.diagnostics.json`` and then the library beside it (both atomically:
-        if either write fails, the library file is left as it was).
+        """Write the library and ``<stem>.diagnostics.json`` beside it, as one unit: both are
+        written to temporaries first (a full disk or an error leaves both old files as they
+        were), then the library is renamed into place and the sidecar last. The sidecar names
+        the SHA-256 of the library's bytes, so a reader tells a sidecar left from an earlier
+        build (a kill between the two renames) from the library's own and does not use it
+        (see ``docs/reliability.md``).
 
         Raises :class:`LibraryError` and writes nothing when the library has no entry (every
         capture failed, or no cycle was kept): an empty library never replaces one.
@@ -883,8 +895,10 @@ class BuildResult:
                                hint="fix what the summary names and build again; a library "
                                     "already there is left as it was")
         sidecar = diagnostics_path(path)
-        atomic_write_text(sidecar, json_text(self.diagnostics(path.name)))
-        self.library.write(path)
+        library = self.library.to_json().encode("utf-8")
+        diagnostics = self.diagnostics(path.name,
+                                       library_sha256=hashlib.sha256(library).hexdigest())
+        atomic_write_files([(path, library), (sidecar, json_text(diagnostics).encode("utf-8"))])
         return path, sidecar
 
 
@@ -895,24 +909,36 @@ def diagnostics_path(library_path: str | os.PathLike) -> Path:
 
 
 def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """C3D files named directly, plus ``*.c3d`` found recursively (sorted) in folders.
+    """C3D files named directly, plus the ``*.c3d`` entries found recursively (sorted) in
+    folders.
 
-    The same file named twice is processed once. Raises :class:`MocapError` for a missing path.
+    In a folder, every entry named ``*.c3d`` that is not a folder is a capture: a pipe, a
+    device, a dangling link or a link loop too, which then fails alone, saying why, when it is
+    read. Links to folders are not followed (a link loop cannot trap the search). The same file
+    named twice is processed once. Raises :class:`MocapError` for a path that does not exist.
     """
-    found: dict[Path, Path] = {}
+    found: dict[str, Path] = {}
     for item in inputs:
         path = Path(item)
         if path.is_dir():  # a folder or pipe named like a capture is not one
-            candidates = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".c3d"
-                                and not p.is_dir() and not special_file(p))
-        elif path.is_file() or special_file(path):  # reading a pipe fails and says why
+            candidates = _c3d_entries(path)
+        elif os.path.lexists(path):  # reading a pipe or a broken link fails and says why
             candidates = [path]
         else:
             raise MocapError("no such file or folder", path=path,
                              hint="check the path; folders are searched for *.c3d")
         for candidate in candidates:
-            found.setdefault(candidate.resolve(), candidate)
+            found.setdefault(os.path.realpath(candidate), candidate)
     return list(found.values())
+
+
+def _c3d_entries(folder: Path) -> list[Path]:
+    """Entries named ``*.c3d`` (any case) in ``folder`` and its subfolders that are not
+    folders, sorted; links to folders are neither taken nor followed."""
+    entries = []
+    for root, _, names in os.walk(folder):
+        entries += [Path(root, name) for name in names if Path(name).suffix.lower() == ".c3d"]
+    return sorted(entries)
 
 
 @functools.lru_cache(maxsize=1)
@@ -979,7 +1005,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     Returns
     -------
     BuildResult
-        Captures that failed are in it, not raised.
+        Captures that failed are in it, not raised. A capture whose worker process dies is
+        run once more in a new worker, then fails alone (stage ``worker``); no worker outlives
+        the build (:mod:`mocaplib.workers`). At most :func:`mocaplib.workers.max_jobs` worker
+        processes are started.
     """
     from tqdm import tqdm
 
@@ -993,9 +1022,10 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
         raise MocapError("no C3D captures found in the inputs",
                          hint="give .c3d files or folders that contain some")
     if settings.forward_reference is not None and settings.heading_offsets is None:
-        settings = replace(settings, heading_offsets=forward_offsets(settings))
+        settings = replace(settings, heading_offsets=pinned(forward_offsets, settings))
     results: dict[int, CaptureResult] = {}
     keys: dict[int, str] = {}
+    notes: list[str] = []
     cache = None if cache_dir is None else Path(cache_dir)
     for i, path in enumerate(paths):
         if cache is not None:
@@ -1003,21 +1033,25 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
                 keys[i] = cache_key(path, file_sha256(path), settings)
             except OSError:
                 continue  # unreadable: its processing fails and says why
-            cached = _read_cache(cache, keys[i])
+            cached, why = _read_cache(cache, keys[i])
             if cached is not None:
                 cached.source = os.fspath(path)
                 results[i] = cached
+            elif why is not None:
+                notes.append(f"{fs_text(path.name)}: its cached result was not used ({why}): "
+                             "processed again")
     todo = [i for i in range(len(paths)) if i not in results]
-    notes: list[str] = []
+    cache_failed = False
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i]) for i in todo], settings, jobs, scheduler):
             results[i] = result
-            if i in keys and not _internal(result) and not notes:
+            if i in keys and not _internal(result) and not cache_failed:
                 try:
-                    atomic_write_text(cache / f"{keys[i]}.json", json_text(result.to_dict()))
+                    _write_cache(cache, keys[i], result)
                 except MocapError as exc:  # the build goes on, uncached
                     notes.append(f"results not cached: {exc}")
+                    cache_failed = True
             bar.update(1)
     captures = [results[i] for i in range(len(paths))]
     _unique_entry_ids(captures)
@@ -1027,70 +1061,85 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     return BuildResult(library, captures, settings, time.perf_counter() - started, notes)
 
 
+def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings) -> list[Path]:
+    """Every file a build of ``captures`` reads: the captures, their truth sidecars
+    (``<stem>.truth.json``, which name the locomotion class) that exist, the statics and the
+    forward references. An output must be none of them."""
+    files = [Path(c) for c in captures]
+    files += [t for c in files if (t := c.with_name(f"{c.stem}.truth.json")).is_file()]
+    return files + [Path(f) for f in (*settings.statics, *settings.forward_references)]
+
+
 def _internal(result: CaptureResult) -> bool:
     """An unexpected exception or a dead worker is not cached: it may be a fixed bug."""
     return result.stage == "worker" or "internal error" in (result.error or "")
 
 
+#: ``format`` and ``version`` of a cache entry.
+CACHE_FORMAT, CACHE_VERSION = "mocaplib-cache", 1
+#: Largest cache entry read (bytes): a capture's result takes tens of kB.
+MAX_CACHE_BYTES = 64 << 20
 #: Types of the fields a cached :class:`CaptureResult` must have to be trusted.
 _CACHED_TYPES = {"source": str, "sha256": str, "ok": bool, "entries": list, "diagnostics": dict,
                  "warnings": list, "stage_times": dict, "n_frames": int, "n_cycles": int}
 
 
-def _read_cache(cache: Path, key: str) -> CaptureResult | None:
-    """The cached result under ``key``; None when absent, unreadable, or not a result as
-    :meth:`CaptureResult.to_dict` writes it (a truncated or hand-edited file is recomputed)."""
+def _write_cache(cache: Path, key: str, result: CaptureResult) -> None:
+    """Store ``result`` under ``key`` (:func:`cache_key`: the hash of the capture's inputs
+    and of the code), with the hash of its content (see :func:`_read_cache`)."""
+    data = to_json_data(result.to_dict())
+    atomic_write_text(cache / f"{key}.json", json_text({
+        "format": CACHE_FORMAT, "version": CACHE_VERSION, "key": key,
+        "content_sha256": canonical_sha256(data), "result": data}))
+
+
+def _read_cache(cache: Path, key: str) -> tuple[CaptureResult | None, str | None]:
+    """The cached result under ``key`` and None; ``(None, None)`` when there is none; and
+    ``(None, why)`` when the entry does not verify: not a regular file (a pipe, device or
+    link is refused before it is opened), too large, unreadable, not an entry as
+    :func:`_write_cache` writes it, stored under another key, or with content that does not
+    match its hash (a truncated or hand-edited file)."""
     path = cache / f"{key}.json"
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
-        return None
+        entry = parse_json(read_regular(path, limit=MAX_CACHE_BYTES, follow_links=False)
+                           .decode("utf-8"))
+    except FileNotFoundError:
+        return None, None
+    except OSError as exc:
+        return None, f"{path.name}: {exc.strerror}"
+    except ValueError:  # also UnicodeDecodeError
+        return None, f"{path.name}: not JSON text"
+    if not (isinstance(entry, dict) and entry.get("format") == CACHE_FORMAT
+            and entry.get("version") == CACHE_VERSION):
+        return None, f"{path.name}: not a mocaplib cache entry of version {CACHE_VERSION}"
+    if entry.get("key") != key:
+        return None, f"{path.name}: stored for other inputs or code"
+    data = entry.get("result")
+    if entry.get("content_sha256") != canonical_sha256(data):
+        return None, f"{path.name}: its content does not match its hash (changed after it " \
+                     "was written)"
     if not (isinstance(data, dict) and set(data) == {f.name for f in fields(CaptureResult)}
             and all(isinstance(data[name], kind) for name, kind in _CACHED_TYPES.items())
-            and all(isinstance(entry, dict) for entry in data["entries"])):
-        return None
+            and all(isinstance(e, dict) for e in data["entries"])):
+        return None, f"{path.name}: not a capture's result"
     result = CaptureResult.from_dict(data)
     result.from_cache = True
-    return result
+    return result, None
 
 
 def _run(process, work: list[tuple[int, Path]], settings: BuildSettings, jobs: int,
          scheduler: str | None):
-    """Yield ``(index, CaptureResult)`` as captures finish (in any order)."""
+    """Yield ``(index, CaptureResult)`` as captures finish (in any order), run by
+    :func:`mocaplib.workers.run_tasks` or on a Dask cluster."""
     if not work:
         return
     if scheduler is not None:
         yield from _run_dask(process, work, settings, scheduler)
-    elif jobs == 1:
-        for i, path in work:
-            yield i, _collect(lambda: process(os.fspath(path), settings), work, i)
-    else:
-        import multiprocessing
-
-        # "spawn" rather than fork: the parent may hold threads (progress bar, BLAS).
-        context = multiprocessing.get_context("spawn")
-        with single_threaded_workers(), ProcessPoolExecutor(
-                max_workers=min(jobs, len(work)), mp_context=context) as pool:
-            futures = {pool.submit(process, os.fspath(path), settings): i for i, path in work}
-            for future in as_completed(futures):
-                yield futures[future], _collect(future.result, work, futures[future])
-
-
-#: Thread-count variables of the BLAS/OpenMP libraries numpy and scipy may use.
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-@contextmanager
-def single_threaded_workers():
-    """Worker processes started inside get one BLAS thread each (unless the user chose a
-    number): with one process per core, more threads only compete for the same cores."""
-    unset = [name for name in _THREAD_VARIABLES if name not in os.environ]
-    os.environ.update({name: "1" for name in unset})
-    try:
-        yield
-    finally:
-        for name in unset:
-            os.environ.pop(name, None)
+        return
+    tasks = [(os.fspath(path), settings) for _, path in work]
+    for k, result, error in run_tasks(process, tasks, jobs=jobs):
+        index, path = work[k]
+        yield index, result if error is None else _worker_failure(path, error)
 
 
 def _run_dask(process, work, settings, address: str):
@@ -1105,21 +1154,22 @@ def _run_dask(process, work, settings, address: str):
         raise MocapError(f"cannot connect to the Dask scheduler at {address}: {exc}",
                          hint="start one with `dask scheduler` or check the address") from exc
     with client:
-        futures = {client.submit(process, os.fspath(path), settings, pure=False): i
-                   for i, path in work}
+        futures = {client.submit(pinned, process, os.fspath(path), settings, pure=False):
+                   (i, path) for i, path in work}
         for future in dask_completed(futures):
-            yield futures[future], _collect(future.result, work, futures[future])
+            index, path = futures[future]
+            try:
+                result = future.result()
+            except Exception as exc:  # the task raised, or its worker died (KilledWorker)
+                result = _worker_failure(path, exc)
+            yield index, result
 
 
-def _collect(get_result, work, index) -> CaptureResult:
-    """A worker's result; a worker that raised or died (killed, out of memory) fails only its
-    capture."""
-    try:
-        return get_result()
-    except Exception as exc:
-        source = os.fspath(dict(work)[index])
-        return CaptureResult(source=source, ok=False, stage="worker",
-                             error=f"{source}: worker failed: {type(exc).__name__}: {exc}")
+def _worker_failure(path, error: BaseException) -> CaptureResult:
+    """The result of a capture whose processing raised or whose worker died: it fails alone."""
+    source = os.fspath(path)
+    return CaptureResult(source=source, ok=False, stage="worker",
+                         error=f"{source}: worker failed: {type(error).__name__}: {error}")
 
 
 def _unique_entry_ids(captures: list[CaptureResult]) -> None:

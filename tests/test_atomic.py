@@ -51,3 +51,35 @@ def test_unwritable_folder_is_a_clear_error(tmp_path):
     blocker.write_text("")
     with pytest.raises(MocapError, match="cannot write here"):
         atomic_write_text(blocker / "out.txt", "x")
+
+
+def test_temporaries_of_writers_that_no_longer_run_are_removed(tmp_path):
+    # a writer killed between creating its temporary and renaming it leaves it behind
+    dead = tmp_path / ".out.txt.4194305.abc123.tmp"   # above Linux's largest pid
+    alive = tmp_path / f".out.txt.{os.getpid()}.def456.tmp"   # a write going on
+    other = tmp_path / ".notes.txt.4194305.abc123.tmp"   # another file's
+    for path in (dead, alive, other):
+        path.write_text("partial")
+    atomic_write_text(tmp_path / "out.txt", "whole")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, other.name,
+                                                                 "out.txt"])
+
+
+def test_several_files_are_all_written_or_none_replaced(tmp_path, monkeypatch):
+    first, second = tmp_path / "a.json", tmp_path / "b.json"
+    atomic.atomic_write_files([(first, b"old a"), (second, b"old b")])
+    written, real = [], os.fdopen
+
+    def full_on_second(fd, mode):
+        handle = real(fd, mode)
+        written.append(fd)
+        if len(written) == 2:
+            handle.close()
+            raise OSError(28, "No space left on device")
+        return handle
+
+    monkeypatch.setattr(os, "fdopen", full_on_second)
+    with pytest.raises(MocapError, match=f"{second}: cannot write file: No space left"):
+        atomic.atomic_write_files([(first, b"new a"), (second, b"new b")])
+    assert (first.read_bytes(), second.read_bytes()) == (b"old a", b"old b")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"]

@@ -473,3 +473,79 @@ def test_zero_width_labels_are_made_up(tmp_path, dims):
     trial = read_c3d(path)
     assert trial.labels[:2] == ["POINT1", "POINT2"]
     assert any("have no label" in note for note in trial.warnings)
+
+
+# ----------------------------------------------------------------------------- damaged files
+def parameter_record(data: bytes, group: str, name: str):
+    """The record of parameter GROUP:NAME in a file's parameter section."""
+    from mocaplib.io.c3d import _parameter_records
+
+    records, _ = _parameter_records(data)
+    groups = {-r.group: r.name.decode() for r in records if r.group < 0}
+    return next(r for r in records if r.group > 0 and groups[r.group] == group
+                and r.name.decode() == name)
+
+
+def with_scale(data: bytes, factor: float) -> bytes:
+    """``data`` with POINT:SCALE (parameter and header) multiplied by ``factor``."""
+    out = bytearray(data)
+    record = parameter_record(data, "POINT", "SCALE")
+    at = record.link_at + 2 + 2 + data[record.link_at + 3]  # after type, dimensions
+    for offset in (at, 12):  # the parameter, and the header's copy (words 7-8)
+        struct.pack_into("<f", out, offset, struct.unpack_from("<f", data, offset)[0] * factor)
+    return bytes(out)
+
+
+def test_float_data_whose_scale_says_integers_is_read_as_floats_with_a_note(tmp_path):
+    # the sign of POINT:SCALE says how points are stored; flipped, 32-bit floats would be read
+    # as 16-bit integers: garbage, and a build then blames POINT:UNITS ("233 m tall")
+    path = tmp_path / "flipped.c3d"
+    path.write_bytes(with_scale(SMALL, -1.0))
+    trial, original = read_c3d(path), read_c3d_bytes(SMALL, tmp_path)
+    np.testing.assert_array_equal(trial.markers, original.markers)
+    assert any("POINT:SCALE 1 says 16-bit integer storage" in w and "read as floats" in w
+               for w in trial.warnings)
+
+
+def test_integer_data_whose_scale_says_floats_is_refused_saying_why(tmp_path):
+    integer = c3d_bytes(standing_person(frames=12), [f"M{i}" for i in range(20)], 100.0,
+                        integer=True)
+    path = tmp_path / "flipped.c3d"
+    path.write_bytes(with_scale(integer, -1.0))
+    with pytest.raises(C3DError, match="POINT:SCALE's sign is wrong"):
+        read_c3d(path)
+
+
+def read_c3d_bytes(data: bytes, folder: Path) -> Trial:
+    path = folder / "original.c3d"
+    path.write_bytes(data)
+    return read_c3d(path)
+
+
+@pytest.mark.parametrize("link", [-4, -200, 0])
+def test_a_parameter_link_pointing_backwards_loses_no_group(tmp_path, link):
+    # a record whose link to the next points backwards (or ends the chain early): the c3d
+    # package would take the rest of the file for its value and silently drop every group
+    # after it (EVENT, POINT:SCALE, POINT:RATE)
+    from mocaplib.io.c3d import _parameter_records
+
+    records, _ = _parameter_records(SMALL)
+    damaged = bytearray(SMALL)
+    struct.pack_into("<h", damaged, records[1].link_at, link)
+    path = tmp_path / "backwards.c3d"
+    path.write_bytes(bytes(damaged))
+    trial, original = read_c3d(path), read_c3d_bytes(SMALL, tmp_path)
+    assert trial.events == original.events and len(trial.events) == 1
+    assert trial.rate == original.rate and trial.labels == original.labels
+    np.testing.assert_array_equal(trial.markers, original.markers)
+    assert any(f"the link after {records[1].name.decode()}" in w and "re-export" in w
+               for w in trial.warnings)
+
+
+def test_control_characters_in_labels_are_escaped(tmp_path):
+    # a label may hold anything: printed as it is, ESC [ 2 J would clear the terminal
+    path = tmp_path / "escape.c3d"
+    labels = [f"M{i}" for i in range(19)] + ["LASI\x1b[2J\x07"]
+    path.write_bytes(c3d_bytes(standing_person(frames=12), labels, 100.0))
+    trial = read_c3d(path)
+    assert trial.labels[-1] == "LASI\\x1b[2J\\x07"

@@ -238,11 +238,12 @@ def test_a_pipe_named_like_a_capture_is_refused_not_read_forever(tmp_path, capsy
     assert main(["events", str(pipe)]) == 1
     assert "not a regular file" in capsys.readouterr().err
     out = tmp_path / "lib.json"
-    # one capture: written, exit 1 only because one entry is no control space
-    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 1
-    assert "captures 1  ok 1" in capsys.readouterr().out  # the pipe is not taken for a capture
-    assert main(["build", str(pipe), str(walk), "-o", str(out), "--no-cache", "-q"]) == 1
-    assert "pipe.c3d [read]: cannot read: not a regular file" in capsys.readouterr().out
+    # in a folder or named directly, the pipe is a capture that fails alone, saying why
+    for inputs in ([tmp_path / "caps"], [pipe, walk]):
+        assert main(["build", *map(str, inputs), "-o", str(out), "--no-cache", "-q"]) == 1
+        printed = capsys.readouterr().out
+        assert "captures 2  ok 1  failed 1" in printed and out.is_file()
+        assert "pipe.c3d [read]: cannot read: not a regular file" in printed
 
 
 @pytest.mark.usefixtures("sample_dir")

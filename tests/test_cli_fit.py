@@ -16,6 +16,7 @@ def test_fit_writes_angles_mot_osim_and_prints_quality(tmp_path, capsys):
     cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=2)
     path = write_c3d(tmp_path / "walk.c3d", cap.trial.markers, cap.trial.labels, 100.0)
     out = tmp_path / "out" / "angles.csv"
+    out.parent.mkdir()  # a file output goes into an existing folder
     code = main(["fit", str(path), "--protocol", "fullbody38", "-o", str(out),
                  "--mot", str(tmp_path / "a.mot"), "--osim", str(tmp_path / "m.osim"), "--json"])
     assert code == 0

@@ -13,10 +13,11 @@ import pandas as pd
 import pytest
 
 import mocaplib
+import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.library import (QC_NAMES, Library, assemble_library, make_entry, schema,
-                              validate_library)
+from mocaplib.library import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
+                              checksum_status, make_entry, schema, validate_library)
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 D = len(DOF_NAMES)
@@ -187,7 +188,10 @@ def test_make_entry_rejects_bad_shapes_and_unknown_qc():
 
 # --------------------------------------------------------------------------- validation
 def broken(mutate) -> dict:
+    """A library document changed by ``mutate``, without its checksum (which any change
+    breaks: tested on its own), so that each rule below is seen alone."""
     doc = copy.deepcopy(library().document)
+    del doc[CHECKSUM_KEY]
     mutate(doc)
     return doc
 
@@ -424,6 +428,73 @@ def test_a_library_without_drift_is_an_error_not_a_walk_on_the_spot():
         ControlSpace.from_library(Library(doc))
 
 
+# --------------------------------------------------------------------------- integrity
+def one_coefficient_changed(path) -> None:
+    """Change one Fourier coefficient in the file's text, keeping it valid for the schema
+    and every rule (an edit nobody can see)."""
+    text = path.read_text()
+    found = re.search(r'"a": \[\n\s*\[(-?[0-9.e-]+)', text)
+    value = float(found.group(1))
+    path.write_text(text[:found.start(1)] + repr(value + 1e-3) + text[found.end(1):])
+
+
+def test_a_written_library_carries_a_checksum_that_validate_verifies(tmp_path):
+    path = library().write(tmp_path / "lib.json")
+    document = json.loads(path.read_text())
+    assert re.fullmatch("[0-9a-f]{64}", document[CHECKSUM_KEY])
+    assert checksum_status(path) == "verified" and validate_library(path) == []
+    # reformatting keeps the content, and the checksum with it
+    path.write_text(json.dumps(document, indent=7))
+    assert checksum_status(path) == "verified" and validate_library(path) == []
+
+
+def test_a_library_edited_by_hand_fails_validation_on_its_checksum(tmp_path, capsys):
+    path = library().write(tmp_path / "lib.json")
+    one_coefficient_changed(path)
+    problems = validate_library(path)
+    assert [p.where for p in problems] == [CHECKSUM_KEY]
+    assert "changed after `mocaplib build` wrote it" in problems[0].message
+    assert checksum_status(path) == "mismatch"
+    assert load_library(path) is not None  # still readable: the values are usable, flagged
+    assert mocaplib.cli.main(["validate", str(path)]) == 1
+    assert "content_sha256: the content does not match" in capsys.readouterr().out
+    assert mocaplib.cli.main(["validate", str(path), "--json"]) == 1
+    assert json.loads(capsys.readouterr().out)["checksum"] == "mismatch"
+
+
+def test_a_library_without_a_checksum_is_read_with_a_note(tmp_path, capsys):
+    # libraries written before the checksum existed stay valid; validate says it cannot check
+    path = library().write(tmp_path / "lib.json")
+    document = json.loads(path.read_text())
+    del document[CHECKSUM_KEY]
+    path.write_text(json.dumps(document))
+    assert validate_library(path) == [] and checksum_status(path) == "absent"
+    assert len(load_library(path)) == 5
+    assert mocaplib.cli.main(["validate", str(path)]) == 0
+    printed = capsys.readouterr().out
+    assert f"{path}: valid\n" in printed and "note: no content checksum" in printed
+    assert mocaplib.cli.main(["validate", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["checksum"] == "absent"
+
+
+@pytest.mark.parametrize("number", ["1" + "0" * 400, "9" * 5001, "-1e400"])
+def test_numbers_beyond_a_double_are_problems_not_crashes(tmp_path, capsys, number):
+    path = library().write(tmp_path / "lib.json")
+    text = path.read_text()
+    path.write_text(re.sub(r'"T": [0-9.e-]+', f'"T": {number}', text, count=1))
+    problems = validate_library(path)
+    assert any(p.where == "entries[0].T" and "beyond the range of a double" in p.message
+               for p in problems)
+    with pytest.raises(LibraryError, match="beyond the range of a double"):
+        load_library(path)
+    for command in (["validate", str(path)], ["query", str(path), "1", "0", "0"],
+                    ["report", str(path), "-o", str(tmp_path / "reports")]):
+        assert mocaplib.cli.main(command) == 1
+        printed = capsys.readouterr()
+        assert "beyond the range of a double" in printed.out + printed.err
+        assert "Traceback" not in printed.err
+
+
 # --------------------------------------------------------------------------- poulaines
 def poulaine() -> dict:
     """A poulaine as the build stores it, of two analytic ankle loops half a cycle apart."""
@@ -498,6 +569,7 @@ def poulaine_of(d, side="left") -> dict:
 ])
 def test_validate_catches_a_broken_poulaine(mutate, expected):
     doc = copy.deepcopy(with_poulaines().document)
+    doc.pop(CHECKSUM_KEY, None)          # an edit the checksum would catch anyway
     mutate(doc)
     problems = problems_of(doc)
     assert any(re.search(expected, p) for p in problems), problems

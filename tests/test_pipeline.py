@@ -8,7 +8,10 @@ JSON "captures", so these tests are fast and do not depend on the fitting stages
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
+import time
 from pathlib import Path
 
 import numpy as np
@@ -17,11 +20,13 @@ import pytest
 from mocaplib import pipeline
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
+from mocaplib.io import fs_text
 from mocaplib.library import (DEFAULT_QC_THRESHOLDS, load_library, make_entry, qc_failures,
                               validate_library)
 from mocaplib.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
                                file_sha256, find_captures, process_capture)
 from mocaplib.skeleton import DOF_NAMES
+from mocaplib.workers import max_jobs
 
 TRIPLES = [(1.2, 0.0, 0.0), (0.6, 0.5, 0.0), (0.3, 0.0, 0.4), (0.8, -0.4, -0.2), (0.0, 1.0, 0.0)]
 
@@ -31,15 +36,22 @@ def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
 
     Appends the file name to ``calls.log`` beside it, so tests can count how often a capture
     was processed (also from worker processes). ``{"fail": ...}`` fails the capture like a
-    stage would; ``{"crash": ...}`` raises like a bug would.
+    stage would; ``{"crash": ...}`` raises like a bug would; ``{"die": ...}`` kills the process
+    running it, as the out-of-memory killer would (a worker only!), every time or, with
+    ``"once"``, the first time; ``{"sleep": s}`` takes ``s`` seconds.
     """
     path = Path(path)
     with open(path.parent / "calls.log", "a") as log:
-        log.write(path.name + "\n")
+        log.write(fs_text(path.name) + "\n")
     data = json.loads(path.read_text())
+    data = {"v": 1.0, "omega": 0.0, "v_l": 0.0} | data
     result = CaptureResult(source=str(path), sha256=file_sha256(path))
     if "crash" in data:
         raise RuntimeError(data["crash"])
+    if data.get("die") == "always" or data.get("die") == "once" and calls(path.parent).count(
+            fs_text(path.name)) == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    time.sleep(data.get("sleep", 0))
     if "fail" in data:
         result.ok, result.stage, result.error = False, "import", f"{path}: {data['fail']}"
         return result
@@ -620,3 +632,122 @@ def test_a_capture_failing_after_events_keeps_its_series_in_the_diagnostics(synt
     diag = result.diagnostics
     assert diag["rate_hz"] == 100.0 and len(diag["time_s"]) == 60 and diag["events"]
     assert "cycles" not in diag and result.entries == []
+
+
+# --------------------------------------------------------------------------- reliability
+needs_two = pytest.mark.skipif(max_jobs() < 2, reason="needs two processors for two workers")
+
+
+@needs_two
+def test_a_dead_worker_fails_its_capture_alone_after_one_more_try(tmp_path):
+    # one worker killed every time it takes walk90 (as an out-of-memory kill would), another
+    # killed once under walk91: the rest of the batch is built, walk91 on its second try
+    folder = tmp_path / "caps"
+    write_captures(folder)
+    (folder / "walk90.c3d").write_text(json.dumps({"die": "always"}))
+    (folder / "walk91.c3d").write_text(json.dumps({"die": "once", "v": 0.9}))
+    result = build([folder], jobs=2, progress=False, process=fake_process)
+    assert [c.file for c in result.failures] == ["walk90.c3d"]
+    dead = result.failures[0]
+    assert dead.stage == "worker" and "died, 2 times" in dead.error and "SIGKILL" in dead.error
+    assert len(result.library) == 6 and "walk91_c0" in result.library.entries.index
+    assert calls(folder).count("walk90.c3d") == 2 and calls(folder).count("walk91.c3d") == 2
+
+
+def blas_threads(path: str, settings: BuildSettings) -> CaptureResult:
+    """fake_process, noting the BLAS thread counts it ran with in its warnings."""
+    from threadpoolctl import threadpool_info
+
+    result = fake_process(path, settings)
+    result.warnings = [f"threads {sorted({p['num_threads'] for p in threadpool_info()})}"]
+    return result
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_every_capture_runs_with_one_blas_thread_whatever_the_jobs(tmp_path, jobs):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    result = build([tmp_path / "caps"], jobs=jobs, progress=False, process=blas_threads)
+    assert [c.warnings for c in result.captures] == [["threads [1]"]] * 2
+
+
+def test_one_and_two_jobs_give_the_same_bytes_on_sample_captures(tmp_path):
+    # the real stages on a few samples: -j 1 runs them here, -j 2 in workers
+    from conftest import SAMPLES
+
+    samples = [SAMPLES / f"{name}.c3d" for name in
+               ("walk_straight_normal", "walk_curve_r1_left_fast", "side_left_normal",
+                "turn_spot_right_slow")]
+    one = build(samples, jobs=1, progress=False)
+    two = build(samples, jobs=2, progress=False)
+    assert one.ok and len(one.library) == 4
+    assert build_bytes(one, tmp_path / "one") == build_bytes(two, tmp_path / "two")
+
+
+def edit_cache_entry(cache: Path, edit) -> Path:
+    """Apply ``edit`` to the JSON of the only cache entry (keeping it valid JSON)."""
+    [path] = cache.glob("*.json")
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_a_hand_edited_cache_entry_is_recomputed_with_a_note(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:1])
+    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+
+    def faster(data):  # still a result of the right shape, with another speed
+        data["result"]["entries"][0]["v"] = 3.0
+
+    edit_cache_entry(cache, faster)
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert calls(folder) == ["walk00.c3d"] * 2 and not again.captures[0].from_cache
+    assert "does not match its hash" in again.notes[0] and "walk00.c3d" in again.notes[0]
+    assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
+    third = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert third.captures[0].from_cache and not third.notes  # the entry was written afresh
+
+
+def test_a_cache_entry_stored_under_another_key_is_not_trusted(tmp_path):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:2])
+    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    first, second = sorted(cache.glob("*.json"))
+    second.write_bytes(first.read_bytes())  # a whole, self-consistent entry of the other file
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert sum(c.from_cache for c in again.captures) == 1
+    assert any("stored for other inputs or code" in note for note in again.notes)
+    assert [e.split("_")[0] for e in again.library.entries.index] == ["walk00", "walk01"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize("kind", ["pipe", "link to /dev/zero", "link to a file"])
+def test_a_cache_entry_that_is_no_regular_file_is_refused_unopened(tmp_path, kind):
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder, TRIPLES[:1])
+    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    [entry] = cache.glob("*.json")
+    kept = entry.rename(tmp_path / "entry.json")
+    if kind == "pipe":
+        os.mkfifo(entry)  # reading it would wait forever for a writer
+    elif kind == "link to /dev/zero":
+        entry.symlink_to("/dev/zero")  # reading it would never end
+    else:
+        entry.symlink_to(kept)  # even a valid entry: the cache holds its own files only
+    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    assert not again.captures[0].from_cache and len(calls(folder)) == 2
+    assert "its cached result was not used" in again.notes[0]
+    assert ("not a regular file" if kind == "pipe" else "symbolic link") in again.notes[0]
+
+
+def test_a_capture_whose_name_is_not_utf8_is_built_and_stored_as_text(tmp_path):
+    folder = tmp_path / "caps"
+    write_captures(folder, TRIPLES[:1])
+    latin1 = os.path.join(os.fsencode(folder), b"gehen_\xe4.c3d")
+    with open(latin1, "wb") as handle:
+        handle.write(json.dumps({"v": 0.6, "omega": 0.5, "v_l": 0.0}).encode())
+    result = build([folder], progress=False, process=fake_process)
+    library, sidecar = result.write(tmp_path / "lib.json")
+    assert "gehen_ä_c0" in load_library(library).entries.index
+    assert "gehen_ä.c3d" in {c["source"] for c in json.loads(sidecar.read_text())["captures"]}

@@ -4,7 +4,8 @@ No algorithm lives here. Each sub-command is a module in this package with a
 ``register(subparsers)`` function; errors a user can cause (:class:`MocapError`) are printed
 as one line without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
 Output that the console's encoding cannot show (ω, ° on an ASCII or cp1252 stdout) is
-written with ``?`` in its place rather than stopping the command.
+written with ``?`` in its place rather than stopping the command, and control characters in
+what is printed (file names, labels) are escaped.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import sys
 
 from .. import __version__
 from ..errors import MocapError
+from ..io import printable
 from ._common import UsageError
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
@@ -38,6 +40,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (also used by the console script)."""
     _tolerate_unencodable_output()
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+    try:
+        return _main(argv)
+    finally:
+        sys.stdout, sys.stderr = streams
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args, unknown = parser.parse_known_args(argv)
@@ -59,6 +70,21 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
         return 0
+
+
+class _Printable:
+    """A text stream writing control characters escaped (:func:`mocaplib.io.printable`; line
+    feeds, tabs and the carriage returns of the progress bar kept): a file name or a C3D
+    label cannot move the cursor or re-colour the terminal that shows it."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        return self._stream.write(printable(text, keep="\n\t\r"))
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _tolerate_unencodable_output() -> None:

@@ -17,23 +17,38 @@ class UsageError(MocapError):
     """A mistake in the command line found after parsing: exits 2, as argparse's do."""
 
 
+#: What ``-`` as a path is told: no command reads standard input or writes standard output.
+DASH = ("'-' (standard input or output) is not supported here: give a file name (./- for a "
+        "file named '-')")
+
+
 def check_outputs(outputs: dict[str, str | os.PathLike | None],
-                  inputs: list[str | os.PathLike]) -> None:
+                  inputs: list[str | os.PathLike], *, create_folders: bool = False) -> None:
     """Raise :class:`UsageError` before anything is written when an output file (``{option:
-    path}``, None = not asked for) would overwrite an input or another output, is a folder, or
-    lies where nothing can be written (its nearest existing folder is a file or read-only)."""
+    path}``, None = not asked for) is ``-``, would overwrite an input or another output, is a
+    folder or not a regular file (a device, a pipe: it would be replaced by a file), or lies
+    where nothing can be written: its folder does not exist (unless ``create_folders``: then
+    its nearest existing folder), is a file, or refuses a new file (tried: a temporary file
+    is created and removed, which also catches read-only and virtual file systems)."""
     given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
     existing = [Path(path) for path in inputs if Path(path).is_file()]
     for n, (option, path) in enumerate(given):
+        if os.fspath(path) == "-":
+            raise UsageError(f"{option}: {DASH}")
         if path.is_dir():
             raise UsageError(f"{option} {path} is a folder; give a file name")
-        folder = next(p for p in path.absolute().parents if p.exists())
+        if os.path.lexists(path) and not (path.is_file() or path.is_symlink()):
+            raise UsageError(f"{option} {path} is not a regular file (a device or a pipe); "
+                             "give a file name")
+        parent = path.absolute().parent
+        folder = next(p for p in (parent, *parent.parents) if p.exists())
         if not folder.is_dir():
             raise UsageError(f"{option} {path}: cannot write into {folder}: it is a file, not "
                              "a folder (choose another output path)")
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise UsageError(f"{option} {path}: cannot write into {folder}: permission denied "
-                             "(choose a folder you can write to)")
+        if folder != parent and not create_folders:
+            raise UsageError(f"{option} {path}: the folder {parent} does not exist (create it, "
+                             "or choose a path in an existing folder)")
+        _check_writable(option, path, folder)
         if path.exists() and any(os.path.samefile(path, source) for source in existing):
             raise UsageError(f"{option} {path} is an input of this command; writing it "
                              "would overwrite the input: give another file name")
@@ -42,15 +57,32 @@ def check_outputs(outputs: dict[str, str | os.PathLike | None],
                 raise UsageError(f"{option} and {other} name the same file {path}")
 
 
+def _check_writable(option: str, path: Path, folder: Path) -> None:
+    """Create and remove a temporary file in ``folder``: permissions alone do not tell
+    (root may write anywhere but a read-only or virtual file system such as /proc)."""
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".mocaplib-probe.", dir=folder)
+    except OSError as exc:
+        raise UsageError(f"{option} {path}: cannot write into {folder}: "
+                         f"{exc.strerror or exc} (choose a folder you can write to)") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
 def check_output_folder(option: str, folder: str | os.PathLike, file_name: str,
                         inputs: list[str | os.PathLike]) -> None:
     """Raise :class:`UsageError` before any work when the folder ``option`` names cannot take
-    the file ``file_name``: the folder is a file, lies under a file or where nothing can be
-    written, or the file would overwrite an input or be a folder (:func:`check_outputs`)."""
+    the file ``file_name``: the folder is ``-`` or a file, lies under a file or where nothing
+    can be written, or the file would overwrite an input or be a folder
+    (:func:`check_outputs`; a missing folder is created when the file is written)."""
+    if os.fspath(folder) == "-":
+        raise UsageError(f"{option}: {DASH}")
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{option} {folder} is a file; give a folder")
-    check_outputs({option: folder / file_name}, inputs)
+    check_outputs({option: folder / file_name}, inputs, create_folders=True)
 
 
 def print_json(obj) -> None:
@@ -111,6 +143,19 @@ def positive(kind: type, *, unit: str = "", most: float = math.inf):
             raise argparse.ArgumentTypeError(f"must be > 0{unit}{limit}, got {text}")
         return value
     return parse
+
+
+def jobs_count(text: str) -> int:
+    """argparse ``type=`` of ``--jobs``: a whole number from 1 to
+    :func:`mocaplib.workers.max_jobs` (more processes than processors only compete for
+    them, each holding its own memory); else exit 2."""
+    from ..workers import max_jobs
+
+    jobs, limit = positive(int)(text), max_jobs()
+    if jobs > limit:
+        raise argparse.ArgumentTypeError(f"at most {limit}, the processors mocaplib may use "
+                                          f"here; got {text}")
+    return jobs
 
 
 def bounded(limit: float):
@@ -234,6 +279,8 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
             raise UsageError(f"{option}: an empty path: give a C3D file")
     for option, path in [*(("", path) for path in inputs),
                          *((f"{option}: ", path) for option, path in calibration)]:
+        if os.fspath(path) == "-":
+            raise UsageError(f"{option}{DASH}")
         if not Path(path).exists():
             raise UsageError(f"{option}{path}: no such file or folder ({hint})")
     for option, path in calibration:

@@ -6,9 +6,8 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      measurements,
                       add_toe_off_option, check_inputs, check_output_folder, check_outputs,
-                      positive, warn)
+                      jobs_count, measurements, warn)
 
 
 def register(subparsers) -> None:
@@ -29,9 +28,9 @@ def register(subparsers) -> None:
     add_cutoff_option(parser)
     add_toe_off_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
-    parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
+    parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
                         help="worker processes, for the captures and the report's figures "
-                             "(default 1)")
+                             "(default 1; at most the number of processors)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
@@ -52,41 +51,42 @@ def register(subparsers) -> None:
     parser.set_defaults(run=_run)
 
 
-def _check_usage(args) -> list[Path]:
-    """The captures the inputs name (C3D files, and those found in folders); raise
-    :class:`UsageError` for what would fail or do harm before any capture is processed: a
-    missing input, a --static that is missing, cannot be read or is not standing (every capture
-    would fail on it), an output that would overwrite an input, a --report folder that cannot
-    take the report."""
-    from ..pipeline import diagnostics_path, find_captures
+def _check_usage(args):
+    """The captures the inputs name (C3D files, and those found in folders) and the build's
+    settings; raise :class:`UsageError` for what would fail or do harm before any capture is
+    processed: a missing input, a --static that is missing, cannot be read or is not standing
+    (every capture would fail on it), an output that would overwrite a file the build reads
+    (:func:`mocaplib.pipeline.build_inputs`) or cannot be written, a --report folder that
+    cannot take the report."""
+    from ..pipeline import BuildSettings, build_inputs, diagnostics_path, find_captures
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference)
     captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
-    inputs = [*captures, *(args.static or ()), *(args.forward_reference or ())]
-    check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
-                   diagnostics_path(args.output)}, inputs)
-    if args.report:
-        from ..report import report_name
-
-        check_output_folder("--report", args.report, report_name(args.output), inputs)
-    return captures
-
-
-def _run(args) -> int:
-    from ..library import validate_library
-    from ..pipeline import BuildSettings, build
-
-    captures = _check_usage(args)
-    output = Path(args.output)
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              static_pose=args.static_pose,
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
                              mirror=args.mirror, qc_policy=args.qc,
                              measurements=measurements(args))
+    inputs = build_inputs(captures, settings)
+    check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
+                   diagnostics_path(args.output)}, inputs)
+    if args.report:
+        from ..report import report_name
+
+        check_output_folder("--report", args.report, report_name(args.output), inputs)
+    return captures, settings
+
+
+def _run(args) -> int:
+    from ..library import validate_library
+    from ..pipeline import build
+
+    captures, settings = _check_usage(args)
+    output = Path(args.output)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())

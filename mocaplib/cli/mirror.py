@@ -24,7 +24,7 @@ def _run(args) -> int:
     import sys
 
     from ..library import load_library, validate_library
-    from ..mirror import mirror_library, mirror_sidecar
+    from ..mirror import mirror_library, write_mirrored
     from ..pipeline import diagnostics_path
     from ._common import LIBRARY_HINT, check_inputs, check_outputs, warn
 
@@ -36,8 +36,7 @@ def _run(args) -> int:
     mirrored, notes = mirror_library(library)
     for note in notes:
         print(f"note: {note}")
-    mirrored.write(args.output)
-    sidecar = mirror_sidecar(args.library, args.output)
+    sidecar = write_mirrored(mirrored, args.library, args.output)
     added = len(mirrored) - len(library)
     print(f"wrote {args.output} ({len(mirrored)} entries, {added} mirror images added)"
           + (f" and {sidecar}" if sidecar else ""))

@@ -60,8 +60,8 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..controlspace import ControlSpace
     from ..errors import MocapError
-    from ..library import load_library
-    from ._common import print_json
+    from ..library import checksum_status, load_library
+    from ._common import print_json, warn
 
     ignored = [option for option, value in (("--cycles", args.cycles), ("--rate", args.rate))
                if value is not None]
@@ -71,6 +71,9 @@ def _run(args) -> int:
     check_inputs([args.library], hint=LIBRARY_HINT)
     check_outputs({"--bvh": args.bvh}, [args.library])
     library = load_library(args.library)
+    if checksum_status(library) == "mismatch":
+        warn(f"{args.library}: its content does not match its checksum: it was changed after "
+             "it was written (`mocaplib validate` says more)")
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
     res = cs.query([[args.v, args.omega, args.v_l]])
     blended = res

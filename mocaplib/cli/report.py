@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import positive
+from ._common import jobs_count
 
 
 def register(subparsers) -> None:
@@ -19,7 +19,7 @@ def register(subparsers) -> None:
                         help="target envelope: a TOML file with an [envelope] table, or your "
                              "capture plan (default: the plan of mocaplib's synthetic sample "
                              "captures, shipped with it)")
-    parser.add_argument("--jobs", "-j", type=positive(int), default=1, metavar="N",
+    parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
                         help="processes drawing the per-capture figures (default 1)")
     parser.add_argument("--no-opengl", action="store_true",
                         help="draw the 3-D view with matplotlib instead of pyvista/VTK")

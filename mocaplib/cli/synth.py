@@ -43,7 +43,8 @@ def _run(args) -> int:
     try:
         chosen = plan.select(args.only)
         check_targets(chosen, output, overwrite=args.overwrite)
-        check_outputs({"-o": output / f"{chosen[0].name}.c3d"}, [args.plan])
+        check_outputs({"-o": output / f"{chosen[0].name}.c3d"}, [args.plan],
+                      create_folders=True)
     except SynthError as exc:
         raise UsageError(str(exc)) from None
     protocol = None if args.protocol == "auto" else args.protocol

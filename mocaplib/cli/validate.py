@@ -6,28 +6,36 @@ from __future__ import annotations
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "validate", help="check a library file against its schema and semantic rules",
-        description="Print every problem of a motion library file (schema, DOF lists, "
-                    "coefficients, periods, ids, control space, QC). Exit 0 valid, 1 invalid.")
+        description="Print every problem of a motion library file (content checksum, "
+                    "schema, DOF lists, coefficients, periods, ids, control space, QC). Exit 0 "
+                    "valid, 1 invalid.")
     parser.add_argument("library", help="library JSON file")
     parser.add_argument("--json", action="store_true",
-                        help="print {\"file\", \"valid\", "
-                             "\"problems\": [{\"where\", \"message\"}]}")
+                        help="print {\"file\", \"valid\", \"checksum\": \"verified\", "
+                             "\"mismatch\" or \"absent\", \"problems\": [{\"where\", "
+                             "\"message\"}]}")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
-    from ..library import validate_library
+    from ..library import NO_CHECKSUM_NOTE, checksum_status, validate_library
     from ._common import LIBRARY_HINT, check_inputs, print_json
 
     check_inputs([args.library], hint=LIBRARY_HINT)
     problems = validate_library(args.library)
+    checksum = None if any(p.where == "file" for p in problems) else checksum_status(
+        args.library)
     if args.json:
-        print_json({"file": args.library, "valid": not problems,
+        print_json({"file": args.library, "valid": not problems, "checksum": checksum,
                     "problems": [{"where": p.where, "message": p.message} for p in problems]})
-    elif problems:
+        return 1 if problems else 0
+    if problems:
         print(f"{args.library}: {len(problems)} problem(s)")
         for problem in problems:
             print(f"  {problem}")
     else:
-        print(f"{args.library}: valid")
+        print(f"{args.library}: valid" + (" (content checksum verified)"
+                                          if checksum == "verified" else ""))
+    if checksum == "absent":
+        print(f"note: {NO_CHECKSUM_NOTE}")
     return 1 if problems else 0

@@ -1,8 +1,16 @@
-"""Reading and writing files: C3D import, exports, atomic writes."""
+"""Reading and writing files: C3D import, exports, atomic writes.
+
+Helpers every reader shares: :func:`open_regular` / :func:`read_regular` refuse what is not a
+regular file (a pipe, socket or device could block forever or never end) before reading from
+it; :func:`fs_text` turns a file name the system could not decode into text any file can hold;
+:func:`printable` escapes control characters before text reaches a terminal.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import stat
 
 
@@ -16,11 +24,74 @@ def unique_paths(paths) -> list[str]:
     return list(unique.values())
 
 
-def special_file(path: str | os.PathLike) -> bool:
-    """True for a path that exists but is neither a regular file nor a folder: a pipe, socket
-    or device, which reading could block on forever."""
+def _not_regular(mode: int, path) -> OSError:
+    if stat.S_ISDIR(mode):
+        return IsADirectoryError(errno.EISDIR, "is a folder, not a file", os.fspath(path))
+    if stat.S_ISLNK(mode):
+        return OSError(errno.ELOOP, "is a symbolic link, not a regular file", os.fspath(path))
+    return OSError(errno.EINVAL, "not a regular file (a pipe, socket or device)",
+                   os.fspath(path))
+
+
+def open_regular(path: str | os.PathLike, /, *, follow_links: bool = True):
+    """``path`` opened for binary reading, when it is a regular file.
+
+    Anything else raises OSError before a byte is read: a folder (IsADirectoryError), a pipe,
+    socket or device (EINVAL, "not a regular file"), and with ``follow_links=False`` a
+    symbolic link (ELOOP). The type is checked with ``stat`` before opening, and again on the
+    open descriptor, which is opened without blocking, so a pipe put in the file's place
+    meanwhile cannot hang the reader.
+    """
+    mode = os.stat(path, follow_symlinks=follow_links).st_mode
+    if not stat.S_ISREG(mode):
+        raise _not_regular(mode, path)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
+    fd = os.open(path, flags)
     try:
-        mode = os.stat(path).st_mode
-    except OSError:
-        return False
-    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise _not_regular(mode, path)
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_regular(path: str | os.PathLike, /, *, limit: int | None = None,
+                 follow_links: bool = True) -> bytes:
+    """The bytes of the regular file ``path`` (:func:`open_regular`); OSError (EFBIG) when it
+    holds more than ``limit`` bytes (None: no limit)."""
+    with open_regular(path, follow_links=follow_links) as handle:
+        data = handle.read() if limit is None else handle.read(limit + 1)
+    if limit is not None and len(data) > limit:
+        raise OSError(errno.EFBIG, f"larger than {limit} bytes", os.fspath(path))
+    return data
+
+
+_ESCAPED_BYTES = re.compile("[\udc80-\udcff]")
+_LONE_SURROGATES = re.compile("[\ud800-\udfff]")
+
+
+def fs_text(text: str, /) -> str:
+    """``text`` that UTF-8 can encode: file-name bytes the system could not decode (Python
+    keeps them as lone surrogates, U+DC80-U+DCFF) read as Latin-1, e.g. the Latin-1 name
+    ``gehen_\\xe4.c3d`` becomes ``gehen_ä.c3d``; any other lone surrogate becomes U+FFFD."""
+    if text.isascii():
+        return text
+    text = _ESCAPED_BYTES.sub(lambda found: chr(ord(found.group()) - 0xDC00), text)
+    return _LONE_SURROGATES.sub("\ufffd", text)
+
+
+_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def printable(text: str, /, *, keep: str = "\n\t") -> str:
+    """``text`` with control characters (C0 but those in ``keep``, DEL, C1) written as
+    ``\\xNN``: text from files (C3D labels, file names) cannot then move the cursor, change
+    colours or retitle the terminal it is printed on."""
+    return _CONTROL.sub(lambda found: found.group() if found.group() in keep
+                        else f"\\x{ord(found.group()):02x}", text)

@@ -34,9 +34,11 @@ before anything is allocated, and the ``c3d`` package's exceptions are wrapped.
 
 from __future__ import annotations
 
+import errno
 import io
 import math
 import os
+import re
 import struct
 import warnings
 from collections import Counter
@@ -47,7 +49,7 @@ import c3d
 import numpy as np
 
 from ..errors import C3DError
-from . import special_file
+from . import printable, read_regular
 from ..trial import Event, Trial
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
@@ -67,9 +69,9 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
     path = Path(path)
     data = _read_bytes(path)
     _check_header(data, path)
-    reader = _parse_parameters(data, path)
-    layout = _point_layout(reader, len(data), path)
     notes: list[str] = []
+    reader = _parse_parameters(data, path, notes)
+    layout = _point_layout(reader, len(data), path, notes)
 
     labels = _point_labels(reader, layout.count, path, notes)
     units, to_metres = _point_units(reader, path, notes)
@@ -101,18 +103,16 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
 
 # ----------------------------------------------------------------------------- file and header
 def _read_bytes(path: Path) -> bytes:
-    if special_file(path):
-        raise C3DError("not a regular file (a pipe, socket or device)", path=path,
-                       hint="give the C3D file itself")
     try:
-        return path.read_bytes()
+        return read_regular(path)
     except FileNotFoundError:
         raise C3DError("no such file", path=path, hint="check the path") from None
     except IsADirectoryError:
         raise C3DError("is a folder, not a C3D file", path=path,
                        hint="give a .c3d file; build and inspect also search folders") from None
     except OSError as exc:
-        raise C3DError(f"cannot read the file: {exc.strerror}", path=path) from None
+        hint = "give the C3D file itself" if exc.errno == errno.EINVAL else None
+        raise C3DError(f"cannot read the file: {exc.strerror}", path=path, hint=hint) from None
 
 
 def _check_header(data: bytes, path: Path) -> None:
@@ -148,8 +148,11 @@ class _Reader(c3d.Reader):
         pass
 
 
-def _parse_parameters(data: bytes, path: Path) -> _Reader:
-    """Header and parameters through the ``c3d`` package (with the adapter for its refusals)."""
+def _parse_parameters(data: bytes, path: Path, notes: list[str]) -> _Reader:
+    """Header and parameters through the ``c3d`` package (with the adapters for its refusals:
+    :func:`repair_parameter_links`, :func:`move_duplicate_parameters`)."""
+    data, repaired = repair_parameter_links(data)
+    notes.extend(repaired)
     try:
         return _new_reader(data)
     except KeyError as exc:
@@ -174,37 +177,119 @@ def _corrupt(exc: Exception, path: Path) -> C3DError:
                     path=path, hint="the file is truncated or corrupt")
 
 
-def move_duplicate_parameters(data: bytes) -> bytes:
-    """``data`` with every repeated definition of a parameter in a group moved to an unused group.
+@dataclass(frozen=True)
+class _Record:
+    """One record of the parameter section: a group (``group`` < 0) or a parameter."""
 
-    C3D parameter records are ``[name length: int8][group id: int8][name][offset to next: int16]``;
-    the n-th repeat of a (group, name) gets its group id changed to the n-th id no group uses,
-    so the first definition is the one read. Other bytes are unchanged.
+    position: int       # byte offset of the record
+    group: int          # group id, negative for a group record
+    name: bytes         # upper case
+    link_at: int        # byte offset of the int16 link to the next record
+    link: int           # the link as stored
+    length: int | None  # the link the record's own content gives (None: cannot be measured)
+
+
+def _parameter_records(data: bytes) -> tuple[list[_Record], str]:
+    """The records of the parameter section in the order their links give, and the int16
+    byte order (``"<"`` or ``">"``).
+
+    C3D records are ``[name length: int8][group id: int8][name][link to next: int16]
+    [content]``, the link counted from its own first byte; 0 ends the chain. A record whose
+    link is 0 or negative while a well-formed record follows its content is taken as a broken
+    link (the walk goes on at the end of its content), so the groups after it are not lost.
     """
-    out = bytearray(data)
     start = (data[0] - 1) * 512 + 4
     end = min(len(data), start - 4 + 512 * data[start - 2])
     endian = ">" if data[start - 1] == 86 else "<"
-    records: list[tuple[int, int, bytes]] = []
-    position = start
-    while position + 4 <= end:
+    records: list[_Record] = []
+    position, seen = start, set()
+    while position + 4 <= end and position not in seen:
+        seen.add(position)
         length, group = struct.unpack_from("bb", data, position)
-        name_end = position + 2 + abs(length)
-        if length == 0 or group == 0 or name_end + 2 > end:
+        link_at = position + 2 + abs(length)
+        if length == 0 or group == 0 or link_at + 2 > end:
             break
-        records.append((position, group, bytes(data[position + 2:name_end]).upper()))
-        offset, = struct.unpack_from(endian + "h", data, name_end)
-        if offset <= 0:
+        link, = struct.unpack_from(endian + "h", data, link_at)
+        record = _Record(position, group, bytes(data[position + 2:link_at]).upper(), link_at,
+                         link, _content_length(data, link_at + 2, group, end))
+        records.append(record)
+        if link > 0:
+            position = link_at + link
+        elif record.length is not None and _record_starts(data, link_at + record.length, end):
+            position = link_at + record.length
+        else:
             break
-        position = name_end + offset
-    used = {abs(group) for _, group, _ in records}
+    return records, endian
+
+
+def _content_length(data: bytes, at: int, group: int, end: int) -> int | None:
+    """The link a record's content gives (2 + its size), or None when it runs past ``end``.
+
+    A group holds ``[description length][description]``; a parameter ``[type: int8]
+    [dimensions: uint8][each dimension: uint8][values][description length][description]``.
+    """
+    size = 0
+    if group > 0:
+        if at + 2 > end:
+            return None
+        kind, n_dims = struct.unpack_from("bB", data, at)
+        if at + 2 + n_dims > end:
+            return None
+        size = 2 + n_dims + abs(kind) * math.prod(data[at + 2:at + 2 + n_dims])
+    if at + size >= end:
+        return None
+    size += 1 + data[at + size]
+    return 2 + size if at + size <= end else None
+
+
+def _record_starts(data: bytes, position: int, end: int) -> bool:
+    """Whether a well-formed record starts at ``position``: a name of letters, digits and
+    underscores, a group id, and a link inside the section."""
+    if position + 4 > end:
+        return False
+    length, group = struct.unpack_from("bb", data, position)
+    name = data[position + 2:position + 2 + abs(length)]
+    return (length != 0 and group != 0 and position + 4 + abs(length) <= end
+            and bool(re.fullmatch(rb"[A-Za-z0-9_]+", name)))
+
+
+def repair_parameter_links(data: bytes) -> tuple[bytes, list[str]]:
+    """``data`` with every broken link of the parameter chain (:func:`_parameter_records`)
+    set to the end of its record's content, and a note for each: the ``c3d`` package would
+    read a negative link as "the rest of the file" and silently drop every group after it
+    (EVENT, POINT:SCALE, POINT:RATE...)."""
+    records, endian = _parameter_records(data)
+    broken = [r for r in records[:-1] if r.link <= 0]
+    if not broken:
+        return data, []
+    out = bytearray(data)
+    notes = []
+    for record in broken:
+        struct.pack_into(endian + "h", out, record.link_at, record.length)
+        where = "points backwards" if record.link < 0 else "ends the chain early"
+        notes.append(f"parameter section: the link after {record.name.decode('latin-1')} "
+                     f"{where} ({record.link:+d} bytes); the records that follow it in the "
+                     "file were read in order (the file is damaged: re-export it)")
+    return bytes(out), notes
+
+
+def move_duplicate_parameters(data: bytes) -> bytes:
+    """``data`` with every repeated definition of a parameter in a group moved to an unused group.
+
+    The n-th repeat of a (group, name) (:func:`_parameter_records`) gets its group id changed
+    to the n-th id no group uses, so the first definition is the one read. Other bytes are
+    unchanged.
+    """
+    out = bytearray(data)
+    records, _ = _parameter_records(data)
+    used = {abs(r.group) for r in records}
     spares = [g for g in range(127, 0, -1) if g not in used]
     seen: Counter = Counter()
-    for position, group, name in records:
-        repeat = seen[group, name]
-        if group > 0 and 0 < repeat <= len(spares):  # the n-th repeat goes to the n-th spare
-            out[position + 1] = spares[repeat - 1]
-        seen[group, name] += 1
+    for r in records:
+        repeat = seen[r.group, r.name]
+        if r.group > 0 and 0 < repeat <= len(spares):  # the n-th repeat goes to the n-th spare
+            out[r.position + 1] = spares[repeat - 1]
+        seen[r.group, r.name] += 1
     return bytes(out)
 
 
@@ -229,11 +314,13 @@ def _strings(param, path: Path, key: str) -> list[str]:
 
 
 def _clean(raw: bytes) -> str:
+    """Text of a C3D string: UTF-8 (else Latin-1), NULs and padding removed, control
+    characters escaped (:func:`mocaplib.io.printable`)."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
-    return text.replace("\x00", "").strip()
+    return printable(text.replace("\x00", "").strip(), keep="")
 
 
 def _number(reader, key: str, kind: str, default=None):
@@ -264,7 +351,7 @@ class PointLayout:
     first_frame: int
 
 
-def _point_layout(reader, file_size: int, path: Path) -> PointLayout:
+def _point_layout(reader, file_size: int, path: Path, notes: list[str]) -> PointLayout:
     header = reader.header
     try:
         with np.errstate(over="ignore", invalid="ignore"):  # corrupt words: checked below
@@ -289,13 +376,40 @@ def _point_layout(reader, file_size: int, path: Path) -> PointLayout:
     if start < 512:
         raise C3DError(f"nonsense data block number {int(header.data_block)}", path=path)
     words = 4 * count + int(header.analog_count)
+    scale = _storage_scale(float(scale), file_size - start, frames * words, notes)
     needed = start + frames * words * (4 if scale < 0 else 2)
     if needed > file_size:
+        halved = " (or POINT:SCALE's sign is wrong: the file holds what 16-bit integer " \
+                 "storage of these frames needs)" if scale < 0 and _fits(
+                     file_size - start, 2 * frames * words) else ""
         raise C3DError(f"truncated: {frames} frames of {count} points need {needed} bytes, the "
-                       f"file has {file_size}", path=path,
+                       f"file has {file_size}{halved}", path=path,
                        hint="copy the file again or re-export it")
-    return PointLayout(processor, start, frames, count, words, float(scale), float(rate),
+    return PointLayout(processor, start, frames, count, words, scale, float(rate),
                        first_frame)
+
+
+def _fits(data_bytes: int, needed: int) -> bool:
+    """Whether a data section of ``data_bytes`` holds ``needed`` bytes of data plus padding.
+
+    Writers pad the data section to whole 512-byte blocks (less than a block beyond the data:
+    the 17 real files at hand leave 0 to 416 bytes)."""
+    return needed <= data_bytes < needed + 512
+
+
+def _storage_scale(scale: float, data_bytes: int, n_words: int, notes: list[str]) -> float:
+    """POINT:SCALE, turned negative (with a note) when it says 16-bit integer storage (> 0) of
+    ``n_words`` words, but the data section holds a block or more beyond that and just what
+    32-bit float storage needs: the floats read as integers would be garbage (a subject
+    hundreds of metres tall), so the sign is what is wrong. (The other way round, floats
+    claimed for integer data, the file looks truncated and the error says why.)"""
+    if scale > 0 and not _fits(data_bytes, 2 * n_words) and _fits(data_bytes, 4 * n_words):
+        notes.append(f"POINT:SCALE {scale:g} says 16-bit integer storage, but the data section "
+                     f"holds {data_bytes} bytes, what 32-bit float storage of these frames "
+                     "needs: read as floats (the sign of POINT:SCALE is wrong: re-export the "
+                     "file)")
+        return -scale
+    return scale
 
 
 def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -> np.ndarray:

@@ -1,22 +1,57 @@
-"""Plain JSON values from results that hold numpy arrays, numpy scalars and NaN.
+"""Plain JSON values from results that hold numpy arrays, numpy scalars and NaN, and JSON
+text read back without surprises.
 
-One helper, :func:`json_values`, used by every JSON the package writes: the library and its
-sidecars (10 significant digits), the synthetic truth files (6 decimals: µm, µrad) and the
-CLI's ``--json`` output (full precision).
+:func:`json_values` is used by every JSON the package writes: the library and its sidecars
+(10 significant digits), the synthetic truth files (6 decimals: µm, µrad) and the CLI's
+``--json`` output (full precision). :func:`parse_json` is used by every JSON it reads.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 
 import numpy as np
+
+from . import fs_text
+
+#: Integers with more digits than this are read as floats (:func:`parse_json`): no double
+#: holds more than 309 digits, and Python refuses to read integers of more than 4300.
+MAX_INTEGER_DIGITS = 300
+
+
+class OutOfRange(float):
+    """A number in a JSON text beyond a double's range (±1.8e308): read as ±inf, and marked
+    so that checks can tell it from the non-standard ``Infinity`` token."""
+
+
+def _number(text: str) -> float | int:
+    value = float(text)
+    return OutOfRange(value) if math.isinf(value) else value
+
+
+def _integer(text: str) -> float | int:
+    return int(text) if len(text) <= MAX_INTEGER_DIGITS else _number(text)
+
+
+def parse_json(text: str | bytes, /):
+    """The JSON data of ``text``, numbers of any size read without an exception: integers of
+    more than :data:`MAX_INTEGER_DIGITS` digits as floats, numbers beyond a double's range as
+    :class:`OutOfRange` infinities. Raises ValueError for text that is not JSON (also when
+    nested too deep to read)."""
+    try:
+        return json.loads(text, parse_int=_integer, parse_float=_number)
+    except RecursionError:
+        raise ValueError("JSON nested too deep to read") from None
 
 
 def json_values(obj, /, *, decimals: int | None = None, significant: int | None = None):
     """``obj`` as plain JSON values: dict (string keys), list, str, bool, int, float, None.
 
     numpy arrays and tuples become lists and numpy scalars Python ones; NaN and ±inf become
-    None (JSON null). Floats are kept as they are, or rounded to ``decimals`` decimal places
+    None (JSON null); text UTF-8 cannot encode (an undecodable file name) goes through
+    :func:`mocaplib.io.fs_text`. Floats are kept as they are, or rounded to ``decimals`` decimal places
     (a value rounded to zero is written 0.0, never -0.0) or to ``significant`` significant
     digits (not both: ValueError). Raises TypeError for any other type.
     """
@@ -29,7 +64,9 @@ def json_values(obj, /, *, decimals: int | None = None, significant: int | None 
         obj = obj.tolist()
     if isinstance(obj, (list, tuple)):
         return [json_values(v, decimals=decimals, significant=significant) for v in obj]
-    if obj is None or isinstance(obj, str):
+    if isinstance(obj, str):
+        return fs_text(obj)
+    if obj is None:
         return obj
     if isinstance(obj, (bool, np.bool_)):
         return bool(obj)
@@ -45,3 +82,12 @@ def json_values(obj, /, *, decimals: int | None = None, significant: int | None 
             return float(format(value, f".{significant}g"))
         return value
     raise TypeError(f"a {type(obj).__name__} is not a JSON value")
+
+
+def canonical_sha256(data, /) -> str:
+    """SHA-256 (hex) of the canonical JSON text of ``data``: keys sorted, no whitespace
+    (separators ``,`` and ``:``), text as it is (not ASCII-escaped), numbers as Python writes
+    them (the shortest text that reads back as the same double), encoded as UTF-8. The same
+    data read back from any formatting of the same JSON gives the same hash."""
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()

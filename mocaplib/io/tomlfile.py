@@ -6,6 +6,7 @@ import os
 import tomllib
 
 from ..errors import MocapError
+from . import open_regular
 
 
 def read_toml(path: str | os.PathLike, /, *, error: type[MocapError] = MocapError,
@@ -13,11 +14,12 @@ def read_toml(path: str | os.PathLike, /, *, error: type[MocapError] = MocapErro
     """The parsed document of ``path``.
 
     Raises ``error`` naming the file, with ``hint``, when it is missing, cannot be read (a
-    folder, no permission), is not UTF-8 text or is not valid TOML; ``what`` names the kind of
+    folder, a pipe or device, no permission: :func:`mocaplib.io.open_regular`), is not UTF-8
+    text or is not valid TOML; ``what`` names the kind of
     file in the message (``"protocol"``, ``"capture plan"``).
     """
     try:
-        with open(path, "rb") as handle:
+        with open_regular(path) as handle:
             return tomllib.load(handle)
     except FileNotFoundError:
         raise error(f"{what} not found", path=path, hint=hint) from None

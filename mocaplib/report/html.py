@@ -23,9 +23,12 @@ from .. import __version__
 from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, Envelope,
                             close_entries, coverage, leave_one_out)
 from ..errors import MocapError
+from ..io import read_regular
 from ..io.atomic import atomic_write_text
+from ..io.jsonvalues import parse_json
 from ..fourier import ANGLE_TOLERANCE, MAX_ORDER
-from ..library import DIAGNOSTICS_FORMAT, load_library, validate_library
+from ..library import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
+                       validate_library)
 from . import figures, report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
@@ -93,23 +96,31 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     """The diagnostics sidecar of ``library`` (None when missing, unreadable or another
     build's) and the report warnings about it.
 
+    A sidecar belongs to the library whose bytes have the SHA-256 it names
+    (``library_sha256``, compared with :attr:`mocaplib.library.Library.file_sha256`): one that
+    names another was left by another build (a build killed between writing the library and
+    its sidecar, or a library moved beside another one's sidecar) and is not used, since its
+    counts and plots would contradict the library. A sidecar without the hash (written before
+    it was stored) must name exactly the library's entry ids instead.
+
     Capture records are checked once here, so the rest of the report can rely on their shape:
     a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
-    out with a warning naming it (:func:`_record_problem`). A sidecar whose entry ids differ
-    from the library's was written by another build (a library rebuilt, or moved beside another
-    one's sidecar): it is not used, since its counts and plots would contradict the library."""
+    out with a warning naming it (:func:`_record_problem`)."""
     from ..pipeline import diagnostics_path
 
     path = diagnostics_path(library_path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         return None, [f"no diagnostics sidecar {path.name}: per-capture plots are not shown "
                       f"(`mocaplib build` writes it beside the library)"]
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != DIAGNOSTICS_FORMAT or not isinstance(
-                data.get("captures"), list):
+        data = parse_json(read_regular(path, limit=MAX_SIDECAR_BYTES).decode("utf-8"))
+        if not isinstance(data, dict) or data.get("format") != DIAGNOSTICS_FORMAT \
+                or not isinstance(data.get("captures"), list):
             raise ValueError(f"not a {DIAGNOSTICS_FORMAT} file")
-    except (OSError, ValueError, AttributeError, RecursionError) as exc:
+    except OSError as exc:
+        return None, [f"diagnostics sidecar {path.name} unreadable ({exc.strerror}); "
+                      "per-capture plots skipped"]
+    except ValueError as exc:
         return None, [f"diagnostics sidecar {path.name} unreadable ({exc}); "
                       "per-capture plots skipped"]
     warnings, records = [], []
@@ -122,14 +133,31 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
             record.get("source"), str) else ""
         warnings.append(f"diagnostics sidecar {path.name}: capture record {k}{name} left out "
                         f"of the report: {problem}")
-    mismatch = _sidecar_mismatch(records, set(library.entries.index) - _series_images(library),
-                                 complete=len(records) == len(data["captures"]))
-    if mismatch:
+    other = _other_build(data, records, library)
+    if other:
         return None, [f"diagnostics sidecar {path.name} does not belong to this library "
-                      f"({mismatch}): it was written by another build, so its captures, counts "
+                      f"({other}): it was written by another build, so its captures, counts "
                       "and plots are not shown (keep each library with the sidecar its build "
                       "wrote, or rebuild)"]
     return {**data, "captures": records}, warnings
+
+
+#: Largest diagnostics sidecar read (bytes): 68 captures take about 1 MB.
+MAX_SIDECAR_BYTES = 1 << 30
+
+
+def _other_build(sidecar: dict, records: list[dict], library) -> str | None:
+    """Why the sidecar (its well-formed capture ``records``) is not ``library``'s, or None:
+    it names another library's SHA-256; or, when there is no hash to compare (a sidecar
+    written before it was stored, a library built in memory), its entry ids are not the
+    library's (:func:`_sidecar_mismatch`)."""
+    named = sidecar.get("library_sha256")
+    if named is not None and library.file_sha256 is not None:
+        return None if named == library.file_sha256 else (
+            f"it names the library whose SHA-256 is {str(named)[:12]}…, this file's is "
+            f"{library.file_sha256[:12]}…")
+    return _sidecar_mismatch(records, set(library.entries.index) - _series_images(library),
+                             complete=len(records) == len(sidecar["captures"]))
 
 
 def _series_images(library) -> set[str]:
@@ -144,8 +172,7 @@ def _record_problem(record) -> str | None:
 
     Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
     null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
-    list of objects whose ``start_s``/``end_s``
-    are numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
+    list of objects whose ``start_s``/``end_s`` are finite numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
     ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
     (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
     if not isinstance(record, dict):
@@ -173,12 +200,17 @@ def _record_problem(record) -> str | None:
 
 #: Fields of a sidecar cycle the report reads outside its figures, and their type check.
 _CYCLE_FIELDS = {
-    "start_s": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
-    "end_s": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
+    "start_s": lambda x: _finite_number(x),
+    "end_s": lambda x: _finite_number(x),
     "index": lambda x: isinstance(x, int) and not isinstance(x, bool),
     "entry_id": lambda x: isinstance(x, str),
     "pattern": lambda x: isinstance(x, dict),
 }
+
+
+def _finite_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
 
 
 def _sidecar_mismatch(records: list[dict], library_ids: set[str], *,
@@ -208,6 +240,8 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
     df = library.entries
     warnings = [f"library check: {p}" for p in validate_library(library)]
+    if checksum_status(library.document) == "absent":
+        warnings.append(f"library check: {NO_CHECKSUM_NOTE}")
     env, env_note = _resolve_envelope(envelope)
     label = _class_labeller(df, env_note["plan"])
     classes_all = [label(i) for i in df.index]
@@ -721,20 +755,16 @@ def _capture_figure(record: dict, reconstructions: dict, poulaine: dict | None
 
 
 def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
-    """``[function(*a) for a in arguments]``, by ``jobs`` worker processes when more than one
-    (spawned, one BLAS thread each, as the build's: see :func:`mocaplib.pipeline.build`)."""
-    if jobs <= 1 or len(arguments) <= 1:
-        return [function(*a) for a in arguments]
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    """``[function(*a) for a in arguments]`` by ``jobs`` worker processes
+    (:func:`mocaplib.workers.run_tasks`, as the build's); ``function`` returns ``(value,
+    error)``, and a call that raised or whose worker died gives ``(None, reason)``."""
+    from ..workers import run_tasks
 
-    from ..pipeline import single_threaded_workers
-
-    workers = min(jobs, len(arguments))
-    with single_threaded_workers(), ProcessPoolExecutor(
-            workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return list(pool.map(function, *zip(*arguments),
-                             chunksize=max(1, len(arguments) // (4 * workers))))
+    results: list = [None] * len(arguments)
+    for i, value, error in run_tasks(function, arguments, jobs=jobs):
+        results[i] = value if error is None else (
+            None, f"it could not be drawn ({type(error).__name__}: {str(error)[:200]})")
+    return results
 
 
 def _poulaine(record: dict, library, known: set) -> dict | None:

@@ -1,0 +1,478 @@
+"""The fault battery: kills at any point of a build, full disks, hostile names and links,
+oversized numbers, bad output paths.
+
+What every case asserts: the old outputs are intact or the new ones complete, never a pair a
+reader would take for one (a library and a sidecar of two builds); no process is left
+running; no traceback, only a message that names the file and says what to do.
+
+Builds run in subprocesses (``python -m mocaplib``, or a script calling
+:func:`mocaplib.pipeline.build` with ``fake_process`` from test_pipeline) in their own session,
+so that every process they start can be found afterwards, wherever it was re-parented.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+
+from mocaplib.cli import main
+from mocaplib.errors import MocapError
+from mocaplib.library import load_library
+from mocaplib.pipeline import build
+from mocaplib.report.html import read_diagnostics
+from mocaplib.workers import max_jobs
+
+from conftest import SAMPLES
+from test_pipeline import TRIPLES, calls, fake_process, write_captures
+from test_workers import session_processes, wait_until
+
+TESTS = Path(__file__).parent
+linux_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
+                                reason="finds a build's processes in /proc")
+needs_two = pytest.mark.skipif(max_jobs() < 2, reason="needs two processors for two workers")
+#: Sample captures a real build of the battery processes (about 0.4 s each).
+SAMPLE_NAMES = ("walk_straight_normal", "walk_curve_r1_left_fast", "side_left_normal",
+                "turn_spot_right_slow", "run_3p0")
+
+
+def digest(path: Path) -> str | None:
+    return hashlib.sha256(path.read_bytes()).hexdigest() if path.exists() else None
+
+
+def pair(out: Path) -> tuple[str | None, str | None]:
+    """SHA-256 of a library and of its sidecar (None: absent)."""
+    return digest(out), digest(out.with_name(f"{out.stem}.diagnostics.json"))
+
+
+def assert_old_or_new(out: Path, old: tuple, new: tuple) -> str:
+    """The outputs are the old pair, the new pair, or the new library beside the old sidecar
+    (a kill between the two renames), which readers refuse as another build's; returns
+    which. Hidden temporaries of a killed writer may remain; nothing else is there."""
+    library, sidecar = pair(out)
+    assert library in (old[0], new[0]) and sidecar in (old[1], new[1]), "a half-written file"
+    visible = sorted(p.name for p in out.parent.iterdir() if not p.name.startswith("."))
+    assert visible == sorted([out.name, f"{out.stem}.diagnostics.json"])
+    if (library, sidecar) == old:
+        return "old"
+    if (library, sidecar) == new:
+        return "new"
+    assert (library, sidecar) == (new[0], old[1]), "an old library beside a new sidecar"
+    diagnostics, warnings = read_diagnostics(out, load_library(out))
+    assert diagnostics is None and "does not belong to this library" in warnings[0]
+    return "new library, old sidecar refused"
+
+
+def run_isolated(command: list[str], *, kill_after: float | None = None, **kwargs):
+    """Run ``command`` in a new session; kill -9 it after ``kill_after`` seconds (None: let
+    it finish). Returns (return code, stdout, stderr) once every process of the session has
+    ended (failing the test when some are still running 30 s after)."""
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, errors="replace", **kwargs)
+    try:
+        if kill_after is not None:
+            try:
+                process.wait(kill_after)
+            except subprocess.TimeoutExpired:
+                os.kill(process.pid, signal.SIGKILL)
+        out, err = process.communicate(timeout=600)
+        if Path("/proc/self/stat").exists():
+            assert wait_until(lambda: not session_processes(process.pid)), \
+                f"processes left running: {session_processes(process.pid)}"
+        return process.returncode, out, err
+    finally:
+        for pid in session_processes(process.pid) if Path("/proc").is_dir() else ():
+            os.kill(pid, signal.SIGKILL)
+
+
+def mocaplib_command(*arguments) -> list[str]:
+    return [sys.executable, "-m", "mocaplib", *map(str, arguments)]
+
+
+def sample_folder(folder: Path, names=SAMPLE_NAMES) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copy(SAMPLES / f"{name}.c3d", folder)
+    return folder
+
+
+def build_script(captures: Path, out: Path, *, jobs: int = 1, kill_at_replace: int = 0) -> str:
+    """A script building ``captures`` with ``fake_process`` and writing ``out``; with
+    ``kill_at_replace`` = k it kills itself (-9) at its k-th rename of a finished file."""
+    return textwrap.dedent(f"""
+        import os, signal, sys
+        sys.path.insert(0, {str(TESTS)!r})
+        from test_pipeline import fake_process
+        from mocaplib.pipeline import build
+
+        renames, replace = [], os.replace
+
+        def dying_replace(source, target):
+            renames.append(target)
+            if len(renames) == {kill_at_replace}:
+                os.kill(os.getpid(), signal.SIGKILL)
+            replace(source, target)
+
+        if __name__ == "__main__":
+            os.replace = dying_replace
+            result = build([{str(captures)!r}], jobs={jobs}, progress=False,
+                           process=fake_process)
+            result.write({str(out)!r})
+        """)
+
+
+@pytest.fixture
+def two_builds(tmp_path):
+    """An output folder holding the pair of an old build, and the captures of a new one
+    (same file names, other content: the same entry ids, other values)."""
+    old_caps, new_caps = tmp_path / "old", tmp_path / "new"
+    write_captures(old_caps, TRIPLES)
+    write_captures(new_caps, [(v + 0.1, w, vl) for v, w, vl in TRIPLES])
+    out = tmp_path / "out" / "lib.json"
+    build([old_caps], progress=False, process=fake_process).write(out)
+    new_out = tmp_path / "reference" / "lib.json"
+    build([new_caps], progress=False, process=fake_process).write(new_out)
+    return new_caps, out, pair(out), pair(new_out)
+
+
+# --------------------------------------------------------------------------- kills
+@linux_proc
+@pytest.mark.parametrize("kill_at, expected", [
+    (1, "old"),                                # before the library is renamed
+    (2, "new library, old sidecar refused"),   # between the two renames
+    (3, "new"),                                # after both (no third rename: it finishes)
+])
+def test_a_kill_at_each_rename_leaves_a_pair_readers_can_trust(two_builds, kill_at, expected):
+    new_caps, out, old, new = two_builds
+    code, _, err = run_isolated([sys.executable, "-c",
+                                 build_script(new_caps, out, kill_at_replace=kill_at)])
+    assert (code == -signal.SIGKILL) == (kill_at < 3) and "Traceback" not in err
+    assert assert_old_or_new(out, old, new) == expected
+    # the next build clears the temporaries a killed one left, and writes a whole pair
+    build([new_caps], progress=False, process=fake_process).write(out)
+    assert pair(out) == new and sorted(p.name for p in out.parent.iterdir()) == [
+        "lib.diagnostics.json", "lib.json"]
+
+
+@linux_proc
+@pytest.mark.slow
+@pytest.mark.parametrize("jobs", [1, pytest.param(2, marks=needs_two)])
+def test_kills_at_random_points_of_a_real_build(tmp_path, jobs):
+    # kill -9 of `mocaplib build` at seeded random times over a whole run (start-up, the
+    # captures, the cache, the writing): never a mix, never a process left
+    caps = sample_folder(tmp_path / "caps")
+    out = tmp_path / "out" / "lib.json"
+    out.parent.mkdir()
+    command = mocaplib_command("build", caps, "-o", out, "-q", "-j", jobs,
+                               "--cache-dir", tmp_path / "cache")
+    shutil.copytree(caps, tmp_path / "old")
+    (tmp_path / "old" / f"{SAMPLE_NAMES[0]}.c3d").unlink()
+    code, _, err = run_isolated(mocaplib_command("build", tmp_path / "old", "-o", out, "-q",
+                                                 "--no-cache"))
+    assert code == 0, err
+    old = pair(out)
+    reference = tmp_path / "reference" / "lib.json"
+    reference.parent.mkdir()
+    started = time.monotonic()
+    assert run_isolated(mocaplib_command("build", caps, "-o", reference, "-q", "-j", jobs,
+                                         "--no-cache"))[0] == 0
+    new, duration = pair(reference), time.monotonic() - started
+    seen = set()
+    # up to 1.2 times an unkilled build's time: some kills come after the build ended
+    for delay in sorted(random.Random(19 + jobs).uniform(0.0, 1.2 * duration)
+                        for _ in range(5)):
+        shutil.rmtree(tmp_path / "cache", ignore_errors=True)  # every kill redoes the work
+        code, _, err = run_isolated(command, kill_after=delay)
+        assert "Traceback" not in err
+        seen.add(assert_old_or_new(out, old, new))
+    assert run_isolated(command)[0] == 0 and pair(out) == new
+    assert seen  # which states the kills hit depends on the machine's speed
+
+
+@linux_proc
+@needs_two
+def test_no_process_outlives_a_killed_parallel_build(tmp_path):
+    # kill -9 of a `-j 2` build while both workers hold a capture: the workers (and the
+    # multiprocessing helper) end with it (run_isolated fails the test otherwise)
+    caps = tmp_path / "caps"
+    write_captures(caps, TRIPLES[:2])
+    for path in caps.iterdir():
+        path.write_text(json.dumps({**json.loads(path.read_text()), "sleep": 600}))
+    script = build_script(caps, tmp_path / "out" / "lib.json", jobs=2)
+    process = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    try:
+        assert wait_until(lambda: len(calls(caps)) == 2, 60), "the workers did not start"
+        assert len(session_processes(process.pid)) >= 3  # the build and its two workers
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait()
+        assert wait_until(lambda: not session_processes(process.pid)), \
+            f"left running: {session_processes(process.pid)}"
+    finally:
+        for pid in session_processes(process.pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_a_sidecar_of_another_build_with_the_same_entry_ids_is_refused(two_builds, tmp_path):
+    # the entry ids alone cannot tell these two builds apart; the library's hash does
+    new_caps, out, old, new = two_builds
+    reference = tmp_path / "reference" / "lib.json"
+    shutil.copy(reference, out)  # the new library beside the old sidecar
+    diagnostics, warnings = read_diagnostics(out, load_library(out))
+    assert diagnostics is None and "names the library whose SHA-256" in warnings[0]
+    diagnostics, warnings = read_diagnostics(reference, load_library(reference))
+    assert diagnostics is not None and not warnings
+
+
+# --------------------------------------------------------------------------- full disks
+@pytest.mark.parametrize("failing, call", [("fsync", 1), ("fsync", 2), ("replace", 1)])
+def test_a_full_disk_while_writing_leaves_the_old_pair(two_builds, monkeypatch, failing,
+                                                       call):
+    new_caps, out, old, new = two_builds
+    result = build([new_caps], progress=False, process=fake_process)
+    real, made = getattr(os, failing), []
+
+    def full(*args):
+        made.append(args)
+        if len(made) == call:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(*args)
+
+    monkeypatch.setattr(os, failing, full)
+    with pytest.raises(MocapError, match="No space left on device") as info:
+        result.write(out)
+    assert str(out.parent) in str(info.value)
+    monkeypatch.undo()
+    assert pair(out) == old
+    assert sorted(p.name for p in out.parent.iterdir()) == ["lib.diagnostics.json", "lib.json"]
+
+
+def test_a_failed_rename_of_the_sidecar_leaves_no_pair_a_reader_trusts(two_builds,
+                                                                       monkeypatch):
+    new_caps, out, old, new = two_builds
+    result = build([new_caps], progress=False, process=fake_process)
+    real = os.replace
+
+    def fail_second(source, target):
+        if str(target).endswith("diagnostics.json"):
+            raise OSError(errno.EIO, "Input/output error")
+        return real(source, target)
+
+    monkeypatch.setattr(os, "replace", fail_second)
+    with pytest.raises(MocapError, match="lib.diagnostics.json: cannot write file"):
+        result.write(out)
+    monkeypatch.undo()
+    assert assert_old_or_new(out, old, new) == "new library, old sidecar refused"
+
+
+def _small_tmpfs_available(folder: Path) -> bool:
+    """Whether this machine lets an unprivileged user namespace mount a small tmpfs."""
+    if shutil.which("unshare") is None:
+        return False
+    folder.mkdir(exist_ok=True)
+    probe = subprocess.run(["unshare", "-Urm", "sh", "-c",
+                            f"mount -t tmpfs -o size=64k tmpfs '{folder}'"],
+                           capture_output=True)
+    return probe.returncode == 0
+
+
+@linux_proc
+def test_a_real_full_disk_during_a_build_keeps_the_old_pair(tmp_path):
+    # a 1 MB tmpfs in a private mount namespace: an old pair is built on it, the disk is
+    # filled to 16 kB of the end, a new build then runs out of space while writing
+    disk = tmp_path / "disk"
+    if not _small_tmpfs_available(disk):
+        pytest.skip("cannot mount a size-limited tmpfs here (no user namespaces)")
+    old_caps, new_caps = tmp_path / "old", tmp_path / "new"
+    sample_folder(old_caps, SAMPLE_NAMES[:4])
+    sample_folder(new_caps)
+    driver = textwrap.dedent(f"""
+        import hashlib, json, os, subprocess, sys
+        disk, out = {str(disk)!r}, {str(disk / "lib.json")!r}
+        build = [sys.executable, "-m", "mocaplib", "build", "-q", "--no-cache", "-o", out]
+
+        def pair():
+            return [hashlib.sha256(open(p, "rb").read()).hexdigest() if os.path.exists(p)
+                    else None for p in (out, out[:-5] + ".diagnostics.json")]
+
+        first = subprocess.run(build + [{str(old_caps)!r}], capture_output=True, text=True)
+        old = pair()
+        with open(os.path.join(disk, "filler"), "wb", buffering=0) as filler:
+            try:
+                while True:
+                    filler.write(b"x" * 4096)
+            except OSError:
+                pass
+        os.truncate(os.path.join(disk, "filler"), os.path.getsize(os.path.join(disk,
+                                                                               "filler")) - 16384)
+        second = subprocess.run(build + [{str(new_caps)!r}], capture_output=True, text=True)
+        print(json.dumps({{"first": first.returncode, "old": old, "code": second.returncode,
+                          "err": second.stderr, "after": pair(),
+                          "files": sorted(os.listdir(disk))}}))
+        """)
+    code, out, err = run_isolated(["unshare", "-Urm", "sh", "-c",
+                                   f"mount -t tmpfs -o size=1m tmpfs '{disk}' && "
+                                   f"exec {sys.executable} -c \"$0\"", driver])
+    assert code == 0, err
+    found = json.loads(out)
+    assert found["first"] == 0 and None not in found["old"]
+    assert found["code"] == 1 and "No space left on device" in found["err"]
+    assert "lib.json" in found["err"] and "Traceback" not in found["err"]
+    assert found["after"] == found["old"]
+    assert found["files"] == ["filler", "lib.diagnostics.json", "lib.json"]
+
+
+def test_a_full_disk_in_the_cli_is_one_line_and_exit_1(tmp_path, monkeypatch, capsys):
+    from mocaplib import pipeline
+
+    monkeypatch.setattr(pipeline, "process_capture", fake_process)
+    write_captures(tmp_path / "caps")
+    real = os.fsync
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    out = tmp_path / "lib.json"
+    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 1
+    monkeypatch.setattr(os, "fsync", real)
+    err = capsys.readouterr().err
+    assert f"{tmp_path}" in err and "No space left on device" in err
+    assert "Traceback" not in err and list(tmp_path.glob("lib*")) == []
+
+
+# --------------------------------------------------------------------------- names and links
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_hostile_names_and_links_in_an_input_folder(tmp_path):
+    # a link loop, a link to the folder itself, a dangling link, a pipe, a Latin-1 name and
+    # a name with terminal escapes: each bad one fails alone, the others are built
+    caps = sample_folder(tmp_path / "caps", SAMPLE_NAMES[:3])
+    (caps / "loop.c3d").symlink_to("loop.c3d")
+    (caps / "self").symlink_to(".")
+    (caps / "gone.c3d").symlink_to(tmp_path / "moved.c3d")
+    os.mkfifo(caps / "pipe.c3d")
+    shutil.copy(SAMPLES / f"{SAMPLE_NAMES[3]}.c3d", os.path.join(os.fsencode(caps),
+                                                                 b"gehen_\xe4.c3d"))
+    shutil.copy(SAMPLES / f"{SAMPLE_NAMES[4]}.c3d", caps / "\x1b[2Jred.c3d")
+    out = tmp_path / "lib.json"
+    env = {**os.environ, "PYTHONIOENCODING": "utf-8"}
+    code, printed, err = run_isolated(mocaplib_command("build", caps, "-o", out, "-q"),
+                                      env=env)
+    assert code == 1 and "Traceback" not in err
+    assert "captures 8  ok 5  failed 3" in printed
+    for name in ("loop.c3d", "gone.c3d", "pipe.c3d"):
+        assert f"{name} [read]: cannot read" in printed
+    assert "\x1b" not in printed + err
+    stems = {i.rsplit("_c", 1)[0] for i in load_library(out).entries.index}
+    assert {"gehen_ä", "\x1b[2Jred"} <= stems  # the library keeps the names as text
+    assert "not valid UTF-8" in out.with_name("lib.diagnostics.json").read_text()
+    code, printed, err = run_isolated(mocaplib_command("inspect", caps), env=env)
+    assert code == 1 and "Traceback" not in err and "\x1b" not in printed + err
+    assert "\\x1b[2Jred.c3d" in printed  # the escape shown, not obeyed
+    assert "Too many levels of symbolic links" in err and "not a regular file" in err
+
+
+# --------------------------------------------------------------------------- oversized numbers
+def test_oversized_numbers_in_the_sidecar_cost_the_report_nothing(tmp_path, capsys):
+    write_captures(tmp_path / "caps")
+    library, sidecar = build([tmp_path / "caps"], progress=False,
+                             process=fake_process).write(tmp_path / "lib.json")
+    text = sidecar.read_text()
+    text = text.replace('"rate_hz": 100.0', '"rate_hz": 1' + "0" * 400, 1)
+    sidecar.write_text(text.replace('"start_s": 0.2', '"start_s": ' + "9" * 5001, 1))
+    reports = tmp_path / "reports"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing computed with an infinity
+        assert main(["report", str(library), "-o", str(reports), "--no-opengl"]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    html = (reports / "lib-report.html").read_text()
+    assert "capture record 0 (walk00.c3d) left out of the report" in html
+
+
+def test_the_report_says_when_a_library_was_changed_after_it_was_written(tmp_path):
+    from mocaplib.report import write_report
+    from test_library import one_coefficient_changed
+
+    write_captures(tmp_path / "caps")
+    library, _ = build([tmp_path / "caps"], progress=False,
+                       process=fake_process).write(tmp_path / "lib.json")
+    one_coefficient_changed(library)
+    html = write_report(library, tmp_path / "reports", renderer="matplotlib").read_text()
+    assert "content_sha256: the content does not match the checksum" in html
+
+
+# --------------------------------------------------------------------------- output paths
+@pytest.fixture
+def counted_build(monkeypatch):
+    """The CLI build with ``fake_process``, counting captures processed."""
+    from mocaplib import pipeline
+
+    processed = []
+
+    def counted(path, settings):
+        processed.append(path)
+        return fake_process(path, settings)
+
+    monkeypatch.setattr(pipeline, "process_capture", counted)
+    return processed
+
+
+@pytest.mark.parametrize("output, message", [
+    ("{caps}/walk00.truth.json", "is an input of this command"),
+    ("{caps}/walk00.c3d", "is an input of this command"),
+    ("/proc/mocaplib-test.json", "cannot write into /proc"),
+    ("/dev/null", "not a regular file"),
+    ("-", "'-' (standard input or output) is not supported"),
+    ("{tmp}/missing/lib.json", "does not exist"),
+])
+def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work(
+        tmp_path, counted_build, capsys, output, message):
+    caps = tmp_path / "caps"
+    write_captures(caps)
+    truth = caps / "walk00.truth.json"
+    truth.write_text('{"class": "straight"}')
+    before = {p.name: p.read_bytes() for p in caps.iterdir()}
+    output = output.format(caps=caps, tmp=tmp_path)
+    if output.startswith("/proc") and not Path("/proc").is_dir():
+        pytest.skip("no /proc here")
+    assert main(["build", str(caps), "-o", output, "--no-cache", "-q"]) == 2
+    assert message in capsys.readouterr().err
+    assert counted_build == [] and not Path("-").exists()
+    assert {p.name: p.read_bytes() for p in caps.iterdir()} == before
+    assert Path("/dev/null").is_char_device()
+    assert not (tmp_path / "missing").exists()
+
+
+def test_dash_and_missing_folders_elsewhere_are_usage_errors(tmp_path, capsys, monkeypatch):
+    write_captures(tmp_path / "caps")
+    library, _ = build([tmp_path / "caps"], progress=False,
+                       process=fake_process).write(tmp_path / "lib.json")
+    monkeypatch.chdir(tmp_path)
+    for command in (["query", str(library), "1", "0", "0", "--bvh", "-"],
+                    ["query", str(library), "1", "0", "0", "--bvh", "new/sub/walk.bvh"],
+                    ["validate", "-"], ["inspect", "-"],
+                    ["report", str(library), "-o", "-"]):
+        assert main(command) == 2, command
+        assert "Traceback" not in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["caps", "lib.diagnostics.json",
+                                                          "lib.json"]
+
+
+@pytest.mark.parametrize("command", ["build", "report"])
+def test_jobs_beyond_the_processors_is_a_usage_error(tmp_path, capsys, command):
+    arguments = {"build": [str(tmp_path), "-o", str(tmp_path / "lib.json")],
+                 "report": [str(tmp_path / "lib.json")]}[command]
+    assert main([command, *arguments, "--jobs", "100000"]) == 2
+    assert f"at most {max_jobs()}" in capsys.readouterr().err
+    assert main([command, *arguments, "--jobs", str(max_jobs() + 1)]) == 2
