@@ -43,7 +43,10 @@ from .io.jsonvalues import OutOfRange, canonical_sha256, json_values, parse_json
 from .skeleton import DOFS
 
 FORMAT = "mocaplib-library"
-FORMAT_VERSION = 1
+#: The version this mocaplib writes; it reads :data:`READ_VERSIONS` (docs/library-format.md,
+#: *Versions*).
+FORMAT_VERSION = 2
+READ_VERSIONS = (1, 2)
 #: The ``format`` of a build's diagnostics sidecar (``<stem>.diagnostics.json``), not a library.
 DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 CONTROL_AXES = ("v", "omega", "v_l")
