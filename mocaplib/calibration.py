@@ -285,7 +285,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     def fit_without(i, j):
         Xij = X.copy()
         Xij[:, [i, j]] = np.nan
-        return skeleton.points(solve_poses(skeleton, Xij, segments, offsets, free=free).q,
+        return skeleton.points(solve_poses(skeleton, Xij, segments, offsets, q0=first.q,
+                                           free=free).q,
                                segments, offsets)
 
     swapped = find_swaps(fit_without, first.residuals, X, labels, landmarks)
