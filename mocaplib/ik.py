@@ -91,8 +91,10 @@ _ROOT = SEGMENT_NAMES.index("pelvis")
 #: are a subset of i's). Parents' DOFs come first, so above the diagonal it holds every pair
 #: that shares markers.
 _ANCESTOR = MOVES[[SEGMENT_NAMES.index(d.segment) for d in DOFS]].T.astype(np.float64)
-_UPPER_I, _UPPER_J = np.triu_indices(len(DOFS), 1)
 assert (np.tril(_ANCESTOR, -1) <= _ANCESTOR.T).all(), "a DOF listed before its parent's"
+#: :data:`_ANCESTOR` above the diagonal, halved on it: ``B + Bᵀ`` of ``B = A * _HALF_UPPER`` is
+#: the symmetric matrix of A's upper triangle, to the bit (halving and doubling are exact).
+_HALF_UPPER = np.triu(_ANCESTOR) - 0.5 * np.diag(np.diag(_ANCESTOR))
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
 _QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
 
@@ -205,7 +207,12 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         about = (pts if every else pts[rows]) - origin[:, :, None]
         A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
-        A[diagonal] += mu2
+        # the continuity term's curvature counted twice: the step also stays near the current
+        # pose (a proximal term, no change to the minimum). Every frame moves towards its
+        # neighbours' mean while they move towards its own: with the curvature counted once,
+        # a DOF the markers hardly see (ankle inversion on a heel-toe foot) jumps back and
+        # forth between two frames without end; twice, it settles.
+        A[diagonal] += 2 * mu2
         # locked DOFs, and DOFs on a bound whose gradient points outwards, leave the step
         held = (~free | ((qa <= _LOWER + 1e-12) & (g < 0)) | ((qa >= _UPPER - 1e-12) & (g > 0)))
         some = np.flatnonzero(held.any(axis=1))
@@ -340,8 +347,8 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     H_s[:, :3] += cross_rows(P, v)
     H_s[:, 3:] = W[:, None] * v + cross_rows(omega, P)
     A = twist.transpose(0, 2, 1) @ H_s
-    A *= _ANCESTOR                          # right on and above the diagonal: mirror it below
-    A[:, _UPPER_J, _UPPER_I] = A[:, _UPPER_I, _UPPER_J]
+    A *= _HALF_UPPER                        # right on and above the diagonal: mirror it below
+    A += A.transpose(0, 2, 1)              # numpy buffers the overlap
     return A, _gradient(twist, p, moved, r, w)
 
 
