@@ -42,14 +42,14 @@ import re
 import struct
 import warnings
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import c3d
 import numpy as np
 
 from ..errors import C3DError
-from . import printable, read_regular
+from . import open_regular, printable
 from ..trial import Event, Trial
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
@@ -59,52 +59,24 @@ MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "
 _LABEL_PARAMS = 100          # LABELS, LABELS2 ... LABELS99: far beyond any real file
 _AXIS_SAMPLE_FRAMES = 60     # frames looked at to detect the vertical axis
 _AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by this factor
+#: Bytes of frames (POINT words and the analog samples between them) read at a time.
+CHUNK_BYTES = 1 << 23
+#: The largest frame count a 16-bit field holds: a file whose count is at it may hold more.
+UINT16_MAX = 65535
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
     """Read the markers of the C3D file ``path``: a :class:`Trial` in metres, Z up, NaN = missing.
 
-    Raises :class:`C3DError` (naming the file and the problem) when the file cannot be read.
+    Only the header, the parameter section and the POINT words are read; the frames are read
+    :data:`CHUNK_BYTES` at a time (their analog samples skipped), so memory holds little more
+    than the marker array, whatever the file's size. Raises :class:`C3DError` (naming the file
+    and the problem) when the file cannot be read.
     """
     path = Path(path)
-    data = _read_bytes(path)
-    _check_header(data, path)
-    notes: list[str] = []
-    reader = _parse_parameters(data, path, notes)
-    layout = _point_layout(reader, len(data), path, notes)
-
-    labels = _point_labels(reader, layout.count, path, notes)
-    units, to_metres = _point_units(reader, path, notes)
-    markers = decode_points(data, layout, factor=to_metres)
-
-    declared = _model_outputs(reader, path)
-    keep = [i for i, label in enumerate(labels) if label not in declared]
-    if len(keep) < len(labels):
-        notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
-                     f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
-        labels = [labels[i] for i in keep]
-        markers = markers[:, keep, :]
-
-    duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
-    if duplicates:
-        notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
-
-    screen = _screen_up_axis(reader)
-    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
-    notes.extend(axis_notes)
-    if axis == "Y":
-        markers = y_up_to_z_up(markers)
-        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
-
-    return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
-                 vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
-                 warnings=notes, measurements=subject_measurements(reader))
-
-
-# ----------------------------------------------------------------------------- file and header
-def _read_bytes(path: Path) -> bytes:
     try:
-        return read_regular(path)
+        with open_regular(path) as handle:
+            return _read_trial(handle, path)
     except FileNotFoundError:
         raise C3DError("no such file", path=path, hint="check the path") from None
     except IsADirectoryError:
@@ -115,13 +87,64 @@ def _read_bytes(path: Path) -> bytes:
         raise C3DError(f"cannot read the file: {exc.strerror}", path=path, hint=hint) from None
 
 
-def _check_header(data: bytes, path: Path) -> None:
-    """The checks the ``c3d`` package would fail on with an unhelpful exception."""
-    if len(data) == 0:
+def _read_trial(handle, path: Path) -> Trial:
+    size = os.fstat(handle.fileno()).st_size
+    metadata = _read_metadata(handle, size, path)
+    notes: list[str] = []
+    reader = _parse_parameters(metadata, path, notes)
+    layout = _frames_past_16_bits(handle, _point_layout(reader, size, path, notes), size, notes)
+
+    labels = _point_labels(reader, layout.count, path, notes)
+    units, to_metres = _point_units(reader, path, notes)
+    declared = _model_outputs(reader, path)
+    keep = [i for i, label in enumerate(labels) if label not in declared]
+    if len(keep) < len(labels):
+        notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
+                     f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
+        labels = [labels[i] for i in keep]
+    markers = _read_points(handle, layout, keep, to_metres, path)
+
+    duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
+    if duplicates:
+        notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
+
+    screen = _screen_up_axis(reader)
+    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
+    notes.extend(axis_notes)
+    if axis == "Y":
+        for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
+            chunk[:] = y_up_to_z_up(chunk)          # in place, a chunk at a time
+        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
+
+    return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
+                 vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
+                 warnings=notes, measurements=subject_measurements(reader))
+
+
+# ----------------------------------------------------------------------------- file and header
+def _read_metadata(handle, size: int, path: Path) -> bytes:
+    """The header and the parameter section (the blocks up to the end of the section, as its
+    first bytes count them), checked (:func:`_check_header`)."""
+    data = handle.read(512)
+    if len(data) == 512 and data[1] == 0x50 and data[0] >= 2:
+        start = (data[0] - 1) * 512
+        handle.seek(start + 2)
+        blocks = handle.read(1)
+        end = start + 512 * (blocks[0] if blocks else 0)
+        handle.seek(0)
+        data = handle.read(min(max(end, start + 4), size))
+    _check_header(data, size, path)
+    return data
+
+
+def _check_header(data: bytes, size: int, path: Path) -> None:
+    """The checks the ``c3d`` package would fail on with an unhelpful exception: ``data`` is
+    the start of a file of ``size`` bytes, through the parameter section's first 4 bytes."""
+    if size == 0:
         raise C3DError("the file is empty", path=path,
                        hint="re-export it from the capture software")
-    if len(data) < 512:
-        raise C3DError(f"only {len(data)} bytes: too short for a C3D file (header is 512 bytes)",
+    if size < 512:
+        raise C3DError(f"only {size} bytes: too short for a C3D file (header is 512 bytes)",
                        path=path, hint="the file is truncated or not a C3D file")
     if data[1] != 0x50:
         raise C3DError(f"not a C3D file: byte 2 is 0x{data[1]:02x}, a C3D file has 0x50",
@@ -130,9 +153,9 @@ def _check_header(data: bytes, path: Path) -> None:
     if data[0] < 2:
         raise C3DError(f"the header points to a parameter section at block {data[0]}, inside the "
                        f"header", path=path, hint="the file is corrupt")
-    if start + 4 > len(data):
+    if start + 4 > size:
         raise C3DError(f"the header points to a parameter section at block {data[0]}, beyond the "
-                       f"end of the file ({len(data)} bytes)", path=path,
+                       f"end of the file ({size} bytes)", path=path,
                        hint="the file is truncated or corrupt")
     processor = data[start + 3]
     if processor not in PROCESSORS:
@@ -412,8 +435,16 @@ def _storage_scale(scale: float, data_bytes: int, n_words: int, notes: list[str]
     return scale
 
 
-def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -> np.ndarray:
-    """Markers ``(F, M, 3)`` float64: file coordinates times ``factor``, NaN where invalid."""
+def decode_points(data, layout: PointLayout, /, *, factor: float = 1.0,
+                  points: list[int] | None = None) -> np.ndarray:
+    """Markers ``(F, M, 3)`` float64 of ``data`` (bytes or a buffer) laid out as ``layout``:
+    file coordinates times ``factor``, NaN where invalid; ``points`` (indices) keeps only those
+    points, in that order (default all)."""
+    return _decoded(_point_words(data, layout, points), layout, factor)
+
+
+def _point_words(data, layout: PointLayout, points: list[int] | None) -> np.ndarray:
+    """The stored words (F, M, 4) of the points (all, or the indices ``points``), as stored."""
     is_float = layout.scale < 0
     endian = ">" if layout.processor == "MIPS" else "<"
     if is_float:
@@ -423,6 +454,13 @@ def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -
     block = np.frombuffer(data, dtype=dtype, count=layout.frames * layout.words,
                           offset=layout.start).reshape(layout.frames, layout.words)
     block = block[:, :4 * layout.count].reshape(layout.frames, layout.count, 4)
+    return block if points is None or len(points) == layout.count and \
+        np.array_equal(points, np.arange(layout.count)) else block[:, points]
+
+
+def _decoded(block: np.ndarray, layout: PointLayout, factor: float) -> np.ndarray:
+    """Markers (F, M, 3) float64 of stored words ``block`` (F, M, 4)."""
+    is_float = layout.scale < 0
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
     with np.errstate(invalid="ignore", over="ignore"):  # corrupt words: NaN/inf, masked below
@@ -430,8 +468,53 @@ def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
-    markers[~valid] = np.nan
+    np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
+
+
+def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
+                 path: Path) -> np.ndarray:
+    """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
+    read :data:`CHUNK_BYTES` of frames at a time."""
+    frame_bytes = _frame_bytes(layout)
+    step = max(1, CHUNK_BYTES // frame_bytes)
+    out = np.empty((layout.frames, len(points), 3))
+    buffer = bytearray(min(step, layout.frames) * frame_bytes)
+    handle.seek(layout.start)
+    for first in range(0, layout.frames, step):
+        chunk = replace(layout, start=0, frames=min(step, layout.frames - first))
+        view = memoryview(buffer)[:chunk.frames * frame_bytes]
+        if handle.readinto(view) != len(view):
+            raise C3DError("the file is shorter than when it was opened (written to while "
+                           "read?)", path=path, hint="read it again once it is complete")
+        out[first:first + chunk.frames] = _decoded(_point_words(view, chunk, points), chunk,
+                                                   factor)
+    return out
+
+
+def _frame_bytes(layout: PointLayout) -> int:
+    return max(1, layout.words * (4 if layout.scale < 0 else 2))
+
+
+def _frames_past_16_bits(handle, layout: PointLayout, size: int, notes: list[str]
+                         ) -> PointLayout:
+    """``layout`` with every frame the data section holds when the file counts
+    :data:`UINT16_MAX` frames and holds more: a writer that stores the count in 16 bits only
+    (ezc3d 1.7 does) can write no more, though it writes every frame. Whole frames past the
+    count are read but those at the end whose words are all zero: the padding of the last
+    512-byte block."""
+    held = (size - layout.start) // _frame_bytes(layout)
+    if layout.first_frame + layout.frames - 1 != UINT16_MAX or held <= layout.frames:
+        return layout
+    tail = min(held - layout.frames, -(-512 // _frame_bytes(layout)))
+    handle.seek(layout.start + (held - tail) * _frame_bytes(layout))
+    words = np.frombuffer(handle.read(tail * _frame_bytes(layout)), np.uint8)
+    padding = words.reshape(tail, -1).any(axis=1)[::-1].argmax() if words.any() else tail
+    frames = held - padding
+    if frames > layout.frames:
+        notes.append(f"the file counts {layout.frames} frames, the most 16 bits hold, and its "
+                     f"data section holds {frames}: all read")
+    return replace(layout, frames=max(frames, layout.frames))
 
 
 def dec_to_ieee(words: np.ndarray) -> np.ndarray:
