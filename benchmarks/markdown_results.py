@@ -83,15 +83,17 @@ def commit() -> str:
 
 
 def machine() -> str:
-    """CPU model and core count, Python and numpy versions, in one line."""
+    """CPU model, core count and load average (other jobs on the machine skew timings),
+    Python and numpy versions, in one line."""
     model = platform.processor() or platform.machine()
     with contextlib.suppress(OSError):
         text = Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace")
         found = re.search(r"^model name\s*:\s*(.+)$", text, flags=re.MULTILINE)
         if found:
             model = found.group(1).strip()
-    return (f"{model}, {os.cpu_count()} cores · Python {platform.python_version()}, "
-            f"numpy {np.__version__}")
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+    return (f"{model}, {os.cpu_count()} cores, load average {load} (1, 5, 15 min) when "
+            f"written · Python {platform.python_version()}, numpy {np.__version__}")
 
 
 def block(command: str, body: str) -> str:

@@ -533,8 +533,8 @@ def _fill_gaps(values: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- the fit
 def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUST_SCALE,
-        smoothing: float = SMOOTHING, max_iter: int = 40, chunk: int = CHUNK,
-        q0: np.ndarray | None = None) -> Motion:
+        smoothing: float = SMOOTHING, max_iter: int = 40, tol: float = 1e-4,
+        step_tol: float = 5e-4, chunk: int = CHUNK, q0: np.ndarray | None = None) -> Motion:
     """Fit the calibrated model's joint angles to every frame of ``trial``.
 
     Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
@@ -548,7 +548,9 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     model : SubjectModel from :func:`mocaplib.calibration.calibrate`.
     robust_scale : soft-L1 scale, metres; ``np.inf`` for plain least squares.
     smoothing : continuity weight μ (metres per radian); 0 switches it off.
-    max_iter : LM iterations per chunk of frames.
+    max_iter, tol, step_tol : LM iterations per chunk of frames; a frame stops when its cost
+        falls by less than ``tol`` (relative) or its largest step is below ``step_tol`` (rad
+        or m), as :func:`solve_poses`.
     chunk : frames solved together.
     q0 : (F, D) start poses (a previous fit of the same frames); default: the coarse-to-fine
         start described above.
@@ -572,7 +574,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
-                        max_iter=max_iter, weights=model.marker_weights)
+                        max_iter=max_iter, tol=tol, step_tol=step_tol,
+                        weights=model.marker_weights)
         # coarse to fine in time: keyframes from rigid-fit starts, then all frames from their
         # predictions (a warm start, as frame-by-frame solvers use)
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
