@@ -10,7 +10,7 @@ and rotations as numpy arrays) and like for like, the points alone (``ezc3d.ezc3
 .get_points()``: its C++ reader cannot skip decoding the analog samples, but nothing else
 becomes numpy). mocaplib reads the POINT words only and skips the analog samples.
 
-``--big-gb X`` also writes an X GB file (40 markers and 64 analog channels at 10 samples a
+``--big-gb X`` instead writes an X GB file (40 markers and 64 analog channels at 10 samples a
 frame, so that the analog samples are four fifths of the file) and reads it in a fresh
 process, reporting the peak resident memory and tracemalloc's peak against the marker array
 and the file size. Prints Markdown tables (``--markdown PATH`` also writes them into a
@@ -91,13 +91,15 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=6000)
     parser.add_argument("--markers", type=int, default=40)
     parser.add_argument("--big-gb", type=float, default=0.0,
-                        help="also read a file of this many GB and report the memory it takes")
+                        help="read a file of this many GB instead and report the memory it "
+                             "takes")
     add_markdown_option(parser)
     args = parser.parse_args()
     with markdown_page(args.markdown, __file__):
-        compare(args)
         if args.big_gb:
             big_file(args.big_gb)
+        else:
+            compare(args)
     return 0
 
 
