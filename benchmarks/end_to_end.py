@@ -91,18 +91,26 @@ def timed(command: list[str], repeat: int) -> tuple[float, float, subprocess.Com
     return best
 
 
+def _last_line(text: str) -> str:
+    """The last line of an error output that says what went wrong (quoted), or ''."""
+    lines = [line.strip() for line in text.splitlines()
+             if line.strip().startswith(("RuntimeError", "mocaplib", "Error", "[error]"))]
+    return f"({lines[-1][:160]})" if lines else ""
+
+
 def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
     """The inputs of OpenSim's job for the capture ``path`` (and its ``static``), written
     into ``folder``: the calibrated or the generic model, the markers as .trc."""
     from mocaplib.ik import fit_capture, model_markers
-    from mocaplib.io.opensim import write_osim, write_trc
+    from mocaplib.io.opensim import opensim_name, write_osim, write_trc
     from mocaplib.protocols import REFERENCE_HEIGHT
     from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
 
     trial = read_c3d(path)
     statics = [read_c3d(static)] if static else None
     _, model, _ = fit_capture(trial, static=statics)       # as `mocaplib fit` calibrates
-    job = {"labels": list(model.labels), "weights": model.marker_weights.tolist(),
+    job = {"labels": [opensim_name(label) for label in model.labels],
+           "weights": model.marker_weights.tolist(),
            "motion": str(folder / "motion.trc"), "motion_end": trial.duration,
            "mot": str(folder / "ik.mot")}
     write_trc(model_markers(trial, model), model.labels, trial.rate, job["motion"])
@@ -116,7 +124,7 @@ def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
     pairs = {}
     for s, name in enumerate(SEGMENT_NAMES):
         on = np.flatnonzero(model.marker_segments == s)
-        found = [(model.labels[a], model.labels[b]) for a, b in itertools.combinations(on, 2)
+        found = [(job["labels"][a], job["labels"][b]) for a, b in itertools.combinations(on, 2)
                  if np.linalg.norm(nominal[a] - nominal[b]) > MIN_PAIR]
         if found:
             pairs[name] = found
@@ -243,8 +251,9 @@ def compare(args) -> None:
             theirs = timed([sys.executable, str(REPO / "benchmarks" / "opensim_tools.py"),
                             str(folder / "job.json")], args.repeat)
             if ours[2].returncode or theirs[2].returncode:
-                failed.append(f"{name}: mocaplib exit {ours[2].returncode}, OpenSim exit "
-                              f"{theirs[2].returncode} {theirs[2].stderr.strip()[-200:]}")
+                failed.append(f"{name}: mocaplib exit {ours[2].returncode} "
+                              f"{_last_line(ours[2].stderr)}, OpenSim exit "
+                              f"{theirs[2].returncode} {_last_line(theirs[2].stderr)}")
                 continue
             steps = json.loads(theirs[2].stdout.strip().splitlines()[-1])
             n = read_c3d(path).n_frames

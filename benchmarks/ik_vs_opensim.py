@@ -58,7 +58,7 @@ from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from opensim_tools import inverse_kinematics, read_mot  # noqa: E402
 from mocaplib.calibration import calibrate  # noqa: E402
 from mocaplib.ik import fit, fit_filtered, model_markers  # noqa: E402
-from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
+from mocaplib.io.opensim import opensim_name, write_osim, write_trc  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
 
 ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
@@ -93,7 +93,8 @@ def run_opensim(osim_path: Path, trc_path: Path, model, t_end: float, out: Path)
     """OpenSim IK on the exported files (each marker weighted as ``model`` weights it);
     returns (CPU seconds, q (F, D) radians)."""
     start = time.process_time()
-    inverse_kinematics(osim_path, trc_path, model.labels, model.marker_weights, t_end, out)
+    inverse_kinematics(osim_path, trc_path, [opensim_name(label) for label in model.labels],
+                       model.marker_weights, t_end, out)
     return time.process_time() - start, read_mot(out, list(DOF_NAMES), ROTATIONS)
 
 
