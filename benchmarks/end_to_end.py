@@ -92,10 +92,11 @@ def timed(command: list[str], repeat: int) -> tuple[float, float, subprocess.Com
 
 
 def _last_line(text: str) -> str:
-    """The last line of an error output that says what went wrong (quoted), or ''."""
+    """The last line of an error output that says what went wrong, in brackets after a
+    space, or ''."""
     lines = [line.strip() for line in text.splitlines()
              if line.strip().startswith(("RuntimeError", "mocaplib", "Error", "[error]"))]
-    return f"({lines[-1][:160]})" if lines else ""
+    return f" ({lines[-1][:160]})" if lines else ""
 
 
 def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
@@ -251,9 +252,9 @@ def compare(args) -> None:
             theirs = timed([sys.executable, str(REPO / "benchmarks" / "opensim_tools.py"),
                             str(folder / "job.json")], args.repeat)
             if ours[2].returncode or theirs[2].returncode:
-                failed.append(f"{name}: mocaplib exit {ours[2].returncode} "
+                failed.append(f"{name}: mocaplib exit {ours[2].returncode}"
                               f"{_last_line(ours[2].stderr)}, OpenSim exit "
-                              f"{theirs[2].returncode} {_last_line(theirs[2].stderr)}")
+                              f"{theirs[2].returncode}{_last_line(theirs[2].stderr)}")
                 continue
             steps = json.loads(theirs[2].stdout.strip().splitlines()[-1])
             n = read_c3d(path).n_frames
