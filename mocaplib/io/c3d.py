@@ -520,8 +520,9 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
     with np.errstate(invalid="ignore", over="ignore"):  # corrupt words: NaN/inf, masked below
-        markers = np.multiply(block[..., :3], factor if is_float else factor * layout.scale,
-                              out=out, dtype=np.float64)     # in float64, as astype first
+        markers = np.empty(block.shape[:2] + (3,)) if out is None else out
+        markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
+        markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
     np.copyto(markers, np.nan, where=~valid[..., None])
