@@ -146,6 +146,7 @@ def compare(args) -> None:
     errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
     n = 0
     ratios, rows, costs, angles = [], [], [], []
+    failed = 0
     for raw, truth in load_captures(args):
         trial, used = filter_trial(raw, cutoff=cutoff)
         model = calibrate(trial, static=static, static_pose="neutral")
@@ -172,10 +173,13 @@ def compare(args) -> None:
         for name, q in (("OpenSim", q_osim), ("mocaplib", motion.q)):
             if truth is not None and len(q) == len(truth):
                 errors[name].append(angle_errors(q, truth))
-        if args.matched:
-            theirs = marker_cost(model, q_osim, markers)
-            costs.append((marker_cost(model, motion.q, markers) - theirs) / theirs)
-            angles.append(np.degrees(motion.q - q_osim)[:, ROTATIONS])
+        if args.matched:                  # frames mocaplib could not fit are interpolated
+            fitted = ~motion.failed
+            theirs = marker_cost(model, q_osim[fitted], markers[fitted])
+            costs.append((marker_cost(model, motion.q[fitted], markers[fitted]) - theirs)
+                         / theirs)
+            angles.append(np.degrees(motion.q - q_osim)[fitted][:, ROTATIONS])
+            failed += int(motion.failed.sum())
         ratios.append((min(osim_times) / min(our_times), Path(trial.source).stem))
         rows.append(f"| {Path(trial.source).name} | {trial.n_frames} | {len(model.labels)} | "
                     f"{model.protocol.name} | {ratios[-1][0]:.1f}x |")
@@ -201,7 +205,9 @@ def compare(args) -> None:
     if args.matched:
         cost, angle = np.concatenate(costs), np.abs(np.concatenate(angles))
         print(f"\nWhere each stopping rule left the same objective (weighted sum of squared "
-              f"marker errors, per frame): mocaplib's minus OpenSim's, relative to OpenSim's, "
+              f"marker errors, per frame, over the {len(cost)} frames mocaplib fitted; "
+              f"{failed} it flagged as failed, too few markers, are left out): mocaplib's "
+              f"minus OpenSim's, relative to OpenSim's, "
               f"median {np.median(cost):+.2%}, 95th percentile {np.percentile(cost, 95):+.2%}, "
               f"largest {cost.max():+.2%} ({np.mean(cost <= 0):.1%} of the frames no higher "
               f"than OpenSim's). Angles between the two solutions: RMS "
