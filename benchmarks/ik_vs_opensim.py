@@ -206,9 +206,8 @@ def compare(args) -> None:
         cost, angle = np.concatenate(costs), np.abs(np.concatenate(angles))
         print(f"\nWhere each stopping rule left the same objective (weighted sum of squared "
               f"marker errors, per frame, over the {len(cost)} frames mocaplib fitted; "
-              f"{failed} it flagged as failed, too few markers or not converged, are left out): "
-              f"mocaplib's "
-              f"minus OpenSim's, relative to OpenSim's, "
+              f"{failed} it flagged as failed, too few markers or not converged, are left "
+              f"out): mocaplib's minus OpenSim's, relative to OpenSim's, "
               f"median {np.median(cost):+.2%}, 95th percentile {np.percentile(cost, 95):+.2%}, "
               f"largest {cost.max():+.2%} ({np.mean(cost <= 0):.1%} of the frames no higher "
               f"than OpenSim's). Angles between the two solutions: RMS "
