@@ -14,7 +14,8 @@ Every script in ``benchmarks/`` prints Markdown (tables and short paragraphs). G
 A page (``docs/results/NAME.md``) holds the blocks of one or more commands among text written by
 hand: running a command again replaces its own block (the one whose command line is the same)
 and leaves the rest of the page as it is; a command not yet on the page is appended. The
-commit is ``git rev-parse --short HEAD``, with ``-dirty`` when the work tree has changes.
+commit is ``git rev-parse --short HEAD``, with ``-dirty`` when the work tree has changes
+outside ``docs/results``.
 """
 
 from __future__ import annotations
@@ -69,14 +70,16 @@ def shown(path: str | os.PathLike) -> str:
 
 
 def commit() -> str:
-    """Short hash of HEAD, with ``-dirty`` when the work tree differs from it; ``unknown``
-    outside a git checkout."""
+    """Short hash of HEAD, with ``-dirty`` when the work tree differs from it outside
+    ``docs/results`` (the pages benchmarks write: one run after another leaves the code
+    measured as it was); ``unknown`` outside a git checkout."""
     def git(*args: str) -> str:
         return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
                               check=True).stdout.strip()
     try:
         head = git("rev-parse", "--short", "HEAD")
-        dirty = git("status", "--porcelain", "--untracked-files=no")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                    ":(exclude)docs/results")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("-dirty" if dirty else "")
