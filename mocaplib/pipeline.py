@@ -961,11 +961,14 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     """Hex key of a capture's cached result: file name and content, settings, tool version.
 
     The static trial's content, the capture's truth sidecar (which names its locomotion
-    class) and :func:`code_fingerprint` are part of the key, so editing any of them
+    class), :func:`code_fingerprint` and the users' protocol folders
+    (:func:`mocaplib.protocols.user_fingerprint`) are part of the key, so editing any of them
     invalidates the cache.
     """
+    from .protocols import user_fingerprint
+
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
-             "tool": __version__, "code": code_fingerprint()}
+             "tool": __version__, "code": code_fingerprint(), "protocols": user_fingerprint()}
     if settings.statics:
         shas = [_static_sha256(static) for static in settings.statics]
         parts["static_sha256"] = shas if len(shas) > 1 else shas[0]
