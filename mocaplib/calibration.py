@@ -270,7 +270,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
-    nominal = np.array([m.landmark.position for m in markers])
+    nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     landmarks = [m.landmark.name for m in markers]
     if height is None:
         height = estimate_height(X, segments, nominal, source=cal.source)
@@ -279,19 +279,22 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     nominal_scaled = nominal * scale
     offsets = nominal_scaled
 
-    # step 3: anatomical joint centres from a nominal fit
-    first = solve_poses(skeleton, X, segments, offsets, free=free)
+    # step 3: anatomical joint centres from a nominal fit (tracking markers wait for step 4)
+    def nominal_fit(markers):
+        known, known_offsets = landmark_markers(markers, offsets)
+        return solve_poses(skeleton, known, segments, known_offsets, free=free)
+
+    first = nominal_fit(X)
 
     def fit_without(i, j):
         Xij = X.copy()
         Xij[:, [i, j]] = np.nan
-        return skeleton.points(solve_poses(skeleton, Xij, segments, offsets, free=free).q,
-                               segments, offsets)
+        return skeleton.points(nominal_fit(Xij).q, segments, offsets)
 
     swapped = find_swaps(fit_without, first.residuals, X, labels, landmarks)
     if swapped:
         X = exchange(X, labels, swapped)
-        first = solve_poses(skeleton, X, segments, offsets, free=free)
+        first = nominal_fit(X)
     centres, methods = joint_centres(X, landmarks, segments, skeleton, first.q, scale=scale,
                                      measurements=measurements)
     anatomical = _lengths_from_centres(skeleton, centres)
@@ -299,13 +302,15 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static is not None and static_pose == "neutral":
         offsets, rms, poses = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
                                               heading_offset=heading_offset)
-        return _hold_unobservable(SubjectModel(skeleton, proto, labels, segments, offsets, locked,
-                                               left_out, rms, [rms], cal.source, swapped,
-                                               methods), poses)
+        model = SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
+                             [rms], cal.source, swapped, methods)
+        _check_measured(model, cal)
+        return _hold_unobservable(model, poses)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
     v_seg, v_off, v_pos = _virtual_markers(skeleton, centres, len(X))
-    poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
-                        np.concatenate([segments, v_seg]), np.vstack([offsets, v_off]),
+    X_known, known_offsets = landmark_markers(X, offsets)
+    poses = solve_poses(skeleton, np.concatenate([X_known, v_pos], axis=1),
+                        np.concatenate([segments, v_seg]), np.vstack([known_offsets, v_off]),
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
@@ -342,11 +347,12 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
             break
         poses = fit.q
         registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
-                                      align=ALIGNED_IN_REFINEMENT)
+                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets)
         offsets = np.where(anatomical_markers[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
                                   fixed=fixed_lengths)
     best.history = history
+    _check_measured(best, cal)
     return _hold_unobservable(best, best_poses)
 
 
@@ -617,7 +623,7 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
     ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
-    (scaled) for the start. Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
+    (scaled) for the start (NaN for tracking markers: they are left out of the root's fit). Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
     fitted to all markers with the nominal offsets, its heading turned by ``heading_offset``
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
@@ -625,8 +631,9 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     about the neutral model with them, and the poses (F, D).
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
-    q0 = np.where(root, initial_pose(skeleton, X, segments, nominal), 0.0)
-    q = solve_poses(skeleton, X, segments, nominal, q0=q0, free=root, smoothing=0.0).q
+    X_known, known = landmark_markers(X, nominal)
+    q0 = np.where(root, initial_pose(skeleton, X_known, segments, known), 0.0)
+    q = solve_poses(skeleton, X_known, segments, known, q0=q0, free=root, smoothing=0.0).q
     q[:, ROOT_HEADING] += heading_offset
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
@@ -896,33 +903,38 @@ def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.nda
 
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
-                     nominal: np.ndarray, align=SEGMENT_NAMES) -> np.ndarray:
+                     nominal: np.ndarray, align=SEGMENT_NAMES,
+                     unseen: np.ndarray | None = None) -> np.ndarray:
     """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
 
     Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
-    where the marker is seen (never seen: ``nominal``). Offsets fix a segment's markers but not
-    its frame: a constant rotation of the frame could be absorbed by the offsets. So each
-    segment's offsets are then turned about their centroid by the rotation that best aligns
-    them with the catalogue layout ``nominal`` (M, 3) (Kabsch; with two markers the segment
-    origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame
-    is thus anatomical: zero angles put the markers in the catalogue's layout, as the DOF sign table
+    where the marker is seen (never seen: its row of ``unseen``, by default ``nominal``).
+    Offsets fix a segment's markers but not its frame: a constant rotation of the frame could
+    be absorbed by the offsets. So each segment's offsets are then turned about their centroid
+    by the rotation that best aligns its landmark markers with the catalogue layout
+    ``nominal`` (M, 3) (Kabsch; with two landmark markers the segment origin joins them; a lone
+    one is turned about the origin onto its nominal direction); a tracking marker (NaN row of
+    ``nominal``) turns with its segment's landmark markers. The frame is thus anatomical: zero
+    angles put the landmark markers in the catalogue's layout, as the DOF sign table
     describes. Only segments named in ``align`` are turned.
     """
     T = skeleton.forward(q)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # a marker never seen: NaN
-        mean = np.nanmean(local, axis=0) if len(q) else nominal
-    out = np.where(np.isfinite(mean), mean, nominal)
+        mean = np.nanmean(local, axis=0) if len(q) else np.full_like(nominal, np.nan)
+    out = np.where(np.isfinite(mean), mean, nominal if unseen is None else unseen)
+    catalogued = np.isfinite(nominal).all(axis=1) & np.isfinite(out).all(axis=1)
     for s in np.unique(segments):
         idx = np.flatnonzero(segments == s)
-        if SEGMENT_NAMES[s] not in align:
+        ref = idx[catalogued[idx]]
+        if SEGMENT_NAMES[s] not in align or not len(ref):
             continue
-        if len(idx) == 1:
-            out[idx] = _unit(nominal[idx]) * np.linalg.norm(out[idx], axis=1, keepdims=True)
+        if len(ref) == 1:                # the turn taking its direction onto the nominal one
+            out[idx] = out[idx] @ _turn_between(out[ref[0]], nominal[ref[0]]).T
             continue
-        reg, nom = out[idx], nominal[idx]
-        if len(idx) == 2:                          # the origin fixes the turn about their line
+        reg, nom = out[ref], nominal[ref]
+        if len(ref) == 2:                          # the origin fixes the turn about their line
             reg, nom = np.vstack([reg, np.zeros(3)]), np.vstack([nom, np.zeros(3)])
         c_reg, c_nom = reg.mean(axis=0), nom.mean(axis=0)
         U, _, Vt = np.linalg.svd((reg - c_reg).T @ (nom - c_nom))
@@ -930,6 +942,36 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
         R = U @ D @ Vt                              # rotation taking nominal to registered
         out[idx] = c_reg + (out[idx] - c_reg) @ R
     return out
+
+
+def _turn_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3, 3) taking the direction of ``a`` (3,) onto that of ``b``."""
+    a, b = _unit(a), _unit(b)
+    v, c = np.cross(a, b), float(a @ b)
+    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + k + k @ k / (1.0 + c) if c > -1.0 + 1e-12 else -np.eye(3)
+
+
+def landmark_markers(X: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Markers X (F, M, 3) and offsets (M, 3) for a fit that leaves out the tracking markers
+    whose offsets are not measured yet (NaN rows): their columns NaN, their offsets 0."""
+    unknown = ~np.isfinite(offsets).all(axis=1)
+    return (np.where(unknown[None, :, None], np.nan, X),
+            np.where(unknown[:, None], 0.0, offsets))
+
+
+def _check_measured(model: SubjectModel, cal: Trial) -> None:
+    """Raise :class:`CalibrationError` naming the tracking markers whose offsets could not be
+    measured (never seen where their segment's pose is known)."""
+    bad = [label for label, o in zip(model.labels, model.marker_offsets)
+           if not np.isfinite(o).all()]
+    if bad:
+        raise CalibrationError(
+            f"cannot measure where tracking marker{'s' if len(bad) > 1 else ''} "
+            f"{', '.join(bad)} sit{'' if len(bad) > 1 else 's'}: not seen in the calibration "
+            "frames together with the markers that place their segment", path=cal.source,
+            hint="check the marker's gaps with `mocaplib inspect`, or give a static trial "
+                 "(--static) that shows it")
 
 
 def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,
