@@ -15,9 +15,13 @@ Steps (all in metres, world Z up):
 1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames
    are used. A joint whose segment and descendants carry too few markers to be seen (none; or one
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
-   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. A left/right
-   pair whose labels are exchanged (each marker far from its model position, near the other's
-   after the nominal fit of step 2) is exchanged back, and listed in ``swapped``.
+   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. Two markers
+   whose labels are exchanged, in all or part of the frames (each marker far from its model
+   position, near the other's after the nominal fit of step 2; :func:`mocaplib.ik.find_repairs`)
+   are exchanged back, and listed in ``swapped``; the motion's frames of step 5 are checked the
+   same way against the static's model. Tracking markers (no landmark) are left out of the
+   nominal fits: their offsets are measured in step 4 (4' with a neutral static), in the
+   segment frames the landmarks build.
 2. **Height and nominal model.** Height is estimated from distances between markers on the
    same segment against the landmark catalogue's nominal ones (``protocols/landmarks.toml``),
    unless given; the nominal skeleton (:meth:`Skeleton.from_height`) and nominal offsets are
@@ -68,7 +72,8 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in_frames, segment_frames
-from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
+from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
+from .motion import apply_repairs
 from .protocols import Protocol, match_protocol, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
@@ -103,9 +108,6 @@ MIN_PAIRS = 3
 #: Heights (m) the markers may suggest before the capture is refused as having wrong units:
 #: a factor of 10 (cm read as mm or mm as cm) or more off any walking person's 0.8-2.3 m.
 PLAUSIBLE_HEIGHT = (0.4, 5.0)
-
-#: Residual (m) above which a left/right pair is checked for exchanged labels.
-SWAP_RESIDUAL = 0.03
 
 #: What a static trial's pose is taken to be: "neutral" (anatomical, every joint angle 0) or
 #: "free" (unknown: fitted, like a motion).
@@ -158,8 +160,9 @@ class SubjectModel:
     rms : float. Marker RMS of the calibration fit, metres.
     history : list[float]. Marker RMS after each refinement round, metres.
     source : str or None. The calibration trial's file (the static one when given).
-    swapped : list of (label, label). Left/right pairs whose labels the trial exchanges; their
-        data are exchanged back when fitting (:func:`mocaplib.ik.model_markers`).
+    swapped : list of (label, label). Pairs whose labels the calibration trial exchanges (in
+        all or part of its frames, :func:`mocaplib.ik.find_repairs`); calibration read them
+        exchanged back. A fit finds the motion's own (``Motion.repairs``).
     centre_methods : dict[str, str]. How each joint centre was found (``"knee_l"``: ``"chord,
         knee width from the measurements"``...), see :func:`joint_centres`.
     unobservable : dict[str, float]. DOFs the markers cannot see well enough, held at 0 (also
@@ -194,9 +197,10 @@ class SubjectModel:
 
     @property
     def swap_warnings(self) -> list[str]:
-        """One sentence per left/right pair in :attr:`swapped`, for the user."""
-        return [f"labels {a} and {b} look exchanged (each marker lies where the other belongs); "
-                "the fit exchanges them back: check the labelling" for a, b in self.swapped]
+        """One sentence per pair in :attr:`swapped`, for the user."""
+        return [f"calibration trial {self.source or ''}: labels {a} and {b} look exchanged "
+                "(each marker lies where the other belongs); calibration exchanged them back: "
+                "check the labelling" for a, b in self.swapped]
 
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
@@ -280,21 +284,14 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     offsets = nominal_scaled
 
     # step 3: anatomical joint centres from a nominal fit (tracking markers wait for step 4)
-    def nominal_fit(markers):
-        known, known_offsets = landmark_markers(markers, offsets)
-        return solve_poses(skeleton, known, segments, known_offsets, free=free)
-
-    first = nominal_fit(X)
-
-    def fit_without(i, j):
-        Xij = X.copy()
-        Xij[:, [i, j]] = np.nan
-        return skeleton.points(nominal_fit(Xij).q, segments, offsets)
-
-    swapped = find_swaps(fit_without, first.residuals, X, labels, landmarks)
-    if swapped:
-        X = exchange(X, labels, swapped)
-        first = nominal_fit(X)
+    known, known_offsets = landmark_markers(X, offsets)
+    first = solve_poses(skeleton, known, segments, known_offsets, free=free)
+    repairs = find_repairs(skeleton, known, segments, known_offsets, labels, first, free=free)
+    swapped = list(dict.fromkeys(r.labels for r in repairs))
+    if repairs:
+        X = apply_repairs(X, labels, repairs)
+        known = landmark_markers(X, offsets)[0]
+        first = solve_poses(skeleton, known, segments, known_offsets, free=free)
     centres, methods = joint_centres(X, landmarks, segments, skeleton, first.q, scale=scale,
                                      measurements=measurements)
     anatomical = _lengths_from_centres(skeleton, centres)
@@ -329,7 +326,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         # soft tissue of the movement, so step 5 runs on the motion's frames
         pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
         if (pelvis_seen.sum(axis=1) >= 3).any():
-            X = exchange(X_motion[_calibration_frames(X_motion, n_frames)], labels, swapped)
+            X = X_motion[_calibration_frames(X_motion, n_frames)]
+            start = solve_poses(skeleton, X, segments, offsets, free=free)
+            X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
+                                                      start, free=free))
             poses = None
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
@@ -638,40 +638,6 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
     return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q
-
-
-def find_swaps(fit_without, residuals: np.ndarray, X: np.ndarray, labels: list[str],
-               landmarks: list[str]) -> list[tuple[str, str]]:
-    """Left/right marker pairs whose labels are exchanged in the trial.
-
-    ``residuals`` (F, M) of a fit of markers ``X`` (F, M, 3). A pair ``L_x``/``R_x`` whose
-    residuals exceed :data:`SWAP_RESIDUAL` is refitted without its two markers
-    (``fit_without(i, j)`` returns the model markers (F, M, 3) of that fit); it is called
-    swapped when each marker lies nearer the other's model position than its own, by half.
-    """
-    index = {name: i for i, name in enumerate(landmarks)}
-    out = []
-    for name, i in index.items():
-        j = index.get("R_" + name[2:]) if name.startswith("L_") else None
-        if j is None or np.nanmedian(residuals[:, [i, j]]) < SWAP_RESIDUAL:
-            continue
-        model = fit_without(i, j)
-
-        def gap(a, b):
-            return np.nanmedian(np.linalg.norm(X[:, a] - model[:, b], axis=1))
-
-        if gap(i, j) + gap(j, i) < 0.5 * (gap(i, i) + gap(j, j)):
-            out.append((labels[i], labels[j]))
-    return out
-
-
-def exchange(X: np.ndarray, labels: list[str], pairs: list[tuple[str, str]]) -> np.ndarray:
-    """Markers (F, M, 3) with the columns of each labelled pair exchanged (a copy)."""
-    X = X.copy()
-    for a, b in pairs:
-        i, j = labels.index(a), labels.index(b)
-        X[:, [i, j]] = X[:, [j, i]]
-    return X
 
 
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:

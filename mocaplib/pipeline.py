@@ -353,9 +353,11 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
                               measurements=settings.measurements)
         if chosen is not None:
             result.static = static_names(settings.statics)[chosen]
-    result.warnings.extend(model.swap_warnings)
+    if static is not None:                       # without one the fit reports the swaps
+        result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
+    result.warnings.extend(motion.repair_warnings())
     if motion.locked_dofs:
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
@@ -729,6 +731,7 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
         "shoulder_mid_xy": mid[every, :2],
         "frame_rms_m": frame_rms[every],
         "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
+        "repairs": [r.as_dict(trial.rate) for r in motion.repairs],
     }, DIAGNOSTICS_DIGITS)
 
 
