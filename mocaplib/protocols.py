@@ -704,7 +704,7 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
     for m, i in zip(match.protocol.markers, match.indices):
         if i >= 0:
             by_landmark.setdefault(m.landmark.name, trial.markers[:, i])
-    forward = _forward_direction(by_landmark, trial.n_frames)
+    forward = forward_direction(by_landmark, trial.n_frames)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # up x forward, horizontal
     label_of = {m.landmark.name: m.label for m, i in zip(match.protocol.markers, match.indices)
                 if i >= 0}
@@ -723,7 +723,7 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
+def forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
     """Unit horizontal forward direction per frame, shape (F, 2), NaN where unknown."""
     forward = np.full((n_frames, 2), np.nan)
     for anterior, posterior in _FORWARD_CUES:

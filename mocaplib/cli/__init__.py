@@ -21,8 +21,8 @@ from ..io import printable
 from ._common import UsageError, apply_protocol_options
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
-COMMANDS = ("inspect", "fit", "events", "cycles", "build", "mirror", "validate", "query",
-            "retarget", "report", "synth")
+COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
+            "query", "retarget", "report", "synth")
 
 
 def build_parser() -> argparse.ArgumentParser:
