@@ -55,8 +55,13 @@ def test_every_shipped_protocol_loads_and_every_required_landmark_set_is_usable(
         # the pipeline needs both sides: shoulders, pelvis, knee, heel on L_ and R_
         assert {"L_", "R_"} <= sides, name
         required = {m.landmark.name for m in protocol.markers if m.required}
-        assert {"L_ACROMION", "R_ACROMION", "L_KNEE_LAT", "R_KNEE_LAT", "L_HEEL",
-                "R_HEEL"} <= required, name
+        assert {"L_ACROMION", "R_ACROMION", "L_HEEL", "R_HEEL"} <= required, name
+        # each knee: its lateral marker, or clusters on the thigh and shank (their static
+        # places the knee, cluster_fullbody)
+        tracked = {m.landmark.segment for m in protocol.markers if m.tracking}
+        for side in "LR":
+            assert (f"{side}_KNEE_LAT" in required
+                    or {f"femur_{side.lower()}", f"tibia_{side.lower()}"} <= tracked), name
 
 
 def test_extends_inherits_and_overrides():
