@@ -114,8 +114,10 @@ class Draft:
                  "# Every entry is a guess: check each against your lab's marker placement, then "
                  "run `mocaplib inspect --protocol THIS_FILE CAPTURE.c3d`.",
                  f"# Body frame: {self.frame}.",
-                 f'name = "{self.name}"',
-                 f'description = "Drafted from {os.path.basename(self.sources[0])}"', "",
+                 f"name = {_toml_string(self.name)}",
+                 "description = " + _toml_string(
+                     f"Drafted from {os.path.basename(self.sources[0])}"),
+                 "",
                  "[markers]"]
         unknown = []
         for e in self.entries:
@@ -123,10 +125,7 @@ class Draft:
             if e.landmark is None and e.segment is None:
                 unknown.append(e)
                 continue
-            spec = (f'landmark = "{e.landmark}"' if e.landmark else
-                    f'segment = "{e.segment[:-2] if e.segment[-2:] in ("_l", "_r") else e.segment}"'
-                    + (f', side = "{"left" if e.segment.endswith("_l") else "right"}"'
-                       if e.segment[-2:] in ("_l", "_r") else ""))
+            spec = f'landmark = "{e.landmark}"' if e.landmark else _segment_spec(e.segment)
             flags = (", required = true" if e.required else "") + (
                 ", static_only = true" if e.static_only else "")
             lines.append(f"# {_confidence_word(e.confidence)} ({e.confidence:.0%}): "
@@ -144,6 +143,14 @@ class Draft:
                           "if they are markers):"]
             lines += [f"#   {e.label}: {'; '.join(e.evidence)}" for e in unknown]
         return "\n".join(lines) + "\n"
+
+
+def _segment_spec(segment: str) -> str:
+    """A tracking marker's TOML entry for a skeleton segment (``femur_l``: bare name, side)."""
+    bare, _, side = segment.rpartition("_")
+    if side in ("l", "r"):
+        return f'segment = "{bare}", side = "{"left" if side == "l" else "right"}"'
+    return f'segment = "{segment}"'
 
 
 def _confidence_word(value: float) -> str:
