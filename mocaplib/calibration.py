@@ -29,7 +29,10 @@ Steps (all in metres, world Z up):
 3. **Anatomical joint centres.** Hip: Harrington et al. (2007, J Biomech 40:595) regression
    from pelvis width PW (ASIS–ASIS) and depth PD (mid-ASIS to mid-PSIS, or sacrum), in the
    ASIS pelvis frame: x = −0.24 PD − 9.9 mm, y = ±(0.33 PW + 7.3 mm), z = −0.30 PW − 10.9 mm.
-   Knee, ankle, elbow: the midpoint of lateral and medial landmarks when both exist, otherwise
+   Knee, ankle, elbow without landmarks in the trial (a cluster set calibrated from its
+   motion): the functional centre of the two segments' markers
+   (:func:`mocaplib.anatomy.functional_centre`). Knee, ankle, elbow: the midpoint of lateral
+   and medial landmarks when both exist, otherwise
    the lateral landmark moved by its documented offset from the joint in the catalogue (knee
    50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by
    the nominal fit's segment orientation. Shoulder: the acromion moved by the catalogue offset
@@ -71,7 +74,8 @@ import numpy as np
 
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
-from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in_frames, segment_frames
+from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
+                      marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
 from .protocols import Protocol, match_protocol, match_trial
@@ -623,8 +627,9 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
     ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
-    (scaled) for the start (NaN for tracking markers: they are left out of the root's fit). Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
-    fitted to all markers with the nominal offsets, its heading turned by ``heading_offset``
+    (scaled) for the start (NaN for tracking markers: they are left out of the root's fit).
+    Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is fitted to the landmark
+    markers with the nominal offsets, its heading turned by ``heading_offset``
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
     defines the segment frames). Returns the offsets, the RMS (m) of the static markers
@@ -720,7 +725,10 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
     ``q`` (F, D). Elbow: midpoint or catalogue offset; shoulder: the acromion's catalogue
-    offset; wrist: mid-styloids. ``scale`` = height / 1.75 scales catalogue offsets. The
+    offset; wrist: mid-styloids. A knee, ankle or elbow none of these place is the functional
+    centre of three markers of each of its segments
+    (:func:`mocaplib.anatomy.functional_centre`, the proximal centre as the hinge's hint),
+    when the joint turns enough over the frames. ``scale`` = height / 1.75 scales catalogue offsets. The
     methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
     are returned beside the centres.
     """
@@ -783,12 +791,32 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 else:
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
+        for child, parent in (("tibia", "femur"), ("foot", "tibia"), ("forearm", "humerus")):
+            if (child + suffix, 0.0) in out:
+                continue
+            frames = [_three_markers(X, segments, name + suffix) for name in (parent, child)]
+            centre = None if None in frames else functional_centre(
+                *frames, hint=out.get((parent + suffix, 0.0)))
+            if centre is not None:
+                out[(child + suffix, 0.0)] = centre
+                methods[_JOINT_NAMES[child] + suffix] = \
+                    f"functional (SCoRE) from the {parent}'s and {child}'s markers"
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
             out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
                 0.5 * (where[rad] + where[uln]))
             methods["wrist" + suffix] = "midpoint of the styloids"
     return out, methods
+
+
+def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
+    """The rigid frames (:func:`mocaplib.anatomy.marker_frames`) of the three markers of
+    ``segment`` seen in the most frames of X (F, M, 3), or None when it carries fewer."""
+    on = np.flatnonzero(segments == SEGMENT_NAMES.index(segment))
+    if len(on) < 3:
+        return None
+    seen = np.isfinite(X[:, on, 0]).sum(axis=0)
+    return marker_frames(X[:, on[np.argsort(-seen, kind="stable")[:3]]])
 
 
 def _wand(landmarks: list[str], segments: np.ndarray, parent: int, side: str,

@@ -102,6 +102,12 @@ def add_protocol_option(parser, *, default: str = "the best shipped protocol") -
     parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
                         help="marker-set protocol: a name (shipped, or in a --protocols "
                              f"folder), a .toml file, or 'auto' (default: {default})")
+    add_protocol_folders_option(parser)
+
+
+def add_protocol_folders_option(parser) -> None:
+    """``--protocols DIR`` (repeatable): users' protocol folders added to the shipped one
+    (checked by :func:`apply_protocol_options`)."""
     parser.add_argument("--protocols", action="append", default=[], metavar="DIR",
                         help="a folder of your own protocols (*.toml) and landmarks "
                              "(landmarks.toml), added to the shipped ones; a name defined "

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._common import add_protocol_option, check_inputs, check_outputs
+from ._common import add_protocol_folders_option, check_inputs, check_outputs
 
 
 def register(subparsers) -> None:
@@ -33,7 +33,7 @@ def register(subparsers) -> None:
     draft.add_argument("-o", "--output", required=True, metavar="OUT.toml",
                        help="the protocol file to write")
     draft.add_argument("--name", help="the protocol's name (default: the output file's stem)")
-    add_protocol_option(draft, default="none: the draft is new")
+    add_protocol_folders_option(draft)
     draft.set_defaults(run=_run)
 
 
@@ -41,11 +41,7 @@ def _run(args) -> int:
     from ..draft import draft_protocol
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
-    from ._common import UsageError
 
-    if args.protocol != "auto":
-        raise UsageError("--protocol has no use here: the draft is the protocol (--protocols "
-                         "folders add landmarks and label names)")
     check_inputs([args.input] + ([args.static] if args.static else []))
     check_outputs({"-o": args.output}, [args.input] + ([args.static] if args.static else []))
     trial = read_c3d(args.input)
