@@ -26,7 +26,7 @@ from ..errors import MocapError
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import parse_json
-from ..fourier import ANGLE_TOLERANCE, MAX_ORDER
+from ..fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..library import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
                        validate_library)
 from . import figures, report_name
@@ -364,6 +364,7 @@ def _summary(library, df, diagnostics, cs) -> dict:
         "captures": len(captures) if captures else len(set(df["source_file"])),
         "failed": len(failed), "fourier_n": library.n_harmonics,
         "fourier_cap": MAX_ORDER, "fourier_tolerance_deg": math.degrees(ANGLE_TOLERANCE),
+        "fourier_noisy_tolerance_deg": math.degrees(MAX_ANGLE_TOLERANCE),
         "at_cap": [str(i) for i in df.index[df["fourier_n"] >= MAX_ORDER]],
         "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
