@@ -203,10 +203,12 @@ def test_model_filled_samples_do_not_count_as_measured():
     assert all(e.quality == 1.0 for e in filled if e.side == "right")
 
 
-def test_event_quality_on_a_gappy_real_file_falls_below_one_with_the_fit_filling(real_c3d):
-    # BTS.c3d's foot markers are missing in 40-70 % of its frames: filled from the fitted
-    # skeleton, all its events had quality 1.0 (cycles' event_quality too)
-    from mocaplib.cycles import MIN_EVENT_QUALITY, motion_cycles
+def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3d):
+    # BTS.c3d's foot markers are missing in 40-70 % of its frames: with the fit filling the
+    # gaps between measured samples, an event found at the same frame as from the markers
+    # alone has the same quality (filled samples never count), and the cycles' event quality
+    # is the smaller of their bounds'
+    from mocaplib.cycles import motion_cycles
     from mocaplib.ik import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
@@ -216,17 +218,37 @@ def test_event_quality_on_a_gappy_real_file_falls_below_one_with_the_fit_filling
     motion = fit_capture(trial, protocol=match.protocol)[0]
     markers_only, _ = capture_events(trial, match)
     filled, ground = capture_events(trial, match, motion=motion)
-    assert len(filled) > len(markers_only)     # the model shows events the markers do not
-    assert min(e.quality for e in filled) < MIN_EVENT_QUALITY
-    # the same samples measured, so an event found at the same frame has the same quality
     key = {(e.side, e.kind, e.frame): e.quality for e in markers_only}
     same = [(e.quality, key[e.side, e.kind, e.frame]) for e in filled
             if (e.side, e.kind, e.frame) in key]
     assert len(same) >= 6 and all(a == b for a, b in same), same
+    assert min(e.quality for e in filled) < 1.0
     cycles = motion_cycles(filled, motion, ground=ground, source=trial.source)
-    assert min(c.event_quality for c in cycles) < MIN_EVENT_QUALITY
-    chosen = next(c for c in cycles if c.chosen)
-    assert chosen.event_quality >= MIN_EVENT_QUALITY   # the rule passes over the poor cycle
+    offs = {round(e.time_s, 9): e.quality for e in filled
+            if e.side == "left" and e.kind == "toe_off"}
+    assert cycles and all(c.event_quality == min(offs[round(c.start_s, 9)],
+                                                 offs[round(c.end_s, 9)]) for c in cycles)
+
+
+@pytest.mark.parametrize("name", ["motonms_unipd/Walking1.c3d", "motonms_unipd/Walking3.c3d",
+                                  "ezc3d_testfiles/BTS.c3d"])
+def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
+    # with the fit filling the foot markers, toe-offs and heel-strikes were placed after the
+    # foot markers' last measured sample (Walking3: a left toe-off 0.47 s after it, cutting a
+    # cycle of 0.73 s in a walk of 1.18 s strides)
+    from mocaplib.ik import fit_capture
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+
+    trial = read_c3d(real_c3d(name))
+    match = detect_protocol(trial)
+    motion = fit_capture(trial, protocol=match.protocol)[0]
+    _, measured = feet_of(trial, match)
+    found, _ = capture_events(trial, match, motion=motion)
+    assert found
+    for event in found:
+        frames = np.flatnonzero(measured[event.side]) / trial.rate
+        assert frames[0] <= event.time_s <= frames[-1], (event, frames[0], frames[-1])
 
 
 def test_events_and_ground_velocity_prepare_each_foot_once(monkeypatch, real_c3d):
