@@ -275,10 +275,10 @@ LAB_FILES = ["biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
              "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d"]
 
 
-def lab_differences(real_c3d, kind, toe_off="foot_velocity"):
-    """Detected minus lab event time (s) for every lab event of ``kind`` in the 4 files that
-    has a detected event within 0.1 s (lab events at the trial's edges have none); ``real_c3d``
-    is the fixture."""
+def lab_differences(real_c3d, kind, toe_off="foot_velocity", side=None):
+    """Detected minus lab event time (s) for every lab event of ``kind`` (of ``side``, "L" or
+    "R", when given) in the 4 files that has a detected event within 0.1 s (lab events at the
+    trial's edges have none); ``real_c3d`` is the fixture."""
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 
@@ -286,8 +286,9 @@ def lab_differences(real_c3d, kind, toe_off="foot_velocity"):
     for name in LAB_FILES:
         trial = read_c3d(real_c3d(name))
         events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
-        out.append(event_differences(events, trial.events, kind=kind,
-                                     start_time=trial.start_time))
+        lab = [e for e in trial.events
+               if side is None or side in (e.context[:1].upper(), e.label[:1].upper())]
+        out.append(event_differences(events, lab, kind=kind, start_time=trial.start_time))
     diff = np.concatenate(out)
     return diff[np.isfinite(diff)]
 
@@ -313,6 +314,20 @@ def test_real_toe_offs_match_lab_foot_off(real_c3d):
     assert len(diff) >= 19  # 21 lab Foot Off events in the four files are paired (measured)
     # the issue's target: median |difference| <= 10 ms against the lab's Foot Off
     assert np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
+
+
+def test_real_left_toe_offs_median_within_10_ms(real_c3d):
+    diff = lab_differences(real_c3d, "toe_off", side="L")      # the cycles' bounds
+    assert len(diff) == 10 and np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
+
+
+@pytest.mark.xfail(strict=True, reason="measured worst 35.0 ms: PiG_Motion-FlatFoot-Full's left "
+                                       "Foot Off at 1.18 s, when its toe marker is already 42 mm "
+                                       "above the floor (the 20 other lab Foot Offs: 3-32 mm); "
+                                       "the next worst 24.5 ms")
+def test_real_left_toe_offs_worst_within_30_ms(real_c3d):
+    diff = lab_differences(real_c3d, "toe_off", side="L")
+    assert np.abs(diff).max() <= 0.030, np.round(diff * 1000)
 
 
 def test_real_forefoot_lift_precedes_foot_off_by_the_toe_roll(real_c3d):
