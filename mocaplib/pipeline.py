@@ -525,7 +525,9 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     """Per static, the mean over its forward references of where the subject moves relative
     to where they face (radians, to the left; 0 for a static without a reference): the mean
     atan2(v̂_l, v̂_f) of each reference's complete cycles that are at least
-    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`."""
+    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
+    is calibrated with the static that shows its subject, never from itself
+    (``require_static``)."""
     from .calibration import static_names
     from .errors import CalibrationError
 
@@ -536,8 +538,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles, _, ground = _cut_capture(Path(reference), settings, result,
-                                                        _Clock())
+            _, motion, cycles, _, ground = _cut_capture(
+                Path(reference), replace(settings, require_static=True), result, _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
