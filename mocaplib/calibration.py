@@ -122,6 +122,9 @@ STATIC_POSES = ("neutral", "free")
 #: (the samples' rest, motonms Static1, biomechzoo HC030A01, btkdata PiG_Calibration2), 0.2 m
 #: turning on the spot, metres walking.
 STANDING_EXTENT = 0.05
+#: Shortest stretch (s) of a static that moves (a step-in, a turn) taken for calibration: the
+#: quietest one of that length (:func:`standing_part`).
+STATIC_WINDOW_S = 1.0
 
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
@@ -172,6 +175,8 @@ class SubjectModel:
     unobservable : dict[str, float]. DOFs the markers cannot see well enough, held at 0 (also
         in ``locked_dofs``), with the standard deviation (radians) one frame's markers would
         leave them at (:func:`unobservable_dofs`).
+    static_window_s : (start, end) or None. Seconds from the static's first frame of the
+        stretch of it used (:func:`standing_part`); None without a static.
     """
 
     skeleton: Skeleton
@@ -187,6 +192,7 @@ class SubjectModel:
     swapped: list[tuple[str, str]] = field(default_factory=list)
     centre_methods: dict[str, str] = field(default_factory=dict)
     unobservable: dict[str, float] = field(default_factory=dict)
+    static_window_s: tuple[float, float] | None = None
 
     @property
     def marker_weights(self) -> np.ndarray:
@@ -220,7 +226,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               static: Trial | None = None, static_pose: str = "free",
               height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8, heading_offset: float = 0.0,
-              measurements: dict[str, float] | None = None) -> SubjectModel:
+              measurements: dict[str, float] | None = None,
+              static_window: tuple[float, float] | None = None) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -246,6 +253,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         :data:`mocaplib.anatomy.MEASUREMENTS` keys) that override those the calibration
         trial's file stores (:attr:`Trial.measurements`); knee and ankle widths and the marker
         diameter place the knee and ankle centres (:func:`joint_centres`).
+    static_window : (start, end) seconds from the static's first frame: the stretch of the
+        static to calibrate on; default: the whole static when it stands still, else its
+        quietest stretch (:func:`standing_part`).
 
     Returns
     -------
@@ -258,8 +268,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         raise CalibrationError("a heading offset turns the frame of a static in the neutral pose: "
                                "give the static with static_pose='neutral'",
                                path=getattr(static, "source", None) or trial.source)
+    window = None
     if static is not None:
-        check_standing(static)
+        static, window = standing_part(static, window=static_window)
     cal = static if static is not None else trial
     measurements = {**cal.measurements, **(measurements or {})}
     proto = choose_protocol(trial, protocol)   # on the motion, as every command resolves it
@@ -304,7 +315,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         offsets, rms, poses = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
                                               heading_offset=heading_offset)
         model = SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
-                             [rms], cal.source, swapped, methods)
+                             [rms], cal.source, swapped, methods, static_window_s=window)
         _check_measured(model, cal)
         return _hold_unobservable(model, poses)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
@@ -345,7 +356,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if best is not None and rms >= best.rms:
             break
         best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
-                            rms, [], cal.source, swapped, methods)
+                            rms, [], cal.source, swapped, methods, static_window_s=window)
         best_poses = fit.q
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
@@ -470,18 +481,101 @@ def check_standing(static: Trial) -> None:
     """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
     (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
     calibrates a subject in mid-stride."""
-    seen = np.isfinite(static.markers).all(axis=2).any(axis=0)
-    if not seen.any():
-        return  # nothing to judge: calibration refuses it with its own reason
-    points = static.markers[:, seen]
-    extent = np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0), axis=1)
-    moved = float(np.median(extent))
-    if moved > STANDING_EXTENT:
+    moved = moved_extent(static.markers)
+    if moved > STANDING_EXTENT:   # NaN, no marker seen: calibration refuses it with its reason
         raise CalibrationError(
             f"is not a standing static trial: its markers move {moved:.2f} m (median over the "
             f"markers; a static moves less than {STANDING_EXTENT * 100:.0f} cm)",
             path=static.source, hint="give the static calibration trial (the subject standing "
                                      "still) as --static, and the motion as a capture")
+
+
+def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
+                  ) -> tuple[Trial, tuple[float, float]]:
+    """The stretch of a static trial to calibrate on, and its (start, end) seconds from the
+    static's first frame.
+
+    ``window`` (start, end) seconds: that stretch (the frames within it). Without one, the
+    whole static when it stands still (:func:`check_standing`), otherwise its quietest stretch
+    of :data:`STATIC_WINDOW_S` (a subject stepping in or turning before standing still): the
+    one whose markers move least (median over the markers seen in most of it of each marker's
+    extent). A static shorter than that, a single frame included, is taken whole. Raises
+    :class:`CalibrationError` naming the static when the stretch does not stand still, or a
+    ``window`` holds no frame of it.
+    """
+    from dataclasses import replace
+
+    n = static.n_frames
+    if window is not None:
+        start, end = (float(value) for value in window)
+        frames = np.flatnonzero((static.time >= start - 1e-9) & (static.time <= end + 1e-9))
+        if not (end > start or (end == start and frames.size)) or not frames.size:
+            raise CalibrationError(f"the static window {start:g}-{end:g} s holds no frame of "
+                                   f"the static ({n} frames, 0-{static.duration:.3g} s)",
+                                   path=static.source,
+                                   hint="give START:END within the static, in seconds from "
+                                        "its first frame")
+        lo, hi = int(frames[0]), int(frames[-1]) + 1
+    else:
+        lo, hi = 0, n
+        length = int(round(STATIC_WINDOW_S * static.rate)) + 1
+        if n > length and moved_extent(static.markers) > STANDING_EXTENT:
+            lo = quietest_stretch(static.markers, length)
+            hi = lo + length
+    span = (lo / static.rate, (hi - 1) / static.rate)
+    if (lo, hi) == (0, n):
+        check_standing(static)
+        return static, span
+    part = replace(static, markers=static.markers[lo:hi], first_frame=static.first_frame + lo,
+                   events=[], warnings=list(static.warnings))
+    moved = moved_extent(part.markers)
+    if moved > STANDING_EXTENT:
+        which = "the window" if window is not None else f"its quietest {STATIC_WINDOW_S:g} s"
+        raise CalibrationError(
+            f"is not a standing static trial: even {which} ({span[0]:.2f}-{span[1]:.2f} s) "
+            f"moves {moved:.2f} m (median over the markers; a static moves less than "
+            f"{STANDING_EXTENT * 100:.0f} cm)", path=static.source,
+            hint="give the static calibration trial (the subject standing still) as --static, "
+                 "or the stretch where the subject stands with --static-window START:END")
+    return part, span
+
+
+def moved_extent(markers: np.ndarray, /) -> float:
+    """Median over the markers seen in ``markers`` (F, M, 3) of each one's extent (m), NaN
+    when none is seen."""
+    seen = np.isfinite(markers).all(axis=2).any(axis=0)
+    if not seen.any():
+        return float("nan")
+    points = markers[:, seen]
+    return float(np.median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
+                                          axis=1)))
+
+
+def quietest_stretch(markers: np.ndarray, length: int, /) -> int:
+    """First frame of the ``length`` frames of ``markers`` (F, M, 3) whose markers move least:
+    the median over the markers seen in at least half of the stretch of their extent, among
+    the stretches that see at least 90 % of the most markers any stretch sees."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    n = len(markers) - length + 1
+    origin = -(length // 2)     # each filter value covers [i, i + length)
+    highest = maximum_filter1d(np.nan_to_num(markers, nan=-np.inf), length, axis=0,
+                               origin=origin)[:n]
+    lowest = minimum_filter1d(np.nan_to_num(markers, nan=np.inf), length, axis=0,
+                              origin=origin)[:n]
+    seen = np.isfinite(markers).all(axis=2).astype(float)
+    counts = np.cumsum(np.vstack([np.zeros((1, seen.shape[1])), seen]), axis=0)
+    enough = (counts[length:length + n] - counts[:n]) >= 0.5 * length          # (n, M)
+    with np.errstate(invalid="ignore"):
+        extent = np.linalg.norm(highest - lowest, axis=2)                      # (n, M)
+    extent = np.where(enough & np.isfinite(extent), extent, np.nan)
+    markers_seen = enough.sum(axis=1)
+    candidates = markers_seen >= 0.9 * markers_seen.max()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)      # a stretch seeing no marker: NaN
+        moved = np.nanmedian(extent, axis=1)
+    moved[~candidates | ~np.isfinite(moved)] = np.inf
+    return int(np.argmin(moved))
 
 
 def check_static(trial: Trial, static: Trial, model: SubjectModel) -> None:
@@ -591,14 +685,16 @@ def static_names(paths: Sequence[str]) -> list[str]:
     return names
 
 
-def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int | None:
+def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol, *,
+                  check_one: bool = False) -> int | None:
     """Index of the static in ``statics`` that shows ``trial``'s subject, for a batch of
     several subjects or sessions: the least step-0 difference (:func:`check_same_subject`
     over the within-segment marker pairs of ``protocol``), if within
     :data:`SAME_SUBJECT_LIMIT`. Raises :class:`CalibrationError` naming the trial and each
     static with its difference when none is within the limit or none can be compared. With
-    one static, 0 (:func:`calibrate` checks it in step 0); with none, None."""
-    if len(statics) < 2:
+    one static, 0 (:func:`calibrate` checks it in step 0) unless ``check_one``; with none,
+    None."""
+    if len(statics) < 2 and not (check_one and statics):
         return 0 if statics else None
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in protocol.markers])
     X_motion = match_protocol(trial, protocol, check_swaps=False).markers(trial)
@@ -613,8 +709,10 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) ->
         f"{name} " + ("shares too few marker pairs with it (another marker set?)"
                       if np.isnan(gap) else f"{1000 * gap:.1f} mm")
         for name, gap in zip(names, gaps))
+    which = (f"none of the {len(statics)} static trials shows" if len(statics) > 1
+             else "the static trial does not show")
     raise CalibrationError(
-        f"none of the {len(statics)} static trials shows this capture's subject with the same "
+        f"{which} this capture's subject with the same "
         f"markers (median difference of the distances between markers on one segment; one "
         f"subject stays within {1000 * SAME_SUBJECT_LIMIT:.0f} mm): {listing}",
         path=trial.source, hint="add the static recorded with this subject in this session, "

@@ -907,7 +907,8 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
 
 def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto",
-                heading_offsets=None, measurements: dict | None = None
+                heading_offsets=None, measurements: dict | None = None,
+                static_window: tuple[float, float] | None = None
                 ) -> tuple[Motion, "SubjectModel", float | None]:
     """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
     :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
@@ -919,7 +920,8 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
     for a single static), the heading correction of a forward reference, radians
     (:func:`mocaplib.pipeline.forward_offsets`; the static in the neutral pose).
     ``measurements``: subject measurements overriding the calibration file's (see
-    :func:`mocaplib.calibration.calibrate`).
+    :func:`mocaplib.calibration.calibrate`); ``static_window``: the (start, end) seconds of the
+    static to calibrate on (:func:`mocaplib.calibration.standing_part`).
 
     Returns the motion, the subject model (its ``source`` names the static used) and the
     cutoff used (Hz; None: unfiltered).
@@ -936,7 +938,8 @@ def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
         static = None if chosen is None else static[chosen]
     model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
                       heading_offset=0.0 if heading_offsets is None or static is None
-                      else heading_offsets[chosen], measurements=measurements)
+                      else heading_offsets[chosen], measurements=measurements,
+                      static_window=static_window)
     motion, _ = fit_filtered(trial, model, cutoff=used)
     return motion, model, used
 

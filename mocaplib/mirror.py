@@ -228,6 +228,8 @@ def mirror_entry(entry: dict, /) -> dict:
         omega=-entry["omega"], v_l=-entry["v_l"],
         fourier={**entry["fourier"], "a": mirror_dofs(a, axis=0).tolist(),
                  "b": mirror_dofs(b, axis=0).tolist()})
+    if "ramp" in entry["fourier"]:
+        image["fourier"]["ramp"] = mirror_dofs(entry["fourier"]["ramp"]).tolist()
     for key, mirrored in (("joint_shifts_m", mirror_shifts), ("held_dofs", mirror_names),
                           ("dofs_at_limit", mirror_names)):
         if key in entry:

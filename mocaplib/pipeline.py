@@ -30,11 +30,12 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from . import __version__
-from .errors import LibraryError, MocapError
+from .errors import LibraryError, MocapError, NoCycleError
 from .events import TOE_OFF_DEFINITIONS
 from .io import fs_text, open_regular, read_regular, unique_paths
 from .io.atomic import atomic_write_files, atomic_write_text
 from .io.jsonvalues import canonical_sha256, parse_json
+from .sessions import plan_captures
 from .workers import pinned, run_tasks
 import numpy as np
 
@@ -76,8 +77,15 @@ class BuildSettings:
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.protocols`).
     static : a static calibration capture, several (one per subject or session: each capture
-        is calibrated with the one showing its subject, :func:`mocaplib.calibration.choose_static`),
-        or None to calibrate from each motion capture.
+        is calibrated with the one showing its subject, :func:`mocaplib.calibration.choose_static`;
+        one that none shows is calibrated from itself, with a warning), or None to calibrate
+        from each motion capture. :func:`build` adds the standing files among its inputs and
+        takes a folder's ``session.toml`` for the captures beside it (:mod:`mocaplib.sessions`).
+    static_window : (start, end) seconds of each static to calibrate on, or None: the whole
+        static when it stands still, else its quietest second
+        (:func:`mocaplib.calibration.standing_part`).
+    require_static : a capture that no static shows fails instead of being calibrated from
+        itself.
     static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
         angle 0; see :func:`mocaplib.calibration.calibrate`).
     forward_reference : one or several captures in which the subject walks forwards (straight
@@ -102,6 +110,8 @@ class BuildSettings:
     protocol: str = "auto"
     static: str | tuple[str, ...] | None = None
     static_pose: str = "free"
+    static_window: tuple[float, float] | None = None
+    require_static: bool = False
     forward_reference: str | tuple[str, ...] | None = None
     heading_offsets: tuple[float, ...] | None = None
     cutoff: float | str | None = "auto"
@@ -115,6 +125,12 @@ class BuildSettings:
     def __post_init__(self):
         for name in ("static", "forward_reference"):
             object.__setattr__(self, name, _files(getattr(self, name)))
+        if self.static_window is not None:
+            window = tuple(map(float, self.static_window))
+            if len(window) != 2 or not 0 <= window[0] <= window[1]:
+                raise MocapError(f"static_window must be (start, end) seconds with 0 <= start "
+                                 f"<= end, got {self.static_window!r}")
+            object.__setattr__(self, "static_window", window)
         if self.heading_offsets is not None:
             object.__setattr__(self, "heading_offsets", tuple(map(float, self.heading_offsets)))
             if len(self.heading_offsets) != len(self.statics):
@@ -193,6 +209,10 @@ class CaptureResult:
     from_cache : bool
     static : str or None
         File name of the static trial the capture was calibrated with (None: none).
+    no_entry : str or None
+        Why a capture that did not fail gave no library entry (None when it gave some, or
+        failed): no complete cycle, every cycle left out by QC, or a static trial that cannot
+        be a rest entry.
     """
 
     source: str
@@ -208,6 +228,7 @@ class CaptureResult:
     n_cycles: int = 0
     from_cache: bool = False
     static: str | None = None
+    no_entry: str | None = None
 
     @property
     def file(self) -> str:
@@ -255,17 +276,24 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     """Take one capture through every stage; never raises for a bad capture.
 
     Returns a :class:`CaptureResult`: entries and diagnostics when it worked, otherwise
-    ``ok=False`` with ``stage`` and ``error`` (the error names the file).
+    ``ok=False`` with ``stage`` and ``error`` (the error names the file). A capture that holds
+    no complete cycle (:class:`~mocaplib.errors.NoCycleError`), or whose cycles QC leaves out,
+    is not a failure: it gives no entry and ``no_entry`` says why. Nor is a static trial of the
+    settings (:attr:`BuildSettings.statics`) processed as a capture: whatever stops it,
+    ``no_entry`` says so.
     """
     result = CaptureResult(source=os.fspath(path))
     if result.file != Path(path).name:
         result.warnings.append(f"the file name is not valid UTF-8: its entries name it "
                                f"{result.file!r} (the bytes read as Latin-1)")
     clock = _Clock()
+    is_static = os.path.realpath(path) in {os.path.realpath(s) for s in settings.statics}
     try:
         with clock.stage("read"):
             result.sha256 = file_sha256(path)
         _run_stages(Path(path), settings, result, clock)
+    except NoCycleError as exc:
+        result.no_entry = f"{exc.message} ({exc.hint})" if exc.hint else exc.message
     except MocapError as exc:
         _fail(result, clock.current, str(exc) if exc.path else f"{path}: {exc}")
     except OSError as exc:
@@ -273,6 +301,16 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     except Exception as exc:  # a bug on an odd capture must not stop a whole build
         _fail(result, clock.current, f"{path}: internal error in stage {clock.current}: "
                                      f"{type(exc).__name__}: {exc}")
+    if is_static and not result.ok:
+        why = (result.error or "").removeprefix(f"{path}: ")
+        result.ok, result.error, result.no_entry = True, None, \
+            f"a static trial: used to calibrate, no entry of its own ({result.stage}: {why})"
+        result.stage = None
+    elif result.ok and not result.entries and result.no_entry is None:
+        result.no_entry = "every complete cycle was left out by QC (see the warnings)"
+    elif is_static and result.no_entry:
+        result.no_entry = f"a static trial: used to calibrate, no entry of its own " \
+                          f"({result.no_entry})"
     result.stage_times = clock.times
     return result
 
@@ -318,7 +356,8 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
                          "pipeline.build, or set heading_offsets=forward_offsets(settings)")
-    from .calibration import calibrate, check_static, choose_static, static_names
+    from .calibration import calibrate, choose_static, static_names
+    from .errors import CalibrationError
     from .cycles import motion_cycles, shoulder_centres
     from .filtering import filter_trial
     from .events import capture_events
@@ -340,20 +379,26 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     with clock.stage("filter"):
         filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
     with clock.stage("calibrate"):
-        chosen = choose_static(filtered, static_trials, match.protocol)
-        static = None if chosen is None else static_trials[chosen]
-        if static is not None and settings.static_pose == "neutral":
-            model = _neutral_model(*statics[chosen], match.protocol,
-                                   settings.heading_offset(chosen),
-                                   tuple(sorted(settings.measurements.items())))
-            check_static(filtered, static, model)
-        else:
-            model = calibrate(filtered, protocol=match.protocol, static=static,
-                              static_pose=settings.static_pose,
-                              measurements=settings.measurements)
+        try:
+            chosen = choose_static(filtered, static_trials, match.protocol, check_one=True)
+            model = _static_model(filtered, match.protocol, settings, statics, static_trials,
+                                  chosen)
+        except CalibrationError as exc:
+            if not static_trials or settings.require_static:
+                raise
+            result.warnings.append(f"calibrated from the capture itself: no static shows its "
+                                   f"subject ({exc.message})")
+            chosen, model = None, calibrate(filtered, protocol=match.protocol,
+                                            measurements=settings.measurements)
         if chosen is not None:
             result.static = static_names(settings.statics)[chosen]
-    if static is not None:                       # without one the fit reports the swaps
+            window = model.static_window_s
+            result.diagnostics["static_window_s"] = list(window)
+            if window != (0.0, static_trials[chosen].duration):
+                result.warnings.append(f"static {result.static}: calibrated on its stretch "
+                                       f"{window[0]:.2f}-{window[1]:.2f} s (of "
+                                       f"{static_trials[chosen].duration:.2f} s)")
+    if chosen is not None:                       # without one the fit reports the swaps
         result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
@@ -372,10 +417,37 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     with clock.stage("events"):
         events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off)
         shoulders = shoulder_centres(motion)
-        result.diagnostics = _series(trial, motion, shoulders, events, cutoff)
+        result.diagnostics.update(_series(trial, motion, shoulders, events, cutoff))
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
     return trial, motion, cycles, events, ground
+
+
+def _static_model(filtered, protocol, settings: BuildSettings, statics, static_trials,
+                  chosen: int | None):
+    """The subject model of a capture (its markers ``filtered``) from static number ``chosen``
+    (None: from the capture itself); ``statics`` (path, SHA-256) and ``static_trials`` the
+    build's. Raises :class:`~mocaplib.errors.CalibrationError` when the static cannot serve
+    (:func:`mocaplib.calibration.calibrate`, :func:`mocaplib.calibration.check_static`), or
+    when ``settings.require_static`` and there is none."""
+    from .calibration import calibrate, check_static
+    from .errors import CalibrationError
+
+    if chosen is None and settings.require_static:
+        raise CalibrationError("no static trial given, and the build requires one "
+                               "(require_static)", path=filtered.source,
+                               hint="give the subject's static with --static or a "
+                                    "session.toml, or leave --require-static out")
+    static = None if chosen is None else static_trials[chosen]
+    if static is not None and settings.static_pose == "neutral":
+        model = _neutral_model(*statics[chosen], protocol, settings.heading_offset(chosen),
+                               tuple(sorted(settings.measurements.items())),
+                               settings.static_window)
+        check_static(filtered, static, model)
+        return model
+    return calibrate(filtered, protocol=protocol, static=static,
+                     static_pose=settings.static_pose, measurements=settings.measurements,
+                     static_window=settings.static_window)
 
 
 def _static_sha256(path: str) -> str:
@@ -398,16 +470,18 @@ def _read_static(path: str, sha256: str):
 
 @lru_cache(maxsize=None)
 def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
-                   measurements: tuple = ()):
+                   measurements: tuple = (), window: tuple[float, float] | None = None):
     """The model calibrated on the neutral-pose static ``path`` with its heading turned by
     ``heading_offset`` (radians), once per worker process for each content, protocol and
-    offset and measurements ((name, value) pairs): it depends on nothing else, so each
+    offset and measurements ((name, value) pairs) and static ``window``: it depends on nothing
+    else, so each
     capture only checks that it shows the same subject
     (:func:`mocaplib.calibration.check_static`)."""
     from .calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
-                     heading_offset=heading_offset, measurements=dict(measurements))
+                     heading_offset=heading_offset, measurements=dict(measurements),
+                     static_window=window)
 
 
 def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
@@ -453,7 +527,9 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     """Per static, the mean over its forward references of where the subject moves relative
     to where they face (radians, to the left; 0 for a static without a reference): the mean
     atan2(v̂_l, v̂_f) of each reference's complete cycles that are at least
-    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`."""
+    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
+    is calibrated with the static that shows its subject, never from itself
+    (``require_static``)."""
     from .calibration import static_names
     from .errors import CalibrationError
 
@@ -464,8 +540,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles, _, ground = _cut_capture(Path(reference), settings, result,
-                                                        _Clock())
+            _, motion, cycles, _, ground = _cut_capture(
+                Path(reference), replace(settings, require_static=True), result, _Clock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -557,7 +633,8 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
             right_toe_off_s=cycle.right_toe_off,
             mirror_of=image_of, mirror_method=None if image_of is None else "capture",
-            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict()))
+            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict(),
+            ramp=enc.ramp))
     return entries
 
 
@@ -829,6 +906,8 @@ class BuildResult:
             "seconds": round(self.seconds, 3),
             "failures": [{"file": c.source, "stage": c.stage, "reason": c.error}
                          for c in self.failures],
+            "no_entry": [{"file": c.source, "reason": c.no_entry} for c in self.captures
+                         if c.no_entry],
             "warnings": [{"file": c.source, "warning": w} for c in self.captures
                          for w in c.warnings],
             "statics": dict(Counter(c.static for c in self.captures if c.static)),
@@ -856,6 +935,9 @@ class BuildResult:
             lines += [f"  {f['file']} [{f['stage']}]: "
                       f"{(f['reason'] or '').removeprefix(f['file'] + ': ')}"
                       for f in s["failures"]]
+        if s["no_entry"]:
+            lines.append("no entry:")
+            lines += [f"  {Path(n['file']).name}: {n['reason']}" for n in s["no_entry"]]
         lines += [f"note: {note}" for note in s["notes"]]
         if s["warnings"]:
             lines.append(f"warnings ({len(s['warnings'])}):")
@@ -873,7 +955,8 @@ class BuildResult:
                            "events": [], "cycles": [], "angles": {}, "poulaine": None})
             record.update(c.diagnostics)
             record.update({"source": c.file, "ok": c.ok, "error": c.error, "stage": c.stage,
-                           "static": c.static, "warnings": list(c.warnings)})
+                           "static": c.static, "no_entry": c.no_entry,
+                           "warnings": list(c.warnings)})
             records.append(record)
         return to_json_data({"format": DIAGNOSTICS_FORMAT, "version": DIAGNOSTICS_VERSION,
                              "library": library_name, "library_sha256": library_sha256,
@@ -993,8 +1076,11 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     inputs
         C3D files and folders (searched recursively for ``*.c3d``).
     settings
-        :class:`BuildSettings` (defaults when None). Forward references are measured first
-        (:func:`forward_offsets`; its CalibrationError is raised, nothing is processed).
+        :class:`BuildSettings` (defaults when None). Each capture is processed with the
+        settings :func:`mocaplib.sessions.plan_captures` gives it: a ``session.toml``'s beside
+        it, or these with the standing files among the captures added to the statics.
+        Forward references are measured first (:func:`forward_offsets`; its CalibrationError
+        is raised, nothing is processed).
     jobs
         Worker processes (1 = in this process).
     scheduler
@@ -1027,8 +1113,16 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     if not paths:
         raise MocapError("no C3D captures found in the inputs",
                          hint="give .c3d files or folders that contain some")
-    if settings.forward_reference is not None and settings.heading_offsets is None:
-        settings = replace(settings, heading_offsets=pinned(forward_offsets, settings))
+    pool, planned = plan_captures(paths, settings)
+    if settings.require_static and not any(p.statics for p in planned):
+        raise MocapError("the build requires a static (require_static) but none is given or "
+                         "found among the captures",
+                         hint="give the statics with --static or a session.toml beside the "
+                              "captures, or leave --require-static out")
+    if pool.forward_reference is not None and pool.heading_offsets is None:
+        offsets = pinned(forward_offsets, pool)
+        planned = [replace(p, heading_offsets=offsets) if p is pool else p for p in planned]
+        pool = replace(pool, heading_offsets=offsets)
     results: dict[int, CaptureResult] = {}
     keys: dict[int, str] = {}
     notes: list[str] = []
@@ -1036,7 +1130,7 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     for i, path in enumerate(paths):
         if cache is not None:
             try:
-                keys[i] = cache_key(path, file_sha256(path), settings)
+                keys[i] = cache_key(path, file_sha256(path), planned[i])
             except OSError:
                 continue  # unreadable: its processing fails and says why
             cached, why = _read_cache(cache, keys[i])
@@ -1050,7 +1144,8 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     cache_failed = False
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
-        for i, result in _run(process, [(i, paths[i]) for i in todo], settings, jobs, scheduler):
+        for i, result in _run(process, [(i, paths[i], planned[i]) for i in todo], jobs,
+                              scheduler):
             results[i] = result
             if i in keys and not _internal(result) and not cache_failed:
                 try:
@@ -1062,9 +1157,8 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
     captures = [results[i] for i in range(len(paths))]
     _unique_entry_ids(captures)
     library = assemble_library([e for c in captures for e in c.entries],
-                               settings=settings.to_dict(),
-                               qc_thresholds=settings.qc_thresholds)
-    return BuildResult(library, captures, settings, time.perf_counter() - started, notes)
+                               settings=pool.to_dict(), qc_thresholds=pool.qc_thresholds)
+    return BuildResult(library, captures, pool, time.perf_counter() - started, notes)
 
 
 def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings) -> list[Path]:
@@ -1133,22 +1227,23 @@ def _read_cache(cache: Path, key: str) -> tuple[CaptureResult | None, str | None
     return result, None
 
 
-def _run(process, work: list[tuple[int, Path]], settings: BuildSettings, jobs: int,
+def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
          scheduler: str | None):
-    """Yield ``(index, CaptureResult)`` as captures finish (in any order), run by
-    :func:`mocaplib.workers.run_tasks` or on a Dask cluster."""
+    """Yield ``(index, CaptureResult)`` as captures finish (in any order), each work item
+    ``(index, path, its settings)`` run by :func:`mocaplib.workers.run_tasks` or on a Dask
+    cluster."""
     if not work:
         return
     if scheduler is not None:
-        yield from _run_dask(process, work, settings, scheduler)
+        yield from _run_dask(process, work, scheduler)
         return
-    tasks = [(os.fspath(path), settings) for _, path in work]
+    tasks = [(os.fspath(path), settings) for _, path, settings in work]
     for k, result, error in run_tasks(process, tasks, jobs=jobs):
-        index, path = work[k]
+        index, path, _ = work[k]
         yield index, result if error is None else _worker_failure(path, error)
 
 
-def _run_dask(process, work, settings, address: str):
+def _run_dask(process, work, address: str):
     try:
         from distributed import Client, as_completed as dask_completed
     except ImportError as exc:
@@ -1161,7 +1256,7 @@ def _run_dask(process, work, settings, address: str):
                          hint="start one with `dask scheduler` or check the address") from exc
     with client:
         futures = {client.submit(pinned, process, os.fspath(path), settings, pure=False):
-                   (i, path) for i, path in work}
+                   (i, path) for i, path, settings in work}
         for future in dask_completed(futures):
             index, path = futures[future]
             try:

@@ -204,6 +204,10 @@ def add_static_options(parser) -> None:
                              "each capture); repeat it for several subjects or sessions: each "
                              "capture is calibrated with the static showing its subject, and "
                              "one that none shows is an error")
+    parser.add_argument("--static-window", type=time_window, metavar="START:END",
+                        help="seconds of the static to calibrate on (default: the whole static "
+                             "when the subject stands still in it, else its quietest second, "
+                             "e.g. after a step in)")
     parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
                         help="'neutral': the static subject stands in the anatomical neutral "
                              "pose (every joint angle 0) and each marker's offset is measured "
@@ -222,6 +226,19 @@ def add_static_options(parser) -> None:
                              "turned so that the subject faces where they walk in it, which "
                              "removes the heading error of marker placement from v_l; repeat "
                              "it for several subjects or sessions (needs --static-pose neutral)")
+
+
+def time_window(text: str) -> tuple[float, float]:
+    """One ``START:END`` (seconds, 0 <= START <= END)."""
+    start, colon, end = text.partition(":")
+    try:
+        window = (float(start), float(end))
+    except ValueError:
+        window = None
+    if not colon or window is None or not (0 <= window[0] <= window[1] < math.inf):
+        raise argparse.ArgumentTypeError(f"expected START:END in seconds with 0 <= START <= "
+                                         f"END, got {text!r}")
+    return window
 
 
 def measurement(text: str) -> tuple[str, float]:
@@ -269,10 +286,12 @@ LIBRARY_HINT = "check the path; `mocaplib build` writes a library"
 
 def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
                  static_pose: str = "free", references: list[str] | None = None,
+                 static_window: tuple[float, float] | None = None,
                  hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
-    not exist (the message ends with ``hint``), a ``--static`` cannot be read or is not
-    standing still (:func:`mocaplib.calibration.check_standing`), a ``--forward-reference``
+    not exist (the message ends with ``hint``), a ``--static`` cannot be read or does not
+    stand still in ``static_window`` or its quietest second
+    (:func:`mocaplib.calibration.standing_part`), a ``--forward-reference``
     cannot be read, or ``--static-pose neutral`` comes without a static or
     ``--forward-reference`` without a neutral static; a static or reference must be one C3D
     file. Returns the static trials, each file read once (the same file given twice counts
@@ -284,7 +303,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         raise UsageError("--forward-reference turns the heading of a static in the neutral "
                          "pose: give --static FILE --static-pose neutral, or leave "
                          "--forward-reference out")
-    from ..calibration import check_standing
+    from ..calibration import standing_part
     from ..io import unique_paths
     from ..io.c3d import read_c3d
 
@@ -306,7 +325,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
     for path in unique_paths(statics or ()):
         try:
             trials.append(read_c3d(path))
-            check_standing(trials[-1])
+            standing_part(trials[-1], window=static_window)
         except MocapError as exc:
             raise UsageError(f"--static: {exc}") from None
     for path in unique_paths(references or ()):
@@ -327,6 +346,7 @@ def heading_offsets(args) -> tuple[float, ...] | None:
 
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,
+        static_window=args.static_window,
         forward_reference=args.forward_reference, cutoff=args.cutoff,
         measurements=measurements(args),
         toe_off=getattr(args, "toe_off", "foot_velocity")))

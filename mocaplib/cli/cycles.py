@@ -44,13 +44,13 @@ def _run(args) -> int:
     from .events import load
 
     statics = check_inputs([args.file], args.static, static_pose=args.static_pose,
-                           references=args.forward_reference)
+                           references=args.forward_reference, static_window=args.static_window)
     trial, match, missing = load(args)
     if missing is not None:
         raise missing
     motion = fit_capture(trial, protocol=match.protocol, static=statics,
                          static_pose=args.static_pose, cutoff=args.cutoff,
-                         measurements=measurements(args),
+                         static_window=args.static_window, measurements=measurements(args),
                          heading_offsets=heading_offsets(args))[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)

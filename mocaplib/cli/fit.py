@@ -49,7 +49,7 @@ def _run(args) -> int:
     from ._common import print_json, warn
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
-                           references=args.forward_reference)
+                           references=args.forward_reference, static_window=args.static_window)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
@@ -60,6 +60,7 @@ def _run(args) -> int:
     offsets = heading_offsets(args)
     motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
                                         static_pose=args.static_pose, cutoff=args.cutoff,
+                                        static_window=args.static_window,
                                         measurements=measurements(args),
                                         heading_offsets=offsets)
     sources = [static.source for static in statics]
