@@ -591,18 +591,19 @@ def feet_of(trial, match, /, *, motion=None
     (:class:`mocaplib.Motion`), samples where a marker is missing are taken from the fitted
     skeleton's position of that marker, except in frames the fit flagged as failed and before
     the marker's first measured sample or after its last (they stay missing: nothing measured
-    supports an event there), and a left/right pair the calibration found exchanged (``motion.swapped``, e.g.
-    LHEE/RHEE) is read exchanged back, as the fit reads it. Raises :class:`EventError` naming
+    supports an event there), and the labelling errors the fit undid (``motion.repairs``: a
+    LHEE/RHEE swap, a marker left out) are undone here too, as the fit read them. Raises
+    :class:`EventError` naming
     the landmark the capture has no label for (and the labels the protocol gives for it), or
     the marker missing in every frame.
     """
     present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
-    partner = {} if motion is None else {a: b for pair in motion.swapped
-                                         for a, b in (pair, pair[::-1])}
 
     def track(side, label):
-        measured = match.marker(trial, partner.get(label, label))
+        measured = match.marker(trial, label)
+        if motion is not None:
+            measured = motion.repaired_track(label, lambda other: match.marker(trial, other))
         points = measured
         if modelled is not None and label in motion.marker_labels:
             model_points = modelled[:, motion.marker_labels.index(label)]

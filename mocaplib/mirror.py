@@ -117,7 +117,7 @@ def mirror_motion(motion, /):
     return replace(motion, angles=angles, skeleton=mirror_skeleton(motion.skeleton),
                    marker_segments=None, marker_offsets=None,
                    locked_dofs=[partner_name(name) for name in motion.locked_dofs],
-                   unobservable=mirror_names(motion.unobservable), swapped=[])
+                   unobservable=mirror_names(motion.unobservable), repairs=[])
 
 
 def mirror_skeleton(skeleton: Skeleton, /) -> Skeleton:

@@ -398,9 +398,11 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
                 result.warnings.append(f"static {result.static}: calibrated on its stretch "
                                        f"{window[0]:.2f}-{window[1]:.2f} s (of "
                                        f"{static_trials[chosen].duration:.2f} s)")
-    result.warnings.extend(model.swap_warnings)
+    if chosen is not None:                       # without one the fit reports the swaps
+        result.warnings.extend(model.swap_warnings)
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=cutoff)
+    result.warnings.extend(motion.repair_warnings())
     if motion.locked_dofs:
         result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
                                f"{len(motion.locked_dofs)} DOFs, held at 0: "
@@ -806,6 +808,7 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
         "shoulder_mid_xy": mid[every, :2],
         "frame_rms_m": frame_rms[every],
         "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
+        "repairs": [r.as_dict(trial.rate) for r in motion.repairs],
     }, DIAGNOSTICS_DIGITS)
 
 
@@ -1044,11 +1047,14 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     """Hex key of a capture's cached result: file name and content, settings, tool version.
 
     The static trial's content, the capture's truth sidecar (which names its locomotion
-    class) and :func:`code_fingerprint` are part of the key, so editing any of them
+    class), :func:`code_fingerprint` and the users' protocol folders
+    (:func:`mocaplib.protocols.user_fingerprint`) are part of the key, so editing any of them
     invalidates the cache.
     """
+    from .protocols import user_fingerprint
+
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
-             "tool": __version__, "code": code_fingerprint()}
+             "tool": __version__, "code": code_fingerprint(), "protocols": user_fingerprint()}
     if settings.statics:
         shas = [_static_sha256(static) for static in settings.statics]
         parts["static_sha256"] = shas if len(shas) > 1 else shas[0]

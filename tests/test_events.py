@@ -523,7 +523,7 @@ def test_real_treadmill_jogging_is_recognised(real_c3d):
 
 
 @pytest.mark.usefixtures("sample_dir")
-def test_feet_follow_the_calibrations_left_right_exchange():
+def test_feet_follow_the_fits_left_right_exchange():
     # heel labels exchanged in the file: the calibration finds it, the fit reads each heel from
     # the other's trajectory, and the gait events must too (not the file's raw labels)
     from conftest import SAMPLES
@@ -542,7 +542,7 @@ def test_feet_follow_the_calibrations_left_right_exchange():
     model = calibrate(swapped)
     assert ("LHEE", "RHEE") in model.swapped or ("RHEE", "LHEE") in model.swapped
     motion = fit(swapped, model)
-    assert motion.swapped == model.swapped
+    assert {r.labels for r in motion.repairs if r.kind == "swap"} == set(model.swapped)
     feet, _ = feet_of(swapped, detect_protocol(swapped), motion=motion)
     true_feet, _ = feet_of(trial, detect_protocol(trial))
     for side in ("left", "right"):

@@ -95,13 +95,40 @@ def warn(message: str) -> None:
 
 
 def add_protocol_option(parser, *, default: str = "the best shipped protocol") -> None:
-    """``--protocol NAME|PATH|auto``; an unknown or malformed protocol is a usage error (exit 2).
+    """``--protocol NAME|PATH|auto`` and ``--protocols DIR`` (repeatable): users' protocol
+    folders added to the shipped one. Both are checked by :func:`apply_protocol_options` once
+    the whole line is parsed (a name may come from a folder given after it): an unknown or
+    malformed protocol, or a missing folder, is a usage error (exit 2)."""
+    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a name (shipped, or in a --protocols "
+                             f"folder), a .toml file, or 'auto' (default: {default})")
+    add_protocol_folders_option(parser)
 
-    The value stays the name or path given (it is checked here, loaded again where used).
-    """
-    parser.add_argument("--protocol", default="auto", type=_protocol_name, metavar="NAME|PATH|auto",
-                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
-                             f"(default: {default})")
+
+def add_protocol_folders_option(parser) -> None:
+    """``--protocols DIR`` (repeatable): users' protocol folders added to the shipped one
+    (checked by :func:`apply_protocol_options`)."""
+    parser.add_argument("--protocols", action="append", default=[], metavar="DIR",
+                        help="a folder of your own protocols (*.toml) and landmarks "
+                             "(landmarks.toml), added to the shipped ones; a name defined "
+                             "there wins (repeatable; also $MOCAPLIB_PROTOCOLS)")
+
+
+def apply_protocol_options(args) -> None:
+    """Add ``args.protocols`` folders (:func:`mocaplib.protocols.use_protocol_folders`) and
+    check ``args.protocol`` loads; :class:`UsageError` (exit 2) otherwise. Commands without
+    the options pass through."""
+    from ..protocols import load_protocol, use_protocol_folders
+
+    option = "--protocols"
+    try:
+        if getattr(args, "protocols", None):
+            use_protocol_folders(args.protocols)
+        option = "--protocol"
+        if getattr(args, "protocol", "auto") != "auto":
+            load_protocol(args.protocol)
+    except MocapError as exc:
+        raise UsageError(f"{option}: {exc}") from None
 
 
 #: ``--toe-off`` choices: :data:`mocaplib.events.TOE_OFF_DEFINITIONS`, not imported here so that
@@ -116,17 +143,6 @@ def add_toe_off_option(parser) -> None:
                              "peak, close to a force plate's Foot Off; default) or 'lift' (a "
                              "rigid foot's lift-off: where the toe's upward velocity rises "
                              "fastest, ~18 ms before Foot Off on real feet)")
-
-
-def _protocol_name(value: str) -> str:
-    from ..protocols import load_protocol
-
-    if value != "auto":
-        try:
-            load_protocol(value)
-        except MocapError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-    return value
 
 
 def positive(kind: type, *, unit: str = "", most: float = math.inf):

@@ -34,7 +34,8 @@ def register(subparsers) -> None:
                         help="print the fit as JSON: file, protocol, static, cutoff_hz and the "
                              "quality: marker_rms_mm, max_marker_error_mm, per_marker_rms_mm, "
                              "locked_dofs, held_dofs, at_limit, failed_frames, rejected_samples, "
-                             "rejected_per_marker")
+                             "repairs (exchanged labels undone, markers left out: marker, "
+                             "frames, evidence), rejected_per_marker")
     parser.set_defaults(run=_run)
 
 
@@ -71,8 +72,11 @@ def _run(args) -> int:
     if args.osim:
         write_osim(model, args.osim)
     quality = fit_quality(motion)
-    for note in model.swap_warnings:
-        warn(f"{model.source}: {note}")
+    if statics:                                   # without one the fit reports the swaps
+        for note in model.swap_warnings:
+            warn(note)
+    for note in motion.repair_warnings():
+        warn(f"{args.input}: {note}")
     if model.unobservable:
         warn(f"{args.input}: the markers cannot see {', '.join(sorted(model.unobservable))}; "
              "held at 0")
