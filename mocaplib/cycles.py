@@ -16,7 +16,7 @@ stumbles and turns that start mid-cycle all raise it. The chosen cycle is the on
 lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
 if none qualifies); ties go to the earlier cycle. ``mocaplib cycles`` and ``mocaplib build``
 first narrow the candidates to the cycles that pass the library's QC, when any does
-(:func:`mocaplib.pipeline.qc_and_choice`), so a capture whose steadiest cycle fails QC
+(:func:`mocaplib.qc.qc_and_choice`), so a capture whose steadiest cycle fails QC
 contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
 on one, so callers keep all of them on request (``--all-cycles``).
 
@@ -236,7 +236,7 @@ def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) ->
     """Mark and return the steadiest cycle (module docstring's rule); clears other marks.
 
     ``eligible``: indices of the cycles that may be chosen (those passing the library's QC,
-    :func:`mocaplib.pipeline.qc_and_choice`); every cycle when None or when none is eligible.
+    :func:`mocaplib.qc.qc_and_choice`); every cycle when None or when none is eligible.
     """
     if not cycles:
         raise EventError("no cycle to choose from")

@@ -67,7 +67,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from .errors import UNITS_HINT, EventError
-from .filtering import lowpass, valid_runs
+from .filtering import lowpass
+from .runs import valid_runs
 from .trial import check_gait_rate
 
 SIDES = ("left", "right")

@@ -34,6 +34,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from .errors import FitError
+from .runs import valid_runs
 from .trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
@@ -57,12 +58,6 @@ MAX_CANDIDATE = 0.75
 NOISE_BAND = (0.4, 0.75)
 #: Bounds of an automatic cutoff, Hz (lower) and fraction of Nyquist (upper).
 AUTO_MIN, AUTO_MAX = 2.0, 0.4
-
-
-def valid_runs(valid: np.ndarray) -> np.ndarray:
-    """(start, stop) pairs (R, 2) of the runs of True in ``valid`` (F,) bool, stop exclusive."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(valid, int), [0]])))
-    return edges.reshape(-1, 2)
 
 
 def resample(values: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:

@@ -39,7 +39,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import FitError
-from .filtering import resample, valid_runs
+from .filtering import resample
+from .runs import valid_runs
 from .motion import Motion, Repair, angles_frame, apply_repairs
 from .protocols import match_protocol
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
@@ -903,45 +904,6 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     motion.residuals[motion.rejected] = np.nan
     motion.repairs = raw.repairs + motion.repairs
     return motion, used
-
-
-def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
-                static_pose: str = "free", cutoff: float | str | None = "auto",
-                heading_offsets=None, measurements: dict | None = None,
-                static_window: tuple[float, float] | None = None
-                ) -> tuple[Motion, "SubjectModel", float | None]:
-    """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
-    :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
-    ``static_pose``), then :func:`fit_filtered`. ``protocol`` (a Protocol, shipped name, TOML
-    path or "auto") is resolved on the capture (:func:`mocaplib.protocols.match_trial`), as
-    ``mocaplib build`` resolves it, whatever the static's labels. ``static`` may also be a list
-    of static trials, one per subject or session: the one that shows this capture's subject is
-    used (:func:`mocaplib.calibration.choose_static`). ``heading_offsets``: per static (one
-    for a single static), the heading correction of a forward reference, radians
-    (:func:`mocaplib.pipeline.forward_offsets`; the static in the neutral pose).
-    ``measurements``: subject measurements overriding the calibration file's (see
-    :func:`mocaplib.calibration.calibrate`); ``static_window``: the (start, end) seconds of the
-    static to calibrate on (:func:`mocaplib.calibration.standing_part`).
-
-    Returns the motion, the subject model (its ``source`` names the static used) and the
-    cutoff used (Hz; None: unfiltered).
-    """
-    from .calibration import calibrate, choose_static
-    from .filtering import filter_trial
-    from .protocols import match_trial
-
-    protocol = match_trial(trial, protocol).protocol
-    filtered, used = filter_trial(trial, cutoff=cutoff)
-    chosen = 0
-    if isinstance(static, (list, tuple)):
-        chosen = choose_static(filtered, static, protocol)
-        static = None if chosen is None else static[chosen]
-    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
-                      heading_offset=0.0 if heading_offsets is None or static is None
-                      else heading_offsets[chosen], measurements=measurements,
-                      static_window=static_window)
-    motion, _ = fit_filtered(trial, model, cutoff=used)
-    return motion, model, used
 
 
 def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:

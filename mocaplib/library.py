@@ -468,6 +468,12 @@ def _matrix(rows) -> np.ndarray:
     return np.array([[_float(x) for x in row] for row in rows], dtype=np.float64)
 
 
+def diagnostics_path(library_path: str | os.PathLike) -> Path:
+    """Where the diagnostics sidecar of a library file goes: ``<stem>.diagnostics.json``."""
+    path = Path(library_path)
+    return path.with_name(f"{path.stem}.diagnostics.json")
+
+
 # --------------------------------------------------------------------------- reading
 def load_library(path: str | os.PathLike) -> Library:
     """Read a library file. Raises :class:`LibraryError` when it is not a valid library.

@@ -340,7 +340,7 @@ def write_mirrored(library, library_path, out_path, /):
 
     from .io.atomic import atomic_write_files
     from .library import json_text
-    from .pipeline import diagnostics_path
+    from .library import diagnostics_path
 
     text = library.to_json().encode("utf-8")
     files = [(Path(out_path), text)]

@@ -16,7 +16,7 @@ settings it is processed with:
 A file that is a static — named by ``--static`` or a ``session.toml``, or found standing — is
 used as one and never counts as a failed capture: processed as a capture it gives its rest
 entry when it spans the second a rest entry needs, otherwise no entry, and says why
-(:func:`mocaplib.pipeline.process_capture`).
+(:func:`mocaplib.workflow.process_capture`).
 
 The format of ``session.toml`` (every key optional but one of ``static``/``protocol``)::
 
@@ -133,7 +133,7 @@ def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) 
 
 
 def plan_captures(captures: list[Path], settings, /) -> tuple:
-    """The settings (:class:`mocaplib.pipeline.BuildSettings`) of the captures that no
+    """The settings (:class:`mocaplib.settings.BuildSettings`) of the captures that no
     ``session.toml`` describes — ``settings`` with the standing files among the captures added
     to its statics (their heading offsets 0 when ``settings`` has measured ones) — and those
     each capture is processed with, in order (module docstring): that pool, or for the

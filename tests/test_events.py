@@ -181,7 +181,7 @@ def test_settings_reach_the_detector_and_are_checked():
 def test_model_filled_samples_do_not_count_as_measured():
     # with the fit filling the gaps (build, cycles, events --fit), every event had quality 1.0,
     # so the event-quality QC and choice rule could never act
-    from mocaplib.ik import fit_capture
+    from mocaplib.workflow import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
     from conftest import SAMPLES
@@ -209,7 +209,7 @@ def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3
     # alone has the same quality (filled samples never count), and the cycles' event quality
     # is the smaller of their bounds'
     from mocaplib.cycles import motion_cycles
-    from mocaplib.ik import fit_capture
+    from mocaplib.workflow import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 
@@ -236,7 +236,7 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
     # with the fit filling the foot markers, toe-offs and heel-strikes were placed after the
     # foot markers' last measured sample (Walking3: a left toe-off 0.47 s after it, cutting a
     # cycle of 0.73 s in a walk of 1.18 s strides)
-    from mocaplib.ik import fit_capture
+    from mocaplib.workflow import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 

@@ -20,8 +20,10 @@ from mocaplib.errors import CalibrationError, MocapError
 from mocaplib.ik import fit
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.pipeline import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, BuildSettings, build,
-                               cache_key, forward_offsets, process_capture)
+from mocaplib.cache import cache_key
+from mocaplib.pipeline import BuildSettings, build
+from mocaplib.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
+                               process_capture)
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING
 
 STATIC = SAMPLES / "rest.c3d"
@@ -284,9 +286,9 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
 def test_references_that_do_not_settle_are_an_error(monkeypatch):
     # the sample reference needs a second turn (0.009°, under the 0.01° that ends the turns);
     # allowed a single turn, it is refused
-    from mocaplib import pipeline
+    from mocaplib import workflow
 
-    monkeypatch.setattr(pipeline, "FORWARD_PASSES", 1)
+    monkeypatch.setattr(workflow, "FORWARD_PASSES", 1)
     with pytest.raises(CalibrationError, match=r"turn 1 of 1 was still rest\.c3d -0\.2\d\d° "
                                                r"\(the turns stop below 0\.01°\)") as caught:
         forward_offsets(neutral(forward_reference=str(WALK)))

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib import pipeline
+from mocaplib import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
@@ -162,7 +162,7 @@ def test_cache_made_by_other_code_is_not_reused(tmp_path, monkeypatch):
     write_captures(folder, TRIPLES[:2])
     build([folder], cache_dir=cache, progress=False, process=fake_process)
     # Same version number, edited code (a development checkout): everything is re-processed.
-    monkeypatch.setattr(pipeline, "code_fingerprint", lambda: "edited")
+    monkeypatch.setattr("mocaplib.cache.code_fingerprint", lambda: "edited")
     again = build([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 4 and not any(c.from_cache for c in again.captures)
 
@@ -298,10 +298,10 @@ def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_pa
 
     taller, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    pipeline._neutral_model.cache_clear()
+    workflow._neutral_model.cache_clear()
     result = build([SAMPLES / "walk_straight_normal.c3d", SAMPLES / "turn_spot_left_normal.c3d",
                     taller], settings, jobs=1, cache_dir=None, progress=False)
-    assert pipeline._neutral_model.cache_info().misses == 1          # calibrated once
+    assert workflow._neutral_model.cache_info().misses == 1          # calibrated once
     walk, turn, other = result.captures
     assert walk.ok and turn.ok and walk.static == turn.static == "rest.c3d", walk.error
     # the taller subject's capture is not this static's: calibrated from itself, said so
@@ -483,18 +483,18 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):
     # 1 mm marker RMS: no real capture with skin markers meets it, so QC must fail.
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.001}
     # the policy acts only on the entries: process once, keep the cycles for the other policy
-    stage, entries = {}, pipeline._entries
+    stage, entries = {}, workflow._entries
 
     def recorded(path, result, cycles, qcs, settings, *args):
         stage.update(path=path, cycles=cycles, qcs=qcs, args=args)
         return entries(path, result, cycles, qcs, settings, *args)
 
-    monkeypatch.setattr(pipeline, "_entries", recorded)
+    monkeypatch.setattr(workflow, "_entries", recorded)
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
     assert kept.ok and len(kept.entries) == 1
     entry = kept.entries[0]
     assert entry["qc"]["marker_rms_m"] > 0.001
-    failing = sorted(pipeline.qc_failures(entry["qc"], strict))
+    failing = sorted(qc_failures(entry["qc"], strict))
     assert sorted(entry["qc_waived"]) == sorted(f.split()[0] for f in failing)
     assert "marker_rms_m" in entry["qc_waived"]
     assert any("kept with QC waived" in w for w in kept.warnings)

@@ -339,10 +339,11 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
 def heading_offsets(args) -> tuple[float, ...] | None:
     """Per ``--static``, the heading correction (radians) its ``--forward-reference`` captures
     measure, through the stages ``mocaplib build`` runs with these options
-    (:func:`mocaplib.pipeline.forward_offsets`); None without a reference."""
+    (:func:`mocaplib.workflow.forward_offsets`); None without a reference."""
     if not args.forward_reference:
         return None
-    from ..pipeline import BuildSettings, forward_offsets
+    from ..settings import BuildSettings
+    from ..workflow import forward_offsets
 
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,

@@ -63,7 +63,9 @@ def _check_usage(args):
     (every capture would fail on it), an output that would overwrite a file the build reads
     (:func:`mocaplib.pipeline.build_inputs`) or cannot be written, a --report folder that
     cannot take the report."""
-    from ..pipeline import BuildSettings, build_inputs, diagnostics_path, find_captures
+    from ..library import diagnostics_path
+    from ..pipeline import build_inputs, find_captures
+    from ..settings import BuildSettings
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference, static_window=args.static_window)

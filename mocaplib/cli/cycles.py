@@ -37,9 +37,9 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..cycles import motion_cycles
     from ..events import capture_events
-    from ..ik import fit_capture
+    from ..workflow import fit_capture
     from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
-    from ..pipeline import qc_and_choice
+    from ..qc import qc_and_choice
     from ._common import print_json
     from .events import load
 

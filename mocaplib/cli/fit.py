@@ -1,6 +1,6 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
-Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_capture`
+Only parses options and writes outputs: the work is :func:`mocaplib.workflow.fit_capture`
 (:func:`mocaplib.calibration.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
 """
 
@@ -41,7 +41,8 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..calibration import static_names
-    from ..ik import fit_capture, fit_quality
+    from ..ik import fit_quality
+    from ..workflow import fit_capture
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim

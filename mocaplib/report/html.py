@@ -29,7 +29,8 @@ from ..io.jsonvalues import parse_json
 from ..fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..library import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
                        validate_library)
-from . import figures, report_name
+from . import figures
+from .files import report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
 
@@ -106,7 +107,7 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     Capture records are checked once here, so the rest of the report can rely on their shape:
     a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
     out with a warning naming it (:func:`_record_problem`)."""
-    from ..pipeline import diagnostics_path
+    from ..library import diagnostics_path
 
     path = diagnostics_path(library_path)
     if not os.path.lexists(path):
