@@ -6,7 +6,7 @@ Plug-in Gait (Vicon's conventional gait model) writes its angles into the C3D as
 (``LHipAngles``, ``LKneeAngles``, ``LAnkleAngles``... in degrees: x flexion, y ab/adduction,
 z rotation) and its pelvis frame as the points ``PELO``, ``PELA``, ``PELL``, ``PELP`` (origin
 and 100 mm along each axis). They are read with ezc3d, a reader mocaplib does not use. Each
-capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.ik.fit_capture`, with its
+capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.workflow.fit_capture`, with its
 static when it has one) and every angle both report is compared over the frames Plug-in Gait
 wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
 motion of each. Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.ik import fit_capture  # noqa: E402
+from mocaplib.workflow import fit_capture  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data" / "c3d"

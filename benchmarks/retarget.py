@@ -44,9 +44,10 @@ from mocaplib.criteria import internal_power, segment_energies  # noqa: E402
 from mocaplib.cycles import motion_cycles  # noqa: E402
 from mocaplib.events import capture_events  # noqa: E402
 from mocaplib.fourier import ROOT_X, ROOT_Y  # noqa: E402
-from mocaplib.ik import fit_capture  # noqa: E402
+from mocaplib.workflow import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.pipeline import BuildSettings, build, cycle_shape  # noqa: E402
+from mocaplib.pipeline import BuildSettings, build  # noqa: E402
+from mocaplib.workflow import cycle_shape  # noqa: E402
 from mocaplib.protocols import match_trial  # noqa: E402
 from mocaplib.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402

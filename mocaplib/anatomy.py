@@ -18,6 +18,10 @@ Joint centres
       proximal centre–centre–lateral marker is 90°, and the centre lies in the plane of the
       proximal centre, the lateral marker and the segment's wand (thigh, tibia or upper-arm
       marker; else its other markers), on the medial side (:func:`chord_centre`).
+    * **Knee, ankle and elbow without landmarks** (a cluster set without a static): the
+      *functional* centre, the point that moves with both segments (SCoRE, Ehrig et al. 2006,
+      J Biomech 39:2798; :func:`functional_centre`), from the rigid frames of three markers on
+      each segment over a motion that flexes the joint.
 
 Segment frames (rotation matrices, columns = the segment's X forward, Y left, Z up axes when
 the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requires)
@@ -235,3 +239,59 @@ def davis_hip(lasi, rasi, back, *, side: str, leg_length: float, marker_radius: 
     az = -C * np.cos(theta) * np.cos(beta) - d * np.sin(beta)
     x, y, z = R[..., 0], R[..., 1], R[..., 2]
     return origin + ax * x + (ay if side == "l" else -ay) * y + az * z
+
+
+#: Smallest range of the joint's turn (degrees) over the frames for a functional centre: below
+#: it the centre is ill-determined along the axis of turn.
+FUNCTIONAL_RANGE = 15.0
+
+
+def marker_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid frames (F, 3, 3) and origins (F, 3) of three markers ``points`` (F, 3, 3): origin
+    the first, X towards the second, Z normal to the three; NaN where one is missing."""
+    x = unit(points[:, 1] - points[:, 0])
+    z = unit(np.cross(x, points[:, 2] - points[:, 0]))
+    return np.stack([x, np.cross(z, x), z], axis=-1), points[:, 0]
+
+
+def functional_centre(parent: tuple[np.ndarray, np.ndarray],
+                      child: tuple[np.ndarray, np.ndarray], *,
+                      hint: np.ndarray | None = None) -> np.ndarray | None:
+    """The joint centre (F, 3) that moves with both segments, by least squares (SCoRE):
+    ``R_p c_p + t_p = R_c c_c + t_c`` over the frames where both rigid frames ``parent`` and
+    ``child`` ((F, 3, 3) rotations, (F, 3) origins; :func:`marker_frames`) are known, the
+    centre being the mean of the two sides. A hinge (the knee, the ankle) leaves the centre
+    free along its axis (the least singular value of the system under :data:`HINGE_RATIO` of
+    the largest): it is then taken where the axis passes nearest ``hint`` (F, 3), the proximal
+    joint's centre. None when fewer than 10 frames know both or the joint turns by less than
+    :data:`FUNCTIONAL_RANGE` over them."""
+    (Rp, tp), (Rc, tc) = parent, child
+    known = np.isfinite(Rp).all(axis=(1, 2)) & np.isfinite(Rc).all(axis=(1, 2))
+    if known.sum() < 10:
+        return None
+    relative = np.einsum("fji,fjk->fik", Rp[known], Rc[known])            # Rp^T Rc
+    turn = np.arccos(np.clip((np.trace(relative @ relative[0].T, axis1=1, axis2=2) - 1) / 2,
+                             -1.0, 1.0))
+    if np.degrees(turn.max()) < FUNCTIONAL_RANGE:
+        return None
+    A = np.concatenate([Rp[known], -Rc[known]], axis=2).reshape(-1, 6)
+    b = (tc[known] - tp[known]).reshape(-1)
+    solution = np.linalg.lstsq(A, b, rcond=None)[0]
+
+    def world(c):
+        return 0.5 * (np.einsum("fij,j->fi", Rp, c[:3]) + tp + np.einsum("fij,j->fi", Rc, c[3:])
+                      + tc)
+
+    _, values, vt = np.linalg.svd(A, full_matrices=False)
+    if hint is not None and values[-1] < HINGE_RATIO * values[0]:
+        along = world(vt[-1]) - world(np.zeros(6))              # the axis's direction (F, 3)
+        off = hint - world(solution)
+        usable = np.isfinite(along).all(axis=1) & np.isfinite(off).all(axis=1)
+        solution = solution + vt[-1] * (np.sum(along[usable] * off[usable])
+                                        / np.sum(along[usable] ** 2))
+    return world(solution)
+
+
+#: A least singular value under this share of the largest marks a hinge: the centre slides
+#: along its axis.
+HINGE_RATIO = 0.1

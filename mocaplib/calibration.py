@@ -15,9 +15,13 @@ Steps (all in metres, world Z up):
 1. **Markers, swaps and locks.** The protocol's markers seen in at least 10 % of the trial's frames
    are used. A joint whose segment and descendants carry too few markers to be seen (none; or one
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
-   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. A left/right
-   pair whose labels are exchanged (each marker far from its model position, near the other's
-   after the nominal fit of step 2) is exchanged back, and listed in ``swapped``.
+   below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. Two markers
+   whose labels are exchanged, in all or part of the frames (each marker far from its model
+   position, near the other's after the nominal fit of step 2; :func:`mocaplib.ik.find_repairs`)
+   are exchanged back, and listed in ``swapped``; the motion's frames of step 5 are checked the
+   same way against the static's model. Tracking markers (no landmark) are left out of the
+   nominal fits: their offsets are measured in step 4 (4' with a neutral static), in the
+   segment frames the landmarks build.
 2. **Height and nominal model.** Height is estimated from distances between markers on the
    same segment against the landmark catalogue's nominal ones (``protocols/landmarks.toml``),
    unless given; the nominal skeleton (:meth:`Skeleton.from_height`) and nominal offsets are
@@ -25,7 +29,10 @@ Steps (all in metres, world Z up):
 3. **Anatomical joint centres.** Hip: Harrington et al. (2007, J Biomech 40:595) regression
    from pelvis width PW (ASIS–ASIS) and depth PD (mid-ASIS to mid-PSIS, or sacrum), in the
    ASIS pelvis frame: x = −0.24 PD − 9.9 mm, y = ±(0.33 PW + 7.3 mm), z = −0.30 PW − 10.9 mm.
-   Knee, ankle, elbow: the midpoint of lateral and medial landmarks when both exist, otherwise
+   Knee, ankle, elbow without landmarks in the trial (a cluster set calibrated from its
+   motion): the functional centre of the two segments' markers
+   (:func:`mocaplib.anatomy.functional_centre`). Knee, ankle, elbow: the midpoint of lateral
+   and medial landmarks when both exist, otherwise
    the lateral landmark moved by its documented offset from the joint in the catalogue (knee
    50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by
    the nominal fit's segment orientation. Shoulder: the acromion moved by the catalogue offset
@@ -67,8 +74,10 @@ import numpy as np
 
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
-from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, offsets_in_frames, segment_frames
-from .ik import MIN_PELVIS_MARKERS, initial_pose, solve_poses
+from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
+                      marker_frames, offsets_in_frames, segment_frames)
+from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
+from .motion import apply_repairs
 from .protocols import Protocol, match_protocol, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
@@ -104,16 +113,6 @@ MIN_PAIRS = 3
 #: a factor of 10 (cm read as mm or mm as cm) or more off any walking person's 0.8-2.3 m.
 PLAUSIBLE_HEIGHT = (0.4, 5.0)
 
-#: Residual (m) above which a left/right pair is checked for exchanged labels.
-SWAP_RESIDUAL = 0.03
-#: The check refits every SWAP_STRIDE-th calibration frame without the pair, from the nominal
-#: fit's poses, in at most SWAP_ITERATIONS iterations: its ratio (swapped over labelled
-#: distances, :func:`find_swaps`) then moves by at most 9 % against all frames refitted to
-#: convergence (118 pairs of the real files and samples), while the nearest pair that is not
-#: swapped stands 2.6 times over the limit and motonms Walking3's acromions 4 times under it.
-SWAP_STRIDE = 3
-SWAP_ITERATIONS = 10
-
 #: What a static trial's pose is taken to be: "neutral" (anatomical, every joint angle 0) or
 #: "free" (unknown: fitted, like a motion).
 STATIC_POSES = ("neutral", "free")
@@ -123,6 +122,9 @@ STATIC_POSES = ("neutral", "free")
 #: (the samples' rest, motonms Static1, biomechzoo HC030A01, btkdata PiG_Calibration2), 0.2 m
 #: turning on the spot, metres walking.
 STANDING_EXTENT = 0.05
+#: Shortest stretch (s) of a static that moves (a step-in, a turn) taken for calibration: the
+#: quietest one of that length (:func:`standing_part`).
+STATIC_WINDOW_S = 1.0
 
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
@@ -165,13 +167,16 @@ class SubjectModel:
     rms : float. Marker RMS of the calibration fit, metres.
     history : list[float]. Marker RMS after each refinement round, metres.
     source : str or None. The calibration trial's file (the static one when given).
-    swapped : list of (label, label). Left/right pairs whose labels the trial exchanges; their
-        data are exchanged back when fitting (:func:`mocaplib.ik.model_markers`).
+    swapped : list of (label, label). Pairs whose labels the calibration trial exchanges (in
+        all or part of its frames, :func:`mocaplib.ik.find_repairs`); calibration read them
+        exchanged back. A fit finds the motion's own (``Motion.repairs``).
     centre_methods : dict[str, str]. How each joint centre was found (``"knee_l"``: ``"chord,
         knee width from the measurements"``...), see :func:`joint_centres`.
     unobservable : dict[str, float]. DOFs the markers cannot see well enough, held at 0 (also
         in ``locked_dofs``), with the standard deviation (radians) one frame's markers would
         leave them at (:func:`unobservable_dofs`).
+    static_window_s : (start, end) or None. Seconds from the static's first frame of the
+        stretch of it used (:func:`standing_part`); None without a static.
     """
 
     skeleton: Skeleton
@@ -187,6 +192,7 @@ class SubjectModel:
     swapped: list[tuple[str, str]] = field(default_factory=list)
     centre_methods: dict[str, str] = field(default_factory=dict)
     unobservable: dict[str, float] = field(default_factory=dict)
+    static_window_s: tuple[float, float] | None = None
 
     @property
     def marker_weights(self) -> np.ndarray:
@@ -201,9 +207,10 @@ class SubjectModel:
 
     @property
     def swap_warnings(self) -> list[str]:
-        """One sentence per left/right pair in :attr:`swapped`, for the user."""
-        return [f"labels {a} and {b} look exchanged (each marker lies where the other belongs); "
-                "the fit exchanges them back: check the labelling" for a, b in self.swapped]
+        """One sentence per pair in :attr:`swapped`, for the user."""
+        return [f"calibration trial {self.source or ''}: labels {a} and {b} look exchanged "
+                "(each marker lies where the other belongs); calibration exchanged them back: "
+                "check the labelling" for a, b in self.swapped]
 
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
@@ -219,7 +226,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               static: Trial | None = None, static_pose: str = "free",
               height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8, heading_offset: float = 0.0,
-              measurements: dict[str, float] | None = None) -> SubjectModel:
+              measurements: dict[str, float] | None = None,
+              static_window: tuple[float, float] | None = None) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -239,12 +247,15 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     max_rounds : refinement rounds at most (step 5).
     heading_offset : radians added to the neutral static's fitted heading before the offsets
         are measured (step 4'), turning every segment frame about the vertical: the correction
-        a forward reference measures (:func:`mocaplib.pipeline.forward_offsets`). Only with a
+        a forward reference measures (:func:`mocaplib.workflow.forward_offsets`). Only with a
         static in the neutral pose.
     measurements : subject measurements (metres, kilograms;
         :data:`mocaplib.anatomy.MEASUREMENTS` keys) that override those the calibration
         trial's file stores (:attr:`Trial.measurements`); knee and ankle widths and the marker
         diameter place the knee and ankle centres (:func:`joint_centres`).
+    static_window : (start, end) seconds from the static's first frame: the stretch of the
+        static to calibrate on; default: the whole static when it stands still, else its
+        quietest stretch (:func:`standing_part`).
 
     Returns
     -------
@@ -257,8 +268,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         raise CalibrationError("a heading offset turns the frame of a static in the neutral pose: "
                                "give the static with static_pose='neutral'",
                                path=getattr(static, "source", None) or trial.source)
+    window = None
     if static is not None:
-        check_standing(static)
+        static, window = standing_part(static, window=static_window)
     cal = static if static is not None else trial
     measurements = {**cal.measurements, **(measurements or {})}
     proto = choose_protocol(trial, protocol)   # on the motion, as every command resolves it
@@ -277,7 +289,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
-    nominal = np.array([m.landmark.position for m in markers])
+    nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     landmarks = [m.landmark.name for m in markers]
     if height is None:
         height = estimate_height(X, segments, nominal, source=cal.source)
@@ -286,22 +298,15 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     nominal_scaled = nominal * scale
     offsets = nominal_scaled
 
-    # step 3: anatomical joint centres from a nominal fit
-    first = solve_poses(skeleton, X, segments, offsets, free=free)
-
-    tested = slice(None, None, SWAP_STRIDE)
-
-    def fit_without(i, j):
-        Xij = X[tested].copy()
-        Xij[:, [i, j]] = np.nan
-        return skeleton.points(solve_poses(skeleton, Xij, segments, offsets, q0=first.q[tested],
-                                           free=free, max_iter=SWAP_ITERATIONS).q,
-                               segments, offsets)
-
-    swapped = find_swaps(fit_without, first.residuals, X[tested], labels, landmarks)
-    if swapped:
-        X = exchange(X, labels, swapped)
-        first = solve_poses(skeleton, X, segments, offsets, free=free)
+    # step 3: anatomical joint centres from a nominal fit (tracking markers wait for step 4)
+    known, known_offsets = landmark_markers(X, offsets)
+    first = solve_poses(skeleton, known, segments, known_offsets, free=free)
+    repairs = find_repairs(skeleton, known, segments, known_offsets, labels, first, free=free)
+    swapped = list(dict.fromkeys(r.labels for r in repairs))
+    if repairs:
+        X = apply_repairs(X, labels, repairs)
+        known = landmark_markers(X, offsets)[0]
+        first = solve_poses(skeleton, known, segments, known_offsets, free=free)
     centres, methods = joint_centres(X, landmarks, segments, skeleton, first.q, scale=scale,
                                      measurements=measurements)
     anatomical = _lengths_from_centres(skeleton, centres)
@@ -309,13 +314,15 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     if static is not None and static_pose == "neutral":
         offsets, rms, poses = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
                                               heading_offset=heading_offset)
-        return _hold_unobservable(SubjectModel(skeleton, proto, labels, segments, offsets, locked,
-                                               left_out, rms, [rms], cal.source, swapped,
-                                               methods), poses)
+        model = SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
+                             [rms], cal.source, swapped, methods, static_window_s=window)
+        _check_measured(model, cal)
+        return _hold_unobservable(model, poses)
     # step 4: poses with the joint centres as stiff virtual markers, then offsets
     v_seg, v_off, v_pos = _virtual_markers(skeleton, centres, len(X))
-    poses = solve_poses(skeleton, np.concatenate([X, v_pos], axis=1),
-                        np.concatenate([segments, v_seg]), np.vstack([offsets, v_off]),
+    X_known, known_offsets = landmark_markers(X, offsets)
+    poses = solve_poses(skeleton, np.concatenate([X_known, v_pos], axis=1),
+                        np.concatenate([segments, v_seg]), np.vstack([known_offsets, v_off]),
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
@@ -334,7 +341,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         # soft tissue of the movement, so step 5 runs on the motion's frames
         pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
         if (pelvis_seen.sum(axis=1) >= 3).any():
-            X = exchange(X_motion[_calibration_frames(X_motion, n_frames)], labels, swapped)
+            X = X_motion[_calibration_frames(X_motion, n_frames)]
+            start = solve_poses(skeleton, X, segments, offsets, free=free)
+            X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
+                                                      start, free=free))
             poses = None
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
@@ -346,17 +356,18 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if best is not None and rms >= best.rms:
             break
         best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
-                            rms, [], cal.source, swapped, methods)
+                            rms, [], cal.source, swapped, methods, static_window_s=window)
         best_poses = fit.q
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
         registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
-                                      align=ALIGNED_IN_REFINEMENT)
+                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets)
         offsets = np.where(anatomical_markers[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
                                   fixed=fixed_lengths)
     best.history = history
+    _check_measured(best, cal)
     return _hold_unobservable(best, best_poses)
 
 
@@ -470,18 +481,101 @@ def check_standing(static: Trial) -> None:
     """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
     (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
     calibrates a subject in mid-stride."""
-    seen = np.isfinite(static.markers).all(axis=2).any(axis=0)
-    if not seen.any():
-        return  # nothing to judge: calibration refuses it with its own reason
-    points = static.markers[:, seen]
-    extent = np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0), axis=1)
-    moved = float(np.median(extent))
-    if moved > STANDING_EXTENT:
+    moved = moved_extent(static.markers)
+    if moved > STANDING_EXTENT:   # NaN, no marker seen: calibration refuses it with its reason
         raise CalibrationError(
             f"is not a standing static trial: its markers move {moved:.2f} m (median over the "
             f"markers; a static moves less than {STANDING_EXTENT * 100:.0f} cm)",
             path=static.source, hint="give the static calibration trial (the subject standing "
                                      "still) as --static, and the motion as a capture")
+
+
+def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
+                  ) -> tuple[Trial, tuple[float, float]]:
+    """The stretch of a static trial to calibrate on, and its (start, end) seconds from the
+    static's first frame.
+
+    ``window`` (start, end) seconds: that stretch (the frames within it). Without one, the
+    whole static when it stands still (:func:`check_standing`), otherwise its quietest stretch
+    of :data:`STATIC_WINDOW_S` (a subject stepping in or turning before standing still): the
+    one whose markers move least (median over the markers seen in most of it of each marker's
+    extent). A static shorter than that, a single frame included, is taken whole. Raises
+    :class:`CalibrationError` naming the static when the stretch does not stand still, or a
+    ``window`` holds no frame of it.
+    """
+    from dataclasses import replace
+
+    n = static.n_frames
+    if window is not None:
+        start, end = (float(value) for value in window)
+        frames = np.flatnonzero((static.time >= start - 1e-9) & (static.time <= end + 1e-9))
+        if not (end > start or (end == start and frames.size)) or not frames.size:
+            raise CalibrationError(f"the static window {start:g}-{end:g} s holds no frame of "
+                                   f"the static ({n} frames, 0-{static.duration:.3g} s)",
+                                   path=static.source,
+                                   hint="give START:END within the static, in seconds from "
+                                        "its first frame")
+        lo, hi = int(frames[0]), int(frames[-1]) + 1
+    else:
+        lo, hi = 0, n
+        length = int(round(STATIC_WINDOW_S * static.rate)) + 1
+        if n > length and moved_extent(static.markers) > STANDING_EXTENT:
+            lo = quietest_stretch(static.markers, length)
+            hi = lo + length
+    span = (lo / static.rate, (hi - 1) / static.rate)
+    if (lo, hi) == (0, n):
+        check_standing(static)
+        return static, span
+    part = replace(static, markers=static.markers[lo:hi], first_frame=static.first_frame + lo,
+                   events=[], warnings=list(static.warnings))
+    moved = moved_extent(part.markers)
+    if moved > STANDING_EXTENT:
+        which = "the window" if window is not None else f"its quietest {STATIC_WINDOW_S:g} s"
+        raise CalibrationError(
+            f"is not a standing static trial: even {which} ({span[0]:.2f}-{span[1]:.2f} s) "
+            f"moves {moved:.2f} m (median over the markers; a static moves less than "
+            f"{STANDING_EXTENT * 100:.0f} cm)", path=static.source,
+            hint="give the static calibration trial (the subject standing still) as --static, "
+                 "or the stretch where the subject stands with --static-window START:END")
+    return part, span
+
+
+def moved_extent(markers: np.ndarray, /) -> float:
+    """Median over the markers seen in ``markers`` (F, M, 3) of each one's extent (m), NaN
+    when none is seen."""
+    seen = np.isfinite(markers).all(axis=2).any(axis=0)
+    if not seen.any():
+        return float("nan")
+    points = markers[:, seen]
+    return float(np.median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
+                                          axis=1)))
+
+
+def quietest_stretch(markers: np.ndarray, length: int, /) -> int:
+    """First frame of the ``length`` frames of ``markers`` (F, M, 3) whose markers move least:
+    the median over the markers seen in at least half of the stretch of their extent, among
+    the stretches that see at least 90 % of the most markers any stretch sees."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    n = len(markers) - length + 1
+    origin = -(length // 2)     # each filter value covers [i, i + length)
+    highest = maximum_filter1d(np.nan_to_num(markers, nan=-np.inf), length, axis=0,
+                               origin=origin)[:n]
+    lowest = minimum_filter1d(np.nan_to_num(markers, nan=np.inf), length, axis=0,
+                              origin=origin)[:n]
+    seen = np.isfinite(markers).all(axis=2).astype(float)
+    counts = np.cumsum(np.vstack([np.zeros((1, seen.shape[1])), seen]), axis=0)
+    enough = (counts[length:length + n] - counts[:n]) >= 0.5 * length          # (n, M)
+    with np.errstate(invalid="ignore"):
+        extent = np.linalg.norm(highest - lowest, axis=2)                      # (n, M)
+    extent = np.where(enough & np.isfinite(extent), extent, np.nan)
+    markers_seen = enough.sum(axis=1)
+    candidates = markers_seen >= 0.9 * markers_seen.max()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)      # a stretch seeing no marker: NaN
+        moved = np.nanmedian(extent, axis=1)
+    moved[~candidates | ~np.isfinite(moved)] = np.inf
+    return int(np.argmin(moved))
 
 
 def check_static(trial: Trial, static: Trial, model: SubjectModel) -> None:
@@ -591,14 +685,16 @@ def static_names(paths: Sequence[str]) -> list[str]:
     return names
 
 
-def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) -> int | None:
+def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol, *,
+                  check_one: bool = False) -> int | None:
     """Index of the static in ``statics`` that shows ``trial``'s subject, for a batch of
     several subjects or sessions: the least step-0 difference (:func:`check_same_subject`
     over the within-segment marker pairs of ``protocol``), if within
     :data:`SAME_SUBJECT_LIMIT`. Raises :class:`CalibrationError` naming the trial and each
     static with its difference when none is within the limit or none can be compared. With
-    one static, 0 (:func:`calibrate` checks it in step 0); with none, None."""
-    if len(statics) < 2:
+    one static, 0 (:func:`calibrate` checks it in step 0) unless ``check_one``; with none,
+    None."""
+    if len(statics) < 2 and not (check_one and statics):
         return 0 if statics else None
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in protocol.markers])
     X_motion = match_protocol(trial, protocol, check_swaps=False).markers(trial)
@@ -613,8 +709,10 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol) ->
         f"{name} " + ("shares too few marker pairs with it (another marker set?)"
                       if np.isnan(gap) else f"{1000 * gap:.1f} mm")
         for name, gap in zip(names, gaps))
+    which = (f"none of the {len(statics)} static trials shows" if len(statics) > 1
+             else "the static trial does not show")
     raise CalibrationError(
-        f"none of the {len(statics)} static trials shows this capture's subject with the same "
+        f"{which} this capture's subject with the same "
         f"markers (median difference of the distances between markers on one segment; one "
         f"subject stays within {1000 * SAME_SUBJECT_LIMIT:.0f} mm): {listing}",
         path=trial.source, hint="add the static recorded with this subject in this session, "
@@ -627,54 +725,22 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
     ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
-    (scaled) for the start. Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is
-    fitted to all markers with the nominal offsets, its heading turned by ``heading_offset``
+    (scaled) for the start (NaN for tracking markers: they are left out of the root's fit).
+    Every joint angle is held at 0; the root pose (pelvis 6 DOFs) is fitted to the landmark
+    markers with the nominal offsets, its heading turned by ``heading_offset``
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
     defines the segment frames). Returns the offsets, the RMS (m) of the static markers
     about the neutral model with them, and the poses (F, D).
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
-    q0 = np.where(root, initial_pose(skeleton, X, segments, nominal), 0.0)
-    q = solve_poses(skeleton, X, segments, nominal, q0=q0, free=root, smoothing=0.0).q
+    X_known, known = landmark_markers(X, nominal)
+    q0 = np.where(root, initial_pose(skeleton, X_known, segments, known), 0.0)
+    q = solve_poses(skeleton, X_known, segments, known, q0=q0, free=root, smoothing=0.0).q
     q[:, ROOT_HEADING] += heading_offset
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
     return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q
-
-
-def find_swaps(fit_without, residuals: np.ndarray, X: np.ndarray, labels: list[str],
-               landmarks: list[str]) -> list[tuple[str, str]]:
-    """Left/right marker pairs whose labels are exchanged in the trial.
-
-    ``residuals`` (F, M) of a fit of markers ``X`` (F, M, 3). A pair ``L_x``/``R_x`` whose
-    residuals exceed :data:`SWAP_RESIDUAL` is refitted without its two markers
-    (``fit_without(i, j)`` returns the model markers (F, M, 3) of that fit); it is called
-    swapped when each marker lies nearer the other's model position than its own, by half.
-    """
-    index = {name: i for i, name in enumerate(landmarks)}
-    out = []
-    for name, i in index.items():
-        j = index.get("R_" + name[2:]) if name.startswith("L_") else None
-        if j is None or np.nanmedian(residuals[:, [i, j]]) < SWAP_RESIDUAL:
-            continue
-        model = fit_without(i, j)
-
-        def gap(a, b):
-            return np.nanmedian(np.linalg.norm(X[:, a] - model[:, b], axis=1))
-
-        if gap(i, j) + gap(j, i) < 0.5 * (gap(i, i) + gap(j, j)):
-            out.append((labels[i], labels[j]))
-    return out
-
-
-def exchange(X: np.ndarray, labels: list[str], pairs: list[tuple[str, str]]) -> np.ndarray:
-    """Markers (F, M, 3) with the columns of each labelled pair exchanged (a copy)."""
-    X = X.copy()
-    for a, b in pairs:
-        i, j = labels.index(a), labels.index(b)
-        X[:, [i, j]] = X[:, [j, i]]
-    return X
 
 
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
@@ -757,7 +823,10 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
     ``q`` (F, D). Elbow: midpoint or catalogue offset; shoulder: the acromion's catalogue
-    offset; wrist: mid-styloids. ``scale`` = height / 1.75 scales catalogue offsets. The
+    offset; wrist: mid-styloids. A knee, ankle or elbow none of these place is the functional
+    centre of three markers of each of its segments
+    (:func:`mocaplib.anatomy.functional_centre`, the proximal centre as the hinge's hint),
+    when the joint turns enough over the frames. ``scale`` = height / 1.75 scales catalogue offsets. The
     methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
     are returned beside the centres.
     """
@@ -820,12 +889,32 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 else:
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
+        for child, parent in (("tibia", "femur"), ("foot", "tibia"), ("forearm", "humerus")):
+            if (child + suffix, 0.0) in out:
+                continue
+            frames = [_three_markers(X, segments, name + suffix) for name in (parent, child)]
+            centre = None if None in frames else functional_centre(
+                *frames, hint=out.get((parent + suffix, 0.0)))
+            if centre is not None:
+                out[(child + suffix, 0.0)] = centre
+                methods[_JOINT_NAMES[child] + suffix] = \
+                    f"functional (SCoRE) from the {parent}'s and {child}'s markers"
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
             out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
                 0.5 * (where[rad] + where[uln]))
             methods["wrist" + suffix] = "midpoint of the styloids"
     return out, methods
+
+
+def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
+    """The rigid frames (:func:`mocaplib.anatomy.marker_frames`) of the three markers of
+    ``segment`` seen in the most frames of X (F, M, 3), or None when it carries fewer."""
+    on = np.flatnonzero(segments == SEGMENT_NAMES.index(segment))
+    if len(on) < 3:
+        return None
+    seen = np.isfinite(X[:, on, 0]).sum(axis=0)
+    return marker_frames(X[:, on[np.argsort(-seen, kind="stable")[:3]]])
 
 
 def _wand(landmarks: list[str], segments: np.ndarray, parent: int, side: str,
@@ -906,33 +995,38 @@ def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.nda
 
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
-                     nominal: np.ndarray, align=SEGMENT_NAMES) -> np.ndarray:
+                     nominal: np.ndarray, align=SEGMENT_NAMES,
+                     unseen: np.ndarray | None = None) -> np.ndarray:
     """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
 
     Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
-    where the marker is seen (never seen: ``nominal``). Offsets fix a segment's markers but not
-    its frame: a constant rotation of the frame could be absorbed by the offsets. So each
-    segment's offsets are then turned about their centroid by the rotation that best aligns
-    them with the catalogue layout ``nominal`` (M, 3) (Kabsch; with two markers the segment
-    origin joins them; a lone marker keeps its distance and takes the nominal direction). The frame
-    is thus anatomical: zero angles put the markers in the catalogue's layout, as the DOF sign table
+    where the marker is seen (never seen: its row of ``unseen``, by default ``nominal``).
+    Offsets fix a segment's markers but not its frame: a constant rotation of the frame could
+    be absorbed by the offsets. So each segment's offsets are then turned about their centroid
+    by the rotation that best aligns its landmark markers with the catalogue layout
+    ``nominal`` (M, 3) (Kabsch; with two landmark markers the segment origin joins them; a lone
+    one is turned about the origin onto its nominal direction); a tracking marker (NaN row of
+    ``nominal``) turns with its segment's landmark markers. The frame is thus anatomical: zero
+    angles put the landmark markers in the catalogue's layout, as the DOF sign table
     describes. Only segments named in ``align`` are turned.
     """
     T = skeleton.forward(q)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # a marker never seen: NaN
-        mean = np.nanmean(local, axis=0) if len(q) else nominal
-    out = np.where(np.isfinite(mean), mean, nominal)
+        mean = np.nanmean(local, axis=0) if len(q) else np.full_like(nominal, np.nan)
+    out = np.where(np.isfinite(mean), mean, nominal if unseen is None else unseen)
+    catalogued = np.isfinite(nominal).all(axis=1) & np.isfinite(out).all(axis=1)
     for s in np.unique(segments):
         idx = np.flatnonzero(segments == s)
-        if SEGMENT_NAMES[s] not in align:
+        ref = idx[catalogued[idx]]
+        if SEGMENT_NAMES[s] not in align or not len(ref):
             continue
-        if len(idx) == 1:
-            out[idx] = _unit(nominal[idx]) * np.linalg.norm(out[idx], axis=1, keepdims=True)
+        if len(ref) == 1:                # the turn taking its direction onto the nominal one
+            out[idx] = out[idx] @ _turn_between(out[ref[0]], nominal[ref[0]]).T
             continue
-        reg, nom = out[idx], nominal[idx]
-        if len(idx) == 2:                          # the origin fixes the turn about their line
+        reg, nom = out[ref], nominal[ref]
+        if len(ref) == 2:                          # the origin fixes the turn about their line
             reg, nom = np.vstack([reg, np.zeros(3)]), np.vstack([nom, np.zeros(3)])
         c_reg, c_nom = reg.mean(axis=0), nom.mean(axis=0)
         U, _, Vt = np.linalg.svd((reg - c_reg).T @ (nom - c_nom))
@@ -940,6 +1034,36 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
         R = U @ D @ Vt                              # rotation taking nominal to registered
         out[idx] = c_reg + (out[idx] - c_reg) @ R
     return out
+
+
+def _turn_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3, 3) taking the direction of ``a`` (3,) onto that of ``b``."""
+    a, b = _unit(a), _unit(b)
+    v, c = np.cross(a, b), float(a @ b)
+    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + k + k @ k / (1.0 + c) if c > -1.0 + 1e-12 else -np.eye(3)
+
+
+def landmark_markers(X: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Markers X (F, M, 3) and offsets (M, 3) for a fit that leaves out the tracking markers
+    whose offsets are not measured yet (NaN rows): their columns NaN, their offsets 0."""
+    unknown = ~np.isfinite(offsets).all(axis=1)
+    return (np.where(unknown[None, :, None], np.nan, X),
+            np.where(unknown[:, None], 0.0, offsets))
+
+
+def _check_measured(model: SubjectModel, cal: Trial) -> None:
+    """Raise :class:`CalibrationError` naming the tracking markers whose offsets could not be
+    measured (never seen where their segment's pose is known)."""
+    bad = [label for label, o in zip(model.labels, model.marker_offsets)
+           if not np.isfinite(o).all()]
+    if bad:
+        raise CalibrationError(
+            f"cannot measure where tracking marker{'s' if len(bad) > 1 else ''} "
+            f"{', '.join(bad)} sit{'' if len(bad) > 1 else 's'}: not seen in the calibration "
+            "frames together with the markers that place their segment", path=cal.source,
+            hint="check the marker's gaps with `mocaplib inspect`, or give a static trial "
+                 "(--static) that shows it")
 
 
 def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,

@@ -16,7 +16,7 @@ stumbles and turns that start mid-cycle all raise it. The chosen cycle is the on
 lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
 if none qualifies); ties go to the earlier cycle. ``mocaplib cycles`` and ``mocaplib build``
 first narrow the candidates to the cycles that pass the library's QC, when any does
-(:func:`mocaplib.pipeline.qc_and_choice`), so a capture whose steadiest cycle fails QC
+(:func:`mocaplib.qc.qc_and_choice`), so a capture whose steadiest cycle fails QC
 contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
 on one, so callers keep all of them on request (``--all-cycles``).
 
@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import EventError
+from .errors import EventError, NoCycleError
 from .events import GaitEvent
 from .filtering import resample
 from .fourier import (ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding,
@@ -163,8 +163,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         Frame rate, Hz.
     q
         Optional joint coordinates (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order; when
-        given each cycle gets its Fourier encoding (tolerances ``tol_angle`` rad,
-        ``tol_length`` m).
+        given each cycle gets its Fourier encoding (tolerances ``tol_angle`` rad, raised to
+        each angle's noise floor, and ``tol_length`` m: :func:`mocaplib.fourier.encode_cycle`).
     ground
         The floor's velocity (3,) m/s, from :func:`mocaplib.events.ground_velocity`: on a
         treadmill, paths, velocities and the root's drift are measured relative to the belt.
@@ -174,7 +174,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     Raises
     ------
     EventError
-        When there are events but fewer than two left toe-offs.
+        :class:`~mocaplib.errors.NoCycleError` when there are events but fewer than two left
+        toe-offs.
     """
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:
@@ -186,12 +187,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                             tol_angle, tol_length)]
     pairs = cycle_bounds(events)
     if not pairs:
-        raise EventError("no complete cycle: fewer than two left toe-offs were found",
-                         path=source,
-                         hint="a cycle runs from one left toe-off to the next; capture at "
-                              "least two full strides, or, if it has them, check its frame "
-                              "rate (POINT:RATE): a wrong rate makes the swings seem too short "
-                              "or too slow to count")
+        raise NoCycleError("no complete cycle: fewer than two left toe-offs were found",
+                           path=source, hint=_no_cycle_hint(left_shoulder, right_shoulder, rate))
+    smooth = None if q is None else _smoothed(q, rate)
     cycles = []
     for index, (first, last) in enumerate(pairs):
         start, end = first.time_s, last.time_s
@@ -202,8 +200,10 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         encoding = None
         if q is not None:
             samples = _interpolate(q, rate, times, source)
+            noise = None if smooth is None else np.sqrt(np.nanmean(
+                (samples - resample(smooth, rate, times))[:-1] ** 2, axis=0))
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
-                                    tol_angle=tol_angle, tol_length=tol_length)
+                                    tol_angle=tol_angle, tol_length=tol_length, noise=noise)
         cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
                             min(first.quality, last.quality), encoding,
                             right_toe_off=_first_inside(events, "right", start, end)))
@@ -211,11 +211,32 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     return cycles
 
 
+def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float) -> str:
+    """What to do about a capture without two left toe-offs: a capture whose shoulders stand
+    still (:data:`mocaplib.calibration.STANDING_EXTENT`) for a second or more, half of it at
+    least, is a static with a step; otherwise it holds too few strides, or a wrong rate."""
+    from .calibration import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
+
+    mid = 0.5 * (np.asarray(left, dtype=float) + np.asarray(right, dtype=float))[:, None]
+    length = int(round(STATIC_WINDOW_S * rate)) + 1
+    if len(mid) > length:
+        start = quietest_stretch(mid, length)
+        still = [moved_extent(mid[start:start + k]) <= STANDING_EXTENT
+                 for k in (length, len(mid) // 2)]
+        if all(still):
+            return ("the subject stands still for most of it: a static trial (a step in or out "
+                    "around it)? Give it with --static, which uses its quietest second (or "
+                    "--static-window START:END)")
+    return ("a cycle runs from one left toe-off to the next; capture at least two full "
+            "strides, or, if it has them, check its frame rate (POINT:RATE): a wrong rate "
+            "makes the swings seem too short or too slow to count")
+
+
 def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) -> Cycle:
     """Mark and return the steadiest cycle (module docstring's rule); clears other marks.
 
     ``eligible``: indices of the cycles that may be chosen (those passing the library's QC,
-    :func:`mocaplib.pipeline.qc_and_choice`); every cycle when None or when none is eligible.
+    :func:`mocaplib.qc.qc_and_choice`); every cycle when None or when none is eligible.
     """
     if not cycles:
         raise EventError("no cycle to choose from")
@@ -248,12 +269,13 @@ def _unsteadiness(times: np.ndarray, mid: np.ndarray, heading: np.ndarray) -> fl
 
 def check_rest_duration(n_frames: int, rate: float, /, *,
                         source: str | os.PathLike | None = None) -> None:
-    """Raise :class:`EventError` when a capture of ``n_frames`` at ``rate`` Hz without a gait
+    """Raise :class:`~mocaplib.errors.NoCycleError` (an :class:`EventError`) when a capture of
+    ``n_frames`` at ``rate`` Hz without a gait
     event is too short to be rest: it spans (first to last frame) less than
     :data:`REST_PERIOD`, so it may as well be a fragment of walking."""
     duration = (n_frames - 1) / rate if n_frames else 0.0
     if duration < REST_PERIOD:
-        raise EventError(f"a capture of {n_frames} frame(s) cannot be a rest entry: "
+        raise NoCycleError(f"a capture of {n_frames} frame(s) cannot be a rest entry: "
                          f"{duration:.3g} s without a gait event, shorter than the "
                          f"{REST_PERIOD:g} s a rest entry spans", path=source,
                          hint="capture at least a second of standing, or two full strides")
@@ -284,6 +306,17 @@ def _unwrapped(q: np.ndarray, n_frames: int, source) -> np.ndarray:
         valid = np.isfinite(q[:, d])
         out[valid, d] = np.unwrap(q[valid, d])
     return out
+
+
+def _smoothed(q: np.ndarray, rate: float) -> np.ndarray | None:
+    """The coordinates (F, D) low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF`, from
+    which each cycle's noise floor is measured (:mod:`mocaplib.fourier`); None when the capture
+    is too short or too slowly sampled to be filtered there."""
+    from .filtering import WALKING_CUTOFF, lowpass, shortest_run
+
+    if len(q) < shortest_run(rate, WALKING_CUTOFF) or rate <= 2 * WALKING_CUTOFF:
+        return None
+    return lowpass(q, rate, WALKING_CUTOFF)
 
 
 def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> np.ndarray:

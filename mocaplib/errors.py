@@ -62,6 +62,11 @@ class EventError(MocapError):
     """Gait events or cycles cannot be found in a capture."""
 
 
+class NoCycleError(EventError):
+    """A capture that holds no complete cycle (nor rest): it gives no library entry, which a
+    build reports as such, not as a failure."""
+
+
 class LibraryError(MocapError):
     """A motion library file is malformed, invalid or cannot be written."""
 

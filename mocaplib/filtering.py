@@ -67,12 +67,6 @@ NOISE_BAND = (0.4, 0.75)
 AUTO_MIN, AUTO_MAX = 2.0, 0.4
 
 
-def valid_runs(valid: np.ndarray) -> np.ndarray:
-    """(start, stop) pairs (R, 2) of the runs of True in ``valid`` (F,) bool, stop exclusive."""
-    _, starts, stops = _column_runs(np.asarray(valid, bool)[:, None])
-    return np.stack([starts, stops], axis=1)
-
-
 def resample(values: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
     """``values`` (F, C), frame k at ``k / rate`` s, at ``times`` (n,) s: linear between the
     finite samples of each column, gaps bridged, held flat beyond the first and last. Returns

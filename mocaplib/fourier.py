@@ -14,9 +14,22 @@ Periodic channels: every angle is unwrapped over the cycle. The root's horizonta
 moving along the cycle's path (see :class:`RootDrift`): what is encoded is the root pose relative
 to that frame, which is periodic; the drift itself (start pose and the frame's constant
 body-frame velocity and turn rate) is stored apart and :meth:`RootDrift.restore` puts it back.
+A real cycle never closes exactly either (an arm swings a little further, a stride ends a little
+differently: 5-25° on some DOF of every lab walk at hand), and a series forced through that
+step needs every harmonic it is allowed. So each channel's change from the cycle's start to its
+end (its *ramp*, D numbers, 0 for the three root channels the drift carries) is taken out as a
+straight line, ``q_d(t) - ramp_d·t/T``, and stored beside the series: the series is the
+periodic cycle a controller loops, series + ramp·t/T the captured one.
 
-Order N is chosen by tolerance: the smallest N with reconstruction RMS at the samples within
-``tol_angle`` (0.5° by default) for every rotational DOF and ``tol_length`` for translations.
+**Order (the rule).** The smallest N whose reconstruction RMS at the samples is within each
+channel's tolerance: ``tol_length`` (2 mm) for translations; for an angle, what its data
+support: its *noise floor* — the RMS over the cycle of the fitted angle minus the angle
+low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (6 Hz; what a gait analysis keeps) —
+clipped to [``tol_angle``, :data:`MAX_ANGLE_TOLERANCE`] = [0.5°, 1°]. A clean angle is encoded
+within 0.5° (Skejø 2021: about 5 harmonic pairs); a noisy one within its own noise, never
+looser than 1°, which is the library's Fourier QC limit (:data:`mocaplib.library.QC_LIMITS`):
+a cycle fails it only when 20 harmonics cannot reach 1° on some angle. Measured orders:
+docs/guide/fourier.md.
 """
 
 from __future__ import annotations
@@ -34,6 +47,10 @@ ROOT_X, ROOT_Y = DOF_NAMES.index("pelvis_tx"), DOF_NAMES.index("pelvis_ty")
 #: The encoder's defaults: the reconstruction tolerance of angles (rad) and of translations (m),
 #: and the highest order it may reach.
 ANGLE_TOLERANCE, LENGTH_TOLERANCE, MAX_ORDER = float(np.deg2rad(0.5)), 0.002, 20
+#: The loosest tolerance an angle's noise floor may give it (rad): the Fourier QC limit.
+MAX_ANGLE_TOLERANCE = float(np.deg2rad(1.0))
+#: Channels without a ramp: the root's horizontal pose, which :class:`RootDrift` carries.
+ROOT_CHANNELS = np.isin(np.arange(len(DOF_NAMES)), [ROOT_X, ROOT_Y, ROOT_HEADING])
 
 
 @dataclass(frozen=True)
@@ -206,14 +223,19 @@ def root_drift(q_start: np.ndarray, q_end: np.ndarray, period: float, /) -> Root
 class CycleEncoding:
     """Fourier encoding of one cycle of a fitted motion.
 
-    ``series`` holds the periodic channels (D = len(DOF_NAMES)), root in the moving frame;
-    ``drift`` the root drift; ``worst_dof`` the DOF with the largest RMS relative to its
-    tolerance.
+    ``series`` holds the periodic channels (D = len(DOF_NAMES)), root in the moving frame,
+    ramps taken out; ``drift`` the root drift; ``ramp`` (D,) each channel's change from the
+    cycle's start to its end, taken out as ``ramp·t/T`` before encoding (rad or m; 0 for the
+    root's horizontal channels); ``tolerance`` (D,) the reconstruction tolerance each channel
+    was encoded to (module docstring); ``worst_dof`` the DOF with the largest RMS relative to
+    its tolerance.
     """
 
     series: FourierSeries
     drift: RootDrift
     worst_dof: str
+    ramp: np.ndarray
+    tolerance: np.ndarray
 
     @property
     def order(self) -> int:
@@ -224,30 +246,55 @@ class CycleEncoding:
         """Largest reconstruction RMS over the rotational DOFs, degrees."""
         return float(np.rad2deg(self.series.rms[~TRANSLATION].max()))
 
-    def synthesize_world(self, t) -> np.ndarray:
-        """Joint coordinates (n, D) at times ``t`` (n,) in [0, T], drift put back (world frame)."""
+    def synthesize_cycle(self, t) -> np.ndarray:
+        """The captured cycle's coordinates (n, D) at times ``t`` (n,) in [0, T], root in the
+        moving frame: the series plus the ramps."""
         t = np.asarray(t, dtype=np.float64)
-        return self.drift.restore(self.series(t), t)
+        return self.series(t) + np.outer(t / self.series.period, self.ramp)
+
+    def synthesize_world(self, t) -> np.ndarray:
+        """Joint coordinates (n, D) at times ``t`` (n,) in [0, T], ramps and drift put back
+        (world frame)."""
+        t = np.asarray(t, dtype=np.float64)
+        return self.drift.restore(self.synthesize_cycle(t), t)
+
+
+def channel_tolerance(noise: np.ndarray | None = None, /, *,
+                      tol_angle: float = ANGLE_TOLERANCE,
+                      tol_length: float = LENGTH_TOLERANCE) -> np.ndarray:
+    """Each channel's encoding tolerance (D,) (module docstring's rule): ``tol_length`` for
+    translations; for angles their ``noise`` floor (D,) rad clipped to [``tol_angle``,
+    :data:`MAX_ANGLE_TOLERANCE`] (``tol_angle`` without one)."""
+    angles = np.full(len(DOF_NAMES), tol_angle)
+    if noise is not None:
+        angles = np.clip(np.nan_to_num(np.asarray(noise, dtype=np.float64), nan=0.0),
+                         tol_angle, max(tol_angle, MAX_ANGLE_TOLERANCE))
+    return np.where(TRANSLATION, tol_length, angles)
 
 
 def encode_cycle(q: np.ndarray, time_s: np.ndarray, period: float, q_end: np.ndarray, /, *,
                  tol_angle: float = ANGLE_TOLERANCE, tol_length: float = LENGTH_TOLERANCE,
-                 max_order: int = MAX_ORDER) -> CycleEncoding:
+                 noise: np.ndarray | None = None, max_order: int = MAX_ORDER) -> CycleEncoding:
     """Encode one cycle of joint coordinates.
 
     ``q`` (n, D) in :data:`DOF_NAMES` order (rad; ``pelvis_t*`` m) at ``time_s`` (n,) seconds
     from the cycle start, all in [0, period); ``q_end`` (D,) the coordinates at t = period (the
-    next cycle's start), which fixes the drift. Angles are unwrapped here.
+    next cycle's start), which fixes the drift and the ramps. Angles are unwrapped here.
+    ``noise`` (D,): each channel's noise floor (rad), which sets its tolerance
+    (:func:`channel_tolerance`).
     """
     q = np.asarray(q, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
         raise FitError(f"q must have shape (n, {len(DOF_NAMES)}), got {q.shape}")
     q_end = np.asarray(q_end, dtype=np.float64)
+    time_s = np.asarray(time_s, dtype=np.float64)
     both = np.unwrap(np.vstack([q, q_end[None]]), axis=0)
     both[:, TRANSLATION] = np.vstack([q, q_end[None]])[:, TRANSLATION]
     drift = root_drift(both[0], both[-1], period)
-    local = drift.remove(both[:-1], time_s)
-    tolerance = np.where(TRANSLATION, tol_length, tol_angle)
-    series = encode(local, time_s, period, tolerance=tolerance, max_order=max_order)
+    local = drift.remove(both, np.append(time_s, period))
+    ramp = np.where(ROOT_CHANNELS, 0.0, local[-1] - local[0])
+    tolerance = channel_tolerance(noise, tol_angle=tol_angle, tol_length=tol_length)
+    series = encode(local[:-1] - np.outer(time_s / period, ramp), time_s, period,
+                    tolerance=tolerance, max_order=max_order)
     worst = int(np.argmax(series.rms / tolerance))
-    return CycleEncoding(series, drift, DOF_NAMES[worst])
+    return CycleEncoding(series, drift, DOF_NAMES[worst], ramp, tolerance)

@@ -22,7 +22,10 @@ frame starts from the Gauss–Newton step its markers ask of its two keyframes' 
 and where that leaves a step below the tolerance it stops without its own normal equations
 (:func:`_predict_between`; still and slow stretches cost one evaluation a frame). Samples of
 a trajectory that jumps away from the model (mislabelled, swapped in, glitching) are removed
-and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`).
+and counted (:func:`jumping_runs`, :data:`OUTLIER_LIMIT`). Before that, labelling errors are
+undone (:func:`find_repairs`): two markers whose labels are exchanged, for the whole capture
+or a stretch of it, are exchanged back, and a marker that stays far from its place is left
+out; each repair is reported (:attr:`Motion.repairs`).
 
 Units: metres and radians. Arrays: time on axis 0.
 """
@@ -36,8 +39,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import FitError
-from .filtering import resample, valid_runs
-from .motion import Motion, angles_frame
+from .filtering import resample
+from .runs import valid_runs
+from .motion import Motion, Repair, angles_frame, apply_repairs
 from .protocols import match_protocol
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
@@ -71,6 +75,17 @@ OUTLIER_LIMIT = 0.04
 #: ends at a gap or the capture's edge). A marker the skeleton cannot follow (a toe marker in
 #: push-off) drifts away smoothly and is kept, however large its residual.
 JUMP = 0.01
+#: Exchanged labels (:func:`find_repairs`): in a frame where two markers are both suspect, each
+#: lies nearer the other's model position than its own, the two distances summed, by this
+#: factor at least, after a fit without the two; a swap is reported for a stretch of at least
+#: SWAP_MIN_FRAMES such frames (holes of up to SWAP_BRIDGE frames bridged); at most SWAP_PAIRS
+#: pairs are fitted again, those whose exchange looks best in the most frames first.
+SWAP_RATIO = 0.5
+SWAP_MIN_FRAMES = 3
+SWAP_BRIDGE = 3
+SWAP_PAIRS = 12
+#: A marker whose median residual stays above OUTLIER_LIMIT (after swaps are undone) over at
+#: least SWAP_MIN_FRAMES frames is left out of the fit (a label on the wrong marker).
 #: Keyframes (:func:`keyframes`) are solved first, from rigid fits; the others start from
 #: predictions made from them, so they need fewer iterations. Keyframes are LONGEST_STRIDE apart,
 #: or down to STRIDE where a marker strays more than KEY_TOLERANCE (m) from the straight line
@@ -564,7 +579,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     Motion with angles (F, D), residuals (F, M) metres, ``failed`` frames (fewer than
     :data:`MIN_PELVIS_MARKERS` pelvis markers or :data:`MIN_MARKERS` markers, or no
     convergence) whose angles are interpolated from their neighbours and whose residuals are
-    NaN, the removed samples, and the model's locked DOFs (held at 0).
+    NaN, the removed samples, the labelling errors undone (:func:`find_repairs`,
+    :func:`far_markers`; ``Motion.repairs``) and the model's locked DOFs (held at 0).
     """
     markers = model_markers(trial, model)
     n_frames = trial.n_frames
@@ -575,6 +591,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     residuals = np.full((n_frames, len(model.labels)), np.nan)
     converged = np.zeros(n_frames, dtype=bool)
     rejected = np.zeros((n_frames, len(model.labels)), dtype=bool)
+    repairs: list[Repair] = []
     for start in range(0, n_frames, chunk):
         part = slice(start, min(start + chunk, n_frames))
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
@@ -587,6 +604,11 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
                            else (q0[part], None))
         res = _restart_outliers(solve, solve(q0=start_q, step_metric=metric))
+        res, markers[part], found = _undo_labelling_errors(
+            lambda x, q: solve_poses(model.skeleton, x, model.marker_segments,
+                                     model.marker_offsets, q0=q, **settings),
+            res, markers[part], model, settings)
+        repairs += [replace(r, start=r.start + start, stop=r.stop + start) for r in found]
         rejected[part] = _reject_outliers(res, markers[part], model, **settings)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
     seen = np.isfinite(markers[..., 0]) & ~rejected
@@ -609,7 +631,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_weights=model.marker_weights,
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets),
-                  swapped=list(model.swapped), source=trial.source)
+                  repairs=repairs, source=trial.source)
 
 
 def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict
@@ -700,24 +722,194 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
     return keys
 
 
+def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
+                 offsets: np.ndarray, labels: list[str], fitted: PoseFit, **settings
+                 ) -> list[Repair]:
+    """The exchanged labels in a fit of markers (F, M, 3) (``labels`` (M,), the model's
+    ``segments`` (M,) and ``offsets`` (M, 3), ``fitted`` its poses and residuals), as
+    :class:`Repair` s of kind ``"swap"``.
+
+    Any two markers (left/right, front/back, neighbours on one segment) are candidates when
+    both are suspect (:func:`suspect_threshold`) in the same frames and exchanging them would
+    bring them nearer their model positions (a hint only: two exchanged markers drag the pose
+    of their segment); those frames are fitted again without the two, and the swap is kept
+    where each then lies nearer the other's place (:data:`SWAP_RATIO`), in stretches of
+    :data:`SWAP_MIN_FRAMES` frames or more, each grown while the two trajectories keep to
+    their own paths (:func:`_whole_swap`). A pair is only judged when, without it, each of its
+    segments keeps two markers on it or below it (otherwise the fit cannot place them: the
+    two wrist markers of Plug-in Gait's forearm, which turn with its twist).
+    ``settings`` go to :func:`solve_poses`.
+    """
+    r = fitted.residuals
+    suspect = r > suspect_threshold(r)
+    if suspect.sum() < 2 * SWAP_MIN_FRAMES:
+        return []
+    model = skeleton.points(fitted.q, segments, offsets)
+    together = suspect.T.astype(np.int64) @ suspect.astype(np.int64)
+    candidates = []
+    for i, j in zip(*np.nonzero(np.triu(together >= SWAP_MIN_FRAMES, 1))):
+        if not _placed_without(segments, i, j):
+            continue
+        rows = np.flatnonzero(suspect[:, i] & suspect[:, j])
+        cross = (_norm_rows(markers[rows, i] - model[rows, j])
+                 + _norm_rows(markers[rows, j] - model[rows, i]))
+        rows = rows[cross < r[rows, i] + r[rows, j]]       # the pose may be dragged: a hint
+        if len(rows) >= SWAP_MIN_FRAMES:
+            candidates.append((len(rows), i, j, rows))
+    out: list[Repair] = []
+    taken = np.zeros_like(suspect)
+    for _, i, j, rows in sorted(candidates, key=lambda c: -c[0])[:SWAP_PAIRS]:
+        rows = rows[~taken[rows, i] & ~taken[rows, j]]
+        if len(rows) < SWAP_MIN_FRAMES:
+            continue
+        without = markers[rows].copy()
+        without[:, [i, j]] = np.nan
+        again = skeleton.points(solve_poses(skeleton, without, segments, offsets,
+                                            q0=fitted.q[rows], **settings).q, segments, offsets)
+        own = (_norm_rows(markers[rows, i] - again[:, i])
+               + _norm_rows(markers[rows, j] - again[:, j]))
+        other = (_norm_rows(markers[rows, i] - again[:, j])
+                 + _norm_rows(markers[rows, j] - again[:, i]))
+        swapped = np.zeros(len(r), dtype=bool)
+        swapped[rows[other < SWAP_RATIO * own]] = True
+        stretches = []
+        for start, stop in _bridged_runs(swapped, SWAP_BRIDGE):
+            inside = (rows >= start) & (rows < stop) & (other < SWAP_RATIO * own)
+            if inside.sum() >= SWAP_MIN_FRAMES:
+                stretches.append((*_whole_swap(markers[:, i], markers[:, j], start, stop),
+                                  inside))
+        for start, stop, inside in _merged(stretches):
+            taken[start:stop, [i, j]] = True
+            out.append(Repair("swap", (labels[i], labels[j]), int(start), int(stop),
+                              f"each lay {500 * np.median(own[inside]):.0f} mm from its model "
+                              f"place and {500 * np.median(other[inside]):.0f} mm from the "
+                              f"other's (median of {int(inside.sum())} frames)"))
+    return out
+
+
+def _placed_without(segments: np.ndarray, i: int, j: int) -> bool:
+    """True when the segments of markers ``i`` and ``j`` (``segments`` (M,)) each keep two
+    other markers on them or below them: a fit without the two still places them."""
+    for k in (i, j):
+        first = DOF_NAMES.index(SEGMENTS[segments[k]].dofs[0])
+        below = MOVES[segments, first].copy()
+        below[[i, j]] = False
+        if below.sum() < 2:
+            return False
+    return True
+
+
+def _whole_swap(a: np.ndarray, b: np.ndarray, start: int, stop: int) -> tuple[int, int]:
+    """The stretch ``[start, stop)`` where trajectories ``a`` and ``b`` (F, 3) are found
+    exchanged, grown frame by frame while each trajectory continues its own path better than
+    the other's (a label exchange begins and ends where they cross over; frames where the fit
+    cannot tell, a segment's other markers missing, are taken with it)."""
+    def grows(frame, ref_a, ref_b):
+        pairs = [(p, own, other) for p, own, other in ((a[frame], ref_a, ref_b),
+                                                        (b[frame], ref_b, ref_a))
+                 if np.isfinite(p).all()]
+        straight = sum(np.linalg.norm(p - own) for p, own, _ in pairs)
+        crossed = sum(np.linalg.norm(p - other) for p, _, other in pairs)
+        return not pairs or straight < crossed
+
+    for step, edge in ((-1, start), (1, stop - 1)):
+        ref_a, ref_b = a[edge], b[edge]
+        frame = edge + step
+        while 0 <= frame < len(a) and np.isfinite(ref_a).all() and np.isfinite(ref_b).all() \
+                and grows(frame, ref_a, ref_b):
+            ref_a = a[frame] if np.isfinite(a[frame]).all() else ref_a
+            ref_b = b[frame] if np.isfinite(b[frame]).all() else ref_b
+            frame += step
+        if step < 0:
+            start = frame + 1
+        else:
+            stop = frame
+    seen = np.flatnonzero(np.isfinite(a[start:stop, 0]) | np.isfinite(b[start:stop, 0]))
+    return start + int(seen[0]), start + int(seen[-1]) + 1
+
+
+def _merged(stretches: list) -> list:
+    """(start, stop, inside) stretches with those that overlap merged (``inside`` or-ed)."""
+    out: list = []
+    for start, stop, inside in sorted(stretches, key=lambda x: x[0]):
+        if out and start <= out[-1][1]:
+            out[-1] = (out[-1][0], max(stop, out[-1][1]), out[-1][2] | inside)
+        else:
+            out.append((start, stop, inside))
+    return out
+
+
+def _norm_rows(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of ``v`` (N, 3); NaN where a coordinate is."""
+    return np.sqrt((v ** 2).sum(axis=-1))
+
+
+def _bridged_runs(mask: np.ndarray, bridge: int) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in ``mask`` (F,), holes of up to ``bridge`` frames
+    between two runs filled."""
+    runs: list[list[int]] = []
+    for start, stop in valid_runs(mask):
+        if runs and start - runs[-1][1] <= bridge:
+            runs[-1][1] = stop
+        else:
+            runs.append([start, stop])
+    return [(a, b) for a, b in runs]
+
+
+def far_markers(residuals: np.ndarray, labels: list[str]) -> list[Repair]:
+    """Markers whose median residual (F, M) stays above :data:`OUTLIER_LIMIT` over at least
+    :data:`SWAP_MIN_FRAMES` frames, as :class:`Repair` s of kind ``"drop"`` over the frames."""
+    out = []
+    seen = np.isfinite(residuals)
+    median = _column_median(residuals)
+    for m in np.flatnonzero((median > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
+        frames = np.flatnonzero(seen[:, m])
+        out.append(Repair("drop", (labels[m],), int(frames[0]), int(frames[-1]) + 1,
+                          f"it stays {1000 * median[m]:.0f} mm from its model place (median of "
+                          f"{len(frames)} frames)"))
+    return out
+
+
+def _undo_labelling_errors(solve, res: PoseFit, markers: np.ndarray, model: "SubjectModel",
+                           settings: dict) -> tuple[PoseFit, np.ndarray, list[Repair]]:
+    """Find exchanged labels (:func:`find_repairs`), then markers far from their place
+    (:func:`far_markers`), in a fit ``res`` of ``markers`` (F, M, 3); undo them and fit again
+    (``solve(markers, q0)``). Returns the fit, the repaired markers and the repairs."""
+    repairs = find_repairs(model.skeleton, markers, model.marker_segments,
+                           model.marker_offsets, model.labels, res, **settings)
+    if repairs:
+        markers = apply_repairs(markers, model.labels, repairs)
+        res = solve(markers, res.q)
+    dropped = far_markers(res.residuals, model.labels)
+    if dropped:
+        markers = apply_repairs(markers, model.labels, dropped)
+        res = solve(markers, res.q)
+    return res, markers, repairs + dropped
+
+
 def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | str | None,
                  **options) -> tuple[Motion, float | None]:
     """Fit ``trial``'s markers low-passed at ``cutoff`` (Hz, "auto" or None), outliers first.
 
     A low-pass filter turns a jumping trajectory into a ramp the jump rule cannot see, so
-    outlying samples are found on the raw markers (a :func:`fit` of ``trial``, stopped by
-    :data:`OUTLIER_PASS`'s looser rule unless ``options`` give one), gapped, and the markers
-    are filtered (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again from
-    those poses. The motion's ``rejected`` holds the samples removed by either fit. Returns the
-    motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
+    labelling errors and outlying samples are found on the raw markers (a :func:`fit` of
+    ``trial``, stopped by :data:`OUTLIER_PASS`'s looser rule unless ``options`` give one),
+    undone and gapped, and the markers are filtered
+    (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again. The motion's
+    ``rejected`` holds the samples removed by either fit, its ``repairs`` those of both. Returns
+    the motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
     """
     from .filtering import filter_trial
 
     if cutoff is None or cutoff == "none":
         return fit(trial, model, **options), None
     raw = fit(trial, model, **{**OUTLIER_PASS, **options})
-    markers = trial.markers.copy()
     columns = _trial_columns(trial, model)
+    found = columns >= 0
+    markers = trial.markers.copy()
+    markers[:, columns[found]] = apply_repairs(trial.markers[:, columns[found]],
+                                               [label for label, f in zip(model.labels, found)
+                                                if f], raw.repairs)
     frames, m = np.nonzero(raw.rejected)
     markers[frames, columns[m]] = np.nan
     cleaned, used = filter_trial(replace(trial, markers=markers, warnings=list(trial.warnings)),
@@ -725,55 +917,16 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     motion = fit(cleaned, model, q0=raw.q, **options)    # the raw fit is a warm start
     motion.rejected |= raw.rejected & ~motion.failed[:, None]
     motion.residuals[motion.rejected] = np.nan
+    motion.repairs = raw.repairs + motion.repairs
     return motion, used
-
-
-def fit_capture(trial: "Trial", /, *, protocol="auto", static=None,
-                static_pose: str = "free", cutoff: float | str | None = "auto",
-                heading_offsets=None, measurements: dict | None = None
-                ) -> tuple[Motion, "SubjectModel", float | None]:
-    """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
-    :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
-    ``static_pose``), then :func:`fit_filtered`. ``protocol`` (a Protocol, shipped name, TOML
-    path or "auto") is resolved on the capture (:func:`mocaplib.protocols.match_trial`), as
-    ``mocaplib build`` resolves it, whatever the static's labels. ``static`` may also be a list
-    of static trials, one per subject or session: the one that shows this capture's subject is
-    used (:func:`mocaplib.calibration.choose_static`). ``heading_offsets``: per static (one
-    for a single static), the heading correction of a forward reference, radians
-    (:func:`mocaplib.pipeline.forward_offsets`; the static in the neutral pose).
-    ``measurements``: subject measurements overriding the calibration file's (see
-    :func:`mocaplib.calibration.calibrate`).
-
-    Returns the motion, the subject model (its ``source`` names the static used) and the
-    cutoff used (Hz; None: unfiltered).
-    """
-    from .calibration import calibrate, choose_static
-    from .filtering import filter_trial
-    from .protocols import match_trial
-
-    protocol = match_trial(trial, protocol).protocol
-    filtered, used = filter_trial(trial, cutoff=cutoff)
-    chosen = 0
-    if isinstance(static, (list, tuple)):
-        chosen = choose_static(filtered, static, protocol)
-        static = None if chosen is None else static[chosen]
-    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
-                      heading_offset=0.0 if heading_offsets is None or static is None
-                      else heading_offsets[chosen], measurements=measurements)
-    motion, _ = fit_filtered(trial, model, cutoff=used)
-    return motion, model, used
 
 
 def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's marker column (M,) of each model marker (-1 when absent), as
-    :func:`model_markers` reads them (swapped pairs exchanged)."""
-    match = match_protocol(trial, model.protocol, check_swaps=False)   # model.swapped rules
-    columns = np.array([match.indices[model.protocol.labels.index(label)]
-                        for label in model.labels])
-    for a, b in model.swapped:
-        i, j = model.labels.index(a), model.labels.index(b)
-        columns[[i, j]] = columns[[j, i]]
-    return columns
+    :func:`model_markers` reads them."""
+    match = match_protocol(trial, model.protocol, check_swaps=False)   # the fit repairs swaps
+    return np.array([match.indices[model.protocol.labels.index(label)]
+                     for label in model.labels], dtype=int)
 
 
 def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
@@ -896,7 +1049,8 @@ def fit_quality(motion: Motion) -> dict:
     DOF that reaches a joint limit spends there;
     ``failed_frames``: indices of frames that could not be fitted; ``rejected_samples``:
     samples removed as outliers (not in the residual figures), ``rejected_per_marker``: their
-    count per marker label (markers with any).
+    count per marker label (markers with any); ``repairs``: the labelling errors undone
+    (:meth:`mocaplib.motion.Repair.as_dict`).
     """
     frame_rms = _frame_rms(motion.residuals)
     marker_rms = _frame_rms(motion.residuals.T)
@@ -911,26 +1065,20 @@ def fit_quality(motion: Motion) -> dict:
         "at_limit": motion.limit_shares(),
         "failed_frames": np.flatnonzero(motion.failed).tolist(),
         "rejected_samples": int(motion.rejected.sum()),
+        "repairs": [r.as_dict(motion.rate) for r in motion.repairs],
         "rejected_per_marker": {label: int(n) for label, n in
                                 zip(motion.marker_labels, motion.rejected.sum(axis=0)) if n},
     }
 
 
 def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
-    """The trial's markers in the model's order, shape (F, M, 3), NaN where absent.
-
-    Pairs the calibration found with exchanged left/right labels are exchanged back.
-    """
-    match = match_protocol(trial, model.protocol, check_swaps=False)   # model.swapped rules
+    """The trial's markers in the model's order, shape (F, M, 3), NaN where absent (as
+    labelled: :func:`fit` undoes the labelling errors it finds)."""
+    match = match_protocol(trial, model.protocol, check_swaps=False)   # the fit repairs swaps
     order = [model.protocol.labels.index(label) for label in model.labels]
     found = sum(match.indices[j] >= 0 for j in order)
     if found == 0:
         raise FitError(f"none of the model's markers ({', '.join(model.labels[:8])}...) is in "
                        "the trial", path=trial.source,
                        hint=f"calibrate with the trial's protocol, not {model.protocol.name!r}")
-    markers = match.markers(trial)[:, order]
-    if model.swapped:
-        from .calibration import exchange
-
-        markers = exchange(markers, model.labels, model.swapped)
-    return markers
+    return match.markers(trial)[:, order]

@@ -11,14 +11,15 @@ from __future__ import annotations
 import os
 
 from .errors import MocapError, ProtocolError
-from .protocols import Protocol, match_trial
+from .protocols import Protocol, match_trial, overrides
 from .trial import Trial, check_gait_rate
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
                 "units", "vertical_axis", "labels", "protocol", "markers_found",
-                "protocol_markers", "missing_landmarks", "missing_labels", "markers",
-                "ignored_points", "unknown_labels", "duplicates", "swaps", "events", "warnings")
+                "protocol_markers", "missing_landmarks", "missing_labels", "closest_protocol",
+                "markers", "ignored_points", "unknown_labels", "duplicates", "swaps", "events",
+                "warnings")
 
 _EMPTY_LISTS = ("labels", "missing_landmarks", "missing_labels", "markers", "ignored_points",
                 "unknown_labels", "duplicates", "swaps", "events", "warnings")
@@ -51,14 +52,21 @@ def _reason(error: BaseException | str) -> str:
 
 
 def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict:
-    """Summary of a trial in memory (see :data:`SUMMARY_KEYS`)."""
+    """Summary of a trial in memory (see :data:`SUMMARY_KEYS`).
+
+    With ``protocol="auto"``, ``protocol`` is None when no protocol finds its required
+    landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
+    ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
+    column is that candidate's. A protocol or landmark that a user folder redefines is noted in
+    ``warnings`` (:func:`mocaplib.protocols.overrides`).
+    """
     out = failed_summary(trial.source or "", "")
     out.update(ok=True, error=None, frames=trial.n_frames, rate_hz=trial.rate,
                duration_s=trial.duration, first_frame=trial.first_frame, units=trial.units,
                vertical_axis=trial.vertical_axis, labels=list(trial.labels),
                events=[{"context": e.context, "label": e.label, "time_s": e.time_s}
                        for e in trial.events])
-    warnings = list(trial.warnings)
+    warnings = list(trial.warnings) + [f"note: {n}" for n in overrides()]
     try:
         check_gait_rate(trial.rate, None)
     except MocapError as exc:  # shown, so the file can still be looked at
@@ -80,6 +88,13 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
                    ignored_points=list(match.ignored), unknown_labels=list(match.unknown),
                    duplicates=list(match.duplicates), swaps=list(match.swaps))
         warnings.extend(match.warnings)
+        if protocol == "auto" and not match.complete:
+            out.update(protocol=None, markers_found=None, protocol_markers=None,
+                       missing_landmarks=[], missing_labels=[], closest_protocol={
+                           "name": match.protocol.name, "markers_found": match.found,
+                           "protocol_markers": len(match.indices),
+                           "missing_landmarks": match.missing_landmarks,
+                           "missing_labels": list(match.missing)})
     gaps, longest = trial.gap_fraction(), trial.longest_gap()
     out["markers"] = [
         {"label": label, "landmark": landmark_of.get(i), "gap_pct": 100.0 * float(gaps[i]),
@@ -98,7 +113,12 @@ def format_summary(summary: dict) -> str:
     lines.append(f"  {summary['frames']} frames at {summary['rate_hz']:g} Hz "
                  f"({summary['duration_s']:.2f} s), units {summary['units']}, vertical axis "
                  f"{summary['vertical_axis']}{rotated}")
-    if summary["protocol"] is None:
+    closest = summary.get("closest_protocol")
+    if summary["protocol"] is None and closest:
+        lines.append(f"  protocol: none has its required landmarks; closest {closest['name']} "
+                     f"({closest['markers_found']}/{closest['protocol_markers']} markers) lacks "
+                     f"{', '.join(closest['missing_landmarks'])}")
+    elif summary["protocol"] is None:
         lines.append("  protocol: none matched")
     else:
         missing = ", ".join(summary["missing_landmarks"]) or "none"

@@ -92,7 +92,8 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "marker_max_m": (0.04, "max"),
     "gap_fraction": (0.5, "max"),
     "event_quality": (0.5, "min"),   # also mocaplib.cycles.MIN_EVENT_QUALITY (the choice)
-    "fourier_rms_rad": (math.radians(1.0), "max"),  # 2x the encoding tolerance: see docs
+    # the loosest encoding tolerance, mocaplib.fourier.MAX_ANGLE_TOLERANCE: see docs
+    "fourier_rms_rad": (math.radians(1.0), "max"),
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
     "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
@@ -133,7 +134,7 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
                joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
                dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
                mirror_of: str | None = None, mirror_method: str | None = None,
-               poulaine: dict | None = None) -> dict:
+               poulaine: dict | None = None, ramp: np.ndarray | None = None) -> dict:
     """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
 
     ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
@@ -150,7 +151,9 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
     known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
     ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
     ``mirrored``; ``poulaine``: the cycle's
-    :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none).
+    :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none);
+    ``ramp``: each DOF's change (D,) from the cycle's start to its end, taken out before
+    encoding (:class:`mocaplib.fourier.CycleEncoding`; stored as ``fourier.ramp`` when given).
     """
     if set(root_drift) != set(DRIFT_VELOCITIES):
         raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
@@ -176,6 +179,8 @@ def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: in
         "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
         "qc_waived": dict(qc_waived or {}),
     }
+    if ramp is not None:
+        entry["fourier"]["ramp"] = np.asarray(ramp, dtype=np.float64).tolist()
     if (mirror_of is None) != (mirror_method is None) or mirror_method not in (
             None, *MIRROR_METHODS):
         raise LibraryError(f"entry {id}: a mirror image needs both mirror_of and mirror_method "
@@ -437,12 +442,19 @@ class Library:
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
         """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
 
-        Evaluates the library's Fourier formula; ``t`` beyond ``T`` repeats the cycle.
+        Evaluates the library's Fourier formula plus the entry's ``fourier.ramp`` (when stored)
+        times the phase t/T, the captured cycle (:class:`mocaplib.fourier.CycleEncoding`);
+        ``t`` beyond ``T`` repeats the cycle.
         """
         from .fourier import synthesize
 
         a, b = self.coefficients(entry_id)
-        return synthesize(a, b, _float(self.entry(entry_id)["T"]), np.asarray(t, dtype=float))
+        entry = self.entry(entry_id)
+        period, t = _float(entry["T"]), np.asarray(t, dtype=float)
+        ramp = entry["fourier"].get("ramp")
+        return synthesize(a, b, period, t) + (
+            0.0 if ramp is None else np.multiply.outer(np.mod(t, period) / period,
+                                                       np.asarray(ramp, dtype=float)))
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:
@@ -459,6 +471,12 @@ class Library:
 
 def _matrix(rows) -> np.ndarray:
     return np.array([[_float(x) for x in row] for row in rows], dtype=np.float64)
+
+
+def diagnostics_path(library_path: str | os.PathLike) -> Path:
+    """Where the diagnostics sidecar of a library file goes: ``<stem>.diagnostics.json``."""
+    path = Path(library_path)
+    return path.with_name(f"{path.stem}.diagnostics.json")
 
 
 # --------------------------------------------------------------------------- reading
@@ -718,6 +736,10 @@ def _fourier_problems(fourier: dict, where: str, n_dof: int, n_harm: int) -> lis
         elif np.any(values[:, int(fourier["n"]) + 1:]):
             problems.append(Problem(f"{where}.{key}", f"harmonics beyond the fitted order n = "
                                                       f"{fourier['n']} must be 0 (padding)"))
+    ramp = fourier.get("ramp")
+    if ramp is not None and (len(ramp) != n_dof or not np.isfinite(_matrix([ramp])).all()):
+        problems.append(Problem(f"{where}.ramp", f"must be {n_dof} finite numbers (one per "
+                                                 f"DOF), got {len(ramp)}"))
     if any(row[0] not in (0, 0.0) for row in b):
         problems.append(Problem(f"{where}.b", "b[:, 0] must be 0 (there is no sin(0) term)"))
     if fourier["n"] > n_harm:

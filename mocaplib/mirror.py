@@ -117,7 +117,7 @@ def mirror_motion(motion, /):
     return replace(motion, angles=angles, skeleton=mirror_skeleton(motion.skeleton),
                    marker_segments=None, marker_offsets=None,
                    locked_dofs=[partner_name(name) for name in motion.locked_dofs],
-                   unobservable=mirror_names(motion.unobservable), swapped=[])
+                   unobservable=mirror_names(motion.unobservable), repairs=[])
 
 
 def mirror_skeleton(skeleton: Skeleton, /) -> Skeleton:
@@ -228,6 +228,8 @@ def mirror_entry(entry: dict, /) -> dict:
         omega=-entry["omega"], v_l=-entry["v_l"],
         fourier={**entry["fourier"], "a": mirror_dofs(a, axis=0).tolist(),
                  "b": mirror_dofs(b, axis=0).tolist()})
+    if "ramp" in entry["fourier"]:
+        image["fourier"]["ramp"] = mirror_dofs(entry["fourier"]["ramp"]).tolist()
     for key, mirrored in (("joint_shifts_m", mirror_shifts), ("held_dofs", mirror_names),
                           ("dofs_at_limit", mirror_names)):
         if key in entry:
@@ -338,7 +340,7 @@ def write_mirrored(library, library_path, out_path, /):
 
     from .io.atomic import atomic_write_files
     from .library import json_text
-    from .pipeline import diagnostics_path
+    from .library import diagnostics_path
 
     text = library.to_json().encode("utf-8")
     files = [(Path(out_path), text)]

@@ -19,6 +19,47 @@ AT_LIMIT = 1e-3
 LIMIT_WARNING_SHARE = 0.02
 
 
+@dataclass(frozen=True)
+class Repair:
+    """A labelling error the fit undid: two markers whose labels are exchanged in frames
+    ``[start, stop)`` (``kind="swap"``, ``labels`` the two), or a marker that stays far from
+    its place and is left out (``kind="drop"``, one label); ``evidence`` says what showed it."""
+
+    kind: str
+    labels: tuple[str, ...]
+    start: int
+    stop: int
+    evidence: str
+
+    def as_dict(self, rate: float) -> dict:
+        """JSON-ready: kind, markers, first and last frame (0-based, inclusive), the times of
+        those frames (s, from the capture's first frame) and the evidence."""
+        return {"kind": self.kind, "markers": list(self.labels),
+                "frames": [self.start, self.stop - 1],
+                "time_s": [self.start / rate, (self.stop - 1) / rate],
+                "evidence": self.evidence}
+
+    def sentence(self, rate: float) -> str:
+        """The repair in words, for warnings."""
+        when = f"frames {self.start}-{self.stop - 1} ({self.start / rate:.2f}-" \
+               f"{(self.stop - 1) / rate:.2f} s)"
+        if self.kind == "swap":
+            return (f"labels {self.labels[0]} and {self.labels[1]} look exchanged in {when}: "
+                    f"{self.evidence}; the fit exchanges them back: check the labelling")
+        return f"marker {self.labels[0]} left out in {when}: {self.evidence}; check its label"
+
+
+def apply_repairs(markers: np.ndarray, labels: list[str], repairs) -> np.ndarray:
+    """Markers (F, M, 3) in ``labels`` order with the :class:`Repair` s applied (a copy):
+    swapped columns exchanged in their frames, dropped ones NaN there."""
+    out = np.array(markers, dtype=np.float64, copy=True)
+    for r in repairs:
+        columns = [labels.index(label) for label in r.labels]
+        rows = slice(r.start, r.stop)
+        out[rows, columns] = np.nan if r.kind == "drop" else markers[rows, columns[::-1]]
+    return out
+
+
 @dataclass
 class Motion:
     """Joint angles of a subject-scaled skeleton fitted to a trial's markers.
@@ -51,9 +92,10 @@ class Motion:
         the fit, and quality figures leave them out (:meth:`trusted`).
     marker_segments, marker_offsets : ndarray, shapes (M,), (M, 3)
         Each marker's segment index and its position in that segment's frame (metres).
-    swapped : list of (label, label)
-        Left/right pairs whose labels the trial exchanges (found by calibration); the fit read
-        each marker of a pair from the other's trajectory, and so do the gait events.
+    repairs : list of :class:`Repair`
+        Labelling errors the fit undid (exchanged labels, a marker far from its place); the
+        fit read the markers repaired (:func:`apply_repairs`), and so do the gait events
+        (:meth:`repaired_track`).
     source : str or None
         The capture's file.
     """
@@ -68,7 +110,7 @@ class Motion:
     locked_dofs: list[str] = field(default_factory=list)
     marker_segments: np.ndarray | None = None
     marker_offsets: np.ndarray | None = None
-    swapped: list[tuple[str, str]] = field(default_factory=list)
+    repairs: list[Repair] = field(default_factory=list)
     source: str | None = None
     unobservable: dict[str, float] = field(default_factory=dict)
     marker_weights: np.ndarray | None = None
@@ -133,6 +175,22 @@ class Motion:
         return [f"{name} sits at a joint limit in {share:.0%} of the frames: its angles there "
                 "are not measured; check the markers of that joint"
                 for name, share in self.limit_shares().items() if share > LIMIT_WARNING_SHARE]
+
+    def repaired_track(self, label: str, read) -> np.ndarray:
+        """The trajectory (F, 3) the fit used for marker ``label``, given ``read(label)``, the
+        capture's trajectory of a label: a swap reads the partner's in its frames, a drop
+        leaves NaN."""
+        out = np.array(read(label), dtype=np.float64, copy=True)
+        for r in self.repairs:
+            if label in r.labels:
+                rows = slice(r.start, r.stop)
+                out[rows] = np.nan if r.kind == "drop" else \
+                    read(r.labels[1 - r.labels.index(label)])[rows]
+        return out
+
+    def repair_warnings(self) -> list[str]:
+        """One sentence per :attr:`repairs` entry."""
+        return [r.sentence(self.rate) for r in self.repairs]
 
     def segment_transforms(self) -> np.ndarray:
         """Segment-to-world transforms, shape (F, S, 4, 4)."""

@@ -10,18 +10,36 @@ subject, left side; the right side mirrors y). ``protocols/<name>.toml`` is one 
     [markers]
     LASI = { landmark = "L_ASIS", required = true, aliases = ["L.ASIS", "LASIS"] }
 
+A **tracking marker** names the segment it rides on instead of a landmark (a cluster or wand
+marker nobody catalogued): ``LTH1 = { segment = "femur", side = "left" }``. It has no nominal
+position: calibration measures its offset in the segment's frame (from the static when there is
+one, else from the motion). ``static_only = true`` marks an anatomical marker that is put on for
+the static trial only (medial knee, medial malleolus...): it places the joint centres there and
+is not expected in the motions.
+
 Labels are compared after :func:`mocaplib.trial.normalise_label` (case, subject prefixes,
-spaces, ``_ - .`` ignored). The folder is found at ``$MOCAPLIB_PROTOCOLS`` if set, otherwise the
-copy installed with the package.
+spaces, ``_ - .`` ignored).
+
+Folders
+-------
+The shipped folder comes first; the folders of ``$MOCAPLIB_PROTOCOLS`` (several joined by
+``os.pathsep``) and those given to :func:`use_protocol_folders` (``--protocols DIR``) are
+added to it, in that order. Each may hold protocols (``*.toml`` with a ``[markers]`` table),
+its own ``landmarks.toml`` with extra catalogue entries, and capture plans. A later folder's
+protocol or landmark of the same name replaces the earlier one, and :func:`overrides` says
+so. Nothing in the installed package is ever edited.
 
 Two optional keys extend the format: ``extends = "plugin_gait"`` starts from another protocol's
-markers (an entry with the same label replaces the inherited one), and an ``[any_of]`` table
-names groups of labels of which at least one must be present (``pelvis_back = ["LPSI",
-"RPSI", "SACR"]``), for sets where either of two markers does the job.
+markers (an entry with the same label, or on the same landmark, replaces the inherited one,
+which ``[any_of]`` groups then name by the new label), and an ``[any_of]`` table names groups
+of labels of which at least one must be present (``pelvis_back = ["LPSI", "RPSI", "SACR"]``),
+for sets where either of two markers does the job.
 
 Matching (:func:`match_protocol`) maps each protocol marker to the first trial marker with the
 same normalised label (repeats are flagged), sets aside model outputs stored as points (the
-regular expressions of ``model_outputs.toml``), lists the remaining unknown labels, and checks
+regular expressions of ``model_outputs.toml``; a point its ``numbered`` patterns match is set
+aside only when it is computed, :func:`computed_points`), lists the remaining unknown labels,
+and checks
 that left-labelled shoulder and pelvis markers lie on the subject's left
 (:func:`find_side_swaps`). :func:`detect_protocol` picks the best shipped protocol.
 """
@@ -30,6 +48,7 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -50,37 +69,124 @@ REFERENCE_HEIGHT = 1.75
 SHIPPED_PROTOCOLS = Path(__file__).resolve().parent / "data" / "protocols"
 
 
+#: The environment variable naming users' protocol folders (``os.pathsep`` between several).
+FOLDERS_VARIABLE = "MOCAPLIB_PROTOCOLS"
+
+
 def protocols_dir() -> Path:
-    """The folder holding ``landmarks.toml`` and the protocol files."""
-    env = os.environ.get("MOCAPLIB_PROTOCOLS")
-    if env:
-        return Path(env)
+    """The shipped folder holding ``landmarks.toml``, ``model_outputs.toml`` and the protocols."""
     return SHIPPED_PROTOCOLS
+
+
+def protocol_folders() -> tuple[Path, ...]:
+    """Every folder protocols, landmarks and capture plans are read from: the shipped one, then
+    those of ``$MOCAPLIB_PROTOCOLS`` (to which :func:`use_protocol_folders` adds). A later
+    folder's definition of a name replaces an earlier one's."""
+    return tuple(dict.fromkeys([SHIPPED_PROTOCOLS] + [Path(p) for p in _env_folders()]))
+
+
+def _env_folders() -> list[str]:
+    return [p for p in os.environ.get(FOLDERS_VARIABLE, "").split(os.pathsep) if p]
+
+
+def use_protocol_folders(folders, /) -> None:
+    """Add users' protocol folders (``--protocols DIR``) to the shipped one, for this process
+    and the worker processes it starts (they are written into ``$MOCAPLIB_PROTOCOLS``, which
+    workers inherit). Raises :class:`ProtocolError` naming a folder that does not exist."""
+    for folder in folders:
+        if not Path(folder).is_dir():
+            raise ProtocolError("protocol folder not found", path=folder,
+                                hint="give a folder holding your protocols (*.toml) and, if "
+                                     "you add landmarks, a landmarks.toml")
+    added = [os.path.abspath(f) for f in folders]
+    os.environ[FOLDERS_VARIABLE] = os.pathsep.join(dict.fromkeys(_env_folders() + added))
+
+
+def _definitions(kind: str) -> tuple[dict[str, Path], list[str]]:
+    """``{name: file}`` of every protocol (``kind="protocols"``) or capture plan
+    (``"plans"``) in :func:`protocol_folders`, a later folder's winning, and a note per name
+    a user folder redefines."""
+    found: dict[str, Path] = {}
+    notes = []
+    for folder in protocol_folders():
+        for path in sorted(folder.glob("*.toml")):
+            is_plan = "plan" in path.stem
+            if kind == "plans" and not is_plan or kind == "protocols" and (
+                    is_plan or "markers" not in _read_toml(os.fspath(path))):
+                continue
+            if path.stem in found:
+                notes.append(f"protocol {path.stem!r} of {path} replaces the one of "
+                             f"{found[path.stem]}")
+            found[path.stem] = path
+    return found, notes
+
+
+def overrides() -> list[str]:
+    """One sentence per protocol or landmark a user folder redefines (it wins)."""
+    return _definitions("protocols")[1] + _landmark_catalogue(_folder_key())[1]
+
+
+def user_fingerprint() -> str:
+    """SHA-256 of every ``*.toml`` in the user folders (not the shipped one), "" without any:
+    part of a build's cache key, so that editing a user protocol invalidates the cache."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    folders = protocol_folders()[1:]
+    for folder in folders:
+        for path in sorted(folder.glob("*.toml")):
+            digest.update(os.fspath(path.resolve()).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest() if folders else ""
+
+
+def _folder_key() -> tuple[str, ...]:
+    return tuple(os.fspath(f) for f in protocol_folders())
 
 
 @dataclass(frozen=True)
 class Landmark:
     """One anatomical landmark: sided name (``L_ASIS``), segment, nominal position (3,) m, and
-    the weight a marker on it gets in the fit by default (:attr:`ProtocolMarker.weight`)."""
+    the weight a marker on it gets in the fit by default (:attr:`ProtocolMarker.weight`).
+
+    A tracking marker's "landmark" (:func:`tracking_landmark`) has no position (None): it is
+    named ``<segment>:<label>`` and its offset is measured, never looked up.
+    """
 
     name: str
     segment: str
-    position: tuple[float, float, float]
+    position: tuple[float, float, float] | None
     description: str
     weight: float = 1.0
+
+    @property
+    def tracking(self) -> bool:
+        """True for a tracking marker's landmark (no catalogued position)."""
+        return self.position is None
+
+
+def tracking_landmark(label: str, segment: str) -> Landmark:
+    """The landmark of a tracking marker ``label`` on ``segment`` (a skeleton segment name)."""
+    return Landmark(f"{segment}:{label}", segment, None,
+                    f"tracking marker on {segment}, offset measured in calibration")
 
 
 @dataclass(frozen=True)
 class ProtocolMarker:
-    """One marker of a protocol: its label, aliases, landmark, whether it is required, and its
+    """One marker of a protocol: its label, aliases, landmark, whether it is required, its
     weight in the joint-angle fit (relative to 1; the protocol's ``weight``, else the
-    landmark's)."""
+    landmark's), and whether it is put on for the static trial only (``static_only``)."""
 
     label: str
     landmark: Landmark
     required: bool
     aliases: tuple[str, ...]
     weight: float = 1.0
+    static_only: bool = False
+
+    @property
+    def tracking(self) -> bool:
+        """True for a tracking marker (on a segment, no landmark)."""
+        return self.landmark.tracking
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -117,10 +223,11 @@ class Protocol:
         raise ProtocolError(f"protocol {self.name!r} has no marker {label!r}", path=self.path)
 
     def nominal_offsets(self, height: float = REFERENCE_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
-        """Segment index (M,) and nominal offset (M, 3) in metres of each marker, scaled."""
+        """Segment index (M,) and nominal offset (M, 3) in metres of each marker, scaled; NaN
+        rows for tracking markers (their offsets are measured, not catalogued)."""
         segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in self.markers])
-        offsets = np.array([m.landmark.position for m in self.markers]) * (
-            height / REFERENCE_HEIGHT)
+        offsets = np.array([(np.nan,) * 3 if m.tracking else m.landmark.position
+                            for m in self.markers]) * (height / REFERENCE_HEIGHT)
         return segments, offsets
 
 
@@ -131,8 +238,33 @@ def _read_toml(path: str) -> dict:
 
 
 def load_landmarks(path: str | os.PathLike | None = None) -> dict[str, Landmark]:
-    """The landmark catalogue, keyed by sided name (``L_ASIS``, ``R_ASIS``, ``C7``...)."""
-    path = os.fspath(path or protocols_dir() / "landmarks.toml")
+    """The landmark catalogue, keyed by sided name (``L_ASIS``, ``R_ASIS``, ``C7``...): the
+    ``landmarks.toml`` of every :func:`protocol_folders` folder (a later folder's entry of the
+    same name wins), or of ``path`` alone."""
+    if path is not None:
+        return _catalogue_file(os.fspath(path))
+    return dict(_landmark_catalogue(_folder_key())[0])
+
+
+@lru_cache(maxsize=None)
+def _landmark_catalogue(folders: tuple[str, ...]) -> tuple[dict[str, Landmark], list[str]]:
+    """The merged catalogue of ``folders`` and a note per landmark a later folder redefines."""
+    out: dict[str, Landmark] = {}
+    notes = []
+    for folder in folders:
+        path = Path(folder) / "landmarks.toml"
+        if folder != os.fspath(SHIPPED_PROTOCOLS) and not path.is_file():
+            continue
+        for name, landmark in _catalogue_file(os.fspath(path)).items():
+            if name in out and out[name] != landmark:
+                notes.append(f"landmark {name} of {path} replaces the shipped one")
+            out[name] = landmark
+    return out, notes
+
+
+@lru_cache(maxsize=None)
+def _catalogue_file(path: str) -> dict[str, Landmark]:
+    """The landmarks of one ``landmarks.toml``."""
     out: dict[str, Landmark] = {}
     for key, spec in _read_toml(path).items():
         try:
@@ -159,30 +291,30 @@ def load_landmarks(path: str | os.PathLike | None = None) -> dict[str, Landmark]
 
 
 def list_protocols() -> list[str]:
-    """Names of the protocols shipped in :func:`protocols_dir` (files with a [markers] table)."""
-    names = []
-    for path in sorted(protocols_dir().glob("*.toml")):
-        if "markers" in _read_toml(os.fspath(path)):
-            names.append(path.stem)
-    return names
+    """Names of the protocols in :func:`protocol_folders` (files with a [markers] table)."""
+    return sorted(_definitions("protocols")[0])
 
 
 def capture_plans() -> list[Path]:
-    """The capture plans shipped in :func:`protocols_dir` (``*plan*.toml``, sorted by name):
-    the build's locomotion classes and the report's default target envelope come from them."""
-    return sorted(protocols_dir().glob("*plan*.toml"))
+    """The capture plans (``*plan*.toml``) of :func:`protocol_folders`, a user folder's first,
+    each folder's sorted by name: the build's locomotion classes and the report's default
+    target envelope come from them."""
+    plans = _definitions("plans")[0].values()
+    return sorted(plans, key=lambda p: (p.parent == SHIPPED_PROTOCOLS, p.name))
 
 
 def load_protocol(name_or_path: str | os.PathLike) -> Protocol:
-    """Load a protocol by shipped name (``plugin_gait``) or by path to a TOML file."""
+    """Load a protocol by name (``plugin_gait``, shipped or in a user folder) or by path to a
+    TOML file."""
     path = _protocol_path(name_or_path)
-    return _load_protocol_file(os.path.abspath(path), os.fspath(protocols_dir()))
+    return _load_protocol_file(os.path.abspath(path), _folder_key())
 
 
 @lru_cache(maxsize=None)
-def _load_protocol_file(path: str, landmarks_dir: str) -> Protocol:
-    """A protocol file read once per process (and landmark catalogue folder), as its TOML is
-    (:func:`_read_toml`): protocol detection loads every shipped protocol for every capture."""
+def _load_protocol_file(path: str, folders: tuple[str, ...]) -> Protocol:
+    """A protocol file read once per process (and set of folders, whose landmark catalogue
+    it uses), as its TOML is (:func:`_read_toml`): protocol detection loads every protocol
+    for every capture."""
     return _load_protocol(Path(path), ())
 
 
@@ -190,12 +322,13 @@ def _protocol_path(name_or_path: str | os.PathLike) -> Path:
     path = Path(name_or_path)
     if path.suffix == ".toml":
         return path
-    path = protocols_dir() / f"{name_or_path}.toml"
-    if not path.is_file() or "markers" not in _read_toml(os.fspath(path)):
+    found = _definitions("protocols")[0].get(os.fspath(name_or_path))
+    if found is None:
         raise ProtocolError(f"unknown protocol {os.fspath(name_or_path)!r}",
-                            hint=f"shipped protocols: {', '.join(list_protocols())}; "
-                                 "or give the path of a .toml file")
-    return path
+                            hint=f"known protocols: {', '.join(list_protocols())}; "
+                                 "or give the path of a .toml file, or the folder holding it "
+                                 "with --protocols")
+    return found
 
 
 def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
@@ -223,7 +356,17 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
         groups = dict(parent.any_of)
     landmarks = load_landmarks()
     for label, spec in table.items():
-        markers[label] = _protocol_marker(label, spec, landmarks, path)
+        marker = _protocol_marker(label, spec, landmarks, path)
+        # a child's entry on a landmark the parent already labels replaces the parent's entry
+        replaced = [m for m in markers.values() if m.label != label and not m.tracking
+                    and m.landmark.name == marker.landmark.name] if not marker.tracking else []
+        for old in replaced:
+            del markers[old.label]
+            groups = {g: tuple(label if x == old.label else x for x in labels)
+                      for g, labels in groups.items()}
+            if not (isinstance(spec, dict) and "required" in spec):
+                marker = replace(marker, required=old.required)
+        markers[label] = marker
     for group, labels in _table(data, "any_of", path).items():
         if (not isinstance(labels, list) or not labels
                 or any(label not in markers for label in labels)):
@@ -245,21 +388,53 @@ def _table(data: dict, name: str, path: Path) -> dict:
     return table
 
 
+#: How a tracking marker's ``side`` may be written.
+_SIDES = {"left": "_l", "l": "_l", "right": "_r", "r": "_r"}
+
+
 def _protocol_marker(label: str, spec, landmarks: dict[str, Landmark], path: Path
                      ) -> ProtocolMarker:
     spec = {"landmark": spec} if isinstance(spec, str) else spec
     name = spec.get("landmark") if isinstance(spec, dict) else None
-    if not isinstance(name, str) or name not in landmarks:
+    if isinstance(spec, dict) and name is None and "segment" in spec:
+        landmark = tracking_landmark(label, _tracking_segment(label, spec, path))
+    elif not isinstance(name, str) or name not in landmarks:
         raise ProtocolError(f"marker {label!r}: unknown landmark {name!r}", path=path,
-                            hint="landmarks are listed in protocols/landmarks.toml")
+                            hint="landmarks are listed in protocols/landmarks.toml (and a "
+                                 "landmarks.toml of your protocol folders); a marker on no "
+                                 "landmark names its segment: { segment = \"femur\", "
+                                 "side = \"left\" }")
+    else:
+        landmark = landmarks[name]
     aliases = spec.get("aliases", ())
     if not isinstance(aliases, (list, tuple)) or not all(isinstance(a, str) for a in aliases):
         raise ProtocolError(f"marker {label!r}: aliases must be a list of strings", path=path)
-    required = spec.get("required", False)
+    required, static_only = spec.get("required", False), spec.get("static_only", False)
     if not isinstance(required, bool):
         raise ProtocolError(f"marker {label!r}: required must be true or false", path=path)
-    weight = _weight(spec.get("weight", landmarks[name].weight), f"marker {label!r}", path)
-    return ProtocolMarker(label, landmarks[name], required, tuple(aliases), weight)
+    if not isinstance(static_only, bool) or (static_only and required):
+        raise ProtocolError(f"marker {label!r}: static_only must be true or false, and a "
+                            "marker on the static only cannot be required", path=path)
+    weight = _weight(spec.get("weight", landmark.weight), f"marker {label!r}", path)
+    return ProtocolMarker(label, landmark, required, tuple(aliases), weight, static_only)
+
+
+def _tracking_segment(label: str, spec: dict, path: Path) -> str:
+    """The skeleton segment of a tracking marker's ``segment`` and ``side`` entries."""
+    segment, side = spec.get("segment"), spec.get("side")
+    suffix = _SIDES.get(side) if isinstance(side, str) else None
+    if side is not None and suffix is None:
+        raise ProtocolError(f"marker {label!r}: side must be \"left\" or \"right\", got "
+                            f"{side!r}", path=path)
+    name = segment + suffix if isinstance(segment, str) and suffix and \
+        segment not in SEGMENT_NAMES else segment
+    if name not in SEGMENT_NAMES or (suffix and not name.endswith(suffix)):
+        raise ProtocolError(
+            f"marker {label!r}: unknown segment {segment!r}"
+            + (f" on side {side!r}" if side else ""), path=path,
+            hint=f"segments are {', '.join(SEGMENT_NAMES)}; a limb's bare name (femur) needs "
+                 "side = \"left\" or \"right\"")
+    return name
 
 
 def _weight(value, what: str, path) -> float:
@@ -271,21 +446,75 @@ def _weight(value, what: str, path) -> float:
 
 
 @lru_cache(maxsize=None)
-def _model_output_regex(path: str) -> re.Pattern:
-    patterns = _read_toml(path).get("patterns")
+def _model_output_regex(path: str, key: str) -> re.Pattern:
+    patterns = _read_toml(path).get(key)
     if not isinstance(patterns, list) or not all(isinstance(p, str) for p in patterns):
-        raise ProtocolError("needs patterns = [\"REGEX\", ...]", path=path)
+        raise ProtocolError(f"needs {key} = [\"REGEX\", ...]", path=path)
     try:
-        return re.compile("|".join(f"(?:{p})" for p in patterns))
+        return re.compile("|".join(f"(?:{p})" for p in patterns) or "(?!)")
     except re.error as exc:
         raise ProtocolError(f"invalid regular expression: {exc}", path=path) from None
 
 
+def _matches(label: str, key: str) -> bool:
+    regex = _model_output_regex(os.fspath(protocols_dir() / "model_outputs.toml"), key)
+    return regex.fullmatch(normalise_label(label)) is not None
+
+
 def is_model_output(label: str) -> bool:
     """True when ``label`` names a model output stored as a point (``LHipAngles``, ``PELO``,
-    ``*12``...), after normalisation, by the patterns of ``model_outputs.toml``."""
-    regex = _model_output_regex(os.fspath(protocols_dir() / "model_outputs.toml"))
-    return regex.fullmatch(normalise_label(label)) is not None
+    ``*12``...), after normalisation, by the ``patterns`` of ``model_outputs.toml``."""
+    return _matches(label, "patterns")
+
+
+def is_numbered_point(label: str) -> bool:
+    """True when ``label`` has the form of a model's numbered virtual point (``LFEM12``,
+    ``LTIB1``, ``PEL0``: the ``numbered`` patterns of ``model_outputs.toml``), which labs
+    also give cluster markers: :func:`computed_points` tells them apart."""
+    return _matches(label, "numbered")
+
+
+#: Two points whose distance varies less than this (m, standard deviation over the frames)
+#: while the body moves are rigid to a file's precision: one was computed from a model
+#: (measured: 0-0.03 mm between CMU's and the Oxford Foot Model's virtual points in walks;
+#: 0.24-4.8 mm between two markers of one segment in the real walks at hand).
+RIGID_SD = 5e-5
+#: A point moves with the body when it travels more than this (m, the diagonal of the box its
+#: path fills); in a standing trial nothing tells a marker from a virtual point (real statics
+#: hold marker pairs rigid to 3 µm), so the name decides there.
+MOVING_EXTENT = 0.05
+#: Frames a pair must be seen together in to be judged.
+RIGID_FRAMES = 10
+
+
+def numbered_candidates(trial: Trial) -> list[int]:
+    """Trial marker indices whose labels have a model's numbered form
+    (:func:`is_numbered_point`) and are not plain model outputs."""
+    return [i for i, label in enumerate(trial.labels)
+            if not is_model_output(label) and is_numbered_point(label)]
+
+
+def computed_points(trial: Trial, candidates, /) -> set[int]:
+    """The ``candidates`` (trial marker indices) that a model computed: each stays rigid, to
+    :data:`RIGID_SD`, with some other point of the trial seen with it in
+    :data:`RIGID_FRAMES` frames or more while it moves (:data:`MOVING_EXTENT`); a point
+    that does not move is taken to be what its name says. A point that moves with the body
+    otherwise is a marker."""
+    X = trial.markers
+    candidates = list(candidates)
+    out = set()
+    for start in range(0, len(candidates), 8):
+        chunk = candidates[start:start + 8]
+        d = np.linalg.norm(X[:, None, :, :] - X[:, chunk, None, :], axis=3)     # (F, c, N)
+        count = np.isfinite(d).sum(axis=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)        # never seen together: NaN
+            rigid = (np.nanstd(d, axis=0) < RIGID_SD) & (count >= RIGID_FRAMES)
+            extent = np.linalg.norm(np.nanmax(X[:, chunk], axis=0)
+                                    - np.nanmin(X[:, chunk], axis=0), axis=1)
+        rigid[np.arange(len(chunk)), chunk] = False
+        out |= {i for i, r, e in zip(chunk, rigid, extent) if not e > MOVING_EXTENT or r.any()}
+    return out
 
 
 @dataclass(frozen=True)
@@ -348,11 +577,13 @@ class ProtocolMatch:
         return trial.markers[:, i] if i >= 0 else np.full((trial.n_frames, 3), np.nan)
 
 
-def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
-                   ) -> ProtocolMatch:
+def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True,
+                   computed: set[int] | None = None) -> ProtocolMatch:
     """Map ``protocol``'s markers to ``trial``'s by normalised label (first occurrence wins).
 
-    Labels the protocol does not list are either model outputs (ignored) or unknown. With
+    Labels the protocol does not list are either model outputs (ignored: by name, or numbered
+    points a model computed, :func:`computed_points`, which ``computed`` gives when already
+    known) or unknown. With
     ``check_swaps``, left/right label swaps of the shoulder and pelvis markers are looked for
     (:func:`find_side_swaps`) and reported in ``swaps`` and ``warnings``, never corrected.
     """
@@ -367,10 +598,13 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     present = {m.label for m, i in zip(protocol.markers, indices) if i >= 0}
     missing_any_of = tuple(g for g, labels in protocol.any_of if not present & set(labels))
     claimed = {k for m in protocol.markers for k in m.keys}
+    if computed is None:
+        computed = computed_points(trial, [i for i in numbered_candidates(trial)
+                                           if names[i] not in claimed])
     ignored, unknown = [], []
-    for label, name in zip(trial.labels, names):
+    for i, (label, name) in enumerate(zip(trial.labels, names)):
         if name not in claimed:
-            (ignored if is_model_output(label) else unknown).append(label)
+            (ignored if is_model_output(label) or i in computed else unknown).append(label)
     counts = {name: names.count(name) for name in claimed if name in first}
     duplicates = tuple(trial.labels[first[k]] for m in protocol.markers for k in m.keys
                        if counts.get(k, 0) > 1)
@@ -415,7 +649,9 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
     """
     if protocols is None:
         protocols = [load_protocol(name) for name in list_protocols()]
-    matches = [match_protocol(trial, p, check_swaps=False) for p in protocols]
+    computed = computed_points(trial, numbered_candidates(trial))
+    matches = [match_protocol(trial, p, check_swaps=False, computed=computed)
+               for p in protocols]
     if not matches:
         raise ProtocolError("no protocols to choose from", path=trial.source)
     best = min(matches, key=lambda m: (not m.complete, -m.found,
@@ -425,7 +661,7 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
             "no protocol matches any marker label", path=trial.source,
             hint=f"labels are {_few(trial.labels)}; write a protocol for this marker set "
                  "(see docs/guide/protocols.md) and pass it with --protocol")
-    return match_protocol(trial, best.protocol)
+    return match_protocol(trial, best.protocol, computed=computed)
 
 
 def match_trial(trial: Trial, protocol: Protocol | str | os.PathLike = "auto", /
@@ -468,7 +704,7 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
     for m, i in zip(match.protocol.markers, match.indices):
         if i >= 0:
             by_landmark.setdefault(m.landmark.name, trial.markers[:, i])
-    forward = _forward_direction(by_landmark, trial.n_frames)
+    forward = forward_direction(by_landmark, trial.n_frames)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # up x forward, horizontal
     label_of = {m.landmark.name: m.label for m, i in zip(match.protocol.markers, match.indices)
                 if i >= 0}
@@ -487,7 +723,7 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
+def forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
     """Unit horizontal forward direction per frame, shape (F, 2), NaN where unknown."""
     forward = np.full((n_frames, 2), np.nan)
     for anterior, posterior in _FORWARD_CUES:

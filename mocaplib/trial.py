@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MocapError
+from .runs import valid_runs
 
 #: Frame rates (Hz) gait can be analysed at. Below, a stride spans too few frames to find its
 #: events; above, no optical system records whole-body markers: POINT:RATE is then corrupt.
@@ -174,7 +175,6 @@ class Trial:
 
     def longest_gap(self) -> np.ndarray:
         """Longest run of missing frames per marker, shape (M,), in frames."""
-        from .filtering import valid_runs  # imported here: filtering imports this module
 
         missing = np.isnan(self.markers[:, :, 0])
         return np.array([max((stop - start for start, stop in valid_runs(missing[:, m])),

@@ -85,3 +85,28 @@ def test_the_pelvis_frame_is_level_when_the_asis_and_psis_are():
     tilted = pelvis_axes(lasi, rasi, back + [0.0, 0.0, 0.03])[0]
     assert tilted[2, 0] < 0 and np.degrees(np.arcsin(-tilted[2, 0])) == pytest.approx(
         np.degrees(np.arctan(0.03 / 0.17)), abs=1e-9)
+
+
+def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
+    from mocaplib.anatomy import functional_centre, marker_frames
+
+    rng = np.random.default_rng(0)
+    n = 200
+    angle = np.deg2rad(60.0) * (0.5 - 0.5 * np.cos(np.linspace(0, 4 * np.pi, n)))   # 0-60°
+    knee = np.array([0.02, 0.01, 0.5])                      # the true centre, world, fixed thigh
+    hip = knee + (0.0, 0.0, 0.42)
+    thigh = knee + np.array([[0.08, 0.09, 0.2], [0.0, 0.1, 0.25], [0.05, 0.11, 0.12]])
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.zeros((n, 3, 3))
+    R[:, 0, 0], R[:, 0, 2], R[:, 1, 1], R[:, 2, 0], R[:, 2, 2] = c, -s, 1.0, s, c   # about Y
+    shank_local = np.array([[0.05, 0.07, -0.15], [-0.03, 0.08, -0.2], [0.02, 0.06, -0.3]])
+    shank = knee + np.einsum("fij,mj->fmi", R, shank_local)
+    noise = 0.0005
+    frames = [marker_frames(np.broadcast_to(thigh, (n, 3, 3)) + rng.normal(0, noise, (n, 3, 3))),
+              marker_frames(shank + rng.normal(0, noise, shank.shape))]
+    # a hinge: the centre slides along its axis (Y) unless the hip says where
+    found = functional_centre(*frames, hint=np.broadcast_to(hip, (n, 3)))
+    # 0.5 mm of marker noise leaves the centre within a few millimetres
+    np.testing.assert_allclose(np.median(found, axis=0), knee, atol=0.004)
+    still = [marker_frames(np.broadcast_to(x, (n, 3, 3)).copy()) for x in (thigh, shank_local)]
+    assert functional_centre(*still) is None                 # no turn: nothing to find

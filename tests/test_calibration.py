@@ -146,10 +146,13 @@ def test_exchanged_left_right_labels_are_found_and_undone(walk):
     swapped = Trial(walk.trial.markers, labels, walk.trial.rate, source="swapped.c3d")
     model = calibrate(swapped, protocol="fullbody38")
     assert model.swapped == [("LSHO", "RSHO")]
-    assert model.swap_warnings == ["labels LSHO and RSHO look exchanged (each marker lies where "
-                                   "the other belongs); the fit exchanges them back: check the "
-                                   "labelling"]
+    assert model.swap_warnings == ["calibration trial swapped.c3d: labels LSHO and RSHO look "
+                                   "exchanged (each marker lies where the other belongs); "
+                                   "calibration exchanged them back: check the labelling"]
     motion = fit(swapped, model)
+    # the fit finds the swap in the motion itself, over every frame
+    assert [(r.kind, r.labels, r.start, r.stop) for r in motion.repairs] == [
+        ("swap", ("LSHO", "RSHO"), 0, swapped.n_frames)]
     # once exchanged back the capture fits as well as the unswapped one (6 mm artefact)
     assert np.nanmax(motion.marker_rms()) < 0.006
 

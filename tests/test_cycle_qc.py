@@ -1,4 +1,4 @@
-"""The per-cycle QC metrics of the build (:func:`mocaplib.pipeline.cycle_qc`)."""
+"""The per-cycle QC metrics of the build (:func:`mocaplib.qc.cycle_qc`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from mocaplib.filtering import WALKING_CUTOFF
-from mocaplib.pipeline import cycle_qc
+from mocaplib.qc import cycle_qc
 from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 
 
@@ -61,12 +61,12 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
         expected, rel=0.01)
     # on a treadmill belt running backwards at the walking speed, the body stays in place in
     # the lab: its energy is measured relative to the belt, where it moves steadily forwards
-    from mocaplib.pipeline import _qc_series
+    from mocaplib.qc import qc_series
 
     q[:, DOF_NAMES.index("pelvis_tz")] = 0.9
     q[:, DOF_NAMES.index("hip_flexion_r")] = 0.3 * np.sin(w * t)   # a leg swinging
     motion = _motion(q, rate)
-    on_belt = cycle_qc(cycle, motion, _qc_series(motion, np.array([-1.3, 0.0, 0.0])))
+    on_belt = cycle_qc(cycle, motion, qc_series(motion, np.array([-1.3, 0.0, 0.0])))
     q[:, DOF_NAMES.index("pelvis_tx")] = 1.3 * t
     overground = cycle_qc(cycle, _motion(q, rate))
     assert on_belt["internal_power_w_kg"] == pytest.approx(overground["internal_power_w_kg"],

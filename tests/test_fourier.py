@@ -117,3 +117,49 @@ def test_drift_frame_reaches_the_end_pose():
     straight = root_drift(start, start + np.eye(D)[ROOT_X], T)  # 1 m along +X, no turn
     np.testing.assert_allclose(straight.u_f, np.cos(0.3) / T, atol=1e-12)
     np.testing.assert_allclose(straight.u_l, -np.sin(0.3) / T, atol=1e-12)
+
+
+@pytest.mark.real
+def test_real_chosen_cycles_encode_with_few_harmonics():
+    # the target: order <= 12 for >= 90 % of the real chosen cycles (every one hit the
+    # cap of 20 at a flat 0.5 deg tolerance, forced through each cycle's start-to-end step);
+    # measured 5-10 on the 10 real walks (docs/guide/fourier.md)
+    from walking_library import real_walks
+
+    _, records = real_walks()
+    orders = np.array([c["fourier_n"] for record in records.values()
+                       for c in record["cycles"] if c["chosen"]])
+    assert len(orders) == 10 and np.mean(orders <= 12) >= 0.9, orders
+
+
+def test_a_cycle_that_does_not_close_keeps_a_low_order_and_its_ramp():
+    # a real cycle ends a few degrees from where it started: forced through that step, the
+    # series needed every harmonic; taken out as a ramp, the periodic part is encoded as usual
+    from mocaplib.fourier import MAX_ANGLE_TOLERANCE, channel_tolerance
+
+    time = np.arange(0, T, 0.01)
+    q = walking_q(time)
+    q_end = walking_q(np.array([T]))[0]
+    knee = DOF_NAMES.index("knee_flexion_l")
+    step = np.deg2rad(12.0)
+    q[:, knee] += step * time / T
+    q_end[knee] += step
+    enc = encode_cycle(q, time, T, q_end)
+    assert enc.order <= 3 and enc.rms_deg <= 0.5
+    np.testing.assert_allclose(enc.ramp[knee], step, atol=1e-9)
+    assert enc.ramp[ROOT_X] == enc.ramp[ROOT_Y] == enc.ramp[ROOT_HEADING] == 0.0
+    # series + ramp·t/T is the captured cycle (root in the moving frame), to the tolerance
+    captured = enc.drift.remove(np.unwrap(q, axis=0), time)
+    np.testing.assert_allclose(enc.synthesize_cycle(time)[:, knee], captured[:, knee],
+                               atol=np.deg2rad(0.5))
+    # without the ramp the same cycle needs many more harmonics
+    flat = encode(captured, time, T, tolerance=channel_tolerance())
+    assert flat.order >= 3 * enc.order
+    # the tolerance follows each angle's noise floor, from 0.5 deg up to 1 deg
+    noise = np.zeros(D)
+    noise[knee], noise[0] = np.deg2rad(0.7), np.deg2rad(5.0)
+    tolerance = channel_tolerance(noise)
+    assert tolerance[knee] == pytest.approx(np.deg2rad(0.7))
+    assert tolerance[DOF_NAMES.index("hip_flexion_l")] == pytest.approx(np.deg2rad(0.5))
+    assert tolerance[0] == 0.002 and MAX_ANGLE_TOLERANCE == pytest.approx(np.deg2rad(1.0))
+    assert channel_tolerance(np.full(D, 1.0))[knee] == MAX_ANGLE_TOLERANCE

@@ -147,3 +147,23 @@ def test_truncated_capture_is_a_failed_entry(capsys, capture, tmp_path):
     (entry,) = json.loads(out)
     assert code == 1 and entry["ok"] is False and entry["error"].startswith(str(cut))
     assert entry["labels"] == [] and entry["protocol"] is None
+
+
+def test_no_complete_protocol_gives_null_and_the_closest_candidate(tmp_path, capsys):
+    from protocol_trials import select
+
+    pig = load_protocol("plugin_gait")
+    trial = walker_trial(pig, n_frames=30)
+    keep = [i for i, label in enumerate(trial.labels) if label not in ("LSHO", "RSHO")]
+    summary = inspect_trial(select(trial, keep))
+    closest = summary["closest_protocol"]
+    assert summary["protocol"] is None and summary["missing_landmarks"] == []
+    assert closest["name"] == "plugin_gait" and closest["markers_found"] == len(keep)
+    assert set(closest["missing_landmarks"]) == {"L_ACROMION", "R_ACROMION"}
+    # a protocol the user names is reported as such, with what it misses
+    named = inspect_trial(select(trial, keep), protocol="plugin_gait")
+    assert named["protocol"] == "plugin_gait" and named["closest_protocol"] is None
+    path = write_c3d(tmp_path / "no_shoulders.c3d", trial.markers[:, keep],
+                     [trial.labels[i] for i in keep], 100.0)
+    code, out, _ = _cli(capsys, "inspect", str(path))
+    assert code == 0 and "closest plugin_gait (40/42 markers) lacks L_ACROMION, R_ACROMION" in out

@@ -12,12 +12,13 @@ import os
 import re
 import signal
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mocaplib import pipeline
+from mocaplib import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
@@ -161,7 +162,7 @@ def test_cache_made_by_other_code_is_not_reused(tmp_path, monkeypatch):
     write_captures(folder, TRIPLES[:2])
     build([folder], cache_dir=cache, progress=False, process=fake_process)
     # Same version number, edited code (a development checkout): everything is re-processed.
-    monkeypatch.setattr(pipeline, "code_fingerprint", lambda: "edited")
+    monkeypatch.setattr("mocaplib.cache.code_fingerprint", lambda: "edited")
     again = build([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 4 and not any(c.from_cache for c in again.captures)
 
@@ -297,14 +298,20 @@ def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_pa
 
     taller, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    pipeline._neutral_model.cache_clear()
+    workflow._neutral_model.cache_clear()
     result = build([SAMPLES / "walk_straight_normal.c3d", SAMPLES / "turn_spot_left_normal.c3d",
                     taller], settings, jobs=1, cache_dir=None, progress=False)
-    assert pipeline._neutral_model.cache_info().misses == 1          # calibrated once
-    walk, turn, refused = result.captures
+    assert workflow._neutral_model.cache_info().misses == 1          # calibrated once
+    walk, turn, other = result.captures
     assert walk.ok and turn.ok and walk.static == turn.static == "rest.c3d", walk.error
-    assert not refused.ok and refused.stage == "calibrate" and refused.static is None
-    assert "walk_straight_normal_1.85.c3d" in refused.error and "rest.c3d" in refused.error
+    # the taller subject's capture is not this static's: calibrated from itself, said so
+    assert other.ok and other.static is None and other.entries, other.error
+    assert any(w.startswith("calibrated from the capture itself: no static shows its subject")
+               and "rest.c3d" in w for w in other.warnings), other.warnings
+    required = build([taller], replace(settings, require_static=True), jobs=1, cache_dir=None,
+                     progress=False).captures[0]
+    assert not required.ok and required.stage == "calibrate" and required.static is None
+    assert "walk_straight_normal_1.85.c3d" in required.error and "rest.c3d" in required.error
 
 
 @pytest.mark.usefixtures("sample_dir")
@@ -324,12 +331,16 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     assert walk.ok and walk.static == "rest.c3d", walk.error
     assert taller.ok and taller.static == "rest_1.85.c3d", taller.error
     assert walk.entries[0]["segment_lengths_m"] != taller.entries[0]["segment_lengths_m"]
-    assert not shorter.ok and shorter.stage == "calibrate" and shorter.static is None
-    assert "none of the 2 static trials" in shorter.error
-    assert re.search(r"rest\.c3d \d+\.\d mm; rest_1\.85\.c3d \d+\.\d mm", shorter.error)
+    assert shorter.ok and shorter.static is None and shorter.entries, shorter.error
+    warning = next(w for w in shorter.warnings if w.startswith("calibrated from the capture"))
+    assert "none of the 2 static trials" in warning
+    assert re.search(r"rest\.c3d \d+\.\d mm; rest_1\.85\.c3d \d+\.\d mm", warning)
     assert result.library.settings["static"] == ["rest.c3d", "rest_1.85.c3d"]
     assert [c["static"] for c in result.diagnostics()["captures"]] == \
         ["rest.c3d", "rest_1.85.c3d", None]
+    required = build([shorter_walk], replace(settings, require_static=True), jobs=1,
+                     cache_dir=None, progress=False)
+    assert not required.ok and "none of the 2 static trials" in required.failures[0].error
     assert result.summary()["statics"] == {"rest.c3d": 1, "rest_1.85.c3d": 1}
     assert "captures per static: rest.c3d 1, rest_1.85.c3d 1" in result.summary_text()
 
@@ -472,18 +483,18 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):
     # 1 mm marker RMS: no real capture with skin markers meets it, so QC must fail.
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.001}
     # the policy acts only on the entries: process once, keep the cycles for the other policy
-    stage, entries = {}, pipeline._entries
+    stage, entries = {}, workflow._entries
 
     def recorded(path, result, cycles, qcs, settings, *args):
         stage.update(path=path, cycles=cycles, qcs=qcs, args=args)
         return entries(path, result, cycles, qcs, settings, *args)
 
-    monkeypatch.setattr(pipeline, "_entries", recorded)
+    monkeypatch.setattr(workflow, "_entries", recorded)
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
     assert kept.ok and len(kept.entries) == 1
     entry = kept.entries[0]
     assert entry["qc"]["marker_rms_m"] > 0.001
-    failing = sorted(pipeline.qc_failures(entry["qc"], strict))
+    failing = sorted(qc_failures(entry["qc"], strict))
     assert sorted(entry["qc_waived"]) == sorted(f.split()[0] for f in failing)
     assert "marker_rms_m" in entry["qc_waived"]
     assert any("kept with QC waived" in w for w in kept.warnings)
@@ -617,8 +628,8 @@ def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder,
         BuildSettings(toe_off="heel")
 
 
-def test_a_capture_failing_after_events_keeps_its_series_in_the_diagnostics(synthetic_folder,
-                                                                            tmp_path):
+def test_a_capture_without_a_cycle_keeps_its_series_in_the_diagnostics(synthetic_folder,
+                                                                        tmp_path):
     from mocaplib.io.c3d import read_c3d
     from mocaplib.io.c3d_write import write_c3d
 
@@ -627,8 +638,9 @@ def test_a_capture_failing_after_events_keeps_its_series_in_the_diagnostics(synt
     short = tmp_path / "short.c3d"
     write_c3d(short, trial.markers[:60], trial.labels, trial.rate)
     result = process_capture(short, BuildSettings())
-    assert not result.ok and result.stage == "cycles", result.error
-    assert "short.c3d" in result.error and "toe-off" in result.error
+    # no complete cycle: no entry, and why, but not a failure
+    assert result.ok and result.stage is None and result.error is None
+    assert "fewer than two left toe-offs" in result.no_entry
     diag = result.diagnostics
     assert diag["rate_hz"] == 100.0 and len(diag["time_s"]) == 60 and diag["events"]
     assert "cycles" not in diag and result.entries == []

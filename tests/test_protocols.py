@@ -13,7 +13,8 @@ from protocol_trials import select, walker_trial
 from mocaplib.errors import ProtocolError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.protocols import (detect_protocol, find_side_swaps, is_model_output,
-                                list_protocols, load_protocol, match_protocol)
+                                is_numbered_point, list_protocols, load_protocol,
+                                match_protocol)
 from mocaplib.trial import Trial
 
 #: The protocol each real file must be detected as (see protocols/*.toml and SOURCES.md).
@@ -54,13 +55,20 @@ def test_every_shipped_protocol_loads_and_every_required_landmark_set_is_usable(
         # the pipeline needs both sides: shoulders, pelvis, knee, heel on L_ and R_
         assert {"L_", "R_"} <= sides, name
         required = {m.landmark.name for m in protocol.markers if m.required}
-        assert {"L_ACROMION", "R_ACROMION", "L_KNEE_LAT", "R_KNEE_LAT", "L_HEEL",
-                "R_HEEL"} <= required, name
+        assert {"L_ACROMION", "R_ACROMION", "L_HEEL", "R_HEEL"} <= required, name
+        # each knee: its lateral marker, or clusters on the thigh and shank (their static
+        # places the knee, cluster_fullbody)
+        tracked = {m.landmark.segment for m in protocol.markers if m.tracking}
+        for side in "LR":
+            assert (f"{side}_KNEE_LAT" in required
+                    or {f"femur_{side.lower()}", f"tibia_{side.lower()}"} <= tracked), name
 
 
 def test_extends_inherits_and_overrides():
     ofm, pig = load_protocol("plugin_gait_ofm"), load_protocol("plugin_gait")
-    assert set(pig.labels) <= set(ofm.labels)
+    # OFM labels the 5th metatarsal head D5M: its entry replaces PiG's LMT5 on that landmark
+    assert set(pig.labels) - {"LMT5", "RMT5"} <= set(ofm.labels)
+    assert {"LMT5", "RMT5"}.isdisjoint(ofm.labels) and ofm.marker("LD5M").landmark.name == "L_MT5"
     assert dict(ofm.any_of)["pelvis_back"] == ("LPSI", "RPSI", "SACR")
     # OFM has its own shin marker, so the overriding LTIB entry drops PiG's LSHN alias
     assert "LSHN" in pig.marker("LTIB").keys and ofm.marker("LTIB").aliases == ()
@@ -106,7 +114,9 @@ def test_pig_model_outputs_are_ignored_not_unknown(real_c3d):
     assert match.unknown == ()
     zoo = detect_protocol(_read(real_c3d("biomechzoo/HC030A22.c3d")))
     assert {"*179", "LHJC", "LHLX0", "LTIB1", "CentreOfMassFloor"} <= set(zoo.ignored)
-    assert zoo.unknown == ("JUG",)  # a label we cannot classify stays visible
+    # a label we cannot classify stays visible; so does OFM's LD1M0: it moves with the body
+    # and is rigid with no single point (measured 0.6-2.6 mm), as a marker would be
+    assert zoo.unknown == ("LD1M0", "RD1M0", "JUG")
 
 
 def test_duplicates_flagged_and_first_occurrence_used(real_c3d):
@@ -168,10 +178,32 @@ def test_detection_prefers_the_complete_then_tighter_protocol():
 
 def test_model_output_patterns():
     for label in ("LHipAngles", "Bastian:RKneeMoment", "LGroundReactionForce", "PELO", "HEDA",
-                  "*12", "CentreOfMass", "LHJC", "Justin_Nancy:LFEM12", "RNormalisedGRF"):
+                  "*12", "CentreOfMass", "LHJC", "RNormalisedGRF"):
         assert is_model_output(label), label
     for label in ("LASI", "T10", "C7", "L_FM1", "r bar 1", "RFHD", "SCR1", "LA", "LFIN"):
-        assert not is_model_output(label), label
+        assert not is_model_output(label) and not is_numbered_point(label), label
+    # numbered names are what models and labs both use: the data decide (computed_points)
+    for label in ("Justin_Nancy:LFEM12", "LTH1", "LTB3", "th12", "PEL0", "LTIB1"):
+        assert not is_model_output(label) and is_numbered_point(label), label
+
+
+def test_numbered_points_that_move_with_the_body_are_markers():
+    protocol = load_protocol("fullbody38")
+    trial = walker_trial(protocol, speed=1.2)
+    X = trial.markers
+    rng = np.random.default_rng(0)
+    thigh = X[:, protocol.labels.index("LTHI")]
+    # a lab's thigh cluster: three markers near the thigh marker, each with its own noise; a
+    # model's virtual point: the knee marker moved by a fixed vector (rigid to the precision)
+    cluster = [thigh + (0.03 * k, 0.0, 0.0) + rng.normal(0, 0.0007, thigh.shape) for k in (1, 2, 3)]
+    virtual = X[:, protocol.labels.index("LKNE")] + (0.0, 0.0, 0.1)
+    extra = Trial(np.concatenate([X, np.stack(cluster + [virtual], axis=1)], axis=1),
+                  list(trial.labels) + ["LTH1", "LTH2", "LTH3", "LFEM1"], trial.rate)
+    match = match_protocol(extra, protocol)
+    assert set(match.unknown) == {"LTH1", "LTH2", "LTH3"} and match.ignored == ("LFEM1",)
+    # standing still, nothing tells them apart: the name decides
+    still = Trial(np.repeat(extra.markers[:1], 20, axis=0), extra.labels, trial.rate)
+    assert set(match_protocol(still, protocol).ignored) == {"LTH1", "LTH2", "LTH3", "LFEM1"}
 
 
 def test_no_protocol_matches_raises():
@@ -234,3 +266,94 @@ def test_the_guide_protocol_example_matches_its_capture(tmp_path):
     match = detect_protocol(select(trial, keep), protocols=[protocol, load_protocol("plugin_gait")])
     assert match.protocol.name == "mylab_lower16" and match.complete
     assert match.missing == ("L PSIS",) and match.found == 15
+
+
+# ---------------------------------------------------------------- users' folders, extends
+def _user_folder(tmp_path, monkeypatch):
+    """A user's folder with a landmark, a protocol using it and a protocol named like a
+    shipped one; $MOCAPLIB_PROTOCOLS names it (monkeypatched: restored after the test)."""
+    folder = tmp_path / "mylab"
+    folder.mkdir()
+    (folder / "landmarks.toml").write_text(
+        '[GLUTEUS]\nsegment = "pelvis"\nposition = [-0.10, 0.10, -0.02]\nsided = true\n'
+        '[C7]\nsegment = "torso"\nposition = [-0.085, 0.0, 0.445]\n')
+    (folder / "mylab16.toml").write_text(
+        'name = "mylab16"\n[markers]\nLGLU = { landmark = "L_GLUTEUS" }\n'
+        'LTH1 = { segment = "femur", side = "left" }\nC7 = "C7"\n')
+    (folder / "bts_davis.toml").write_text('[markers]\nC7 = "C7"\n')
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(folder))
+    return folder
+
+
+def test_a_users_folder_adds_protocols_and_landmarks_to_the_shipped_ones(tmp_path, monkeypatch):
+    from mocaplib.protocols import load_landmarks, overrides
+
+    folder = _user_folder(tmp_path, monkeypatch)
+    names = list_protocols()
+    assert "mylab16" in names and "plugin_gait" in names      # added, nothing taken away
+    catalogue = load_landmarks()
+    assert catalogue["L_GLUTEUS"].segment == "pelvis" and "L_ASIS" in catalogue
+    assert catalogue["C7"].position == (-0.085, 0.0, 0.445)   # the user's entry wins
+    mine = load_protocol("mylab16")
+    assert mine.marker("LGLU").landmark.name == "L_GLUTEUS"
+    assert mine.marker("LTH1").tracking and mine.marker("LTH1").landmark.segment == "femur_l"
+    assert len(load_protocol("bts_davis").markers) == 1          # the user's bts_davis wins
+    notes = " ".join(overrides())
+    assert f"protocol 'bts_davis' of {folder}" in notes and "landmark C7" in notes
+
+
+def test_protocols_option_adds_a_folder_and_inspect_notes_the_override(tmp_path, monkeypatch,
+                                                                        capsys):
+    from mocaplib.cli import main
+    from mocaplib.io.c3d_write import write_c3d
+
+    folder = _user_folder(tmp_path, monkeypatch)
+    monkeypatch.delenv("MOCAPLIB_PROTOCOLS")
+    capture = tmp_path / "walk.c3d"
+    trial = walker_trial(load_protocol("fullbody38"))
+    write_c3d(capture, trial.markers, trial.labels, trial.rate)
+    assert main(["inspect", str(capture), "--protocol", "mylab16"]) == 2      # not known yet
+    assert "unknown protocol 'mylab16'" in capsys.readouterr().err
+    assert main(["inspect", str(capture), "--protocol", "mylab16", "--protocols",
+                 str(folder), "--json"]) == 0
+    out = capsys.readouterr().out
+    assert '"protocol": "mylab16"' in out and "replaces the one of" in out
+    assert main(["inspect", str(capture), "--protocols", str(tmp_path / "nope")]) == 2
+    assert "protocol folder not found" in capsys.readouterr().err
+
+
+def test_a_tracking_marker_names_its_segment(tmp_path):
+    path = tmp_path / "clusters.toml"
+    path.write_text('[markers]\nLTH1 = { segment = "femur", side = "left" }\n'
+                    'TRK = { segment = "torso" }\nRSH1 = { segment = "tibia_r" }\n'
+                    'LMKN = { landmark = "L_KNEE_MED", static_only = true }\n')
+    protocol = load_protocol(path)
+    assert [m.landmark.segment for m in protocol.markers] == ["femur_l", "torso", "tibia_r",
+                                                              "femur_l"]
+    assert [m.tracking for m in protocol.markers] == [True, True, True, False]
+    assert protocol.marker("LMKN").static_only
+    segments, offsets = protocol.nominal_offsets()
+    assert np.isnan(offsets[:3]).all() and np.isfinite(offsets[3]).all()   # never invented
+    for text, message in [('X = { segment = "femur" }', "needs side"),
+                          ('X = { segment = "femur", side = "up" }', "side must be"),
+                          ('X = { segment = "tibia_r", side = "left" }', "unknown segment"),
+                          ('X = { landmark = "L_ASIS", static_only = true, required = true }',
+                           "cannot be required")]:
+        path = tmp_path / f"bad{len(list(tmp_path.iterdir()))}.toml"    # files are read once
+        path.write_text(f"[markers]\n{text}\n")
+        with pytest.raises(ProtocolError, match=message):
+            load_protocol(path)
+
+
+def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
+    path = tmp_path / "child.toml"
+    path.write_text('extends = "qualisys_cast"\n[markers]\n'
+                    'L_SAE = { landmark = "L_ACROMION", required = true }\n'
+                    'L_MT5 = { landmark = "L_MT5" }\n')
+    child = load_protocol(path)
+    assert "L_SAJ" not in child.labels and child.marker("L_SAE").required
+    assert dict(child.any_of)["left_forefoot"] == ("L_FM1", "L_MT5")   # the group follows
+    cast = load_protocol("qualisys_cast")
+    labels = ["L_SAE" if label == "L_SAJ" else label for label in cast.labels]
+    match = match_protocol(walker_trial(cast, labels=labels), child)
+    assert match.complete and "L_ACROMION" not in match.missing_landmarks

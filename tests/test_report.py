@@ -390,8 +390,8 @@ def test_a_broken_shipped_plan_falls_back(tmp_path, monkeypatch):
 
 def test_report_and_build_read_the_plans_beside_the_protocols(tmp_path, monkeypatch):
     # An installed mocaplib has no source tree: the plans are found where the protocols are
-    # ($MOCAPLIB_PROTOCOLS or the package's data), whatever the current folder.
-    from mocaplib import pipeline
+    # (the package's data and $MOCAPLIB_PROTOCOLS), whatever the current folder.
+    from mocaplib import workflow
     from mocaplib.protocols import protocols_dir
     from mocaplib.report.plan import find_plan
 
@@ -405,12 +405,14 @@ def test_report_and_build_read_the_plans_beside_the_protocols(tmp_path, monkeypa
         "seed = 1\n")
     monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(plans))
     monkeypatch.chdir(tmp_path / "protocols")
-    pipeline._planned_classes.cache_clear()
+    workflow._planned_classes.cache_clear()
     try:
         assert find_plan() == plans / "lab_plan.toml"
-        assert pipeline._planned_classes() == {"mine": "holonomic"}
+        # a user's folder adds to the shipped plans: its plan comes first, both are read
+        classes = workflow._planned_classes()
+        assert classes["mine"] == "holonomic" and "walk_straight_normal" in classes
     finally:
-        pipeline._planned_classes.cache_clear()
+        workflow._planned_classes.cache_clear()
 
 
 def test_report_command(tmp_path, capsys):

@@ -10,7 +10,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 from mocaplib.errors import SynthError
-from mocaplib.filtering import valid_runs
+from mocaplib.runs import valid_runs
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
 from mocaplib.synth.body import SWING_KNEE_FLOOR, body_motion

@@ -130,7 +130,7 @@ def test_a_plan_with_a_bad_capture_writes_nothing(tmp_path, capsys):
      "not in the plan: walk_straigth_fast (did you mean walk_straight_fast"),
     (["{plan}", "-o", "{d}", "--only", "zzz"], "its captures are walk_straight_slow, "),
     (["{plan}", "-o", "{d}", "--only", "rest", "--protocol", "bogus"],
-     "argument --protocol: unknown protocol 'bogus'"),
+     "--protocol: unknown protocol 'bogus'"),
     (["{plan}", "-o", "{d}/afile", "--only", "rest"], "it is a file, not a folder"),
     (["{plan}", "-o", "{d}/afile/sub", "--only", "rest"], "it is a file, not a folder"),
     (["{d}/nope.toml", "-o", "{d}"],

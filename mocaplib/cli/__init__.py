@@ -21,8 +21,8 @@ from ..io import printable
 from ..workers import one_thread_by_default
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
-COMMANDS = ("inspect", "fit", "events", "cycles", "build", "mirror", "validate", "query",
-            "retarget", "report", "synth")
+COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
+            "query", "retarget", "report", "synth")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    from ._common import UsageError
+    from ._common import UsageError, apply_protocol_options   # loads numpy: after the threads
 
     parser = build_parser()
     try:
@@ -60,6 +60,7 @@ def _main(argv: list[str] | None) -> int:
     except SystemExit as exc:  # argparse: --help/--version (0) or a usage error (2)
         return int(exc.code or 0)
     try:
+        apply_protocol_options(args)
         return int(args.run(args) or 0)
     except UsageError as exc:
         print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)

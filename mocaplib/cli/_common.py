@@ -95,13 +95,40 @@ def warn(message: str) -> None:
 
 
 def add_protocol_option(parser, *, default: str = "the best shipped protocol") -> None:
-    """``--protocol NAME|PATH|auto``; an unknown or malformed protocol is a usage error (exit 2).
+    """``--protocol NAME|PATH|auto`` and ``--protocols DIR`` (repeatable): users' protocol
+    folders added to the shipped one. Both are checked by :func:`apply_protocol_options` once
+    the whole line is parsed (a name may come from a folder given after it): an unknown or
+    malformed protocol, or a missing folder, is a usage error (exit 2)."""
+    parser.add_argument("--protocol", default="auto", metavar="NAME|PATH|auto",
+                        help="marker-set protocol: a name (shipped, or in a --protocols "
+                             f"folder), a .toml file, or 'auto' (default: {default})")
+    add_protocol_folders_option(parser)
 
-    The value stays the name or path given (it is checked here, loaded again where used).
-    """
-    parser.add_argument("--protocol", default="auto", type=_protocol_name, metavar="NAME|PATH|auto",
-                        help="marker-set protocol: a shipped name, a .toml file, or 'auto' "
-                             f"(default: {default})")
+
+def add_protocol_folders_option(parser) -> None:
+    """``--protocols DIR`` (repeatable): users' protocol folders added to the shipped one
+    (checked by :func:`apply_protocol_options`)."""
+    parser.add_argument("--protocols", action="append", default=[], metavar="DIR",
+                        help="a folder of your own protocols (*.toml) and landmarks "
+                             "(landmarks.toml), added to the shipped ones; a name defined "
+                             "there wins (repeatable; also $MOCAPLIB_PROTOCOLS)")
+
+
+def apply_protocol_options(args) -> None:
+    """Add ``args.protocols`` folders (:func:`mocaplib.protocols.use_protocol_folders`) and
+    check ``args.protocol`` loads; :class:`UsageError` (exit 2) otherwise. Commands without
+    the options pass through."""
+    from ..protocols import load_protocol, use_protocol_folders
+
+    option = "--protocols"
+    try:
+        if getattr(args, "protocols", None):
+            use_protocol_folders(args.protocols)
+        option = "--protocol"
+        if getattr(args, "protocol", "auto") != "auto":
+            load_protocol(args.protocol)
+    except MocapError as exc:
+        raise UsageError(f"{option}: {exc}") from None
 
 
 #: ``--toe-off`` choices: :data:`mocaplib.events.TOE_OFF_DEFINITIONS`, not imported here so that
@@ -116,17 +143,6 @@ def add_toe_off_option(parser) -> None:
                              "peak, close to a force plate's Foot Off; default) or 'lift' (a "
                              "rigid foot's lift-off: where the toe's upward velocity rises "
                              "fastest, ~18 ms before Foot Off on real feet)")
-
-
-def _protocol_name(value: str) -> str:
-    from ..protocols import load_protocol
-
-    if value != "auto":
-        try:
-            load_protocol(value)
-        except MocapError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-    return value
 
 
 def positive(kind: type, *, unit: str = "", most: float = math.inf):
@@ -188,6 +204,10 @@ def add_static_options(parser) -> None:
                              "each capture); repeat it for several subjects or sessions: each "
                              "capture is calibrated with the static showing its subject, and "
                              "one that none shows is an error")
+    parser.add_argument("--static-window", type=time_window, metavar="START:END",
+                        help="seconds of the static to calibrate on (default: the whole static "
+                             "when the subject stands still in it, else its quietest second, "
+                             "e.g. after a step in)")
     parser.add_argument("--static-pose", choices=("free", "neutral"), default="free",
                         help="'neutral': the static subject stands in the anatomical neutral "
                              "pose (every joint angle 0) and each marker's offset is measured "
@@ -206,6 +226,19 @@ def add_static_options(parser) -> None:
                              "turned so that the subject faces where they walk in it, which "
                              "removes the heading error of marker placement from v_l; repeat "
                              "it for several subjects or sessions (needs --static-pose neutral)")
+
+
+def time_window(text: str) -> tuple[float, float]:
+    """One ``START:END`` (seconds, 0 <= START <= END)."""
+    start, colon, end = text.partition(":")
+    try:
+        window = (float(start), float(end))
+    except ValueError:
+        window = None
+    if not colon or window is None or not (0 <= window[0] <= window[1] < math.inf):
+        raise argparse.ArgumentTypeError(f"expected START:END in seconds with 0 <= START <= "
+                                         f"END, got {text!r}")
+    return window
 
 
 def measurement(text: str) -> tuple[str, float]:
@@ -253,10 +286,12 @@ LIBRARY_HINT = "check the path; `mocaplib build` writes a library"
 
 def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
                  static_pose: str = "free", references: list[str] | None = None,
+                 static_window: tuple[float, float] | None = None,
                  hint: str = "check the path") -> list:
     """Raise :class:`UsageError` before any work when a path given on the command line does
-    not exist (the message ends with ``hint``), a ``--static`` cannot be read or is not
-    standing still (:func:`mocaplib.calibration.check_standing`), a ``--forward-reference``
+    not exist (the message ends with ``hint``), a ``--static`` cannot be read or does not
+    stand still in ``static_window`` or its quietest second
+    (:func:`mocaplib.calibration.standing_part`), a ``--forward-reference``
     cannot be read, or ``--static-pose neutral`` comes without a static or
     ``--forward-reference`` without a neutral static; a static or reference must be one C3D
     file. Returns the static trials, each file read once (the same file given twice counts
@@ -287,11 +322,11 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
             raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
     for path in unique_paths(statics or ()):
-        from ..calibration import check_standing   # here: a command without statics needs none
+        from ..calibration import standing_part   # here: a command without statics needs none
 
         try:
             trials.append(read_c3d(path))
-            check_standing(trials[-1])
+            standing_part(trials[-1], window=static_window)
         except MocapError as exc:
             raise UsageError(f"--static: {exc}") from None
     for path in unique_paths(references or ()):
@@ -305,13 +340,15 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
 def heading_offsets(args) -> tuple[float, ...] | None:
     """Per ``--static``, the heading correction (radians) its ``--forward-reference`` captures
     measure, through the stages ``mocaplib build`` runs with these options
-    (:func:`mocaplib.pipeline.forward_offsets`); None without a reference."""
+    (:func:`mocaplib.workflow.forward_offsets`); None without a reference."""
     if not args.forward_reference:
         return None
-    from ..pipeline import BuildSettings, forward_offsets
+    from ..settings import BuildSettings
+    from ..workflow import forward_offsets
 
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,
+        static_window=args.static_window,
         forward_reference=args.forward_reference, cutoff=args.cutoff,
         measurements=measurements(args),
         toe_off=getattr(args, "toe_off", "foot_velocity")))

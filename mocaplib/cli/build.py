@@ -25,6 +25,11 @@ def register(subparsers) -> None:
                         help="library file to write")
     add_protocol_option(parser, default="detected for each capture")
     add_static_options(parser)
+    parser.add_argument("--require-static", action="store_true",
+                        help="a capture that no static shows fails (default: it is calibrated "
+                             "from itself, with a warning); statics come from --static, a "
+                             "session.toml beside the captures, and the standing files among "
+                             "the inputs")
     add_cutoff_option(parser)
     add_toe_off_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
@@ -58,15 +63,18 @@ def _check_usage(args):
     (every capture would fail on it), an output that would overwrite a file the build reads
     (:func:`mocaplib.pipeline.build_inputs`) or cannot be written, a --report folder that
     cannot take the report."""
-    from ..pipeline import BuildSettings, build_inputs, diagnostics_path, find_captures
+    from ..library import diagnostics_path
+    from ..pipeline import build_inputs, find_captures
+    from ..settings import BuildSettings
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
-                 references=args.forward_reference)
+                 references=args.forward_reference, static_window=args.static_window)
     captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
     settings = BuildSettings(protocol=args.protocol, static=args.static,
-                             static_pose=args.static_pose,
+                             static_pose=args.static_pose, static_window=args.static_window,
+                             require_static=args.require_static,
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, all_cycles=args.all_cycles,
                              mirror=args.mirror, qc_policy=args.qc,

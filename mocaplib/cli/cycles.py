@@ -37,20 +37,20 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..cycles import motion_cycles
     from ..events import capture_events
-    from ..ik import fit_capture
+    from ..workflow import fit_capture
     from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
-    from ..pipeline import qc_and_choice
+    from ..qc import qc_and_choice
     from ._common import print_json
     from .events import load
 
     statics = check_inputs([args.file], args.static, static_pose=args.static_pose,
-                           references=args.forward_reference)
+                           references=args.forward_reference, static_window=args.static_window)
     trial, match, missing = load(args)
     if missing is not None:
         raise missing
     motion = fit_capture(trial, protocol=match.protocol, static=statics,
                          static_pose=args.static_pose, cutoff=args.cutoff,
-                         measurements=measurements(args),
+                         static_window=args.static_window, measurements=measurements(args),
                          heading_offsets=heading_offsets(args))[0]
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)

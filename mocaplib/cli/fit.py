@@ -1,6 +1,6 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
-Only parses options and writes outputs: the work is :func:`mocaplib.ik.fit_capture`
+Only parses options and writes outputs: the work is :func:`mocaplib.workflow.fit_capture`
 (:func:`mocaplib.calibration.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
 """
 
@@ -34,13 +34,15 @@ def register(subparsers) -> None:
                         help="print the fit as JSON: file, protocol, static, cutoff_hz and the "
                              "quality: marker_rms_mm, max_marker_error_mm, per_marker_rms_mm, "
                              "locked_dofs, held_dofs, at_limit, failed_frames, rejected_samples, "
-                             "rejected_per_marker")
+                             "repairs (exchanged labels undone, markers left out: marker, "
+                             "frames, evidence), rejected_per_marker")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
     from ..calibration import static_names
-    from ..ik import fit_capture, fit_quality
+    from ..ik import fit_quality
+    from ..workflow import fit_capture
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
@@ -48,7 +50,7 @@ def _run(args) -> int:
     from ._common import print_json, warn
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
-                           references=args.forward_reference)
+                           references=args.forward_reference, static_window=args.static_window)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
@@ -59,6 +61,7 @@ def _run(args) -> int:
     offsets = heading_offsets(args)
     motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
                                         static_pose=args.static_pose, cutoff=args.cutoff,
+                                        static_window=args.static_window,
                                         measurements=measurements(args),
                                         heading_offsets=offsets)
     sources = [static.source for static in statics]
@@ -70,8 +73,11 @@ def _run(args) -> int:
     if args.osim:
         write_osim(model, args.osim)
     quality = fit_quality(motion)
-    for note in model.swap_warnings:
-        warn(f"{model.source}: {note}")
+    if statics:                                   # without one the fit reports the swaps
+        for note in model.swap_warnings:
+            warn(note)
+    for note in motion.repair_warnings():
+        warn(f"{args.input}: {note}")
     if model.unobservable:
         warn(f"{args.input}: the markers cannot see {', '.join(sorted(model.unobservable))}; "
              "held at 0")

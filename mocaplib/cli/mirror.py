@@ -25,7 +25,7 @@ def _run(args) -> int:
 
     from ..library import load_library, validate_library
     from ..mirror import mirror_library, write_mirrored
-    from ..pipeline import diagnostics_path
+    from ..library import diagnostics_path
     from ._common import LIBRARY_HINT, check_inputs, check_outputs, warn
 
     check_inputs([args.library], hint=LIBRARY_HINT)

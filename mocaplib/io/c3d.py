@@ -34,7 +34,6 @@ before anything is allocated.
 from __future__ import annotations
 
 import errno
-import io
 import math
 import os
 import re

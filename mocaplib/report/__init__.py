@@ -6,8 +6,9 @@ Plotting libraries (matplotlib, pyvista) are imported only when a report is made
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
+from .files import report_name
+
+__all__ = ["report_name", "write_report"]
 
 
 def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto",
@@ -17,8 +18,3 @@ def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"
     from .html import write_report as _write
 
     return _write(library_path, out_dir, envelope=envelope, renderer=renderer, jobs=jobs)
-
-
-def report_name(library_path: str | os.PathLike) -> str:
-    """The report's file name for a library file: ``<stem>-report.html``."""
-    return f"{Path(library_path).stem}-report.html"

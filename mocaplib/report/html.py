@@ -26,10 +26,11 @@ from ..errors import MocapError
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import parse_json
-from ..fourier import ANGLE_TOLERANCE, MAX_ORDER
+from ..fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..library import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
                        validate_library)
-from . import figures, report_name
+from . import figures
+from .files import report_name
 from .plan import default_envelope, planned_status
 from .scene3d import render_control_space
 
@@ -106,7 +107,7 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     Capture records are checked once here, so the rest of the report can rely on their shape:
     a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
     out with a warning naming it (:func:`_record_problem`)."""
-    from ..pipeline import diagnostics_path
+    from ..library import diagnostics_path
 
     path = diagnostics_path(library_path)
     if not os.path.lexists(path):
@@ -170,14 +171,14 @@ def _series_images(library) -> set[str]:
 def _record_problem(record) -> str | None:
     """What makes a capture record of the sidecar unusable (None when its shape is right).
 
-    Checked: the record is an object; ``source``, ``error``, ``stage``, ``static`` texts (or
-    null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
+    Checked: the record is an object; ``source``, ``error``, ``stage``, ``static``,
+    ``no_entry`` texts (or null); ``ok`` true or false; ``cycles`` (and ``mirror_cycles``, ``build --mirror``'s) a
     list of objects whose ``start_s``/``end_s`` are finite numbers (or null), ``index`` a whole number, ``entry_id`` a string (or null) and
     ``pattern`` an object (or null); ``warnings`` a list. Series drawn in the capture's figure
     (``time_s``, ``angles`` ...) are not: a bad one costs that figure only."""
     if not isinstance(record, dict):
         return f"a {type(record).__name__}, not an object"
-    for key in ("source", "error", "stage", "static"):
+    for key in ("source", "error", "stage", "static", "no_entry"):
         if record.get(key) is not None and not isinstance(record[key], str):
             return f"{key} = {json.dumps(record[key])[:40]} is not a text"
     if not isinstance(record.get("ok", True), bool):
@@ -364,6 +365,7 @@ def _summary(library, df, diagnostics, cs) -> dict:
         "captures": len(captures) if captures else len(set(df["source_file"])),
         "failed": len(failed), "fourier_n": library.n_harmonics,
         "fourier_cap": MAX_ORDER, "fourier_tolerance_deg": math.degrees(ANGLE_TOLERANCE),
+        "fourier_noisy_tolerance_deg": math.degrees(MAX_ANGLE_TOLERANCE),
         "at_cap": [str(i) for i in df.index[df["fourier_n"] >= MAX_ORDER]],
         "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
@@ -729,6 +731,7 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
         item = {"source": str(record.get("source", f"capture {k}")),
                 "ok": record.get("ok", True), "error": record.get("error"),
                 "stage": record.get("stage"), "static": record.get("static"),
+                "no_entry": record.get("no_entry"),
                 "warnings": [str(w) for w in record.get("warnings") or []],
                 "cycles": cycles, "n_entries": sum(c["entry"] is not None for c in cycles),
                 "figure": None, "figure_error": None, "anchor": f"capture-{k}"}

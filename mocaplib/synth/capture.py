@@ -100,7 +100,8 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     """Generate one capture of ``duration`` seconds at ``rate`` Hz in marker set ``protocol``.
 
     ``session_seed`` seeds the marker placement shared by every capture of one session (see
-    :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``."""
+    :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``. The protocol's
+    ``static_only`` markers are left out unless the subject stands (``command.gait``)."""
     check_timing(command, duration=duration, rate=rate, subject=subject)
     skeleton = Skeleton.from_height(subject.height)
     params = gait_parameters(command, subject.height)
@@ -112,6 +113,9 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     session = None if session_seed is None else np.random.default_rng(seed=session_seed)
     xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
                                        rate=rate, mass=subject.mass, placement_rng=session)
+    if command.gait != "stand":          # markers put on for the static trial are taken off
+        keep = [i for i, m in enumerate(prot.markers) if not m.static_only]
+        xyz, labels = xyz[:, keep], [labels[i] for i in keep]
     events = _events(body, t[-1])
     trial = Trial(xyz, labels, rate, events=[Event(_SIDE_NAME[s], lab, tm)
                                              for s, lab, tm in events], source=name)

@@ -28,6 +28,18 @@ gaps
     ``max_gap_s`` seconds.
 swap
     ``swap`` (default off): one left/right pair exchanges its labels for the whole capture.
+
+Clusters
+    A protocol's tracking markers (on a segment, no landmark) are strapped on rigid plates, one
+    per segment, where :data:`CLUSTER_PLATES` says: the k-th tracking marker of a segment is
+    the plate's k-th corner. A plate is placed with its own error (:data:`PLATE_PLACEMENT`: 15
+    mm and 10° sd, the session's), and its soft-tissue artefact is mostly rigid, as bone-pin
+    studies find for thigh and shank clusters (Cappozzo et al. 1996; Leardini et al. 2005;
+    Barré et al. 2013: the rigid part is the larger): the plate moves and turns as one
+    (:data:`PLATE_TURN` radians of turn per radian of the driving joints, with the segment's
+    gain of :data:`SOFT_TISSUE` for its move) and each marker adds a fifth of a skin marker's
+    own artefact (the plate's deformation, the skin under each base).
+    Markers a protocol flags ``static_only`` are written only on standing captures.
 """
 
 from __future__ import annotations
@@ -57,6 +69,28 @@ SOFT_TISSUE = {
 }
 
 
+#: Plate of a cluster on each segment (left side, 1.75 m subject, scaled by height; the right
+#: mirrors y): its centre in the segment frame and its corners about the centre (m), an
+#: irregular triangle facing outwards 15 mm off the skin, on the lateral thigh and shank and
+#: the lateral upper arm and forearm, in their middle third.
+CLUSTER_PLATES = {
+    "femur": ((0.025, 0.090, -0.230), ((0.045, 0.0, 0.035), (-0.040, 0.005, 0.040),
+                                        (0.005, 0.012, -0.055))),
+    "tibia": ((0.020, 0.065, -0.190), ((0.040, 0.0, 0.035), (-0.035, 0.005, 0.040),
+                                        (0.000, 0.010, -0.050))),
+    "humerus": ((0.005, 0.060, -0.170), ((0.035, 0.0, 0.030), (-0.030, 0.005, 0.035),
+                                          (0.000, 0.010, -0.045))),
+    "forearm": ((0.010, 0.050, -0.120), ((0.030, 0.0, 0.030), (-0.030, 0.005, 0.030),
+                                          (0.000, 0.010, -0.040))),
+}
+#: Placement error of a plate: sd of its centre per axis (m) and of its turn (rad).
+PLATE_PLACEMENT = (0.015, np.deg2rad(10.0))
+#: Soft-tissue turn of a plate, rad per rad of each driving joint's excursion (4°/rad).
+PLATE_TURN = np.deg2rad(4.0)
+#: Share of a skin marker's own soft-tissue artefact each plate marker keeps.
+PLATE_DEFORMATION = 0.2
+
+
 @dataclass(frozen=True)
 class MarkerSettings:
     """Which artefacts to add, and how much (metres, seconds). Defaults are documented above."""
@@ -78,12 +112,52 @@ class MarkerSettings:
         return asdict(self)
 
 
-def _side(landmark: str) -> tuple[str, ...]:
-    if landmark.startswith("L_"):
+def _side(landmark: str, segment: str) -> tuple[str, ...]:
+    """The sides (``"l"``, ``"r"``) a marker on ``landmark`` and ``segment`` belongs to."""
+    if landmark.startswith("L_") or segment.endswith("_l"):
         return ("l",)
-    if landmark.startswith("R_"):
+    if landmark.startswith("R_") or segment.endswith("_r"):
         return ("r",)
     return ("l", "r")
+
+
+def _small_turns(vectors: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors (..., 3) (Rodrigues)."""
+    angle = np.linalg.norm(vectors, axis=-1)[..., None, None]
+    k = np.zeros(vectors.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -vectors[..., 2], vectors[..., 1], -vectors[..., 0]
+    k = k - np.swapaxes(k, -1, -2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sin = np.where(angle > 0, np.sin(angle) / angle, 1.0)
+        cos = np.where(angle > 0, (1 - np.cos(angle)) / angle ** 2, 0.5)
+    return np.eye(3) + sin * k + cos * (k @ k)
+
+
+def cluster_plates(protocol: Protocol, height: float, draw: np.random.Generator
+                   ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Each plate the protocol's tracking markers need: segment index -> (centre (3,) and
+    corners (K, 3), placed with :data:`PLATE_PLACEMENT` drawn from ``draw``), in the segment
+    frame, metres, for a subject ``height`` m tall. Raises :class:`SynthError` for a segment
+    the generator has no plate for, or more markers than the plate has corners."""
+    scale = height / 1.75
+    plates = {}
+    for segment in dict.fromkeys(m.landmark.segment for m in protocol.markers if m.tracking):
+        bare, mirror = segment.rsplit("_", 1)[0], (-1.0 if segment.endswith("_r") else 1.0)
+        count = sum(m.tracking and m.landmark.segment == segment for m in protocol.markers)
+        if bare not in CLUSTER_PLATES or count > len(CLUSTER_PLATES[bare][1]):
+            raise SynthError(
+                f"protocol {protocol.name!r}: no synthetic cluster for {count} tracking "
+                f"markers on {segment}", path=protocol.path,
+                hint=f"the generator straps plates of up to 3 markers on "
+                     f"{', '.join(CLUSTER_PLATES)}")
+        centre, corners = (np.array(x, dtype=float) * scale for x in CLUSTER_PLATES[bare])
+        centre[1] *= mirror
+        corners[:, 1] *= mirror
+        shift, turn = PLATE_PLACEMENT
+        turned = _small_turns(draw.normal(0.0, turn, 3))
+        plates[SEGMENT_NAMES.index(segment)] = (centre + draw.normal(0.0, shift, 3),
+                                                corners[:count] @ turned.T)
+    return plates
 
 
 def _rotate_about_y(points: np.ndarray, centre: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -109,14 +183,31 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
     sd = settings.placement_sd
     draw = rng if placement_rng is None else placement_rng
     placed = nominal + np.clip(draw.normal(0.0, sd, nominal.shape), -2.5 * sd, 2.5 * sd)
+    plates = cluster_plates(protocol, height, draw)
+    corner = {}
+    for m, marker in enumerate(protocol.markers):
+        if marker.tracking:
+            corner[m] = k = sum(corner.get(i) is not None and segments[i] == segments[m]
+                                for i in corner)
+            placed[m] = plates[segments[m]][0] + plates[segments[m]][1][k]
     local = np.broadcast_to(placed, (n,) + placed.shape).copy()
     geom = FootGeometry.from_skeleton(skeleton)
     forearm = skeleton.lengths["forearm"]
     centred = q - q.mean(axis=0)
     tissue = settings.soft_tissue * mass / height ** 2 / REFERENCE_BMI
+    for s, (centre, _) in plates.items():
+        gain, dofs = SOFT_TISSUE[SEGMENT_NAMES[s].rsplit("_", 1)[0]]
+        side = SEGMENT_NAMES[s][-1]
+        drive = centred[:, [_Q[dof.format(s=side)] for dof in dofs]]            # (F, J)
+        move = drive @ rng.normal(0.0, 1.0 / np.sqrt(3.0), (len(dofs), 3))
+        turn = _small_turns(tissue * PLATE_TURN * (drive @ rng.normal(
+            0.0, 1.0 / np.sqrt(3.0), (len(dofs), 3))))                          # (F, 3, 3)
+        on = [m for m in corner if segments[m] == s]
+        local[:, on] = (centre + np.einsum("fij,mj->fmi", turn, placed[on] - centre)
+                        + tissue * gain * move[:, None])
     for m, (name, seg) in enumerate(zip(names, segments)):
         seg_name = SEGMENT_NAMES[seg]
-        sides = _side(name)
+        sides = _side(name, seg_name)
         col = 0 if sides == ("l",) else 1
         if name.endswith("_FINGER"):
             local[:, m] = _rotate_about_y(local[:, m], np.array([0, 0, -forearm]),
@@ -129,7 +220,8 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
             for side in (sides if "{s}" in dof else ("",)):
                 j = _Q[dof.format(s=side)]
                 direction = rng.normal(0.0, 1.0 / np.sqrt(3.0), 3)
-                local[:, m] += tissue * gain * centred[:, j, None] * direction
+                share = PLATE_DEFORMATION if m in corner else 1.0
+                local[:, m] += share * tissue * gain * centred[:, j, None] * direction
     transforms = skeleton.forward(q)
     T = transforms[:, segments]
     world = np.einsum("fmij,fmj->fmi", T[..., :3, :3], local) + T[..., :3, 3]
@@ -137,7 +229,7 @@ def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, heigh
     for m, (name, seg) in enumerate(zip(names, segments)):
         seg_name = SEGMENT_NAMES[seg]
         if seg_name.startswith(("humerus", "forearm")) or name.endswith("_ACROMION"):
-            col = 0 if _side(name) == ("l",) else 1
+            col = 0 if _side(name, seg_name) == ("l",) else 1
             world[:, m] += np.einsum("fij,fj->fi", torso, body.girdle[:, col])
     world += rng.normal(0.0, settings.noise_sd, world.shape)
 
