@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.filtering import (MIN_RUN, filter_trial, lowpass, residual_cutoff,
-                                residual_curve, valid_runs)
+from mocaplib.filtering import MIN_RUN, filter_trial, lowpass, residual_cutoff, residual_curve
+from mocaplib.runs import valid_runs
 from mocaplib.trial import Trial
 
 RATE = 100.0
