@@ -1,23 +1,34 @@
 """mocaplib's joint-angle fit vs OpenSim 4.6's InverseKinematicsTool, same model and markers.
 
 One run: calibrate the subject with mocaplib, export the model (.osim) and the markers (.trc),
-then solve every frame with OpenSim's IK (all markers weight 1, coordinate ranges clamped,
-accuracy 1e-5) and with ``mocaplib.ik.fit``, alternately ``--repeat`` times each on one thread
-(fastest CPU time of the solve, so that other jobs on a shared machine do not skew the ratio);
-print each one's frames/s, the speed ratio and both joint-angle RMS errors
-against the truth.
+then solve every frame with OpenSim's IK (each marker task weighted as mocaplib's fit weights
+the marker, coordinate ranges clamped, accuracy 1e-5) and with ``mocaplib.ik.fit``,
+alternately ``--repeat`` times each on one thread (fastest CPU time of the solve, so that
+other jobs on a shared machine do not skew the ratio); print each one's frames/s, the speed
+ratio and both joint-angle RMS errors against the truth.
+
+``--matched`` puts both solvers on the same problem: plain least squares
+(``robust_scale=np.inf``) without the continuity term (``smoothing=0``), the same marker
+weights; it then compares what each stopping rule reached, frame by frame: the weighted sum of
+squared marker errors of mocaplib's poses against OpenSim's (evaluated on the same model), and
+the angles between the two. ``--solver fit_filtered`` times what ``mocaplib fit`` runs (the
+marker low-pass at ``--cutoff`` and two fits, :func:`mocaplib.ik.fit_filtered`) against
+OpenSim's IK on the filtered markers (the filter not in OpenSim's time).
 
 Data: synthetic captures with ground truth (``--c3d FILE...``, files or folders of them, each
 with ``FILE.truth.json`` beside it, as mocaplib.synth writes them; times and frames are summed
-over them), or by default the tests' forward-kinematics walk (gait-like angles, 6 mm
-soft-tissue artefact, 1 mm noise; ``--frames`` long).
+over them; captures without truth, such as lab files, are timed and compared without it), or
+by default the tests' forward-kinematics walk (gait-like angles, 6 mm soft-tissue artefact,
+1 mm noise; ``--frames`` long).
 
     python benchmarks/ik_vs_opensim.py [--frames 1000] [--c3d FILE...]
-        [--static FILE] [--cutoff HZ|auto|none] [--markdown PATH]
+        [--static FILE] [--cutoff HZ|auto|none] [--matched] [--solver fit|fit_filtered]
+        [--markdown PATH]
 
 ``--static`` calibrates from a static trial in the anatomical neutral pose (as ``mocaplib build
 --static`` does); ``--cutoff`` low-passes the markers first (:mod:`mocaplib.filtering`), and
-both solvers then get the same filtered markers (the filter's time is not in either figure).
+both solvers then get the same filtered markers (with ``--solver fit``, the filter's time is
+not in either figure).
 
 Prints Markdown tables (``--markdown PATH`` also writes them into a results page,
 :mod:`markdown_results`). Needs the bench extra (``pip install ".[bench]"``: opensim).
@@ -26,12 +37,12 @@ Prints Markdown tables (``--markdown PATH`` also writes them into a results page
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 # one core each: OpenSim's IK is single-threaded, and BLAS threads only fight on a busy machine
@@ -44,9 +55,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from opensim_tools import inverse_kinematics, read_mot  # noqa: E402
 from mocaplib.calibration import calibrate  # noqa: E402
-from mocaplib.ik import fit, model_markers  # noqa: E402
-from mocaplib.io.opensim import write_osim, write_trc  # noqa: E402
+from mocaplib.ik import fit, fit_filtered, model_markers  # noqa: E402
+from mocaplib.io.opensim import opensim_name, write_osim, write_trc  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
 
 ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
@@ -77,60 +89,22 @@ def load_captures(args) -> list[tuple]:
     return [(cap.trial, cap.q)]
 
 
-def run_opensim(osim_path: Path, trc_path: Path, labels, t_end: float, out: Path):
-    """OpenSim IK on the exported files; returns (seconds, q (F, D) radians)."""
-    import opensim
-
-    opensim.Logger.setLevelString("error")
-    opensim.Logger.removeFileSink()              # no opensim.log in the working folder
-    model = opensim.Model(str(osim_path))
-    tool = opensim.InverseKinematicsTool()
-    tool.setModel(model)
-    tool.setMarkerDataFileName(str(trc_path))
-    tool.setStartTime(0.0)
-    tool.setEndTime(t_end)
-    tool.set_accuracy(1e-5)
-    tool.set_report_errors(False)
-    tool.setOutputMotionFileName(str(out))
-    tasks = tool.getIKTaskSet()
-    for label in labels:
-        task = opensim.IKMarkerTask()
-        task.setName(label)
-        task.setWeight(1.0)
-        task.setApply(True)
-        tasks.cloneAndAppend(task)
-    with _quiet_stdout():                 # the tool prints the whole model summary
-        start = time.process_time()
-        tool.run()
-        seconds = time.process_time() - start
-    return seconds, read_mot(out)
+def run_opensim(osim_path: Path, trc_path: Path, model, t_end: float, out: Path):
+    """OpenSim IK on the exported files (each marker weighted as ``model`` weights it);
+    returns (CPU seconds, q (F, D) radians)."""
+    start = time.process_time()
+    inverse_kinematics(osim_path, trc_path, [opensim_name(label) for label in model.labels],
+                       model.marker_weights, t_end, out)
+    return time.process_time() - start, read_mot(out, list(DOF_NAMES), ROTATIONS)
 
 
-@contextlib.contextmanager
-def _quiet_stdout():
-    """Silence writes to file descriptor 1 (OpenSim's C++ side prints there)."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    with open(os.devnull, "w") as null:
-        os.dup2(null.fileno(), 1)
-        try:
-            yield
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-
-
-def read_mot(path: Path) -> np.ndarray:
-    """Coordinates (F, D) in radians/metres from an OpenSim .mot (degrees converted)."""
-    lines = path.read_text().splitlines()
-    end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
-    degrees = any(line.strip().lower() == "indegrees=yes" for line in lines[:end])
-    names = lines[end + 1].split("\t")
-    data = np.array([[float(v) for v in line.split("\t")] for line in lines[end + 2:] if line])
-    q = np.column_stack([data[:, names.index(name)] for name in DOF_NAMES])
-    if degrees:
-        q[:, ROTATIONS] = np.radians(q[:, ROTATIONS])
-    return q
+def marker_cost(model, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """The least-squares objective both solvers minimise with ``--matched``, per frame (F,):
+    the weighted sum of squared distances (m²) between the markers (F, M, 3) and the model's
+    at poses ``q`` (F, D)."""
+    points = model.skeleton.points(q, model.marker_segments, model.marker_offsets)
+    squared = ((points - markers) ** 2).sum(axis=2)
+    return np.where(np.isfinite(squared), squared * model.marker_weights, 0.0).sum(axis=1)
 
 
 def angle_errors(q, truth) -> tuple[float, float, float]:
@@ -149,6 +123,9 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--static", metavar="FILE", help="static trial (neutral pose)")
     parser.add_argument("--cutoff", default="none", help="marker low-pass: Hz, auto or none")
+    parser.add_argument("--matched", action="store_true",
+                        help="plain least squares without the continuity term, as OpenSim")
+    parser.add_argument("--solver", choices=("fit", "fit_filtered"), default="fit")
     add_markdown_option(parser)
     args = parser.parse_args()
     with markdown_page(args.markdown, __file__):
@@ -163,25 +140,32 @@ def compare(args) -> None:
 
     static = read_c3d(args.static) if args.static else None
     cutoff = args.cutoff if args.cutoff in ("auto", "none") else float(args.cutoff)
+    problem = dict(robust_scale=np.inf, smoothing=0.0) if args.matched else {}
 
     totals = {"OpenSim": 0.0, "mocaplib": 0.0}
     errors: dict[str, list] = {"OpenSim": [], "mocaplib": []}
     n = 0
-    ratios, rows = [], []
+    ratios, rows, costs, angles = [], [], [], []
+    failed = 0
     for raw, truth in load_captures(args):
-        trial, _ = filter_trial(raw, cutoff=cutoff)
+        trial, used = filter_trial(raw, cutoff=cutoff)
         model = calibrate(trial, static=static, static_pose="neutral")
+        if args.solver == "fit":
+            solve = partial(fit, trial, model, **problem)
+        else:
+            solve = lambda: fit_filtered(raw, model, cutoff=used, **problem)[0]  # noqa: E731
         osim_times, our_times = [], []
+        markers = model_markers(trial, model)
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
             write_osim(model, tmp / "model.osim")
-            write_trc(model_markers(trial, model), model.labels, trial.rate, tmp / "markers.trc")
+            write_trc(markers, model.labels, trial.rate, tmp / "markers.trc")
             for _ in range(args.repeat):
-                seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc",
-                                              model.labels, trial.duration, tmp / "ik.mot")
+                seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc", model,
+                                              trial.duration, tmp / "ik.mot")
                 osim_times.append(seconds)
                 start = time.process_time()
-                motion = fit(trial, model)
+                motion = solve()
                 our_times.append(time.process_time() - start)
         n += trial.n_frames
         totals["OpenSim"] += min(osim_times)
@@ -189,12 +173,21 @@ def compare(args) -> None:
         for name, q in (("OpenSim", q_osim), ("mocaplib", motion.q)):
             if truth is not None and len(q) == len(truth):
                 errors[name].append(angle_errors(q, truth))
+        if args.matched:                  # frames mocaplib could not fit are interpolated
+            fitted = ~motion.failed
+            theirs = marker_cost(model, q_osim[fitted], markers[fitted])
+            costs.append((marker_cost(model, motion.q[fitted], markers[fitted]) - theirs)
+                         / theirs)
+            angles.append(np.degrees(motion.q - q_osim)[fitted][:, ROTATIONS])
+            failed += int(motion.failed.sum())
         ratios.append((min(osim_times) / min(our_times), Path(trial.source).stem))
         rows.append(f"| {Path(trial.source).name} | {trial.n_frames} | {len(model.labels)} | "
                     f"{model.protocol.name} | {ratios[-1][0]:.1f}x |")
         print(rows[-1], file=sys.stderr)
-    print(f"{n} frames. Joint-angle RMS error against the truth (degrees): mean over captures "
-          "of the mean over DOFs / max over captures and DOFs / max over flexions.\n")
+    print(f"{n} frames, mocaplib's `{args.solver}`"
+          + (", plain least squares without the continuity term, as OpenSim" if args.matched
+             else "") + ". Joint-angle RMS error against the truth (degrees): mean over "
+          "captures of the mean over DOFs / max over captures and DOFs / max over flexions.\n")
     print("| solver | frames/s | mean RMS (deg) | max RMS (deg) | max flexion (deg) |\n"
           "|---|---|---|---|---|")
     for name, seconds in totals.items():
@@ -209,6 +202,17 @@ def compare(args) -> None:
     if len(ratios) > 1:
         print("Lowest per capture: " + ", ".join(f"{name} {r:.1f}x" for r, name in
                                                  sorted(ratios)[:4]) + ".")
+    if args.matched:
+        cost, angle = np.concatenate(costs), np.abs(np.concatenate(angles))
+        print(f"\nWhere each stopping rule left the same objective (weighted sum of squared "
+              f"marker errors, per frame, over the {len(cost)} frames mocaplib fitted; "
+              f"{failed} it flagged as failed, too few markers or not converged, are left "
+              f"out): mocaplib's minus OpenSim's, relative to OpenSim's, "
+              f"median {np.median(cost):+.2%}, 95th percentile {np.percentile(cost, 95):+.2%}, "
+              f"largest {cost.max():+.2%} ({np.mean(cost <= 0):.1%} of the frames no higher "
+              f"than OpenSim's). Angles between the two solutions: RMS "
+              f"{np.sqrt((angle ** 2).mean()):.2f}°, 99th percentile "
+              f"{np.percentile(angle, 99):.2f}°, largest {angle.max():.2f}°.")
     print("\n| capture | frames | markers | protocol | speed ratio |\n|---|---|---|---|---|")
     print("\n".join(rows))
 

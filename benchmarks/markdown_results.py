@@ -14,7 +14,8 @@ Every script in ``benchmarks/`` prints Markdown (tables and short paragraphs). G
 A page (``docs/results/NAME.md``) holds the blocks of one or more commands among text written by
 hand: running a command again replaces its own block (the one whose command line is the same)
 and leaves the rest of the page as it is; a command not yet on the page is appended. The
-commit is ``git rev-parse --short HEAD``, with ``-dirty`` when the work tree has changes.
+commit is ``git rev-parse --short HEAD``, with ``-dirty`` when the work tree has changes
+outside ``docs/results``.
 """
 
 from __future__ import annotations
@@ -69,29 +70,33 @@ def shown(path: str | os.PathLike) -> str:
 
 
 def commit() -> str:
-    """Short hash of HEAD, with ``-dirty`` when the work tree differs from it; ``unknown``
-    outside a git checkout."""
+    """Short hash of HEAD, with ``-dirty`` when the work tree differs from it outside
+    ``docs/results`` (the pages benchmarks write: one run after another leaves the code
+    measured as it was); ``unknown`` outside a git checkout."""
     def git(*args: str) -> str:
         return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
                               check=True).stdout.strip()
     try:
         head = git("rev-parse", "--short", "HEAD")
-        dirty = git("status", "--porcelain", "--untracked-files=no")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                    ":(exclude)docs/results")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("-dirty" if dirty else "")
 
 
 def machine() -> str:
-    """CPU model and core count, Python and numpy versions, in one line."""
+    """CPU model, core count and load average (other jobs on the machine skew timings),
+    Python and numpy versions, in one line."""
     model = platform.processor() or platform.machine()
     with contextlib.suppress(OSError):
         text = Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace")
         found = re.search(r"^model name\s*:\s*(.+)$", text, flags=re.MULTILINE)
         if found:
             model = found.group(1).strip()
-    return (f"{model}, {os.cpu_count()} cores · Python {platform.python_version()}, "
-            f"numpy {np.__version__}")
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+    return (f"{model}, {os.cpu_count()} cores, load average {load} (1, 5, 15 min) when "
+            f"written · Python {platform.python_version()}, numpy {np.__version__}")
 
 
 def block(command: str, body: str) -> str:

@@ -5,22 +5,31 @@ the fitted joint angles; gait kinematics hold almost nothing above 6-10 Hz (Wint
 *Biomechanics and Motor Control of Human Movement*, ch. 3). So, as in most gait pipelines, the
 markers are low-pass filtered first:
 
-* **Zero lag.** A Butterworth filter of order :data:`ORDER` run forwards and backwards
-  (``scipy.signal.sosfiltfilt``): no phase shift, squared magnitude response. Two passes
-  lower the -3 dB point, so each pass is designed above the cutoff by Winter's correction
-  (2009, §3.4.4.2: ``cutoff / c`` with ``c`` = :func:`pass_correction`, 0.802 for two passes
-  of order 2), applied in the bilinear transform's warped frequency so it is exact for the
-  digital filter: ``tan(π f_pass / rate) = tan(π cutoff / rate) / c``. The cutoff is then the
-  -3 dB point of the whole filter.
+* **Zero lag.** A Butterworth filter of order :data:`ORDER` run forwards and backwards, as
+  ``scipy.signal.sosfiltfilt`` runs it (odd extension of a few samples beyond each end, each
+  pass started in the steady state of its first sample): no phase shift, squared magnitude
+  response (:func:`zero_lag_gain`). Two passes lower the -3 dB point, so each pass is designed
+  above the cutoff by Winter's correction (2009, §3.4.4.2: ``cutoff / c`` with ``c`` =
+  :func:`pass_correction`, 0.802 for two passes of order 2), applied in the bilinear
+  transform's warped frequency so it is exact for the digital filter:
+  ``tan(π f_pass / rate) = tan(π cutoff / rate) / c``. The cutoff is then the -3 dB point of
+  the whole filter. Each pass is computed as the convolution with the filter's impulse
+  response, by real FFTs long enough for that response to have decayed below rounding: the
+  same numbers as ``sosfiltfilt`` to rounding (``tests/test_filtering.py``), numpy only.
 * **Gap-aware.** Each marker coordinate is filtered separately over each run of consecutive
   valid (finite) samples; gaps stay NaN and never leak into the valid data. A run shorter
   than :func:`shortest_run` frames (``max(MIN_RUN, rate / cutoff)``: less than one period of
-  the cutoff) is left as it is: the filter's edge transients would dominate it.
+  the cutoff) is left as it is. Runs of the same length, of every coordinate, share one FFT.
 * **Cutoff.** Given in Hz, or ``"auto"``: Winter's residual analysis per capture
-  (:func:`residual_cutoff`), or None for no filtering. The documented default for walking when
-  a fixed cutoff is wanted is :data:`WALKING_CUTOFF` (6 Hz). :func:`filter_trial` reports the
-  cutoff only when some run was filtered, and refuses a cutoff in Hz whose period is longer
-  than the capture (nothing could be filtered).
+  (:func:`residual_cutoff`), or None for no filtering. The analysis takes every candidate's
+  residual from one FFT per run (Parseval's theorem) of the run extended by its point
+  reflection about both ends, whole: the forward-backward filter in its steady state, which
+  differs from the filter applied only within a few samples of a run's ends. It chooses the
+  same cutoffs as the residuals of the filter applied within one candidate step (0.5 Hz):
+  :func:`residual_curve`, ``tests/test_filtering.py``.
+  The documented default for walking when a fixed cutoff is wanted is :data:`WALKING_CUTOFF`
+  (6 Hz). :func:`filter_trial` reports the cutoff only when some run was filtered, and refuses
+  a cutoff in Hz whose period is longer than the capture (nothing could be filtered).
 
 All arrays have time on axis 0; positions are metres, rates and cutoffs Hz.
 """
@@ -28,13 +37,11 @@ All arrays have time on axis 0; positions are metres, rates and cutoffs Hz.
 from __future__ import annotations
 
 import dataclasses
-import functools
+from collections.abc import Iterator
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from .errors import FitError
-from .runs import valid_runs
 from .trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
@@ -77,8 +84,8 @@ def resample(values: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
 def longest_run(data: np.ndarray) -> int:
     """Frames in the longest run of finite samples of any column of ``data`` (F, ...)."""
     flat = np.isfinite(np.asarray(data, dtype=np.float64).reshape(len(data), -1))
-    return max((stop - start for column in flat.T for start, stop in valid_runs(column)),
-               default=0)
+    _, starts, stops = _column_runs(flat)
+    return int((stops - starts).max(initial=0))
 
 
 def shortest_run(rate: float, cutoff: float) -> int:
@@ -94,55 +101,136 @@ def _check_cutoff(cutoff: float, rate: float) -> None:
                        hint="give a lower cutoff, 'auto' or 'none'")
 
 
+def zero_lag_gain(frequencies: np.ndarray, rate: float, cutoff: float | np.ndarray, /, *,
+                  order: int = ORDER) -> np.ndarray:
+    """Gain (``frequencies`` Hz and ``cutoff`` Hz broadcast together) of the forward-backward
+    Butterworth low-pass whose two passes have their -3 dB point at ``cutoff`` Hz: one pass's
+    squared magnitude,
+    ``1 / (1 + (tan(π f / rate) / tan(π f_pass / rate))^(2 order))``; real: no phase."""
+    return np.abs(_pass_response(frequencies, rate, cutoff, order)) ** 2
+
+
+def _pass_response(frequencies: np.ndarray, rate: float, cutoff: float | np.ndarray,
+                   order: int) -> np.ndarray:
+    """Complex frequency response (``frequencies`` Hz and ``cutoff`` Hz broadcast together)
+    of one pass: the analogue Butterworth prototype of ``order`` at the pass's warped cutoff
+    (Winter's correction, :func:`pass_correction`), bilinear transform (as
+    ``scipy.signal.butter``)."""
+    warped = np.tan(np.pi * np.asarray(cutoff) / rate) / pass_correction(order)
+    s = (1j * np.tan(np.pi * np.asarray(frequencies, dtype=np.float64) / rate) / warped)[..., None]
+    poles = _prototype_poles(order)
+    return np.prod(-poles / (s - poles), axis=-1)
+
+
+def _prototype_poles(order: int) -> np.ndarray:
+    """Poles (order,) of the analogue Butterworth low-pass of unit cutoff (left half-plane)."""
+    return np.exp(1j * np.pi * (2 * np.arange(1, order + 1) + order - 1) / (2 * order))
+
+
+def _memory(rate: float, cutoff: float, order: int) -> int:
+    """Samples after which one pass's impulse response has decayed below 1e-18 of its start:
+    from the largest radius of its digital poles."""
+    warped = np.tan(np.pi * cutoff / rate) / pass_correction(order)
+    poles = _prototype_poles(order) * warped
+    radius = np.abs((1 + poles) / (1 - poles)).max()
+    return int(np.ceil(np.log(1e-18) / np.log(radius)))
+
+
+def _one_pass(series: np.ndarray, rate: float, cutoff: float, order: int) -> np.ndarray:
+    """One causal pass of the Butterworth along axis 0 of ``series`` (L, k), started in the
+    steady state of its first sample (as ``sosfiltfilt`` starts each pass): that sample plus
+    the response from rest to the series minus it, a linear convolution by real FFTs."""
+    size = len(series) + _memory(rate, cutoff, order)
+    size = 1 << (size - 1).bit_length()
+    response = _pass_response(np.fft.rfftfreq(size, 1.0 / rate), rate, cutoff, order)
+    moved = np.fft.rfft(series - series[0], size, axis=0) * response[:, None]
+    return series[0] + np.fft.irfft(moved, size, axis=0)[:len(series)]
+
+
 def lowpass(data: np.ndarray, rate: float, cutoff: float, /, *, order: int = ORDER
             ) -> np.ndarray:
     """Zero-lag Butterworth low-pass of ``data`` (F, ...) sampled at ``rate`` Hz, gap-aware;
     ``cutoff`` (Hz) is the -3 dB point of the two passes together.
 
-    Every column (trailing index) is filtered over each run of finite samples separately; NaN
-    stays NaN; runs shorter than :func:`shortest_run` are returned unchanged.
-    Returns a new array of the same shape. Raises :class:`FitError` for a cutoff outside
-    (0, rate / 2).
+    Every column (trailing index) is filtered over each run of finite samples separately (as
+    ``scipy.signal.sosfiltfilt`` with its default odd padding would); NaN stays NaN; runs
+    shorter than :func:`shortest_run` are returned unchanged. Returns a new array of the same
+    shape. Raises :class:`FitError` for a cutoff outside (0, rate / 2).
     """
     data = np.asarray(data, dtype=np.float64)
     _check_cutoff(cutoff, rate)
-    sos = _design(order, float(cutoff), float(rate)).copy()  # scipy wants it writable
-    pad = 3 * (2 * len(sos) + 1)
-    shortest = shortest_run(rate, cutoff)
+    pad = 3 * (2 * ((order + 1) // 2) + 1)       # sosfiltfilt's default for the sections
     flat = data.reshape(len(data), -1)
     out = flat.copy()
-    finite = np.isfinite(flat)
-    complete = finite.all(axis=0)
-    if len(flat) >= shortest and complete.any():
-        out[:, complete] = sosfiltfilt(sos, flat[:, complete], axis=0,
-                                       padlen=min(pad, len(flat) - 1))
-    for column in np.flatnonzero(~complete):
-        for start, stop in valid_runs(finite[:, column]):
-            if stop - start >= shortest:
-                out[start:stop, column] = sosfiltfilt(sos, flat[start:stop, column],
-                                                      padlen=min(pad, stop - start - 1))
+    for rows, columns in _run_groups(flat, shortest_run(rate, cutoff)):
+        runs = flat[rows, columns]                            # (n, k): k runs of n samples
+        edge = min(pad, len(runs) - 1)
+        extended = np.concatenate([2 * runs[:1] - runs[edge:0:-1], runs,
+                                   2 * runs[-1:] - runs[-2:-edge - 2:-1]])
+        forward = _one_pass(extended, rate, cutoff, order)
+        both = _one_pass(forward[::-1], rate, cutoff, order)[::-1]
+        out[rows, columns] = both[edge:len(both) - edge]
     return out.reshape(data.shape)
 
 
-@functools.lru_cache(maxsize=1024)
-def _design(order: int, cutoff: float, rate: float) -> np.ndarray:
-    """Second-order sections of one pass whose two passes have their -3 dB point at ``cutoff``
-    (Hz); cached, as the residual analysis designs the same candidates for every capture."""
-    design = rate / np.pi * np.arctan(np.tan(np.pi * cutoff / rate) / pass_correction(order))
-    sos = butter(order, design, fs=rate, output="sos")
-    sos.flags.writeable = False
-    return sos
-
-
 def residual_curve(data: np.ndarray, rate: float, cutoffs: np.ndarray) -> np.ndarray:
-    """RMS difference (C,) between ``data`` (F, ...) and its low-pass at each of ``cutoffs``
-    (C,) Hz, over the finite samples of the filtered runs (Winter's residual)."""
+    """Winter's residual (C,): the RMS difference between ``data`` (F, ...) and its
+    forward-backward low-pass at each of ``cutoffs`` (C,) Hz, over every finite sample (a run
+    too short to be filtered at a cutoff counts as unchanged there).
+
+    Each run of n samples is extended by its point reflection about both ends: minus the
+    straight line through its end samples, it and its reflection are one period (2(n − 1)
+    samples) of a smooth periodic signal that holds the run's residual twice, and the filter
+    in its steady state multiplies its FFT by :func:`zero_lag_gain` (the line passes
+    unchanged). So Parseval's theorem gives every cutoff's residual from one FFT per run.
+    Near the ends of a run :func:`lowpass` starts each pass a few samples out instead: the two
+    residuals differ there only.
+    """
     data = np.asarray(data, dtype=np.float64)
-    out = np.empty(len(cutoffs))
-    for i, fc in enumerate(cutoffs):
-        diff = lowpass(data, rate, float(fc)) - data
-        out[i] = np.sqrt(np.nanmean(diff ** 2))
-    return out
+    flat = data.reshape(len(data), -1)
+    cutoffs = np.asarray(cutoffs, dtype=np.float64)
+    shortest = np.array([shortest_run(rate, fc) for fc in cutoffs])
+    energy = np.zeros(len(cutoffs))
+    for rows, columns in _run_groups(flat, int(shortest.min(initial=MIN_RUN))):
+        n = len(rows)
+        spectra = _odd_spectra(flat[rows, columns])
+        power = np.sum(spectra.real ** 2 + spectra.imag ** 2, axis=1)
+        power[1:-1] *= 2                                    # the negative frequencies
+        frequencies = np.fft.rfftfreq(2 * (n - 1), 1.0 / rate)
+        removed = 1.0 - zero_lag_gain(frequencies[None, :], rate, cutoffs[:, None])
+        energy += np.where(n >= shortest, removed ** 2 @ power, 0.0) / (4 * (n - 1))
+    count = np.count_nonzero(np.isfinite(flat))
+    return np.sqrt(energy / count) if count else np.full(len(cutoffs), np.nan)
+
+
+def _odd_spectra(runs: np.ndarray) -> np.ndarray:
+    """Real FFT (n, k) of one period (2(n − 1) samples) of the odd extension of ``runs``
+    (n, k) minus the straight line through their end samples."""
+    line = runs[0] + np.linspace(0.0, 1.0, len(runs))[:, None] * (runs[-1] - runs[0])
+    detrended = runs - line
+    return np.fft.rfft(np.concatenate([detrended, -detrended[-2:0:-1]]), axis=0)
+
+
+def _column_runs(finite: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every run of True in ``finite`` (F, C) bool: its column, start and stop (R,) each,
+    stop exclusive, ordered by column then start."""
+    frames, n_columns = finite.shape
+    padded = np.zeros((n_columns, frames + 2), np.int8)
+    padded[:, 1:-1] = finite.T
+    column, frame = np.divmod(np.flatnonzero(np.diff(padded, axis=1)), frames + 1)
+    return column[0::2], frame[0::2], frame[1::2]
+
+
+def _run_groups(flat: np.ndarray, shortest: int
+                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """For each length n of the runs of finite samples of ``flat`` (F, C) of ``shortest``
+    frames or more: index arrays ``rows`` (n, k) and ``columns`` (1, k) of its k runs, so that
+    ``flat[rows, columns]`` is (n, k)."""
+    column, start, stop = _column_runs(np.isfinite(flat))
+    length = stop - start
+    for n in np.unique(length[length >= max(shortest, 2)]):
+        chosen = length == n
+        yield start[chosen] + np.arange(n)[:, None], column[chosen][None, :]
 
 
 def residual_cutoff(data: np.ndarray, rate: float) -> float:
@@ -159,30 +247,23 @@ def residual_cutoff(data: np.ndarray, rate: float) -> float:
     """
     nyquist = rate / 2
     data = np.asarray(data, dtype=np.float64)
+    default = float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
     longest = longest_run(data)
     if longest < MIN_RUN:          # nothing long enough to filter, nor to analyse
-        return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
+        return default
     # a cutoff whose period is longer than every run would filter nothing (residual 0)
     lowest = max(1.0, rate / longest)
     cutoffs = np.arange(np.ceil(2 * lowest) / 2, MAX_CANDIDATE * nyquist + 1e-9, 0.5)
     if len(cutoffs) < 4:
-        return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
+        return default
     band = (cutoffs >= NOISE_BAND[0] * nyquist) & (cutoffs <= NOISE_BAND[1] * nyquist)
-    resid = np.full(len(cutoffs), np.nan)
-    resid[band] = residual_curve(data, rate, cutoffs[band])
+    resid = residual_curve(data, rate, cutoffs)
     ok = band & np.isfinite(resid)
     if ok.sum() < 2:
-        return float(np.clip(WALKING_CUTOFF, AUTO_MIN, AUTO_MAX * nyquist))
+        return default
     _, intercept = np.polyfit(cutoffs[ok], resid[ok], 1)
-    # the lowest candidate at or below the intercept, evaluated upwards from the lowest: the
-    # candidates above it are never filtered (the cutoff is usually far below the noise band)
-    fc = cutoffs[-1]
-    for i, candidate in enumerate(cutoffs):
-        if not band[i]:
-            resid[i] = residual_curve(data, rate, cutoffs[i:i + 1])[0]
-        if resid[i] <= intercept:
-            fc = candidate
-            break
+    below = np.flatnonzero(resid <= intercept)
+    fc = cutoffs[below[0]] if len(below) else cutoffs[-1]
     return float(np.clip(fc, AUTO_MIN, AUTO_MAX * nyquist))
 
 

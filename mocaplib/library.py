@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from . import __version__
 from .errors import LibraryError
@@ -41,6 +41,9 @@ from .io import read_regular
 from .io.atomic import atomic_write_text
 from .io.jsonvalues import OutOfRange, canonical_sha256, json_values, parse_json
 from .skeleton import DOFS
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FORMAT = "mocaplib-library"
 #: The version this mocaplib writes; it reads :data:`READ_VERSIONS` (docs/library-format.md,
@@ -360,6 +363,8 @@ class Library:
 
     @cached_property
     def entries(self) -> pd.DataFrame:
+        import pandas as pd   # here: reading and writing a library need no pandas
+
         rows = []
         for e in self.document["entries"]:
             row = {key: e[key] for key in ("id", "locomotion_class", "source_file",

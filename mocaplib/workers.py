@@ -71,6 +71,17 @@ def single_threaded_workers():
             os.environ.pop(name, None)
 
 
+def one_thread_by_default() -> None:
+    """Give the BLAS/OpenMP libraries one thread each, unless the user chose a number
+    (:data:`THREAD_VARIABLES`) or numpy is loaded already (its libraries read the variables
+    when they load). The command line calls it first: the fit's batched small matrices gain
+    nothing from more threads (on a busy 2-core machine they lose several times over), and a
+    command then computes what a build's task (:func:`pinned`) computes, to the last bit."""
+    if "numpy" not in sys.modules:
+        for name in THREAD_VARIABLES:
+            os.environ.setdefault(name, "1")
+
+
 def pinned(function: Callable, /, *arguments):
     """``function(*arguments)`` with the BLAS/OpenMP libraries of numpy and scipy limited to
     one thread: a multi-threaded BLAS splits sums in an order that depends on its thread

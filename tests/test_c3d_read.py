@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import struct
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from hypothesis import strategies as st
 from mocaplib.errors import C3DError
 from mocaplib.io.c3d import (MODEL_OUTPUT_PARAMETERS, PointLayout, dec_to_ieee, decode_points,
                              detect_vertical_axis, read_c3d, y_up_to_z_up)
-from mocaplib.io.c3d_write import c3d_bytes
+from mocaplib.io.c3d_write import c3d_bytes, write_c3d
 from mocaplib.trial import Event, Trial
 
 from conftest import SHARED_C3D, real_files
@@ -549,3 +550,83 @@ def test_control_characters_in_labels_are_escaped(tmp_path):
     path.write_bytes(c3d_bytes(standing_person(frames=12), labels, 100.0))
     trial = read_c3d(path)
     assert trial.labels[-1] == "LASI\\x1b[2J\\x07"
+
+
+def _long_capture(frames: int) -> np.ndarray:
+    """(F, 3, 3) metres: three markers wandering about 1 m up, one sample missing."""
+    rng = np.random.default_rng(11)
+    markers = np.cumsum(rng.normal(0, 1e-3, (frames, 3, 3)), axis=0) + [0.0, 0.0, 1.0]
+    markers[frames - 2, 1] = np.nan
+    return markers
+
+
+def _ezc3d_write(path: Path, markers: np.ndarray, labels: list[str], rate: float) -> Path:
+    ezc3d = pytest.importorskip("ezc3d")
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [rate]
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = labels
+    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    points = np.ones((4,) + markers.shape[1::-1])
+    points[:3] = np.nan_to_num(markers.transpose(2, 1, 0) * 1000.0, nan=0.0)
+    c3d["data"]["points"] = points
+    c3d.write(str(path))
+    return path
+
+
+@pytest.mark.parametrize("writer", ["mocaplib", "ezc3d"])
+def test_a_file_of_more_than_65535_frames_is_read_whole(tmp_path, writer):
+    # C3D's header counts frames in 16 bits. mocaplib's writer (the c3d package's) also stores
+    # the count in TRIAL:ACTUAL_END_FIELD (32 bits) and POINT:LONG_FRAMES; ezc3d 1.7 stores it
+    # in 16 bits only, at 65535, and writes every frame after it
+    markers = _long_capture(70_000)
+    labels = ["A", "B", "C"]
+    path = (write_c3d(tmp_path / "long.c3d", markers, labels, 100.0) if writer == "mocaplib"
+            else _ezc3d_write(tmp_path / "long.c3d", markers, labels, 100.0))
+    trial = read_c3d(path)
+    assert trial.n_frames == 70_000
+    # float32 millimetres: 1e-7 m at 1 m
+    np.testing.assert_allclose(trial.markers, markers, atol=1e-7, rtol=0)
+    np.testing.assert_array_equal(np.isnan(trial.markers), np.isnan(markers))
+    counted = [w for w in trial.warnings if "16 bits" in w]
+    assert counted == ([] if writer == "mocaplib" else
+                       ["the file counts 65535 frames, the most 16 bits hold, and its data "
+                        "section holds 70000: all read"])
+
+
+def test_reading_holds_little_more_than_the_marker_array(tmp_path, monkeypatch):
+    """Frames are read a chunk at a time and the analog samples between them skipped: the
+    peak of the allocations (tracemalloc, which numpy reports to) stays near the marker array
+    even for a file several times larger."""
+    import tracemalloc
+
+    import c3d
+    import mocaplib.io.c3d as reader
+
+    monkeypatch.setattr(reader, "CHUNK_BYTES", 1 << 20)
+    frames, analog = 20_000, (16, 10)         # 16 channels x 10 samples a frame: 640 bytes
+    markers = _long_capture(frames)
+    writer = c3d.Writer(point_rate=100.0, analog_rate=1000.0, point_scale=-1.0)
+    writer.set_point_labels(["A", "B", "C"])
+    writer.set_analog_labels([f"CH{i}" for i in range(analog[0])])
+    points = np.zeros((3, 5))
+    samples = np.ones(analog, dtype=np.float32)
+    for frame in markers:
+        points[:, :3] = np.nan_to_num(frame * 1000.0)
+        points[:, 3] = np.where(np.isfinite(frame[:, 0]), 0.0, -1.0)
+        writer.add_frames([(points.copy(), samples)])
+    path = tmp_path / "analog.c3d"
+    with open(path, "wb") as handle, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        writer.write(handle)
+    tracemalloc.start()
+    try:
+        trial = read_c3d(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    np.testing.assert_allclose(trial.markers, markers, atol=1e-7, rtol=0)
+    size = path.stat().st_size
+    assert size > 5 * trial.markers.nbytes           # 13.8 MB of file, 1.4 MB of markers
+    # measured: 2.7 MB (the markers, a 1 MiB chunk and its decoding); reading the whole file
+    # at once would hold its 13.8 MB
+    assert peak < 2 * trial.markers.nbytes + 2 * reader.CHUNK_BYTES, (peak, size)

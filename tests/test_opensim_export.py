@@ -67,3 +67,23 @@ def test_mot_in_degrees_translations_in_metres(tmp_path):
     assert row["time"] == pytest.approx(0.02)
     assert row["knee_flexion_r"] == pytest.approx(90.0)
     assert row["pelvis_tx"] == pytest.approx(1.5)
+
+
+def test_labels_opensim_refuses_are_written_as_names_it_accepts(tmp_path, monkeypatch):
+    # BTS labels hold spaces ("l should"): OpenSim refuses such a marker name, so the .osim
+    # and the .trc both write it "l_should"
+    from dataclasses import replace
+
+    osim = pytest.importorskip("opensim")
+    monkeypatch.chdir(tmp_path)
+    cap = fk_trial(n_frames=3)
+    model = true_model(cap)
+    labels = [f"m {i}" if i % 2 else f"m/{i}*+" for i in range(len(model.labels))]
+    path = write_osim(replace(model, labels=labels), tmp_path / "spaced.osim")
+    opened = osim.Model(str(path))                  # referenced while its markers are read
+    markers = opened.getMarkerSet()
+    names = [markers.get(i).getName() for i in range(markers.getSize())]
+    assert names == [label.replace(" ", "_").replace("/", "_").replace("*", "_")
+                     .replace("+", "_") for label in labels]
+    trc = write_trc(cap.trial.markers, labels, 100.0, tmp_path / "spaced.trc")
+    assert list(osim.TimeSeriesTableVec3(str(trc)).getColumnLabels()) == names

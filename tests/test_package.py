@@ -33,3 +33,44 @@ def test_every_export_exists():
     missing = [name for name, module in mocaplib._EXPORTS.items()
                if not hasattr(importlib.import_module(module), name)]
     assert missing == []
+
+
+#: Modules that cost a noticeable share of a second to import (``python -X importtime``):
+#: each is imported by the stage that uses it, never by the package or the command line.
+HEAVY = ("scipy", "pandas", "matplotlib", "jsonschema", "pyvista", "jinja2", "PIL", "tqdm",
+         "threadpoolctl", "dask", "distributed")
+
+
+def _imported_after(code: str, *args: str) -> set[str]:
+    """The top-level packages in ``sys.modules`` after running ``code`` in a fresh process."""
+    program = f"{code}\nimport sys\nprint(' '.join(sorted({{m.split('.')[0] for m in sys.modules}})))"
+    done = subprocess.run([sys.executable, "-c", program, *args], cwd=REPO, capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    return set(done.stdout.split("\n")[-2].split())
+
+
+def test_importing_the_package_imports_nothing_heavy_not_even_numpy():
+    loaded = _imported_after("import mocaplib")
+    assert "mocaplib" in loaded and not loaded & {*HEAVY, "numpy"}, loaded & {*HEAVY, "numpy"}
+
+
+def test_the_command_line_and_its_help_import_nothing_heavy():
+    loaded = _imported_after("import mocaplib.cli\nmocaplib.cli.build_parser().format_help()")
+    assert not loaded & set(HEAVY), loaded & set(HEAVY)
+
+
+def test_inspect_imports_nothing_heavy(sample_dir):
+    loaded = _imported_after("import sys\nfrom mocaplib.cli import main\n"
+                             "assert main(['inspect', sys.argv[1]]) == 0",
+                             str(sample_dir / "walk_straight_normal.c3d"))
+    assert "numpy" in loaded and not loaded & set(HEAVY), loaded & set(HEAVY)
+
+
+def test_fit_imports_pandas_alone_of_the_heavy_modules(sample_dir, tmp_path):
+    # the angles are a DataFrame; the marker low-pass, calibration and fit need numpy only
+    loaded = _imported_after("import sys\nfrom mocaplib.cli import main\n"
+                             "assert main(['fit', sys.argv[1], '-o', sys.argv[2]]) == 0",
+                             str(sample_dir / "walk_straight_normal.c3d"),
+                             str(tmp_path / "angles.csv"))
+    assert loaded & set(HEAVY) == {"pandas"}, loaded & set(HEAVY)

@@ -206,3 +206,20 @@ def test_a_function_defined_in_a_script_runs_in_workers(tmp_path):
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0 and done.stdout == "[3, 6]\n", done.stderr
+
+
+@pytest.mark.parametrize("chosen", [None, "2"])
+def test_the_command_line_runs_numpy_with_one_blas_thread_unless_told(chosen):
+    # the solver's batched small matrices: more threads only compete (and change the last bits)
+    code = ("import sys\nfrom mocaplib.cli import main\nmain(['--version'])\n"
+            "import numpy\nfrom threadpoolctl import threadpool_info\n"
+            "print(sorted({i['num_threads'] for i in threadpool_info() "
+            "if i['user_api'] == 'blas'}))")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    if chosen:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    expected = [1] if chosen is None else [min(int(chosen), os.cpu_count() or 1)]
+    assert done.stdout.splitlines()[-1] == str(expected)

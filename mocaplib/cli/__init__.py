@@ -18,7 +18,7 @@ import sys
 from .. import __version__
 from ..errors import MocapError
 from ..io import printable
-from ._common import UsageError, apply_protocol_options
+from ..workers import one_thread_by_default
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (also used by the console script)."""
+    one_thread_by_default()          # before the sub-commands load numpy
     _tolerate_unencodable_output()
     streams = sys.stdout, sys.stderr
     sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
@@ -49,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
+    from ._common import UsageError, apply_protocol_options   # loads numpy: after the threads
+
     parser = build_parser()
     try:
         args, unknown = parser.parse_known_args(argv)

@@ -303,7 +303,6 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         raise UsageError("--forward-reference turns the heading of a static in the neutral "
                          "pose: give --static FILE --static-pose neutral, or leave "
                          "--forward-reference out")
-    from ..calibration import standing_part
     from ..io import unique_paths
     from ..io.c3d import read_c3d
 
@@ -323,6 +322,8 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
             raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
     for path in unique_paths(statics or ()):
+        from ..calibration import standing_part   # here: a command without statics needs none
+
         try:
             trials.append(read_c3d(path))
             standing_part(trials[-1], window=static_window)

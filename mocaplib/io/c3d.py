@@ -2,14 +2,13 @@
 NaN = missing).
 
 What :func:`read_c3d` does
-    * Header and parameters: the ``c3d`` package, through a small adapter (:class:`_Reader`)
-      for two kinds of valid real-world files it refuses:
-
-      - a parameter defined twice in one group (e.g. a Vicon subject's ``BODYMASS``): the first
-        definition is kept, later ones are moved aside to an unused group before parsing;
-      - an ANALOG rate inconsistent with the header (CMU files): the package's consistency
-        assertions are about analog data, which mocaplib does not read, so they are skipped.
-        The point layout is validated here instead, against the file size.
+    * Header and parameters: read here (:class:`_Parameters`), only those it uses looked at,
+      in the file's processor format. Valid real-world files the ``c3d`` package refuses are
+      read: a parameter defined twice in one group (a Vicon subject's ``BODYMASS``: the first
+      definition is kept), an ANALOG rate inconsistent with the header (CMU files: analog
+      data are not read); a parameter chain whose link points backwards or ends early is
+      followed record by record, with a note. The point layout is validated against the file
+      size.
 
     * POINT data: decoded as whole numpy arrays (one ``np.frombuffer``), integer storage
       (POINT:SCALE > 0, coordinates = int16 x SCALE) or float storage (SCALE < 0), for Intel,
@@ -29,27 +28,24 @@ What :func:`read_c3d` does
 
 Bad input (not a C3D, empty, truncated, sizes or counts that cannot be right) raises
 :class:`~mocaplib.errors.C3DError` naming the file: every size is checked against the file size
-before anything is allocated, and the ``c3d`` package's exceptions are wrapped.
+before anything is allocated.
 """
 
 from __future__ import annotations
 
 import errno
-import io
 import math
 import os
 import re
 import struct
-import warnings
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-import c3d
 import numpy as np
 
 from ..errors import C3DError
-from . import printable, read_regular
+from . import open_regular, printable
 from ..trial import Event, Trial
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
@@ -59,52 +55,24 @@ MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "
 _LABEL_PARAMS = 100          # LABELS, LABELS2 ... LABELS99: far beyond any real file
 _AXIS_SAMPLE_FRAMES = 60     # frames looked at to detect the vertical axis
 _AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by this factor
+#: Bytes of frames (POINT words and the analog samples between them) read at a time.
+CHUNK_BYTES = 1 << 23
+#: The largest frame count a 16-bit field holds: a file whose count is at it may hold more.
+UINT16_MAX = 65535
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
     """Read the markers of the C3D file ``path``: a :class:`Trial` in metres, Z up, NaN = missing.
 
-    Raises :class:`C3DError` (naming the file and the problem) when the file cannot be read.
+    Only the header, the parameter section and the POINT words are read; the frames are read
+    :data:`CHUNK_BYTES` at a time (their analog samples skipped), so memory holds little more
+    than the marker array, whatever the file's size. Raises :class:`C3DError` (naming the file
+    and the problem) when the file cannot be read.
     """
     path = Path(path)
-    data = _read_bytes(path)
-    _check_header(data, path)
-    notes: list[str] = []
-    reader = _parse_parameters(data, path, notes)
-    layout = _point_layout(reader, len(data), path, notes)
-
-    labels = _point_labels(reader, layout.count, path, notes)
-    units, to_metres = _point_units(reader, path, notes)
-    markers = decode_points(data, layout, factor=to_metres)
-
-    declared = _model_outputs(reader, path)
-    keep = [i for i, label in enumerate(labels) if label not in declared]
-    if len(keep) < len(labels):
-        notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
-                     f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
-        labels = [labels[i] for i in keep]
-        markers = markers[:, keep, :]
-
-    duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
-    if duplicates:
-        notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
-
-    screen = _screen_up_axis(reader)
-    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
-    notes.extend(axis_notes)
-    if axis == "Y":
-        markers = y_up_to_z_up(markers)
-        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
-
-    return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
-                 vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
-                 warnings=notes, measurements=subject_measurements(reader))
-
-
-# ----------------------------------------------------------------------------- file and header
-def _read_bytes(path: Path) -> bytes:
     try:
-        return read_regular(path)
+        with open_regular(path) as handle:
+            return _read_trial(handle, path)
     except FileNotFoundError:
         raise C3DError("no such file", path=path, hint="check the path") from None
     except IsADirectoryError:
@@ -115,13 +83,64 @@ def _read_bytes(path: Path) -> bytes:
         raise C3DError(f"cannot read the file: {exc.strerror}", path=path, hint=hint) from None
 
 
-def _check_header(data: bytes, path: Path) -> None:
-    """The checks the ``c3d`` package would fail on with an unhelpful exception."""
-    if len(data) == 0:
+def _read_trial(handle, path: Path) -> Trial:
+    size = os.fstat(handle.fileno()).st_size
+    metadata = _read_metadata(handle, size, path)
+    notes: list[str] = []
+    reader = _parse_parameters(metadata, path, notes)
+    layout = _frames_past_16_bits(handle, _point_layout(reader, size, path, notes), size, notes)
+
+    labels = _point_labels(reader, layout.count, path, notes)
+    units, to_metres = _point_units(reader, path, notes)
+    declared = _model_outputs(reader, path)
+    keep = [i for i, label in enumerate(labels) if label not in declared]
+    if len(keep) < len(labels):
+        notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
+                     f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
+        labels = [labels[i] for i in keep]
+    markers = _read_points(handle, layout, keep, to_metres, path)
+
+    duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
+    if duplicates:
+        notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
+
+    screen = _screen_up_axis(reader)
+    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
+    notes.extend(axis_notes)
+    if axis == "Y":
+        for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
+            chunk[:] = y_up_to_z_up(chunk)          # in place, a chunk at a time
+        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
+
+    return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
+                 vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
+                 warnings=notes, measurements=subject_measurements(reader))
+
+
+# ----------------------------------------------------------------------------- file and header
+def _read_metadata(handle, size: int, path: Path) -> bytes:
+    """The header and the parameter section (the blocks up to the end of the section, as its
+    first bytes count them), checked (:func:`_check_header`)."""
+    data = handle.read(512)
+    if len(data) == 512 and data[1] == 0x50 and data[0] >= 2:
+        start = (data[0] - 1) * 512
+        handle.seek(start + 2)
+        blocks = handle.read(1)
+        end = start + 512 * (blocks[0] if blocks else 0)
+        handle.seek(0)
+        data = handle.read(min(max(end, start + 4), size))
+    _check_header(data, size, path)
+    return data
+
+
+def _check_header(data: bytes, size: int, path: Path) -> None:
+    """The checks the ``c3d`` package would fail on with an unhelpful exception: ``data`` is
+    the start of a file of ``size`` bytes, through the parameter section's first 4 bytes."""
+    if size == 0:
         raise C3DError("the file is empty", path=path,
                        hint="re-export it from the capture software")
-    if len(data) < 512:
-        raise C3DError(f"only {len(data)} bytes: too short for a C3D file (header is 512 bytes)",
+    if size < 512:
+        raise C3DError(f"only {size} bytes: too short for a C3D file (header is 512 bytes)",
                        path=path, hint="the file is truncated or not a C3D file")
     if data[1] != 0x50:
         raise C3DError(f"not a C3D file: byte 2 is 0x{data[1]:02x}, a C3D file has 0x50",
@@ -130,9 +149,9 @@ def _check_header(data: bytes, path: Path) -> None:
     if data[0] < 2:
         raise C3DError(f"the header points to a parameter section at block {data[0]}, inside the "
                        f"header", path=path, hint="the file is corrupt")
-    if start + 4 > len(data):
+    if start + 4 > size:
         raise C3DError(f"the header points to a parameter section at block {data[0]}, beyond the "
-                       f"end of the file ({len(data)} bytes)", path=path,
+                       f"end of the file ({size} bytes)", path=path,
                        hint="the file is truncated or corrupt")
     processor = data[start + 3]
     if processor not in PROCESSORS:
@@ -141,35 +160,13 @@ def _check_header(data: bytes, path: Path) -> None:
 
 
 # ----------------------------------------------------------------------------- parameters
-class _Reader(c3d.Reader):
-    """``c3d.Reader`` without its analog/point consistency assertions (see the module doc)."""
-
-    def _check_metadata(self):
-        pass
-
-
-def _parse_parameters(data: bytes, path: Path, notes: list[str]) -> _Reader:
-    """Header and parameters through the ``c3d`` package (with the adapters for its refusals:
-    :func:`repair_parameter_links`, :func:`move_duplicate_parameters`)."""
-    data, repaired = repair_parameter_links(data)
-    notes.extend(repaired)
+def _parse_parameters(data: bytes, path: Path, notes: list[str]) -> "_Parameters":
+    """The header and parameters of ``data`` (the file's first blocks, through its parameter
+    section), with a note for each broken link of the parameter chain."""
     try:
-        return _new_reader(data)
-    except KeyError as exc:
-        if "already exists" not in str(exc):
-            raise _corrupt(exc, path) from None
-    except Exception as exc:  # the package raises assorted exceptions on corrupt input
+        return _Parameters(data, notes)
+    except Exception as exc:     # a value a corrupt section makes impossible
         raise _corrupt(exc, path) from None
-    try:
-        return _new_reader(move_duplicate_parameters(data))
-    except Exception as exc:
-        raise _corrupt(exc, path) from None
-
-
-def _new_reader(data: bytes) -> _Reader:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the package warns about files it reads fine
-        return _Reader(io.BytesIO(data))
 
 
 def _corrupt(exc: Exception, path: Path) -> C3DError:
@@ -253,44 +250,124 @@ def _record_starts(data: bytes, position: int, end: int) -> bool:
             and bool(re.fullmatch(rb"[A-Za-z0-9_]+", name)))
 
 
-def repair_parameter_links(data: bytes) -> tuple[bytes, list[str]]:
-    """``data`` with every broken link of the parameter chain (:func:`_parameter_records`)
-    set to the end of its record's content, and a note for each: the ``c3d`` package would
-    read a negative link as "the rest of the file" and silently drop every group after it
-    (EVENT, POINT:SCALE, POINT:RATE...)."""
-    records, endian = _parameter_records(data)
-    broken = [r for r in records[:-1] if r.link <= 0]
-    if not broken:
-        return data, []
-    out = bytearray(data)
-    notes = []
-    for record in broken:
-        struct.pack_into(endian + "h", out, record.link_at, record.length)
-        where = "points backwards" if record.link < 0 else "ends the chain early"
-        notes.append(f"parameter section: the link after {record.name.decode('latin-1')} "
-                     f"{where} ({record.link:+d} bytes); the records that follow it in the "
-                     "file were read in order (the file is damaged: re-export it)")
-    return bytes(out), notes
+@dataclass(frozen=True)
+class _Parameter:
+    """One parameter as stored: element size (-1 text, 1 byte, 2 16-bit integer, 4 float),
+    dimensions (the first varying fastest) and its bytes, in ``processor``'s format."""
+
+    bytes_per_element: int
+    dimensions: tuple[int, ...]
+    bytes: bytes
+    processor: str
+
+    @property
+    def float_array(self) -> np.ndarray:
+        endian = ">" if self.processor == "MIPS" else "<"
+        raw = self.bytes[:len(self.bytes) // 4 * 4]
+        if self.processor == "DEC":
+            return dec_to_ieee(np.frombuffer(raw, "<u4"))
+        return np.frombuffer(raw, endian + "f4")
+
+    @property
+    def uint16_array(self) -> np.ndarray:
+        endian = ">" if self.processor == "MIPS" else "<"
+        return np.frombuffer(self.bytes[:len(self.bytes) // 2 * 2], endian + "u2")
+
+    @property
+    def float_value(self) -> float:
+        return float(self.float_array[0])
+
+    @property
+    def uint16_value(self) -> int:
+        return int(self.uint16_array[0])
 
 
-def move_duplicate_parameters(data: bytes) -> bytes:
-    """``data`` with every repeated definition of a parameter in a group moved to an unused group.
+class _Parameters:
+    """The header and the parameter section of a C3D file: :meth:`get` ``"GROUP:NAME"`` (a
+    parameter, the first definition of a name in its group) or ``"GROUP"``; the header's
+    words as attributes; :attr:`first_frame` and :attr:`last_frame` from the parameters
+    that extend the header's 16-bit frame numbers."""
 
-    The n-th repeat of a (group, name) (:func:`_parameter_records`) gets its group id changed
-    to the n-th id no group uses, so the first definition is the one read. Other bytes are
-    unchanged.
-    """
-    out = bytearray(data)
-    records, _ = _parameter_records(data)
-    used = {abs(r.group) for r in records}
-    spares = [g for g in range(127, 0, -1) if g not in used]
-    seen: Counter = Counter()
-    for r in records:
-        repeat = seen[r.group, r.name]
-        if r.group > 0 and 0 < repeat <= len(spares):  # the n-th repeat goes to the n-th spare
-            out[r.position + 1] = spares[repeat - 1]
-        seen[r.group, r.name] += 1
-    return bytes(out)
+    def __init__(self, data: bytes, notes: list[str]):
+        records, endian = _parameter_records(data)
+        self.processor = PROCESSORS[data[(data[0] - 1) * 512 + 3]]
+        self._header(data, endian)
+        for record in records[:-1]:
+            if record.link <= 0:
+                where = "points backwards" if record.link < 0 else "ends the chain early"
+                notes.append(f"parameter section: the link after "
+                             f"{record.name.decode('latin-1')} {where} ({record.link:+d} "
+                             "bytes); the records that follow it in the file were read in "
+                             "order (the file is damaged: re-export it)")
+        groups: dict[int, str] = {}
+        for record in records:
+            if record.group < 0:
+                groups.setdefault(-record.group, record.name.decode("latin-1"))
+        self._groups = set(groups.values())
+        self._data = data
+        self._section_end = min(len(data),
+                                (data[0] - 1) * 512 + 512 * data[(data[0] - 1) * 512 + 2])
+        self._records: dict[str, _Record] = {}          # read when asked for (:meth:`get`)
+        for record in records:
+            if record.group > 0 and record.group in groups:
+                key = f"{groups[record.group]}:{record.name.decode('latin-1')}"
+                self._records.setdefault(key, record)
+
+    def _header(self, data: bytes, endian: str) -> None:
+        (self.point_count, self.analog_count, self.header_first_frame,
+         self.header_last_frame) = struct.unpack_from(endian + "4H", data, 2)
+        self.data_block, = struct.unpack_from(endian + "H", data, 16)
+        words = _Parameter(4, (2,), data[12:16] + data[20:24], self.processor).float_array
+        self.scale_factor, self.frame_rate = float(words[0]), float(words[1])
+
+    def get(self, key: str) -> _Parameter | str | None:
+        """The parameter ``"GROUP:NAME"`` (None when absent or its record is cut short), the
+        group's name for ``"GROUP"``, or None."""
+        if ":" not in key:
+            return key if key in self._groups else None
+        record = self._records.get(key)
+        if record is None:
+            return None
+        at, data = record.link_at + 2, self._data
+        end = record.link_at + record.link if record.link > 0 else (
+            record.link_at + record.length if record.length else self._section_end)
+        if at + 2 > end:
+            return None
+        size, n_dims = struct.unpack_from("bB", data, at)
+        dims = tuple(data[at + 2:at + 2 + n_dims])
+        start = at + 2 + n_dims
+        count = abs(size) * math.prod(dims)
+        return _Parameter(size, dims, bytes(data[start:min(start + count, end)]),
+                          self.processor)
+
+    @property
+    def first_frame(self) -> int:
+        """TRIAL:ACTUAL_START_FIELD (two 16-bit words), else the header's first frame."""
+        param = self.get("TRIAL:ACTUAL_START_FIELD")
+        if param is not None:
+            words = param.uint16_array
+            return int(words[0]) + int(words[1]) * 65536
+        return int(self.header_first_frame)
+
+    @property
+    def last_frame(self) -> int:
+        """The last frame, from the first of TRIAL:ACTUAL_END_FIELD (two 16-bit words),
+        POINT:LONG_FRAMES and POINT:FRAMES (float or 16-bit) that is not below the header's
+        (16-bit) last frame; else the header's."""
+        header = int(self.header_last_frame)
+        param = self.get("TRIAL:ACTUAL_END_FIELD")
+        if param is not None:
+            words = param.uint16_array
+            if header <= int(words[0]) + int(words[1]) * 65536:
+                return int(words[0]) + int(words[1]) * 65536
+        for key in ("POINT:LONG_FRAMES", "POINT:FRAMES"):
+            param = self.get(key)
+            if param is not None:
+                end = int(param.float_value) if param.bytes_per_element >= 4 \
+                    else param.uint16_value
+                if header <= end:
+                    return end
+        return header
 
 
 def _strings(param, path: Path, key: str) -> list[str]:
@@ -352,13 +429,12 @@ class PointLayout:
 
 
 def _point_layout(reader, file_size: int, path: Path, notes: list[str]) -> PointLayout:
-    header = reader.header
     try:
         with np.errstate(over="ignore", invalid="ignore"):  # corrupt words: checked below
-            processor = reader.proc_type
-            count = _number(reader, "POINT:USED", "uint16", int(header.point_count))
-            scale = _number(reader, "POINT:SCALE", "float", float(header.scale_factor))
-            rate = _number(reader, "POINT:RATE", "float", None) or float(header.frame_rate)
+            processor = reader.processor
+            count = _number(reader, "POINT:USED", "uint16", int(reader.point_count))
+            scale = _number(reader, "POINT:SCALE", "float", float(reader.scale_factor))
+            rate = _number(reader, "POINT:RATE", "float", None) or float(reader.frame_rate)
             first_frame = int(reader.first_frame)
             last_frame = int(reader.last_frame)
     except Exception as exc:  # corrupt parameter values the package cannot convert
@@ -372,10 +448,10 @@ def _point_layout(reader, file_size: int, path: Path, notes: list[str]) -> Point
     if frames <= 0:
         raise C3DError(f"no frames (first frame {first_frame}, last frame {last_frame})",
                        path=path, hint="the capture is empty or the header is corrupt")
-    start = (int(header.data_block) - 1) * 512
+    start = (int(reader.data_block) - 1) * 512
     if start < 512:
-        raise C3DError(f"nonsense data block number {int(header.data_block)}", path=path)
-    words = 4 * count + int(header.analog_count)
+        raise C3DError(f"nonsense data block number {int(reader.data_block)}", path=path)
+    words = 4 * count + int(reader.analog_count)
     scale = _storage_scale(float(scale), file_size - start, frames * words, notes)
     needed = start + frames * words * (4 if scale < 0 else 2)
     if needed > file_size:
@@ -412,8 +488,16 @@ def _storage_scale(scale: float, data_bytes: int, n_words: int, notes: list[str]
     return scale
 
 
-def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -> np.ndarray:
-    """Markers ``(F, M, 3)`` float64: file coordinates times ``factor``, NaN where invalid."""
+def decode_points(data, layout: PointLayout, /, *, factor: float = 1.0,
+                  points: list[int] | None = None) -> np.ndarray:
+    """Markers ``(F, M, 3)`` float64 of ``data`` (bytes or a buffer) laid out as ``layout``:
+    file coordinates times ``factor``, NaN where invalid; ``points`` (indices) keeps only those
+    points, in that order (default all)."""
+    return _decoded(_point_words(data, layout, points), layout, factor)
+
+
+def _point_words(data, layout: PointLayout, points: list[int] | None) -> np.ndarray:
+    """The stored words (F, M, 4) of the points (all, or the indices ``points``), as stored."""
     is_float = layout.scale < 0
     endian = ">" if layout.processor == "MIPS" else "<"
     if is_float:
@@ -423,15 +507,70 @@ def decode_points(data: bytes, layout: PointLayout, /, *, factor: float = 1.0) -
     block = np.frombuffer(data, dtype=dtype, count=layout.frames * layout.words,
                           offset=layout.start).reshape(layout.frames, layout.words)
     block = block[:, :4 * layout.count].reshape(layout.frames, layout.count, 4)
+    return block if points is None or len(points) == layout.count and \
+        np.array_equal(points, np.arange(layout.count)) else block[:, points]
+
+
+def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
+             out: np.ndarray | None = None) -> np.ndarray:
+    """Markers (F, M, 3) float64 of stored words ``block`` (F, M, 4), written into ``out``
+    when given."""
+    is_float = layout.scale < 0
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
     with np.errstate(invalid="ignore", over="ignore"):  # corrupt words: NaN/inf, masked below
-        markers = block[..., :3].astype(np.float64)
+        markers = np.empty(block.shape[:2] + (3,)) if out is None else out
+        markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
-    markers[~valid] = np.nan
+    np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
+
+
+def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
+                 path: Path) -> np.ndarray:
+    """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
+    read :data:`CHUNK_BYTES` of frames at a time."""
+    frame_bytes = _frame_bytes(layout)
+    step = max(1, CHUNK_BYTES // frame_bytes)
+    out = np.empty((layout.frames, len(points), 3))
+    buffer = bytearray(min(step, layout.frames) * frame_bytes)
+    handle.seek(layout.start)
+    for first in range(0, layout.frames, step):
+        chunk = replace(layout, start=0, frames=min(step, layout.frames - first))
+        view = memoryview(buffer)[:chunk.frames * frame_bytes]
+        if handle.readinto(view) != len(view):
+            raise C3DError("the file is shorter than when it was opened (written to while "
+                           "read?)", path=path, hint="read it again once it is complete")
+        _decoded(_point_words(view, chunk, points), chunk, factor,
+                 out=out[first:first + chunk.frames])
+    return out
+
+
+def _frame_bytes(layout: PointLayout) -> int:
+    return max(1, layout.words * (4 if layout.scale < 0 else 2))
+
+
+def _frames_past_16_bits(handle, layout: PointLayout, size: int, notes: list[str]
+                         ) -> PointLayout:
+    """``layout`` with every frame the data section holds when the file counts
+    :data:`UINT16_MAX` frames and holds more: a writer that stores the count in 16 bits only
+    (ezc3d 1.7 does) can write no more, though it writes every frame. Whole frames past the
+    count are read but those at the end whose words are all zero: the padding of the last
+    512-byte block."""
+    held = (size - layout.start) // _frame_bytes(layout)
+    if layout.first_frame + layout.frames - 1 != UINT16_MAX or held <= layout.frames:
+        return layout
+    tail = min(held - layout.frames, -(-512 // _frame_bytes(layout)))
+    handle.seek(layout.start + (held - tail) * _frame_bytes(layout))
+    words = np.frombuffer(handle.read(tail * _frame_bytes(layout)), np.uint8)
+    padding = words.reshape(tail, -1).any(axis=1)[::-1].argmax() if words.any() else tail
+    frames = held - padding
+    if frames > layout.frames:
+        notes.append(f"the file counts {layout.frames} frames, the most 16 bits hold, and its "
+                     f"data section holds {frames}: all read")
+    return replace(layout, frames=max(frames, layout.frames))
 
 
 def dec_to_ieee(words: np.ndarray) -> np.ndarray:
@@ -574,13 +713,13 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
                                .astype(int))]
     seen = np.isfinite(sample[..., 0])
     counts = seen.sum(axis=1)
-    sample = sample[counts >= 3]
+    sample, seen = sample[counts >= 3], seen[counts >= 3]
     spread = np.zeros(3)
     if len(sample):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            offsets = (sample - np.nanmean(sample, axis=1, keepdims=True)).reshape(-1, 3)
-        offsets = offsets[np.isfinite(offsets).all(axis=1)]
+        seen &= np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
+        mean = np.where(seen[..., None], sample, 0.0).sum(axis=1) / np.maximum(
+            seen.sum(axis=1), 1)[:, None]                  # each frame's mean seen marker
+        offsets = (sample - mean[:, None])[seen]
         if len(offsets) >= 10:
             low, high = np.percentile(np.ascontiguousarray(offsets.T), [10, 90], axis=1)
             spread = high - low

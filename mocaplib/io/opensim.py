@@ -10,7 +10,9 @@ solves (without the robust loss and continuity term):
   ``SpatialTransform`` rotations the segment's DOFs in order about the same signed axes
   (body-fixed, as ours), unused rotation axes held at 0, the pelvis translations along the
   ground axes; coordinates named as our DOFs, with our ranges (clamped) and locked DOFs locked;
-- one marker per model marker, on its segment at its calibrated offset.
+- one marker per model marker, on its segment at its calibrated offset, named by its label
+  with the characters OpenSim refuses in a name (spaces, tabs, ``\\ / * +``) written ``_``
+  (:func:`opensim_name`; BTS labels such as ``l should``), in the .trc as in the .osim.
 
 World Z is up, so gravity is (0, 0, -g). Writing needs no OpenSim installation; files are
 written atomically. Units: the .osim and .mot in metres, the .trc in millimetres, the .mot
@@ -20,6 +22,7 @@ angles in degrees (``inDegrees=yes``), as OpenSim expects.
 from __future__ import annotations
 
 import os
+import re
 from typing import TYPE_CHECKING
 from xml.etree import ElementTree as ET
 
@@ -36,6 +39,15 @@ if TYPE_CHECKING:
 _OPEN_RANGE = 4 * np.pi
 #: Nominal body mass (kg) and inertia (kg m²): IK ignores them but OpenSim wants them.
 _MASS, _INERTIA = 1.0, 0.01
+
+
+#: Characters OpenSim refuses in a component's name.
+_NOT_IN_NAMES = re.compile(r"[\\/*+\s]")
+
+
+def opensim_name(label: str) -> str:
+    """``label`` as an OpenSim marker name: the characters OpenSim refuses written ``_``."""
+    return _NOT_IN_NAMES.sub("_", label)
 
 
 def _fmt(values) -> str:
@@ -69,7 +81,7 @@ def osim_text(model: "SubjectModel", *, name: str = "mocaplib") -> str:
         _joint(joint_set, seg, joints[s], set(model.locked_dofs))
     markers = _sub(_sub(root, "MarkerSet", name="markerset"), "objects")
     for label, s, offset in zip(model.labels, model.marker_segments, model.marker_offsets):
-        marker = _sub(markers, "Marker", name=label)
+        marker = _sub(markers, "Marker", name=opensim_name(label))
         _sub(marker, "socket_parent_frame", f"/bodyset/{SEGMENT_NAMES[s]}")
         _sub(marker, "location", _fmt(offset))
         _sub(marker, "fixed", "false")
@@ -143,7 +155,7 @@ def write_trc(markers: np.ndarray, labels: list[str], rate: float, path: str | o
         "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
         "OrigDataStartFrame\tOrigNumFrames",
         f"{rate:g}\t{rate:g}\t{n_frames}\t{n_markers}\tmm\t{rate:g}\t1\t{n_frames}",
-        "Frame#\tTime\t" + "\t\t\t".join(labels),
+        "Frame#\tTime\t" + "\t\t\t".join(map(opensim_name, labels)),
         "\t\t" + "\t".join(f"X{i}\tY{i}\tZ{i}" for i in range(1, n_markers + 1)),
         "",
     ]
