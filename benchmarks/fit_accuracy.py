@@ -215,8 +215,8 @@ def statures(plan_path: Path) -> None:
             for planned in plan:
                 path = folder / f"{planned.name}.c3d"
                 truth = json.loads(path.with_suffix(".truth.json").read_text())
-                motion, _, _ = fit_capture(read_c3d(path), static=static, static_pose="neutral",
-                                           heading_offsets=result.settings.heading_offsets)
+                motion = fit_capture(read_c3d(path), static=static, static_pose="neutral",
+                                     heading_offsets=result.settings.heading_offsets).motion
                 error = motion.q - np.asarray(truth["angles"]["values"], dtype=float)
                 rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
                 row = velocities.get(planned.name)
@@ -261,7 +261,8 @@ def real(folder: Path) -> None:
             continue
         start = time.perf_counter()
         try:
-            motion, model, cutoff = fit_capture(read_c3d(path))
+            fitted = fit_capture(read_c3d(path))
+            motion, model, cutoff = fitted.motion, fitted.model, fitted.cutoff
         except MocapError as exc:
             print(f"| {name} | error: {exc} |")
             continue

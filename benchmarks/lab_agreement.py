@@ -122,7 +122,8 @@ def agreement(motion_path: Path, static_path: Path | None, name: str) -> Capture
     """Fit ``motion_path`` as ``mocaplib fit`` does and compare it with Plug-in Gait."""
     trial = read_c3d(motion_path)
     statics = [read_c3d(static_path)] if static_path else None
-    motion, model, _ = fit_capture(trial, static=statics)
+    fitted = fit_capture(trial, static=statics)
+    motion, model = fitted.motion, fitted.model
     points = plug_in_gait_points(motion_path)
     q = np.degrees(motion.q)
     out = []

@@ -71,7 +71,7 @@ def captured_cycles(paths: list[Path], settings: BuildSettings) -> dict:
         trial = read_c3d(path)
         match = match_trial(trial, settings.protocol)
         motion = fit_capture(trial, protocol=match.protocol, static=statics or None,
-                             static_pose=settings.static_pose, cutoff=settings.cutoff)[0]
+                             static_pose=settings.static_pose, cutoff=settings.cutoff).motion
         events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off)
         q = motion.q.copy()
         q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(len(q)) / motion.rate, ground[:2])

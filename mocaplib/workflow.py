@@ -32,6 +32,7 @@ from .settings import BuildSettings
 if TYPE_CHECKING:
     from .calibration import SubjectModel
     from .motion import Motion
+    from .protocols import ProtocolMatch
     from .trial import Trial
 
 
@@ -166,44 +167,129 @@ def file_sha256(path: str | os.PathLike) -> str:
     return digest.hexdigest()
 
 
+@dataclass
+class FittedCapture:
+    """One capture calibrated and fitted (:func:`fit_capture`).
+
+    Attributes
+    ----------
+    match : ProtocolMatch
+        The capture's labels matched with its protocol (:func:`mocaplib.protocols.match_trial`).
+    cutoff : float or None
+        Hz the markers were low-passed at (None: not filtered).
+    model : SubjectModel
+        The subject model; its ``source`` names the static trial used.
+    motion : Motion
+        The fitted joint angles.
+    static : int or None
+        Index of the static trial used among those given (None: calibrated from the capture).
+    warnings : list[str]
+        What the user should know about the calibration and the fit, one sentence each.
+    """
+
+    match: ProtocolMatch
+    cutoff: float | None
+    model: SubjectModel
+    motion: Motion
+    static: int | None
+    warnings: list[str]
+
+
 def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto",
                 heading_offsets=None, measurements: dict | None = None,
-                static_window: tuple[float, float] | None = None
-                ) -> tuple[Motion, SubjectModel, float | None]:
-    """Calibrate and fit one capture: markers low-passed at ``cutoff`` (Hz, "auto" or None),
-    :func:`mocaplib.calibration.calibrate` on them (or on ``static`` when given, in
-    ``static_pose``), then :func:`mocaplib.ik.fit_filtered`. ``protocol`` (a Protocol, shipped
-    name, TOML path or "auto") is resolved on the capture (:func:`mocaplib.protocols.match_trial`), as
-    ``mocaplib build`` resolves it, whatever the static's labels. ``static`` may also be a list
-    of static trials, one per subject or session: the one that shows this capture's subject is
-    used (:func:`mocaplib.calibration.choose_static`). ``heading_offsets``: per static (one
-    for a single static), the heading correction of a forward reference, radians
-    (:func:`forward_offsets`; the static in the neutral pose).
-    ``measurements``: subject measurements overriding the calibration file's (see
-    :func:`mocaplib.calibration.calibrate`); ``static_window``: the (start, end) seconds of the
-    static to calibrate on (:func:`mocaplib.calibration.standing_part`).
+                static_window: tuple[float, float] | None = None, fallback: bool = False,
+                neutral_model=None, clock: _Clock | None = None) -> FittedCapture:
+    """Calibrate and fit one capture, as every command does: ``protocol`` matched on the
+    capture, markers low-passed at ``cutoff`` (Hz, "auto" or None,
+    :func:`mocaplib.filtering.filter_trial`), the subject model calibrated
+    (:func:`mocaplib.calibration.calibrate`) on the static that shows the capture's subject or
+    on the capture itself, then :func:`mocaplib.ik.fit_filtered`.
 
-    Returns the motion, the subject model (its ``source`` names the static used) and the
-    cutoff used (Hz; None: unfiltered).
+    ``protocol``: a :class:`~mocaplib.protocols.ProtocolMatch` of this trial, or what
+    :func:`mocaplib.protocols.match_trial` takes (a Protocol, shipped name, TOML path or
+    "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
+    a list of them, one per subject or session (the one that shows this capture's subject is
+    used, :func:`mocaplib.calibration.choose_static`), in ``static_pose``. When none shows the
+    subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
+    from the capture itself and says so. ``heading_offsets``: per static, the heading correction
+    of a forward reference, radians (:func:`forward_offsets`; the static in the neutral pose).
+    ``measurements``: subject measurements overriding the calibration file's;
+    ``static_window``: the (start, end) seconds of the static to calibrate on
+    (:func:`mocaplib.calibration.standing_part`). ``neutral_model(i)``: the model of static
+    ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
+    a build calibrates each once per process); None calibrates it here. ``clock`` times the
+    stages ("protocol", "filter", "calibrate", "fit").
     """
-    from .calibration import calibrate, choose_static
+    from .calibration import calibrate, check_static, choose_static, static_names
+    from .errors import CalibrationError
     from .filtering import filter_trial
     from .ik import fit_filtered
-    from .protocols import match_trial
+    from .protocols import ProtocolMatch, match_trial
 
-    protocol = match_trial(trial, protocol).protocol
-    filtered, used = filter_trial(trial, cutoff=cutoff)
-    chosen = 0
-    if isinstance(static, (list, tuple)):
-        chosen = choose_static(filtered, static, protocol)
-        static = None if chosen is None else static[chosen]
-    model = calibrate(filtered, protocol=protocol, static=static, static_pose=static_pose,
-                      heading_offset=0.0 if heading_offsets is None or static is None
-                      else heading_offsets[chosen], measurements=measurements,
-                      static_window=static_window)
-    motion, _ = fit_filtered(trial, model, cutoff=used)
-    return motion, model, used
+    clock = clock or _Clock()
+    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
+        else [static]
+    warnings: list[str] = []
+    with clock.stage("protocol"):
+        match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
+    with clock.stage("filter"):
+        filtered, used = filter_trial(trial, cutoff=cutoff)
+    with clock.stage("calibrate"):
+        try:
+            chosen = choose_static(filtered, statics, match.protocol, check_one=fallback)
+            if chosen is not None and static_pose == "neutral" and neutral_model is not None:
+                model = neutral_model(chosen)
+                check_static(filtered, statics[chosen], model)
+            else:
+                model = calibrate(filtered, protocol=match.protocol,
+                                  static=None if chosen is None else statics[chosen],
+                                  static_pose=static_pose,
+                                  heading_offset=0.0 if heading_offsets is None or chosen is None
+                                  else heading_offsets[chosen],
+                                  measurements=measurements, static_window=static_window)
+        except CalibrationError as exc:
+            if not (fallback and statics):
+                raise
+            warnings.append(f"calibrated from the capture itself: no static shows its subject "
+                            f"({exc.message})")
+            chosen, model = None, calibrate(filtered, protocol=match.protocol,
+                                            measurements=measurements)
+    if chosen is not None:
+        name = static_names([s.source or f"static {i + 1}" for i, s in enumerate(statics)])[chosen]
+        window = model.static_window_s
+        if window != (0.0, statics[chosen].duration):
+            warnings.append(f"static {name}: calibrated on its stretch {window[0]:.2f}-"
+                            f"{window[1]:.2f} s (of {statics[chosen].duration:.2f} s)")
+        warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
+    with clock.stage("fit"):
+        motion, _ = fit_filtered(trial, model, cutoff=used)
+    warnings.extend(_fit_warnings(model, motion))
+    return FittedCapture(match, used, model, motion, chosen, warnings)
+
+
+def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
+    """What a user should know about a fit: the labelling repairs, DOFs held at 0 and why,
+    DOFs at a joint limit, frames not fitted, samples removed."""
+    from .ik import fit_quality
+    from .skeleton import SEGMENTS
+
+    quality = fit_quality(motion)
+    notes = motion.repair_warnings()
+    if model.left_out:
+        notes.append(f"no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
+    left_out = {dof for seg in SEGMENTS if seg.name in model.left_out for dof in seg.dofs}
+    unseen = [dof for dof in motion.locked_dofs if dof not in left_out]
+    if unseen:
+        notes.append(f"the markers of protocol {model.protocol.name!r} cannot see "
+                     f"{', '.join(unseen)}; held at 0")
+    notes.extend(motion.limit_warnings())
+    if quality["failed_frames"]:
+        notes.append(f"{len(quality['failed_frames'])} frames could not be fitted (interpolated)")
+    if quality["rejected_samples"]:
+        notes.append(f"{quality['rejected_samples']} marker samples removed as outliers "
+                     f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
+    return notes
 
 
 def process_capture(path: str | os.PathLike, settings: BuildSettings) -> CaptureResult:
@@ -281,21 +367,20 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     events and the ground's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
-    The stages are chained as ``mocaplib cycles`` chains them (:func:`mocaplib.workflow.fit_capture`
-    spelled out, so each stage is timed; then the same :func:`mocaplib.events.capture_events`
-    and :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles. Settings with a
-    forward reference must carry its measured ``heading_offsets`` (:func:`build` measures
-    them).
+    The stages are chained as ``mocaplib cycles`` chains them (:func:`fit_capture`, timed by
+    ``clock``, then :func:`mocaplib.events.capture_events` and
+    :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles; a build falls back
+    to calibrating from the capture when none of its statics shows the subject, unless
+    ``settings.require_static``. Settings with a forward reference must carry its measured
+    ``heading_offsets`` (:func:`build` measures them).
     """
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
                          "pipeline.build, or set heading_offsets=forward_offsets(settings)")
-    from .calibration import calibrate, choose_static, static_names
+    from .calibration import static_names
     from .errors import CalibrationError
     from .cycles import motion_cycles, shoulder_centres
-    from .filtering import filter_trial
     from .events import capture_events
-    from .ik import fit_filtered
     from .io.c3d import read_c3d
     from .protocols import match_trial, missing_landmarks_error
 
@@ -310,44 +395,27 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         missing = missing_landmarks_error(match, path)
         if missing is not None:
             raise missing
-    with clock.stage("filter"):
-        filtered, cutoff = filter_trial(trial, cutoff=settings.cutoff)
-    with clock.stage("calibrate"):
-        try:
-            chosen = choose_static(filtered, static_trials, match.protocol, check_one=True)
-            model = _static_model(filtered, match.protocol, settings, statics, static_trials,
-                                  chosen)
-        except CalibrationError as exc:
-            if not static_trials or settings.require_static:
-                raise
-            result.warnings.append(f"calibrated from the capture itself: no static shows its "
-                                   f"subject ({exc.message})")
-            chosen, model = None, calibrate(filtered, protocol=match.protocol,
-                                            measurements=settings.measurements)
-        if chosen is not None:
-            result.static = static_names(settings.statics)[chosen]
-            window = model.static_window_s
-            result.diagnostics["static_window_s"] = list(window)
-            if window != (0.0, static_trials[chosen].duration):
-                result.warnings.append(f"static {result.static}: calibrated on its stretch "
-                                       f"{window[0]:.2f}-{window[1]:.2f} s (of "
-                                       f"{static_trials[chosen].duration:.2f} s)")
-    if chosen is not None:                       # without one the fit reports the swaps
-        result.warnings.extend(model.swap_warnings)
-    with clock.stage("fit"):
-        motion, _ = fit_filtered(trial, model, cutoff=cutoff)
-    result.warnings.extend(motion.repair_warnings())
-    if motion.locked_dofs:
-        result.warnings.append(f"protocol {match.protocol.name!r} cannot see "
-                               f"{len(motion.locked_dofs)} DOFs, held at 0: "
-                               f"{', '.join(motion.locked_dofs)}")
-    result.warnings.extend(motion.limit_warnings())
-    if motion.failed.any():
-        result.warnings.append(f"{int(motion.failed.sum())} frames could not be fitted "
-                               "(interpolated)")
-    if motion.rejected.any():
-        result.warnings.append(f"{int(motion.rejected.sum())} marker samples removed as "
-                               "outliers (jumping or mislabelled trajectories)")
+    if not statics and settings.require_static:
+        raise CalibrationError("no static trial given, and the build requires one "
+                               "(require_static)", path=trial.source,
+                               hint="give the subject's static with --static or a "
+                                    "session.toml, or leave --require-static out")
+
+    def neutral_model(i: int):
+        return _neutral_model(*statics[i], match.protocol, settings.heading_offset(i),
+                              tuple(sorted(settings.measurements.items())),
+                              settings.static_window)
+
+    fitted = fit_capture(trial, protocol=match, static=static_trials,
+                         static_pose=settings.static_pose, cutoff=settings.cutoff,
+                         measurements=settings.measurements, static_window=settings.static_window,
+                         fallback=not settings.require_static, neutral_model=neutral_model,
+                         clock=clock)
+    motion, cutoff = fitted.motion, fitted.cutoff
+    if fitted.static is not None:
+        result.static = static_names(settings.statics)[fitted.static]
+        result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
+    result.warnings.extend(fitted.warnings)
     with clock.stage("events"):
         events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off)
         shoulders = shoulder_centres(motion)
@@ -355,33 +423,6 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     with clock.stage("cycles"):
         cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
     return trial, motion, cycles, events, ground
-
-
-def _static_model(filtered, protocol, settings: BuildSettings, statics, static_trials,
-                  chosen: int | None):
-    """The subject model of a capture (its markers ``filtered``) from static number ``chosen``
-    (None: from the capture itself); ``statics`` (path, SHA-256) and ``static_trials`` the
-    build's. Raises :class:`~mocaplib.errors.CalibrationError` when the static cannot serve
-    (:func:`mocaplib.calibration.calibrate`, :func:`mocaplib.calibration.check_static`), or
-    when ``settings.require_static`` and there is none."""
-    from .calibration import calibrate, check_static
-    from .errors import CalibrationError
-
-    if chosen is None and settings.require_static:
-        raise CalibrationError("no static trial given, and the build requires one "
-                               "(require_static)", path=filtered.source,
-                               hint="give the subject's static with --static or a "
-                                    "session.toml, or leave --require-static out")
-    static = None if chosen is None else static_trials[chosen]
-    if static is not None and settings.static_pose == "neutral":
-        model = _neutral_model(*statics[chosen], protocol, settings.heading_offset(chosen),
-                               tuple(sorted(settings.measurements.items())),
-                               settings.static_window)
-        check_static(filtered, static, model)
-        return model
-    return calibrate(filtered, protocol=protocol, static=static,
-                     static_pose=settings.static_pose, measurements=settings.measurements,
-                     static_window=settings.static_window)
 
 
 def static_sha256(path: str) -> str:

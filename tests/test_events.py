@@ -192,7 +192,7 @@ def test_model_filled_samples_do_not_count_as_measured():
     toe_off = [e for e in before if e.side == "left" and e.kind == "toe_off"][1]
     gap = slice(toe_off.frame - 15, toe_off.frame + 16)   # 0.31 s: too long to fill linearly
     trial.markers[gap, trial.labels.index("LTOE")] = np.nan
-    motion = fit_capture(trial, protocol=match.protocol)[0]
+    motion = fit_capture(trial, protocol=match).motion
     feet, measured = feet_of(trial, match, motion=motion)
     assert np.isfinite(feet["left"][1][gap]).all()          # filled from the fitted skeleton
     assert not measured["left"][gap].any() and measured["right"][gap].all()
@@ -215,7 +215,7 @@ def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3
 
     trial = read_c3d(real_c3d("ezc3d_testfiles/BTS.c3d"))
     match = detect_protocol(trial)
-    motion = fit_capture(trial, protocol=match.protocol)[0]
+    motion = fit_capture(trial, protocol=match).motion
     markers_only, _ = capture_events(trial, match)
     filled, ground = capture_events(trial, match, motion=motion)
     key = {(e.side, e.kind, e.frame): e.quality for e in markers_only}
@@ -242,7 +242,7 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
 
     trial = read_c3d(real_c3d(name))
     match = detect_protocol(trial)
-    motion = fit_capture(trial, protocol=match.protocol)[0]
+    motion = fit_capture(trial, protocol=match).motion
     _, measured = feet_of(trial, match)
     found, _ = capture_events(trial, match, motion=motion)
     assert found

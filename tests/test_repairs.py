@@ -27,7 +27,7 @@ def swapped(trial, a: str, b: str, frames: slice = slice(None)):
 
 
 def _rms_and_repairs(trial, **options):
-    motion, _, _ = fit_capture(trial, **options)
+    motion = fit_capture(trial, **options).motion
     quality = fit_quality(motion)
     return quality["marker_rms_mm"], quality["repairs"]
 

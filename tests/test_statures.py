@@ -26,8 +26,8 @@ def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, 
     # the fit, as build does it, against the fit targets: flexion within 1°, other DOFs within
     # 2° over the DOFs fitted (measured: flexion 0.70° / 0.50° at most, other DOFs 1.80° /
     # 1.59°); a skeleton left at 1.75 m gives 2.1° flexion at 1.55 m
-    motion, model, _ = fit_capture(read_c3d(walk), static=read_c3d(static),
-                                   static_pose="neutral")
+    fitted = fit_capture(read_c3d(walk), static=read_c3d(static), static_pose="neutral")
+    motion, model = fitted.motion, fitted.model
     assert model.skeleton.lengths["hip_height"] == pytest.approx(0.52 * height, rel=0.03)
     error = motion.q - np.asarray(capture.truth["angles"]["values"])
     rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))

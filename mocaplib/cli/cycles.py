@@ -48,10 +48,10 @@ def _run(args) -> int:
     trial, match, missing = load(args)
     if missing is not None:
         raise missing
-    motion = fit_capture(trial, protocol=match.protocol, static=statics,
+    motion = fit_capture(trial, protocol=match, static=statics,
                          static_pose=args.static_pose, cutoff=args.cutoff,
                          static_window=args.static_window, measurements=measurements(args),
-                         heading_offsets=heading_offsets(args))[0]
+                         heading_offsets=heading_offsets(args)).motion
     events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     cycles = motion_cycles(events, motion, ground=ground, source=args.file)
     qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)

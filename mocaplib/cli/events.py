@@ -52,7 +52,7 @@ def _run(args) -> int:
 
     check_inputs([args.file])
     trial, match, missing = load(args)
-    motion = fit_capture(trial, protocol=match.protocol)[0] if args.fit else None
+    motion = fit_capture(trial, protocol=match).motion if args.fit else None
     events, _ = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
     if missing is not None:  # events need only the foot markers, which capture_events checked
         warn(str(missing))

@@ -59,38 +59,21 @@ def _run(args) -> int:
     if missing is not None:
         warn(str(missing))
     offsets = heading_offsets(args)
-    motion, model, cutoff = fit_capture(trial, protocol=match.protocol, static=statics,
-                                        static_pose=args.static_pose, cutoff=args.cutoff,
-                                        static_window=args.static_window,
-                                        measurements=measurements(args),
-                                        heading_offsets=offsets)
-    sources = [static.source for static in statics]
-    static = static_names(sources)[sources.index(model.source)] if statics else None
-    offset = None if offsets is None else offsets[sources.index(model.source)]
+    fitted = fit_capture(trial, protocol=match, static=statics, static_pose=args.static_pose,
+                         cutoff=args.cutoff, static_window=args.static_window,
+                         measurements=measurements(args), heading_offsets=offsets)
+    motion, model, cutoff = fitted.motion, fitted.model, fitted.cutoff
+    static = None if fitted.static is None else \
+        static_names([s.source for s in statics])[fitted.static]
+    offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
     atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
     if args.mot:
         write_mot(motion, args.mot)
     if args.osim:
         write_osim(model, args.osim)
     quality = fit_quality(motion)
-    if statics:                                   # without one the fit reports the swaps
-        for note in model.swap_warnings:
-            warn(note)
-    for note in motion.repair_warnings():
+    for note in fitted.warnings:
         warn(f"{args.input}: {note}")
-    if model.unobservable:
-        warn(f"{args.input}: the markers cannot see {', '.join(sorted(model.unobservable))}; "
-             "held at 0")
-    for note in motion.limit_warnings():
-        warn(f"{args.input}: {note}")
-    if model.left_out:
-        warn(f"{args.input}: no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
-    if quality["failed_frames"]:
-        warn(f"{args.input}: {len(quality['failed_frames'])} frames could not be fitted "
-             "(interpolated)")
-    if quality["rejected_samples"]:
-        warn(f"{args.input}: {quality['rejected_samples']} marker samples removed as outliers "
-             f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
     if args.json:
         print_json({"file": args.input, "protocol": model.protocol.name, "static": static,
                     "heading_offset_rad": offset, "cutoff_hz": cutoff, **quality})

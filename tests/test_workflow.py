@@ -1,0 +1,57 @@
+"""One capture workflow: ``mocaplib fit`` and ``mocaplib build`` calibrate and fit a capture
+through the same :func:`mocaplib.workflow.fit_capture`, with the same warnings."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocaplib.errors import CalibrationError
+from mocaplib.io.c3d import read_c3d
+from mocaplib.pipeline import BuildSettings
+from mocaplib.protocols import match_trial
+from mocaplib.workflow import fit_capture, process_capture
+
+
+def test_the_build_fits_a_capture_as_fit_capture_does_and_says_what_it_says(real_c3d):
+    # PiG_Motion-FlatFoot-Full: a real walk whose foot markers cannot see the ankle inversion
+    path = real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+    fitted = fit_capture(read_c3d(path))
+    assert any("cannot see" in note and "ankle_inversion" in note for note in fitted.warnings)
+    result = process_capture(path, BuildSettings())
+    assert result.ok, result.error
+    for note in fitted.warnings:
+        assert note in result.warnings
+
+
+def test_a_static_of_another_subject_fails_unless_the_caller_falls_back(real_c3d):
+    walk = read_c3d(real_c3d("motonms_unipd/Walking1.c3d"))
+    other = read_c3d(real_c3d("biomechzoo/HC030A01.c3d"))        # another lab, another subject
+    own = read_c3d(real_c3d("motonms_unipd/Static1.c3d"))
+    with pytest.raises(CalibrationError, match="HC030A01.c3d"):
+        fit_capture(walk, static=[other])
+    fell_back = fit_capture(walk, static=[other], fallback=True)
+    assert fell_back.static is None and fell_back.model.source in (None, walk.source)
+    assert fell_back.warnings[0].startswith("calibrated from the capture itself: no static "
+                                            "shows its subject")
+    chosen = fit_capture(walk, static=[other, own], fallback=True)
+    assert chosen.static == 1 and chosen.model.source == own.source
+    assert not any(n.startswith("calibrated from the capture itself") for n in chosen.warnings)
+
+
+def test_a_neutral_model_kept_by_the_caller_is_the_one_calibrated_here(sample_dir):
+    walk = read_c3d(sample_dir / "walk_straight_normal.c3d")
+    rest = read_c3d(sample_dir / "rest.c3d")
+    here = fit_capture(walk, static=rest, static_pose="neutral")
+    kept = fit_capture(rest, static=rest, static_pose="neutral").model
+    calls = []
+
+    def neutral_model(i):
+        calls.append(i)
+        return kept
+
+    given = fit_capture(walk, protocol=match_trial(walk), static=rest, static_pose="neutral",
+                        neutral_model=neutral_model)
+    assert calls == [0] and given.static == 0 and given.match.protocol.name == \
+        here.match.protocol.name
+    np.testing.assert_array_equal(given.motion.q, here.motion.q)
