@@ -78,7 +78,7 @@ from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harring
                       marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
-from .protocols import Protocol, match_protocol, match_trial
+from .protocols import Protocol, label_match, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
 from .trial import Trial
@@ -274,7 +274,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     cal = static if static is not None else trial
     measurements = {**cal.measurements, **(measurements or {})}
     proto = choose_protocol(trial, protocol)   # on the motion, as every command resolves it
-    cal_match = match_protocol(cal, proto, check_swaps=False)   # find_swaps decides
+    cal_match = label_match(cal, proto)   # find_repairs finds the swaps
     X_all = cal_match.markers(cal)
     seen = np.isfinite(X_all[..., 0]).mean(axis=0) if cal.n_frames else np.zeros(len(proto.labels))
     used = np.flatnonzero(seen >= MIN_PRESENCE)
@@ -585,7 +585,7 @@ def check_static(trial: Trial, static: Trial, model: SubjectModel) -> None:
     never shows the model's pelvis markers together or shows another subject or marker
     placement, naming both files."""
     used = np.array([model.protocol.labels.index(label) for label in model.labels], dtype=int)
-    X_static = match_protocol(static, model.protocol, check_swaps=False).markers(static)[:, used]
+    X_static = label_match(static, model.protocol).markers(static)[:, used]
     _check_static(X_static, trial, model.protocol, used, model.marker_segments, model.labels,
                   static)
 
@@ -594,7 +594,7 @@ def _check_static(X_static: np.ndarray, trial: Trial, proto: Protocol, used: np.
                   segments: np.ndarray, labels: list[str], static: Trial) -> np.ndarray:
     """The checks of :func:`check_static` on the static's ``used`` protocol markers
     ``X_static`` (F_s, M, 3); returns the motion's (F, M, 3)."""
-    X_motion = match_protocol(trial, proto, check_swaps=False).markers(trial)[:, used]
+    X_motion = label_match(trial, proto).markers(trial)[:, used]
     _check_motion_markers(X_motion, segments, labels, proto, static=static, trial=trial)
     check_same_subject(X_static, X_motion, segments, labels, static=static, trial=trial)
     return X_motion
@@ -609,7 +609,7 @@ def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: li
     if most >= MIN_PELVIS_MARKERS:
         return
     names = np.array(labels)[pelvis]
-    present = match_protocol(trial, proto, check_swaps=False).present_landmarks.values()
+    present = label_match(trial, proto).present_landmarks.values()
     shows = (f"never shows {MIN_PELVIS_MARKERS} of the static's pelvis markers "
              f"({', '.join(names)}, protocol {proto.name!r}) in one frame")
     if sum(name in present for name in names) >= MIN_PELVIS_MARKERS:
@@ -697,9 +697,9 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol, *,
     if len(statics) < 2 and not (check_one and statics):
         return 0 if statics else None
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in protocol.markers])
-    X_motion = match_protocol(trial, protocol, check_swaps=False).markers(trial)
+    X_motion = label_match(trial, protocol).markers(trial)
     gaps = np.array([check_same_subject(
-        match_protocol(static, protocol, check_swaps=False).markers(static), X_motion,
+        label_match(static, protocol).markers(static), X_motion,
         segments, protocol.labels, static=static, trial=trial, limit=np.inf)
         for static in statics])
     if np.isfinite(gaps).any() and np.nanmin(gaps) <= SAME_SUBJECT_LIMIT:

@@ -42,7 +42,7 @@ from .errors import FitError
 from .filtering import resample
 from .runs import valid_runs
 from .motion import Motion, Repair, angles_frame, apply_repairs
-from .protocols import match_protocol
+from .protocols import label_match
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
 
@@ -563,7 +563,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
 
     Parameters
     ----------
-    trial : Trial with the model's protocol labels (matched as :func:`match_protocol` does).
+    trial : Trial with the model's protocol labels (matched as :func:`mocaplib.protocols.label_match` does).
     model : SubjectModel from :func:`mocaplib.calibration.calibrate`.
     robust_scale : soft-L1 scale, metres; ``np.inf`` for plain least squares.
     smoothing : continuity weight μ (metres per radian); 0 switches it off.
@@ -924,7 +924,7 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
 def _trial_columns(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's marker column (M,) of each model marker (-1 when absent), as
     :func:`model_markers` reads them."""
-    match = match_protocol(trial, model.protocol, check_swaps=False)   # the fit repairs swaps
+    match = label_match(trial, model.protocol)   # the fit repairs swaps
     return np.array([match.indices[model.protocol.labels.index(label)]
                      for label in model.labels], dtype=int)
 
@@ -1074,7 +1074,7 @@ def fit_quality(motion: Motion) -> dict:
 def model_markers(trial: "Trial", model: "SubjectModel") -> np.ndarray:
     """The trial's markers in the model's order, shape (F, M, 3), NaN where absent (as
     labelled: :func:`fit` undoes the labelling errors it finds)."""
-    match = match_protocol(trial, model.protocol, check_swaps=False)   # the fit repairs swaps
+    match = label_match(trial, model.protocol)   # the fit repairs swaps
     order = [model.protocol.labels.index(label) for label in model.labels]
     found = sum(match.indices[j] >= 0 for j in order)
     if found == 0:

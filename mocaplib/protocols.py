@@ -499,21 +499,33 @@ def computed_points(trial: Trial, candidates, /) -> set[int]:
     :data:`RIGID_SD`, with some other point of the trial seen with it in
     :data:`RIGID_FRAMES` frames or more while it moves (:data:`MOVING_EXTENT`); a point
     that does not move is taken to be what its name says. A point that moves with the body
-    otherwise is a marker."""
+    otherwise is a marker. Rigidity is mutual, so a candidate found rigid with another
+    candidate settles both (a model's virtual points come in rigid groups)."""
     X = trial.markers
-    candidates = list(candidates)
-    out = set()
-    for start in range(0, len(candidates), 8):
-        chunk = candidates[start:start + 8]
+    candidates = list(dict.fromkeys(candidates))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)            # never seen: NaN
+        extent = np.linalg.norm(np.nanmax(X[:, candidates], axis=0)
+                                - np.nanmin(X[:, candidates], axis=0), axis=1)
+    out = {i for i, e in zip(candidates, extent) if not e > MOVING_EXTENT}
+    moving = [i for i in candidates if i not in out]
+    undecided = list(moving)
+    while undecided:
+        chunk, undecided = undecided[:8], undecided[8:]
         d = np.linalg.norm(X[:, None, :, :] - X[:, chunk, None, :], axis=3)     # (F, c, N)
-        count = np.isfinite(d).sum(axis=0)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)        # never seen together: NaN
-            rigid = (np.nanstd(d, axis=0) < RIGID_SD) & (count >= RIGID_FRAMES)
-            extent = np.linalg.norm(np.nanmax(X[:, chunk], axis=0)
-                                    - np.nanmin(X[:, chunk], axis=0), axis=1)
+        seen = np.isfinite(d)
+        count = seen.sum(axis=0)
+        d = np.where(seen, d, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = d.sum(axis=0) / count
+            var = (np.where(seen, d - mean, 0.0) ** 2).sum(axis=0) / count
+        rigid = (var < RIGID_SD ** 2) & (count >= RIGID_FRAMES)
         rigid[np.arange(len(chunk)), chunk] = False
-        out |= {i for i, r, e in zip(chunk, rigid, extent) if not e > MOVING_EXTENT or r.any()}
+        for i, partners in zip(chunk, rigid):
+            if partners.any():
+                out.add(i)
+                out.update(j for j in np.flatnonzero(partners) if j in moving)
+        undecided = [i for i in undecided if i not in out]
     return out
 
 
@@ -578,14 +590,16 @@ class ProtocolMatch:
 
 
 def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True,
-                   computed: set[int] | None = None) -> ProtocolMatch:
+                   computed: set[int] | None = None, classify: bool = True) -> ProtocolMatch:
     """Map ``protocol``'s markers to ``trial``'s by normalised label (first occurrence wins).
 
-    Labels the protocol does not list are either model outputs (ignored: by name, or numbered
-    points a model computed, :func:`computed_points`, which ``computed`` gives when already
-    known) or unknown. With
-    ``check_swaps``, left/right label swaps of the shoulder and pelvis markers are looked for
-    (:func:`find_side_swaps`) and reported in ``swaps`` and ``warnings``, never corrected.
+    With ``classify``, labels the protocol does not list are sorted into model outputs
+    (ignored: by name, or numbered points a model computed, :func:`computed_points`, which
+    ``computed`` gives when already known) and unknown ones; without, ``ignored``,
+    ``unknown`` and their warnings stay empty (the calibration and the fit need the mapping
+    only). With ``check_swaps``, left/right label swaps of the shoulder and pelvis markers are
+    looked for (:func:`find_side_swaps`) and reported in ``swaps`` and ``warnings``, never
+    corrected.
     """
     names = trial.names
     first: dict[str, int] = {}
@@ -598,12 +612,12 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     present = {m.label for m, i in zip(protocol.markers, indices) if i >= 0}
     missing_any_of = tuple(g for g, labels in protocol.any_of if not present & set(labels))
     claimed = {k for m in protocol.markers for k in m.keys}
-    if computed is None:
+    ignored, unknown = [], []
+    if classify and computed is None:
         computed = computed_points(trial, [i for i in numbered_candidates(trial)
                                            if names[i] not in claimed])
-    ignored, unknown = [], []
     for i, (label, name) in enumerate(zip(trial.labels, names)):
-        if name not in claimed:
+        if classify and name not in claimed:
             (ignored if is_model_output(label) or i in computed else unknown).append(label)
     counts = {name: names.count(name) for name in claimed if name in first}
     duplicates = tuple(trial.labels[first[k]] for m in protocol.markers for k in m.keys
@@ -612,6 +626,13 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
                           tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates)
     swaps = find_side_swaps(trial, match) if check_swaps else ()
     return replace(match, swaps=swaps, warnings=_match_warnings(match, swaps))
+
+
+def label_match(trial: Trial, protocol: Protocol, /) -> ProtocolMatch:
+    """``protocol``'s markers mapped to ``trial``'s labels and nothing more (no swap check, no
+    sorting of the other labels, :func:`match_protocol`): what the calibration and the fit
+    need, the labels' warnings being said once, by the match of the capture."""
+    return match_protocol(trial, protocol, check_swaps=False, classify=False)
 
 
 def _match_warnings(match: ProtocolMatch, swaps: tuple[str, ...]) -> tuple[str, ...]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from functools import lru_cache
 
 import numpy as np
@@ -357,3 +358,25 @@ def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
     labels = ["L_SAE" if label == "L_SAJ" else label for label in cast.labels]
     match = match_protocol(walker_trial(cast, labels=labels), child)
     assert match.complete and "L_ACROMION" not in match.missing_landmarks
+
+
+@pytest.mark.parametrize("name", ["cmu/16_07.c3d", "biomechzoo/HC030A05.c3d"])
+def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, name):
+    # every point a candidate: the shortcut (one rigid pair settles both) must change nothing
+    from mocaplib.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD, computed_points
+
+    trial = read_c3d(real_c3d(name))
+    X = trial.markers
+    expected = set()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # points never seen: NaN
+        for i in range(len(trial.labels)):
+            extent = np.linalg.norm(np.nanmax(X[:, i], axis=0) - np.nanmin(X[:, i], axis=0))
+            d = np.linalg.norm(X - X[:, i:i + 1], axis=2)                       # (F, N)
+            rigid = ((np.nanstd(d, axis=0) < RIGID_SD)
+                     & (np.isfinite(d).sum(axis=0) >= RIGID_FRAMES))
+            rigid[i] = False
+            if not extent > MOVING_EXTENT or rigid.any():
+                expected.add(i)
+    assert 0 < len(expected) < len(trial.labels)
+    assert computed_points(trial, range(len(trial.labels))) == expected
