@@ -18,8 +18,8 @@ and its children):
   frame (accuracy 1e-5, each marker weighted as mocaplib's fit weights it). Its inputs (.trc
   markers in millimetres, the .osim) are written beforehand and not timed.
 
-Then ``mocaplib build FOLDER --jobs 2 --no-cache`` over all the files (calibrated
-from each capture), against the sum of the OpenSim jobs. Two tables of in-process CPU time
+Then ``mocaplib build FOLDER --jobs 2 --no-cache`` over all the files (the standing files
+among them serve as statics), against the sum of the OpenSim jobs. Two tables of in-process CPU time
 (one thread) follow: each capture's stages (the automatic cutoff, the calibration, one
 ``fit()``, ``fit_filtered``), and the growth of ``fit_filtered`` with frames and rate
 (Qualisys.c3d played forwards and backwards 1 to 16 times; two 100 Hz walks resampled to
@@ -34,6 +34,7 @@ each (``--repeat`` takes the fastest of several). Needs the bench extra (``pip i
 from __future__ import annotations
 
 import argparse
+import compileall
 import dataclasses
 import itertools
 import json
@@ -211,6 +212,9 @@ def main() -> int:
     if not args.data.is_dir():
         print(f"no real captures at {args.data}", file=sys.stderr)
         return 1
+    # the package's bytecode, as an installed package has it (pip compiles at install time; a
+    # PYTHONDONTWRITEBYTECODE environment would otherwise compile every module in every run)
+    compileall.compile_dir(REPO / "mocaplib", quiet=1)
     with markdown_page(args.markdown, __file__):
         compare(args)
     return 0
