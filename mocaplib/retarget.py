@@ -300,11 +300,10 @@ def _candidates(library, entry, own) -> dict:
     cycle (``own``: its poulaine; :attr:`~mocaplib.poulaine.Poulaine.duty_factor`)."""
     from .poulaine import MIN_TRAVEL_SPEED
 
-    table = library.table
-    moving = (table["v"] >= MIN_TRAVEL_SPEED) == (entry.v >= MIN_TRAVEL_SPEED)
-    same = table.index[(table["locomotion_class"].fillna("") == (entry.locomotion_class or ""))
-                       & table["step_length_m"].notna() & moving
-                       & ((table["omega"] - entry.omega).abs() <= SIMILAR_TURN)]
+    moving = entry.v >= MIN_TRAVEL_SPEED
+    same = [e.id for e in library.entries if e.poulaine is not None
+            and e.locomotion_class == entry.locomotion_class
+            and (e.v >= MIN_TRAVEL_SPEED) == moving and abs(e.omega - entry.omega) <= SIMILAR_TURN]
     found = {name: library.poulaine(name) for name in same}
     return {name: p for name, p in found.items()
             if abs(np.angle(np.exp(1j * (p.travel - own.travel)))) <= SIMILAR_TRAVEL
