@@ -86,8 +86,20 @@ def _keys(data: dict, cls, where: str) -> dict:
     return {name: data[name] for name in names if name in data}
 
 
+class _Record:
+    """A record whose fields are its JSON keys: ``to_json`` and ``from_json`` as they are."""
+
+    def to_json(self) -> dict:
+        return json_values({f.name: getattr(self, f.name) for f in fields(self)})
+
+    @classmethod
+    def from_json(cls, data: dict, *, where: str | None = None):
+        """The record of ``data``; LibraryError naming ``where`` for a key missing or unknown."""
+        return cls(**_keys(data, cls, where or cls.__name__))
+
+
 @dataclass(frozen=True)
-class EntryPattern:
+class EntryPattern(_Record):
     """The line, arc or point fitted to the shoulder-midpoint path of the cycle
     (``entries[i].pattern``; :class:`mocaplib.patterns.Pattern` as stored).
 
@@ -110,17 +122,10 @@ class EntryPattern:
     residual_m: float | None
     arc_angle_rad: float | None
 
-    def to_json(self) -> dict:
-        return json_values({"type": self.type, "parameters": self.parameters,
-                            "residual_m": self.residual_m, "arc_angle_rad": self.arc_angle_rad})
-
-    @classmethod
-    def from_json(cls, data: dict, *, where: str = "pattern") -> "EntryPattern":
-        return cls(**_keys(data, cls, where))
 
 
 @dataclass(frozen=True, eq=False)
-class EntryFourier:
+class EntryFourier(_Record):
     """The cycle's Fourier series (``entries[i].fourier``): ``q_d(t) = a[d, 0] + Σ_k a[d, k]
     cos(2πkt/T) + b[d, k] sin(2πkt/T)``, t in s from the cycle start, in the DOF's unit (rad,
     m for ``pelvis_t*``), plus ``ramp[d]·t/T`` when ``ramp`` is stored.
@@ -179,13 +184,9 @@ class EntryFourier:
             data["ramp"] = self.ramp
         return json_values(data)
 
-    @classmethod
-    def from_json(cls, data: dict, *, where: str = "fourier") -> "EntryFourier":
-        return cls(**_keys(data, cls, where))
-
 
 @dataclass(frozen=True)
-class EntryDrift:
+class EntryDrift(_Record):
     """The path frame's motion over one cycle (``entries[i].root_drift``; the root's horizontal
     channels are stored in that frame: :class:`mocaplib.fourier.RootDrift`).
 
@@ -225,13 +226,6 @@ class EntryDrift:
         velocities = {"u_f_m_s": u_f_m_s, "u_l_m_s": u_l_m_s, "omega_rad_s": omega_rad_s}
         return cls(**drift_displacement(velocities, T), **velocities)
 
-    def to_json(self) -> dict:
-        return json_values({f.name: getattr(self, f.name) for f in fields(self)})
-
-    @classmethod
-    def from_json(cls, data: dict, *, where: str = "root_drift") -> "EntryDrift":
-        return cls(**_keys(data, cls, where))
-
 
 def drift_displacement(drift: dict, T: float) -> dict:
     """``dx_m``, ``dy_m`` (m, forward and left in the frame at the cycle start) and
@@ -249,7 +243,7 @@ def _float(value) -> float:
 
 
 @dataclass(frozen=True)
-class EntryAnkle:
+class EntryAnkle(_Record):
     """One ankle's poulaine model as stored (``poulaine.left`` / ``poulaine.right``;
     :class:`mocaplib.poulaine.AnklePath`).
 
@@ -283,16 +277,13 @@ class EntryAnkle:
     fit_max_m: float | None
     timed_rms_m: float | None
 
-    def to_json(self) -> dict:
-        return json_values({f.name: getattr(self, f.name) for f in fields(self)})
-
     @classmethod
-    def from_json(cls, data: dict, *, where: str = "ankle") -> "EntryAnkle":
-        return cls(**{k: _tuples(v) for k, v in _keys(data, cls, where).items()})
+    def from_json(cls, data: dict, *, where: str | None = None) -> "EntryAnkle":
+        return cls(**{k: _tuples(v) for k, v in _keys(data, cls, where or "ankle").items()})
 
 
 @dataclass(frozen=True)
-class EntryPoulaine:
+class EntryPoulaine(_Record):
     """Each ankle centre's path over the cycle in the pelvis-centred travel frame
     (``entries[i].poulaine``; :class:`mocaplib.poulaine.Poulaine` as stored).
 
@@ -334,7 +325,8 @@ class EntryPoulaine:
                             "left": self.left.to_json(), "right": self.right.to_json()})
 
     @classmethod
-    def from_json(cls, data: dict, *, where: str = "poulaine") -> "EntryPoulaine":
+    def from_json(cls, data: dict, *, where: str | None = None) -> "EntryPoulaine":
+        where = where or "poulaine"
         values = _keys(data, cls, where)
         for side in ("left", "right"):
             values[side] = EntryAnkle.from_json(values[side], where=f"{where}.{side}")
