@@ -95,7 +95,7 @@ def self_rms(library, entry_id: str, own: Skeleton, phase: np.ndarray, q_capture
     the retargeted cycle."""
     result = retarget(library, entry_id, skeleton=own, weights=weights)
     q = result.path_coordinates()
-    t = phase * float(library.entry(entry_id)["T"])
+    t = phase * float(library.entry(entry_id).T)
     return {DOF_NAMES[j]: float(np.sqrt(np.mean((np.interp(t, result.time_s, q[:, j])
                                                  - q_captured[:, j]) ** 2)))
             for j in TASK_DOFS}, result
@@ -110,7 +110,7 @@ def group_of(entry_id: str, real: bool) -> str:
 def measure(library, captured: dict, *, real: bool) -> pd.DataFrame:
     """One row per entry with a poulaine (see the module docstring)."""
     rows = []
-    for entry_id, entry in library.entries.iterrows():
+    for entry_id, entry in library.table.iterrows():
         model = library.poulaine(entry_id)
         if model is None or entry_id not in captured:
             continue
@@ -219,8 +219,8 @@ def weights_rows(library, captured: dict) -> list[str]:
     lines = ["| entry | weights (joint limits, reference, kinetic) | self: worst-DOF RMS (rad) | "
              "×1.15: ankle error (mm) | skate (m/s) | C1 (rad/s³) | C3 (W/kg) |",
              "|---|---|---|---|---|---|---|"]
-    for entry_id in (e for e in library.entries.index if e.rsplit("_c", 1)[0] in WEIGHT_WALKS
-                     and library.entries.loc[e, "chosen"]):
+    for entry_id in (e for e in library.table.index if e.rsplit("_c", 1)[0] in WEIGHT_WALKS
+                     and library.table.loc[e, "chosen"]):
         own = library.entry_skeleton(entry_id)
         tall = own.scaled(1.15)
         phase, q_captured, _ = captured[entry_id]

@@ -62,7 +62,7 @@ def compare(library_path: Path, samples: Path) -> list[dict]:
     """One row per library entry: capture name, type, truth and estimate of v, omega, v_l."""
     entries = load_library(library_path).entries
     rows = []
-    for entry in entries.itertuples():
+    for entry in entries:
         name = Path(entry.source_file).stem
         truth_file = samples / f"{name}.truth.json"
         if not truth_file.exists():

@@ -13,6 +13,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from . import __version__
+from .errors import LibraryError
 from .io import read_regular
 from .io.atomic import atomic_write_text
 from .io.jsonvalues import canonical_sha256, parse_json
@@ -113,6 +114,9 @@ def read_cache(cache: Path, key: str) -> tuple[CaptureResult | None, str | None]
             and all(isinstance(data[name], kind) for name, kind in _CACHED_TYPES.items())
             and all(isinstance(e, dict) for e in data["entries"])):
         return None, f"{path.name}: not a capture's result"
-    result = CaptureResult.from_dict(data)
+    try:
+        result = CaptureResult.from_dict(data)
+    except LibraryError as exc:
+        return None, f"{path.name}: not a capture's result ({exc.message})"
     result.from_cache = True
     return result, None

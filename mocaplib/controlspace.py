@@ -58,6 +58,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from .entry import DRIFT_VELOCITIES
 from .errors import LibraryError, MocapError
 from .io.tomlfile import read_toml
 from .fourier import RootDrift, synthesize
@@ -89,16 +90,6 @@ DEGENERACY_TOLERANCE = 1e-6
 #: What to do about a degenerate control space (see :func:`degeneracy`).
 DEGENERACY_HINT = ("add captures with other speeds, turns and side-steps so the entries span "
                    "all three axes")
-#: Keys of an entry's ``root_drift`` blended here: the path frame's constant velocity in its own
-#: axes (forward, left; m/s) and turn rate (rad/s), as in :class:`mocaplib.fourier.RootDrift`.
-DRIFT_KEYS = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
-
-
-def drift_velocities(drift: dict) -> np.ndarray:
-    """(u_f, u_l, omega) of an entry's ``root_drift`` (:data:`DRIFT_KEYS`), NaN when absent."""
-    return np.array([np.nan if drift.get(k) is None else float(drift[k]) for k in DRIFT_KEYS])
-
-
 def degeneracy(x) -> str | None:
     """Why finite normalised points x (E, 3) have no 3-D triangulation, or None when they have.
 
@@ -293,7 +284,7 @@ class QueryResult:
 @dataclass
 class Blend:
     """Blended cycles (equation (5)): coefficients (Q, D, N+1), periods T (Q,) in seconds and,
-    when the entries have one, the blended root drift velocities (Q, 3) (:data:`DRIFT_KEYS`)."""
+    when the entries have one, the blended root drift velocities (Q, 3) (:data:`~mocaplib.entry.DRIFT_VELOCITIES`)."""
 
     a: np.ndarray
     b: np.ndarray
@@ -333,7 +324,7 @@ class ControlSpace:
     points : (E, 3) entries' velocities on ``axes``, SI units.
     a, b : E Fourier coefficient arrays (D, N_i+1) (zero-padded to the largest N), or None.
     T : (E,) periods, s, or None.
-    drift : (E, 3) root drift velocities (:data:`DRIFT_KEYS`), or None.
+    drift : (E, 3) root drift velocities (:data:`~mocaplib.entry.DRIFT_VELOCITIES`), or None.
     ids : E entry ids; classes : E locomotion classes (None when unknown).
     axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
     scale : (3,) normalisation scales, default :data:`DEFAULT_SCALE` for those axes.
@@ -377,27 +368,29 @@ class ControlSpace:
         coefficients and root drift, and the library's stored ``control_space.scale`` (for
         the frontal variant the same scales, v̂_f taking v̂'s).
         """
-        df = library.entries
-        cols = list(AXES[axes])
-        usable = df[cols + ["T"]].notna().all(axis=1).to_numpy().copy()
+        entries = library.entries
+        # (E, 4): the axes' velocities and the period, NaN where null
+        values = np.array([[getattr(e, key) for key in (*AXES[axes], "T")] for e in entries],
+                          dtype=np.float64).reshape(-1, 4)
+        usable = ~np.isnan(values).any(axis=1)
         if chosen_only:
-            usable &= df["chosen"].to_numpy(bool)
+            usable &= np.array([e.chosen for e in entries], dtype=bool)
         if not mirrored:
-            usable &= ~df["mirrored"].to_numpy(bool)
+            usable &= ~np.array([e.mirrored for e in entries], dtype=bool)
         a, b = library.coefficient_arrays()
-        ids = df.index[usable].tolist()
-        drift = np.array([drift_velocities(library.entry(i)["root_drift"]) for i in ids])
-        drift = drift.reshape(-1, 3)
+        kept = [e for e, use in zip(entries, usable) if use]
+        ids = [e.id for e in kept]
+        drift = np.array([e.root_drift.velocities for e in kept],
+                         dtype=np.float64).reshape(-1, 3)
         lacking = [i for i, row in zip(ids, drift) if not np.isfinite(row).all()]
         if lacking:  # blending without it would drop every entry's root motion
             raise LibraryError(f"entries without a finite root_drift "
-                               f"{'/'.join(DRIFT_KEYS)}: {', '.join(lacking[:5])}"
+                               f"{'/'.join(DRIFT_VELOCITIES)}: {', '.join(lacking[:5])}"
                                + (" …" if len(lacking) > 5 else ""), path=source,
                                hint="build the library again with mocaplib build (run "
                                     "`mocaplib validate` on it for every problem)")
-        return cls(df.loc[usable, cols].to_numpy(float), a=a[usable], b=b[usable],
-                   T=df.loc[usable, "T"].to_numpy(float), drift=drift,
-                   ids=ids, classes=df.loc[usable, "locomotion_class"].tolist(), axes=axes,
+        return cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
+                   drift=drift, ids=ids, classes=[e.locomotion_class for e in kept], axes=axes,
                    scale=library.control_scale, source=source)
 
     def normalise(self, x) -> np.ndarray:
@@ -557,7 +550,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
 
 def _cycle_displacement(drift: np.ndarray, T: float) -> tuple[float, float, float]:
     """Displacement (m, in the start frame) and heading change (rad) over one cycle of the path
-    frame moving with drift velocities (u_f, u_l, ω) (:data:`DRIFT_KEYS`) for ``T`` s."""
+    frame moving with drift velocities (u_f, u_l, ω) (:data:`~mocaplib.entry.DRIFT_VELOCITIES`) for ``T`` s."""
     x, y, turned = RootDrift(0.0, 0.0, 0.0, *(float(v) for v in drift)).frame(T)
     return float(x), float(y), float(turned)
 

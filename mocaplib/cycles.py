@@ -40,7 +40,7 @@ from .events import GaitEvent
 from .filtering import resample
 from .fourier import (ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding,
                       encode_cycle)
-from .library import QC_LIMITS
+from .entry import QC_LIMITS
 from .skeleton import TRANSLATION
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
                        sample_shoulders)

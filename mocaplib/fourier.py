@@ -27,7 +27,7 @@ support: its *noise floor* — the RMS over the cycle of the fitted angle minus 
 low-passed at :data:`mocaplib.filtering.WALKING_CUTOFF` (6 Hz; what a gait analysis keeps) —
 clipped to [``tol_angle``, :data:`MAX_ANGLE_TOLERANCE`] = [0.5°, 1°]. A clean angle is encoded
 within 0.5° (Skejø 2021: about 5 harmonic pairs); a noisy one within its own noise, never
-looser than 1°, which is the library's Fourier QC limit (:data:`mocaplib.library.QC_LIMITS`):
+looser than 1°, which is the library's Fourier QC limit (:data:`mocaplib.entry.QC_LIMITS`):
 a cycle fails it only when 20 harmonics cannot reach 1° on some angle. Measured orders:
 docs/guide/fourier.md.
 """

@@ -27,7 +27,7 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -36,6 +36,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import __version__
+from .entry import (DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, QC_LIMITS, QC_NAMES, LibraryEntry,
+                    drift_displacement)
 from .errors import LibraryError
 from .io import read_regular
 from .io.atomic import atomic_write_text
@@ -62,10 +64,6 @@ FOURIER_FORMULA = ("q_d(t) = a[d][0] + sum_{k=1..N} (a[d][k] cos(2 pi k t / T) "
                    "+ b[d][k] sin(2 pi k t / T)), t in s from the cycle start")
 ROOT_DRIFT_TEXT = ("displacement of the path frame over one cycle, expressed in the frame at the "
                    "cycle start: dx_m forward, dy_m left, dheading_rad counter-clockwise")
-#: Keys of an entry's ``root_drift``: the path frame's velocities (given to :func:`make_entry`)
-#: and its displacement over one cycle (derived from them and T).
-DRIFT_VELOCITIES = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
-DRIFT_DISPLACEMENT = ("dx_m", "dy_m", "dheading_rad")
 #: Largest difference between a stored root-drift displacement and the one its velocities and T
 #: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
 #: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
@@ -80,30 +78,6 @@ POULAINE_TOLERANCE = 1e-6
 #: (BTS.c3d with --all-cycles), 5 times below this.
 TURN_SIGN_RATE = 0.2
 
-#: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
-#: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
-#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding
-#: target of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose
-#: frame-to-frame noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about
-#: 0.5 deg itself, so 1 deg flags cycles that are not periodic or not followed, not fit noise.
-#: A threshold of None means the metric is reported, not checked.
-QC_LIMITS: dict[str, tuple[float | None, str]] = {
-    "marker_rms_m": (0.02, "max"),
-    "marker_max_m": (0.04, "max"),
-    "gap_fraction": (0.5, "max"),
-    "event_quality": (0.5, "min"),   # also mocaplib.cycles.MIN_EVENT_QUALITY (the choice)
-    # the loosest encoding tolerance, mocaplib.fourier.MAX_ANGLE_TOLERANCE: see docs
-    "fourier_rms_rad": (math.radians(1.0), "max"),
-    "cycle_closure_rad": (None, "max"),
-    "jerk_rms_rad_s3": (None, "max"),
-    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.criteria; absent in older files
-}
-QC_NAMES = tuple(QC_LIMITS)
-#: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
-#: at its right toe-offs (``build --mirror``: every value measured again); ``series``, from the
-#: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
-#: reflected, QC the source's). See :mod:`mocaplib.mirror`.
-MIRROR_METHODS = ("capture", "series")
 DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
 #: The top-level key of the content checksum (:func:`content_sha256`).
@@ -124,94 +98,7 @@ class Problem:
         return f"{self.where}: {self.message}"
 
 
-# --------------------------------------------------------------------------- building entries
-def make_entry(*, id: str, source_file: str, source_sha256: str, cycle_index: int,
-               start_s: float, end_s: float, T: float, pattern: dict, v: float, omega: float,
-               v_l: float, v_f: float, a: np.ndarray, b: np.ndarray, root_drift: dict,
-               qc: dict, locomotion_class: str | None = None, chosen: bool = True,
-               segment_lengths_m: dict | None = None, qc_waived: dict | None = None,
-               rate_hz: float | None = None, first_frame: int | None = None,
-               joint_shifts_m: dict | None = None, held_dofs: dict | None = None,
-               dofs_at_limit: dict | None = None, right_toe_off_s: float | None = None,
-               mirror_of: str | None = None, mirror_method: str | None = None,
-               poulaine: dict | None = None, ramp: np.ndarray | None = None) -> dict:
-    """One library entry as a JSON-ready dict (the structure of ``entries[i]`` in the file).
-
-    ``a``, ``b``: Fourier coefficients, shape (D, N+1), DOF units; ``pattern``: ``type``
-    (line/arc/point), ``parameters`` (dict of numbers or number lists), ``residual_m``,
-    ``arc_angle_rad``; velocities m/s and rad/s; ``root_drift``: the path frame's velocities
-    :data:`DRIFT_VELOCITIES` (its displacement over T is derived); ``qc``: values keyed by
-    :data:`QC_NAMES`; ``rate_hz``, ``first_frame``: the capture's frame rate and first frame
-    number (stored when given, so ``start_s`` maps to C3D frames); ``joint_shifts_m``: the
-    skeleton's :attr:`~mocaplib.skeleton.Skeleton.shifts` (segment -> 3 numbers, m);
-    ``held_dofs``: DOFs held at 0 because the markers cannot see them (name -> the standard
-    deviation they would have had, rad); ``dofs_at_limit``: share of the cycle's frames each
-    DOF that reaches a joint limit spends there (empty mappings are not stored);
-    ``right_toe_off_s``: the first right toe-off in the cycle, s from its start (stored when
-    known); ``mirror_of``: for a mirror image (:mod:`mocaplib.mirror`), the id of the entry it mirrors, and
-    ``mirror_method`` how it was made (:data:`MIRROR_METHODS`); the entry is then flagged
-    ``mirrored``; ``poulaine``: the cycle's
-    :meth:`mocaplib.poulaine.Poulaine.to_dict` (stored when given; rest entries have none);
-    ``ramp``: each DOF's change (D,) from the cycle's start to its end, taken out before
-    encoding (:class:`mocaplib.fourier.CycleEncoding`; stored as ``fourier.ramp`` when given).
-    """
-    if set(root_drift) != set(DRIFT_VELOCITIES):
-        raise LibraryError(f"entry {id}: root_drift must give {', '.join(DRIFT_VELOCITIES)}, "
-                           f"got {', '.join(sorted(root_drift)) or 'nothing'}")
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    if a.ndim != 2 or a.shape != b.shape or a.shape[1] < 1:
-        raise LibraryError(f"entry {id}: Fourier a and b must both have shape (D, N+1), "
-                           f"got {a.shape} and {b.shape}")
-    unknown = set(qc) - set(QC_NAMES) | set(qc_waived or {}) - set(QC_NAMES)
-    if unknown:
-        raise LibraryError(f"entry {id}: unknown QC metrics {sorted(unknown)}; "
-                           f"known are {', '.join(QC_NAMES)}")
-    entry = {
-        "id": str(id), "locomotion_class": locomotion_class, "source_file": str(source_file),
-        "source_sha256": str(source_sha256), "cycle_index": int(cycle_index),
-        "chosen": bool(chosen), "start_s": start_s, "end_s": end_s, "T": T,
-        "pattern": {"type": pattern["type"], "parameters": dict(pattern.get("parameters", {})),
-                    "residual_m": pattern.get("residual_m"),
-                    "arc_angle_rad": pattern.get("arc_angle_rad")},
-        "v": v, "omega": omega, "v_l": v_l, "v_f": v_f,
-        "fourier": {"n": a.shape[1] - 1, "a": a, "b": b},
-        "root_drift": drift_displacement(root_drift, T) | dict(root_drift), "qc": dict(qc),
-        "qc_waived": dict(qc_waived or {}),
-    }
-    if ramp is not None:
-        entry["fourier"]["ramp"] = np.asarray(ramp, dtype=np.float64).tolist()
-    if (mirror_of is None) != (mirror_method is None) or mirror_method not in (
-            None, *MIRROR_METHODS):
-        raise LibraryError(f"entry {id}: a mirror image needs both mirror_of and mirror_method "
-                           f"(one of {', '.join(MIRROR_METHODS)}), got {mirror_of!r} and "
-                           f"{mirror_method!r}")
-    for key, value in (("segment_lengths_m", segment_lengths_m), ("rate_hz", rate_hz),
-                       ("first_frame", first_frame), ("right_toe_off_s", right_toe_off_s),
-                       ("mirror_of", mirror_of), ("mirror_method", mirror_method),
-                       ("poulaine", poulaine)):
-        if value is not None:
-            entry[key] = value
-    for key, value in (("joint_shifts_m", joint_shifts_m), ("held_dofs", held_dofs),
-                       ("dofs_at_limit", dofs_at_limit)):
-        if value:
-            entry[key] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
-    if mirror_of is not None:
-        entry["mirrored"] = True
-    return to_json_data(entry)
-
-
-def drift_displacement(drift: dict, T: float) -> dict:
-    """``dx_m``, ``dy_m`` (m, forward and left in the frame at the cycle start) and
-    ``dheading_rad`` of the path frame moving for ``T`` s with an entry's root-drift velocities
-    (:data:`DRIFT_VELOCITIES`; see :class:`mocaplib.fourier.RootDrift`)."""
-    from .fourier import RootDrift
-
-    velocities = (_float(drift[key]) for key in DRIFT_VELOCITIES)
-    x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(_float(T))
-    return {"dx_m": float(x), "dy_m": float(y), "dheading_rad": float(turned)}
-
-
+# --------------------------------------------------------------------------- building
 def qc_failures(qc: dict, thresholds: dict, waived: dict | None = None) -> list[str]:
     """Human-readable QC metrics outside their threshold and not waived (empty when all pass)."""
     failures = []
@@ -229,9 +116,10 @@ def qc_failures(qc: dict, thresholds: dict, waived: dict | None = None) -> list[
     return failures
 
 
-def assemble_library(entries: list[dict], *, settings: dict,
+def assemble_library(entries: list[LibraryEntry], *, settings: dict,
                      qc_thresholds: dict | None = None) -> "Library":
-    """A library from entries (made by :func:`make_entry`); entries are sorted by id.
+    """A library of ``entries``, sorted by id, their numbers as the file stores them (10
+    significant digits).
 
     The header's segment lengths are the per-length median over entries (or the nominal
     1.75 m skeleton's when no entry carries lengths), its joint shifts the per-segment median
@@ -241,18 +129,16 @@ def assemble_library(entries: list[dict], *, settings: dict,
     """
     from .skeleton import Skeleton
 
-    entries = sorted((json.loads(json.dumps(e)) for e in entries), key=lambda e: e["id"])
-    n_max = max((e["fourier"]["n"] for e in entries), default=0)
-    for entry in entries:
-        for key in ("a", "b"):
-            rows = entry["fourier"][key]
-            entry["fourier"][key] = [row + [0.0] * (n_max + 1 - len(row)) for row in rows]
-    lengths = [e["segment_lengths_m"] for e in entries if e.get("segment_lengths_m")]
+    entries = sorted((LibraryEntry.from_json(to_json_data(e.to_json())) for e in entries),
+                     key=lambda e: e.id)
+    n_max = max((e.fourier.n for e in entries), default=0)
+    entries = [replace(e, fourier=e.fourier.padded(n_max)) for e in entries]
+    lengths = [e.segment_lengths_m for e in entries if e.segment_lengths_m]
     if lengths:
         segment_lengths = {k: float(np.median([lens[k] for lens in lengths])) for k in lengths[0]}
     else:
         segment_lengths = Skeleton.from_height(1.75).lengths
-    shifts = [e["joint_shifts_m"] for e in entries if e.get("joint_shifts_m")]
+    shifts = [e.joint_shifts_m for e in entries if e.joint_shifts_m]
     joint_shifts = {name: np.median([s[name] for s in shifts if name in s], axis=0).tolist()
                     for name in sorted({name for s in shifts for name in s})}
     doc = {
@@ -274,7 +160,7 @@ def assemble_library(entries: list[dict], *, settings: dict,
                           "scale": control_scale(), "normalised": "x / scale",
                           "alternative_axes": ["v_f", "omega", "v_l"]},
         "qc_thresholds": dict(DEFAULT_QC_THRESHOLDS if qc_thresholds is None else qc_thresholds),
-        "entries": entries,
+        "entries": [e.to_json() for e in entries],
     }
     doc = to_json_data(doc)
     doc[CHECKSUM_KEY] = content_sha256(doc)
@@ -303,13 +189,15 @@ def _float(value) -> float:
 
 # --------------------------------------------------------------------------- the Library
 class Library:
-    """A motion library in memory: the JSON document plus array and table views.
+    """A motion library in memory: the JSON document, its entries and array and table views.
 
     Attributes
     ----------
     document : dict
         The file's content as JSON data (see ``docs/library-format.md``).
-    entries : DataFrame
+    entries : list[LibraryEntry]
+        The entries (:class:`mocaplib.entry.LibraryEntry`), in the file's order (by id).
+    table : DataFrame
         One row per entry, index ``id``; columns ``locomotion_class, source_file,
         source_sha256, cycle_index, chosen, mirrored, mirror_of, start_s, end_s, T,
         pattern_type, pattern_residual_m, arc_angle_rad, v, omega, v_l, v_f, fourier_n`` and
@@ -341,8 +229,8 @@ class Library:
         from .skeleton import Skeleton
 
         entry, header = self.entry(entry_id), self.document["skeleton"]
-        return Skeleton(entry.get("segment_lengths_m") or header["segment_lengths_m"],
-                        entry.get("joint_shifts_m", header.get("joint_shifts_m", {})))
+        return Skeleton(entry.segment_lengths_m or header["segment_lengths_m"],
+                        entry.joint_shifts_m or header.get("joint_shifts_m", {}))
 
     @property
     def dof_names(self) -> list[str]:
@@ -362,29 +250,35 @@ class Library:
         return np.asarray(self.document["control_space"]["scale"], dtype=np.float64)
 
     @cached_property
-    def entries(self) -> pd.DataFrame:
+    def entries(self) -> list[LibraryEntry]:
+        return [LibraryEntry.from_json(e) for e in self.document["entries"]]
+
+    @cached_property
+    def _by_id(self) -> dict[str, LibraryEntry]:
+        return {e.id: e for e in self.entries}
+
+    @cached_property
+    def table(self) -> pd.DataFrame:
         import pandas as pd   # here: reading and writing a library need no pandas
 
         rows = []
-        for e in self.document["entries"]:
-            row = {key: e[key] for key in ("id", "locomotion_class", "source_file",
-                                           "source_sha256", "cycle_index")}
-            row["chosen"] = bool(e.get("chosen", True))
-            row["mirrored"] = bool(e.get("mirrored", False))
-            row["mirror_of"] = e.get("mirror_of")
-            row.update({key: _float(e[key]) for key in ("start_s", "end_s", "T")})
-            row["pattern_type"] = e["pattern"]["type"]
-            row["pattern_residual_m"] = _float(e["pattern"]["residual_m"])
-            row["arc_angle_rad"] = _float(e["pattern"]["arc_angle_rad"])
-            row.update({key: _float(e[key]) for key in ("v", "omega", "v_l", "v_f")})
-            row["fourier_n"] = int(e["fourier"]["n"])
-            row.update({f"qc_{name}": _float(e["qc"].get(name)) for name in QC_NAMES})
-            poulaine = e.get("poulaine") or {}
-            row.update({key: _float(poulaine.get(key)) for key in POULAINE_PARAMETERS})
-            row["poulaine_fit_rms_m"] = max((_float(poulaine[side]["fit_rms_m"])
-                                             for side in ("left", "right")), default=math.nan) \
-                if poulaine else math.nan
-            row["qc_waived"] = ",".join(sorted(e["qc_waived"]))
+        for e in self.entries:
+            row = {"id": e.id, "locomotion_class": e.locomotion_class,
+                   "source_file": e.source_file, "source_sha256": e.source_sha256,
+                   "cycle_index": e.cycle_index, "chosen": bool(e.chosen),
+                   "mirrored": e.mirrored, "mirror_of": e.mirror_of,
+                   "start_s": _float(e.start_s), "end_s": _float(e.end_s), "T": _float(e.T),
+                   "pattern_type": e.pattern.type,
+                   "pattern_residual_m": _float(e.pattern.residual_m),
+                   "arc_angle_rad": _float(e.pattern.arc_angle_rad),
+                   **{key: _float(getattr(e, key)) for key in ("v", "omega", "v_l", "v_f")},
+                   "fourier_n": int(e.fourier.n),
+                   **{f"qc_{name}": _float(e.qc.get(name)) for name in QC_NAMES},
+                   **{key: _float(getattr(e.poulaine, key, None))
+                      for key in POULAINE_PARAMETERS},
+                   "poulaine_fit_rms_m": math.nan if e.poulaine is None else max(
+                       _float(e.poulaine.left.fit_rms_m), _float(e.poulaine.right.fit_rms_m)),
+                   "qc_waived": ",".join(sorted(e.qc_waived))}
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
                    "chosen", "mirrored", "mirror_of", "start_s", "end_s", "T", "pattern_type",
@@ -400,35 +294,32 @@ class Library:
         return (f"<Library {len(self)} entries, {len(self.dof_names)} DOFs, "
                 f"N={self.n_harmonics}, mocaplib {self.document['tool_version']}>")
 
-    def entry(self, entry_id: str) -> dict:
-        """The JSON data of one entry."""
-        for e in self.document["entries"]:
-            if e["id"] == entry_id:
-                return e
-        raise LibraryError(f"no entry {entry_id!r} in the library",
-                           hint=f"ids are: {', '.join(self.entries.index[:20])}")
+    def entry(self, entry_id: str) -> LibraryEntry:
+        """The entry ``entry_id``; LibraryError naming the ids when there is none."""
+        try:
+            return self._by_id[entry_id]
+        except KeyError:
+            raise LibraryError(f"no entry {entry_id!r} in the library",
+                               hint=f"ids are: {', '.join(list(self._by_id)[:20])}") from None
 
     def coefficients(self, entry_id: str) -> tuple[np.ndarray, np.ndarray]:
-        """Fourier ``a`` and ``b`` of one entry, each shape (D, N+1), DOF units."""
-        fourier = self.entry(entry_id)["fourier"]
-        return _matrix(fourier["a"]), _matrix(fourier["b"])
+        """Fourier ``a`` and ``b`` of one entry, each shape (D, N+1), DOF units (copies)."""
+        fourier = self.entry(entry_id).fourier
+        return fourier.a.copy(), fourier.b.copy()
 
     def coefficient_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Stacked ``a`` and ``b`` of every entry in ``entries`` order, each (E, D, N+1)."""
         shape = (len(self), len(self.dof_names), self.n_harmonics + 1)
         if not len(self):
             return np.zeros(shape), np.zeros(shape)
-        a = np.stack([_matrix(e["fourier"]["a"]) for e in self.document["entries"]])
-        b = np.stack([_matrix(e["fourier"]["b"]) for e in self.document["entries"]])
-        return a, b
+        return (np.stack([e.fourier.a for e in self.entries]),
+                np.stack([e.fourier.b for e in self.entries]))
 
     def poulaine(self, entry_id: str):
         """The entry's :class:`mocaplib.poulaine.Poulaine`, or None when it has none (a rest
         entry, or a library written before poulaines were stored)."""
-        from .poulaine import Poulaine
-
-        data = self.entry(entry_id).get("poulaine")
-        return None if data is None else Poulaine.from_dict(data)
+        data = self.entry(entry_id).poulaine
+        return None if data is None else data.model()
 
     def root_drift(self, entry_id: str):
         """The entry's path frame as a :class:`mocaplib.fourier.RootDrift` starting at the
@@ -436,8 +327,9 @@ class Library:
         world frame."""
         from .fourier import RootDrift
 
-        drift = self.entry(entry_id)["root_drift"]
-        return RootDrift(0.0, 0.0, 0.0, *(_float(drift[key]) for key in DRIFT_VELOCITIES))
+        drift = self.entry(entry_id).root_drift
+        return RootDrift(0.0, 0.0, 0.0, *(_float(getattr(drift, key))
+                                          for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
         """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
@@ -448,13 +340,11 @@ class Library:
         """
         from .fourier import synthesize
 
-        a, b = self.coefficients(entry_id)
         entry = self.entry(entry_id)
-        period, t = _float(entry["T"]), np.asarray(t, dtype=float)
-        ramp = entry["fourier"].get("ramp")
-        return synthesize(a, b, period, t) + (
-            0.0 if ramp is None else np.multiply.outer(np.mod(t, period) / period,
-                                                       np.asarray(ramp, dtype=float)))
+        fourier, period, t = entry.fourier, _float(entry.T), np.asarray(t, dtype=float)
+        return synthesize(fourier.a, fourier.b, period, t) + (
+            0.0 if fourier.ramp is None else np.multiply.outer(np.mod(t, period) / period,
+                                                               fourier.ramp))
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:

@@ -142,19 +142,19 @@ def mirror_events(events, /) -> list:
     return [replace(event, side=other[event.side]) for event in events]
 
 
-def mirror_pattern(pattern: dict, /) -> dict:
-    """A pattern as the library stores it (``type``, ``parameters``, ``residual_m``,
-    ``arc_angle_rad``) reflected y → −y: points, centres and directions reflected, an arc's
-    ``turn`` and ``arc_angle_rad`` negated; lengths, radii and residuals kept."""
-    params = dict(pattern["parameters"])
+def mirror_pattern(pattern, /):
+    """A pattern as the library stores it (:class:`mocaplib.entry.EntryPattern`) reflected
+    y → −y: points, centres and directions reflected, an arc's ``turn`` and ``arc_angle_rad``
+    negated; lengths, radii and residuals kept."""
+    params = dict(pattern.parameters)
     for key in ("point", "centre", "direction"):
         if key in params:
             x, y = params[key]
             params[key] = [x, -y]
     if "turn" in params:
         params["turn"] = -params["turn"]
-    angle = pattern.get("arc_angle_rad")
-    return {**pattern, "parameters": params, "arc_angle_rad": None if angle is None else -angle}
+    angle = pattern.arc_angle_rad
+    return replace(pattern, parameters=params, arc_angle_rad=None if angle is None else -angle)
 
 
 #: An entry id ``<stem>_c<k>`` (+ ``@<sha>``): the stem, the cycle part and the suffix.
@@ -174,32 +174,30 @@ def mirror_id(entry_id: str, /) -> str:
 
 
 # --------------------------------------------------------------------------- library entries
-def mirror_entry(entry: dict, /) -> dict:
-    """The mirror image of a library entry (JSON data, Fourier rows in :data:`DOF_NAMES`
-    order, as :func:`mocaplib.library.make_entry` makes it), from its stored series: the module
-    docstring says how. Its id is :func:`mirror_id`'s, ``mirror_of`` the entry's id,
-    ``mirror_method`` ``"series"``; its cycle starts at the entry's right toe-off
-    (``start_s + right_toe_off_s``, and ``right_toe_off_s`` becomes ``T - right_toe_off_s``);
-    the QC metrics are the entry's. The image of such an image is its source again (its window
-    is the source's: ``start_s`` moves back). Values are not rounded (the library's writer
-    rounds them).
+def mirror_entry(entry, /):
+    """The mirror image of a :class:`~mocaplib.entry.LibraryEntry` (Fourier rows in
+    :data:`DOF_NAMES` order), from its stored series: the module docstring says how. Its id is
+    :func:`mirror_id`'s, ``mirror_of`` the entry's id, ``mirror_method`` ``"series"``; its
+    cycle starts at the entry's right toe-off (``start_s + right_toe_off_s``, and
+    ``right_toe_off_s`` becomes ``T - right_toe_off_s``); the QC metrics are the entry's. The
+    image of such an image is its source again (its window is the source's: ``start_s`` moves
+    back). Values are not rounded (the library's writer rounds them).
 
     Raises :class:`MocapError` for an entry without ``right_toe_off_s`` (a library written
     before entries recorded it, or a cycle whose right toe-off was not detected): there is no
     start for its mirror image.
     """
+    from .entry import EntryDrift, EntryFourier
     from .fourier import ROOT_X, ROOT_Y, synthesize
-    from .library import drift_displacement
     from .skeleton import ROOT_HEADING
 
-    tau = entry.get("right_toe_off_s")
-    if tau is None:
-        raise MocapError(f"entry {entry['id']} does not record its right toe-off "
+    if entry.right_toe_off_s is None:
+        raise MocapError(f"entry {entry.id} does not record its right toe-off "
                          "(right_toe_off_s), where its mirror image would start",
                          hint="build the library again (entries record it now), or build it "
                               "with --mirror, which cuts mirror images from the captures")
-    period, tau = float(entry["T"]), float(tau)
-    a, b = (np.array(entry["fourier"][key], dtype=np.float64) for key in ("a", "b"))
+    period, tau = float(entry.T), float(entry.right_toe_off_s)
+    a, b = entry.fourier.a.copy(), entry.fourier.b.copy()
     root = [ROOT_X, ROOT_Y, ROOT_HEADING]
     (x0, y0, heading0), (xt, yt, heading_t) = synthesize(a[root], b[root], period, [0.0, tau])
     # the series from the right toe-off on: q(t + tau)
@@ -213,44 +211,37 @@ def mirror_entry(entry: dict, /) -> dict:
         coefficients[[ROOT_X, ROOT_Y]] = rotation @ coefficients[[ROOT_X, ROOT_Y]]
     a[[ROOT_X, ROOT_Y], 0] += shift
     a[ROOT_HEADING, 0] += turn
-    drift = entry["root_drift"]
-    omega = float(drift["omega_rad_s"])
-    u_f, u_l = rotation @ [drift["u_f_m_s"], drift["u_l_m_s"]] + omega * np.array(
+    drift = entry.root_drift
+    omega = float(drift.omega_rad_s)
+    u_f, u_l = rotation @ [drift.u_f_m_s, drift.u_l_m_s] + omega * np.array(
         [shift[1], -shift[0]])
-    start = float(entry["start_s"]) + tau - (period if _series_image(entry) else 0.0)
-    image = {key: value for key, value in entry.items()
-             if key not in ("mirrored", "mirror_of", "mirror_method")}
-    if not _series_image(entry):
-        image.update(mirrored=True, mirror_of=entry["id"], mirror_method="series")
-    image.update(
-        id=mirror_id(entry["id"]), start_s=start, end_s=start + period,
-        right_toe_off_s=period - tau, pattern=mirror_pattern(entry["pattern"]),
-        omega=-entry["omega"], v_l=-entry["v_l"],
-        fourier={**entry["fourier"], "a": mirror_dofs(a, axis=0).tolist(),
-                 "b": mirror_dofs(b, axis=0).tolist()})
-    if "ramp" in entry["fourier"]:
-        image["fourier"]["ramp"] = mirror_dofs(entry["fourier"]["ramp"]).tolist()
-    for key, mirrored in (("joint_shifts_m", mirror_shifts), ("held_dofs", mirror_names),
-                          ("dofs_at_limit", mirror_names)):
-        if key in entry:
-            image[key] = mirrored(entry[key])
-    if "poulaine" in entry:
-        image["poulaine"] = mirror_poulaine(entry["poulaine"], tau / period)
-    velocities = {"u_f_m_s": float(u_f), "u_l_m_s": -float(u_l), "omega_rad_s": -omega}
-    image["root_drift"] = drift_displacement(velocities, period) | velocities
-    return image
+    start = float(entry.start_s) + tau - (period if _series_image(entry) else 0.0)
+    ramp = entry.fourier.ramp
+    return replace(
+        entry, id=mirror_id(entry.id), start_s=start, end_s=start + period,
+        right_toe_off_s=period - tau, pattern=mirror_pattern(entry.pattern),
+        omega=-entry.omega, v_l=-entry.v_l,
+        mirror_of=None if _series_image(entry) else entry.id,
+        mirror_method=None if _series_image(entry) else "series",
+        fourier=EntryFourier(entry.fourier.n, mirror_dofs(a, axis=0), mirror_dofs(b, axis=0),
+                             None if ramp is None else mirror_dofs(ramp)),
+        joint_shifts_m=mirror_shifts(entry.joint_shifts_m),
+        held_dofs=mirror_names(entry.held_dofs), dofs_at_limit=mirror_names(entry.dofs_at_limit),
+        poulaine=None if entry.poulaine is None else mirror_poulaine(entry.poulaine,
+                                                                     tau / period),
+        root_drift=EntryDrift.moving(float(u_f), -float(u_l), -omega, period))
 
 
-def mirror_poulaine(poulaine: dict, start: float, /) -> dict:
-    """A poulaine as an entry stores it (``docs/library-format.md``) seen in the mirror and
-    from phase ``start`` (t/T of the cycle it now starts at): the left ankle's path becomes
-    the right one's with y negated (points and tangents), phases shift by ``-start`` (points
-    rolled to keep their order), the travel direction is negated; the fit errors and the step
-    parameters are unchanged. Exact, so mirroring twice gives the poulaine back."""
+def mirror_poulaine(poulaine, start: float, /):
+    """A poulaine as an entry stores it (:class:`mocaplib.entry.EntryPoulaine`) seen in the
+    mirror and from phase ``start`` (t/T of the cycle it now starts at): the left ankle's path
+    becomes the right one's with y negated (points and tangents), phases shift by ``-start``
+    (points rolled to keep their order), the travel direction is negated; the fit errors and
+    the step parameters are unchanged. Exact, so mirroring twice gives the poulaine back."""
+    from .entry import EntryPoulaine
     from .poulaine import AnklePath, Poulaine
 
-    def path(data: dict) -> AnklePath:
-        ankle = AnklePath.from_dict(data)
+    def path(ankle: AnklePath) -> AnklePath:
         phases = np.mod(ankle.phases - start, 1.0)
         order = np.roll(np.arange(4), -int(np.argmin(phases)))
         flip = np.array([1.0, -1.0, 1.0])
@@ -258,23 +249,23 @@ def mirror_poulaine(poulaine: dict, start: float, /) -> dict:
                          ankle.points[order] * flip, ankle.tangents[order] * flip,
                          ankle.timing[order], ankle.fit_rms, ankle.fit_max, ankle.timed_rms)
 
-    return Poulaine(-float(poulaine["travel_rad"]), path(poulaine["right"]),
-                    path(poulaine["left"])).to_dict()
+    model = poulaine.model()
+    return EntryPoulaine.of(Poulaine(-model.travel, path(model.right), path(model.left)))
 
 
-def _series_image(entry: dict) -> bool:
-    return entry.get("mirror_method") == "series"
+def _series_image(entry) -> bool:
+    return entry.mirror_method == "series"
 
 
-def image_distance(source: dict, image: dict, /, *, scale=None) -> float:
-    """Normalised control-space distance between a library entry and its mirror image
-    (entries as JSON data, or dicts of their ``v``, ``omega``, ``v_l``); ``scale``: the
-    control space's (3,), :func:`mocaplib.library.control_scale` by default."""
-    from .library import CONTROL_AXES, control_scale
+def image_distance(source, image, /, *, scale=None) -> float:
+    """Normalised control-space distance between a library entry's velocities (v, ω, v_l)
+    and its mirror image's (each (3,), e.g. :attr:`mocaplib.entry.LibraryEntry.velocity`);
+    ``scale``: the control space's (3,), :func:`mocaplib.library.control_scale` by default."""
+    from .library import control_scale
 
-    a, b = (np.array([float(e[axis]) for axis in CONTROL_AXES]) for e in (source, image))
-    return float(np.linalg.norm((a - b) / np.asarray(control_scale() if scale is None
-                                                     else scale)))
+    difference = np.asarray(source, dtype=np.float64) - np.asarray(image, dtype=np.float64)
+    return float(np.linalg.norm(difference / np.asarray(control_scale() if scale is None
+                                                        else scale)))
 
 
 def mirror_library(library, /):
@@ -293,21 +284,21 @@ def mirror_library(library, /):
         raise MocapError("the library's DOFs are not this mocaplib's skeleton's: its entries "
                          "cannot be mirrored with this version",
                          hint="mirror it with the mocaplib version that wrote it")
-    entries = library.document["entries"]
-    ids = {e["id"] for e in entries}
-    imaged = {e.get("mirror_of") for e in entries if e.get("mirrored")}
+    entries = library.entries
+    ids = {e.id for e in entries}
+    imaged = {e.mirror_of for e in entries if e.mirrored}
     todo, notes = [], []
     for entry in entries:
-        if entry.get("mirrored") or entry["id"] in imaged:
+        if entry.mirrored or entry.id in imaged:
             continue
-        reflected = {"v": entry["v"], "omega": -entry["omega"], "v_l": -entry["v_l"]}
-        distance = image_distance(entry, reflected, scale=library.control_scale)
+        distance = image_distance(entry.velocity, (entry.v, -entry.omega, -entry.v_l),
+                                  scale=library.control_scale)
         if distance < SYMMETRIC_DISTANCE:
-            notes.append(f"{entry['id']}: its mirror image would lie {distance:.3f} "
+            notes.append(f"{entry.id}: its mirror image would lie {distance:.3f} "
                          f"(normalised) from it, within {SYMMETRIC_DISTANCE}: left out")
         else:
             todo.append(entry)
-    missing = [e["id"] for e in todo if e.get("right_toe_off_s") is None]
+    missing = [e.id for e in todo if e.right_toe_off_s is None]
     if missing:
         raise MocapError(f"{len(missing)} entries do not record their right toe-off "
                          f"(right_toe_off_s), where their mirror image would start: "
@@ -315,7 +306,7 @@ def mirror_library(library, /):
                          hint="build the library again (entries record it now), or build it "
                               "with --mirror, which cuts mirror images from the captures")
     images = [mirror_entry(entry) for entry in todo]
-    taken = sorted(ids & {image["id"] for image in images})
+    taken = sorted(ids & {image.id for image in images})
     if taken:
         raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
                          "another entry has", hint="rename that entry's capture")
@@ -323,7 +314,7 @@ def mirror_library(library, /):
 
     # new content: the source's checksum goes (writing the library computes its own)
     document = {**{k: v for k, v in library.document.items() if k != CHECKSUM_KEY},
-                "entries": sorted(entries + images, key=lambda e: e["id"])}
+                "entries": [e.to_json() for e in sorted(entries + images, key=lambda e: e.id)]}
     return Library(to_json_data(document)), notes
 
 

@@ -358,13 +358,11 @@ def _unique_entry_ids(captures: list[CaptureResult]) -> None:
         elif c.entries:
             first_with_content[c.sha256] = c.source
         for e in c.entries:
-            names.setdefault(e["id"], set()).add(c.sha256)
+            names.setdefault(e.id, set()).add(c.sha256)
     for c in captures:
-        renamed = {e["id"]: f"{e['id']}@{c.sha256[:8]}" for e in c.entries
-                   if len(names[e["id"]]) > 1}
-        for e in c.entries:
-            e["id"] = renamed.get(e["id"], e["id"])
-            if "mirror_of" in e:
-                e["mirror_of"] = renamed.get(e["mirror_of"], e["mirror_of"])
+        renamed = {e.id: f"{e.id}@{c.sha256[:8]}" for e in c.entries if len(names[e.id]) > 1}
+        c.entries = [replace(e, id=renamed.get(e.id, e.id),
+                             mirror_of=renamed.get(e.mirror_of, e.mirror_of))
+                     for e in c.entries]
         for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
             cycle["entry_id"] = renamed.get(cycle.get("entry_id"), cycle.get("entry_id"))

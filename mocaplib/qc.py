@@ -1,5 +1,5 @@
 """Quality control of a fitted capture's cycles: the QC metrics of each cycle (names and units of
-:data:`mocaplib.library.QC_LIMITS`) and the choice of the cycle a capture contributes."""
+:data:`mocaplib.entry.QC_LIMITS`) and the choice of the cycle a capture contributes."""
 
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def inside_cycle(cycle, motion) -> np.ndarray:
 
 
 def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
-    """QC metrics of one cycle (names and units of :data:`mocaplib.library.QC_LIMITS`).
+    """QC metrics of one cycle (names and units of :data:`mocaplib.entry.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
     follows (:meth:`mocaplib.motion.Motion.trusted`); gap fraction: missing marker samples

@@ -214,7 +214,7 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
     entry = library.entry(entry_id)
     own = library.poulaine(entry_id)
     if own is None:
-        why = ("a rest entry" if entry["locomotion_class"] == "rest"
+        why = ("a rest entry" if entry.locomotion_class == "rest"
                else "the library was written before poulaines were stored")
         raise MocapError(f"entry {entry_id!r} has no poulaine to retarget ({why})",
                          hint="choose a walking entry, or rebuild the library with this mocaplib")
@@ -224,7 +224,7 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
     requested = _requested(own.parameters, source, skeleton, step_length, foot_spacing, stance)
     path = blend(_candidates(library, entry, own), step_length=requested[0],
                  foot_spacing=requested[1], stance=requested[2], prefer=entry_id)
-    period = float(entry["T"])
+    period = float(entry.T)
     steps = max(8, int(round(period * rate)))
     phase = np.arange(steps + 1) / steps
     times = phase * period
@@ -278,12 +278,12 @@ def _requested(own: tuple, source: Skeleton, target: Skeleton, step_length, foot
     return out
 
 
-def _stride_scale(library, entry: dict, path) -> float:
+def _stride_scale(library, entry, path) -> float:
     """How much faster the retargeted pelvis travels than the entry's: the x-source's stride
     (its path frame's speed times its period) times its x-correction, over the entry's stride:
     the stance ankle then moves back under the pelvis as fast as the pelvis moves on."""
-    def stride(e: dict) -> float:
-        return float(np.hypot(e["root_drift"]["u_f_m_s"], e["root_drift"]["u_l_m_s"]) * e["T"])
+    def stride(e) -> float:
+        return float(np.hypot(e.root_drift.u_f_m_s, e.root_drift.u_l_m_s) * e.T)
 
     own = stride(entry)
     if own < 1e-3:            # turning on the spot: the x-correction alone
@@ -291,7 +291,7 @@ def _stride_scale(library, entry: dict, path) -> float:
     return stride(library.entry(path.names[0])) * path.x_scale / own
 
 
-def _candidates(library, entry: dict, own) -> dict:
+def _candidates(library, entry, own) -> dict:
     """The poulaines :func:`~mocaplib.poulaine.blend` chooses from: the library's entries with
     one, of ``entry``'s locomotion class, moving if it moves (v̂ at least
     :data:`~mocaplib.poulaine.MIN_TRAVEL_SPEED`) and on the spot if it does not, turning within
@@ -300,11 +300,10 @@ def _candidates(library, entry: dict, own) -> dict:
     cycle (``own``: its poulaine; :attr:`~mocaplib.poulaine.Poulaine.duty_factor`)."""
     from .poulaine import MIN_TRAVEL_SPEED
 
-    table = library.entries
-    moving = (table["v"] >= MIN_TRAVEL_SPEED) == (entry["v"] >= MIN_TRAVEL_SPEED)
-    same = table.index[(table["locomotion_class"].fillna("") == (entry["locomotion_class"] or ""))
-                       & table["step_length_m"].notna() & moving
-                       & ((table["omega"] - entry["omega"]).abs() <= SIMILAR_TURN)]
+    moving = entry.v >= MIN_TRAVEL_SPEED
+    same = [e.id for e in library.entries if e.poulaine is not None
+            and e.locomotion_class == entry.locomotion_class
+            and (e.v >= MIN_TRAVEL_SPEED) == moving and abs(e.omega - entry.omega) <= SIMILAR_TURN]
     found = {name: library.poulaine(name) for name in same}
     return {name: p for name, p in found.items()
             if abs(np.angle(np.exp(1j * (p.travel - own.travel)))) <= SIMILAR_TRAVEL

@@ -45,7 +45,7 @@ class BuildSettings:
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
-        :data:`mocaplib.library.QC_LIMITS`.
+        :data:`mocaplib.entry.QC_LIMITS`.
     measurements : subject measurements (metres, kilograms) overriding those each
         calibration file stores (see :func:`mocaplib.calibration.calibrate`).
     """

@@ -25,7 +25,8 @@ import numpy as np
 
 from .errors import MocapError, NoCycleError
 from .io import fs_text, open_regular
-from .library import make_entry, qc_failures, to_json_data
+from .entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
+from .library import qc_failures, to_json_data
 from .qc import cycle_qc, inside_cycle, qc_and_choice, qc_series
 from .settings import BuildSettings
 
@@ -91,8 +92,8 @@ class CaptureResult:
     ok : bool
     error, stage : str or None
         Why and in which stage the capture failed (None when ok).
-    entries : list[dict]
-        Library entries (see :func:`mocaplib.library.make_entry`).
+    entries : list[LibraryEntry]
+        Library entries (:class:`mocaplib.entry.LibraryEntry`).
     diagnostics : dict
         This capture's record of the diagnostics sidecar (see ``docs/library-format.md``).
     warnings : list[str]
@@ -131,11 +132,16 @@ class CaptureResult:
         return fs_text(Path(self.source).name)
 
     def to_dict(self) -> dict:
-        return to_json_data({f.name: getattr(self, f.name) for f in fields(self)})
+        """As JSON data (entries as the library stores them), 10 significant digits."""
+        return to_json_data({f.name: getattr(self, f.name) for f in fields(self)}
+                            | {"entries": [e.to_json() for e in self.entries]})
 
     @classmethod
     def from_dict(cls, data: dict) -> "CaptureResult":
-        return cls(**{f.name: data[f.name] for f in fields(cls) if f.name in data})
+        """The result :meth:`to_dict` gave; LibraryError for an entry that is not one."""
+        values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
+        values["entries"] = [LibraryEntry.from_json(e) for e in values.get("entries", [])]
+        return cls(**values)
 
 
 # --------------------------------------------------------------------------- one capture
@@ -349,13 +355,13 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes)
         result.diagnostics.update(_cycle_diagnostics(
-            motion, cycles, {e["cycle_index"]: e["id"] for e in result.entries}, shapes))
+            motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:
         with clock.stage("mirror"):
             images, entries = mirror_entries(path, result, cycles, motion, events, ground,
                                              settings, trial.first_frame)
             result.entries += entries
-            ids = {e["cycle_index"]: e["id"] for e in entries}
+            ids = {e.cycle_index: e.id for e in entries}
             result.diagnostics["mirror_cycles"] = to_json_data(
                 [{**c.to_dict(), "entry_id": ids.get(c.index)} for c in images],
                 DIAGNOSTICS_DIGITS)
@@ -576,13 +582,16 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
                       for f in failures}
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
-        entries.append(make_entry(
+        entries.append(LibraryEntry(
             id=f"{fs_text(path.stem)}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
             source_file=fs_text(path.name),
             source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
             start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
-            pattern=vel.pattern.to_dict(), v=vel.v, omega=vel.omega, v_l=vel.v_l, v_f=vel.v_f,
-            a=enc.series.a, b=enc.series.b, root_drift=_drift(enc.drift),
+            pattern=EntryPattern(**vel.pattern.to_dict()), v=vel.v, omega=vel.omega,
+            v_l=vel.v_l, v_f=vel.v_f, fourier=EntryFourier.of(enc.series.a, enc.series.b,
+                                                                ramp=enc.ramp),
+            root_drift=EntryDrift.moving(enc.drift.u_f, enc.drift.u_l, enc.drift.omega,
+                                         cycle.period),
             qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
             first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
@@ -590,8 +599,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
             right_toe_off_s=cycle.right_toe_off,
             mirror_of=image_of, mirror_method=None if image_of is None else "capture",
-            poulaine=None if cycle.rest else shapes[cycle.index]["poulaine"].to_dict(),
-            ramp=enc.ramp))
+            poulaine=None if cycle.rest else EntryPoulaine.of(shapes[cycle.index]["poulaine"])))
     return entries
 
 
@@ -615,7 +623,7 @@ def cycle_shape(motion, cycle) -> dict:
 
 
 def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
-                   settings: BuildSettings, first_frame: int) -> tuple[list, list[dict]]:
+                   settings: BuildSettings, first_frame: int) -> tuple[list, list[LibraryEntry]]:
     """The capture's mirror image, cut and measured as a capture: its cycles (all of them,
     :class:`~mocaplib.cycles.Cycle`) and the entries they give.
 
@@ -643,25 +651,25 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
         result.warnings.append(f"no mirror image: {exc.message}")
         return [], []
-    sources = {e["cycle_index"]: e for e in result.entries}
+    sources = {e.cycle_index: e for e in result.entries}
     chosen = next(c for c in cycles if c.chosen)
     partner = _nearest(chosen, images)
     for image in images:
         image.chosen = image is partner and chosen.index in sources
     kept = images if settings.all_cycles else [partner]
     own = [c for c in cycles if c.index in sources]
-    mirror_of = {image.index: sources[_nearest(image, own).index]["id"] for image in kept}
+    mirror_of = {image.index: sources[_nearest(image, own).index].id for image in kept}
     series = qc_series(mirrored, None if ground is None else REFLECTION @ ground)
     qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
     shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
     entries = []
     for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
                           mirror_of=mirror_of):
-        source = next(e for e in result.entries if e["id"] == entry["mirror_of"])
-        distance = image_distance(source, entry)
+        source = next(e for e in result.entries if e.id == entry.mirror_of)
+        distance = image_distance(source.velocity, entry.velocity)
         if distance < SYMMETRIC_DISTANCE:
-            result.warnings.append(f"mirror image cycle {entry['cycle_index']} left out: it "
-                                   f"lies {distance:.3f} (normalised) from {source['id']} in "
+            result.warnings.append(f"mirror image cycle {entry.cycle_index} left out: it "
+                                   f"lies {distance:.3f} (normalised) from {source.id} in "
                                    f"the control space, within {SYMMETRIC_DISTANCE}: that "
                                    "cycle is its own mirror image")
         else:
@@ -675,11 +683,6 @@ def _nearest(cycle, others):
     def overlap(other):
         return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
     return max(others, key=lambda other: (overlap(other), -other.start_s))
-
-
-def _drift(drift) -> dict:
-    """The moving frame's velocities (its displacement per cycle follows: ``make_entry``)."""
-    return {"u_f_m_s": drift.u_f, "u_l_m_s": drift.u_l, "omega_rad_s": drift.omega}
 
 
 def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:

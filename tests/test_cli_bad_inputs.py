@@ -169,7 +169,7 @@ def test_a_capture_record_of_the_wrong_shape_is_left_out_with_a_warning(edit, pr
     diagnostics, warnings = read_diagnostics(copy, lib)
     assert len(warnings) == 1 and problem in warnings[0]
     assert len(diagnostics["captures"]) == len(sidecar["captures"]) - 1
-    assert _summary(lib, lib.entries, diagnostics, None)["captures"] == len(sidecar["captures"]) - 1
+    assert _summary(lib, diagnostics, None)["captures"] == len(sidecar["captures"]) - 1
     planned_status(plan_commands(find_plan()), "plan", lib.entries, diagnostics)
     assert len(_captures(diagnostics, lib)) == len(sidecar["captures"]) - 1
 

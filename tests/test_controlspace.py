@@ -10,12 +10,14 @@ import pytest
 from scipy.spatial import ConvexHull, Delaunay
 
 from mocaplib.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, Envelope, coverage,
-                                   delaunay_tetrahedra, drift_velocities,
+                                   delaunay_tetrahedra,
                                    leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.fourier import root_drift, synthesize
-from mocaplib.library import assemble_library, make_entry
+from mocaplib.library import assemble_library
 from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES
+
+from entries import plain_entry
 
 D = len(DOF_NAMES)
 CUBE = np.array(list(itertools.product((0.0, 1.0), repeat=3)))
@@ -30,7 +32,7 @@ def hand_library(points, *, a=None, b=None, T=None, classes=None, v_f=None):
     T = np.ones(n) if T is None else T
     entries = []
     for i, (v, w, vl) in enumerate(points):
-        entries.append(make_entry(
+        entries.append(plain_entry(
             id=f"e{i:02d}", source_file=f"c{i}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=float(T[i]), T=float(T[i]), pattern={"type": "line"},
             v=v, omega=w, v_l=vl, v_f=(v if v_f is None else v_f[i]), a=a[i], b=b[i],
@@ -329,7 +331,7 @@ def test_world_cycle_reaches_the_drift_displacement(dx, dy, dth):
     end = np.zeros(D)
     end[[0, 1, 3]] = dx, dy, dth  # pelvis_tx, pelvis_ty, pelvis_rotation after one cycle
     d = root_drift(np.zeros(D), end, T)  # the library's drift velocities for that displacement
-    u = drift_velocities({"u_f_m_s": d.u_f, "u_l_m_s": d.u_l, "omega_rad_s": d.omega})
+    u = np.array([d.u_f, d.u_l, d.omega])
     a = np.zeros((1, D, 2))
     a[0, DOF_NAMES.index("pelvis_tx"), 1] = 0.02  # the pelvis sways in the path frame
     bl = Blend(a, np.zeros_like(a), np.array([T]), u[None])

@@ -116,7 +116,7 @@ NATURAL_WALKING = (5.1, 7.2)
 
 def _natural(library):
     """C3 of the walks at a self-chosen or the samples' normal speed (not CMU's brisk walk)."""
-    power = library.entries["qc_internal_power_w_kg"]
+    power = library.table["qc_internal_power_w_kg"]
     keep = [i for i in power.index if ("walk_" not in i or "_normal_" in i)
             and not i.startswith("07_12")]
     return power[keep]
@@ -125,7 +125,7 @@ def _natural(library):
 def test_internal_power_is_computed_for_every_entry():
     from walking_library import synthetic_walks
 
-    power = synthetic_walks()[0].entries["qc_internal_power_w_kg"]
+    power = synthetic_walks()[0].table["qc_internal_power_w_kg"]
     assert len(power) == 21 and power.notna().all() and (power > 0).all()
     # faster walks take more power: slow < normal < fast on the straight walks (each capture's
     # chosen cycle, whichever it is)
@@ -139,7 +139,7 @@ def test_internal_power_is_computed_for_every_entry():
 def test_internal_power_is_computed_for_every_real_entry():
     from walking_library import real_walks
 
-    power = real_walks()[0].entries["qc_internal_power_w_kg"]
+    power = real_walks()[0].table["qc_internal_power_w_kg"]
     assert power.notna().all() and (power > 0).all()
 
 

@@ -374,7 +374,7 @@ def test_hostile_names_and_links_in_an_input_folder(tmp_path):
     for name in ("loop.c3d", "gone.c3d", "pipe.c3d"):
         assert f"{name} [read]: cannot read" in printed
     assert "\x1b" not in printed + err
-    stems = {i.rsplit("_c", 1)[0] for i in load_library(out).entries.index}
+    stems = {i.rsplit("_c", 1)[0] for i in load_library(out).table.index}
     assert {"gehen_ä", "\x1b[2Jred"} <= stems  # the library keeps the names as text
     assert "not valid UTF-8" in out.with_name("lib.diagnostics.json").read_text()
     code, printed, err = run_isolated(mocaplib_command("inspect", caps), env=env)

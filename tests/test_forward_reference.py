@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -43,10 +44,10 @@ def offset(sample_dir) -> float:
     return offsets[0]
 
 
-def facing(entries: list[dict]) -> float:
-    """Mean over entries of atan2(v̂_l, v̂_f): where the subject moves relative to where they
-    face (radians, positive to the left)."""
-    return float(np.mean([np.arctan2(e["v_l"], e["v_f"]) for e in entries]))
+def facing(entries: list) -> float:
+    """Mean over entries (LibraryEntry, or a cycle's ``v_l`` and ``v_f``) of atan2(v̂_l, v̂_f):
+    where the subject moves relative to where they face (radians, positive to the left)."""
+    return float(np.mean([np.arctan2(e.v_l, e.v_f) for e in entries]))
 
 
 @pytest.mark.usefixtures("sample_dir")
@@ -121,8 +122,8 @@ def test_the_offset_measured_on_a_walk_corrects_the_fastest_run(offset):
         result = process_capture(SAMPLES / "run_3p5.c3d", settings)
         assert result.ok, result.error
         entry, = result.entries
-        cycle = min(truth, key=lambda c: abs(c["start_s"] - entry["start_s"]))
-        return entry["v_l"] - cycle["v_l"]
+        cycle = min(truth, key=lambda c: abs(c["start_s"] - entry.start_s))
+        return entry.v_l - cycle["v_l"]
 
     before, after = v_l_error(neutral()), v_l_error(neutral(heading_offsets=(offset,)))
     assert abs(after) < 0.01 and abs(after) < 0.5 * abs(before)
@@ -228,7 +229,7 @@ def test_a_changed_reference_is_measured_again_and_the_cache_follows(tmp_path, o
     changed = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
     assert changed.settings.heading_offsets != (offset,)
     assert changed.summary()["from_cache"] == 0
-    assert changed.captures[0].entries[0]["v_l"] != first.captures[0].entries[0]["v_l"]
+    assert changed.captures[0].entries[0].v_l != first.captures[0].entries[0].v_l
 
 
 @pytest.mark.usefixtures("sample_dir")
@@ -266,7 +267,7 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
     assert main(["cycles", str(WALK), "--toe-off", "lift", "--json", *common,
                  "--forward-reference", str(WALK)]) == 0
     cycles = json.loads(capsys.readouterr().out)["cycles"]
-    assert abs(np.rad2deg(facing(cycles))) < 0.02
+    assert abs(np.rad2deg(facing([SimpleNamespace(**c) for c in cycles]))) < 0.02
     reported = {}
     for name, extra in (("plain", []), ("turned", ["--forward-reference", str(WALK)])):
         assert main(["fit", str(STATIC), "-o", str(tmp_path / f"{name}.csv"), "--json",

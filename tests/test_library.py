@@ -17,8 +17,10 @@ import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.library import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
-                              checksum_status, make_entry, schema, validate_library)
+                              checksum_status, schema, validate_library)
 from mocaplib.skeleton import DOF_NAMES, Skeleton
+
+from entries import plain_entry
 
 D = len(DOF_NAMES)
 # Five velocity triples that span all three axes (affine rank 3).
@@ -47,7 +49,7 @@ def entry(i: int, *, n: int = 3, v=None, omega=None, v_l=None, **overrides) -> d
         locomotion_class="curve_left",
         segment_lengths_m=Skeleton.from_height(1.75 + 0.01 * i).lengths)
     fields.update(overrides)
-    return make_entry(**fields)
+    return plain_entry(**fields)
 
 
 def library(n_entries: int = 5, **kwargs) -> Library:
@@ -94,10 +96,11 @@ def test_same_entries_in_any_order_give_identical_bytes():
 
 
 def test_floats_are_written_with_ten_significant_digits_and_nan_as_null():
-    e = entry(0, v=0.1 + 0.2, v_l=float("nan"))
-    assert e["v"] == 0.3  # 0.30000000000000004 rounded to 10 significant digits
-    assert e["v_l"] is None
-    text = assemble_library([e], settings={}).to_json()
+    lib = assemble_library([entry(0, v=0.1 + 0.2, v_l=float("nan"))], settings={})
+    (e,) = lib.entries
+    assert e.v == 0.3  # 0.30000000000000004 rounded to 10 significant digits
+    assert e.v_l is None
+    text = lib.to_json()
     assert '"v": 0.3,' in text and '"v_l": null' in text
     assert "NaN" not in text and "Infinity" not in text
 
@@ -131,9 +134,9 @@ def test_load_library_gives_a_dataframe_and_coefficient_arrays(tmp_path):
     entries = [entry(i, n=2 + i % 2) for i in range(5)]  # orders 2 and 3: padded to 3
     path = assemble_library(entries, settings={}).write(tmp_path / "lib.json")
     lib = load_library(path)
-    table = lib.entries
+    table = lib.table
     assert isinstance(table, pd.DataFrame)
-    assert list(table.index) == sorted(e["id"] for e in entries)
+    assert list(table.index) == sorted(e.id for e in entries)
     assert table.loc["capture02_c0", "v_l"] == 0.4
     assert table.loc["capture01_c0", "pattern_type"] == "arc"
     assert set(f"qc_{name}" for name in QC_NAMES) <= set(table.columns)
@@ -144,7 +147,7 @@ def test_load_library_gives_a_dataframe_and_coefficient_arrays(tmp_path):
     a0, b0 = lib.coefficients("capture00_c0")
     # capture00 was fitted with N = 2: its third harmonic is zero padding; rounding to 10
     # significant digits changes a coefficient of size ~0.3 by at most ~1e-10.
-    np.testing.assert_allclose(a0[:, :3], entries[0]["fourier"]["a"], atol=1e-9)
+    np.testing.assert_allclose(a0[:, :3], entries[0].fourier.a, atol=1e-9)
     assert (a0[:, 3] == 0).all() and (b0[:, 3] == 0).all()
     assert table.loc["capture00_c0", "fourier_n"] == 2
 
@@ -179,7 +182,7 @@ def test_unknown_entry_raises_with_the_ids():
         library().coefficients("nope")
 
 
-def test_make_entry_rejects_bad_shapes_and_unknown_qc():
+def test_an_entry_refuses_bad_shapes_and_unknown_qc():
     with pytest.raises(LibraryError, match=r"shape \(D, N\+1\)"):
         entry(0, a=np.zeros((D, 3)), b=np.zeros((D, 4)))
     with pytest.raises(LibraryError, match="unknown QC metrics"):
@@ -244,22 +247,24 @@ def test_validate_reports_unreadable_file(tmp_path):
 
 
 # --------------------------------------------------------------------------- semantic checks
-def test_make_entry_derives_the_drift_displacement_from_its_velocities():
+def test_the_entry_drift_derives_its_displacement_from_its_velocities():
+    from mocaplib.entry import EntryDrift
     from mocaplib.fourier import RootDrift
 
     e = entry(1)  # u_f 1.2, u_l 0.1, omega 0.5 rad/s over T 1.1 s
     x, y, turned = RootDrift(0.0, 0.0, 0.0, 1.2, 0.1, 0.5).frame(1.1)
-    assert e["root_drift"] == pytest.approx({"dx_m": x, "dy_m": y, "dheading_rad": turned,
-                                             "u_f_m_s": 1.2, "u_l_m_s": 0.1, "omega_rad_s": 0.5})
-    assert e["root_drift"]["dheading_rad"] == pytest.approx(0.55)
-    with pytest.raises(LibraryError, match="root_drift must give u_f_m_s"):
-        entry(0, root_drift={"dx_m": 1.3, "dy_m": 0.1, "dheading_rad": 0.2})
+    assert e.root_drift.to_json() == pytest.approx({
+        "dx_m": x, "dy_m": y, "dheading_rad": turned, "u_f_m_s": 1.2, "u_l_m_s": 0.1,
+        "omega_rad_s": 0.5})
+    assert e.root_drift.dheading_rad == pytest.approx(0.55)
+    with pytest.raises(LibraryError, match="missing keys u_f_m_s, u_l_m_s, omega_rad_s"):
+        EntryDrift.from_json({"dx_m": 1.3, "dy_m": 0.1, "dheading_rad": 0.2})
 
 
 def test_entries_keep_the_capture_frame_numbering_when_given():
     e = entry(0, rate_hz=100.0, first_frame=286)
-    assert (e["rate_hz"], e["first_frame"]) == (100.0, 286)
-    assert "rate_hz" not in entry(0) and "first_frame" not in entry(0)  # optional
+    assert (e.to_json()["rate_hz"], e.to_json()["first_frame"]) == (100.0, 286)
+    assert "rate_hz" not in entry(0).to_json() and "first_frame" not in entry(0).to_json()
     lib = assemble_library([entry(i, rate_hz=100.0, first_frame=286) for i in range(5)],
                            settings={})
     assert problems_of(lib.document) == []
@@ -329,8 +334,8 @@ def test_turn_signs_may_differ_on_a_nearly_straight_walk():
 
 
 def test_the_validator_is_silent_on_what_the_build_writes():
-    # every check above holds on an entry as make_entry and assemble_library write it, for
-    # every pattern type and a waived metric
+    # every check above holds on entries as assemble_library writes them, for every pattern
+    # type and a waived metric
     line = {"type": "line", "parameters": {"point": [0.1, -0.2], "direction": [0.6, -0.8],
                                            "length": 1.3}, "residual_m": 0.01,
             "arc_angle_rad": 0.0}
@@ -423,8 +428,12 @@ def test_a_library_without_drift_is_an_error_not_a_walk_on_the_spot():
 
     doc = copy.deepcopy(library().document)
     assert ControlSpace.from_library(Library(doc)).drift.shape == (5, 3)
-    del doc["entries"][2]["root_drift"]["u_f_m_s"]
+    doc["entries"][2]["root_drift"]["u_f_m_s"] = None
     with pytest.raises(LibraryError, match="without a finite root_drift .*: capture02_c0"):
+        ControlSpace.from_library(Library(doc))
+    del doc["entries"][2]["root_drift"]["u_f_m_s"]
+    with pytest.raises(LibraryError, match="entry capture02_c0.root_drift: missing keys "
+                                           "u_f_m_s"):
         ControlSpace.from_library(Library(doc))
 
 
@@ -521,7 +530,7 @@ def test_a_stored_poulaine_validates_and_reads_back():
     model = lib.poulaine("capture00_c0")
     assert model.travel == -0.05
     step, spacing, stance = model.parameters
-    row = lib.entries.loc["capture00_c0"]
+    row = lib.table.loc["capture00_c0"]
     assert (row["step_length_m"], row["foot_spacing_m"], row["stance_m"]) == pytest.approx(
         (step, spacing, stance)) and step == pytest.approx(0.6, abs=1e-3)
     assert row["poulaine_fit_rms_m"] == max(model.left.fit_rms, model.right.fit_rms)
@@ -545,7 +554,7 @@ def test_a_library_without_poulaines_or_internal_power_still_reads_and_validates
     assert "internal_power_w_kg" not in lib.document["entries"][0]["qc"]
     assert problems_of(lib.document) == []
     assert lib.poulaine("capture00_c0") is None
-    assert lib.entries[["step_length_m", "poulaine_fit_rms_m",
+    assert lib.table[["step_length_m", "poulaine_fit_rms_m",
                         "qc_internal_power_w_kg"]].isna().all().all()
 
 

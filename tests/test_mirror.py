@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -61,15 +63,17 @@ def test_mirror_ids(entry_id, mirrored):
 
 
 # --------------------------------------------------------------------------- entries
-def _entry(seed: int = 3, n: int = 6) -> dict:
+def _entry(seed: int = 3, n: int = 6):
     """A library entry with gait-sized random coefficients, a turning drift and a right
-    toe-off (JSON data as a build writes it)."""
-    from mocaplib.library import make_entry
+    toe-off (its numbers as a build writes them: 10 significant digits)."""
+    from entries import plain_entry
+    from mocaplib.entry import LibraryEntry
+    from mocaplib.library import to_json_data
 
     rng = np.random.default_rng(seed)
     a, b = rng.normal(0, 0.1, (2, len(DOF_NAMES), n + 1))
     b[:, 0] = 0.0
-    return make_entry(
+    return LibraryEntry.from_json(to_json_data(plain_entry(
         id="walk_curve_r2_left_normal_c1", source_file="walk_curve_r2_left_normal.c3d",
         source_sha256="0" * 64, cycle_index=1, start_s=1.43, end_s=2.6, T=1.17,
         pattern={"type": "arc", "parameters": {"centre": [0.3, 2.1], "radius": 2.0,
@@ -77,7 +81,8 @@ def _entry(seed: int = 3, n: int = 6) -> dict:
                  "residual_m": 0.002, "arc_angle_rad": 0.58},
         v=1.0, omega=0.5, v_l=-0.006, v_f=1.0, a=a, b=b,
         root_drift={"u_f_m_s": 0.98, "u_l_m_s": 0.05, "omega_rad_s": 0.49},
-        qc={"marker_rms_m": 0.004}, locomotion_class="nonholonomic", right_toe_off_s=0.587)
+        qc={"marker_rms_m": 0.004}, locomotion_class="nonholonomic",
+        right_toe_off_s=0.587).to_json()))
 
 
 def _numbers(x, y, path=""):
@@ -101,15 +106,15 @@ def test_mirroring_an_entry_twice_gives_it_back():
 
     entry = _entry()
     image = mirror_entry(entry)
-    assert image["id"] == "walk_curve_r2_left_normal_mirror_c1"
-    assert (image["mirrored"], image["mirror_of"], image["mirror_method"]) == (
-        True, entry["id"], "series")
-    assert image["omega"] == -0.5 and image["v_l"] == 0.006 and image["v"] == 1.0
-    np.testing.assert_allclose(image["start_s"], 1.43 + 0.587)
-    np.testing.assert_allclose(image["right_toe_off_s"], 1.17 - 0.587)
+    assert image.id == "walk_curve_r2_left_normal_mirror_c1"
+    assert (image.mirrored, image.mirror_of, image.mirror_method) == (True, entry.id, "series")
+    assert image.omega == -0.5 and image.v_l == 0.006 and image.v == 1.0
+    np.testing.assert_allclose(image.start_s, 1.43 + 0.587)
+    np.testing.assert_allclose(image.right_toe_off_s, 1.17 - 0.587)
     back = mirror_entry(image)
+    assert not back.mirrored and back.mirror_method is None and back.id == entry.id
     derived = {".root_drift.dx_m", ".root_drift.dy_m", ".root_drift.dheading_rad"}
-    for difference, where in _numbers(entry, back):
+    for difference, where in _numbers(entry.to_json(), back.to_json()):
         # The displacement is derived from the drift's velocities; the entry stores it
         # rounded to 10 significant digits, the image recomputes it (1e-10 m apart).
         assert difference <= (1e-9 if where in derived else 1e-12), where
@@ -124,13 +129,12 @@ def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
     from mocaplib.skeleton import ROOT_HEADING
 
     def world(entry, t):
-        d = entry["root_drift"]
-        q = synthesize(entry["fourier"]["a"], entry["fourier"]["b"], entry["T"], t)
-        return RootDrift(0, 0, 0, d["u_f_m_s"], d["u_l_m_s"], d["omega_rad_s"]).restore(q, t)
+        q = synthesize(entry.fourier.a, entry.fourier.b, entry.T, t)
+        return RootDrift(0, 0, 0, *entry.root_drift.velocities).restore(q, t)
 
     entry = _entry(seed=5)
     t = np.linspace(0.0, 2.5, 60)
-    source = mirror_dofs(world(entry, t + entry["right_toe_off_s"]))
+    source = mirror_dofs(world(entry, t + entry.right_toe_off_s))
     image = world(mirror_entry(entry), t)
     root = [ROOT_X, ROOT_Y, ROOT_HEADING]
     np.testing.assert_allclose(np.delete(image, root, axis=1), np.delete(source, root, axis=1),
@@ -149,8 +153,7 @@ def test_an_entry_without_its_right_toe_off_cannot_be_mirrored():
     from mocaplib.errors import MocapError
     from mocaplib.mirror import mirror_entry
 
-    entry = _entry()
-    del entry["right_toe_off_s"]
+    entry = replace(_entry(), right_toe_off_s=None)
     with pytest.raises(MocapError, match="walk_curve_r2_left_normal_c1 does not record its "
                                          "right toe-off.*build the library again"):
         mirror_entry(entry)
@@ -183,9 +186,8 @@ def test_the_mirror_command_refuses_what_it_cannot_mirror(tmp_path, capsys):
     from mocaplib.cli import main
     from mocaplib.library import assemble_library
 
-    old = _entry()
-    del old["right_toe_off_s"]
-    straight = {**_entry(seed=4), "id": "walk_straight_normal_c0", "omega": 0.001, "v_l": 0.0}
+    old = replace(_entry(), right_toe_off_s=None)
+    straight = replace(_entry(seed=4), id="walk_straight_normal_c0", omega=0.001, v_l=0.0)
     path = tmp_path / "old.json"
     assemble_library([old, straight], settings={}).write(path)
     out = tmp_path / "out.json"

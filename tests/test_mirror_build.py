@@ -33,10 +33,10 @@ def mirrored_samples(tmp_path_factory):
     return result
 
 
-def _joint_rms_deg(first: dict, second: dict) -> float:
+def _joint_rms_deg(first, second) -> float:
     """RMS (degrees) over the joint angles and 100 phases of two entries' cycles."""
     phase = np.arange(100) / 100
-    q = [synthesize(e["fourier"]["a"], e["fourier"]["b"], 1.0, phase) for e in (first, second)]
+    q = [synthesize(e.fourier.a, e.fourier.b, 1.0, phase) for e in (first, second)]
     return float(np.degrees(np.sqrt(np.mean((q[0] - q[1])[:, JOINT_ANGLES] ** 2))))
 
 
@@ -44,14 +44,14 @@ def _other_side(name: str) -> str:
     return name.replace("left", "@").replace("right", "left").replace("@", "right")
 
 
-def _within_velocity_targets(a: dict, b: dict) -> list[str]:
+def _within_velocity_targets(a, b) -> list[str]:
     misses = []
-    if abs(a["v"] - b["v"]) > V_REL * max(b["v"], 0.05):
-        misses.append(f"v {a['v']:.4f} vs {b['v']:.4f}")
-    if abs(a["omega"] - b["omega"]) > OMEGA_ABS:
-        misses.append(f"omega {a['omega']:.4f} vs {b['omega']:.4f}")
-    if abs(a["v_l"] - b["v_l"]) > V_L_ABS:
-        misses.append(f"v_l {a['v_l']:.4f} vs {b['v_l']:.4f}")
+    if abs(a.v - b.v) > V_REL * max(b.v, 0.05):
+        misses.append(f"v {a.v:.4f} vs {b.v:.4f}")
+    if abs(a.omega - b.omega) > OMEGA_ABS:
+        misses.append(f"omega {a.omega:.4f} vs {b.omega:.4f}")
+    if abs(a.v_l - b.v_l) > V_L_ABS:
+        misses.append(f"v_l {a.v_l:.4f} vs {b.v_l:.4f}")
     return misses
 
 
@@ -67,12 +67,12 @@ def test_a_mirrored_library_of_the_samples_covers_the_default_envelope(mirrored_
 
     library = mirrored_samples.library
     assert validate_library(library) == []
-    df = library.entries
+    df = library.table
     images = df[df["mirrored"]]
     assert len(images) >= 60 and set(images["mirror_of"]) <= set(df.index[~df["mirrored"]])
-    assert {library.entry(i)["mirror_method"] for i in images.index} == {"capture"}
-    assert all(i == f"{library.entry(i)['source_file'][:-4]}_mirror_c"
-                    f"{library.entry(i)['cycle_index']}" for i in images.index)
+    assert {library.entry(i).mirror_method for i in images.index} == {"capture"}
+    assert all(i == f"{library.entry(i).source_file[:-4]}_mirror_c"
+                    f"{library.entry(i).cycle_index}" for i in images.index)
     envelope, _ = default_envelope(None)
     with_images = coverage(ControlSpace.from_library(library), envelope).fraction_inside
     assert with_images >= 0.99
@@ -94,15 +94,15 @@ def test_mirrored_left_gaits_match_the_captured_right_ones(mirrored_samples):
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
-    df = library.entries
+    df = library.table
     captured = {df.loc[i, "source_file"][:-4]: library.entry(i)
                 for i in df.index[~df["mirrored"] & df["chosen"]]}
     own = [_joint_rms_deg(captured[name], mirror_entry(captured[name])) for name in SYMMETRIC]
     pairs, misses = [], []
     for i in df.index[df["mirrored"]]:
         image = library.entry(i)
-        other = captured.get(_other_side(image["source_file"][:-4]))
-        if other is None or other["source_file"] == image["source_file"]:
+        other = captured.get(_other_side(image.source_file[:-4]))
+        if other is None or other.source_file == image.source_file:
             continue
         pairs.append(_joint_rms_deg(image, other))
         misses += [f"{i}: {m}" for m in _within_velocity_targets(image, other)]
@@ -121,11 +121,11 @@ def test_series_images_agree_with_the_images_cut_from_the_captures(mirrored_samp
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
-    df = library.entries
+    df = library.table
     rms, misses = [], []
     for i in df.index[df["mirrored"]]:
         cut = library.entry(i)
-        series = mirror_entry(library.entry(cut["mirror_of"]))
+        series = mirror_entry(library.entry(cut.mirror_of))
         rms.append(_joint_rms_deg(cut, series))
         misses += [f"{i}: {m}" for m in _within_velocity_targets(series, cut)]
     assert misses == []
@@ -145,7 +145,7 @@ def test_the_mirror_command_adds_the_series_images_once(mirrored_samples, tmp_pa
     assert main(["mirror", str(source), "-o", str(tmp_path / "mirrored.json")]) == 0
     out = capsys.readouterr().out
     mirrored = load_library(tmp_path / "mirrored.json")
-    images = mirrored.entries[mirrored.entries["mirrored"]]
+    images = mirrored.table[mirrored.table["mirrored"]]
     symmetric = out.count("left out")
     assert len(images) + symmetric == len(captured["entries"])
     assert {"rest_c0", "walk_straight_normal_c1"} <= {line.split(":")[1].strip() for line in
@@ -170,7 +170,7 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
     walks = [real_c3d("biomechzoo/HC030A05.c3d"), real_c3d("biomechzoo/HC030A22.c3d")]
     result = build(walks, BuildSettings(static=str(static), mirror=True, qc_policy="waive"),
                    progress=False)
-    df = result.library.entries
+    df = result.library.table
     chosen = df[df["chosen"]]
     assert chosen.loc[~chosen["mirrored"], "omega"].max() < 0.1       # no left turn captured
     assert chosen.loc[chosen["mirrored"], "omega"].max() > 0.5        # the mirror's left turn
@@ -180,8 +180,8 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
         e for e in document["entries"] if not e.get("mirrored")]})
     series, _ = mirror_library(captured)
     image = series.entry("HC030A22_mirror_c3")
-    assert image["omega"] == pytest.approx(-captured.entry("HC030A22_c3")["omega"])
-    assert image["omega"] > 0.2
+    assert image.omega == pytest.approx(-captured.entry("HC030A22_c3").omega)
+    assert image.omega > 0.2
 
 
 @pytest.mark.slow
@@ -200,4 +200,4 @@ def test_the_report_of_the_mirrored_samples_stays_small(mirrored_samples, tmp_pa
                       .split("</script>")[0])
     assert len(data["entries"]) == len(mirrored_samples.library)
     assert sum(e["mirror_of"] is not None for e in data["entries"]) == int(
-        mirrored_samples.library.entries["mirrored"].sum())
+        mirrored_samples.library.table["mirrored"].sum())

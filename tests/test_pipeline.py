@@ -22,12 +22,13 @@ from mocaplib import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
-from mocaplib.library import (DEFAULT_QC_THRESHOLDS, load_library, make_entry, qc_failures,
-                              validate_library)
+from mocaplib.library import DEFAULT_QC_THRESHOLDS, load_library, qc_failures, validate_library
 from mocaplib.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
                                file_sha256, find_captures, process_capture)
 from mocaplib.skeleton import DOF_NAMES
 from mocaplib.workers import max_jobs
+
+from entries import plain_entry
 
 TRIPLES = [(1.2, 0.0, 0.0), (0.6, 0.5, 0.0), (0.3, 0.0, 0.4), (0.8, -0.4, -0.2), (0.0, 1.0, 0.0)]
 
@@ -63,7 +64,7 @@ def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
     b = rng.normal(size=(len(DOF_NAMES), n + 1))
     b[:, 0] = 0
     entry_id = f"{path.stem}_c0"
-    result.entries = [make_entry(
+    result.entries = [plain_entry(
         id=entry_id, source_file=path.name, source_sha256=result.sha256, cycle_index=0,
         start_s=0.2, end_s=1.3, T=1.1,
         pattern={"type": "line", "parameters": {"point": [0.0, 0.0], "direction": [1.0, 0.0],
@@ -233,7 +234,7 @@ def test_same_file_name_in_two_folders_gets_unique_ids(tmp_path):
     # day2/walk00 and walk01 are byte copies of day1/walk01 and walk02; day2/walk02 is new.
     write_captures(tmp_path / "day2", TRIPLES[1:4])
     result = build([tmp_path / "day1", tmp_path / "day2"], progress=False, process=fake_process)
-    ids = list(result.library.entries.index)
+    ids = list(result.library.table.index)
     assert len(ids) == len(set(ids)) == 4, ids
     assert sorted(i.split("@")[0] for i in ids if "@" in i) == ["walk02_c0", "walk02_c0"]
     for copy in result.captures[3:5]:
@@ -330,7 +331,7 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     walk, taller, shorter = result.captures
     assert walk.ok and walk.static == "rest.c3d", walk.error
     assert taller.ok and taller.static == "rest_1.85.c3d", taller.error
-    assert walk.entries[0]["segment_lengths_m"] != taller.entries[0]["segment_lengths_m"]
+    assert walk.entries[0].segment_lengths_m != taller.entries[0].segment_lengths_m
     assert shorter.ok and shorter.static is None and shorter.entries, shorter.error
     warning = next(w for w in shorter.warnings if w.startswith("calibrated from the capture"))
     assert "none of the 2 static trials" in warning
@@ -433,7 +434,7 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
     printed = capsys.readouterr().out
     assert "broken.c3d [import]" in printed and "captures 4  ok 3  failed 1" in printed
     lib = load_library(out)
-    table = lib.entries
+    table = lib.table
     assert sorted(table["locomotion_class"]) == ["holonomic", "nonholonomic", "rest"]
     for entry_id, row in table.iterrows():
         truth = json.loads((synthetic_folder / row["source_file"]).with_suffix(".truth.json")
@@ -493,12 +494,12 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):
     kept = process_capture(path, BuildSettings(qc_policy="waive", qc_thresholds=strict))
     assert kept.ok and len(kept.entries) == 1
     entry = kept.entries[0]
-    assert entry["qc"]["marker_rms_m"] > 0.001
-    failing = sorted(qc_failures(entry["qc"], strict))
-    assert sorted(entry["qc_waived"]) == sorted(f.split()[0] for f in failing)
-    assert "marker_rms_m" in entry["qc_waived"]
+    assert entry.qc["marker_rms_m"] > 0.001
+    failing = sorted(qc_failures(entry.qc, strict))
+    assert sorted(entry.qc_waived) == sorted(f.split()[0] for f in failing)
+    assert "marker_rms_m" in entry.qc_waived
     assert any("kept with QC waived" in w for w in kept.warnings)
-    assert [c["entry_id"] for c in kept.diagnostics["cycles"] if c["chosen"]] == [entry["id"]]
+    assert [c["entry_id"] for c in kept.diagnostics["cycles"] if c["chosen"]] == [entry.id]
     dropped = CaptureResult(source=str(path))
     drop = BuildSettings(qc_policy="drop", qc_thresholds=strict)
     assert entries(stage["path"], dropped, stage["cycles"], stage["qcs"], drop,
@@ -509,8 +510,8 @@ def test_real_capture_failing_qc_is_dropped_or_waived(monkeypatch, real_c3d):
 def test_a_capture_contributes_its_steadiest_cycle_that_passes_qc(synthetic_folder):
     path = synthetic_folder / "side_left_normal.c3d"
     every = process_capture(path, BuildSettings(all_cycles=True)).entries
-    closure = {e["cycle_index"]: e["qc"]["cycle_closure_rad"] for e in every}
-    steadiest = next(e["cycle_index"] for e in every if e["chosen"])
+    closure = {e.cycle_index: e.qc["cycle_closure_rad"] for e in every}
+    steadiest = next(e.cycle_index for e in every if e.chosen)
     others = [i for i in closure if closure[i] < closure[steadiest]]
     assert len(every) >= 2 and others  # a cycle that closes better than the steadiest
     # a closure limit the steadiest cycle fails and another passes: that one is chosen
@@ -518,7 +519,7 @@ def test_a_capture_contributes_its_steadiest_cycle_that_passes_qc(synthetic_fold
     strict = BuildSettings(qc_thresholds={**DEFAULT_QC_THRESHOLDS, "cycle_closure_rad": limit})
     result = process_capture(path, strict)
     assert len(result.entries) == 1
-    assert result.entries[0]["cycle_index"] in others and result.entries[0]["chosen"]
+    assert result.entries[0].cycle_index in others and result.entries[0].chosen
     assert not any("left out" in w for w in result.warnings)
     # when no cycle passes, the steadiest is still the chosen one, and it is left out
     none_pass = BuildSettings(qc_thresholds={**DEFAULT_QC_THRESHOLDS,
@@ -534,20 +535,20 @@ def test_process_capture_gives_the_cycles_of_mocaplib_cycles(synthetic_folder, c
     assert main(["cycles", str(path), "--json", "--toe-off", toe_off]) == 0
     expected = json.loads(capsys.readouterr().out)["cycles"]
     result = process_capture(path, BuildSettings(all_cycles=True, toe_off=toe_off))
-    got = {e["cycle_index"]: e for e in result.entries}
+    got = {e.cycle_index: e for e in result.entries}
     assert len(got) == len(expected) == result.n_cycles
     for cycle in expected:
         entry = got[cycle["index"]]
         # The same stages on the same file: equal up to the library's 10 significant digits.
         for key in ("start_s", "end_s", "v", "omega", "v_l", "v_f"):
-            np.testing.assert_allclose(entry[key], cycle[key], rtol=1e-9, atol=1e-12)
-        assert entry["chosen"] == cycle["chosen"]
-        assert entry["fourier"]["n"] == cycle["fourier_n"]
-        assert cycle["qc_failures"] == qc_failures(entry["qc"], DEFAULT_QC_THRESHOLDS)
+            np.testing.assert_allclose(getattr(entry, key), cycle[key], rtol=1e-9, atol=1e-12)
+        assert entry.chosen == cycle["chosen"]
+        assert entry.fourier.n == cycle["fourier_n"]
+        assert cycle["qc_failures"] == qc_failures(entry.qc, DEFAULT_QC_THRESHOLDS)
         # one JSON shape for a pattern: the library's
-        assert entry["pattern"].keys() == cycle["pattern"].keys()
-        assert entry["pattern"]["parameters"].keys() == cycle["pattern"]["parameters"].keys()
-        np.testing.assert_allclose(entry["pattern"]["arc_angle_rad"],
+        assert entry.pattern.to_json().keys() == cycle["pattern"].keys()
+        assert entry.pattern.parameters.keys() == cycle["pattern"]["parameters"].keys()
+        np.testing.assert_allclose(entry.pattern.arc_angle_rad,
                                    cycle["pattern"]["arc_angle_rad"], rtol=1e-9, atol=1e-12)
 
 
@@ -575,11 +576,11 @@ def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_cap
     expected = json.loads(capsys.readouterr().out)["cycles"]
     result = process_capture(path, BuildSettings(static=str(static), all_cycles=True))
     assert result.ok and result.static == "static_rbak.c3d"
-    got = {e["cycle_index"]: e for e in result.entries}
+    got = {e.cycle_index: e for e in result.entries}
     assert len(got) == len(expected) == result.n_cycles
     for cycle in expected:
         for key in ("start_s", "end_s", "v", "omega", "v_l", "v_f"):
-            np.testing.assert_allclose(got[cycle["index"]][key], cycle[key], rtol=1e-9,
+            np.testing.assert_allclose(getattr(got[cycle["index"]], key), cycle[key], rtol=1e-9,
                                        atol=1e-12)
 
 
@@ -615,7 +616,7 @@ def test_build_cuts_rigid_feet_at_their_lift_with_toe_off_lift(synthetic_folder,
     def start_errors(toe_off):
         entries = process_capture(path, BuildSettings(all_cycles=True, toe_off=toe_off)).entries
         assert entries
-        return np.array([np.abs(true_offs - e["start_s"]).min() * 100.0 for e in entries])
+        return np.array([np.abs(true_offs - e.start_s).min() * 100.0 for e in entries])
 
     assert start_errors("lift").max() <= 1.0
     assert start_errors("foot_velocity").max() > 2.0
@@ -662,7 +663,7 @@ def test_a_dead_worker_fails_its_capture_alone_after_one_more_try(tmp_path):
     assert [c.file for c in result.failures] == ["walk90.c3d"]
     dead = result.failures[0]
     assert dead.stage == "worker" and "died, 2 times" in dead.error and "SIGKILL" in dead.error
-    assert len(result.library) == 6 and "walk91_c0" in result.library.entries.index
+    assert len(result.library) == 6 and "walk91_c0" in result.library.table.index
     assert calls(folder).count("walk90.c3d") == 2 and calls(folder).count("walk91.c3d") == 2
 
 
@@ -730,7 +731,7 @@ def test_a_cache_entry_stored_under_another_key_is_not_trusted(tmp_path):
     again = build([folder], cache_dir=cache, progress=False, process=fake_process)
     assert sum(c.from_cache for c in again.captures) == 1
     assert any("stored for other inputs or code" in note for note in again.notes)
-    assert [e.split("_")[0] for e in again.library.entries.index] == ["walk00", "walk01"]
+    assert [e.split("_")[0] for e in again.library.table.index] == ["walk00", "walk01"]
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
@@ -761,5 +762,5 @@ def test_a_capture_whose_name_is_not_utf8_is_built_and_stored_as_text(tmp_path):
         handle.write(json.dumps({"v": 0.6, "omega": 0.5, "v_l": 0.0}).encode())
     result = build([folder], progress=False, process=fake_process)
     library, sidecar = result.write(tmp_path / "lib.json")
-    assert "gehen_ä_c0" in load_library(library).entries.index
+    assert "gehen_ä_c0" in load_library(library).table.index
     assert "gehen_ä.c3d" in {c["source"] for c in json.loads(sidecar.read_text())["captures"]}

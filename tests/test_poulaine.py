@@ -138,7 +138,7 @@ def test_cycle_poulaine_of_a_skeleton_standing_still_in_the_travel_frame():
 def test_fit_error_target_on_the_synthetic_walks():
     from walking_library import synthetic_walks
 
-    errors = synthetic_walks()[0].entries["poulaine_fit_rms_m"]
+    errors = synthetic_walks()[0].table["poulaine_fit_rms_m"]
     assert len(errors) == 21 and errors.notna().all()
     assert errors.max() <= 0.005, f"worst {errors.max() * 1000:.2f} mm ({errors.idxmax()})"
 
@@ -147,7 +147,7 @@ def test_fit_error_target_on_the_synthetic_walks():
 def test_fit_error_target_on_the_real_walks():
     from walking_library import real_walks
 
-    errors = real_walks()[0].entries["poulaine_fit_rms_m"]
+    errors = real_walks()[0].table["poulaine_fit_rms_m"]
     assert len(errors) >= 10 and errors.notna().all()     # every cycle passing QC
     assert errors.max() <= 0.005, f"worst {errors.max() * 1000:.2f} mm ({errors.idxmax()})"
 

@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.library import assemble_library, make_entry
+from mocaplib.library import assemble_library
 from mocaplib.skeleton import DOF_NAMES
+
+from entries import plain_entry
 
 D = len(DOF_NAMES)
 EVIL = "<script>alert('x')</script>"
@@ -57,7 +59,7 @@ def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
         a, b = _coefficients(v, w)
         T = 1.1 - 0.15 * v
         source = source_name if i == 0 else f"cap{i:02d}.c3d"
-        entries.append(make_entry(
+        entries.append(plain_entry(
             id=f"{Path(source).stem}#0", source_file=source, source_sha256="0" * 64,
             cycle_index=0, start_s=0.5, end_s=0.5 + T, T=T,
             pattern={"type": "arc" if w else "line", "parameters": {}}, v=v, omega=w, v_l=vl,
@@ -74,7 +76,7 @@ def make_library(folder: Path, *, source_name: str = "walk_01.c3d",
 
 def _write_diagnostics(path: Path, lib, source_name: str) -> None:
     entry_id = f"{Path(source_name).stem}#0"
-    rate, T = 100.0, float(lib.entries.loc[entry_id, "T"])
+    rate, T = 100.0, float(lib.table.loc[entry_id, "T"])
     t = np.arange(0, 3.0, 1 / rate)
     R, w = 2.0, 0.6                          # walking an arc of radius 2 m
     xy = np.column_stack([R * np.sin(w * t), R - R * np.cos(w * t)])
@@ -100,7 +102,7 @@ def _write_diagnostics(path: Path, lib, source_name: str) -> None:
     others = [{"source": row["source_file"], "ok": True, "warnings": [],
                "cycles": [{"index": 0, "start_s": row["start_s"], "end_s": row["end_s"],
                            "chosen": True, "entry_id": entry, "pattern": {"type": "line"}}]}
-              for entry, row in lib.entries.drop(entry_id).iterrows()]
+              for entry, row in lib.table.drop(entry_id).iterrows()]
     # A capture whose chosen cycle (its second, index 1) QC left out of the library.
     dropped = {"source": "dropped.c3d", "ok": True, "warnings": [
         "cycle 1 (1.00-2.00 s) left out of the library: fourier_rms_rad 0.03 > 0.01745"],
@@ -336,7 +338,7 @@ def test_report_of_a_degenerate_library_still_builds(tmp_path):
     entries = []
     for i, v in enumerate((0.6, 0.9, 1.2, 1.5, 1.8)):  # straight walking only: a line
         a, b = _coefficients(v, 0.0)
-        entries.append(make_entry(
+        entries.append(plain_entry(
             id=f"s{i}", source_file=f"s{i}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=v, omega=0.0, v_l=0.0,
             v_f=v, a=a, b=b, root_drift={"u_f_m_s": v, "u_l_m_s": 0.0, "omega_rad_s": 0.0},
@@ -597,7 +599,7 @@ def test_the_headline_blending_error_leaves_rest_out_and_flags_cross_mode_blends
 
 
 def test_entries_at_the_fourier_order_cap_are_flagged():
-    from mocaplib.library import assemble_library, make_entry
+    from mocaplib.library import assemble_library
     from mocaplib.fourier import ANGLE_TOLERANCE, MAX_ORDER as cap
     from mocaplib.report.html import _entry_rows, _summary
 
@@ -606,7 +608,7 @@ def test_entries_at_the_fourier_order_cap_are_flagged():
     for n in (3, cap):
         a, b = np.zeros((D, n + 1)), np.zeros((D, n + 1))
         a[HIP, n] = 0.01
-        entries.append(make_entry(
+        entries.append(plain_entry(
             id=f"e{n}", source_file=f"e{n}.c3d", source_sha256="0" * 64, cycle_index=0,
             start_s=0.0, end_s=1.0, T=1.0, pattern={"type": "line"}, v=1.0, omega=0.0, v_l=0.0,
             v_f=1.0, a=a, b=b, root_drift={"u_f_m_s": 1.0, "u_l_m_s": 0.0, "omega_rad_s": 0.0},
@@ -614,7 +616,7 @@ def test_entries_at_the_fourier_order_cap_are_flagged():
     lib = assemble_library(entries, settings={})
     rows = _entry_rows(lib.entries, lambda i: "unknown")
     assert [(r["fourier_n"], r["at_cap"]) for r in rows] == [(cap, True), (3, False)]
-    assert _summary(lib, lib.entries, None, None)["at_cap"] == [f"e{cap}"]
+    assert _summary(lib, None, None)["at_cap"] == [f"e{cap}"]
 
 
 def test_a_sidecar_of_another_build_is_not_used(tmp_path):

@@ -33,7 +33,7 @@ def self_rms(library, entry_id: str, captured: dict) -> dict[str, float]:
 
 def _self_retargeting(library, records) -> pd.Series:
     worst = {entry: max(self_rms(library, entry, records[entry]["angles"]).values())
-             for entry in library.entries.index if entry in records}
+             for entry in library.table.index if entry in records}
     return pd.Series(worst)
 
 

@@ -97,7 +97,7 @@ def test_a_standing_file_among_the_inputs_is_a_static(tmp_path):
     result = build([tmp_path], BuildSettings(), jobs=1, cache_dir=None, progress=False)
     static, walked = result.captures                 # in name order
     assert walked.static == "rest.c3d" and static.static == "rest.c3d"
-    assert static.entries[0]["locomotion_class"] == "rest" and result.ok
+    assert static.entries[0].locomotion_class == "rest" and result.ok
     assert result.library.settings["static"] == "rest.c3d"
 
 
@@ -194,4 +194,4 @@ def test_the_shared_files_with_two_statics_build_without_failure(shared_c3d, tmp
     assert by_file["16_07"]["no_entry"].startswith("no complete cycle")
     moving = ("07_01", "07_12", "HC030A22", "Gait", "PiG_Motion-FlatFoot-Full", "running",
               "BTS", "Qualisys")
-    assert {e.split("_c")[0] for e in library.entries.index} >= set(moving)
+    assert {e.split("_c")[0] for e in library.table.index} >= set(moving)

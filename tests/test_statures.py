@@ -44,7 +44,7 @@ def test_a_shorter_and_a_taller_subject_get_their_velocities(tmp_path, height):
     result = process_capture(walk, BuildSettings(static=str(static), static_pose="neutral"))
     assert result.ok, result.error
     (entry,) = result.entries
-    truth = min(capture.truth["cycles"], key=lambda c: abs(c["start_s"] - entry["start_s"]))
-    assert entry["v"] == pytest.approx(truth["v"], rel=0.02)
-    assert abs(entry["omega"] - truth["omega"]) < 0.02
-    assert abs(entry["v_l"] - truth["v_l"]) < 0.02
+    truth = min(capture.truth["cycles"], key=lambda c: abs(c["start_s"] - entry.start_s))
+    assert entry.v == pytest.approx(truth["v"], rel=0.02)
+    assert abs(entry.omega - truth["omega"]) < 0.02
+    assert abs(entry.v_l - truth["v_l"]) < 0.02

@@ -77,7 +77,7 @@ def _run(args) -> int:
     except MocapError as exc:
         raise UsageError(str(exc)) from None
     library = load_library(args.library)
-    if args.entry not in library.entries.index:
+    if args.entry not in {e.id for e in library.entries}:
         raise UsageError(f"no entry {args.entry!r} in {args.library}"
                          f"{_closest(args.entry, library)}")
     result = retarget(library, args.entry, skeleton=skeleton, step_length=args.step_length,
@@ -135,7 +135,7 @@ def _closest(entry: str, library) -> str:
     ids."""
     import difflib
 
-    ids = list(library.entries.index)
+    ids = [e.id for e in library.entries]
     close = difflib.get_close_matches(entry, ids, n=3)
     if close:
         return f" (did you mean {', '.join(close)}?)"

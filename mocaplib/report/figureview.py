@@ -57,22 +57,18 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
     entry's class label; ``colours``: class -> CSS colour.
     """
-    df = library.entries
     entries = []
-    for entry_id, cls in zip(df.index, classes):
-        e = library.entry(entry_id)
-        n = int(e["fourier"]["n"]) + 1
-        drift = e["root_drift"]
+    for e, cls in zip(library.entries, classes):
+        n = e.fourier.n + 1
         entries.append({
-            "id": entry_id, "class": cls, "colour": colours.get(cls, "#808080"),
-            "mirror_of": e.get("mirror_of"), "T": float(e["T"]),
-            "a": _rounded([row[:n] for row in e["fourier"]["a"]]),
-            "b": _rounded([row[:n] for row in e["fourier"]["b"]]),
-            "drift": [float(drift[k]) for k in ("u_f_m_s", "u_l_m_s", "omega_rad_s")],
-            "velocity": [float(e[axis]) for axis in ("v", "omega", "v_l")]})
+            "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
+            "mirror_of": e.mirror_of, "T": float(e.T),
+            "a": _rounded(e.fourier.a[:, :n]), "b": _rounded(e.fourier.b[:, :n]),
+            "drift": [float(x) for x in e.root_drift.velocities],
+            "velocity": [float(x) for x in e.velocity]})
     space = None
     if cs is not None:
-        row = {entry_id: i for i, entry_id in enumerate(df.index)}
+        row = {e.id: i for i, e in enumerate(library.entries)}
         space = {"entries": [row[i] for i in cs.ids],
                  "points": cs.normalise(cs.points).tolist(),
                  "simplices": cs.tri.simplices.tolist(), "axes": list(cs.axes),

@@ -157,15 +157,14 @@ def _other_build(sidecar: dict, records: list[dict], library) -> str | None:
         return None if named == library.file_sha256 else (
             f"it names the library whose SHA-256 is {str(named)[:12]}…, this file's is "
             f"{library.file_sha256[:12]}…")
-    return _sidecar_mismatch(records, set(library.entries.index) - _series_images(library),
+    return _sidecar_mismatch(records, {e.id for e in library.entries} - _series_images(library),
                              complete=len(records) == len(sidecar["captures"]))
 
 
 def _series_images(library) -> set[str]:
     """Ids of the mirror images made from a stored series (``mocaplib mirror``), which no
     capture record of the sidecar names (those of ``build --mirror`` it does)."""
-    return {e["id"] for e in library.document["entries"]
-            if e.get("mirror_method") == "series"}
+    return {e.id for e in library.entries if e.mirror_method == "series"}
 
 
 def _record_problem(record) -> str | None:
@@ -239,13 +238,13 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     """Every number, table and figure of the report (values still unescaped).
 
     ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
-    df = library.entries
+    entries = library.entries
     warnings = [f"library check: {p}" for p in validate_library(library)]
     if checksum_status(library.document) == "absent":
         warnings.append(f"library check: {NO_CHECKSUM_NOTE}")
     env, env_note = _resolve_envelope(envelope)
-    label = _class_labeller(df, env_note["plan"])
-    classes_all = [label(i) for i in df.index]
+    label = _class_labeller(library, env_note["plan"])
+    classes_all = [label(e.id) for e in entries]
     cs, cs_error = None, None
     try:
         cs = ControlSpace.from_library(library, source=library_path.name)
@@ -255,13 +254,14 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
         warnings.append(f"control space: {exc}")
     context = {
         "title": library_path.name, "version": __version__,
-        "summary": _summary(library, df, diagnostics, cs),
+        "summary": _summary(library, diagnostics, cs),
         "warnings": warnings, "cs_error": cs_error, "envelope_note": env_note,
         "axes": [{"name": n, "unit": AXIS_UNITS[n], "label": AXIS_NAMES[n]} for n in
                  (cs.axes if cs else ("v", "omega", "v_l"))],
-        "entries": _entry_rows(df, label),
+        "entries": _entry_rows(entries, label),
         "coverage": None, "loo": None, "three_d": None, "viewer": None, "projections": None,
-        "planned": planned_status(env_note["plan"], env_note["plan_name"], df, diagnostics),
+        "planned": planned_status(env_note["plan"], env_note["plan_name"], entries,
+                                  diagnostics),
         "captures": _captures(diagnostics, library, jobs=jobs),
     }
     for capture in context["captures"]:
@@ -274,12 +274,14 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
 
 def _add_control_space(context, cs, env, library, label, classes_all, renderer) -> None:
     """Coverage, blending error and the control-space figures into ``context``."""
-    warnings, df = context["warnings"], library.entries
+    warnings = context["warnings"]
     if cs is None:
-        finite = df[["v", "omega", "v_l"]].notna().all(axis=1).to_numpy()
+        velocities = np.array([e.velocity for e in library.entries],
+                              dtype=np.float64).reshape(-1, 3)
+        finite = np.isfinite(velocities).all(axis=1)
         if finite.any():
             context["projections"] = _data_uri(figures.projections(
-                df.loc[finite, ["v", "omega", "v_l"]].to_numpy(float),
+                velocities[finite],
                 [c for c, ok in zip(classes_all, finite) if ok], ("v", "omega", "v_l"),
                 envelope=env.vertices))
         return
@@ -289,7 +291,7 @@ def _add_control_space(context, cs, env, library, label, classes_all, renderer) 
         holes=cov.samples[~cov.samples_inside],
         suggestions=cov.capture_next[list(cs.axes)].to_numpy()))
     context["coverage"] = _coverage_context(cov, cs, library, label)
-    if library.entries["mirrored"].any():
+    if any(e.mirrored for e in library.entries):
         context["coverage"]["without_mirrors"] = _coverage_without_mirrors(library, env)
     if context["coverage"]["close"]:
         warnings.append(_close_warning(context["coverage"]["close"]))
@@ -336,17 +338,16 @@ def _drive(path: str) -> str:
     return path[:2] if path[1:2] == ":" else "/"
 
 
-def _class_labeller(df, plan):
+def _class_labeller(library, plan):
     """Entry id -> its locomotion class; entries without one take their capture's class in the
     plan (matched by file stem), else "unknown"."""
     from_plan = {} if plan is None else dict(zip(plan["name"], plan["class"]))
 
     def label(entry_id):
-        cls = df.loc[entry_id, "locomotion_class"]
-        if isinstance(cls, str):
-            return cls
-        return from_plan.get(Path(str(df.loc[entry_id, "source_file"])).stem,
-                             figures.UNKNOWN_CLASS)
+        entry = library.entry(entry_id)
+        if isinstance(entry.locomotion_class, str):
+            return entry.locomotion_class
+        return from_plan.get(Path(entry.source_file).stem, figures.UNKNOWN_CLASS)
     return label
 
 
@@ -357,16 +358,16 @@ def _resolve_envelope(envelope) -> tuple[Envelope, dict]:
     return default_envelope(None if envelope is None else Path(envelope))
 
 
-def _summary(library, df, diagnostics, cs) -> dict:
+def _summary(library, diagnostics, cs) -> dict:
     captures = (diagnostics or {}).get("captures") or []
     failed = [c for c in captures if not c.get("ok", True)]
     return {
-        "entries": len(df), "in_control_space": len(cs.points) if cs else 0,
-        "captures": len(captures) if captures else len(set(df["source_file"])),
+        "entries": len(library), "in_control_space": len(cs.points) if cs else 0,
+        "captures": len(captures) if captures else len({e.source_file for e in library.entries}),
         "failed": len(failed), "fourier_n": library.n_harmonics,
         "fourier_cap": MAX_ORDER, "fourier_tolerance_deg": math.degrees(ANGLE_TOLERANCE),
         "fourier_noisy_tolerance_deg": math.degrees(MAX_ANGLE_TOLERANCE),
-        "at_cap": [str(i) for i in df.index[df["fourier_n"] >= MAX_ORDER]],
+        "at_cap": [e.id for e in library.entries if e.fourier.n >= MAX_ORDER],
         "built_with": _built_with(library.settings),
         "scale": [] if cs is None else [
             {"axis": a, "scale": s, "unit": AXIS_UNITS[a]} for a, s in zip(cs.axes, cs.scale)],
@@ -414,19 +415,21 @@ def _built_with(settings: dict) -> list[str]:
     return phrases
 
 
-def _entry_rows(df, label) -> list[dict]:
-    rows = []
-    for entry_id, r in df.iterrows():
-        rows.append({"id": entry_id, "class": label(entry_id),
-                     "source": r["source_file"], "chosen": bool(r["chosen"]),
-                     "mirror_of": r["mirror_of"] if r["mirrored"] else None,
-                     "v": r["v"], "omega_deg": math.degrees(r["omega"]) if r["omega"] == r["omega"]
-                     else None, "v_l": r["v_l"], "v_f": r["v_f"], "T": r["T"],
-                     "pattern": r["pattern_type"], "rms_mm": r["qc_marker_rms_m"] * 1000,
-                     "fourier_n": int(r["fourier_n"]), "at_cap": int(r["fourier_n"]) >= MAX_ORDER,
-                     "fourier_deg": math.degrees(r["qc_fourier_rms_rad"])
-                     if r["qc_fourier_rms_rad"] == r["qc_fourier_rms_rad"] else None})
-    return rows
+def _entry_rows(entries, label) -> list[dict]:
+    """The entries table: one row per :class:`~mocaplib.entry.LibraryEntry`, in degrees and
+    millimetres where a person reads; a value not computed is NaN (None for the degrees)."""
+    def number(value) -> float:
+        return math.nan if value is None else float(value)
+
+    def degrees(value) -> float | None:
+        return None if value is None or math.isnan(value) else math.degrees(value)
+
+    return [{"id": e.id, "class": label(e.id), "source": e.source_file, "chosen": e.chosen,
+             "mirror_of": e.mirror_of, "v": number(e.v), "omega_deg": degrees(e.omega),
+             "v_l": number(e.v_l), "v_f": number(e.v_f), "T": number(e.T),
+             "pattern": e.pattern.type, "rms_mm": number(e.qc.get("marker_rms_m")) * 1000,
+             "fourier_n": e.fourier.n, "at_cap": e.fourier.n >= MAX_ORDER,
+             "fourier_deg": degrees(e.qc.get("fourier_rms_rad"))} for e in entries]
 
 
 def _coverage_context(cov, cs, library, label) -> dict:
@@ -452,10 +455,9 @@ def _coverage_without_mirrors(library, env: Envelope) -> dict:
     """Coverage of ``env`` by the chosen entries that are not mirror images: ``fraction``
     (None when they have no control space, ``reason`` then says why), ``n_entries`` and
     ``n_mirrored`` (the chosen mirror images left out)."""
-    df = library.entries
-    chosen = df["chosen"].to_numpy(bool)
-    out = {"n_mirrored": int((chosen & df["mirrored"].to_numpy(bool)).sum()),
-           "n_entries": int((chosen & ~df["mirrored"].to_numpy(bool)).sum()),
+    chosen = [e for e in library.entries if e.chosen]
+    out = {"n_mirrored": sum(e.mirrored for e in chosen),
+           "n_entries": sum(not e.mirrored for e in chosen),
            "fraction": None, "reason": None}
     try:
         own = ControlSpace.from_library(library, mirrored=False)
@@ -722,7 +724,7 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
     if not diagnostics:
         return []
     out, drawn = [], []
-    known = set(library.entries.index)
+    known = {e.id for e in library.entries}
     for k, record in enumerate(diagnostics.get("captures") or []):
         cycles = [{"index": c.get("index", n), "start": c.get("start_s"),
                    "end": c.get("end_s"), "chosen": bool(c.get("chosen")),
@@ -790,7 +792,7 @@ def _reconstructions(record: dict, library, known: set) -> dict:
         entry_id = cycle.get("entry_id")
         if entry_id not in known:
             continue
-        T = library.entries.loc[entry_id, "T"]
+        T = library.entry(entry_id).T
         t = np.linspace(0.0, T, 120)
         q = library.angles(entry_id, t)
         for dof in figures.CAPTURE_DOFS:

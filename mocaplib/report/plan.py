@@ -100,16 +100,17 @@ def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:
     return env, {"text": how, "plan": commands, "plan_name": Path(plan).name, "default": found}
 
 
-def planned_status(plan: pd.DataFrame | None, plan_name: str | None, entries: pd.DataFrame,
+def planned_status(plan: pd.DataFrame | None, plan_name: str | None, entries: list,
                    diagnostics: dict | None) -> dict | None:
     """Planned captures missing from the library or failed in the build; None without a plan.
 
     ``matched`` counts the planned captures found by file stem in the library or among the
     failed captures: 0 means the library's captures are not named after this plan, and the
-    missing ones are not listed (they would be the whole plan, not the lab's omissions)."""
+    missing ones are not listed (they would be the whole plan, not the lab's omissions).
+    ``entries``: the library's :class:`~mocaplib.entry.LibraryEntry` objects."""
     if plan is None:
         return None
-    in_library = {Path(s).stem for s in entries["source_file"]}
+    in_library = {Path(e.source_file).stem for e in entries}
     failed = {}
     for record in (diagnostics or {}).get("captures") or []:
         if not record.get("ok", True):
