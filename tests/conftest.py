@@ -62,6 +62,7 @@ SLOW = {
     ("test_report.py", "test_report_in_headless_chromium"),
     ("test_lab_agreement.py", "test_every_target_is_checked"),
     ("test_sessions.py", "test_the_shared_files_with_two_statics_build_without_failure"),
+    ("test_synth_samples.py", "test_fitted_angles_meet_the_targets_against_the_independent_body"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}
