@@ -7,7 +7,7 @@ import pytest
 
 from mocaplib.errors import EventError
 from mocaplib.events import (GaitEvent, capture_events, detect_events, event_differences, feet_of,
-                             foot_events)
+                             foot_events, running)
 
 from gait_model import foot
 
@@ -64,6 +64,18 @@ def test_direction_and_floor_invariance():
     assert [e.kind for e in moved] == [e.kind for e in base]
     # the detector uses only rotation-invariant features: same times up to rounding
     np.testing.assert_allclose([e.time_s for e in moved], [e.time_s for e in base], atol=1e-6)
+
+
+@pytest.mark.parametrize("gait, runs", [("run, raised belt", True), ("normal walk", False),
+                                         ("fast walk", False), ("on the spot", False)])
+def test_a_flight_phase_makes_a_run(gait, runs):
+    # both feet off the floor at once (a run's flight phase) or never (walking: a foot is
+    # always down); the default toe-off takes the lift in a run
+    settings = GAITS[gait]
+    other = dict(settings, offset=0.5 * settings.get("period", 1.1), seed=1)
+    feet = {"left": foot(TIME, noise=0.0007, **settings)[:2],
+            "right": foot(TIME, noise=0.0007, **other)[:2]}
+    assert running(feet, RATE, source="run.c3d") is runs
 
 
 def test_tilted_floor():
