@@ -15,7 +15,7 @@ from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth import generate_plan, load_plan, min_duration
 
 PLAN = REPO / "protocols" / "paper_plan.toml"
-#: One capture of each class that moves differently (regenerating all 68 takes ~15 s).
+#: One capture of each class that moves differently (regenerating all 68 takes ~30 s).
 REGENERATED = ["walk_curve_r1_left_fast", "side_right_normal", "side_left_curve_right_r2",
                "run_3p5", "rest"]
 
