@@ -15,7 +15,7 @@ Usage (from the repository root)::
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
 ``--static`` / ``--static-pose`` calibrate as the quick start's main command does (default:
 calibrate from each capture, as ``mocaplib build`` without ``--static``); cycles are cut at the
-default toe-offs, not at the main command's ``--toe-off lift``. Prints Markdown tables;
+default toe-offs. Prints Markdown tables;
 ``--markdown PATH`` also writes them into a results page (:mod:`markdown_results`).
 """
 

@@ -4,7 +4,7 @@
                                   [--markdown PATH] [--jobs N]
 
 Builds two libraries with every complete cycle that passes QC (``all_cycles``): the synthetic
-samples calibrated on their session's static (``rest.c3d``, neutral pose, ``lift`` toe-offs, as
+samples calibrated on their session's static (``rest.c3d``, neutral pose, as
 the quick start, without its forward reference, which turns only the heading) and the real
 walks of the shared folder (default settings). Each capture is fitted a second time through the
 same public stages (``fit_capture``, ``capture_events``, ``motion_cycles``, ``cycle_shape``) for
@@ -255,7 +255,7 @@ def main() -> int:
     started = time.perf_counter()
     frames = []
     synthetic = BuildSettings(static=str(args.samples / "rest.c3d"), static_pose="neutral",
-                              toe_off="lift", all_cycles=True)
+                              all_cycles=True)
     samples = sorted(p for p in args.samples.glob("*.c3d") if p.stem != "rest")
     library = build(samples, synthetic, jobs=args.jobs, progress=False).library
     captured = captured_cycles(samples, synthetic)

@@ -1,7 +1,7 @@
 """End-to-end accuracy of v̂, ω̂, v̂_l against the synthetic truth, per locomotion type.
 
     python benchmarks/velocity_accuracy.py [LIBRARY.json] [--samples sample_c3d]
-                                           [--static FILE] [--toe-off lift] [--markdown PATH]
+                                           [--static FILE] [--toe-off DEF] [--markdown PATH]
     python benchmarks/velocity_accuracy.py --placement-draws 20 [--capture run_3p5]
 
 Builds the library from ``--samples`` (``mocaplib build ... --jobs 2``) unless a library file
@@ -12,7 +12,7 @@ issue's targets: v̂ within 2 % (0.02 m/s where the truth is near 0: under 1 m/s
 0.02 rad/s, v̂_l within 0.02 m/s. Exit code 1 when a target is missed. With ``--static``
 (neutral) the build also gets ``--forward-reference SAMPLES/walk_straight_normal.c3d``
 (``--forward-reference NAME``, or ``none``); ``--toe-off`` is passed to the build (the quick
-start's library: ``--static sample_c3d/rest.c3d --toe-off lift``). Prints Markdown tables
+start's library: ``--static sample_c3d/rest.c3d``). Prints Markdown tables
 (``--markdown PATH`` also writes them into a results page, :mod:`markdown_results`).
 
 ``--placement-draws N``: the static calibration's heading error against v̂_l. The capture
@@ -23,7 +23,7 @@ Winter's cutoff), and per draw it prints δ, the mean heading error of the fitte
 line on the static itself, and the v̂_l error of the capture's true cycles (the pipeline's
 pattern and velocity stages on the fitted shoulder centres); then the same with the heading
 offset the forward reference (``--forward-reference``, regenerated with the same placement
-and written as C3D, ``lift`` toe-offs as on the synthetic feet) measures through
+and written as C3D) measures through
 :func:`mocaplib.pipeline.forward_offsets`. Last, the sd of δ, its correlation with the v̂_l
 error, and how many draws miss with and without the reference.
 """
@@ -146,7 +146,7 @@ def placement_draws(plan_path: Path, capture_name: str, draws: int, reference: s
             static_path, _ = write_capture(rest, tmp, "rest")
             reference_path, _ = write_capture(generate(reference, seed), tmp, reference)
             offset, = forward_offsets(BuildSettings(
-                static=str(static_path), static_pose="neutral", toe_off="lift",
+                static=str(static_path), static_pose="neutral",
                 forward_reference=str(reference_path)))
             trial, _ = filter_trial(capture.trial, cutoff="auto")
             model = calibrate(trial, static=rest.trial, static_pose="neutral")

@@ -23,38 +23,36 @@ running, overground or on a treadmill:
    just before the swing (O'Connor et al. 2007, *Gait & Posture* 25:469). Heel-strike: where the
    speed of the point that touches first (heel, or toe when landing toe-first or walking
    backwards) stops falling: the knot of a two-line fit to its speed after the swing.
-5. **Refinement.** Both times (toe-off with the default definition below) move to the *kink*
-   of the unfiltered positions: the knot of a curve quadratic on each side and continuous at
-   the knot (velocity and acceleration may jump there), fitted on a window around the coarse
-   time and re-centred until it stays put.
-   Sub-frame, and free of the low-pass filter's smearing (2-3 frames). A toe-off is the kink
-   of heel and toe together in 3-D: the foot leaving the floor as one body. A heel-strike is
-   the median of three kinks: of the point that touched first in 3-D, of its height alone, and
-   of heel and toe together; each alone is thrown off now and then (a landing foot rocks its
-   markers onto the sole a moment later), their median is not. Measured against the lab's
-   Foot Off (docs/results/event_accuracy.md), that median placed toe-offs where the toe marker
-   rises fastest, up to 35 ms before a Foot Off; heel and toe together stay within 16 ms of
-   every left one.
+5. **Refinement.** A heel-strike moves to the *kink* of the unfiltered positions: the knot of
+   a curve quadratic on each side and continuous at the knot (velocity and acceleration may
+   jump there), fitted on a window around the coarse time and re-centred until it stays put;
+   sub-frame, and free of the low-pass filter's smearing (2-3 frames). It is the median of
+   three kinks: of the point that touched first in 3-D, of its height alone, and of heel and
+   toe together; each alone is thrown off now and then (a landing foot rocks its markers onto
+   the sole a moment later), their median is not. A toe-off is defined below.
 
-**Two definitions of toe-off** (``toe_off=``). A real foot leaves the floor in two steps: the
-forefoot (where the toe marker sits, on the metatarsal heads) lifts first, the toes ~40 ms later
-(toe roll); a force plate's Foot Off is the second. A rigid foot (the synthetic walker's, a
-stiff shoe's) leaves in one step, its velocity jumping upward at the lift.
+**Toe-off** (``toe_off=``). A walking foot leaves the floor rolling: the heel rises about the
+metatarsal heads, then the forefoot (where the toe marker sits) lifts while the toes turn about
+their tips, and the tips leave ~40-60 ms later, smoothly: a force plate's Foot Off is not a
+kinematic step of the markers. As the toes leave, the heel's rise slows while the forefoot's
+quickens, so the upward velocity of a point on the foot peaks then; the further forward the
+point, the later its peak.
 
-* ``"foot_velocity"`` (default): the kink within ``refine_s/2`` of the velocity peak, which
-  stays on the toes' release: within a few ms of force-plate Foot Off on the real files
-  (median |difference| 6 ms, left toe-offs at most 16 ms). On the synthetic walker, whose
-  truth is the instant its rigid foot lifts, 90 % of toe-offs within 1 frame, 96 % within 2
-  (the misses are marker noise; docs/results/event_accuracy.md).
+* ``"foot_velocity"`` (default): in walking, the upward-velocity peak (sub-frame by a parabola)
+  of the point :data:`TOE_OFF_WEIGHT` of the way from the other marker to the one that left the
+  floor last (the toe marker, or the heel walking backwards); O'Connor et al.'s foot velocity
+  algorithm takes the midpoint, whose peak comes ~7 ms before the lab's Foot Off and the
+  synthetic toes' release alike. In running (a capture whose feet are both off the floor at
+  once, a flight phase: :func:`running`), where the swing foot keeps accelerating upwards after
+  the toes leave and those peaks come late, the toe-off is the ``"lift"`` below, the
+  forefoot's fastest upswing at the release (Handsaker et al. 2016 time running toe-offs on
+  forefoot accelerations too). Measured (docs/results/event_accuracy.md): against the lab's
+  Foot Off, and on the synthetic toe-offs (the toes' tips leaving the floor).
 * ``"lift"``: where the low-passed upward velocity of the point that left last rises fastest,
-  from 0.1 s before to 0.05 s after the velocity peak. A rigid foot's velocity step is an
-  acceleration spike, which the zero-lag low-pass spreads symmetrically, so the peak stays on
-  the lift: 99.7 % of the synthetic toe-offs within 1 frame, every locomotion type >= 97.8 %.
-  On real feet it is the forefoot's fastest upswing, ~18 ms before Foot Off.
-
-No one definition serves both kinds of foot, and the toe marker's path does not tell them apart
-under marker noise (docs/results/event_accuracy.md). Real captures are what the product
-measures, hence the default.
+  from 0.1 s before to 0.05 s after the foot centre's velocity peak: the lift-off of a foot
+  that leaves the floor in one step (a rigid or stiff-soled foot, a running forefoot); on
+  walking feet that roll over their toes it is the forefoot's fastest upswing, ~18 ms before
+  Foot Off.
 
 Units: metres, seconds, Z up; times are seconds from the capture's first frame (frame 0).
 """
@@ -74,6 +72,11 @@ from .trial import check_gait_rate
 SIDES = ("left", "right")
 #: Toe-off definitions, see the module docstring.
 TOE_OFF_DEFINITIONS = ("foot_velocity", "lift")
+#: Where the default toe-off's point lies between a foot's two markers: this share of the way
+#: from the one that left the floor first to the one that left last (0.5 peaks ~7 ms before
+#: Foot Off on the lab files and the samples alike, 0.7 ~10 ms after it on the lab files;
+#: docs/results/event_accuracy.md).
+TOE_OFF_WEIGHT = 0.6
 #: Median heel-to-toe marker distance (m) a foot can have; outside it the units are wrong.
 PLAUSIBLE_FOOT = (0.03, 1.0)
 
@@ -106,14 +109,15 @@ class GaitEvent:
 class EventSettings:
     """The detector's settings (module docstring), each with its default.
 
-    toe_off : ``"foot_velocity"`` (force-plate-like, default) or ``"lift"`` (a rigid foot's
-        lift-off).
+    toe_off : ``"foot_velocity"`` (the upward-velocity peak of a point of the foot near the
+        marker that leaves last; in running the lift; default) or ``"lift"`` (a foot leaving in one step: the forefoot's fastest
+        upswing).
     cutoff_hz : the detection's low-pass cutoff (Hz, -3 dB point).
     min_clearance, contact_speed : a foot is in contact when its lowest point is within
         ``min_clearance`` of the floor (m) and its centre moves slower than ``contact_speed``
         relative to the ground (m/s).
     min_swing_s : shortest swing (s).
-    refine_s : half-width of the window the kinks are fitted on (s).
+    refine_s : half-width of the window the heel-strike kinks are fitted on (s).
     max_gap_s : longest gap filled linearly (s).
     """
 
@@ -243,6 +247,7 @@ def _events(feet: list[_Foot], measured, rate: float, config: EventSettings,
             source=None) -> list[GaitEvent]:
     """Every foot's events, sorted by time; ``measured`` as for :func:`detect_events`."""
     events: list[GaitEvent] = []
+    runs = _running(feet, rate, config)
     for foot in feet:
         seen = foot.given
         if measured is not None:
@@ -251,20 +256,53 @@ def _events(feet: list[_Foot], measured, rate: float, config: EventSettings,
                 raise EventError(f"{foot.side} measured mask has shape {mask.shape}, the foot "
                                  f"{seen.shape}", path=source)
             seen = seen & mask
-        events += _foot_events(foot, seen, rate, config)
+        events += _foot_events(foot, seen, rate, config, lift=runs or config.toe_off == "lift")
     return sorted(events, key=lambda e: (e.time_s, e.side))
 
 
-def _foot_events(foot: _Foot, measured: np.ndarray, rate: float,
-                 config: EventSettings) -> list[GaitEvent]:
-    """Steps 3-5 of the module docstring on one prepared foot; ``measured`` (F,) bool."""
+#: Shortest flight phase (s, both feet off the floor) that makes a capture a run.
+MIN_FLIGHT_S = 0.03
+
+
+def _contact(foot: _Foot, config: EventSettings) -> np.ndarray:
+    """The frames (F,) bool a prepared foot is in contact (step 3 of the module docstring)."""
+    centre_speed = np.linalg.norm(foot.velocity.mean(axis=0) - foot.ground, axis=1)
+    with np.errstate(invalid="ignore"):
+        return (foot.heights.min(axis=0) < config.min_clearance) & (
+            centre_speed < config.contact_speed)
+
+
+def _running(feet: list[_Foot], rate: float, config: EventSettings) -> bool:
+    """Whether both feet are off the floor at once for :data:`MIN_FLIGHT_S` or longer (a
+    run's flight phase: every point of both feet higher than ``min_clearance``; walking always
+    has a foot down)."""
+    if len(feet) < 2:
+        return False
+    with np.errstate(invalid="ignore"):
+        airborne = np.logical_and.reduce([f.heights.min(axis=0) > config.min_clearance
+                                          for f in feet])
+    runs = valid_runs(airborne)
+    return bool(len(runs)) and bool(np.max(runs[:, 1] - runs[:, 0]) >= MIN_FLIGHT_S * rate)
+
+
+def running(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *,
+            source: str | os.PathLike | None = None, **settings) -> bool:
+    """Whether a capture's feet (as for :func:`detect_events`) run: both off the floor at once
+    for :data:`MIN_FLIGHT_S` or longer; the default toe-off definition takes the ``lift`` then
+    (module docstring)."""
+    config = EventSettings(**settings)
+    return _running(_prepared_feet(feet, rate, config, source), rate, config)
+
+
+def _foot_events(foot: _Foot, measured: np.ndarray, rate: float, config: EventSettings, *,
+                 lift: bool) -> list[GaitEvent]:
+    """Steps 3-5 of the module docstring on one prepared foot; ``measured`` (F,) bool;
+    ``lift``: toe-offs by the lift definition, else the default's (module docstring)."""
     raw, velocity, heights = foot.raw, foot.velocity, foot.heights
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
     speeds = np.linalg.norm(velocity - foot.ground, axis=2)                     # (2, F)
-    centre_speed = np.linalg.norm(centre_velocity - foot.ground, axis=1)
-    with np.errstate(invalid="ignore"):
-        contact = (clearance < config.min_clearance) & (centre_speed < config.contact_speed)
+    contact = _contact(foot, config)
 
     supported = np.isfinite(raw).all(axis=(0, 2))
     events: list[GaitEvent] = []
@@ -276,11 +314,16 @@ def _foot_events(foot: _Foot, measured: np.ndarray, rate: float,
         after = swings[n + 1][0] if n + 1 < len(swings) else len(clearance)
         top = start + int(np.nanargmax(clearance[start:end]))
         if start > 0 and np.isfinite(clearance[start - 1]):
-            t = _peak_time(centre_velocity[:, 2], max(before, start - window), top + 1)
+            last = int(np.argmin(heights[:, start]))  # the point that left last
+            lo = max(before, start - window)
+            if lift:
+                t = _peak_time(centre_velocity[:, 2], lo, top + 1)
+                t = None if t is None else _lift_time(velocity[last, :, 2], t, rate)
+            else:
+                push = (TOE_OFF_WEIGHT * velocity[last, :, 2]
+                        + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last, :, 2])
+                t = _peak_time(push, lo, top + 1)
             if t is not None:
-                last = int(np.argmin(heights[:, start]))  # the point that left last
-                t = (_lift_time(velocity[last, :, 2], t, rate) if config.toe_off == "lift" else
-                     _refined(raw.transpose(1, 0, 2), t, half))
                 if _supported(supported, t):
                     events.append(_event(foot.side, "toe_off", t / rate, measured, rate))
         if end < len(clearance) and np.isfinite(clearance[end]):

@@ -64,6 +64,7 @@ SLOW = {
     ("test_filtering.py", "test_automatic_cutoffs_of_the_real_files_are_those_of_the_filter_applied"),
     ("test_filtering.py", "test_automatic_cutoffs_of_the_samples_are_those_of_the_filter_applied"),
     ("test_sessions.py", "test_the_shared_files_with_two_statics_build_without_failure"),
+    ("test_synth_samples.py", "test_fitted_angles_meet_the_targets_against_the_independent_body"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

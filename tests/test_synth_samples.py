@@ -11,10 +11,11 @@ import pytest
 from conftest import REPO, SAMPLES
 from mocaplib.cli import main
 from mocaplib.errors import SynthError
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth import generate_plan, load_plan, min_duration
 
 PLAN = REPO / "protocols" / "paper_plan.toml"
-#: One capture of each class that moves differently (regenerating all 68 takes ~15 s).
+#: One capture of each class that moves differently (regenerating all 68 takes ~30 s).
 REGENERATED = ["walk_curve_r1_left_fast", "side_right_normal", "side_left_curve_right_r2",
                "run_3p5", "rest"]
 
@@ -173,3 +174,54 @@ def test_synth_draws_no_progress_bar_into_a_pipe(tmp_path, capsys):
     assert main(["synth", str(PLAN), "-o", str(tmp_path), "--only", "rest"]) == 0
     out, err = capsys.readouterr()
     assert out == f"wrote 1 captures to {tmp_path}\n" and err == ""
+
+
+#: The issue's joint-angle targets against the independent body's truth, every capture (RMS,
+#: degrees): a DOF named for a flexion (hip, knee, ankle, trunk, neck, shoulder, elbow) 2°,
+#: any other rotation 4°. DOFs that miss them, with the worst capture's figure measured on the
+#: shipped samples (static-calibrated, markers low-passed: the quick start's settings) and the
+#: modelling difference behind it (docs/results/fit_accuracy.md, "Against the targets").
+MISSED_DOFS = {
+    "shoulder_flexion_r": "2.04° (run_2p5)", "shoulder_flexion_l": "2.06° (run_2p5)",
+    "elbow_flexion_r": "8.65° (run_3p0)", "elbow_flexion_l": "8.01° (run_3p5)",
+    "hip_flexion_l": "2.09° (run_3p5)",
+    "knee_flexion_r": "4.12° (run_3p5)", "knee_flexion_l": "4.26° (diag_right_150_fast)",
+    "ankle_dorsiflexion_r": "2.52° (diag_left_60_fast)",
+    "ankle_dorsiflexion_l": "3.02° (diag_right_60_fast)",
+    "hip_rotation_r": "6.65° (side_right_curve_left_r1)",
+    "hip_rotation_l": "6.29° (side_right_curve_right_r1)",
+    "ankle_inversion_r": "4.68° (diag_left_150_fast)",
+    "ankle_inversion_l": "4.60° (diag_right_150_fast)",
+}
+
+
+@pytest.fixture(scope="module")
+def sample_angle_errors():
+    """Each shipped capture's RMS joint-angle error (deg) per DOF against its truth: calibrated
+    on the session's static (neutral pose), markers low-passed at Winter's cutoff."""
+    from mocaplib.calibration import calibrate
+    from mocaplib.filtering import filter_trial
+    from mocaplib.ik import fit
+    from mocaplib.io.c3d import read_c3d
+
+    static = read_c3d(SAMPLES / "rest.c3d")
+    out = {}
+    for path in sorted(SAMPLES.glob("*.c3d")):
+        truth = json.loads(path.with_suffix(".truth.json").read_text())
+        trial, _ = filter_trial(read_c3d(path), cutoff="auto")
+        motion = fit(trial, calibrate(trial, static=static, static_pose="neutral"))
+        error = motion.q - np.asarray(truth["angles"]["values"])
+        out[path.stem] = np.degrees(np.sqrt((error ** 2).mean(axis=0)))
+    return out
+
+
+@pytest.mark.usefixtures("sample_dir")
+@pytest.mark.parametrize("dof", [
+    pytest.param(name, marks=pytest.mark.xfail(
+        strict=True, reason=f"measured {MISSED_DOFS[name]}") if name in MISSED_DOFS else ())
+    for name in DOF_NAMES if not name.startswith("pelvis_t")])
+def test_fitted_angles_meet_the_targets_against_the_independent_body(sample_angle_errors, dof):
+    j = DOF_NAMES.index(dof)
+    target = 2.0 if "flexion" in dof else 4.0
+    worst = max(sample_angle_errors, key=lambda name: sample_angle_errors[name][j])
+    assert sample_angle_errors[worst][j] <= target, (worst, sample_angle_errors[worst][j])

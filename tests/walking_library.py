@@ -42,7 +42,7 @@ def synthetic_walks():
     if not paths:
         pytest.skip(f"no synthetic walks in {SAMPLES}")
     return _library(paths, BuildSettings(static=str(SAMPLES / "rest.c3d"),
-                                         static_pose="neutral", toe_off="lift"))
+                                         static_pose="neutral"))
 
 
 @lru_cache(maxsize=1)

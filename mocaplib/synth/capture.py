@@ -1,6 +1,7 @@
 """One synthetic capture: markers as a :class:`~mocaplib.trial.Trial` plus its exact truth.
 
-:func:`synthesize_capture` runs the generator (command → gait → body → skin markers);
+:func:`synthesize_capture` runs the generator (command → gait → body → skin markers) and
+expresses the body's motion in the fit's conventions (:mod:`.truth`);
 :func:`write_capture` writes ``<name>.c3d`` (with the true Foot Strike / Foot Off events in the
 EVENT group) and ``<name>.truth.json``. Everything is a function of the arguments and the seed:
 the same call writes byte-identical files.
@@ -14,8 +15,8 @@ Per-cycle truth (shoulder midpoint, the paper's definitions, signs of DESIGN.md)
     along the motion; v̂_l = mean of v̂ sin(θ_T − θ_S) and v̂_f = mean of v̂ cos(θ_T − θ_S).
     Because the body's oscillations are periodic in the commanded frame and the pelvis is
     placed so that M averages to the commanded point, v̂ and ω̂ equal the command and v̂_l, v̂_f
-    differ from it only by the trunk's yaw oscillation (second order: at most 0.7 % of v̂ over
-    the paper plan, when running).
+    differ from it only by the trunk's yaw oscillation (second order: at most 0.8 % of v̂ over
+    the paper plan).
 """
 
 from __future__ import annotations
@@ -32,14 +33,24 @@ from ..io.atomic import atomic_write_text
 from ..io.c3d_write import write_c3d
 from ..io.jsonvalues import json_values
 from ..protocols import load_protocol
-from ..skeleton import DOF_NAMES, Skeleton
+from ..skeleton import DOF_NAMES
 from ..trial import Event, Trial
-from .body import BodyMotion, body_motion
+from .body import BodyMotion, body_motion, shoulder_path
+from .bones import Body, synthetic_body
 from .command import Command, world_to_frame
 from .gait import LEAD_S, GaitParameters, gait_parameters
 from .markers import MarkerSettings, skin_markers
+from .truth import extra_angles, true_angles
 
-TRUTH_FORMAT = "mocaplib-synth-truth/1"
+TRUTH_FORMAT = "mocaplib-synth-truth/2"
+#: Earlier truth formats :func:`mocaplib.synth.plan.check_targets` still recognises as synth
+#: outputs (format 1: the angles were the generator's own, on the fitting skeleton).
+TRUTH_FORMATS = ("mocaplib-synth-truth/1", TRUTH_FORMAT)
+#: What the truth's angles are, written into every truth file.
+ANGLES_MAPPING = ("the fit's anatomical definitions applied to the generator's true landmarks "
+                  "(no marker error) in its neutral pose, the frames carried by its bones, "
+                  "each joint's rotation decomposed into the fitting skeleton's DOFs "
+                  "(mocaplib.synth.truth); what those DOFs cannot hold is in 'extras'")
 #: Decimals kept in the truth file: 1 µm for lengths, 1 µrad for angles.
 TRUTH_DECIMALS = 6
 #: Steady cycles every moving capture must hold.
@@ -49,7 +60,7 @@ _SIDE_NAME = {"l": "Left", "r": "Right"}
 
 @dataclass(frozen=True)
 class Subject:
-    """Anthropometry: standing height (m; segment lengths by Skeleton.from_height), mass (kg)."""
+    """Anthropometry: standing height (m; the generator's body scaled to it), mass (kg)."""
 
     height: float = 1.75
     mass: float = 70.0
@@ -63,12 +74,12 @@ class Subject:
 @dataclass
 class SynthCapture:
     """A generated capture: the trial (markers, labels, rate, events), the truth dictionary
-    written to the sidecar, and the generator's body and skeleton for inspection."""
+    written to the sidecar, and the generator's motion and body for inspection."""
 
     trial: Trial
     truth: dict
-    body: BodyMotion
-    skeleton: Skeleton
+    motion: BodyMotion
+    body: Body
     params: GaitParameters
     command: Command
 
@@ -103,24 +114,25 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
     :mod:`~mocaplib.synth.markers`); None draws a new placement from ``seed``. The protocol's
     ``static_only`` markers are left out unless the subject stands (``command.gait``)."""
     check_timing(command, duration=duration, rate=rate, subject=subject)
-    skeleton = Skeleton.from_height(subject.height)
+    body = synthetic_body(subject.height)
     params = gait_parameters(command, subject.height)
     prot = load_protocol(protocol)
     t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
     t_mid = float(t[-1]) / 2
-    body = body_motion(command, params, skeleton, subject.height, t, t_mid=t_mid)
+    motion = body_motion(command, params, body, t, t_mid=t_mid)
     rng = np.random.default_rng(seed)
     session = None if session_seed is None else np.random.default_rng(seed=session_seed)
-    xyz, labels, record = skin_markers(body, skeleton, prot, subject.height, markers, rng,
-                                       rate=rate, mass=subject.mass, placement_rng=session)
+    xyz, labels, record = skin_markers(motion, body, prot, markers, rng, rate=rate,
+                                       mass=subject.mass, placement_rng=session)
     if command.gait != "stand":          # markers put on for the static trial are taken off
         keep = [i for i, m in enumerate(prot.markers) if not m.static_only]
         xyz, labels = xyz[:, keep], [labels[i] for i in keep]
-    events = _events(body, t[-1])
+    events = _events(motion, t[-1])
     trial = Trial(xyz, labels, rate, events=[Event(_SIDE_NAME[s], lab, tm)
                                              for s, lab, tm in events], source=name)
-    cycles = [_cycle_truth(command, params, skeleton, subject.height, start, t_mid)
+    cycles = [_cycle_truth(command, params, body, start, t_mid)
               for start in _cycle_starts(params, t[-1])]
+    extras = extra_angles(body, motion.pose)
     truth = {
         "format": TRUTH_FORMAT,
         "name": name,
@@ -144,20 +156,22 @@ def synthesize_capture(command: Command, /, *, duration: float, seed: int,
                     "frame": int(round(tm * rate))}
                    for s, lab, tm in events],
         "cycles": cycles,
-        "segment_lengths": skeleton.lengths,
         "angles": {"dof_names": list(DOF_NAMES),
                    "units": "rad; pelvis_tx/ty/tz in m",
-                   "mapping": "exact values of the fitting skeleton's DOFs; the generator's toe "
-                              "joint, wrists and shoulder girdle are not in them",
-                   "values": body.q},
+                   "mapping": ANGLES_MAPPING,
+                   "values": true_angles(body, motion.pose)},
+        "extras": {"names": list(extras), "units": "rad",
+                   "values": np.column_stack(list(extras.values()))},
+        "shoulders": {"units": "m", "order": "left, right glenohumeral centre",
+                      "values": motion.shoulders},
     }
-    return SynthCapture(trial, truth, body, skeleton, params, command)
+    return SynthCapture(trial, truth, motion, body, params, command)
 
 
-def _events(body: BodyMotion, t_end: float) -> list[tuple[str, str, float]]:
+def _events(motion: BodyMotion, t_end: float) -> list[tuple[str, str, float]]:
     """(side, label, time) of every heel strike and toe-off inside [0, t_end]."""
     out = []
-    for side, fp in body.footprints.items():
+    for side, fp in motion.footprints.items():
         for label, times in (("Foot Strike", fp.heel_strike), ("Foot Off", fp.toe_off)):
             out += [(side, label, float(x)) for x in times if 0.0 <= x <= t_end]
     return sorted(out, key=lambda e: (e[2], e[0], e[1]))
@@ -170,17 +184,19 @@ def _cycle_starts(params: GaitParameters, t_end: float) -> list[float]:
     return [float(s) for s in starts if s + params.stride <= t_end + 1e-9]
 
 
-def true_cycle_velocities(body: BodyMotion, command: Command) -> dict:
-    """The paper's per-cycle v̂, ω̂, v̂_l, v̂_f and pattern from a body sampled evenly over one
-    cycle, endpoints included (see the module docstring)."""
-    t = body.time
+def true_cycle_velocities(t: np.ndarray, shoulders: np.ndarray, reference: tuple,
+                          command: Command) -> dict:
+    """The paper's per-cycle v̂, ω̂, v̂_l, v̂_f and pattern from the glenohumeral centres
+    (F, 2, ≥2) (left, right; metres) and the commanded frame ``reference`` ((F, 2) m, (F,)
+    rad) sampled at ``t`` (F,) s, evenly over one cycle, endpoints included (see the module
+    docstring)."""
     period = t[-1] - t[0]
-    left, right = body.shoulders[:, 0, :2], body.shoulders[:, 1, :2]
+    left, right = shoulders[:, 0, :2], shoulders[:, 1, :2]
     mid = 0.5 * (left + right)
     lr = right - left
     theta_s = np.unwrap(np.arctan2(lr[:, 1], lr[:, 0]) + np.pi / 2)
     omega = (theta_s[-1] - theta_s[0]) / period
-    xy, theta = body.reference
+    xy, theta = reference
     dbar = world_to_frame(xy, theta, mid)[:-1].mean(axis=0)
     w = command.omega
     u = np.array([command.v_f - w * dbar[1], command.v_l + w * dbar[0]])
@@ -203,11 +219,11 @@ def true_cycle_velocities(body: BodyMotion, command: Command) -> dict:
     return {"v": v, "omega": float(omega), "v_l": v_l, "v_f": v_f, "pattern": pattern}
 
 
-def _cycle_truth(command, params, skeleton, height, start, t_mid) -> dict:
+def _cycle_truth(command, params, body, start, t_mid) -> dict:
     grid = start + params.stride * np.arange(401) / 400
-    body = body_motion(command, params, skeleton, height, grid, t_mid=t_mid)
+    shoulders, reference = shoulder_path(command, params, body, grid, t_mid=t_mid)
     return {"start_s": start, "end_s": start + params.stride, "T": params.stride,
-            **true_cycle_velocities(body, command)}
+            **true_cycle_velocities(grid, shoulders, reference, command)}
 
 
 def write_capture(capture: SynthCapture, directory: str | os.PathLike, name: str, *,

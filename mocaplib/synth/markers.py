@@ -1,26 +1,28 @@
 """Skin markers on the synthetic body, with the artefacts of a real capture.
 
-Each protocol marker sits at its landmark's nominal offset (``Protocol.nominal_offsets``,
-scaled by height) on its segment, then, each switchable through :class:`MarkerSettings`:
+Each protocol marker sits where the generator's body (:mod:`.bones`, ``synthetic_body.toml``)
+puts its landmark's marker, on its own bone (the fit's landmark catalogue is not read), then,
+each switchable through :class:`MarkerSettings`:
 
 placement
-    An offset from nominal, normal with ``placement_sd`` (default 3 mm) per axis, clipped at
-    2.5 sd, in the segment frame: technicians never put markers exactly on the atlas. In a real
-    session the markers stay on the subject between captures, so the offset belongs to the
-    session: it is drawn from the session's own random stream (``placement_rng``, seeded by a
-    plan's ``session_seed``) and is the same in every capture of that session. Without a
+    An offset from there, normal with ``placement_sd`` (default 3 mm) per axis, clipped at
+    2.5 sd, in the bone's frame: technicians never put markers exactly on the landmark. In a
+    real session the markers stay on the subject between captures, so the offset belongs to
+    the session: it is drawn from the session's own random stream (``placement_rng``, seeded
+    by a plan's ``session_seed``) and is the same in every capture of that session. Without a
     session stream it is drawn from the capture's (a new placement per capture).
 soft tissue
-    A displacement in the segment frame that follows the nearby joints (a thigh marker moves
+    A displacement in the bone's frame that follows the nearby joints (a thigh marker moves
     with hip and knee flexion...): ``gain x sum_j c_j (q_j - mean q_j)`` with random unit-scale
-    vectors ``c_j`` fixed per capture and gains of 1-12 mm/rad by segment (thigh largest, head
+    vectors ``c_j`` fixed per capture and gains of 1-12 mm/rad by bone (thigh largest, head
     least), i.e. several millimetres, as measured by bone-pin studies (Leardini et al. 2005).
     ``soft_tissue`` scales the gains (default 1; 0 turns it off); they also scale with the
     subject's body-mass index relative to 22.9 kg/m² (more soft tissue, more artefact).
-richer body
-    Markers feel the joints the fitting skeleton lacks: markers on the toes (past the
-    metatarsal heads: hallux, 2nd toe) the toe joint, the finger marker the wrist, arm and
-    acromion markers the shoulder girdle.
+the body's own joints
+    Markers ride on the bones that carry them, so they feel every joint of the body, those the
+    fitting skeleton lacks too: a flexible spine (T10 and L5 apart from C7), the shoulder
+    girdle (acromion, scapula), the toes (hallux, 2nd toe), the hands (finger markers), the
+    knee's rollback and screw-home rotation, the subtalar joint.
 noise
     White measurement noise, ``noise_sd`` (default 0.7 mm) per coordinate.
 gaps
@@ -31,14 +33,14 @@ swap
 
 Clusters
     A protocol's tracking markers (on a segment, no landmark) are strapped on rigid plates, one
-    per segment, where :data:`CLUSTER_PLATES` says: the k-th tracking marker of a segment is
-    the plate's k-th corner. A plate is placed with its own error (:data:`PLATE_PLACEMENT`: 15
-    mm and 10° sd, the session's), and its soft-tissue artefact is mostly rigid, as bone-pin
-    studies find for thigh and shank clusters (Cappozzo et al. 1996; Leardini et al. 2005;
-    Barré et al. 2013: the rigid part is the larger): the plate moves and turns as one
-    (:data:`PLATE_TURN` radians of turn per radian of the driving joints, with the segment's
-    gain of :data:`SOFT_TISSUE` for its move) and each marker adds a fifth of a skin marker's
-    own artefact (the plate's deformation, the skin under each base).
+    per segment's bone, where :data:`CLUSTER_PLATES` says: the k-th tracking marker of a
+    segment is the plate's k-th corner. A plate is placed with its own error
+    (:data:`PLATE_PLACEMENT`: 15 mm and 10° sd, the session's), and its soft-tissue artefact is
+    mostly rigid, as bone-pin studies find for thigh and shank clusters (Cappozzo et al. 1996;
+    Leardini et al. 2005; Barré et al. 2013: the rigid part is the larger): the plate moves and
+    turns as one (:data:`PLATE_TURN` radians of turn per radian of the driving joints, with the
+    bone's gain of :data:`SOFT_TISSUE` for its move) and each marker adds a fifth of a skin
+    marker's own artefact (the plate's deformation, the skin under each base).
     Markers a protocol flags ``static_only`` are written only on standing captures.
 """
 
@@ -50,22 +52,25 @@ import numpy as np
 
 from ..errors import SynthError
 from ..protocols import Protocol
-from ..skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from .body import BodyMotion
-from .gait import FootGeometry
+from .bones import Body, vector_turn
 
-_Q = {name: j for j, name in enumerate(DOF_NAMES)}
 REFERENCE_BMI = 70.0 / 1.75 ** 2
-#: Soft-tissue gain (m/rad) and the joints that drive it, by segment ("{s}": the marker's side).
+#: Soft-tissue gain (m/rad) and the joint angles that drive it, by the kind of bone a marker
+#: rides on: (bone, angle index), "{s}" the marker's side (both for a central marker).
 SOFT_TISSUE = {
-    "pelvis": (0.006, ("hip_flexion_{s}",)),
-    "torso": (0.004, ("shoulder_flexion_{s}", "trunk_rotation")),
-    "head": (0.001, ("neck_rotation",)),
-    "humerus": (0.010, ("shoulder_flexion_{s}", "elbow_flexion_{s}")),
-    "forearm": (0.005, ("elbow_flexion_{s}",)),
-    "femur": (0.012, ("hip_flexion_{s}", "knee_flexion_{s}")),
-    "tibia": (0.006, ("knee_flexion_{s}", "ankle_dorsiflexion_{s}")),
-    "foot": (0.003, ("ankle_dorsiflexion_{s}",)),
+    "pelvis": (0.006, (("femur_{s}", 0),)),
+    "lumbar": (0.006, (("femur_{s}", 0),)),
+    "thorax": (0.004, (("humerus_{s}", 0), ("thorax", 2))),
+    "girdle": (0.004, (("humerus_{s}", 0), ("thorax", 2))),
+    "head": (0.001, (("head", 2),)),
+    "humerus": (0.010, (("humerus_{s}", 0), ("forearm_{s}", 0))),
+    "forearm": (0.005, (("forearm_{s}", 0),)),
+    "hand": (0.003, (("hand_{s}", 0),)),
+    "femur": (0.012, (("femur_{s}", 0), ("tibia_{s}", 0))),
+    "tibia": (0.006, (("tibia_{s}", 0), ("talus_{s}", 0))),
+    "foot": (0.003, (("talus_{s}", 0),)),
+    "toes": (0.003, (("toes_{s}", 0),)),
 }
 
 
@@ -112,34 +117,19 @@ class MarkerSettings:
         return asdict(self)
 
 
-def _side(landmark: str, segment: str) -> tuple[str, ...]:
-    """The sides (``"l"``, ``"r"``) a marker on ``landmark`` and ``segment`` belongs to."""
-    if landmark.startswith("L_") or segment.endswith("_l"):
-        return ("l",)
-    if landmark.startswith("R_") or segment.endswith("_r"):
-        return ("r",)
-    return ("l", "r")
+def _bone_of(segment: str) -> str:
+    """The body's bone a fitting segment's tracking markers ride on (``torso`` -> ``thorax``)."""
+    bare, _, side = segment.partition("_")
+    return {"torso": "thorax"}.get(bare, bare) + (f"_{side}" if side else "")
 
 
-def _small_turns(vectors: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of rotation vectors (..., 3) (Rodrigues)."""
-    angle = np.linalg.norm(vectors, axis=-1)[..., None, None]
-    k = np.zeros(vectors.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -vectors[..., 2], vectors[..., 1], -vectors[..., 0]
-    k = k - np.swapaxes(k, -1, -2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sin = np.where(angle > 0, np.sin(angle) / angle, 1.0)
-        cos = np.where(angle > 0, (1 - np.cos(angle)) / angle ** 2, 0.5)
-    return np.eye(3) + sin * k + cos * (k @ k)
-
-
-def cluster_plates(protocol: Protocol, height: float, draw: np.random.Generator
-                   ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """Each plate the protocol's tracking markers need: segment index -> (centre (3,) and
-    corners (K, 3), placed with :data:`PLATE_PLACEMENT` drawn from ``draw``), in the segment
-    frame, metres, for a subject ``height`` m tall. Raises :class:`SynthError` for a segment
-    the generator has no plate for, or more markers than the plate has corners."""
-    scale = height / 1.75
+def cluster_plates(protocol: Protocol, body: Body, draw: np.random.Generator
+                   ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each plate the protocol's tracking markers need: segment name -> (centre (3,) and
+    corners (K, 3), placed with :data:`PLATE_PLACEMENT` drawn from ``draw``), in the frame of
+    the body's bone of that name, metres. Raises :class:`SynthError` for a segment the
+    generator has no plate for, or more markers than the plate has corners."""
+    scale = body.height / 1.75
     plates = {}
     for segment in dict.fromkeys(m.landmark.segment for m in protocol.markers if m.tracking):
         bare, mirror = segment.rsplit("_", 1)[0], (-1.0 if segment.endswith("_r") else 1.0)
@@ -154,83 +144,90 @@ def cluster_plates(protocol: Protocol, height: float, draw: np.random.Generator
         centre[1] *= mirror
         corners[:, 1] *= mirror
         shift, turn = PLATE_PLACEMENT
-        turned = _small_turns(draw.normal(0.0, turn, 3))
-        plates[SEGMENT_NAMES.index(segment)] = (centre + draw.normal(0.0, shift, 3),
-                                                corners[:count] @ turned.T)
+        turned = vector_turn(draw.normal(0.0, turn, 3))
+        plates[segment] = (centre + draw.normal(0.0, shift, 3), corners[:count] @ turned.T)
     return plates
 
 
-def _rotate_about_y(points: np.ndarray, centre: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Points (F, 3) rotated by ``angle`` (F,) about the -Y axis through ``centre`` (3,)."""
-    d = points - centre
-    c, s = np.cos(angle), np.sin(angle)
-    return centre + np.stack([c * d[:, 0] - s * d[:, 2], d[:, 1], s * d[:, 0] + c * d[:, 2]], 1)
+def _drivers(body: Body, motion: BodyMotion, bone: str, side: str) -> np.ndarray:
+    """The joint angles (F, J) that drive the soft tissue of a marker on ``bone`` (a body bone
+    name) of ``side`` ("l", "r", or "" for a central marker: both sides' drive it), each
+    centred on its mean over the capture."""
+    kind = bone.rsplit("_", 1)[0] if bone.endswith(("_l", "_r")) else bone
+    columns = []
+    for name, k in SOFT_TISSUE[kind][1]:
+        for s in ((side,) if side else ("l", "r")) if "{s}" in name else ("",):
+            columns.append(motion.pose.angles[name.format(s=s)][:, k])
+    drive = np.stack(columns, axis=1)
+    return drive - drive.mean(axis=0)
 
 
-def skin_markers(body: BodyMotion, skeleton: Skeleton, protocol: Protocol, height: float,
+def _side_of(label_landmark: str, bone: str) -> str:
+    """The side ("l", "r") of a marker on ``label_landmark`` and ``bone``, "" when central."""
+    if label_landmark.startswith(("L_", "R_")):
+        return label_landmark[0].lower()
+    return bone[-1] if bone.endswith(("_l", "_r")) else ""
+
+
+def _gain(bone: str) -> float:
+    kind = bone.rsplit("_", 1)[0] if bone.endswith(("_l", "_r")) else bone
+    return SOFT_TISSUE[kind][0]
+
+
+def skin_markers(motion: BodyMotion, body: Body, protocol: Protocol,
                  settings: MarkerSettings, rng: np.random.Generator, *, rate: float,
                  mass: float = 70.0, placement_rng: np.random.Generator | None = None
                  ) -> tuple[np.ndarray, list[str], dict]:
     """Marker positions (F, M, 3) m (NaN in gaps), labels (M,) and a record of what was done
     (``{"gaps": [...], "swap": [a, b] or None}``). Soft-tissue gains grow with the body-mass
-    index (``mass`` kg / ``height``² relative to 22.9 kg/m², that of 70 kg at 1.75 m).
-    ``placement_rng`` (the session's stream) draws the placement offsets, else ``rng``."""
-    q = body.q
-    n = len(q)
-    segments, nominal = protocol.nominal_offsets(height)
-    names = [m.landmark.name for m in protocol.markers]
+    index (``mass`` kg / height² relative to 22.9 kg/m², that of 70 kg at 1.75 m).
+    ``placement_rng`` (the session's stream) draws the placement offsets, else ``rng``.
+    Raises :class:`SynthError` for a protocol landmark the body has no place for."""
+    n = len(motion.time)
     labels = list(protocol.labels)
+    bones, nominal = [], []
+    for marker in protocol.markers:
+        if marker.tracking:
+            bones.append(body.index(_bone_of(marker.landmark.segment)))
+            nominal.append(np.zeros(3))
+            continue
+        place = body.landmarks.get(marker.landmark.name)
+        if place is None:
+            raise SynthError(f"protocol {protocol.name!r}: the synthetic body has no landmark "
+                             f"{marker.landmark.name} (marker {marker.label})",
+                             path=protocol.path, hint="add it to protocols/synthetic_body.toml")
+        bones.append(place[0])
+        nominal.append(place[1])
+    bones, nominal = np.array(bones, dtype=int), np.array(nominal)
     sd = settings.placement_sd
     draw = rng if placement_rng is None else placement_rng
     placed = nominal + np.clip(draw.normal(0.0, sd, nominal.shape), -2.5 * sd, 2.5 * sd)
-    plates = cluster_plates(protocol, height, draw)
+    plates = cluster_plates(protocol, body, draw)
     corner = {}
     for m, marker in enumerate(protocol.markers):
         if marker.tracking:
-            corner[m] = k = sum(corner.get(i) is not None and segments[i] == segments[m]
-                                for i in corner)
-            placed[m] = plates[segments[m]][0] + plates[segments[m]][1][k]
+            segment = marker.landmark.segment
+            corner[m] = k = sum(protocol.markers[i].landmark.segment == segment for i in corner)
+            placed[m] = plates[segment][0] + plates[segment][1][k]
     local = np.broadcast_to(placed, (n,) + placed.shape).copy()
-    geom = FootGeometry.from_skeleton(skeleton)
-    forearm = skeleton.lengths["forearm"]
-    centred = q - q.mean(axis=0)
-    tissue = settings.soft_tissue * mass / height ** 2 / REFERENCE_BMI
-    for s, (centre, _) in plates.items():
-        gain, dofs = SOFT_TISSUE[SEGMENT_NAMES[s].rsplit("_", 1)[0]]
-        side = SEGMENT_NAMES[s][-1]
-        drive = centred[:, [_Q[dof.format(s=side)] for dof in dofs]]            # (F, J)
-        move = drive @ rng.normal(0.0, 1.0 / np.sqrt(3.0), (len(dofs), 3))
-        turn = _small_turns(tissue * PLATE_TURN * (drive @ rng.normal(
-            0.0, 1.0 / np.sqrt(3.0), (len(dofs), 3))))                          # (F, 3, 3)
-        on = [m for m in corner if segments[m] == s]
+    tissue = settings.soft_tissue * mass / body.height ** 2 / REFERENCE_BMI
+    for segment, (centre, _) in plates.items():
+        bone = _bone_of(segment)
+        drive = _drivers(body, motion, bone, bone[-1])                       # (F, J)
+        move = drive @ rng.normal(0.0, 1.0 / np.sqrt(3.0), (drive.shape[1], 3))
+        turn = vector_turn(tissue * PLATE_TURN * (drive @ rng.normal(
+            0.0, 1.0 / np.sqrt(3.0), (drive.shape[1], 3))))                  # (F, 3, 3)
+        on = [m for m in corner if protocol.markers[m].landmark.segment == segment]
         local[:, on] = (centre + np.einsum("fij,mj->fmi", turn, placed[on] - centre)
-                        + tissue * gain * move[:, None])
-    for m, (name, seg) in enumerate(zip(names, segments)):
-        seg_name = SEGMENT_NAMES[seg]
-        sides = _side(name, seg_name)
-        col = 0 if sides == ("l",) else 1
-        if name.endswith("_FINGER"):
-            local[:, m] = _rotate_about_y(local[:, m], np.array([0, 0, -forearm]),
-                                          body.wrist[:, col])
-        elif seg_name.startswith("foot") and nominal[m, 0] > geom.mtp + 0.01:   # on the toes
-            local[:, m] = _rotate_about_y(local[:, m], np.array([geom.mtp, 0, -geom.ankle_height]),
-                                          body.toe[:, col])
-        gain, dofs = SOFT_TISSUE[seg_name.rsplit("_", 1)[0]]
-        for dof in dofs:
-            for side in (sides if "{s}" in dof else ("",)):
-                j = _Q[dof.format(s=side)]
-                direction = rng.normal(0.0, 1.0 / np.sqrt(3.0), 3)
-                share = PLATE_DEFORMATION if m in corner else 1.0
-                local[:, m] += share * tissue * gain * centred[:, j, None] * direction
-    transforms = skeleton.forward(q)
-    T = transforms[:, segments]
-    world = np.einsum("fmij,fmj->fmi", T[..., :3, :3], local) + T[..., :3, 3]
-    torso = transforms[:, SEGMENT_NAMES.index("torso"), :3, :3]
-    for m, (name, seg) in enumerate(zip(names, segments)):
-        seg_name = SEGMENT_NAMES[seg]
-        if seg_name.startswith(("humerus", "forearm")) or name.endswith("_ACROMION"):
-            col = 0 if _side(name, seg_name) == ("l",) else 1
-            world[:, m] += np.einsum("fij,fj->fi", torso, body.girdle[:, col])
+                        + tissue * _gain(bone) * move[:, None])
+    for m, marker in enumerate(protocol.markers):
+        bone = body.bones[bones[m]].name
+        drive = _drivers(body, motion, bone, _side_of(marker.landmark.name, bone))
+        share = PLATE_DEFORMATION if m in corner else 1.0
+        directions = rng.normal(0.0, 1.0 / np.sqrt(3.0), (drive.shape[1], 3))
+        local[:, m] += share * tissue * _gain(bone) * (drive @ directions)
+    R, t = body.forward(motion.pose)
+    world = np.einsum("fmij,fmj->fmi", R[:, bones], local) + t[:, bones]
     world += rng.normal(0.0, settings.noise_sd, world.shape)
 
     record: dict = {"gaps": [], "swap": None}

@@ -34,7 +34,7 @@ from pathlib import Path
 from ..errors import MocapError, SynthError
 from ..io.tomlfile import read_toml
 from ..protocols import load_protocol
-from .capture import (TRUTH_FORMAT, Subject, SynthCapture, check_timing, min_duration,
+from .capture import (TRUTH_FORMATS, Subject, SynthCapture, check_timing, min_duration,
                       synthesize_capture, write_capture)
 from .command import Command
 from .markers import MarkerSettings
@@ -210,7 +210,7 @@ def check_targets(captures: list[PlannedCapture], directory: str | os.PathLike, 
     ``<name>.truth.json`` in ``directory`` is a folder, or (unless ``overwrite``) a file that is
     not an earlier synth output of that name.
 
-    An earlier output is a truth file of this name (format :data:`TRUTH_FORMAT`) beside a C3D
+    An earlier output is a truth file of this name (a format of :data:`TRUTH_FORMATS`) beside a C3D
     (if any) with the frames, rate and labels it records: a folder of samples can be generated
     again in place, but a lab capture copied there under a plan's name is not replaced.
     """
@@ -244,7 +244,7 @@ def _earlier_output(c3d: Path, truth_path: Path) -> bool:
         truth = json.loads(truth_path.read_text("utf-8")) if truth_path.is_file() else None
     except (OSError, ValueError):
         return False
-    if not (isinstance(truth, dict) and truth.get("format") == TRUTH_FORMAT
+    if not (isinstance(truth, dict) and truth.get("format") in TRUTH_FORMATS
             and truth.get("name") == name):
         return False
     if not c3d.exists():

@@ -1,0 +1,95 @@
+"""Leave-one-out blending error and coverage of a library's control space.
+
+    python benchmarks/control_space.py [LIBRARY.json] [--samples sample_c3d] [--markdown PATH]
+
+Without a library, builds the quick start's one from ``--samples`` (``mocaplib build SAMPLES
+--static SAMPLES/rest.c3d --static-pose neutral --forward-reference
+SAMPLES/walk_straight_normal.c3d --jobs 2``). Then, on its tangential and frontal control
+spaces (:class:`mocaplib.controlspace.ControlSpace`): each entry inside the hull of the others
+rebuilt from them (:func:`mocaplib.controlspace.leave_one_out`), the medians over the entries
+in motion of the joint-angle RMS and max, heading, root, stride, turn and period errors, the
+rows rebuilt mostly (> 50 %) from another gait mode (walking from running or back), and the
+worst stride error; and the share of the default envelope the library covers
+(:func:`mocaplib.controlspace.coverage`). Prints Markdown (``--markdown PATH`` also writes it
+into a results page, :mod:`markdown_results`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from mocaplib.controlspace import ControlSpace, coverage, leave_one_out  # noqa: E402
+from mocaplib.library import load_library  # noqa: E402
+from mocaplib.report.plan import default_envelope  # noqa: E402
+
+#: Columns of the medians table: (column of leave_one_out, heading, format).
+MEDIANS = (("rms_deg", "joint RMS (deg)", "{:.2f}"), ("max_deg", "joint max (deg)", "{:.1f}"),
+           ("heading_rms_deg", "heading (deg)", "{:.2f}"), ("root_rms_mm", "root (mm)", "{:.1f}"),
+           ("stride_error_mm", "stride (mm)", "{:.0f}"), ("turn_error_deg", "turn (deg)",
+                                                          "{:.2f}"),
+           ("T_error_s", "period (ms)", "{:.1f}"))
+
+
+def _gait(entry_id: str) -> str:
+    return "run" if entry_id.startswith("run") else "walk"
+
+
+def tables(library_path: Path) -> None:
+    """Print the leave-one-out and coverage tables of the library at ``library_path``."""
+    library = load_library(library_path)
+    print("| axes | entries | tested in motion | " + " | ".join(h for _, h, _ in MEDIANS)
+          + " | from another gait mode | worst stride (mm, entry) |")
+    print("|---|---|---|" + "---|" * len(MEDIANS) + "---|---|")
+    for axes in ("tangential", "frontal"):
+        cs = ControlSpace.from_library(library, axes=axes)
+        rows = leave_one_out(cs)
+        moving = rows[rows["inside"] & (rows["class"] != "rest")].copy()
+        moving["T_error_s"] = 1000 * moving["T_error_s"].abs()
+        for column in ("heading_rms_deg", "turn_error_deg"):
+            moving[column] = moving[column].abs()
+        other_mode = [
+            row.id for row in moving.itertuples()
+            if sum(w for n, w in zip(row.neighbours, row.weights)
+                   if _gait(n) != _gait(row.id)) > 0.5]
+        worst = moving.loc[moving["stride_error_mm"].idxmax()]
+        print(f"| {axes} | {len(rows)} | {len(moving)} | " + " | ".join(
+            fmt.format(np.nanmedian(moving[column])) for column, _, fmt in MEDIANS)
+            + f" | {', '.join(other_mode) or 'none'} | {worst['stride_error_mm']:.0f} "
+              f"({worst['id']}) |")
+    envelope, _ = default_envelope(None)
+    share = coverage(ControlSpace.from_library(library), envelope).fraction_inside
+    print(f"\nCoverage of the default envelope (tangential axes): {100 * share:.1f} %")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("library", nargs="?", type=Path, help="a built library (else built now)")
+    parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
+    add_markdown_option(parser)
+    args = parser.parse_args()
+    with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
+        library = args.library
+        if library is None:
+            library = Path(tmp) / "lib.json"
+            subprocess.run([sys.executable, "-m", "mocaplib", "build", str(args.samples),
+                            "--static", str(args.samples / "rest.c3d"), "--static-pose",
+                            "neutral", "--forward-reference",
+                            str(args.samples / "walk_straight_normal.c3d"), "-o", str(library),
+                            "--jobs", "2", "--no-cache"], check=True, cwd=ROOT,
+                           capture_output=True)
+        tables(library)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
