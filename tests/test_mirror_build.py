@@ -104,11 +104,10 @@ def test_mirrored_left_gaits_match_the_captured_right_ones(mirrored_samples):
     turns, mixed): the mirror image of one meets the velocity targets against the other, and
     differs in joint angles by no more than the walker's own asymmetry, measured as the
     largest difference between a symmetric gait (straight walks, runs) and its own mirror
-    image. The synthetic generator is symmetric (mirrored truth angles agree within 0.01°);
-    the fitted walker is not, as the session's markers sit 3 mm (sd) off their places
-    differently on the two sides. Measured: 60 pairs, joint RMS median 0.41°, max 0.78°;
-    own asymmetry 0.39-0.82° (straight walks 0.39-0.73°, runs 0.52-0.82°); velocities within
-    0.2 % (v̂), 0.0041 rad/s, 0.0048 m/s."""
+    image. The fitted walker is not symmetric: the session's markers sit off their places
+    differently on the two sides. Measured: 60 pairs, joint RMS median 0.49°, max 0.93°;
+    own asymmetry 0.51-1.12° (straight walks 0.51-0.94°, runs 0.83-1.12°); velocities within
+    0.2 % (v̂), 0.0038 rad/s, 0.0069 m/s."""
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
@@ -135,7 +134,7 @@ def test_series_images_agree_with_the_images_cut_from_the_captures(mirrored_samp
     """`mocaplib mirror` (the stored series shifted to the right toe-off) against build
     --mirror (the capture cut at its right toe-offs), entry by entry: they mirror different
     strides of a steady walker, so they should agree within the velocity targets and the
-    Fourier encoding tolerance (0.5°). Measured: joint RMS median 0.12°, max 0.23°."""
+    Fourier encoding tolerance (0.5°). Measured: joint RMS median 0.18°, max 0.29°."""
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
