@@ -54,8 +54,9 @@ def sample_dir() -> Path:
     return SAMPLES
 
 
-#: Tests that take over about 4 s (``pytest --durations=0`` on the 2-core development machine,
-#: idle), by file and function name (every parametrisation of it).
+#: Tests that take over about 1.1 s (``pytest --durations=0`` on the 2-core development machine,
+#: idle), by file and function name (every parametrisation of it): the fast tier
+#: (``-m "not slow"``, under 2 minutes there) leaves them to the full suite.
 SLOW = {
     ("test_forward_reference.py", "test_a_lab_walk_sets_its_static_within_the_tolerance"),
     ("test_report.py", "test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one"),
@@ -65,6 +66,46 @@ SLOW = {
     ("test_filtering.py", "test_automatic_cutoffs_of_the_samples_are_those_of_the_filter_applied"),
     ("test_sessions.py", "test_the_shared_files_with_two_statics_build_without_failure"),
     ("test_synth_samples.py", "test_fitted_angles_meet_the_targets_against_the_independent_body"),
+    ("test_synth_samples.py", "test_synth_replaces_only_its_own_earlier_output"),
+    ("test_synth.py", "test_swing_knee_velocity_has_no_step"),
+    ("test_clusters.py", "test_a_cluster_capture_fits_as_well_as_the_anatomical_set"),
+    ("test_clusters.py", "test_a_cluster_capture_without_static_fits_as_well_as_the_anatomical_set"),
+    ("test_clusters.py", "test_synth_to_library_with_clusters"),
+    ("test_criteria.py", "test_internal_power_is_computed_for_every_real_entry"),
+    ("test_criteria.py", "test_internal_power_is_computed_for_every_entry"),
+    ("test_faults.py", "test_a_real_full_disk_during_a_build_keeps_the_old_pair"),
+    ("test_faults.py", "test_hostile_names_and_links_in_an_input_folder"),
+    ("test_report.py", "test_report_marks_mirror_images_and_counts_coverage_without_them"),
+    ("test_retarget.py", "test_self_retargeting_target_on_the_synthetic_walks"),
+    ("test_forward_reference.py", "test_each_static_gets_the_offset_of_its_subjects_references"),
+    ("test_pipeline.py", "test_one_and_two_jobs_give_the_same_bytes_on_sample_captures"),
+    ("test_clusters.py", "test_every_dof_of_a_cluster_capture_within_1_degree_of_the_anatomical_set"),
+    ("test_criteria.py", "test_internal_power_of_natural_real_walks_is_in_the_published_range"),
+    ("test_criteria.py", "test_internal_power_of_natural_synthetic_walks_is_in_the_published_range"),
+    ("test_faults.py", "test_oversized_numbers_in_the_sidecar_cost_the_report_nothing"),
+    ("test_pipeline.py", "test_several_statics_each_capture_gets_its_subjects"),
+    ("test_cycles.py", "test_synthetic_truth_shoulders_give_the_true_velocities"),
+    ("test_retarget.py", "test_self_retargeting_target_on_the_real_walks"),
+    ("test_retarget.py", "test_most_real_walks_give_a_chosen_cycle_to_retarget"),
+    ("test_repairs.py", "test_walking3_swapped_acromions_are_undone_with_its_static"),
+    ("test_synth_samples.py", "test_regenerated_samples_are_byte_identical"),
+    ("test_sessions.py", "test_a_capture_without_a_complete_cycle_gives_no_entry_and_says_why"),
+    ("test_protocols.py", "test_computed_points_are_those_of_their_definition_pair_by_pair"),
+    ("test_statures.py", "test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets"),
+    ("test_statures.py", "test_a_shorter_and_a_taller_subject_get_their_velocities"),
+    ("test_statures.py", "test_a_shorter_and_a_taller_subject_get_a_skeleton_of_their_size"),
+    ("test_report_motion.py", "test_blending_in_javascript_is_the_control_spaces"),
+    ("test_report.py", "test_report_falls_back_without_opengl"),
+    ("test_draft.py", "test_a_cluster_set_is_drafted_and_fits"),
+    ("test_report.py", "test_envelope_and_planned_captures_from_a_capture_plan"),
+    ("test_synth_session.py", "test_one_session_shares_the_placement"),
+    ("test_report.py", "test_report_detects_a_crashing_renderer"),
+    ("test_report.py", "test_report_command"),
+    ("test_forward_reference.py", "test_build_measures_the_offset_and_the_library_records_it"),
+    ("test_clusters.py", "test_tracking_offsets_are_measured_on_the_static"),
+    ("test_mirror_build.py", "test_the_right_turns_of_a_real_session_gain_left_turns"),
+    ("test_clusters.py", "test_a_cluster_capture_has_rigid_plates_and_no_static_only_markers"),
+    ("test_cli_fit.py", "test_fit_takes_the_static_that_shows_the_subject"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}
