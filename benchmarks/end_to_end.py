@@ -285,7 +285,7 @@ def compare(args) -> None:
           f"({totals[2] / build[0]:.1f}×).")
     if failed:
         print("\nNot compared: " + "; ".join(failed))
-    walls, ratios = np.array(walks).T
+    walls, ratios = np.array(walks or [(np.nan, np.nan)]).T   # none in range: not met
     print("\n| target | measured | met |\n|---|---|---|")
     for target, measured, met in (
             ("`mocaplib fit` ≤ 1.5 s wall on every 200-500-frame capture",
