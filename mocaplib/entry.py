@@ -23,7 +23,7 @@ from dataclasses import MISSING, dataclass, field, fields
 import numpy as np
 
 from .errors import LibraryError
-from .io.jsonvalues import json_values
+from .io.jsonvalues import float_or_nan, json_values
 
 #: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
 #: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
@@ -233,13 +233,9 @@ def drift_displacement(drift: dict, T: float) -> dict:
     (:data:`DRIFT_VELOCITIES`; see :class:`mocaplib.fourier.RootDrift`)."""
     from .fourier import RootDrift
 
-    velocities = (_float(drift[key]) for key in DRIFT_VELOCITIES)
-    x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(_float(T))
+    velocities = (float_or_nan(drift[key]) for key in DRIFT_VELOCITIES)
+    x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(float_or_nan(T))
     return {"dx_m": float(x), "dy_m": float(y), "dheading_rad": float(turned)}
-
-
-def _float(value) -> float:
-    return math.nan if value is None else float(value)
 
 
 @dataclass(frozen=True)

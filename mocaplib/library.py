@@ -41,7 +41,7 @@ from .entry import (DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, QC_LIMITS, QC_NAMES, L
 from .errors import LibraryError
 from .io import read_regular
 from .io.atomic import atomic_write_text
-from .io.jsonvalues import OutOfRange, canonical_sha256, json_values, parse_json
+from .io.jsonvalues import OutOfRange, canonical_sha256, float_or_nan, json_values, parse_json
 from .skeleton import DOFS
 
 if TYPE_CHECKING:
@@ -179,12 +179,8 @@ def control_scale() -> list[float]:
 
 
 def _control_points(entries: list[dict]) -> np.ndarray:
-    return np.array([[_float(e[axis]) for axis in CONTROL_AXES] for e in entries],
+    return np.array([[float_or_nan(e[axis]) for axis in CONTROL_AXES] for e in entries],
                     dtype=np.float64).reshape(-1, 3)
-
-
-def _float(value) -> float:
-    return float("nan") if value is None else float(value)
 
 
 # --------------------------------------------------------------------------- the Library
@@ -267,17 +263,18 @@ class Library:
                    "source_file": e.source_file, "source_sha256": e.source_sha256,
                    "cycle_index": e.cycle_index, "chosen": bool(e.chosen),
                    "mirrored": e.mirrored, "mirror_of": e.mirror_of,
-                   "start_s": _float(e.start_s), "end_s": _float(e.end_s), "T": _float(e.T),
+                   "start_s": float_or_nan(e.start_s), "end_s": float_or_nan(e.end_s),
+                   "T": float_or_nan(e.T),
                    "pattern_type": e.pattern.type,
-                   "pattern_residual_m": _float(e.pattern.residual_m),
-                   "arc_angle_rad": _float(e.pattern.arc_angle_rad),
-                   **{key: _float(getattr(e, key)) for key in ("v", "omega", "v_l", "v_f")},
+                   "pattern_residual_m": float_or_nan(e.pattern.residual_m),
+                   "arc_angle_rad": float_or_nan(e.pattern.arc_angle_rad),
+                   **{key: float_or_nan(getattr(e, key)) for key in ("v", "omega", "v_l", "v_f")},
                    "fourier_n": int(e.fourier.n),
-                   **{f"qc_{name}": _float(e.qc.get(name)) for name in QC_NAMES},
-                   **{key: _float(getattr(e.poulaine, key, None))
+                   **{f"qc_{name}": float_or_nan(e.qc.get(name)) for name in QC_NAMES},
+                   **{key: float_or_nan(getattr(e.poulaine, key, None))
                       for key in POULAINE_PARAMETERS},
                    "poulaine_fit_rms_m": math.nan if e.poulaine is None else max(
-                       _float(e.poulaine.left.fit_rms_m), _float(e.poulaine.right.fit_rms_m)),
+                       float_or_nan(e.poulaine.left.fit_rms_m), float_or_nan(e.poulaine.right.fit_rms_m)),
                    "qc_waived": ",".join(sorted(e.qc_waived))}
             rows.append(row)
         columns = ["id", "locomotion_class", "source_file", "source_sha256", "cycle_index",
@@ -328,7 +325,7 @@ class Library:
         from .fourier import RootDrift
 
         drift = self.entry(entry_id).root_drift
-        return RootDrift(0.0, 0.0, 0.0, *(_float(getattr(drift, key))
+        return RootDrift(0.0, 0.0, 0.0, *(float_or_nan(getattr(drift, key))
                                           for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
@@ -341,7 +338,7 @@ class Library:
         from .fourier import synthesize
 
         entry = self.entry(entry_id)
-        fourier, period, t = entry.fourier, _float(entry.T), np.asarray(t, dtype=float)
+        fourier, period, t = entry.fourier, float_or_nan(entry.T), np.asarray(t, dtype=float)
         return synthesize(fourier.a, fourier.b, period, t) + (
             0.0 if fourier.ramp is None else np.multiply.outer(np.mod(t, period) / period,
                                                                fourier.ramp))
@@ -360,7 +357,7 @@ class Library:
 
 
 def _matrix(rows) -> np.ndarray:
-    return np.array([[_float(x) for x in row] for row in rows], dtype=np.float64)
+    return np.array([[float_or_nan(x) for x in row] for row in rows], dtype=np.float64)
 
 
 def diagnostics_path(library_path: str | os.PathLike) -> Path:
@@ -587,16 +584,16 @@ def _entry_problems(doc: dict, *, qc: bool = True) -> list[Problem]:
             problems.append(Problem(f"{where}.id", f"duplicate id {e['id']!r}"))
         seen.add(e["id"])
         problems += _fourier_problems(e["fourier"], f"{where}.fourier", n_dof, n_harm)
-        period = _float(e["T"])
+        period = float_or_nan(e["T"])
         if not (math.isfinite(period) and period > 0):
             problems.append(Problem(f"{where}.T", f"period must be finite and > 0, got {period}"))
         elif abs((e["end_s"] - e["start_s"]) - period) > 1e-3:
             problems.append(Problem(f"{where}.T", f"T = {period} s but end_s - start_s = "
                                                   f"{e['end_s'] - e['start_s']} s"))
         for key in ("v", "omega", "v_l", "v_f"):
-            if not math.isfinite(_float(e[key])):
+            if not math.isfinite(float_or_nan(e[key])):
                 problems.append(Problem(f"{where}.{key}", "velocity is missing or not finite"))
-            elif abs(_float(e[key])) > PLAUSIBLE_SPEED:
+            elif abs(float_or_nan(e[key])) > PLAUSIBLE_SPEED:
                 problems.append(Problem(f"{where}.{key}", f"velocity {e[key]} is not a "
                                                           f"locomotion's (|value| > "
                                                           f"{PLAUSIBLE_SPEED:g})"))
@@ -667,7 +664,7 @@ def _consistency_problems(doc: dict) -> list[Problem]:
             problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
                                                           "image"))
         toe_off = e.get("right_toe_off_s")
-        if toe_off is not None and math.isfinite(_float(e["T"])) and not toe_off < e["T"]:
+        if toe_off is not None and math.isfinite(float_or_nan(e["T"])) and not toe_off < e["T"]:
             problems.append(Problem(f"{where}.right_toe_off_s", f"{toe_off} s is not inside "
                                                                 f"the cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
@@ -676,7 +673,7 @@ def _consistency_problems(doc: dict) -> list[Problem]:
             problems += _poulaine_problems(e["poulaine"], f"{where}.poulaine")
         rows = e["fourier"]["a"]
         for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
-            mean = _float(rows[d][0]) if rows[d] else math.nan
+            mean = float_or_nan(rows[d][0]) if rows[d] else math.nan
             if not lo - RANGE_TOLERANCE <= mean <= hi + RANGE_TOLERANCE and math.isfinite(mean):
                 problems.append(Problem(f"{where}.fourier.a[{d}][0]", f"mean {name} {mean:.6g} "
                                         f"rad lies outside its range [{lo:.4g}, {hi:.4g}] rad "
@@ -715,7 +712,7 @@ def _pattern_problems(pattern: dict, where: str) -> list[Problem]:
 
 def _drift_problems(e: dict, where: str) -> list[Problem]:
     """The root drift's displacement against its velocities over T, and its turn's sign."""
-    drift, period = e["root_drift"], _float(e["T"])
+    drift, period = e["root_drift"], float_or_nan(e["T"])
     problems = []
     if math.isfinite(period):
         expected = drift_displacement(drift, period)
@@ -726,7 +723,7 @@ def _drift_problems(e: dict, where: str) -> list[Problem]:
                                            f"u_l_m_s, omega_rad_s over T = {period} s: " +
                                            ", ".join(f"{k} {drift[k]:.6g}, expected "
                                                      f"{expected[k]:.6g}" for k in wrong)))
-    omega, turn = _float(e["omega"]), drift["omega_rad_s"]
+    omega, turn = float_or_nan(e["omega"]), drift["omega_rad_s"]
     if min(abs(omega), abs(turn)) > TURN_SIGN_RATE and omega * turn < 0:
         problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
                                                         f"from the entry's omega {omega:.4g} "

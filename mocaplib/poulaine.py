@@ -57,6 +57,7 @@ from functools import cached_property
 import numpy as np
 
 from .errors import MocapError
+from .io.jsonvalues import float_or_nan
 from .fourier import ROOT_X, ROOT_Y, RootDrift
 from .skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, Skeleton
 
@@ -195,13 +196,9 @@ class AnklePath:
     def from_dict(cls, data: dict) -> "AnklePath":
         return cls(tuple(data["kinds"]), np.asarray(data["phases"], float),
                    np.asarray(data["points_m"], float), np.asarray(data["tangents_m"], float),
-                   np.asarray(data["timing"], float), *(_float(data.get(key)) for key in
+                   np.asarray(data["timing"], float), *(float_or_nan(data.get(key)) for key in
                                                         ("fit_rms_m", "fit_max_m",
                                                          "timed_rms_m")))
-
-
-def _float(value) -> float:
-    return float("nan") if value is None else float(value)
 
 
 def _segment_fractions(phases: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

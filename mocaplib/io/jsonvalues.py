@@ -46,6 +46,11 @@ def parse_json(text: str | bytes, /):
         raise ValueError("JSON nested too deep to read") from None
 
 
+def float_or_nan(value, /) -> float:
+    """A JSON number as a float, NaN for null (None): the reverse of :func:`json_values`."""
+    return math.nan if value is None else float(value)
+
+
 def json_values(obj, /, *, decimals: int | None = None, significant: int | None = None):
     """``obj`` as plain JSON values: dict (string keys), list, str, bool, int, float, None.
 
