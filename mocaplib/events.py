@@ -38,16 +38,22 @@ kinematic step of the markers. As the toes leave, the heel's rise slows while th
 quickens, so the upward velocity of a point on the foot peaks then; the further forward the
 point, the later its peak.
 
-* ``"foot_velocity"`` (default): in walking, the upward-velocity peak (sub-frame by a parabola)
-  of the point :data:`TOE_OFF_WEIGHT` of the way from the other marker to the one that left the
-  floor last (the toe marker, or the heel walking backwards); O'Connor et al.'s foot velocity
-  algorithm takes the midpoint, whose peak comes ~7 ms before the lab's Foot Off and the
-  synthetic toes' release alike. In running (a capture whose feet are both off the floor at
-  once, a flight phase: :func:`running`), where the swing foot keeps accelerating upwards after
-  the toes leave and those peaks come late, the toe-off is the ``"lift"`` below, the
-  forefoot's fastest upswing at the release (Handsaker et al. 2016 time running toe-offs on
-  forefoot accelerations too). Measured (docs/results/event_accuracy.md): against the lab's
-  Foot Off, and on the synthetic toe-offs (the toes' tips leaving the floor).
+* ``"foot_velocity"`` (default): in walking, the mean of two kinematic marks of the release
+  that bracket it. (a) The upward-velocity peak (sub-frame by a parabola) of the point
+  :data:`TOE_OFF_WEIGHT` of the way from the other marker to the one that left the floor last
+  (the toe marker, or the heel walking backwards); O'Connor et al.'s foot velocity algorithm
+  takes the midpoint. It comes early when the push-off is slow (up to 14 ms on synthetic walks
+  at 0.4-0.5 m/s). (b) The end of the roll: the foot's pitch rate (how fast the first marker
+  rises over the last, :func:`_pitch_rate`) peaks while the heel rises about the metatarsal
+  heads and falls as the toes leave; the release is where it has fallen to
+  :data:`TOE_OFF_PITCH_FRACTION` (half) of that stride's peak, a level relative to the
+  stride's own push-off, so it follows slow and fast walking alike; alone it comes ~9 ms after
+  the lab's Foot Off. In running (a capture whose feet are both off the floor at once, a
+  flight phase: :func:`running`), where the swing foot keeps accelerating upwards after the
+  toes leave, the toe-off is the ``"lift"`` below, the forefoot's fastest upswing at the
+  release (Handsaker et al. 2016 time running toe-offs on forefoot accelerations too).
+  Measured (docs/results/event_accuracy.md): against the lab's Foot Off, and on the synthetic
+  toe-offs (the toes' tips leaving the floor).
 * ``"lift"``: where the low-passed upward velocity of the point that left last rises fastest,
   from 0.1 s before to 0.05 s after the foot centre's velocity peak: the lift-off of a foot
   that leaves the floor in one step (a rigid or stiff-soled foot, a running forefoot); on
@@ -72,11 +78,12 @@ from .trial import check_gait_rate
 SIDES = ("left", "right")
 #: Toe-off definitions, see the module docstring.
 TOE_OFF_DEFINITIONS = ("foot_velocity", "lift")
-#: Where the default toe-off's point lies between a foot's two markers: this share of the way
-#: from the one that left the floor first to the one that left last (0.5 peaks ~7 ms before
-#: Foot Off on the lab files and the samples alike, 0.7 ~10 ms after it on the lab files;
-#: docs/results/event_accuracy.md).
+#: Where the default toe-off's velocity-peak point lies between a foot's two markers: this
+#: share of the way from the one that left the floor first to the one that left last.
 TOE_OFF_WEIGHT = 0.6
+#: Share of its push-off peak the foot's pitch rate has fallen to at the default toe-off's
+#: end-of-roll mark (half: the peak's half-maximum on its falling side).
+TOE_OFF_PITCH_FRACTION = 0.5
 #: Median heel-to-toe marker distance (m) a foot can have; outside it the units are wrong.
 PLAUSIBLE_FOOT = (0.03, 1.0)
 
@@ -109,9 +116,9 @@ class GaitEvent:
 class EventSettings:
     """The detector's settings (module docstring), each with its default.
 
-    toe_off : ``"foot_velocity"`` (the upward-velocity peak of a point of the foot near the
-        marker that leaves last; in running the lift; default) or ``"lift"`` (a foot leaving in one step: the forefoot's fastest
-        upswing).
+    toe_off : ``"foot_velocity"`` (the mean of the upward-velocity peak of a point of the foot
+        near the marker that leaves last and the end of the foot's roll; in running the lift;
+        default) or ``"lift"`` (a foot leaving in one step: the forefoot's fastest upswing).
     cutoff_hz : the detection's low-pass cutoff (Hz, -3 dB point).
     min_clearance, contact_speed : a foot is in contact when its lowest point is within
         ``min_clearance`` of the floor (m) and its centre moves slower than ``contact_speed``
@@ -320,9 +327,7 @@ def _foot_events(foot: _Foot, measured: np.ndarray, rate: float, config: EventSe
                 t = _peak_time(centre_velocity[:, 2], lo, top + 1)
                 t = None if t is None else _lift_time(velocity[last, :, 2], t, rate)
             else:
-                push = (TOE_OFF_WEIGHT * velocity[last, :, 2]
-                        + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last, :, 2])
-                t = _peak_time(push, lo, top + 1)
+                t = _toe_off_time(foot, last, lo, top + 1, rate)
             if t is not None:
                 if _supported(supported, t):
                     events.append(_event(foot.side, "toe_off", t / rate, measured, rate))
@@ -493,6 +498,49 @@ def _peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
         if curvature < 0:
             return i + 0.5 * (y0 - y2) / curvature
     return float(i)
+
+
+def _toe_off_time(foot: _Foot, last: int, lo: int, hi: int, rate: float) -> float | None:
+    """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames): the mean of
+    the upward-velocity peak of the point :data:`TOE_OFF_WEIGHT` of the way from the other
+    marker to the one that left last (index ``last``) and the time the foot's pitch rate falls
+    to :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (module docstring); None when
+    either is not found."""
+    velocity = foot.velocity[:, :, 2]
+    push = TOE_OFF_WEIGHT * velocity[last] + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last]
+    peak = _peak_time(push, lo, hi)
+    release = _release_time(_pitch_rate(foot.points, last, rate), lo, hi)
+    return None if peak is None or release is None else 0.5 * (peak + release)
+
+
+def _pitch_rate(points: np.ndarray, last: int, rate: float) -> np.ndarray:
+    """The foot's pitch rate (F,) rad/s from low-passed heel and toe ``points`` (2, F, 3) m:
+    how fast the marker that left the floor first rises over the one that left last (index
+    ``last``), as the elevation angle of the line between them; > 0 while the foot rolls over
+    its forefoot."""
+    rolling = points[1 - last] - points[last]
+    pitch = np.arctan2(rolling[:, 2], np.linalg.norm(rolling[:, :2], axis=1))
+    return np.gradient(pitch) * rate if len(pitch) > 1 else 0.0 * pitch
+
+
+def _release_time(pitch_rate: np.ndarray, lo: int, hi: int) -> float | None:
+    """When the pitch rate (F,) rad/s, past its push-off peak in ``[lo, hi)`` (frames), has
+    fallen to :data:`TOE_OFF_PITCH_FRACTION` of that peak (frames, sub-frame by linear
+    interpolation); None without a positive peak or a crossing before ``hi``."""
+    window = pitch_rate[lo:hi]
+    if window.size == 0 or not np.isfinite(window).any():
+        return None
+    peak = lo + int(np.nanargmax(window))
+    level = TOE_OFF_PITCH_FRACTION * pitch_rate[peak]
+    if not pitch_rate[peak] > 0:
+        return None
+    below = np.flatnonzero(~(pitch_rate[peak:hi] > level))
+    if not below.size:
+        return None
+    i = peak + int(below[0])
+    if not np.isfinite(pitch_rate[i]):
+        return None
+    return (i - 1) + (pitch_rate[i - 1] - level) / (pitch_rate[i - 1] - pitch_rate[i])
 
 
 def _lift_time(upward: np.ndarray, peak: float, rate: float) -> float:

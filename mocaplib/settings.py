@@ -38,8 +38,8 @@ class BuildSettings:
         measured; None: not measured (:func:`build` measures it when references are given).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
-    toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (real feet) or
-        ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
+    toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (feet that roll
+        over their toes, real and synthetic) or ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
     all_cycles : keep every complete cycle, not only the one chosen per capture.
     mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a

@@ -42,10 +42,11 @@ def test_events_within_one_frame_of_truth(gait):
     # issue's target, |error| <= 1 frame, with 0.7 mm marker noise.
     lift = foot_events(heel, toe, RATE, side="left", toe_off="lift")
     assert np.all(np.abs(errors(lift, offs, "toe_off")) <= 1 / RATE), gait
-    # The default marks where a rolling foot's toes leave, a velocity peak that a rigid foot
-    # reaches after it lifts (measured 2.5-3.2 frames late on every gait here)
+    # The default marks where a rolling foot's toes leave, a velocity peak and the end of a
+    # roll that a rigid foot reaches after it lifts (measured 2.7-4.2 frames late on every
+    # gait here)
     late = errors(events, offs, "toe_off") * RATE
-    assert np.all((late >= 1.5) & (late <= 4.0)), (gait, late)
+    assert np.all((late >= 1.5) & (late <= 4.5)), (gait, late)
     # heel-strikes: 1 frame; 3 where the flat landing foot rocks its markers as it touches
     # (the median of three kinks trades these for better real and synthetic heel-strikes)
     limit = 3 if gait in ("on the spot", "side-step left", "side-step right") else 1
@@ -336,10 +337,10 @@ def test_real_left_toe_offs_median_within_10_ms(real_c3d):
     assert len(diff) == 10 and np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
 
 
-@pytest.mark.xfail(strict=True, reason="measured 31.5 ms: one left Foot Off of the 10 comes "
-                   "31.5 ms after the default's toe-off, the other nine within 12.2 ms")
 def test_real_left_toe_offs_worst_within_30_ms(real_c3d):
-    # the earlier issue's target for the toe-offs that bound the cycles
+    # the earlier issue's target for the toe-offs that bound the cycles (measured worst
+    # 11.2 ms; the upward-velocity peak alone is 31.5 ms before PiG_Motion-FlatFoot-Full's
+    # left Foot Off at 1.18 s, which no force plate measured: docs/results/event_accuracy.md)
     diff = lab_differences(real_c3d, "toe_off", side="L")
     assert np.abs(diff).max() <= 0.030, np.round(diff * 1000)
 
@@ -446,6 +447,28 @@ def test_noise_free_synthetic_toe_offs_within_one_frame(noise_free_captures):
             found = [abs(e.time_s - true["time_s"]) * trial.rate for e in events
                      if e.side == true["side"] and e.kind == "toe_off"]
             assert found and min(found) <= 1.0, (capture.truth["name"], true, found)
+
+
+@pytest.mark.parametrize("speed", [0.4, 0.5])
+def test_slow_walk_toe_offs_within_one_frame(speed):
+    # Slow walks below the sample plan's 0.6 m/s (the push-off is slow, and an upward-velocity
+    # peak alone comes up to 1.4 frames early here): the default finds the synthetic toes'
+    # release within a frame (measured worst 0.75 frames, marker noise included).
+    from mocaplib.protocols import detect_protocol
+    from mocaplib.synth import Command, synthesize_capture
+    from mocaplib.synth.capture import min_duration
+
+    command = Command.from_kind("straight", speed=speed)
+    capture = synthesize_capture(command, duration=round(min_duration(command) + 0.3, 2),
+                                 seed=102, session_seed=2010)
+    trial = capture.trial
+    events, _ = capture_events(trial, detect_protocol(trial))
+    truths = [e for e in capture.truth["events"] if e["kind"] == "toe_off"]
+    assert len(truths) >= 4
+    for true in truths:
+        found = [abs(e.time_s - true["time_s"]) * trial.rate for e in events
+                 if e.side == true["side"] and e.kind == "toe_off"]
+        assert found and min(found) <= 1.0, (speed, true, found)
 
 
 def sample_file(name):

@@ -140,7 +140,8 @@ def add_toe_off_option(parser) -> None:
     """``--toe-off``: which toe-off definition cuts the cycles (:mod:`mocaplib.events`)."""
     parser.add_argument("--toe-off", choices=TOE_OFF_CHOICES, default="foot_velocity",
                         help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
-                             "peak, close to a force plate's Foot Off; default) or 'lift' (a "
+                             "peak and the end of its roll, close to a force plate's Foot Off; "
+                             "default) or 'lift' (a "
                              "rigid foot's lift-off: where the toe's upward velocity rises "
                              "fastest, ~18 ms before Foot Off on real feet)")
 
