@@ -13,7 +13,14 @@ definition, and prints:
 * real, per event kind: events paired with a lab event, median difference, median |difference|
   (target for toe-off: <= 10 ms), how many within 10 ms, worst |difference|; and the left
   toe-offs alone, which bound the cycles (targets: median |difference| <= 10 ms, worst
-  <= 30 ms).
+  <= 30 ms);
+* slow walks below the sample plan's speeds (generated here, straight and on a 2 m curve at
+  0.4, 0.5 and 0.6 m/s, :data:`SLOW_WALKS`), per speed: toe-offs, % within 1 frame, median and
+  worst error against the generator's truth;
+* the force plates of the four real files (read with ezc3d): each plate's unloading (vertical
+  force falling below :data:`PLATE_THRESHOLD_N` after a stance) against the nearest detected
+  toe-off and the nearest lab Foot Off, so the lab events a plate measured are told from those
+  placed otherwise.
 
 ``--noise-sd SD`` regenerates the sample plan (``protocols/paper_plan.toml``) into a temporary
 folder with marker noise ``SD`` metres instead of reading ``--samples`` (the plan's 0.0007):
@@ -37,8 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.events import (TOE_OFF_DEFINITIONS, EventSettings, capture_events,  # noqa: E402
-                             event_differences)
+from mocaplib.events import (LAB_EVENT_KINDS, TOE_OFF_DEFINITIONS,  # noqa: E402
+                             EventSettings, capture_events, event_differences)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.protocols import detect_protocol  # noqa: E402
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
@@ -47,6 +54,12 @@ from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noq
 LAB_FILES = ("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d",
              "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/Qualisys.c3d")
 SYNTHETIC_TARGET, REAL_TARGET_S, REAL_WORST_S = 0.95, 0.010, 0.030
+#: Slow walks generated for their own table: (kind, speed m/s, radius m or None, seed).
+SLOW_WALKS = tuple((kind, speed, radius, seed) for speed in (0.4, 0.5, 0.6)
+                   for kind, radius, seed in (("straight", None, 101), ("straight", None, 102),
+                                              ("curve", 2.0, 103)))
+#: Vertical force (N) under which a force plate counts as unloaded; shortest stance (s) on it.
+PLATE_THRESHOLD_N, PLATE_MIN_STANCE_S = 20.0, 0.1
 #: The rows of the real table: (row name, event kind, lab event sides or None for both).
 REAL_ROWS = (("toe_off", "toe_off", None), ("heel_strike", "heel_strike", None),
              ("left toe_off", "toe_off", "L"))
@@ -120,6 +133,90 @@ def real_table(real: Path, toe_off: str) -> bool:
     return met
 
 
+def slow_walks() -> list[tuple[float, object, dict]]:
+    """The :data:`SLOW_WALKS` generated: (speed m/s, Trial, truth) each, in the sample plan's
+    session (marker placement seed 2010)."""
+    from mocaplib.synth import Command, synthesize_capture
+    from mocaplib.synth.capture import min_duration
+
+    out = []
+    for kind, speed, radius, seed in SLOW_WALKS:
+        command = Command.from_kind(kind, speed=speed, radius=radius)
+        capture = synthesize_capture(command, duration=round(min_duration(command) + 0.3, 2),
+                                     seed=seed, session_seed=2010)
+        out.append((speed, capture.trial, capture.truth))
+    return out
+
+
+def slow_table(walks, toe_off: str) -> None:
+    """Print the slow walks' toe-off errors per speed for ``walks`` (:func:`slow_walks`)."""
+    by_speed: dict[float, list[float]] = {}
+    for speed, trial, truth in walks:
+        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
+        for true in truth["events"]:
+            if true["kind"] == "toe_off":
+                found = [e.time_s - true["time_s"] for e in events
+                         if e.side == true["side"] and e.kind == "toe_off"]
+                by_speed.setdefault(speed, []).append(
+                    min(found, key=abs) * trial.rate if found else np.inf)
+    print(f"\nSlow synthetic walks (straight and 2 m curve), `toe_off={toe_off!r}`:\n")
+    print("| speed (m/s) | toe-offs | within 1 frame | median (frames) | worst (frames) |\n"
+          "|---|---|---|---|---|")
+    for speed, errors in sorted(by_speed.items()):
+        errors = np.array(errors)
+        print(f"| {speed:.1f} | {len(errors)} | {100 * np.mean(np.abs(errors) <= 1.0):.1f} % | "
+              f"{np.median(errors):+.2f} | {np.abs(errors).max():.2f} |")
+
+
+def plate_unloadings(path: Path) -> list[float]:
+    """Seconds from the first frame at which a force plate of the C3D at ``path`` is unloaded:
+    the end of each run of at least :data:`PLATE_MIN_STANCE_S` with |Fz| above
+    :data:`PLATE_THRESHOLD_N` (the plates are zeroed) that ends inside the recording."""
+    import ezc3d
+
+    from mocaplib.runs import valid_runs
+
+    c3d = ezc3d.c3d(str(path))
+    plates = c3d["parameters"]["FORCE_PLATFORM"]
+    used = int(plates["USED"]["value"][0])
+    channels = np.asarray(plates["CHANNEL"]["value"]).reshape(6, used)
+    rate = float(c3d["parameters"]["ANALOG"]["RATE"]["value"][0])
+    analogs = c3d["data"]["analogs"][0]
+    out = []
+    for plate in range(used):
+        loaded = np.abs(analogs[channels[2, plate] - 1]) > PLATE_THRESHOLD_N
+        out += [end / rate for start, end in valid_runs(loaded).tolist()
+                if end - start >= PLATE_MIN_STANCE_S * rate and end < len(loaded)]
+    return sorted(out)
+
+
+def plate_table(real: Path) -> None:
+    """Print, per plate unloading of the four real files, the nearest detected toe-off and lab
+    Foot Off relative to it (ms), with the default toe-off definition."""
+    paths = [real / name for name in LAB_FILES if (real / name).is_file()]
+    if len(paths) < len(LAB_FILES):
+        return
+    print(f"\nForce-plate unloading (|Fz| < {PLATE_THRESHOLD_N:.0f} N) in the real files, "
+          f"default toe-off:\n")
+    print("| file | unloading (s) | detected − plate (ms) | lab Foot Off − plate (ms) |\n"
+          "|---|---|---|---|")
+    detected = []
+    for path in paths:
+        trial = read_c3d(path)
+        events, _ = capture_events(trial, detect_protocol(trial))
+        offs = [e.time_s for e in events if e.kind == "toe_off"]
+        labs = [e.time_s - trial.start_time for e in trial.events
+                if LAB_EVENT_KINDS.get(e.label) == "toe_off"]
+        for plate in plate_unloadings(path):
+            ours = min((t - plate for t in offs), key=abs, default=np.inf)
+            lab = min((t - plate for t in labs), key=abs, default=np.inf)
+            detected.append(ours)
+            print(f"| {path.stem} | {plate:.3f} | {1000 * ours:+.1f} | {1000 * lab:+.1f} |")
+    detected = 1000 * np.abs(detected)
+    print(f"\nDetected toe-off against the plates: median |Δ| {np.median(detected):.1f} ms, "
+          f"worst {detected.max():.1f} ms over {len(detected)} unloadings.")
+
+
 def regenerate(folder: Path, noise_sd: float) -> None:
     """Write the sample plan's captures into ``folder`` with marker noise ``noise_sd`` (m)."""
     plan = load_plan(ROOT / "protocols" / "paper_plan.toml")
@@ -153,6 +250,10 @@ def tables(args) -> dict[str, tuple[bool, bool]]:
             regenerate(samples, args.noise_sd)
         verdict = {toe_off: (synthetic_table(samples, toe_off), real_table(args.real, toe_off))
                    for toe_off in TOE_OFF_DEFINITIONS}
+    walks = slow_walks()
+    for toe_off in TOE_OFF_DEFINITIONS:
+        slow_table(walks, toe_off)
+    plate_table(args.real)
     print()
     for toe_off, (synthetic, real) in verdict.items():
         print(f"- `{toe_off}`: synthetic target {'met' if synthetic else 'MISSED'}, "
