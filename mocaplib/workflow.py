@@ -333,7 +333,7 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
             f"a static trial: used to calibrate, no entry of its own ({result.stage}: {why})"
         result.stage = None
     elif result.ok and not result.entries and result.no_entry is None:
-        result.no_entry = "every complete cycle was left out by QC (see the warnings)"
+        result.no_entry = "every complete cycle was left out by QC"
     elif is_static and result.no_entry:
         result.no_entry = f"a static trial: used to calibrate, no entry of its own " \
                           f"({result.no_entry})"
@@ -354,6 +354,10 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("entries"):
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes)
+        if not result.entries:
+            result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
+                f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
+                + ", ".join(qc_failures(qcs[c.index], settings.qc_thresholds)) for c in kept)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:

@@ -387,3 +387,17 @@ def test_cycles_span_gaps_up_to_max_gap_s(gap_s, kept):
                                                r"0.25 s: 1.41-2.51 s \(left_toe_off\) spans "
                                                r"0.30 s the fit could not solve"):
             analyse_cycles(events(n=2, first=1.41), left, right, RATE, filled=filled)
+
+
+def test_one_gap_limit_for_the_events_the_cycles_the_build_and_the_cli():
+    from mocaplib.cli._common import MAX_GAP_DEFAULT
+    from mocaplib.cycles import MAX_GAP_S
+    from mocaplib.errors import MocapError
+    from mocaplib.events import EventSettings
+    from mocaplib.settings import BuildSettings
+
+    assert MAX_GAP_DEFAULT == MAX_GAP_S == EventSettings().max_gap_s == \
+        BuildSettings().max_gap_s == 0.25
+    assert BuildSettings(max_gap_s=0.5).to_dict()["max_gap_s"] == 0.5   # recorded
+    with pytest.raises(MocapError, match="max_gap_s must be a number of seconds >= 0, got -1"):
+        BuildSettings(max_gap_s=-1)

@@ -131,3 +131,17 @@ def test_a_cycle_spans_a_gap_only_up_to_max_gap_s(walk_with_a_hole, tmp_path, ga
     cycles = result.diagnostics["cycles"]
     assert _spans(cycles, 3.0, 3.0 + gap) == spanned
     assert len(cycles) >= 3       # the cycles clear of the hole stay
+
+
+def test_a_jump_gives_no_fallback_cycle(real_c3d, tmp_path):
+    """cmu/16_07, a forward jump: both feet leave together (toe-offs 5 ms apart) and land
+    together; with every fallback start allowed it still holds no stride in gait order, so it
+    gives no entry, and says so."""
+    protocol = tmp_path / "plugin_gait_fallback.toml"
+    protocol.write_text(FALLBACK_PROTOCOL.replace("fullbody38", "plugin_gait"))
+    result = process_capture(real_c3d("cmu/16_07.c3d"), BuildSettings(protocol=str(protocol)))
+    assert result.ok and not result.entries
+    assert result.no_entry.startswith(
+        "no complete cycle: fewer than two left toe-offs were found, and no cycle from "
+        "right_toe_off or left_heel_strike or right_heel_strike holds one stride's events in "
+        "gait order")
