@@ -258,8 +258,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     if not events:
         return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source,
                             tol_angle, tol_length)]
-    start_event, pairs = _cut(events, rate, filled, fallback_starts, max_gap_s,
-                              left_shoulder, right_shoulder, source)
+    start_event, pairs = _cut(events, rate, filled=filled, fallback_starts=fallback_starts,
+                              max_gap_s=max_gap_s, shoulders=(left_shoulder, right_shoulder),
+                              source=source)
     smooth = None if q is None else _smoothed(q, rate)
     cycles = []
     for index, (first, last) in enumerate(pairs):
@@ -286,11 +287,12 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     return cycles
 
 
-def _cut(events, rate, filled, fallback_starts, max_gap_s, left_shoulder, right_shoulder,
-         source) -> tuple[str, list[tuple[GaitEvent, GaitEvent]]]:
+def _cut(events: list[GaitEvent], rate: float, /, *, filled, fallback_starts, max_gap_s,
+         shoulders, source) -> tuple[str, list[tuple[GaitEvent, GaitEvent]]]:
     """The event the cycles start at and their bounding events: left toe-offs, else the first
     of ``fallback_starts`` that gives a cycle, each cycle spanning no gap longer than
-    ``max_gap_s``; :class:`NoCycleError` saying why there is none."""
+    ``max_gap_s`` (:func:`longest_gap` of ``filled``); :class:`NoCycleError` saying why there
+    is none (``shoulders``: left and right (F, 3) m, for the hint)."""
     too_long = []
     for start in (LEFT_TOE_OFF, *fallback_starts):
         pairs = []
@@ -307,7 +309,7 @@ def _cut(events, rate, filled, fallback_starts, max_gap_s, left_shoulder, right_
     if fallback_starts:
         why += (f", and no cycle from {' or '.join(fallback_starts)} holds one stride's events "
                 "in gait order")
-    hint = _no_cycle_hint(left_shoulder, right_shoulder, rate, filled)
+    hint = _no_cycle_hint(*shoulders, rate, filled)
     if too_long:
         why = (f"every cycle spans a gap longer than max_gap_s {max_gap_s:g} s: "
                + "; ".join(too_long))
