@@ -388,22 +388,21 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
 
 
 def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tuple[str, ...]:
-    """``[cycles] fallback_starts`` (or ``inherited``, the parent's): names of
-    :data:`mocaplib.cycles.STRIDE_EVENTS` other than the left toe-off, each once."""
-    from .cycles import LEFT_TOE_OFF, STRIDE_EVENTS
+    """``[cycles] fallback_starts`` (or ``inherited``, the parent's): names of the stride's
+    events other than the left toe-off (:data:`mocaplib.entry.CYCLE_STARTS`), each once."""
+    from .entry import CYCLE_STARTS
 
     unknown = sorted(set(table) - {"fallback_starts"})
     if unknown:
         raise ProtocolError(f"[cycles] has no key {unknown[0]!r}", path=path,
                             hint="[cycles] takes fallback_starts only")
     starts = table.get("fallback_starts", list(inherited))
-    allowed = STRIDE_EVENTS[1:]
-    if (not isinstance(starts, list) or any(s not in allowed for s in starts)
+    if (not isinstance(starts, list) or any(s not in CYCLE_STARTS for s in starts)
             or len(set(starts)) != len(starts)):
         raise ProtocolError(f"[cycles] fallback_starts must list events among "
-                            f"{', '.join(allowed)}, each once, got {starts!r}", path=path,
-                            hint=f"a cycle always starts at {LEFT_TOE_OFF} first; list the "
-                                 "others in the order to try them")
+                            f"{', '.join(CYCLE_STARTS)}, each once, got {starts!r}", path=path,
+                            hint="a cycle starts at a left toe-off first; list the other "
+                                 "events in the order to try them")
     return tuple(starts)
 
 
