@@ -8,7 +8,9 @@ entry, at the root's pose (up to the series' value at t = 0, L(0)): with L(s) th
 pose (pelvis_tx, pelvis_ty, pelvis_rotation) as an element of SE(2) and c = L(0)·L(τ)⁻¹, the new
 root channels are c·L(τ + t) and the path frame's body velocity (u_f, u_l, ω) is carried by c's
 adjoint (u' = R(θ_c)·u + ω·(c_y, −c_x)). Velocities (v̂, ω̂, v̂_l, v̂_f) and the pattern are
-averages over the whole cycle and do not change; the poulaine's phases shift by −τ/T.
+averages over the whole cycle and do not change; the poulaine's phases shift by −τ/T. The
+ramp (``fourier.ramp``, the captured cycle's start-to-end change, put back as ramp·t/T) is kept
+as it is: the periodic series carry the cycle, the ramp only its small failure to close.
 
 Consumers that take phase 0 as the left toe-off (the control space's blending of Fourier
 series, the mirror image of an entry) read an entry flagged with ``cycle_start`` through

@@ -7,9 +7,8 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass, field
 
-from .cycles import MAX_GAP_S
 from .errors import MocapError
-from .events import TOE_OFF_DEFINITIONS
+from .events import TOE_OFF_DEFINITIONS, EventSettings
 from .io import unique_paths
 
 from .library import (DEFAULT_QC_THRESHOLDS, to_json_data)
@@ -63,7 +62,7 @@ class BuildSettings:
     heading_offsets: tuple[float, ...] | None = None
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
-    max_gap_s: float = MAX_GAP_S
+    max_gap_s: float = EventSettings.max_gap_s     # mocaplib.cycles.MAX_GAP_S
     all_cycles: bool = False
     mirror: bool = False
     qc_policy: str = "drop"
