@@ -366,9 +366,13 @@ class ControlSpace:
         Uses the entries with finite velocities and period (only those marked ``chosen`` when
         ``chosen_only``; without the mirror images unless ``mirrored``), their Fourier
         coefficients and root drift, and the library's stored ``control_space.scale`` (for
-        the frontal variant the same scales, v̂_f taking v̂'s).
+        the frontal variant the same scales, v̂_f taking v̂'s). Blending takes phase 0 as the
+        left toe-off: an entry whose cycle starts at another event (``cycle_start``) is
+        expressed from its left toe-off (:func:`mocaplib.phase.from_left_toe_off`).
         """
-        entries = library.entries
+        from .phase import from_left_toe_off
+
+        entries = [from_left_toe_off(e) for e in library.entries]
         # (E, 4): the axes' velocities and the period, NaN where null
         values = np.array([[getattr(e, key) for key in (*AXES[axes], "T")] for e in entries],
                           dtype=np.float64).reshape(-1, 4)
@@ -378,6 +382,9 @@ class ControlSpace:
         if not mirrored:
             usable &= ~np.array([e.mirrored for e in entries], dtype=bool)
         a, b = library.coefficient_arrays()
+        for i, (entry, stored) in enumerate(zip(entries, library.entries)):
+            if entry is not stored:
+                a[i], b[i] = entry.fourier.a, entry.fourier.b
         kept = [e for e, use in zip(entries, usable) if use]
         ids = [e.id for e in kept]
         drift = np.array([e.root_drift.velocities for e in kept],

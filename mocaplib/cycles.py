@@ -20,6 +20,19 @@ first narrow the candidates to the cycles that pass the library's QC, when any d
 contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
 on one, so callers keep all of them on request (``--all-cycles``).
 
+**Partial visibility (documented rule).** A cycle is not cut across a gap longer than
+``max_gap_s`` (:data:`MAX_GAP_S`, 0.25 s): a run of frames the fit could not solve (too few
+markers: :attr:`mocaplib.motion.Motion.failed`), whose joint angles are interpolated. When no
+cycle from left toe-off to left toe-off is left (fewer than two left toe-offs visible, or
+every such cycle spans a longer gap), the protocol's ``fallback_starts``
+(:attr:`mocaplib.protocols.Protocol.fallback_starts`) are tried in order: a cycle from one
+event of that side and kind to the next, kept only when it holds the other three events of one
+stride, each once, in the order of walking (left toe-off, left heel-strike, right toe-off,
+right heel-strike) or of running (left toe-off, right heel-strike, right toe-off, left
+heel-strike), so the left toe-off inside it is known (``left_toe_off``) and the cycle can be
+expressed from it (:func:`mocaplib.phase.from_left_toe_off`). A jump, whose feet leave and
+land together, holds them in neither order and gives no such cycle.
+
 **Rest.** A capture with no gait event at all (standing) gives one rest entry: v̂ = ω̂ = v̂_l =
 v̂_f = 0, pattern ``point``, nominal period :data:`REST_PERIOD` (1.0 s, about the stride time
 of normal walking, so rest blends with slow walking on a comparable time base), starting at the
@@ -36,11 +49,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import EventError, NoCycleError
-from .events import GaitEvent
+from .events import EventSettings, GaitEvent
 from .filtering import resample
 from .fourier import (ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding,
                       encode_cycle)
-from .entry import QC_LIMITS
+from .entry import CYCLE_STARTS, QC_LIMITS
 from .skeleton import TRANSLATION
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
                        sample_shoulders)
@@ -52,6 +65,20 @@ STEADINESS_RADIUS = 0.2
 #: Cycles bounded by toe-offs of lower quality are chosen only when no other qualifies: the
 #: library's QC limit on event quality.
 MIN_EVENT_QUALITY = QC_LIMITS["event_quality"][0]
+#: Longest gap (s) a cycle may span: frames the fit interpolated (module docstring); the same
+#: limit as the gait events' linear fill of the foot markers.
+MAX_GAP_S = EventSettings.max_gap_s
+#: One stride's events, ``<side>_<kind>`` names: the left toe-off and the library's
+#: ``cycle_start`` values.
+STRIDE_EVENTS = ("left_toe_off", *CYCLE_STARTS)
+#: The orders of one stride's events from the left toe-off: walking (the left foot swings, then
+#: the right) and running (each toe-off followed by a flight and the other foot's strike).
+GAIT_ORDERS = {"walking": ("left_toe_off", "left_heel_strike", "right_toe_off",
+                           "right_heel_strike"),
+               "running": ("left_toe_off", "right_heel_strike", "right_toe_off",
+                           "left_heel_strike")}
+#: What a standard cycle starts at.
+LEFT_TOE_OFF = STRIDE_EVENTS[0]
 
 
 @dataclass
@@ -77,8 +104,15 @@ class Cycle:
     chosen : bool
         True for the cycle chosen for the library.
     right_toe_off : float or None
-        The first right toe-off inside the cycle, seconds from its start (None when none was
-        detected, and for rest): where its mirror image starts (:mod:`mocaplib.mirror`).
+        The first right toe-off inside the cycle, seconds from its start (0 for a cycle that
+        starts at one; None when none was detected, and for rest): where its mirror image
+        starts (:mod:`mocaplib.mirror`).
+    start_event : str
+        The event the cycle starts and ends at (:data:`STRIDE_EVENTS`): ``"left_toe_off"``
+        unless the protocol's fallback cut it (module docstring).
+    left_toe_off : float or None
+        For a cycle starting at another event, the left toe-off inside it, seconds from its
+        start; None for a cycle that starts at a left toe-off.
     """
 
     index: int
@@ -91,6 +125,8 @@ class Cycle:
     rest: bool = False
     chosen: bool = False
     right_toe_off: float | None = None
+    start_event: str = LEFT_TOE_OFF
+    left_toe_off: float | None = None
 
     @property
     def period(self) -> float:
@@ -105,7 +141,8 @@ class Cycle:
                "omega": vel.omega, "v_l": vel.v_l, "v_f": vel.v_f,
                "fourier_n": None, "fourier_rms_deg": None, "fourier_worst_dof": None,
                "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
-               "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off}
+               "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off,
+               "start_event": self.start_event, "left_toe_off_s": self.left_toe_off}
         if self.encoding is not None:
             out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
                        fourier_worst_dof=self.encoding.worst_dof)
@@ -128,26 +165,55 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
 
 def motion_cycles(events: list[GaitEvent], motion, /, *, ground: np.ndarray | None = None,
                   shoulders: tuple[np.ndarray, np.ndarray] | None = None,
+                  fallback_starts: tuple[str, ...] = (), max_gap_s: float = MAX_GAP_S,
                   source: str | os.PathLike | None = None) -> list[Cycle]:
     """:func:`analyse_cycles` of a fitted :class:`~mocaplib.Motion`: its shoulder joint centres
-    (:func:`shoulder_centres`, or ``shoulders`` when already computed) and joint coordinates;
-    what ``mocaplib cycles`` and ``mocaplib build`` run. ``events`` and ``ground`` as
-    :func:`mocaplib.events.capture_events` gives them."""
+    (:func:`shoulder_centres`, or ``shoulders`` when already computed), joint coordinates and
+    the frames it could not solve (``filled``); what ``mocaplib cycles`` and ``mocaplib build``
+    run. ``events`` and ``ground`` as :func:`mocaplib.events.capture_events` gives them."""
     left, right = shoulder_centres(motion) if shoulders is None else shoulders
     return analyse_cycles(events, left, right, motion.rate, q=motion.q, ground=ground,
-                          source=source)
+                          filled=motion.failed, fallback_starts=fallback_starts,
+                          max_gap_s=max_gap_s, source=source)
 
 
-def cycle_bounds(events: list[GaitEvent], /) -> list[tuple[GaitEvent, GaitEvent]]:
-    """Pairs of consecutive left toe-offs, in time order."""
-    offs = sorted((e for e in events if e.side == "left" and e.kind == "toe_off"),
-                  key=lambda e: e.time_s)
-    return list(zip(offs[:-1], offs[1:]))
+def event_name(event: GaitEvent, /) -> str:
+    """``<side>_<kind>``, as :data:`STRIDE_EVENTS` and protocols name events."""
+    return f"{event.side}_{event.kind}"
+
+
+def cycle_bounds(events: list[GaitEvent], /, *, start: str = LEFT_TOE_OFF
+                 ) -> list[tuple[GaitEvent, GaitEvent]]:
+    """Pairs of consecutive events named ``start`` (:data:`STRIDE_EVENTS`), in time order;
+    for another start than the left toe-off, only the pairs holding the other three events of
+    one stride, each once, in a gait order (:data:`GAIT_ORDERS`, module docstring)."""
+    named = sorted((e for e in events if event_name(e) == start), key=lambda e: e.time_s)
+    pairs = list(zip(named[:-1], named[1:]))
+    if start == LEFT_TOE_OFF:
+        return pairs
+    orders = [order[order.index(start) + 1:] + order[:order.index(start)]
+              for order in GAIT_ORDERS.values()]
+    return [(first, last) for first, last in pairs
+            if tuple(event_name(e) for e in sorted(events, key=lambda e: e.time_s)
+                     if first.time_s < e.time_s < last.time_s) in orders]
+
+
+def longest_gap(filled: np.ndarray | None, rate: float, start_s: float, end_s: float) -> float:
+    """Longest run (s) of ``filled`` (F,) bool frames inside [start_s, end_s]: a run of n
+    frames spans (n + 1) / rate between the solved frames around it; 0 when none."""
+    if filled is None:
+        return 0.0
+    frames = np.arange(len(filled)) / rate
+    inside = np.asarray(filled, dtype=bool) & (frames >= start_s) & (frames <= end_s)
+    edges = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    return float((runs.max() + 1) / rate) if len(runs) else 0.0
 
 
 def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                    right_shoulder: np.ndarray, rate: float, /, *, q: np.ndarray | None = None,
-                   ground: np.ndarray | None = None,
+                   ground: np.ndarray | None = None, filled: np.ndarray | None = None,
+                   fallback_starts: tuple[str, ...] = (), max_gap_s: float = MAX_GAP_S,
                    tol_angle: float = ANGLE_TOLERANCE, tol_length: float = LENGTH_TOLERANCE,
                    point_radius: float = 0.05, min_arc_angle: float = np.deg2rad(10.0),
                    source: str | os.PathLike | None = None) -> list[Cycle]:
@@ -168,14 +234,21 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     ground
         The floor's velocity (3,) m/s, from :func:`mocaplib.events.ground_velocity`: on a
         treadmill, paths, velocities and the root's drift are measured relative to the belt.
+    filled
+        Frames (F,) bool whose samples were interpolated (the fit could not solve them); a
+        cycle spanning a run of them longer than ``max_gap_s`` (s) is not cut.
+    fallback_starts
+        Events (:data:`STRIDE_EVENTS` names) a cycle may start at, in order, when no cycle
+        from left toe-off to left toe-off is left (module docstring); the protocol's.
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.patterns.fit_pattern`.
 
     Raises
     ------
     EventError
-        :class:`~mocaplib.errors.NoCycleError` when there are events but fewer than two left
-        toe-offs.
+        :class:`~mocaplib.errors.NoCycleError` when there are events but no complete cycle
+        (fewer than two left toe-offs, and no fallback cycle; or every cycle spans too long a
+        gap): its message says which.
     """
     n_frames = len(np.asarray(left_shoulder))
     if q is not None:
@@ -185,10 +258,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     if not events:
         return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source,
                             tol_angle, tol_length)]
-    pairs = cycle_bounds(events)
-    if not pairs:
-        raise NoCycleError("no complete cycle: fewer than two left toe-offs were found",
-                           path=source, hint=_no_cycle_hint(left_shoulder, right_shoulder, rate))
+    start_event, pairs = _cut(events, rate, filled=filled, fallback_starts=fallback_starts,
+                              max_gap_s=max_gap_s, shoulders=(left_shoulder, right_shoulder),
+                              source=source)
     smooth = None if q is None else _smoothed(q, rate)
     cycles = []
     for index, (first, last) in enumerate(pairs):
@@ -206,18 +278,68 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                                     tol_angle=tol_angle, tol_length=tol_length, noise=noise)
         cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
                             min(first.quality, last.quality), encoding,
-                            right_toe_off=_first_inside(events, "right", start, end)))
+                            right_toe_off=0.0 if start_event == "right_toe_off"
+                            else _first_inside(events, "right", start, end),
+                            start_event=start_event,
+                            left_toe_off=None if start_event == LEFT_TOE_OFF
+                            else _first_inside(events, "left", start, end)))
     choose_cycle(cycles)
     return cycles
 
 
-def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float) -> str:
-    """What to do about a capture without two left toe-offs: a capture whose shoulders stand
-    still (:data:`mocaplib.calibration.STANDING_EXTENT`) for a second or more, half of it at
-    least, is a static with a step; otherwise it holds too few strides, or a wrong rate."""
+def _cut(events: list[GaitEvent], rate: float, /, *, filled, fallback_starts, max_gap_s,
+         shoulders, source) -> tuple[str, list[tuple[GaitEvent, GaitEvent]]]:
+    """The event the cycles start at and their bounding events: left toe-offs, else the first
+    of ``fallback_starts`` that gives a cycle, each cycle spanning no gap longer than
+    ``max_gap_s`` (:func:`longest_gap` of ``filled``); :class:`NoCycleError` saying why there
+    is none (``shoulders``: left and right (F, 3) m, for the hint)."""
+    too_long = []
+    for start in (LEFT_TOE_OFF, *fallback_starts):
+        pairs = []
+        for first, last in cycle_bounds(events, start=start):
+            gap = longest_gap(filled, rate, first.time_s, last.time_s)
+            if gap > max_gap_s:
+                too_long.append(f"{first.time_s:.2f}-{last.time_s:.2f} s ({start}) spans "
+                                f"{gap:.2f} s the fit could not solve")
+            else:
+                pairs.append((first, last))
+        if pairs:
+            return start, pairs
+    why = "fewer than two left toe-offs were found"
+    if fallback_starts:
+        why += (f", and no cycle from {' or '.join(fallback_starts)} holds one stride's events "
+                "in gait order")
+    hint = _no_cycle_hint(*shoulders, rate, filled)
+    if too_long:
+        why = (f"every cycle spans a gap longer than max_gap_s {max_gap_s:g} s: "
+               + "; ".join(too_long))
+        hint = ("the markers are missing there (out of view?): fill the capture's gaps, or "
+                "raise max_gap_s (--max-gap) if interpolating that long is acceptable")
+    elif not fallback_starts:
+        hint += ("; or let cycles start at other events: fallback_starts in the protocol's "
+                 "[cycles] table (docs/guide/events-cycles.md)")
+    raise NoCycleError(f"no complete cycle: {why}", path=source, hint=hint)
+
+
+def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float,
+                   filled: np.ndarray | None = None) -> str:
+    """What to do about a capture without two left toe-offs: a capture seen (not ``filled``,
+    (F,) bool) for less than half its frames is out of view most of the time; one whose
+    shoulders stand still (:data:`mocaplib.calibration.STANDING_EXTENT`) for a second or more,
+    half of it at least, is a static with a step; otherwise it holds too few strides, or a
+    wrong rate."""
     from .calibration import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 
     mid = 0.5 * (np.asarray(left, dtype=float) + np.asarray(right, dtype=float))[:, None]
+    seen = np.ones(len(mid), dtype=bool) if filled is None else ~np.asarray(filled, dtype=bool)
+    if seen.mean() < 0.5:
+        frames = np.flatnonzero(seen)
+        span = (f"{frames[0] / rate:.2f}-{frames[-1] / rate:.2f} s" if len(frames)
+                else "no frame")
+        return (f"the fit sees the subject in {seen.sum() / rate:.2f} s of the capture's "
+                f"{len(mid) / rate:.2f} s ({span}): out of the capture volume the rest of "
+                "the time; a cycle needs one stride in view (from a left toe-off to the next, "
+                "or between the protocol's fallback_starts)")
     length = int(round(STATIC_WINDOW_S * rate)) + 1
     if len(mid) > length:
         start = quietest_stretch(mid, length)

@@ -49,6 +49,9 @@ QC_NAMES = tuple(QC_LIMITS)
 #: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
 #: reflected, QC the source's). See :mod:`mocaplib.mirror`.
 MIRROR_METHODS = ("capture", "series")
+#: Events a cycle may start at besides a left toe-off (``cycle_start``): the other events of
+#: one stride, :data:`mocaplib.cycles.STRIDE_EVENTS`.
+CYCLE_STARTS = ("left_heel_strike", "right_toe_off", "right_heel_strike")
 #: Keys of an entry's ``root_drift``: the path frame's velocities and its displacement over one
 #: cycle (derived from them and T: :meth:`EntryDrift.moving`).
 DRIFT_VELOCITIES = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
@@ -387,6 +390,14 @@ class LibraryEntry:
     right_toe_off_s : float | None
         The first right toe-off inside the cycle, s from its start (where its mirror image
         starts).
+    cycle_start : str | None
+        The event the cycle starts and ends at when it is not a left toe-off
+        (:data:`mocaplib.cycles.STRIDE_EVENTS`: the protocol's fallback for a capture that
+        shows fewer than two left toe-offs); None: a left toe-off.
+    left_toe_off_s : float | None
+        With ``cycle_start``: the left toe-off inside the cycle, s from its start (the phase
+        the series reach the left toe-off at is ``left_toe_off_s / T``:
+        :func:`mocaplib.phase.from_left_toe_off`).
     mirror_of : str | None
         For a mirror image: the id of the entry it mirrors (:mod:`mocaplib.mirror`).
     mirror_method : str | None
@@ -424,6 +435,8 @@ class LibraryEntry:
     rate_hz: float | None = None
     first_frame: int | None = None
     right_toe_off_s: float | None = None
+    cycle_start: str | None = None
+    left_toe_off_s: float | None = None
     mirror_of: str | None = None
     mirror_method: str | None = None
     segment_lengths_m: dict[str, float] | None = None
@@ -442,6 +455,12 @@ class LibraryEntry:
             raise LibraryError(f"entry {self.id}: a mirror image needs both mirror_of and "
                                f"mirror_method (one of {', '.join(MIRROR_METHODS)}), got "
                                f"{self.mirror_of!r} and {self.mirror_method!r}")
+        if (self.cycle_start is None) != (self.left_toe_off_s is None) or \
+                self.cycle_start not in (None, *CYCLE_STARTS):
+            raise LibraryError(f"entry {self.id}: a cycle that does not start at a left toe-off "
+                               f"needs both cycle_start (one of {', '.join(CYCLE_STARTS)}) and "
+                               f"left_toe_off_s, got {self.cycle_start!r} and "
+                               f"{self.left_toe_off_s!r}")
         object.__setattr__(self, "joint_shifts_m",
                            {k: _tuples(v) for k, v in self.joint_shifts_m.items()})
 

@@ -663,10 +663,12 @@ def _consistency_problems(doc: dict) -> list[Problem]:
         if e.get("mirror_of") == e["id"]:
             problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
                                                           "image"))
-        toe_off = e.get("right_toe_off_s")
-        if toe_off is not None and math.isfinite(float_or_nan(e["T"])) and not toe_off < e["T"]:
-            problems.append(Problem(f"{where}.right_toe_off_s", f"{toe_off} s is not inside "
-                                                                f"the cycle of T = {e['T']} s"))
+        for key in ("right_toe_off_s", "left_toe_off_s"):
+            toe_off = e.get(key)
+            if toe_off is not None and math.isfinite(float_or_nan(e["T"])) \
+                    and not toe_off < e["T"]:
+                problems.append(Problem(f"{where}.{key}", f"{toe_off} s is not inside the "
+                                                          f"cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
         problems += _drift_problems(e, f"{where}.root_drift")
         if e.get("poulaine") is not None:

@@ -29,13 +29,13 @@ Mirror of a library entry (``mocaplib mirror``)
 A library entry's cycle starts at a left toe-off; its mirror image starts at a right toe-off,
 so :func:`mirror_entry` shifts the series in time by the entry's ``right_toe_off_s`` (τ): the
 mirrored cycle runs from the source's right toe-off to the next one, which the reflection turns
-into left toe-offs. Root channels are re-anchored so that the path frame starts, as in every
-entry, at the root's pose (up to the series' value at t = 0, L(0)): with L(s) the encoded root
-pose (pelvis_tx, pelvis_ty, pelvis_rotation) as an element of SE(2) and c = L(0)·L(τ)⁻¹, the new
-root channels are c·L(τ + t) and the path frame's body velocity (u_f, u_l, ω) is carried by c's
-adjoint (u' = R(θ_c)·u + ω·(c_y, −c_x)). Then the DOF map reflects every channel, and ω̂, v̂_l,
+into left toe-offs. The shift and the re-anchoring of the root channels are
+:func:`mocaplib.phase.shifted_series`'s (an entry whose cycle starts at another event,
+``cycle_start``, is first expressed from its left toe-off: :func:`mocaplib.phase.from_left_toe_off`).
+Then the DOF map reflects every channel, and ω̂, v̂_l,
 the drift's u_l and ω and the pattern (in the capture's world frame: y → −y) change sign.
-Mirroring the result again (τ' = T − τ) gives the source back exactly.
+Mirroring the result again (τ' = T − τ) gives the source back exactly (a ``cycle_start``
+entry: the source from its left toe-off).
 """
 
 from __future__ import annotations
@@ -188,33 +188,18 @@ def mirror_entry(entry, /):
     start for its mirror image.
     """
     from .entry import EntryDrift, EntryFourier
-    from .fourier import ROOT_X, ROOT_Y, synthesize
-    from .skeleton import ROOT_HEADING
+    from .phase import from_left_toe_off, shifted_poulaine, shifted_series
 
+    entry = from_left_toe_off(entry)
     if entry.right_toe_off_s is None:
         raise MocapError(f"entry {entry.id} does not record its right toe-off "
                          "(right_toe_off_s), where its mirror image would start",
                          hint="build the library again (entries record it now), or build it "
                               "with --mirror, which cuts mirror images from the captures")
     period, tau = float(entry.T), float(entry.right_toe_off_s)
-    a, b = entry.fourier.a.copy(), entry.fourier.b.copy()
-    root = [ROOT_X, ROOT_Y, ROOT_HEADING]
-    (x0, y0, heading0), (xt, yt, heading_t) = synthesize(a[root], b[root], period, [0.0, tau])
-    # the series from the right toe-off on: q(t + tau)
-    phase = 2 * np.pi * np.arange(a.shape[1]) * tau / period
-    a, b = a * np.cos(phase) + b * np.sin(phase), b * np.cos(phase) - a * np.sin(phase)
-    # re-anchored: root channels c·L(t + tau), c = L(0)·L(tau)^-1 in SE(2)
-    turn = heading0 - heading_t
-    rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
-    shift = np.array([x0, y0]) - rotation @ [xt, yt]
-    for coefficients in (a, b):
-        coefficients[[ROOT_X, ROOT_Y]] = rotation @ coefficients[[ROOT_X, ROOT_Y]]
-    a[[ROOT_X, ROOT_Y], 0] += shift
-    a[ROOT_HEADING, 0] += turn
-    drift = entry.root_drift
-    omega = float(drift.omega_rad_s)
-    u_f, u_l = rotation @ [drift.u_f_m_s, drift.u_l_m_s] + omega * np.array(
-        [shift[1], -shift[0]])
+    # the series from the right toe-off on, re-anchored (mocaplib.phase)
+    a, b, u_f, u_l = shifted_series(entry, tau)
+    omega = float(entry.root_drift.omega_rad_s)
     start = float(entry.start_s) + tau - (period if _series_image(entry) else 0.0)
     ramp = entry.fourier.ramp
     return replace(
@@ -227,30 +212,9 @@ def mirror_entry(entry, /):
                              None if ramp is None else mirror_dofs(ramp)),
         joint_shifts_m=mirror_shifts(entry.joint_shifts_m),
         held_dofs=mirror_names(entry.held_dofs), dofs_at_limit=mirror_names(entry.dofs_at_limit),
-        poulaine=None if entry.poulaine is None else mirror_poulaine(entry.poulaine,
-                                                                     tau / period),
-        root_drift=EntryDrift.moving(float(u_f), -float(u_l), -omega, period))
-
-
-def mirror_poulaine(poulaine, start: float, /):
-    """A poulaine as an entry stores it (:class:`mocaplib.entry.EntryPoulaine`) seen in the
-    mirror and from phase ``start`` (t/T of the cycle it now starts at): the left ankle's path
-    becomes the right one's with y negated (points and tangents), phases shift by ``-start``
-    (points rolled to keep their order), the travel direction is negated; the fit errors and
-    the step parameters are unchanged. Exact, so mirroring twice gives the poulaine back."""
-    from .entry import EntryPoulaine
-    from .poulaine import AnklePath, Poulaine
-
-    def path(ankle: AnklePath) -> AnklePath:
-        phases = np.mod(ankle.phases - start, 1.0)
-        order = np.roll(np.arange(4), -int(np.argmin(phases)))
-        flip = np.array([1.0, -1.0, 1.0])
-        return AnklePath(tuple(ankle.kinds[k] for k in order), phases[order],
-                         ankle.points[order] * flip, ankle.tangents[order] * flip,
-                         ankle.timing[order], ankle.fit_rms, ankle.fit_max, ankle.timed_rms)
-
-    model = poulaine.model()
-    return EntryPoulaine.of(Poulaine(-model.travel, path(model.right), path(model.left)))
+        poulaine=None if entry.poulaine is None else shifted_poulaine(
+            entry.poulaine, tau / period, reflect=True),
+        root_drift=EntryDrift.moving(u_f, -u_l, -omega, period))
 
 
 def _series_image(entry) -> bool:

@@ -199,7 +199,9 @@ class Protocol:
     """A marker set: name, description, markers (in file order) and the file it came from.
 
     ``any_of`` holds ``(group name, labels)`` pairs: at least one label of each group must be
-    present for a trial to be usable, on top of the ``required`` markers.
+    present for a trial to be usable, on top of the ``required`` markers. ``fallback_starts``
+    (``[cycles] fallback_starts``): the events a cycle may start at, in order, when a capture
+    shows fewer than two left toe-offs (:mod:`mocaplib.cycles`); empty: none.
     """
 
     name: str
@@ -207,6 +209,7 @@ class Protocol:
     markers: tuple[ProtocolMarker, ...]
     path: str
     any_of: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    fallback_starts: tuple[str, ...] = ()
 
     @property
     def labels(self) -> list[str]:
@@ -336,12 +339,13 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
     if key in parents:
         raise ProtocolError("'extends' loops back to this file", path=path)
     data = _read_toml(os.fspath(path))
-    table = data.get("markers")
-    if not isinstance(table, dict) or not table:
+    table = data.get("markers", {} if "extends" in data else None)
+    if not isinstance(table, dict) or not (table or "extends" in data):
         raise ProtocolError("no [markers] table", path=path,
                             hint="map each label to a landmark: LASI = { landmark = \"L_ASIS\" }")
     markers: dict[str, ProtocolMarker] = {}
     groups: dict[str, tuple[str, ...]] = {}
+    fallback: tuple[str, ...] = ()
     if "extends" in data:
         base = data["extends"]
         if not isinstance(base, str):
@@ -354,6 +358,7 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
         parent = _load_protocol(parent_path, parents + (key,))
         markers = {m.label: m for m in parent.markers}
         groups = dict(parent.any_of)
+        fallback = parent.fallback_starts
     landmarks = load_landmarks()
     for label, spec in table.items():
         marker = _protocol_marker(label, spec, landmarks, path)
@@ -378,7 +383,27 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
     if clashes:
         raise ProtocolError(f"labels or aliases used twice: {', '.join(clashes)}", path=path)
     return Protocol(str(data.get("name", path.stem)), str(data.get("description", "")),
-                    tuple(markers.values()), os.fspath(path), tuple(groups.items()))
+                    tuple(markers.values()), os.fspath(path), tuple(groups.items()),
+                    _fallback_starts(_table(data, "cycles", path), path, fallback))
+
+
+def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tuple[str, ...]:
+    """``[cycles] fallback_starts`` (or ``inherited``, the parent's): names of the stride's
+    events other than the left toe-off (:data:`mocaplib.entry.CYCLE_STARTS`), each once."""
+    from .entry import CYCLE_STARTS
+
+    unknown = sorted(set(table) - {"fallback_starts"})
+    if unknown:
+        raise ProtocolError(f"[cycles] has no key {unknown[0]!r}", path=path,
+                            hint="[cycles] takes fallback_starts only")
+    starts = table.get("fallback_starts", list(inherited))
+    if (not isinstance(starts, list) or any(s not in CYCLE_STARTS for s in starts)
+            or len(set(starts)) != len(starts)):
+        raise ProtocolError(f"[cycles] fallback_starts must list events among "
+                            f"{', '.join(CYCLE_STARTS)}, each once, got {starts!r}", path=path,
+                            hint="a cycle starts at a left toe-off first; list the other "
+                                 "events in the order to try them")
+    return tuple(starts)
 
 
 def _table(data: dict, name: str, path: Path) -> dict:

@@ -8,7 +8,7 @@ import os
 from dataclasses import asdict, dataclass, field
 
 from .errors import MocapError
-from .events import TOE_OFF_DEFINITIONS
+from .events import TOE_OFF_DEFINITIONS, EventSettings
 from .io import unique_paths
 
 from .library import (DEFAULT_QC_THRESHOLDS, to_json_data)
@@ -40,6 +40,9 @@ class BuildSettings:
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (feet that roll
         over their toes, real and synthetic) or ``"lift"`` (rigid feet); see :mod:`mocaplib.events`.
+    max_gap_s : the longest gap (s) filled by interpolation: in the foot markers the gait
+        events read (:class:`mocaplib.events.EventSettings`) and in the frames the fit could
+        not solve inside a cycle (:mod:`mocaplib.cycles`).
     all_cycles : keep every complete cycle, not only the one chosen per capture.
     mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
@@ -59,6 +62,7 @@ class BuildSettings:
     heading_offsets: tuple[float, ...] | None = None
     cutoff: float | str | None = "auto"
     toe_off: str = "foot_velocity"
+    max_gap_s: float = EventSettings.max_gap_s     # mocaplib.cycles.MAX_GAP_S
     all_cycles: bool = False
     mirror: bool = False
     qc_policy: str = "drop"
@@ -86,6 +90,9 @@ class BuildSettings:
         if self.toe_off not in TOE_OFF_DEFINITIONS:
             raise MocapError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
                              f"got {self.toe_off!r}")
+        if not (isinstance(self.max_gap_s, (int, float)) and self.max_gap_s >= 0):
+            raise MocapError(f"max_gap_s must be a number of seconds >= 0, got "
+                             f"{self.max_gap_s!r}")
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")
 

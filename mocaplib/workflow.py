@@ -333,7 +333,7 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
             f"a static trial: used to calibrate, no entry of its own ({result.stage}: {why})"
         result.stage = None
     elif result.ok and not result.entries and result.no_entry is None:
-        result.no_entry = "every complete cycle was left out by QC (see the warnings)"
+        result.no_entry = "every complete cycle was left out by QC"
     elif is_static and result.no_entry:
         result.no_entry = f"a static trial: used to calibrate, no entry of its own " \
                           f"({result.no_entry})"
@@ -354,6 +354,10 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     with clock.stage("entries"):
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes)
+        if not result.entries:
+            result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
+                f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
+                + ", ".join(qc_failures(qcs[c.index], settings.qc_thresholds)) for c in kept)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:
@@ -423,11 +427,14 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
     with clock.stage("events"):
-        events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off)
+        events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off,
+                                        max_gap_s=settings.max_gap_s)
         shoulders = shoulder_centres(motion)
         result.diagnostics.update(_series(trial, motion, shoulders, events, cutoff))
     with clock.stage("cycles"):
-        cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders, source=path)
+        cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders,
+                               fallback_starts=match.protocol.fallback_starts,
+                               max_gap_s=settings.max_gap_s, source=path)
     return trial, motion, cycles, events, ground
 
 
@@ -597,7 +604,8 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
             first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
             held_dofs=motion.unobservable,
             dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
-            right_toe_off_s=cycle.right_toe_off,
+            right_toe_off_s=cycle.right_toe_off, left_toe_off_s=cycle.left_toe_off,
+            cycle_start=None if cycle.left_toe_off is None else cycle.start_event,
             mirror_of=image_of, mirror_method=None if image_of is None else "capture",
             poulaine=None if cycle.rest else EntryPoulaine.of(shapes[cycle.index]["poulaine"])))
     return entries
@@ -647,7 +655,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     try:
         images = motion_cycles(mirror_events(events), mirrored,
                                ground=None if ground is None else REFLECTION @ ground,
-                               source=path)
+                               max_gap_s=settings.max_gap_s, source=path)
     except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
         result.warnings.append(f"no mirror image: {exc.message}")
         return [], []

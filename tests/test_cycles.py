@@ -316,3 +316,88 @@ def test_cli_cycles_with_static_meet_the_targets(name, capsys):
         np.testing.assert_allclose(row["v"], true["v"], atol=0.02 * true["v"], err_msg=name)
         np.testing.assert_allclose(row["omega"], true["omega"], atol=0.02, err_msg=name)
         np.testing.assert_allclose(row["v_l"], true["v_l"], atol=0.02, err_msg=name)
+
+
+def stride_events(times: dict[str, list[float]]) -> list[GaitEvent]:
+    """Events from ``{"left_toe_off": [s, ...], ...}``."""
+    return [GaitEvent(name.split("_", 1)[0], name.split("_", 1)[1], t, round(t * RATE), 1.0)
+            for name, ts in times.items() for t in ts]
+
+
+#: One left toe-off in view (1.2 s), the right foot's two toe-offs around it: walking order
+#: (left toe-off, left heel-strike, right toe-off, right heel-strike) with a 1.1 s stride.
+ONE_LEFT_TOE_OFF = {"right_toe_off": [0.65, 1.75], "right_heel_strike": [1.1],
+                    "left_toe_off": [1.2], "left_heel_strike": [1.65]}
+
+
+def test_one_left_toe_off_cuts_from_the_protocol_s_fallback_event_flagged():
+    from mocaplib.errors import NoCycleError
+
+    left, right = shoulders(TIME, v_f=1.0, period=PERIOD)
+    evs = stride_events(ONE_LEFT_TOE_OFF)
+    with pytest.raises(NoCycleError, match="fewer than two left toe-offs") as caught:
+        analyse_cycles(evs, left, right, RATE)
+    assert "fallback_starts" in caught.value.hint   # says how to let cycles start elsewhere
+    cycles = analyse_cycles(evs, left, right, RATE,
+                            fallback_starts=("left_heel_strike", "right_toe_off"))
+    # no left heel-strike pair: the right toe-offs cut the cycle
+    assert len(cycles) == 1 and cycles[0].start_event == "right_toe_off"
+    cycle = cycles[0]
+    np.testing.assert_allclose((cycle.start_s, cycle.end_s), (0.65, 1.75), atol=1e-12)
+    np.testing.assert_allclose(cycle.left_toe_off, 0.55, atol=1e-12)   # 1.2 s - 0.65 s
+    assert cycle.right_toe_off == 0.0
+    np.testing.assert_allclose(cycle.velocities.v, 1.0, rtol=0.02)
+    data = cycle.to_dict()
+    assert data["start_event"] == "right_toe_off" and data["left_toe_off_s"] == cycle.left_toe_off
+
+
+def test_a_fallback_cycle_holds_one_stride_in_walking_or_running_order():
+    # running: left toe-off, right heel-strike, right toe-off, left heel-strike
+    running = stride_events({"right_toe_off": [0.65, 1.35], "left_heel_strike": [0.78],
+                             "left_toe_off": [1.0], "right_heel_strike": [1.13]})
+    assert len(cycle_bounds(running, start="right_toe_off")) == 1
+    # a jump: both feet leave together and land together
+    jump = stride_events({"right_toe_off": [0.65, 1.75], "left_toe_off": [0.66],
+                          "left_heel_strike": [1.1], "right_heel_strike": [1.11]})
+    assert cycle_bounds(jump, start="right_toe_off") == []
+    # a second right heel-strike (a stride and more): not one stride
+    extra = stride_events({**ONE_LEFT_TOE_OFF, "right_heel_strike": [1.1, 1.3]})
+    assert cycle_bounds(extra, start="right_toe_off") == []
+
+
+@pytest.mark.parametrize("gap_s, kept", [(0.2, True), (0.3, False)])
+def test_cycles_span_gaps_up_to_max_gap_s(gap_s, kept):
+    from mocaplib.cycles import MAX_GAP_S
+    from mocaplib.errors import NoCycleError
+
+    assert MAX_GAP_S == 0.25
+    left, right = shoulders(TIME, v_f=1.0, period=PERIOD)
+    filled = np.zeros(len(TIME), dtype=bool)
+    # frames the fit interpolated inside the second cycle (1.41-2.51 s): the gap between the
+    # solved frames around them spans gap_s
+    first = 180
+    filled[first:first + int(round(gap_s * RATE)) - 1] = True
+    cycles = analyse_cycles(events(), left, right, RATE, filled=filled)
+    starts = [round(c.start_s, 2) for c in cycles]
+    assert starts == ([0.31, 1.41, 2.51] if kept else [0.31, 2.51])
+    # a limit above the gap keeps it; when every cycle spans too long a gap, no cycle, and why
+    assert len(analyse_cycles(events(), left, right, RATE, filled=filled, max_gap_s=0.35)) == 3
+    if not kept:
+        with pytest.raises(NoCycleError, match=r"every cycle spans a gap longer than max_gap_s "
+                                               r"0.25 s: 1.41-2.51 s \(left_toe_off\) spans "
+                                               r"0.30 s the fit could not solve"):
+            analyse_cycles(events(n=2, first=1.41), left, right, RATE, filled=filled)
+
+
+def test_one_gap_limit_for_the_events_the_cycles_the_build_and_the_cli():
+    from mocaplib.cli._common import MAX_GAP_DEFAULT
+    from mocaplib.cycles import MAX_GAP_S
+    from mocaplib.errors import MocapError
+    from mocaplib.events import EventSettings
+    from mocaplib.settings import BuildSettings
+
+    assert MAX_GAP_DEFAULT == MAX_GAP_S == EventSettings().max_gap_s == \
+        BuildSettings().max_gap_s == 0.25
+    assert BuildSettings(max_gap_s=0.5).to_dict()["max_gap_s"] == 0.5   # recorded
+    with pytest.raises(MocapError, match="max_gap_s must be a number of seconds >= 0, got -1"):
+        BuildSettings(max_gap_s=-1)

@@ -66,6 +66,7 @@ def sample_library(sample_dir, tmp_path_factory):
     in it. The marker RMS limit is 0.1 mm, so that every entry waives it."""
     from mocaplib.library import DEFAULT_QC_THRESHOLDS
     from mocaplib.mirror import mirror_entry
+    from mocaplib.phase import start_later
     from mocaplib.pipeline import BuildSettings, build
 
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 1e-4}
@@ -83,7 +84,13 @@ def sample_library(sample_dir, tmp_path_factory):
     lab = replace(source, id=source.id.replace("_c", "_lab_c", 1),
                   joint_shifts_m={"tibia_r": (0.012, -0.004, 0.0), "foot_l": (0.0, 0.01, 0.0)},
                   held_dofs={"ankle_inversion_r": 0.05}, dofs_at_limit={"knee_flexion_l": 0.02})
-    library = assemble_library([*library.entries, series, lab], settings=library.settings,
+    # the same cycle cut from its right toe-off, as a build cuts one when fewer than two left
+    # toe-offs are in view (the protocol's fallback_starts)
+    fallback = start_later(replace(source, id=source.id.replace("_c", "_rto_c", 1)),
+                           source.right_toe_off_s, cycle_start="right_toe_off",
+                           left_toe_off_s=source.T - source.right_toe_off_s)
+    library = assemble_library([*library.entries, series, lab, fallback],
+                               settings=library.settings,
                                qc_thresholds=library.document["qc_thresholds"])
     path = library.write(tmp_path_factory.mktemp("entry") / "library.json")
     return library, path

@@ -226,6 +226,13 @@ def test_no_protocol_matches_raises():
      "used twice: LASI"),
     ('[markers]\nLASI = "L_ASIS"\n[any_of]\nback = ["LPSI"]\n', r"\[any_of\] 'back'"),
     ('extends = "nope"\n[markers]\nLASI = "L_ASIS"\n', "extends 'nope': unknown protocol"),
+    ('[markers]\nLASI = "L_ASIS"\n[cycles]\nfallback_starts = ["left_toe_off"]\n',
+     r"\[cycles\] fallback_starts must list events among left_heel_strike, right_toe_off, "
+     r"right_heel_strike, each once, got \['left_toe_off'\]"),
+    ('[markers]\nLASI = "L_ASIS"\n[cycles]\nfallback_starts = "right_toe_off"\n',
+     "fallback_starts must list"),
+    ('[markers]\nLASI = "L_ASIS"\n[cycles]\nstarts = ["right_toe_off"]\n',
+     r"\[cycles\] has no key 'starts'"),
 ])
 def test_malformed_protocol_names_the_file(tmp_path, text, message):
     path = tmp_path / "lab_set.toml"
@@ -233,6 +240,17 @@ def test_malformed_protocol_names_the_file(tmp_path, text, message):
     with pytest.raises(ProtocolError, match=message) as info:
         load_protocol(path)
     assert str(info.value).startswith(str(path))
+
+
+def test_fallback_cycle_starts_are_read_and_inherited(tmp_path):
+    assert load_protocol("fullbody38").fallback_starts == ()
+    (tmp_path / "runs.toml").write_text(
+        'extends = "fullbody38"\n[cycles]\n'
+        'fallback_starts = ["right_toe_off", "left_heel_strike"]\n')
+    (tmp_path / "child.toml").write_text('extends = "runs.toml"\n[markers]\nC7 = "C7"\n')
+    runs, child = load_protocol(tmp_path / "runs.toml"), load_protocol(tmp_path / "child.toml")
+    assert runs.fallback_starts == child.fallback_starts == ("right_toe_off", "left_heel_strike")
+    assert runs.labels == load_protocol("fullbody38").labels   # [markers] may be left out
 
 
 def test_extends_loop_is_an_error(tmp_path):

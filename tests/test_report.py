@@ -787,3 +787,17 @@ def test_the_motion_viewer_animates_and_blends_in_headless_chromium(report, tmp_
         assert browser.console_errors == []
     finally:
         browser.close()
+
+
+def test_a_cycle_from_a_fallback_event_says_so_in_the_capture_section():
+    from mocaplib.report.html import _captures
+
+    diagnostics = {"captures": [{"source": "run.c3d", "ok": True, "cycles": [
+        {"index": 0, "start_s": 0.59, "end_s": 1.30, "chosen": True, "entry_id": None,
+         "start_event": "right_toe_off", "pattern": {"type": "line"}},
+        {"index": 1, "start_s": 1.30, "end_s": 2.0, "chosen": False, "entry_id": None,
+         "start_event": "left_toe_off", "pattern": {"type": "line"}}]}]}
+    from types import SimpleNamespace
+
+    cycles = _captures(diagnostics, SimpleNamespace(entries=[]))[0]["cycles"]
+    assert [c["start_event"] for c in cycles] == ["right toe off", None]

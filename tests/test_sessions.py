@@ -4,6 +4,7 @@ as recorded (a step in, one frame), and captures that give no entry without fail
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -192,6 +193,13 @@ def test_the_shared_files_with_two_statics_build_without_failure(shared_c3d, tmp
     # the one-frame static is used, never failed; the jump has no cycle, and says so
     assert by_file["PiG_Calibration-FlatFoot-One"]["no_entry"].startswith("a static trial")
     assert by_file["16_07"]["no_entry"].startswith("no complete cycle")
+    # every capture without an entry says why; one left out by QC names its cycles and metrics
+    for record in by_file.values():
+        if not any(c["entry_id"] for c in record["cycles"]):
+            assert record["no_entry"], record["source"]
+        if (record["no_entry"] or "").startswith("every complete cycle was left out by QC"):
+            assert re.search(r"QC: cycle \d+ \([\d.]+-[\d.]+ s\) \w+ [\d.]+ [<>]",
+                             record["no_entry"]), record["no_entry"]
     moving = ("07_01", "07_12", "HC030A22", "Gait", "PiG_Motion-FlatFoot-Full", "running",
               "BTS", "Qualisys")
     assert {e.split("_c")[0] for e in library.table.index} >= set(moving)

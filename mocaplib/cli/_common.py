@@ -146,6 +146,20 @@ def add_toe_off_option(parser) -> None:
                              "fastest, ~18 ms before Foot Off on real feet)")
 
 
+#: ``--max-gap`` default: :data:`mocaplib.cycles.MAX_GAP_S` (a test keeps the two equal).
+MAX_GAP_DEFAULT = 0.25
+
+
+def add_gap_option(parser) -> None:
+    """``--max-gap``: the longest gap filled by interpolation (:mod:`mocaplib.cycles`)."""
+    parser.add_argument("--max-gap", type=positive(float, unit=" s"), default=MAX_GAP_DEFAULT,
+                        metavar="S", dest="max_gap_s",
+                        help="longest gap (s) filled by interpolation: in the foot markers the "
+                             "gait events read, and in the frames the fit could not solve "
+                             "inside a cycle; a cycle spanning a longer one is not cut "
+                             f"(default {MAX_GAP_DEFAULT:g})")
+
+
 def positive(kind: type, *, unit: str = "", most: float = math.inf):
     """argparse ``type=`` accepting finite numbers of ``kind`` (int or float) in (0, most];
     else exit 2."""

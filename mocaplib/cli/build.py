@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      add_toe_off_option, check_inputs, check_output_folder, check_outputs,
+                      add_gap_option, add_toe_off_option, check_inputs, check_output_folder, check_outputs,
                       jobs_count, measurements, warn)
 
 
@@ -32,6 +32,7 @@ def register(subparsers) -> None:
                              "the inputs")
     add_cutoff_option(parser)
     add_toe_off_option(parser)
+    add_gap_option(parser)
     parser.add_argument("--report", metavar="DIR", help="also write the HTML report into DIR")
     parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
                         help="worker processes, for the captures and the report's figures "
@@ -76,7 +77,8 @@ def _check_usage(args):
                              static_pose=args.static_pose, static_window=args.static_window,
                              require_static=args.require_static,
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
-                             toe_off=args.toe_off, all_cycles=args.all_cycles,
+                             toe_off=args.toe_off, max_gap_s=args.max_gap_s,
+                             all_cycles=args.all_cycles,
                              mirror=args.mirror, qc_policy=args.qc,
                              measurements=measurements(args))
     inputs = build_inputs(captures, settings)

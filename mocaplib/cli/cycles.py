@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import (add_cutoff_option, add_static_options, check_inputs, heading_offsets,
-                      measurements)
+from ._common import (add_cutoff_option, add_gap_option, add_static_options, check_inputs,
+                      heading_offsets, measurements)
 from .events import add_common_options
 
 
@@ -28,6 +28,7 @@ def register(subparsers) -> None:
     add_common_options(parser)
     add_static_options(parser)
     add_cutoff_option(parser)
+    add_gap_option(parser)
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "cycles": [...]} (SI units, angles in radians; '
                              '"fourier_rms_deg" in degrees)')
@@ -35,7 +36,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..cycles import motion_cycles
+    from ..cycles import LEFT_TOE_OFF, motion_cycles
     from ..events import capture_events
     from ..workflow import fit_capture
     from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
@@ -52,8 +53,11 @@ def _run(args) -> int:
                          static_pose=args.static_pose, cutoff=args.cutoff,
                          static_window=args.static_window, measurements=measurements(args),
                          heading_offsets=heading_offsets(args)).motion
-    events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
-    cycles = motion_cycles(events, motion, ground=ground, source=args.file)
+    events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off,
+                                    max_gap_s=args.max_gap_s)
+    cycles = motion_cycles(events, motion, ground=ground, source=args.file,
+                           fallback_starts=match.protocol.fallback_starts,
+                           max_gap_s=args.max_gap_s)
     qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)
     rows = [{**c.to_dict(), "qc_failures": qc_failures(qcs[c.index], DEFAULT_QC_THRESHOLDS)}
             for c in cycles]
@@ -69,6 +73,9 @@ def _run(args) -> int:
               f"  {r['v']:6.3f} {np.rad2deg(r['omega']):6.1f}  {r['v_l']:7.3f}  {r['v_f']:7.3f}"
               f"  {r['fourier_n']:2d} {r['fourier_rms_deg']:5.2f}  {r['fourier_worst_dof']}")
     for r in rows:
+        if r["start_event"] != LEFT_TOE_OFF:
+            print(f"  cycle {r['index']} starts at a {r['start_event'].replace('_', ' ')} (the "
+                  f"protocol's fallback); its left toe-off is {r['left_toe_off_s']:.3f} s in")
         if r["qc_failures"]:
             print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
     print("  (* = chosen for the library: the steadiest cycle that passes QC, if any does)")
