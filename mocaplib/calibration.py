@@ -130,14 +130,16 @@ STATIC_WINDOW_S = 1.0
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
 #: the shoulders (from the acromion) and the elbows. The hips, knees and ankles keep the
-#: nominal layout: moved to their centres they lower the samples' knee flexion error
-#: (``run_3p0``: 3.6° to 0.5–2.2° RMS) but raise ankle inversion's (2.3° to 6.3–7.1°).
+#: nominal layout: the hips moved to Harrington's centres lower the knee's flexion error but
+#: raise ankle inversion's (exact markers of ``run_3p0``: 3.6° to 2.4° and 2.5° to 6.9° RMS;
+#: docs/results/fit_accuracy.md).
 NEUTRAL_CENTRES = ("humerus_r", "humerus_l", "forearm_r", "forearm_l")
 #: The chord joints of a static in the neutral pose: not the elbow, whose centre is then its
-#: lateral landmark moved by the catalogue offset, turned by the pelvis's orientation (every
-#: segment's in that pose): medially along the mediolateral axis, a hanging arm's flexion axis. The chord's plane (shoulder centre, upper-arm
-#: marker, lateral epicondyle) is nearly edge-on to the flexion axis and leans with a few mm
-#: of the markers' fore-aft placement: 11 mm forward on the samples' exact markers.
+#: lateral landmark moved by the catalogue offset turned by the pelvis's orientation (every
+#: segment's in that pose), i.e. along the mediolateral axis, a hanging arm's flexion axis.
+#: The chord's plane (shoulder centre, upper-arm marker, lateral epicondyle) is nearly
+#: edge-on to that axis and leans with millimetres of the markers' fore-aft placement: 11 mm
+#: forward on the samples' exact markers.
 NEUTRAL_CHORD_JOINTS = ("tibia", "foot")
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
@@ -748,9 +750,9 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
     defines the segment frames). With the anatomical joint ``centres`` (:func:`joint_centres`)
-    the skeleton's shoulders are first moved onto them (:func:`neutral_shifts`). Returns the
-    offsets, the RMS (m) of the static markers about the neutral model with them, the poses
-    (F, D) and the skeleton.
+    the skeleton's shoulders and elbows are first moved onto them (:func:`neutral_shifts`).
+    Returns the offsets, the RMS (m) of the static markers about the neutral model with them,
+    the poses (F, D) and the skeleton.
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
     X_known, known = landmark_markers(X, nominal)
@@ -775,8 +777,8 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
     A joint is placed after its parent (an elbow in the moved upper arm's frame), and both
     sides take the mean of their shifts, mirrored. Without the shifts a shoulder sits where
     the nominal layout puts it, straight above the hip centres, and the elbow straight below
-    it: an elbow hinged about a point off the true one reads the wrong flexion, the more the
-    more it flexes (docs/results/fit_accuracy.md).
+    it: an elbow hinged about a point off the true one reads the wrong flexion, more as it
+    flexes more (docs/results/fit_accuracy.md).
     """
     T = skeleton.forward(q)
     frames = {}
@@ -874,11 +876,11 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     ``measurements`` (metres; :data:`mocaplib.anatomy.MEASUREMENTS`) or, without them, the
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
-    ``q`` (F, D). Elbow: midpoint, chord or catalogue offset, likewise, but on a static in
-    the neutral pose (``neutral``) its catalogue offset turned by the pelvis's orientation
-    (:data:`NEUTRAL_CHORD_JOINTS`); shoulder: the acromion's catalogue
-    offset; wrist: mid-styloids. A knee, ankle or elbow none of these place is the functional
-    centre of three markers of each of its segments
+    ``q`` (F, D). Elbow: likewise; shoulder: the acromion's catalogue offset; wrist:
+    mid-styloids. On a static in the neutral pose (``neutral``) catalogue offsets are turned
+    by the pelvis's orientation (every segment's in that pose) and the elbow is not placed by
+    the chord (:data:`NEUTRAL_CHORD_JOINTS`). A knee, ankle or elbow none of these place is
+    the functional centre of three markers of each of its segments
     (:func:`mocaplib.anatomy.functional_centre`, the proximal centre as the hinge's hint),
     when the joint turns enough over the frames. ``scale`` = height / 1.75 scales catalogue offsets. The
     methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
