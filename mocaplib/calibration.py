@@ -46,7 +46,9 @@ Steps (all in metres, world Z up):
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
-   the root pose is fitted to the static frames, and each marker's offset is then measured
+   the root pose is fitted to the static frames; the shoulders and elbows are moved onto
+   their anatomical centres of step 3 (:func:`neutral_shifts`; the elbow's from its lateral
+   landmark, :data:`NEUTRAL_CHORD_JOINTS`); and each marker's offset is then measured
    directly in its segment frame (the mean of ``R_s^T (x − t_s)``, no turning onto the
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
@@ -126,6 +128,19 @@ STANDING_EXTENT = 0.05
 #: quietest one of that length (:func:`standing_part`).
 STATIC_WINDOW_S = 1.0
 
+#: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
+#: the shoulders (from the acromion) and the elbows. The hips, knees and ankles keep the
+#: nominal layout: the hips moved to Harrington's centres lower the knee's flexion error but
+#: raise ankle inversion's (exact markers of ``run_3p0``: 3.6° to 2.4° and 2.5° to 6.9° RMS;
+#: docs/results/fit_accuracy.md).
+NEUTRAL_CENTRES = ("humerus_r", "humerus_l", "forearm_r", "forearm_l")
+#: The chord joints of a static in the neutral pose: not the elbow, whose centre is then its
+#: lateral landmark moved by the catalogue offset turned by the pelvis's orientation (every
+#: segment's in that pose), i.e. along the mediolateral axis, a hanging arm's flexion axis.
+#: The chord's plane (shoulder centre, upper-arm marker, lateral epicondyle) is nearly
+#: edge-on to that axis and leans with millimetres of the markers' fore-aft placement: 11 mm
+#: forward on the samples' exact markers.
+NEUTRAL_CHORD_JOINTS = ("tibia", "foot")
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
 #: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
 #: hinge axes become functional ones.
@@ -307,13 +322,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         X = apply_repairs(X, labels, repairs)
         known = landmark_markers(X, offsets)[0]
         first = solve_poses(skeleton, known, segments, known_offsets, free=free)
-    centres, methods = joint_centres(X, landmarks, segments, skeleton, first.q, scale=scale,
-                                     measurements=measurements)
+    neutral = static is not None and static_pose == "neutral"
+    centres, methods = joint_centres(
+        X, landmarks, segments, skeleton, first.q, scale=scale, measurements=measurements,
+        neutral=neutral)
     anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
-    if static is not None and static_pose == "neutral":
-        offsets, rms, poses = neutral_offsets(skeleton, X, segments, nominal=nominal_scaled,
-                                              heading_offset=heading_offset)
+    if neutral:
+        offsets, rms, poses, skeleton = neutral_offsets(
+            skeleton, X, segments, nominal=nominal_scaled, heading_offset=heading_offset,
+            centres=centres)
         model = SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
                              [rms], cal.source, swapped, methods, static_window_s=window)
         _check_measured(model, cal)
@@ -720,8 +738,9 @@ def choose_static(trial: Trial, statics: Sequence[Trial], protocol: Protocol, *,
 
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
-                    nominal: np.ndarray, heading_offset: float = 0.0
-                    ) -> tuple[np.ndarray, float]:
+                    nominal: np.ndarray, heading_offset: float = 0.0,
+                    centres: dict[tuple[str, float], np.ndarray] | None = None
+                    ) -> tuple[np.ndarray, float, np.ndarray, Skeleton]:
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
     ``X`` (F, M, 3) static markers, ``segments`` (M,), ``nominal`` (M, 3) catalogue offsets
@@ -730,17 +749,52 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     markers with the nominal offsets, its heading turned by ``heading_offset``
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
-    defines the segment frames). Returns the offsets, the RMS (m) of the static markers
-    about the neutral model with them, and the poses (F, D).
+    defines the segment frames). With the anatomical joint ``centres`` (:func:`joint_centres`)
+    the skeleton's shoulders and elbows are first moved onto them (:func:`neutral_shifts`).
+    Returns the offsets, the RMS (m) of the static markers about the neutral model with them,
+    the poses (F, D) and the skeleton.
     """
     root = np.isin(DOF_NAMES, SEGMENTS[0].dofs)
     X_known, known = landmark_markers(X, nominal)
     q0 = np.where(root, initial_pose(skeleton, X_known, segments, known), 0.0)
     q = solve_poses(skeleton, X_known, segments, known, q0=q0, free=root, smoothing=0.0).q
     q[:, ROOT_HEADING] += heading_offset
+    if centres:
+        skeleton = Skeleton(skeleton.lengths, neutral_shifts(skeleton, q, centres))
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
     residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
-    return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q
+    return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q, skeleton
+
+
+def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
+                   centres: dict[tuple[str, float], np.ndarray]
+                   ) -> dict[str, tuple[float, float, float]]:
+    """:attr:`Skeleton.shifts` (metres) that put the shoulders and elbows
+    (:data:`NEUTRAL_CENTRES`) at their anatomical centres on a static in the neutral pose.
+
+    ``q`` (F, D) the static's poses (every joint angle 0, so every segment's frame is the
+    root's), ``centres`` the anatomical joint centres (:func:`joint_centres`, world, (F, 3)).
+    A joint is placed after its parent (an elbow in the moved upper arm's frame), and both
+    sides take the mean of their shifts, mirrored. Without the shifts a shoulder sits where
+    the nominal layout puts it, straight above the hip centres, and the elbow straight below
+    it: an elbow hinged about a point off the true one reads the wrong flexion, more as it
+    flexes more (docs/results/fit_accuracy.md).
+    """
+    T = skeleton.forward(q)
+    frames = {}
+    for name in NEUTRAL_CENTRES:
+        if (name, 0.0) in centres:
+            parent = SEGMENT_NAMES.index(SEGMENTS[SEGMENT_NAMES.index(name)].parent)
+            frames.setdefault(SEGMENT_NAMES[parent], (T[:, parent, :3, :3], T[:, parent, :3, 3]))
+            frames[name] = (T[:, parent, :3, :3], centres[(name, 0.0)])
+    # one shift for both sides, mirrored: the skeleton stays left-right symmetric (its lengths
+    # are the sides' means), so the shoulder line keeps the torso's heading (θ_S)
+    sides: dict[str, list] = {}
+    for name, (x, y, z) in joint_shifts(skeleton, frames).items():
+        for key, sign in ((name, 1.0), (partner_name(name), -1.0)):
+            sides.setdefault(key, []).append((x, sign * y, z))
+    return {name: tuple(float(v) for v in np.mean(values, axis=0))
+            for name, values in sides.items()}
 
 
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
@@ -810,7 +864,7 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
 
 def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                   skeleton: Skeleton, q: np.ndarray, *, scale: float,
-                  measurements: dict[str, float] | None = None
+                  measurements: dict[str, float] | None = None, neutral: bool = False
                   ) -> tuple[dict[tuple[str, float], np.ndarray], dict[str, str]]:
     """Anatomical joint centres per frame, world (F, 3) metres, and how each was found.
 
@@ -822,9 +876,11 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     ``measurements`` (metres; :data:`mocaplib.anatomy.MEASUREMENTS`) or, without them, the
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
-    ``q`` (F, D). Elbow: midpoint or catalogue offset; shoulder: the acromion's catalogue
-    offset; wrist: mid-styloids. A knee, ankle or elbow none of these place is the functional
-    centre of three markers of each of its segments
+    ``q`` (F, D). Elbow: likewise; shoulder: the acromion's catalogue offset; wrist:
+    mid-styloids. On a static in the neutral pose (``neutral``) catalogue offsets are turned
+    by the pelvis's orientation (every segment's in that pose) and the elbow is not placed by
+    the chord (:data:`NEUTRAL_CHORD_JOINTS`). A knee, ankle or elbow none of these place is
+    the functional centre of three markers of each of its segments
     (:func:`mocaplib.anatomy.functional_centre`, the proximal centre as the hinge's hint),
     when the joint turns enough over the frames. ``scale`` = height / 1.75 scales catalogue offsets. The
     methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
@@ -856,9 +912,11 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
 
     def from_catalogue(lat, child):
         mark = catalogue[lat]
-        s = SEGMENT_NAMES.index(mark.segment)
+        s = 0 if neutral else SEGMENT_NAMES.index(mark.segment)
         local = np.asarray(mark.position) * scale - joints[SEGMENT_NAMES.index(child)]
         return where[lat] - T[:, s, :3, :3] @ local, local
+
+    chord_joints = NEUTRAL_CHORD_JOINTS if neutral else _CHORD_JOINTS
 
     for side in ("L", "R"):
         suffix = "_" + side.lower()
@@ -873,7 +931,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 parent = SEGMENT_NAMES.index(catalogue[lat].segment)
                 proximal = out.get((SEGMENT_NAMES[parent], 0.0))
                 wand = _wand(landmarks, segments, parent, side, (lat, med))
-                if child in _CHORD_JOINTS and proximal is not None and wand:
+                if child in chord_joints and proximal is not None and wand:
                     width = measurements.get(f"{_JOINT_NAMES[child]}_width{suffix}")
                     delta = (0.5 * (width + measurements.get("marker_diameter",
                                                              DEFAULT_MARKER_DIAMETER))

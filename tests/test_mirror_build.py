@@ -73,12 +73,10 @@ def _within_velocity_targets(a, b) -> list[str]:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured 98.5 % of the default envelope with the "
-                   "images (the samples of the generator's independent body)")
 def test_a_mirrored_library_of_the_samples_covers_the_default_envelope(mirrored_samples):
     """Target: >= 99 % of the default envelope (the paper plan's commands) with the mirror
     images in, flagged as such (3 straight walks, 2 runs and rest are their own mirror
-    images)."""
+    images). Measured: 99.16 % with the images, 99.13 % without."""
     from mocaplib.controlspace import ControlSpace, coverage
     from mocaplib.library import validate_library
     from mocaplib.report.plan import default_envelope
