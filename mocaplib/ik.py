@@ -173,6 +173,10 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     diagonal = (slice(None), np.arange(n_dofs), np.arange(n_dofs))
     lam = np.full(n_frames, 1e-5)
     active = np.ones(n_frames, dtype=bool)
+    # the damped normal matrix of each frame's last accepted step, and whether it has one
+    last_matrix = np.empty((n_frames, n_dofs, n_dofs))
+    stepped = np.zeros(n_frames, dtype=bool)
+    rough = np.zeros(n_frames, dtype=bool)      # stopped after an untried step over step_tol
     mu2 = smoothing ** 2
     marker_map = _marker_map(segments, offsets)
     moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
@@ -199,17 +203,9 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                                                                                robust_scale))
         g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
         g[:, ~free] = 0.0
-        step = _by_owner(inverse, owner[rows], g)
-        step = np.clip(q[rows] + step, _LOWER, _UPPER) - q[rows]     # projected, as below
-        # (moving every row, by zero where the step is too big, copies less than selecting)
-        there = np.abs(step).max(axis=1) < step_tol
-        step[~there] = 0.0
-        if every:
-            pts += _first_order_move(twist, about, moved, step)
-        else:
-            pts[rows] += _first_order_move(twist, about, moved, step)
-        q[rows] += step
-        active[rows[there]] = False
+        step = _projected(q[rows], _by_owner(inverse, owner[rows], g))
+        _take_steps(q, pts, active, rows, step, np.abs(step).max(axis=1) < step_tol, twist,
+                    about, moved, every=every)
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -224,6 +220,33 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
         twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
         about = (pts if every else pts[rows]) - origin[:, :, None]
+        # a frame that has just stepped first measures its next step by that step's matrix
+        # (as the step metric above; the matrix changes little over a converging step): a
+        # step below step_tol, or one whose predicted cost decrease gᵀs is below tol
+        # (relative), it takes untried and stops, without forming its own normal equations
+        check = np.flatnonzero(stepped[rows] & (((qa > _LOWER + 1e-12) & (qa < _UPPER - 1e-12))
+                                                | ~free).all(axis=1))
+        stepped[rows] = False
+        if check.size:
+            g = _gradient(twist[check], about[check], moved, r[check], w[check])
+            g -= mu2 * (qa[check] - q_ref[check])
+            g[:, ~free] = 0.0
+            step = _projected(qa[check], np.linalg.solve(last_matrix[rows[check]],
+                                                         g[..., None])[..., 0])
+            c0 = (w_marker[rows[check]] * _soft_l1(d[check], robust_scale)).sum(axis=1) + mu2 * (
+                ((qa[check] - q_ref[check]) * free) ** 2).sum(axis=1)
+            small = np.abs(step).max(axis=1) < step_tol
+            there = small | ((g * step).sum(axis=1) <= tol * np.maximum(c0, 1e-12))
+            _take_steps(q, pts, active, rows[check], step, there, twist[check], about[check],
+                        moved)
+            rough[rows[check[there & ~small]]] = True
+            if there.all() and check.size == rows.size:
+                continue
+            if there.any():
+                keep = np.ones(rows.size, dtype=bool)
+                keep[check[there]] = False
+                rows, q_ref, qa, r, d, w, twist, about = (
+                    x[keep] for x in (rows, q_ref, qa, r, d, w, twist, about))
         A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
         # the continuity term's curvature counted twice: the step also stays near the current
@@ -257,6 +280,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             # it takes the step untried, its markers moved to first order (error ~ step² x
             # lever, < 1 µm)
             there = (np.abs(trial_q - qa[k]).max(axis=1) < step_tol) & (attempt == 0)
+            in_Ak = np.arange(k.size)
             if there.any():
                 last, f = k[there], rows[k[there]]
                 pts[f] += _first_order_move(twist[last], about[last], moved,
@@ -264,7 +288,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 q[f] = trial_q[there]
                 active[f] = False
                 todo[last] = False
-                k, trial_q = k[~there], trial_q[~there]
+                k, trial_q, in_Ak = k[~there], trial_q[~there], in_Ak[~there]
                 if k.size == 0:
                     break
             c1, trial_chain, trial_pts = cost(trial_q, rows[k], q_ref[k])
@@ -276,6 +300,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 cached[rows[good]] = new[better]
             pts[rows[good]] = trial_pts[better]
             lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-9)
+            last_matrix[rows[good]] = Ak[in_Ak[better]]
+            stepped[rows[good]] = True
             done = ((c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12))
                     | (moved_by < step_tol))
             active[rows[good[done]]] = False
@@ -287,8 +313,32 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                           | (lam[rows[worse]] > 1e8)]
             active[rows[stuck]] = False
             todo[stuck] = False
+    if rough.any():                             # their markers placed exactly
+        pts[rough] = _points(skeleton.chain(q[rough])[0], marker_map)
     residuals = _norm3(markers.transpose(0, 2, 1) - pts)
     return PoseFit(q, residuals, ~active, iterations)
+
+
+def _projected(q: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """``step`` (n, D) from poses ``q`` (n, D) cut to the joint bounds."""
+    return np.clip(q + step, _LOWER, _UPPER) - q
+
+
+def _take_steps(q: np.ndarray, pts: np.ndarray, active: np.ndarray, rows: np.ndarray,
+                step: np.ndarray, take: np.ndarray, twist: np.ndarray, about: np.ndarray,
+                moved: np.ndarray, *, every: bool = False) -> None:
+    """Take the steps (n, D) of frames ``rows`` (n,) where ``take`` (n,) bool, untried: ``q``
+    (F, D) moved, their markers ``pts`` (F, 3, M) moved to first order
+    (:func:`_first_order_move`, from ``twist`` (n, 6, D) and ``about`` (n, 3, M)) and their
+    ``active`` (F,) cleared, in place; ``every``: ``rows`` are all frames."""
+    # (moving every row, by zero where not taken, copies less than selecting)
+    step = np.where(take[:, None], step, 0.0)
+    if every:
+        pts += _first_order_move(twist, about, moved, step)
+    else:
+        pts[rows] += _first_order_move(twist, about, moved, step)
+    q[rows] += step
+    active[rows[take]] = False
 
 
 def _by_owner(matrices: np.ndarray, owner: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -602,7 +652,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
         start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
-                           else (q0[part], None))
+                                          else _warm_start(model, markers[part], settings, q0[part]))
         res = _restart_outliers(solve, solve(q0=start_q, step_metric=metric))
         res, markers[part], found = _undo_labelling_errors(
             lambda x, q: solve_poses(model.skeleton, x, model.marker_segments,
@@ -646,6 +696,33 @@ def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict
     first = solve_poses(model.skeleton, markers[keys], model.marker_segments,
                         model.marker_offsets, q0=q0, **settings)
     return _predict_between(model, markers, keys, first.q, settings)
+
+
+def _warm_start(model: "SubjectModel", markers: np.ndarray, settings: dict, q0: np.ndarray
+                ) -> tuple[np.ndarray, tuple | None]:
+    """Start poses (F, D) for markers (F, M, 3) near poses ``q0`` (F, D) (a previous fit of the
+    same frames, such as :func:`fit_filtered`'s raw pass), and their ``step_metric``.
+
+    Where :func:`keyframes` lie more than :data:`STRIDE` frames apart (markers moving along
+    straight lines: a still or slow stretch), the keyframes bounding those spans are solved from
+    ``q0`` and the frames between start from their predictions (:func:`_predict_between`), which
+    stop most of them after one check; every other frame starts from ``q0``.
+    """
+    keys = keyframes(markers)
+    sparse = np.flatnonzero(np.diff(keys) > LONGEST_STRIDE // 2)
+    if sparse.size == 0:
+        return q0, None
+    ends = np.unique(np.r_[keys[sparse], keys[sparse + 1]])
+    solved = solve_poses(model.skeleton, markers[ends], model.marker_segments,
+                         model.marker_offsets, q0=q0[ends], **settings)
+    start, (inverse, owner) = _predict_between(model, markers, ends, solved.q, settings)
+    inside = np.zeros(len(markers) + 1, dtype=int)
+    np.add.at(inside, keys[sparse], 1)
+    np.add.at(inside, keys[sparse + 1] + 1, -1)
+    outside = np.cumsum(inside)[:-1] == 0
+    start[outside] = q0[outside]
+    owner[outside] = -1
+    return start, (inverse, owner)
 
 
 def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarray,
