@@ -831,15 +831,18 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     model = skeleton.points(fitted.q, segments, offsets)
     together = suspect.T.astype(np.int64) @ suspect.astype(np.int64)
     candidates = []
-    for i, j in zip(*np.nonzero(np.triu(together >= SWAP_MIN_FRAMES, 1))):
-        if not _placed_without(segments, i, j):
-            continue
-        rows = np.flatnonzero(suspect[:, i] & suspect[:, j])
-        cross = (_norm_rows(markers[rows, i] - model[rows, j])
-                 + _norm_rows(markers[rows, j] - model[rows, i]))
-        rows = rows[cross < r[rows, i] + r[rows, j]]       # the pose may be dragged: a hint
-        if len(rows) >= SWAP_MIN_FRAMES:
-            candidates.append((len(rows), i, j, rows))
+    first, second = np.nonzero(np.triu((together >= SWAP_MIN_FRAMES)
+                                       & _placed_without(segments), 1))
+    frames = np.flatnonzero(suspect.any(axis=1))
+    x, at, rf = markers[frames], model[frames], r[frames]
+    # (frames, pairs): both suspect, and each nearer the other's place (the pose may be
+    # dragged: a hint)
+    hint = (suspect[frames][:, first] & suspect[frames][:, second]
+            & (_norm_rows(x[:, first] - at[:, second]) + _norm_rows(x[:, second] - at[:, first])
+               < rf[:, first] + rf[:, second]))
+    for p in np.flatnonzero(hint.sum(axis=0) >= SWAP_MIN_FRAMES):
+        rows = frames[hint[:, p]]
+        candidates.append((len(rows), first[p], second[p], rows))
     out: list[Repair] = []
     taken = np.zeros_like(suspect)
     for _, i, j, rows in sorted(candidates, key=lambda c: -c[0])[:SWAP_PAIRS]:
@@ -871,16 +874,16 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     return out
 
 
-def _placed_without(segments: np.ndarray, i: int, j: int) -> bool:
-    """True when the segments of markers ``i`` and ``j`` (``segments`` (M,)) each keep two
-    other markers on them or below them: a fit without the two still places them."""
-    for k in (i, j):
-        first = DOF_NAMES.index(SEGMENTS[segments[k]].dofs[0])
-        below = MOVES[segments, first].copy()
-        below[[i, j]] = False
-        if below.sum() < 2:
-            return False
-    return True
+def _placed_without(segments: np.ndarray) -> np.ndarray:
+    """(M, M) bool, True at (i, j) when the segments of markers ``i`` and ``j`` (``segments``
+    (M,)) each keep two other markers on them or below them: a fit without the two still
+    places them."""
+    first = [DOF_NAMES.index(SEGMENTS[s].dofs[0]) for s in segments]
+    below = MOVES[segments][:, first]          # (M, M): marker m on or below marker k's segment
+    # markers on or below i's segment other than i and j (i's own always counts)
+    left = (below.sum(axis=0) - 1)[:, None] - below.T
+    np.fill_diagonal(left, 0)
+    return (left >= 2) & (left.T >= 2)
 
 
 def _whole_swap(a: np.ndarray, b: np.ndarray, start: int, stop: int) -> tuple[int, int]:
