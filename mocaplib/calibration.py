@@ -413,7 +413,8 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
     _, J = model.skeleton.marker_jacobian(q, model.marker_segments[trusted],
                                           model.marker_offsets[trusted])
     J = J * np.sqrt(model.marker_weights[trusted])[None, :, None, None]
-    A = np.einsum("fmci,fmcj->fij", J, J)
+    J = J.reshape(len(J), -1, J.shape[-1])                   # (F, 3M, D)
+    A = J.transpose(0, 2, 1) @ J
     free = model.free & ~np.isin(np.arange(len(DOF_NAMES)), SHIFTS)
 
     def sd_of(mask):

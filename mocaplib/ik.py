@@ -97,6 +97,11 @@ LONGEST_STRIDE = 32
 KEY_TOLERANCE = 0.005
 #: Largest change (rad or m) the keyframes' linearisation may make to an interpolated start.
 PREDICTION_LIMIT = 0.1
+#: A frame whose last step moved a DOF by less than this many step tolerances checks its next
+#: step with that step's matrix before forming new normal equations (:func:`solve_poses`):
+#: below it, 35-100 % of such checks stopped the frame in the fits of the samples and of the
+#: real files; above, 0-60 %, and a check that fails costs a gradient and a solve.
+REUSE_BELOW = 40
 #: Frames solved together; bounds memory to ~chunk × D² × 8 bytes per normal-matrix array.
 CHUNK = 1000
 #: The stopping rule of :func:`fit_filtered`'s raw pass, which only finds the outlying samples
@@ -173,6 +178,11 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     diagonal = (slice(None), np.arange(n_dofs), np.arange(n_dofs))
     lam = np.full(n_frames, 1e-5)
     active = np.ones(n_frames, dtype=bool)
+    # the damped normal matrix of each frame's last accepted step, and that step's size (inf:
+    # none in the last iteration)
+    last_matrix = np.empty((n_frames, n_dofs, n_dofs))
+    last_step = np.full(n_frames, np.inf)
+    rough = np.zeros(n_frames, dtype=bool)      # stopped after an untried step over step_tol
     mu2 = smoothing ** 2
     marker_map = _marker_map(segments, offsets)
     moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
@@ -199,17 +209,9 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                                                                                robust_scale))
         g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
         g[:, ~free] = 0.0
-        step = _by_owner(inverse, owner[rows], g)
-        step = np.clip(q[rows] + step, _LOWER, _UPPER) - q[rows]     # projected, as below
-        # (moving every row, by zero where the step is too big, copies less than selecting)
-        there = np.abs(step).max(axis=1) < step_tol
-        step[~there] = 0.0
-        if every:
-            pts += _first_order_move(twist, about, moved, step)
-        else:
-            pts[rows] += _first_order_move(twist, about, moved, step)
-        q[rows] += step
-        active[rows[there]] = False
+        step = _projected(q[rows], _by_owner(inverse, owner[rows], g))
+        _take_steps(q, pts, active, rows, step, np.abs(step).max(axis=1) < step_tol, twist,
+                    about, moved, every=every)
 
     iterations = 0
     for iterations in range(1, max_iter + 1):
@@ -224,6 +226,34 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         w = w_marker[rows] * _soft_l1_weight(d, robust_scale)              # IRLS weights
         twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
         about = (pts if every else pts[rows]) - origin[:, :, None]
+        # a frame that has just taken a step of less than REUSE_BELOW step_tols first measures
+        # its next step by that step's matrix (as the step metric above; the matrix changes
+        # little over a converging step): a step below step_tol, or one whose predicted cost
+        # decrease gᵀs is below tol (relative), it takes untried and stops, without forming
+        # its own normal equations
+        check = np.flatnonzero((last_step[rows] < REUSE_BELOW * step_tol) & (
+            ((qa > _LOWER + 1e-12) & (qa < _UPPER - 1e-12)) | ~free).all(axis=1))
+        last_step[rows] = np.inf
+        if check.size:
+            g = _gradient(twist[check], about[check], moved, r[check], w[check])
+            g -= mu2 * (qa[check] - q_ref[check])
+            g[:, ~free] = 0.0
+            step = _projected(qa[check], np.linalg.solve(last_matrix[rows[check]],
+                                                         g[..., None])[..., 0])
+            c0 = (w_marker[rows[check]] * _soft_l1(d[check], robust_scale)).sum(axis=1) + mu2 * (
+                ((qa[check] - q_ref[check]) * free) ** 2).sum(axis=1)
+            small = np.abs(step).max(axis=1) < step_tol
+            there = small | ((g * step).sum(axis=1) <= tol * np.maximum(c0, 1e-12))
+            _take_steps(q, pts, active, rows[check], step, there, twist[check], about[check],
+                        moved)
+            rough[rows[check[there & ~small]]] = True
+            if there.all() and check.size == rows.size:
+                continue
+            if there.any():
+                keep = np.ones(rows.size, dtype=bool)
+                keep[check[there]] = False
+                rows, q_ref, qa, r, d, w, twist, about = (
+                    x[keep] for x in (rows, q_ref, qa, r, d, w, twist, about))
         A, g = _normal_equations(twist, about, moved, r, w)
         g -= mu2 * (qa - q_ref)
         # the continuity term's curvature counted twice: the step also stays near the current
@@ -257,6 +287,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             # it takes the step untried, its markers moved to first order (error ~ step² x
             # lever, < 1 µm)
             there = (np.abs(trial_q - qa[k]).max(axis=1) < step_tol) & (attempt == 0)
+            in_Ak = np.arange(k.size)
             if there.any():
                 last, f = k[there], rows[k[there]]
                 pts[f] += _first_order_move(twist[last], about[last], moved,
@@ -264,7 +295,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 q[f] = trial_q[there]
                 active[f] = False
                 todo[last] = False
-                k, trial_q = k[~there], trial_q[~there]
+                k, trial_q, in_Ak = k[~there], trial_q[~there], in_Ak[~there]
                 if k.size == 0:
                     break
             c1, trial_chain, trial_pts = cost(trial_q, rows[k], q_ref[k])
@@ -276,6 +307,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                 cached[rows[good]] = new[better]
             pts[rows[good]] = trial_pts[better]
             lam[rows[good]] = np.maximum(lam[rows[good]] / 3.0, 1e-9)
+            last_matrix[rows[good]] = Ak[in_Ak[better]]
+            last_step[rows[good]] = moved_by
             done = ((c0[good] - c1[better] <= tol * np.maximum(c0[good], 1e-12))
                     | (moved_by < step_tol))
             active[rows[good[done]]] = False
@@ -287,8 +320,32 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                           | (lam[rows[worse]] > 1e8)]
             active[rows[stuck]] = False
             todo[stuck] = False
+    if rough.any():                             # their markers placed exactly
+        pts[rough] = _points(skeleton.chain(q[rough])[0], marker_map)
     residuals = _norm3(markers.transpose(0, 2, 1) - pts)
     return PoseFit(q, residuals, ~active, iterations)
+
+
+def _projected(q: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """``step`` (n, D) from poses ``q`` (n, D) cut to the joint bounds."""
+    return np.clip(q + step, _LOWER, _UPPER) - q
+
+
+def _take_steps(q: np.ndarray, pts: np.ndarray, active: np.ndarray, rows: np.ndarray,
+                step: np.ndarray, take: np.ndarray, twist: np.ndarray, about: np.ndarray,
+                moved: np.ndarray, *, every: bool = False) -> None:
+    """Take the steps (n, D) of frames ``rows`` (n,) where ``take`` (n,) bool, untried: ``q``
+    (F, D) moved, their markers ``pts`` (F, 3, M) moved to first order
+    (:func:`_first_order_move`, from ``twist`` (n, 6, D) and ``about`` (n, 3, M)) and their
+    ``active`` (F,) cleared, in place; ``every``: ``rows`` are all frames."""
+    # (moving every row, by zero where not taken, copies less than selecting)
+    step = np.where(take[:, None], step, 0.0)
+    if every:
+        pts += _first_order_move(twist, about, moved, step)
+    else:
+        pts[rows] += _first_order_move(twist, about, moved, step)
+    q[rows] += step
+    active[rows[take]] = False
 
 
 def _by_owner(matrices: np.ndarray, owner: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -602,7 +659,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
         start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
-                           else (q0[part], None))
+                                          else _warm_start(model, markers[part], settings, q0[part]))
         res = _restart_outliers(solve, solve(q0=start_q, step_metric=metric))
         res, markers[part], found = _undo_labelling_errors(
             lambda x, q: solve_poses(model.skeleton, x, model.marker_segments,
@@ -646,6 +703,33 @@ def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict
     first = solve_poses(model.skeleton, markers[keys], model.marker_segments,
                         model.marker_offsets, q0=q0, **settings)
     return _predict_between(model, markers, keys, first.q, settings)
+
+
+def _warm_start(model: "SubjectModel", markers: np.ndarray, settings: dict, q0: np.ndarray
+                ) -> tuple[np.ndarray, tuple | None]:
+    """Start poses (F, D) for markers (F, M, 3) near poses ``q0`` (F, D) (a previous fit of the
+    same frames, such as :func:`fit_filtered`'s raw pass), and their ``step_metric``.
+
+    Where :func:`keyframes` lie more than :data:`STRIDE` frames apart (markers moving along
+    straight lines: a still or slow stretch), the keyframes bounding those spans are solved from
+    ``q0`` and the frames between start from their predictions (:func:`_predict_between`), which
+    stop most of them after one check; every other frame starts from ``q0``.
+    """
+    keys = keyframes(markers)
+    sparse = np.flatnonzero(np.diff(keys) > LONGEST_STRIDE // 2)
+    if sparse.size == 0:
+        return q0, None
+    ends = np.unique(np.r_[keys[sparse], keys[sparse + 1]])
+    solved = solve_poses(model.skeleton, markers[ends], model.marker_segments,
+                         model.marker_offsets, q0=q0[ends], **settings)
+    start, (inverse, owner) = _predict_between(model, markers, ends, solved.q, settings)
+    inside = np.zeros(len(markers) + 1, dtype=int)
+    np.add.at(inside, keys[sparse], 1)
+    np.add.at(inside, keys[sparse + 1] + 1, -1)
+    outside = np.cumsum(inside)[:-1] == 0
+    start[outside] = q0[outside]
+    owner[outside] = -1
+    return start, (inverse, owner)
 
 
 def _predict_between(model: "SubjectModel", markers: np.ndarray, keys: np.ndarray,
@@ -747,15 +831,18 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     model = skeleton.points(fitted.q, segments, offsets)
     together = suspect.T.astype(np.int64) @ suspect.astype(np.int64)
     candidates = []
-    for i, j in zip(*np.nonzero(np.triu(together >= SWAP_MIN_FRAMES, 1))):
-        if not _placed_without(segments, i, j):
-            continue
-        rows = np.flatnonzero(suspect[:, i] & suspect[:, j])
-        cross = (_norm_rows(markers[rows, i] - model[rows, j])
-                 + _norm_rows(markers[rows, j] - model[rows, i]))
-        rows = rows[cross < r[rows, i] + r[rows, j]]       # the pose may be dragged: a hint
-        if len(rows) >= SWAP_MIN_FRAMES:
-            candidates.append((len(rows), i, j, rows))
+    first, second = np.nonzero(np.triu((together >= SWAP_MIN_FRAMES)
+                                       & _placed_without(segments), 1))
+    frames = np.flatnonzero(suspect.any(axis=1))
+    x, at, rf = markers[frames], model[frames], r[frames]
+    # (frames, pairs): both suspect, and each nearer the other's place (the pose may be
+    # dragged: a hint)
+    hint = (suspect[frames][:, first] & suspect[frames][:, second]
+            & (_norm_rows(x[:, first] - at[:, second]) + _norm_rows(x[:, second] - at[:, first])
+               < rf[:, first] + rf[:, second]))
+    for p in np.flatnonzero(hint.sum(axis=0) >= SWAP_MIN_FRAMES):
+        rows = frames[hint[:, p]]
+        candidates.append((len(rows), first[p], second[p], rows))
     out: list[Repair] = []
     taken = np.zeros_like(suspect)
     for _, i, j, rows in sorted(candidates, key=lambda c: -c[0])[:SWAP_PAIRS]:
@@ -787,16 +874,16 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     return out
 
 
-def _placed_without(segments: np.ndarray, i: int, j: int) -> bool:
-    """True when the segments of markers ``i`` and ``j`` (``segments`` (M,)) each keep two
-    other markers on them or below them: a fit without the two still places them."""
-    for k in (i, j):
-        first = DOF_NAMES.index(SEGMENTS[segments[k]].dofs[0])
-        below = MOVES[segments, first].copy()
-        below[[i, j]] = False
-        if below.sum() < 2:
-            return False
-    return True
+def _placed_without(segments: np.ndarray) -> np.ndarray:
+    """(M, M) bool, True at (i, j) when the segments of markers ``i`` and ``j`` (``segments``
+    (M,)) each keep two other markers on them or below them: a fit without the two still
+    places them."""
+    first = [DOF_NAMES.index(SEGMENTS[s].dofs[0]) for s in segments]
+    below = MOVES[segments][:, first]          # (M, M): marker m on or below marker k's segment
+    # markers on or below i's segment other than i and j (i's own always counts)
+    left = (below.sum(axis=0) - 1)[:, None] - below.T
+    np.fill_diagonal(left, 0)
+    return (left >= 2) & (left.T >= 2)
 
 
 def _whole_swap(a: np.ndarray, b: np.ndarray, start: int, stop: int) -> tuple[int, int]:

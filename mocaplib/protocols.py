@@ -50,7 +50,7 @@ import os
 import re
 import warnings
 from dataclasses import dataclass, replace
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -188,7 +188,7 @@ class ProtocolMarker:
         """True for a tracking marker (on a segment, no landmark)."""
         return self.landmark.tracking
 
-    @property
+    @cached_property
     def keys(self) -> tuple[str, ...]:
         """Normalised label and aliases this marker matches."""
         return tuple(dict.fromkeys(normalise_label(x) for x in (self.label, *self.aliases)))

@@ -281,6 +281,30 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
     assert np.quantile(off, 0.99) < 5e-4 and off.max() < 5e-3, (np.quantile(off, 0.99), off.max())
 
 
+@pytest.mark.parametrize("still", [True, False])
+def test_a_warm_started_fit_reaches_the_minimum_of_a_full_solve(still):
+    from dataclasses import replace
+
+    from mocaplib.ik import LONGEST_STRIDE, OUTLIER_PASS
+
+    cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=6, noise_mm=0, seed=10)
+    rng = np.random.default_rng(3)
+    markers = np.repeat(cap.trial.markers[:1], 120, axis=0) if still else cap.trial.markers
+    trial = replace(cap.trial, markers=markers + rng.normal(0, 0.0005, markers.shape))
+    noisier = replace(cap.trial, markers=markers + rng.normal(0, 0.0015, markers.shape))
+    # still: keyframes 32 frames apart, so the refit predicts the frames between them from
+    # the keyframes solved again; moving: every frame starts from the previous fit
+    assert (np.diff(keyframes(trial.markers)).max() == LONGEST_STRIDE) == still
+    model = true_model(cap)
+    start = fit(noisier, model, **OUTLIER_PASS).q            # as fit_filtered's raw pass
+    motion = fit(trial, model, q0=start)
+    full = solve_poses(cap.skeleton, trial.markers, cap.segments, cap.offsets,
+                       free=model.free, weights=model.marker_weights, tol=1e-9, step_tol=1e-7)
+    off = np.abs(motion.q - full.q)
+    # the same stopping rules as from the coarse start (the test above)
+    assert np.quantile(off, 0.99) < 5e-4 and off.max() < 5e-3, (np.quantile(off, 0.99), off.max())
+
+
 def test_initial_pose_interpolates_a_segment_unseen_for_a_while():
     cap = fk_trial(n_frames=40, placement_mm=0, sta_mm=0, noise_mm=0)
     markers = cap.trial.markers.copy()
