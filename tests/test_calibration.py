@@ -48,10 +48,6 @@ def test_calibration_from_the_motion_recovers_lengths_and_angles(walk):
     assert rms[OTHER].max() < 3.0, dict(zip(np.array(DOF_NAMES)[OTHER], rms[OTHER]))
 
 
-@pytest.mark.xfail(strict=True, reason="measured 3.49° right shoulder rotation against 3°: the "
-                                       "arms keep frames turned onto the catalogue layout, and "
-                                       "refined with the anatomical pelvis and legs they settle "
-                                       "1.1° further than with catalogue-aligned legs (2.39°)")
 def test_static_trial_calibration(walk):
     static = fk_trial(n_frames=60, placement_mm=0, sta_mm=6, noise_mm=1, seed=0, static=True)
     model = calibrate(walk.trial, static=static.trial, protocol="fullbody38")
@@ -59,6 +55,8 @@ def test_static_trial_calibration(walk):
     motion = fit(walk.trial, model)
     rms = _rms_deg(motion, walk.q)
     assert rms[FLEXION].max() < 1.0, rms[FLEXION]
+    # the arms' anatomical frames (shoulder, elbow chord and wrist centres) kept through
+    # refinement: shoulder rotation 2.4° RMS at most, elbow flexion 1.1°
     assert rms[OTHER].max() < 3.0, rms[OTHER]
 
 
