@@ -189,8 +189,8 @@ def target_checks(results: list[CaptureResult]) -> list[tuple[str, str, bool]]:
         checks += [(f"{dof}: every abs. offset ≤ {TARGETS['arm_offset']:g}°",
                     f"{worst.offset:+.1f}° ({worst.capture} {worst.angle})",
                     abs(worst.offset) <= TARGETS["arm_offset"]),
-                   (f"{dof}: r ≥ {TARGETS['arm_r']:g}", f"{low.r:.3f} ({low.capture} {low.angle})",
-                    low.r >= TARGETS["arm_r"])]
+                   (f"{dof}: r ≥ {TARGETS['arm_r']:g}",
+                    f"{low.r:.3f} ({low.capture} {low.angle})", low.r >= TARGETS["arm_r"])]
     share, capture, dof = max((share, r.capture, d) for r in results
                               for d, share in r.at_limit.items())
     checks.append((f"no DOF at a joint limit in more than {TARGETS['at_limit_share']:.0%} of "

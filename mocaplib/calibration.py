@@ -38,8 +38,8 @@ Steps (all in metres, world Z up):
    the nominal fit's segment orientation; the elbow's chord, without an upper-arm marker, lies
    in Plug-in Gait's plane: the shoulder centre, the lateral elbow marker and a point along
    the normal of the arm's plane (shoulder centre, elbow marker, mid-wrist), so the centre
-   lies on that normal, the elbow's flexion axis. Shoulder: the acromion moved by the catalogue offset
-   (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
+   lies on that normal, the elbow's flexion axis. Shoulder: the acromion moved by the catalogue
+   offset (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
    Segment lengths are the median distances between those centres.
 4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
    markers); each marker's offset is re-registered as the least-squares (mean) position in its
