@@ -47,9 +47,9 @@ Steps (all in metres, world Z up):
    their centroid) onto the catalogue layout, which makes the segment frames anatomical: zero
    angles put the markers in the catalogue's layout, as the DOF sign table describes. The
    pelvis, legs and arms then get their anatomical frames from the joint centres
-   (:func:`mocaplib.anatomy.segment_frames`): their markers' offsets are measured in them and
-   each joint centre becomes a joint shift (the shoulders' in the torso's fitted frame,
-   mirrored: :func:`shoulder_shifts`).
+   (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
+   layout puts them): their markers' offsets are measured in them and each joint centre below
+   the hips and shoulders becomes a joint shift.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
@@ -357,16 +357,23 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
-    # the pelvis and legs: offsets in their anatomical frames, kept by the refinement
-    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)}, centres,
-                            level_feet=static is not None)
+    # the pelvis, legs and arms: offsets in their anatomical frames, kept by the refinement;
+    # the arms' frames hang from the shoulders where the torso's layout puts them (the model's
+    # at the poses), not the acromion's catalogue centre: moved there (21 mm up on the
+    # samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
+    # (4 m/s: -0.029 to -0.034, truth 0), and the elbow and shoulder flexions agree with Plug-in
+    # Gait as well without (docs/guide/fitting.md)
+    T = skeleton.forward(poses)
+    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
+                 for name in ("humerus_l", "humerus_r") if (name, 0.0) in centres}
+    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
+                            {**centres, **shoulders}, level_feet=static is not None)
     in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
     anatomical_markers = np.isfinite(in_frames).all(axis=1)
     offsets[anatomical_markers] = in_frames[anatomical_markers]
     kept = anatomical_markers & ~np.isin(segments, [SEGMENT_NAMES.index(name)
                                                     for name in FOLLOWING_IN_REFINEMENT])
-    skeleton = Skeleton(skeleton.lengths, {**joint_shifts(skeleton, frames),
-                                           **shoulder_shifts(skeleton, poses, frames)})
+    skeleton = Skeleton(skeleton.lengths, joint_shifts(skeleton, frames))
     fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
                      if all(((name + side, 0.0) in centres) for name in (a, b)
                             for side in ("_l", "_r"))]
@@ -804,34 +811,14 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
             parent = SEGMENT_NAMES.index(SEGMENTS[SEGMENT_NAMES.index(name)].parent)
             frames.setdefault(SEGMENT_NAMES[parent], (T[:, parent, :3, :3], T[:, parent, :3, 3]))
             frames[name] = (T[:, parent, :3, :3], centres[(name, 0.0)])
-    return mirrored(joint_shifts(skeleton, frames))
-
-
-def mirrored(shifts: dict[str, tuple[float, float, float]]
-             ) -> dict[str, tuple[float, float, float]]:
-    """One shift (metres) for both sides of each joint in ``shifts``: the mean of the side's
-    own and its partner's mirrored (y negated). The skeleton stays left-right symmetric (its
-    lengths are the sides' means), so the shoulder line keeps the torso's heading (θ_S)."""
+    # one shift for both sides, mirrored: the skeleton stays left-right symmetric (its lengths
+    # are the sides' means), so the shoulder line keeps the torso's heading (θ_S)
     sides: dict[str, list] = {}
-    for name, (x, y, z) in shifts.items():
+    for name, (x, y, z) in joint_shifts(skeleton, frames).items():
         for key, sign in ((name, 1.0), (partner_name(name), -1.0)):
             sides.setdefault(key, []).append((x, sign * y, z))
     return {name: tuple(float(v) for v in np.mean(values, axis=0))
             for name, values in sides.items()}
-
-
-def shoulder_shifts(skeleton: Skeleton, q: np.ndarray,
-                    frames: dict[str, tuple[np.ndarray, np.ndarray]]
-                    ) -> dict[str, tuple[float, float, float]]:
-    """:attr:`Skeleton.shifts` (metres) that put the shoulders at the origins of the upper
-    arms' anatomical ``frames`` (:func:`mocaplib.anatomy.segment_frames`, their anatomical
-    centres) in the torso's frame at poses ``q`` (F, D), mirrored (:func:`mirrored`); none
-    without an upper arm's frame."""
-    arms = {name: frames[name] for name in ("humerus_l", "humerus_r") if name in frames}
-    if not arms:
-        return {}
-    T = skeleton.forward(q)[:, SEGMENT_NAMES.index("torso")]
-    return mirrored(joint_shifts(skeleton, {"torso": (T[:, :3, :3], T[:, :3, 3]), **arms}))
 
 
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
