@@ -170,8 +170,8 @@ _ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibi
                        "shank": ("tibia", "foot"), "upper_arm": ("humerus", "forearm")}
 #: Segments whose markers refinement (step 5) re-registers on the motion although their
 #: anatomical frames are known: the forearms. Held at a static's offsets, the elbows of
-#: HC030A05 and HC030A22 (static HC030A01) read 13-26° less flexion than Plug-in Gait (r down
-#: to 0.32); re-registered, within 3.3°. Likely cause, not traced further: the wrist and hand
+#: HC030A05 and HC030A22 (static HC030A01) read 10-32° less flexion than Plug-in Gait (r down
+#: to -0.47); re-registered, within 3.9°. Likely cause, not traced further: the wrist and hand
 #: markers turn about the forearm's long axis with pronation, which the fit's forearm lacks,
 #: by another amount standing than walking.
 FOLLOWING_IN_REFINEMENT = ("forearm_l", "forearm_r")
