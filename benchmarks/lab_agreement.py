@@ -9,7 +9,10 @@ and 100 mm along each axis). They are read with ezc3d, a reader mocaplib does no
 capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.workflow.fit_capture`, with its
 static when it has one) and every angle both report is compared over the frames Plug-in Gait
 wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
-motion of each. Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
+motion of each. The arms are compared too: Plug-in Gait's elbow flexion is the angle between
+its shoulder–elbow and elbow–wrist centre lines, its shoulder flexion the upper arm's line
+against its thorax frame (:func:`mocaplib.anatomy.segment_frames` builds mocaplib's arm frames
+the same way). Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
 mocaplib's order (heading, then obliquity, then tilt): its stored pelvis angles are relative to
 the lab's axes, which is not the subject's heading once the subject turns (HC030A22 turns 88°).
 Also printed: the share of frames each of mocaplib's DOFs spends at a joint limit, the DOFs held
@@ -47,11 +50,15 @@ SIDED = (("HipAngles", 0, "hip_flexion"), ("KneeAngles", 0, "knee_flexion"),
          ("AnkleAngles", 0, "ankle_dorsiflexion"), ("HipAngles", 1, "hip_adduction"),
          ("HipAngles", 2, "hip_rotation"))
 FLEXIONS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
+#: The arms' flexions (Plug-in Gait point, component, mocaplib DOF), compared per side.
+ARMS = (("ElbowAngles", 0, "elbow_flexion"), ("ShoulderAngles", 0, "shoulder_flexion"))
 #: The issue's targets: flexions (median |offset| over captures and sides, worst |offset|,
-#: r, RMS after offset), frontal angles (r, |offset|), limits, pelvis range, degrees.
+#: r, RMS after offset), frontal angles (r, |offset|), limits, pelvis range, the arms' flexions
+#: (|offset| on every capture and side, r), degrees.
 TARGETS = {"flexion_median_offset": 3.0, "flexion_worst_offset": 5.0, "flexion_r": 0.97,
            "flexion_rms": 3.0, "frontal_r": 0.8, "frontal_offset": 5.0,
-           "at_limit_share": 0.02, "obliquity_range_ratio": 1.3}
+           "at_limit_share": 0.02, "obliquity_range_ratio": 1.3,
+           "arm_offset": 5.0, "arm_r": 0.9}
 
 
 @dataclass
@@ -128,7 +135,7 @@ def agreement(motion_path: Path, static_path: Path | None, name: str) -> Capture
     q = np.degrees(motion.q)
     out = []
     for side in ("L", "R"):
-        for label, component, dof in SIDED:
+        for label, component, dof in SIDED + ARMS:
             out.append(compare(name, f"{dof}_{side.lower()}",
                                q[:, DOF_NAMES.index(f"{dof}_{side.lower()}")],
                                points[side + label][:, component]))
@@ -175,6 +182,15 @@ def target_checks(results: list[CaptureResult]) -> list[tuple[str, str, bool]]:
                    (f"{dof}: abs. offset ≤ {TARGETS['frontal_offset']:g}°",
                     f"{worst.offset:+.1f}° ({worst.capture} {worst.angle})",
                     abs(worst.offset) <= TARGETS["frontal_offset"])]
+    for _, _, dof in ARMS:
+        mine = [c for c in rows if c.angle.startswith(dof)]
+        worst = max(mine, key=lambda c: abs(c.offset))
+        low = min(mine, key=lambda c: c.r)
+        checks += [(f"{dof}: every abs. offset ≤ {TARGETS['arm_offset']:g}°",
+                    f"{worst.offset:+.1f}° ({worst.capture} {worst.angle})",
+                    abs(worst.offset) <= TARGETS["arm_offset"]),
+                   (f"{dof}: r ≥ {TARGETS['arm_r']:g}",
+                    f"{low.r:.3f} ({low.capture} {low.angle})", low.r >= TARGETS["arm_r"])]
     share, capture, dof = max((share, r.capture, d) for r in results
                               for d, share in r.at_limit.items())
     checks.append((f"no DOF at a joint limit in more than {TARGETS['at_limit_share']:.0%} of "

@@ -41,10 +41,16 @@ the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requi
       axis (toe-out) is a fixed part of the marker offsets, as Plug-in Gait's static
       rotation offset.
 
-The arms keep frames turned onto the landmark catalogue's layout (:mod:`mocaplib.calibration`):
-built from the elbow's markers, an upper arm's frame turns by several degrees for each
-millimetre a lateral elbow marker is misplaced (measured on the synthetic samples: 7.8° mean
-shoulder-rotation error against 2.3°).
+    * **humerus**: as the femur, from the shoulder, elbow and lateral elbow landmark: Z from
+      the elbow centre to the shoulder centre, Y along the elbow's flexion axis (epicondyles,
+      or elbow centre to lateral marker); origin at the shoulder centre.
+    * **forearm**: as the tibia: Y the humerus's (the elbow is a hinge), Z from the wrist
+      centre (mid-styloids) to the elbow centre made perpendicular to Y; origin at the elbow
+      centre. Elbow flexion is then the angle between the shoulder–elbow and elbow–wrist
+      centre lines, as Plug-in Gait measures it.
+
+The torso and head keep frames turned onto the landmark catalogue's layout
+(:mod:`mocaplib.calibration`).
 """
 
 from __future__ import annotations
@@ -144,7 +150,7 @@ def frame(primary: np.ndarray, secondary: np.ndarray, *, order: str) -> np.ndarr
 
 def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
                    *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """The anatomical frames of the pelvis and legs that the landmarks define.
+    """The anatomical frames of the pelvis, legs and arms that the landmarks define.
 
     ``where`` maps landmark names (``L_ASIS``...) to positions (F, 3); ``centres`` maps
     ``(segment, 0.0)`` to that segment's joint centre (F, 3), as
@@ -163,22 +169,39 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
         out["pelvis"] = (pelvis_axes(where["L_ASIS"], where["R_ASIS"], back),
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        hip, knee, ankle = (centres.get((f"{n}_{side}", 0.0)) for n in ("femur", "tibia", "foot"))
-        lateral = where.get(f"{side.upper()}_KNEE_LAT")
-        if hip is None or knee is None or lateral is None:
-            continue
-        medial = where.get(f"{side.upper()}_KNEE_MED")
-        femur = frame(hip - knee, sign * (lateral - (knee if medial is None else medial)),
-                      order="zy")
-        out[f"femur_{side}"] = (femur, hip)
-        if ankle is None:
-            continue
-        tibia = frame(femur[..., 1], knee - ankle, order="yz")
-        out[f"tibia_{side}"] = (tibia, knee)
+        out.update(_limb_frames(where, centres, side, sign, ("femur", "tibia"), "KNEE",
+                                centres.get((f"foot_{side}", 0.0))))
         heel, toe = _foot_line(where, side.upper())
-        if heel is not None:
+        if f"tibia_{side}" in out and heel is not None:
             along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
-            out[f"foot_{side}"] = (frame(tibia[..., 1], along, order="yx"), ankle)
+            out[f"foot_{side}"] = (frame(out[f"tibia_{side}"][0][..., 1], along, order="yx"),
+                                   centres[(f"foot_{side}", 0.0)])
+        wrist = next((point for (segment, z), point in centres.items()
+                      if segment == f"forearm_{side}" and z != 0.0), None)
+        out.update(_limb_frames(where, centres, side, sign, ("humerus", "forearm"), "ELBOW",
+                                wrist))
+    return out
+
+
+def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
+                 side: str, sign: float, segments: tuple[str, str], joint: str,
+                 distal: np.ndarray | None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The frames of one limb's two segments (femur and tibia, or humerus and forearm) of
+    ``side`` ("l", "r"; ``sign`` +1 left, −1 right), as :func:`segment_frames` describes:
+    the upper one from its joint centre, the middle joint's centre and its ``joint``'s
+    lateral (and medial) landmark; the lower one from the middle joint and the ``distal``
+    point (ankle or wrist centre, (F, 3); without it, only the upper frame)."""
+    upper, lower = segments
+    top, middle = centres.get((f"{upper}_{side}", 0.0)), centres.get((f"{lower}_{side}", 0.0))
+    lateral = where.get(f"{side.upper()}_{joint}_LAT")
+    if top is None or middle is None or lateral is None:
+        return {}
+    medial = where.get(f"{side.upper()}_{joint}_MED")
+    first = frame(top - middle, sign * (lateral - (middle if medial is None else medial)),
+                  order="zy")
+    out = {f"{upper}_{side}": (first, top)}
+    if distal is not None:
+        out[f"{lower}_{side}"] = (frame(first[..., 1], middle - distal, order="yz"), middle)
     return out
 
 

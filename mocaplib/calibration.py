@@ -35,14 +35,21 @@ Steps (all in metres, world Z up):
    and medial landmarks when both exist, otherwise
    the lateral landmark moved by its documented offset from the joint in the catalogue (knee
    50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by
-   the nominal fit's segment orientation. Shoulder: the acromion moved by the catalogue offset
-   (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
+   the nominal fit's segment orientation; the elbow's chord, without an upper-arm marker, lies
+   in Plug-in Gait's plane: the shoulder centre, the lateral elbow marker and a point along
+   the normal of the arm's plane (shoulder centre, elbow marker, mid-wrist), so the centre
+   lies on that normal, the elbow's flexion axis. Shoulder: the acromion moved by the catalogue
+   offset (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
    Segment lengths are the median distances between those centres.
 4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
    markers); each marker's offset is re-registered as the least-squares (mean) position in its
    segment's frame over those poses, and each segment's offsets are turned (Kabsch, about
    their centroid) onto the catalogue layout, which makes the segment frames anatomical: zero
-   angles put the markers in the catalogue's layout, as the DOF sign table describes.
+   angles put the markers in the catalogue's layout, as the DOF sign table describes. The
+   pelvis, legs and arms then get their anatomical frames from the joint centres
+   (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
+   layout puts them): their markers' offsets are measured in them and each joint centre below
+   the hips and shoulders becomes a joint shift.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
@@ -56,9 +63,9 @@ Steps (all in metres, world Z up):
    abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
    ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
 5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
-   Alternate: fit poses to the markers alone; re-register offsets (pelvis, torso, head and
-   feet turned back onto the catalogue layout; thighs, shanks and arms left to follow their
-   markers, so the knee and elbow hinge axes become functional ones); solve the segment
+   Alternate: fit poses to the markers alone; re-register offsets (torso, head and feet
+   turned back onto the catalogue layout; the markers on an anatomical frame of step 4 kept,
+   but the forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
    lengths by linear least squares (marker positions are affine in the lengths for fixed
    poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop when
    the marker RMS falls by less than 1 %; the best model is kept.
@@ -142,8 +149,7 @@ NEUTRAL_CENTRES = ("humerus_r", "humerus_l", "forearm_r", "forearm_l")
 #: forward on the samples' exact markers.
 NEUTRAL_CHORD_JOINTS = ("tibia", "foot")
 #: Segments whose frames stay aligned with the catalogue layout during refinement (step 5).
-#: The others (thighs, shanks, arms) then follow their markers freely, so the knee and elbow
-#: hinge axes become functional ones.
+#: The others follow their markers, unless an anatomical frame of step 4 holds them.
 ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
 
 #: Joint centres from landmarks: child segment (its origin is the joint) and its landmarks
@@ -158,10 +164,17 @@ _LANDMARK_JOINTS = {
 _JOINT_NAMES = {"tibia": "knee", "foot": "ankle", "humerus": "shoulder", "forearm": "elbow"}
 #: Marker diameter (m) assumed when a file gives joint widths but no diameter: Plug-in Gait's.
 DEFAULT_MARKER_DIAMETER = 0.014
-#: Lengths the joint centres of the pelvis and legs set, which refinement keeps when both
+#: Lengths the joint centres of the pelvis, legs and arms set, which refinement keeps when both
 #: centres (the origins of the two segments named) are known on both sides.
 _ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibia"),
-                       "shank": ("tibia", "foot")}
+                       "shank": ("tibia", "foot"), "upper_arm": ("humerus", "forearm")}
+#: Segments whose markers refinement (step 5) re-registers on the motion although their
+#: anatomical frames are known: the forearms. Held at a static's offsets, the elbows of
+#: HC030A05 and HC030A22 (static HC030A01) read 10-32° less flexion than Plug-in Gait (r down
+#: to -0.47); re-registered, within 3.9°. Likely cause, not traced further: the wrist and hand
+#: markers turn about the forearm's long axis with pronation, which the fit's forearm lacks,
+#: by another amount standing than walking.
+FOLLOWING_IN_REFINEMENT = ("forearm_l", "forearm_r")
 #: Joints whose centre a lateral marker and a segment wand give by the chord.
 _CHORD_JOINTS = ("tibia", "foot", "forearm")
 
@@ -344,12 +357,22 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
-    # the pelvis and legs: offsets in their anatomical frames, kept by the refinement
-    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)}, centres,
-                            level_feet=static is not None)
+    # the pelvis, legs and arms: offsets in their anatomical frames, kept by the refinement;
+    # the arms' frames hang from the shoulders where the torso's layout puts them (the model's
+    # at the poses), not the acromion's catalogue centre: moved there (21 mm up on the
+    # samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
+    # (4 m/s: -0.029 to -0.034, truth 0), and the elbow and shoulder flexions agree with Plug-in
+    # Gait as well without (docs/guide/fitting.md)
+    T = skeleton.forward(poses)
+    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
+                 for name in ("humerus_l", "humerus_r") if (name, 0.0) in centres}
+    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
+                            {**centres, **shoulders}, level_feet=static is not None)
     in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
     anatomical_markers = np.isfinite(in_frames).all(axis=1)
     offsets[anatomical_markers] = in_frames[anatomical_markers]
+    kept = anatomical_markers & ~np.isin(segments, [SEGMENT_NAMES.index(name)
+                                                    for name in FOLLOWING_IN_REFINEMENT])
     skeleton = Skeleton(skeleton.lengths, joint_shifts(skeleton, frames))
     fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
                      if all(((name + side, 0.0) in centres) for name in (a, b)
@@ -381,7 +404,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         poses = fit.q
         registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
                                       align=ALIGNED_IN_REFINEMENT, unseen=offsets)
-        offsets = np.where(anatomical_markers[:, None], offsets, registered)
+        offsets = np.where(kept[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
                                   fixed=fixed_lengths)
     best.history = history
@@ -932,16 +955,24 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 parent = SEGMENT_NAMES.index(catalogue[lat].segment)
                 proximal = out.get((SEGMENT_NAMES[parent], 0.0))
                 wand = _wand(landmarks, segments, parent, side, (lat, med))
-                if child in chord_joints and proximal is not None and wand:
+                wand_point, medial_hint = None, centre - where[lat]
+                if wand:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", RuntimeWarning)  # wand unseen: NaN
+                        wand_point = np.nanmean(X[:, wand], axis=1)
+                elif child == "forearm" and proximal is not None:
+                    torso_left = T[:, SEGMENT_NAMES.index("torso"), :3, 1]
+                    axis = _elbow_axis(where, side, proximal, where[lat],
+                                       medial=torso_left if side == "R" else -torso_left)
+                    if axis is not None:
+                        wand_point, medial_hint = where[lat] - axis, axis
+                if child in chord_joints and proximal is not None and wand_point is not None:
                     width = measurements.get(f"{_JOINT_NAMES[child]}_width{suffix}")
                     delta = (0.5 * (width + measurements.get("marker_diameter",
                                                              DEFAULT_MARKER_DIAMETER))
                              if width else float(np.linalg.norm(local)))
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore", RuntimeWarning)  # wand unseen: NaN
-                        wand_mean = np.nanmean(X[:, wand], axis=1)
-                    centre = chord_centre(proximal, wand_mean, where[lat], delta,
-                                          medial_hint=centre - where[lat])
+                    centre = chord_centre(proximal, wand_point, where[lat], delta,
+                                          medial_hint=medial_hint)
                     methods[joint] = (f"chord, {_JOINT_NAMES[child]} width "
                                       + ("from the measurements" if width
                                          else "from the landmark catalogue"))
@@ -974,6 +1005,21 @@ def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
         return None
     seen = np.isfinite(X[:, on, 0]).sum(axis=0)
     return marker_frames(X[:, on[np.argsort(-seen, kind="stable")[:3]]])
+
+
+def _elbow_axis(where: dict[str, np.ndarray], side: str, shoulder: np.ndarray,
+                lateral: np.ndarray, *, medial: np.ndarray) -> np.ndarray | None:
+    """The elbow's flexion axis (F, 3), unit, pointing medially: the normal of the arm's plane
+    through the ``shoulder`` centre, the lateral elbow marker ``lateral`` and the middle of
+    the wrist landmarks of ``side`` (each (F, 3)), turned to the side of ``medial`` (F, 3),
+    the body's medial direction (the torso's). Plug-in Gait's elbow chord sets its plane with
+    it (the plane of the shoulder centre, the elbow marker and a point along this normal), so
+    the centre lies on this axis. None without both wrist landmarks."""
+    wrist = [where.get(f"{side}_{name}") for name in ("WRIST_RAD", "WRIST_ULN")]
+    if any(point is None for point in wrist):
+        return None
+    normal = _unit(np.cross(shoulder - lateral, 0.5 * (wrist[0] + wrist[1]) - lateral))
+    return normal * np.where((normal * medial).sum(axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
 
 
 def _wand(landmarks: list[str], segments: np.ndarray, parent: int, side: str,

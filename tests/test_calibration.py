@@ -48,10 +48,6 @@ def test_calibration_from_the_motion_recovers_lengths_and_angles(walk):
     assert rms[OTHER].max() < 3.0, dict(zip(np.array(DOF_NAMES)[OTHER], rms[OTHER]))
 
 
-@pytest.mark.xfail(strict=True, reason="measured 3.49° right shoulder rotation against 3°: the "
-                                       "arms keep frames turned onto the catalogue layout, and "
-                                       "refined with the anatomical pelvis and legs they settle "
-                                       "1.1° further than with catalogue-aligned legs (2.39°)")
 def test_static_trial_calibration(walk):
     static = fk_trial(n_frames=60, placement_mm=0, sta_mm=6, noise_mm=1, seed=0, static=True)
     model = calibrate(walk.trial, static=static.trial, protocol="fullbody38")
@@ -59,6 +55,8 @@ def test_static_trial_calibration(walk):
     motion = fit(walk.trial, model)
     rms = _rms_deg(motion, walk.q)
     assert rms[FLEXION].max() < 1.0, rms[FLEXION]
+    # the arms' anatomical frames (shoulder, elbow chord and wrist centres) kept through
+    # refinement: shoulder rotation 2.4° RMS at most, elbow flexion 1.2°
     assert rms[OTHER].max() < 3.0, rms[OTHER]
 
 
@@ -204,10 +202,10 @@ def test_neutral_static_absorbs_marker_placement():
                               protocol="fullbody38") for pose in ("neutral", "free")}
     neutral, free = (_rms_deg(fit(walk.trial, models[pose]), walk.q) for pose in models)
     other = [j for j in OTHER if DOF_NAMES[j] not in models["neutral"].unobservable]
-    # measured: neutral 0.61 / 2.68 deg (flexion / other worst), free 2.16 / 5.70 deg: the
+    # measured: neutral 0.61 / 2.68 deg (flexion / other worst), free 2.14 / 4.56 deg: the
     # placement error of the markers turns into constant angle offsets (anatomical frames
     # from misplaced landmarks) unless the static's known pose reveals it
-    assert free[FLEXION].max() > 1.5 and free[other].max() > 5.0
+    assert free[FLEXION].max() > 1.5 and free[other].max() > 4.0
     assert neutral[FLEXION].max() < 1.0 and neutral[other].max() < 3.0
     assert neutral[other].mean() < 0.5 * free[other].mean()
 
