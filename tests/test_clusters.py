@@ -112,7 +112,11 @@ def test_every_dof_of_a_cluster_capture_within_1_degree_of_the_anatomical_set(fi
 @pytest.mark.parametrize("kind", [
     pytest.param(kind, marks=pytest.mark.xfail(strict=True, reason=(
         f"measured RMS over the DOFs {measured} (cluster vs anatomical set) against the "
-        "generator's independent body; the cause is not traced yet")))
+        "generator's independent body. The errors are offsets, nearly constant through the "
+        "capture: elbow flexion +33 to +46 deg (the elbow turns 5-13 deg, under the "
+        "functional centre's 15 deg, so the forearm gets no anatomical frame), shoulder "
+        "flexion -13 to -22, ankle dorsiflexion +10 to +26, knee flexion +5 to +20: without "
+        "anatomical landmarks nothing measures the segments' zero pose")))
     for kind, measured in (("straight", "12.1° vs 5.1°"), ("curve", "13.4° vs 5.1°"),
                            ("sidestep", "17.0° vs 5.6°"))])
 def test_a_cluster_capture_without_static_fits_as_well_as_the_anatomical_set(kind):
