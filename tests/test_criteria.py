@@ -155,7 +155,7 @@ def test_internal_power_of_natural_synthetic_walks_is_in_the_published_range():
 
 
 @pytest.mark.real
-@pytest.mark.xfail(strict=True, reason="measured 1.05-3.68 W/kg on the real walks at their own "
+@pytest.mark.xfail(strict=True, reason="measured 1.06-3.68 W/kg on the real walks at their own "
                                        "speed (0.79-1.47 m/s), below 5.1-7.2 W/kg")
 def test_internal_power_of_natural_real_walks_is_in_the_published_range():
     from walking_library import real_walks
