@@ -982,11 +982,12 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     labelling errors and outlying samples are found on the raw markers (a :func:`fit` of
     ``trial``, stopped by :data:`OUTLIER_PASS`'s looser rule unless ``options`` give one),
     undone and gapped, and the markers are filtered
-    (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again. The motion's
+    (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again, starting from the
+    raw fit's poses low-passed at the same cutoff. The motion's
     ``rejected`` holds the samples removed by either fit, its ``repairs`` those of both. Returns
     the motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
     """
-    from .filtering import filter_trial
+    from .filtering import filter_trial, lowpass
 
     if cutoff is None or cutoff == "none":
         return fit(trial, model, **options), None
@@ -1001,7 +1002,9 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     markers[frames, columns[m]] = np.nan
     cleaned, used = filter_trial(replace(trial, markers=markers, warnings=list(trial.warnings)),
                                  cutoff=cutoff)
-    motion = fit(cleaned, model, q0=raw.q, **options)    # the raw fit is a warm start
+    # the raw fit low-passed like the markers is the warm start: closer to the filtered poses
+    start = raw.q if used is None else lowpass(np.unwrap(raw.q, axis=0), trial.rate, used)
+    motion = fit(cleaned, model, q0=start, **options)
     motion.rejected |= raw.rejected & ~motion.failed[:, None]
     motion.residuals[motion.rejected] = np.nan
     motion.repairs = raw.repairs + motion.repairs
