@@ -37,7 +37,7 @@ def mirrored_samples(tmp_path_factory):
 def test_every_sample_entry_meets_the_velocity_targets(mirrored_samples):
     # the issue's targets against the truth cycle nearest in start time, on every captured
     # entry of the quick start's library (benchmarks/velocity_accuracy.py measures the same:
-    # worst v̂ 1.5 %, ω̂ 0.0035 rad/s, v̂_l 0.0189 m/s)
+    # worst v̂ 0.8 %, ω̂ 0.0034 rad/s, v̂_l 0.0113 m/s)
     captured = [e for e in mirrored_samples.library.entries if not e.mirrored]
     assert len(captured) == 68
     for entry in captured:
@@ -103,9 +103,9 @@ def test_mirrored_left_gaits_match_the_captured_right_ones(mirrored_samples):
     differs in joint angles by no more than the walker's own asymmetry, measured as the
     largest difference between a symmetric gait (straight walks, runs) and its own mirror
     image. The fitted walker is not symmetric: the session's markers sit off their places
-    differently on the two sides. Measured: 60 pairs, joint RMS median 0.49°, max 0.93°;
-    own asymmetry 0.51-1.12° (straight walks 0.51-0.94°, runs 0.83-1.12°); velocities within
-    0.2 % (v̂), 0.0038 rad/s, 0.0069 m/s."""
+    differently on the two sides. Measured: 60 pairs, joint RMS median 0.46°, max 0.90°;
+    own asymmetry 0.55-1.11° (straight walks 0.55-0.85°, runs 0.83-1.11°); velocities within
+    0.2 % (v̂), 0.0039 rad/s, 0.0062 m/s."""
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
@@ -132,7 +132,7 @@ def test_series_images_agree_with_the_images_cut_from_the_captures(mirrored_samp
     """`mocaplib mirror` (the stored series shifted to the right toe-off) against build
     --mirror (the capture cut at its right toe-offs), entry by entry: they mirror different
     strides of a steady walker, so they should agree within the velocity targets and the
-    Fourier encoding tolerance (0.5°). Measured: joint RMS median 0.18°, max 0.29°."""
+    Fourier encoding tolerance (0.5°). Measured: joint RMS median 0.17°, max 0.32°."""
     from mocaplib.mirror import mirror_entry
 
     library = mirrored_samples.library
@@ -173,10 +173,10 @@ def test_the_mirror_command_adds_the_series_images_once(mirrored_samples, tmp_pa
 
 
 def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
-    """biomechZoo's walks turn right only (HC030A22, −88°). Its chosen right turn (ω̂ −0.22
-    rad/s) has as mirror image, cut at right toe-offs, the stride into the turn (ω̂ +0.65
-    rad/s), whose Fourier RMS is 1.03°, over the 1° limit: kept with --qc waive. The series
-    image of the chosen turn keeps its QC: ω̂ +0.22 rad/s."""
+    """biomechZoo's walks turn right only (HC030A22, −88°). Its chosen right turn (ω̂ −0.21
+    rad/s) has as mirror image, cut at right toe-offs, the stride into the turn (ω̂ +0.63
+    rad/s), whose marker_max_m is 45 mm, over the 40 mm limit: kept with --qc waive. The
+    series image of the chosen turn keeps its QC: ω̂ +0.21 rad/s."""
     from mocaplib.controlspace import ControlSpace
     from mocaplib.mirror import mirror_library
     from mocaplib.pipeline import BuildSettings, build
