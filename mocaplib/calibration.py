@@ -448,7 +448,7 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
     held: dict[str, float] = {}
 
     def hold(name, value):
-        for dof in {name, partner_name(name)} & set(DOF_NAMES):
+        for dof in (d for d in DOF_NAMES if d in (name, partner_name(name))):  # fixed order
             held[dof] = float(value)
             free[DOF_NAMES.index(dof)] = False
 
