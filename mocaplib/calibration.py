@@ -956,17 +956,18 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 proximal = out.get((SEGMENT_NAMES[parent], 0.0))
                 wand = _wand(landmarks, segments, parent, side, (lat, med))
                 wand_point, medial_hint = None, centre - where[lat]
-                if wand:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore", RuntimeWarning)  # wand unseen: NaN
-                        wand_point = np.nanmean(X[:, wand], axis=1)
-                elif child == "forearm" and proximal is not None:
-                    torso_left = T[:, SEGMENT_NAMES.index("torso"), :3, 1]
-                    axis = _elbow_axis(where, side, proximal, where[lat],
-                                       medial=torso_left if side == "R" else -torso_left)
-                    if axis is not None:
-                        wand_point, medial_hint = where[lat] - axis, axis
-                if child in chord_joints and proximal is not None and wand_point is not None:
+                if child in chord_joints and proximal is not None:
+                    if wand:
+                        with warnings.catch_warnings():
+                            warnings.simplefilter("ignore", RuntimeWarning)  # wand unseen: NaN
+                            wand_point = np.nanmean(X[:, wand], axis=1)
+                    elif child == "forearm":
+                        torso_left = T[:, SEGMENT_NAMES.index("torso"), :3, 1]
+                        axis = _elbow_axis(where, side, proximal, where[lat],
+                                           medial=torso_left if side == "R" else -torso_left)
+                        if axis is not None:
+                            wand_point, medial_hint = where[lat] - axis, axis
+                if wand_point is not None:
                     width = measurements.get(f"{_JOINT_NAMES[child]}_width{suffix}")
                     delta = (0.5 * (width + measurements.get("marker_diameter",
                                                              DEFAULT_MARKER_DIAMETER))

@@ -187,14 +187,15 @@ def cycle_bounds(events: list[GaitEvent], /, *, start: str = LEFT_TOE_OFF
     """Pairs of consecutive events named ``start`` (:data:`STRIDE_EVENTS`), in time order;
     for another start than the left toe-off, only the pairs holding the other three events of
     one stride, each once, in a gait order (:data:`GAIT_ORDERS`, module docstring)."""
-    named = sorted((e for e in events if event_name(e) == start), key=lambda e: e.time_s)
+    ordered = sorted(events, key=lambda e: e.time_s)
+    named = [e for e in ordered if event_name(e) == start]
     pairs = list(zip(named[:-1], named[1:]))
     if start == LEFT_TOE_OFF:
         return pairs
     orders = [order[order.index(start) + 1:] + order[:order.index(start)]
               for order in GAIT_ORDERS.values()]
     return [(first, last) for first, last in pairs
-            if tuple(event_name(e) for e in sorted(events, key=lambda e: e.time_s)
+            if tuple(event_name(e) for e in ordered
                      if first.time_s < e.time_s < last.time_s) in orders]
 
 

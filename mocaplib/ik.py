@@ -187,19 +187,21 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     marker_map = _marker_map(segments, offsets)
     moved = MOVES[segments].astype(np.float64)                   # (M, D): DOF d moves marker m
 
+    def objective(d, rows, q_rows, q_ref):
+        """Cost (n,) of frames ``rows`` at poses q_rows whose markers lie ``d`` (n, M) m off."""
+        return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
+            ((q_rows - q_ref) * free) ** 2).sum(axis=1)
+
     def cost(q_rows, rows, q_ref):
         """Cost (n,) of poses q_rows for frames ``rows``, their kinematic chain and markers."""
         chain = skeleton.chain(q_rows)
         pts = _points(chain[0], marker_map)
-        d = _norm3(target[rows] - pts)
-        return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            ((q_rows - q_ref) * free) ** 2).sum(axis=1), chain, pts
+        return objective(_norm3(target[rows] - pts), rows, q_rows, q_ref), chain, pts
 
     chains = list(skeleton.chain(q))        # transforms, DOF axes and pivots at the current q
     pts = _points(chains[0], marker_map)    # (F, 3, M), markers at the current q
     inverse, owner = step_metric if step_metric is not None else (None, np.full(n_frames, -1))
-    inside = ((q > _LOWER + 1e-12) & (q < _UPPER - 1e-12)) | ~free
-    rows = np.flatnonzero((owner >= 0) & inside.all(axis=1))
+    rows = np.flatnonzero((owner >= 0) & _interior(q, free))
     if rows.size:
         every = rows.size == n_frames                # then no copies of the big arrays
         twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
@@ -231,8 +233,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         # little over a converging step): a step below step_tol, or one whose predicted cost
         # decrease gᵀs is below tol (relative), it takes untried and stops, without forming
         # its own normal equations
-        check = np.flatnonzero((last_step[rows] < REUSE_BELOW * step_tol) & (
-            ((qa > _LOWER + 1e-12) & (qa < _UPPER - 1e-12)) | ~free).all(axis=1))
+        check = np.flatnonzero((last_step[rows] < REUSE_BELOW * step_tol)
+                               & _interior(qa, free))
         last_step[rows] = np.inf
         if check.size:
             g = _gradient(twist[check], about[check], moved, r[check], w[check])
@@ -240,8 +242,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             g[:, ~free] = 0.0
             step = _projected(qa[check], np.linalg.solve(last_matrix[rows[check]],
                                                          g[..., None])[..., 0])
-            c0 = (w_marker[rows[check]] * _soft_l1(d[check], robust_scale)).sum(axis=1) + mu2 * (
-                ((qa[check] - q_ref[check]) * free) ** 2).sum(axis=1)
+            c0 = objective(d[check], rows[check], qa[check], q_ref[check])
             small = np.abs(step).max(axis=1) < step_tol
             there = small | ((g * step).sum(axis=1) <= tol * np.maximum(c0, 1e-12))
             _take_steps(q, pts, active, rows[check], step, there, twist[check], about[check],
@@ -271,8 +272,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
             A[some[:, None], diagonal[1], diagonal[2]] += h
             g[held] = 0.0
         diag = A[diagonal].copy()
-        c0 = (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
-            ((qa - q_ref) * free) ** 2).sum(axis=1)
+        c0 = objective(d, rows, qa, q_ref)
         # a few damping trials per iteration: frames whose step fails raise their damping
         todo = np.ones(rows.size, dtype=bool)
         for attempt in range(4):
@@ -324,6 +324,12 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         pts[rough] = _points(skeleton.chain(q[rough])[0], marker_map)
     residuals = _norm3(markers.transpose(0, 2, 1) - pts)
     return PoseFit(q, residuals, ~active, iterations)
+
+
+def _interior(q: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Frames (n,) bool of poses ``q`` (n, D) whose ``free`` (D,) DOFs are all off their
+    joint bounds."""
+    return (((q > _LOWER + 1e-12) & (q < _UPPER - 1e-12)) | ~free).all(axis=1)
 
 
 def _projected(q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -659,7 +665,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         solve = partial(solve_poses, model.skeleton, markers[part], model.marker_segments,
                         model.marker_offsets, **settings)
         start_q, metric = (_coarse_start(model, markers[part], settings) if q0 is None
-                                          else _warm_start(model, markers[part], settings, q0[part]))
+                           else _warm_start(model, markers[part], settings, q0[part]))
         res = _restart_outliers(solve, solve(q0=start_q, step_metric=metric))
         res, markers[part], found = _undo_labelling_errors(
             lambda x, q: solve_poses(model.skeleton, x, model.marker_segments,

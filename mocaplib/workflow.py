@@ -332,8 +332,6 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
         result.ok, result.error, result.no_entry = True, None, \
             f"a static trial: used to calibrate, no entry of its own ({result.stage}: {why})"
         result.stage = None
-    elif result.ok and not result.entries and result.no_entry is None:
-        result.no_entry = "every complete cycle was left out by QC"
     elif is_static and result.no_entry:
         result.no_entry = f"a static trial: used to calibrate, no entry of its own " \
                           f"({result.no_entry})"
