@@ -4,6 +4,7 @@
     python benchmarks/fit_accuracy.py --only budget     # running error budget
     python benchmarks/fit_accuracy.py --only statures   # 1.55 m and 1.95 m subjects
     python benchmarks/fit_accuracy.py --only model      # which body difference costs what
+    python benchmarks/fit_accuracy.py --only ankle      # ankle inversion against the ankle's height
 
 Forward kinematics: the tests' gait-like walk (``tests/fk_data.py``) with markers on the
 catalogue landmarks, 6 mm soft-tissue artefact and 1 mm noise, ``--fk-seeds`` subjects.
@@ -25,13 +26,17 @@ builds (static, neutral pose, walk_straight_normal as forward reference) but cut
 toe-offs, with each capture's angle errors
 as above and its v̂, ω̂, v̂_l errors against the truth. Model differences (``--only model``):
 a few captures without marker artefacts, with the generator's knee and elbow made like the
-fit's one feature at a time (:func:`model_differences`). Prints Markdown tables (``--markdown
+fit's one feature at a time (:func:`model_differences`). Ankle pivot (``--only ankle``): the same
+without artefact, a neutral static's hips and ankles moved, against the generator's subtalar
+axis (:func:`ankle_pivot`). Prints Markdown tables (``--markdown
 PATH`` also writes them into a results page, :mod:`markdown_results`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import copy
 import dataclasses
 import json
 import sys
@@ -40,6 +45,7 @@ import time
 import warnings
 from collections import defaultdict
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
@@ -54,7 +60,7 @@ from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_quality  # noqa: E402
 from mocaplib.workflow import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build  # noqa: E402
 from mocaplib.synth import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402
@@ -273,6 +279,46 @@ MODEL_VARIANTS = (("the body as shipped", {}),
                   ("hinge elbow", {"elbow_axis_tilt": [0.0, 0.0]}))
 #: Captures of ``--only model``.
 MODEL_CAPTURES = ("walk_straight_normal", "diag_right_150_fast", "run_3p0")
+#: Marker settings of a capture without artefact (no placement error, soft tissue or noise).
+EXACT_MARKERS = {"placement_sd": 0.0, "soft_tissue": 0.0, "noise_sd": 0.0}
+#: ``--only ankle``: the generator's ankle as shipped and with its subtalar axis along the
+#: foot's long axis (no elevation, no medial deviation)...
+ANKLE_BODIES = (("as shipped", {}), ("subtalar axis along the foot", {"subtalar": [0.0, 0.0]}))
+#: ...the joints a neutral static moves to their anatomical centres (the hips added to
+#: :data:`mocaplib.calibration.NEUTRAL_CENTRES`, or not)...
+ANKLE_HIPS = (("nominal", ()), ("Harrington", ("femur_l", "femur_r")))
+#: ...and how far (m) the fitted ankles are then moved up; on these captures.
+ANKLE_RAISES = (-0.025, 0.0, 0.025)
+ANKLE_CAPTURES = ("walk_straight_normal", "run_3p0")
+
+
+@contextlib.contextmanager
+def generator_joints(joints: dict):
+    """The generator's body with ``joints`` (``[joints]`` of ``protocols/synthetic_body.toml``)
+    overridden while the block runs."""
+    from mocaplib.synth import bones, truth
+
+    original = bones._definition
+    spec = copy.deepcopy(original())
+    spec["joints"].update(joints)
+    caches = (bones.synthetic_body, truth.convention, truth._neutral)
+    bones._definition = lambda: spec
+    for cached in caches:
+        cached.cache_clear()
+    try:
+        yield
+    finally:
+        bones._definition = original
+        for cached in caches:
+            cached.cache_clear()
+
+
+def exact_captures(plan_path: Path, names) -> dict:
+    """The sample plan's captures ``names`` and its static ``rest`` generated without marker
+    artefact (:data:`EXACT_MARKERS`), by name (:class:`mocaplib.synth.capture.SynthCapture`)."""
+    captures = {c.name: c for c in load_plan(plan_path).captures}
+    return {name: dataclasses.replace(captures[name], markers=dataclasses.replace(
+        captures[name].markers, **EXACT_MARKERS)).generate() for name in (*names, "rest")}
 
 
 def model_differences(plan_path: Path) -> None:
@@ -281,40 +327,74 @@ def model_differences(plan_path: Path) -> None:
     bodies' difference), calibrated on the static (neutral) and fitted raw, for each body
     variant of :data:`MODEL_VARIANTS`; RMS error (deg) of the leg and elbow DOFs, left side,
     the worst of the captures."""
-    import copy
-
-    from mocaplib.synth import bones, truth
-
-    original = bones._definition
-    shipped = original()
-    captures = {c.name: c for c in load_plan(plan_path).captures}
-    clean = {"placement_sd": 0.0, "soft_tissue": 0.0, "noise_sd": 0.0}
     dofs = [DOF_NAMES.index(f"{n}_l") for n in (
         "hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion", "ankle_dorsiflexion",
         "ankle_inversion", "elbow_flexion")]
     print("| generator's body | " + " | ".join(DOF_NAMES[j] for j in dofs) + " |")
     print("|---|" + "---|" * len(dofs))
-    try:
-        for label, joints in MODEL_VARIANTS:
-            spec = copy.deepcopy(shipped)
-            spec["joints"].update(joints)
-            bones._definition = lambda spec=spec: spec
-            for cached in (bones.synthetic_body, truth.convention, truth._neutral):
-                cached.cache_clear()
+    for label, joints in MODEL_VARIANTS:
+        with generator_joints(joints):
+            captures = exact_captures(plan_path, MODEL_CAPTURES)
             worst = np.zeros(len(DOF_NAMES))
             for name in MODEL_CAPTURES:
-                capture, static = (dataclasses.replace(
-                    captures[n], markers=dataclasses.replace(captures[n].markers, **clean))
-                    .generate() for n in (name, "rest"))
-                motion = fit(capture.trial, calibrate(capture.trial, static=static.trial,
+                capture = captures[name]
+                motion = fit(capture.trial, calibrate(capture.trial, static=captures["rest"].trial,
                                                       static_pose="neutral"))
                 error = motion.q - np.asarray(capture.truth["angles"]["values"])
                 worst = np.maximum(worst, np.degrees(np.sqrt((error ** 2).mean(axis=0))))
-            print(f"| {label} | " + " | ".join(f"{worst[j]:.2f}" for j in dofs) + " |")
-    finally:
-        bones._definition = original
-        for cached in (bones.synthetic_body, truth.convention, truth._neutral):
-            cached.cache_clear()
+        print(f"| {label} | " + " | ".join(f"{worst[j]:.2f}" for j in dofs) + " |")
+
+
+def ankle_pivot(plan_path: Path) -> None:
+    """Left ankle inversion and knee flexion against where a neutral static puts the hips and
+    the ankle: :data:`ANKLE_CAPTURES` (a walk and ``run_3p0``) with their static, without marker
+    artefact, per generator's ankle (:data:`ANKLE_BODIES`), hips (:data:`ANKLE_HIPS`) and
+    ankle raise (:data:`ANKLE_RAISES`); the fitted ankle's height above the true centre
+    (midway between the malleoli) on the static, the RMS errors (deg) and, on ``run_3p0``, the
+    inversion error's mean in swing and in stance and its correlation with the foot's true
+    rotation about the shank (which the fit's ankle has no DOF for)."""
+    from mocaplib import calibration
+    from mocaplib.synth.truth import extra_angles
+
+    inversion, knee = DOF_NAMES.index("ankle_inversion_l"), DOF_NAMES.index("knee_flexion_l")
+    foot = SEGMENT_NAMES.index("foot_l")
+    neutral_shifts = calibration.neutral_shifts
+    print("| generator's ankle | hips | fitted ankle above the true centre (mm) "
+          "| knee_flexion_l walk / run | ankle_inversion_l walk / run "
+          "| run: inversion error in swing / stance (mean) | run: correlation with the foot's "
+          "rotation about the shank |")
+    print("|---|---|---|---|---|---|---|")
+    for body_label, joints in ANKLE_BODIES:
+        with generator_joints(joints):
+            captures = exact_captures(plan_path, ANKLE_CAPTURES)
+            rest, run = captures["rest"], captures["run_3p0"]
+            malleoli = rest.body.landmark_points(rest.motion.pose, ["L_ANKLE_LAT", "L_ANKLE_MED"])
+            swing = run.motion.contact[:, 0] == 0
+            turn = extra_angles(run.body, run.motion.pose)["ankle_rotation_l"]
+            for hips_label, hips in ANKLE_HIPS:
+                for raise_ in ANKLE_RAISES:
+                    def raised(skeleton, q, centres, raise_=raise_):
+                        out = neutral_shifts(skeleton, q, centres)
+                        for name in ("foot_l", "foot_r"):
+                            x, y, z = out.get(name, (0.0, 0.0, 0.0))
+                            out[name] = (x, y, z + raise_)
+                        return out
+                    with mock.patch.object(calibration, "NEUTRAL_CENTRES",
+                                           calibration.NEUTRAL_CENTRES + hips), \
+                            mock.patch.object(calibration, "neutral_shifts", raised):
+                        model = calibrate(rest.trial, static=rest.trial, static_pose="neutral")
+                        errors = {name: np.degrees(
+                            fit(captures[name].trial, model).q
+                            - np.asarray(captures[name].truth["angles"]["values"]))
+                            for name in ANKLE_CAPTURES}
+                    ankle = model.skeleton.forward(fit(rest.trial, model).q)[:, foot, :3, 3]
+                    height = 1000 * (ankle[:, 2] - malleoli.mean(axis=1)[:, 2]).mean()
+                    e = errors["run_3p0"][:, inversion]
+                    rms = {j: " / ".join(f"{np.sqrt((errors[n][:, j] ** 2).mean()):.2f}"
+                                         for n in ANKLE_CAPTURES) for j in (knee, inversion)}
+                    print(f"| {body_label} | {hips_label} | {height:+.0f} | {rms[knee]} | "
+                          f"{rms[inversion]} | {e[swing].mean():+.2f} / {e[~swing].mean():+.2f} "
+                          f"| {np.corrcoef(turn, e)[0, 1]:+.2f} |")
 
 
 def forward_kinematics(seeds: int) -> None:
@@ -374,8 +454,10 @@ def main() -> int:
     parser.add_argument("--fk-seeds", type=int, default=5)
     parser.add_argument("--plan", default=str(ROOT / "protocols" / "paper_plan.toml"),
                         help="the sample plan, for the running budget and statures")
-    parser.add_argument("--only", choices=("fk", "synth", "real", "budget", "statures", "model"),
-                        help="one table only (the budget, statures and model only when asked)")
+    parser.add_argument("--only", choices=("fk", "synth", "real", "budget", "statures", "model",
+                                           "ankle"),
+                        help="one table only (the budget, statures, model and ankle only "
+                             "when asked)")
     add_markdown_option(parser)
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
@@ -402,6 +484,8 @@ def tables(args) -> None:
         statures(Path(args.plan))
     if args.only == "model":
         model_differences(Path(args.plan))
+    if args.only == "ankle":
+        ankle_pivot(Path(args.plan))
 
 
 if __name__ == "__main__":

@@ -137,9 +137,13 @@ STATIC_WINDOW_S = 1.0
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
 #: the shoulders (from the acromion) and the elbows. The hips, knees and ankles keep the
-#: nominal layout: the hips moved to Harrington's centres lower the knee's flexion error but
-#: raise ankle inversion's (exact markers of ``run_3p0``: 3.6° to 2.4° and 2.5° to 6.9° RMS;
-#: docs/results/fit_accuracy.md).
+#: nominal layout. Moved to Harrington's centres, the hips lower the knee's flexion error
+#: (exact markers of ``run_3p0``: 3.6° to 2.4° RMS) but take the leg down with them, the ankle
+#: from 18 mm above its true centre to 7 mm below, and ankle inversion's error grows as that
+#: pivot nears the foot markers (2.5° to 6.9°): the fit's ankle has no DOF for the foot's turn
+#: about the shank that an oblique subtalar axis gives, and reads it as a roll about the pivot,
+#: less the higher the pivot. A modelling difference, not an inconsistent calibration
+#: (``python benchmarks/fit_accuracy.py --only ankle``; docs/results/fit_accuracy.md).
 NEUTRAL_CENTRES = ("humerus_r", "humerus_l", "forearm_r", "forearm_l")
 #: The chord joints of a static in the neutral pose: not the elbow, whose centre is then its
 #: lateral landmark moved by the catalogue offset turned by the pelvis's orientation (every
