@@ -43,7 +43,7 @@ def _run(args) -> int:
     from ..calibration import static_names
     from ..ik import fit_quality
     from ..workflow import fit_capture
-    from ..io.atomic import atomic_write_text
+    from ..io.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
     from ..io.opensim import write_mot, write_osim
     from ..protocols import match_trial, missing_landmarks_error
@@ -66,7 +66,7 @@ def _run(args) -> int:
     static = None if fitted.static is None else \
         static_names([s.source for s in statics])[fitted.static]
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
-    atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
+    write_angles_csv(args.output, motion.time, motion.q)
     if args.mot:
         write_mot(motion, args.mot)
     if args.osim:
