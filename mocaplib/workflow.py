@@ -28,13 +28,13 @@ from .io import fs_text, open_regular
 from .entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from .library import qc_failures, to_json_data
 from .qc import cycle_qc, inside_cycle, qc_and_choice, qc_series
-from .settings import BuildSettings
 from .skeleton import DOF_NAMES, SEGMENTS
 
 if TYPE_CHECKING:
     from .calibration import SubjectModel
     from .motion import Motion
     from .protocols import ProtocolMatch
+    from .settings import BuildSettings
     from .trial import Trial
 
 

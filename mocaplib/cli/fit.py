@@ -45,7 +45,6 @@ def _run(args) -> int:
     from ..workflow import fit_capture
     from ..io.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
-    from ..io.opensim import write_mot, write_osim
     from ..protocols import match_trial, missing_landmarks_error
     from ._common import print_json, warn
 
@@ -67,10 +66,13 @@ def _run(args) -> int:
         static_names([s.source for s in statics])[fitted.static]
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
     write_angles_csv(args.output, motion.time, motion.q)
-    if args.mot:
-        write_mot(motion, args.mot)
-    if args.osim:
-        write_osim(model, args.osim)
+    if args.mot or args.osim:
+        from ..io.opensim import write_mot, write_osim     # and xml.etree: only when asked
+
+        if args.mot:
+            write_mot(motion, args.mot)
+        if args.osim:
+            write_osim(model, args.osim)
     quality = fit_quality(motion)
     for note in fitted.warnings:
         warn(f"{args.input}: {note}")
