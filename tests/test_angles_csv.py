@@ -1,5 +1,6 @@
 """The joint-coordinate CSV (:mod:`mocaplib.io.angles_csv`) has the bytes pandas writes for
-``Motion.angles.to_csv(float_format="%.9g")``, which the fit's CSV always had."""
+``Motion.angles.to_csv(float_format="%.9g")``; ``Motion.angles`` is ``Motion.q`` at
+``Motion.time``."""
 
 from __future__ import annotations
 
@@ -43,6 +44,19 @@ def test_special_values_are_written_as_pandas_writes_them(tmp_path):
     motion = Motion(q, Skeleton.from_height(1.75), 120.0)
     out = write_angles_csv(tmp_path / "angles.csv", motion.time, motion.q)
     assert out.read_bytes() == _pandas_csv(motion)
+
+
+def test_the_angles_frame_is_q_at_the_frame_times_and_a_copy():
+    q = np.arange(3.0 * len(DOF_NAMES)).reshape(3, -1)
+    motion = Motion(q, Skeleton.from_height(1.75), 50.0)
+    angles = motion.angles
+    assert list(angles.columns) == list(DOF_NAMES) and angles.index.name == "time_s"
+    np.testing.assert_array_equal(angles.index, [0.0, 0.02, 0.04])
+    np.testing.assert_array_equal(angles.to_numpy(), q)
+    angles.iloc[0, 0] = -1.0                      # changing the frame leaves the motion as it was
+    assert motion.q[0, 0] == 0.0 and motion.n_frames == 3
+    with pytest.raises(MocapError, match=r"Motion\.q must have shape \(F, 32\).*\(3, 5\)"):
+        Motion(np.zeros((3, 5)), Skeleton.from_height(1.75), 50.0)
 
 
 def test_a_table_of_the_wrong_shape_is_refused_naming_the_file(tmp_path):
