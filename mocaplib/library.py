@@ -415,7 +415,7 @@ def _read_document(path: str | os.PathLike) -> tuple[object, str]:
 
 def schema() -> dict:
     """The JSON Schema (draft 2020-12) of library files, as shipped in the package."""
-    from importlib import resources   # here: commands that never validate need it not
+    from importlib import resources   # here: only validation reads the schema
 
     text = resources.files("mocaplib").joinpath("schema/library.schema.json").read_text("utf-8")
     return json.loads(text)

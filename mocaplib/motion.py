@@ -6,7 +6,6 @@ Angles are radians, root translation metres, world frame Z up; time on axis 0.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -212,4 +211,3 @@ class Motion:
         if self.marker_segments is None or self.marker_offsets is None:
             raise MocapError("this Motion carries no marker model", path=self.source)
         return self.skeleton.points(self.q, self.marker_segments, self.marker_offsets)
-
