@@ -41,7 +41,7 @@ import numpy as np
 from .errors import FitError
 from .filtering import resample
 from .runs import valid_runs
-from .motion import Motion, Repair, angles_frame, apply_repairs
+from .motion import Motion, Repair, apply_repairs
 from .protocols import label_match
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
@@ -687,7 +687,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         q = _fill_gaps(q)
         q[:, ~free] = 0.0
     rejected &= ~failed[:, None]
-    return Motion(angles_frame(q, trial.rate), model.skeleton, trial.rate,
+    return Motion(q, model.skeleton, trial.rate,
                   marker_labels=list(model.labels), residuals=residuals, failed=failed,
                   rejected=rejected,
                   locked_dofs=list(model.locked_dofs), unobservable=dict(model.unobservable),

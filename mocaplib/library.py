@@ -29,7 +29,6 @@ import os
 import re
 from dataclasses import dataclass, replace
 from functools import cached_property
-from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -416,6 +415,8 @@ def _read_document(path: str | os.PathLike) -> tuple[object, str]:
 
 def schema() -> dict:
     """The JSON Schema (draft 2020-12) of library files, as shipped in the package."""
+    from importlib import resources   # here: only validation reads the schema
+
     text = resources.files("mocaplib").joinpath("schema/library.schema.json").read_text("utf-8")
     return json.loads(text)
 

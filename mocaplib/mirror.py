@@ -110,11 +110,7 @@ def mirror_motion(motion, /):
     sides), residuals, failed and rejected frames kept (QC reads them per frame), locked DOFs
     renamed to their partners. The marker model is not mirrored (``marker_segments`` and
     ``marker_offsets`` are None)."""
-    from .motion import angles_frame
-
-    angles = angles_frame(mirror_dofs(motion.q), motion.rate)
-    angles.index = motion.angles.index
-    return replace(motion, angles=angles, skeleton=mirror_skeleton(motion.skeleton),
+    return replace(motion, q=mirror_dofs(motion.q), skeleton=mirror_skeleton(motion.skeleton),
                    marker_segments=None, marker_offsets=None,
                    locked_dofs=[partner_name(name) for name in motion.locked_dofs],
                    unobservable=mirror_names(motion.unobservable), repairs=[])

@@ -6,12 +6,15 @@ Angles are radians, root translation metres, world frame Z up; time on axis 0.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .errors import MocapError
 from .skeleton import DOF_NAMES, Skeleton
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: A DOF within this distance (radians or metres) of a joint limit counts as at the limit.
 AT_LIMIT = 1e-3
@@ -66,9 +69,10 @@ class Motion:
 
     Attributes
     ----------
-    angles : DataFrame, shape (F, D)
-        One column per DOF in :data:`mocaplib.skeleton.DOF_NAMES` order (radians; ``pelvis_t*``
-        metres); index ``time_s``, seconds from the trial's first frame.
+    q : ndarray, shape (F, D)
+        Joint coordinates, one column per DOF in :data:`mocaplib.skeleton.DOF_NAMES` order
+        (radians; ``pelvis_t*`` metres); frame ``f`` is at ``f / rate`` seconds from the
+        trial's first frame (:attr:`time`). :attr:`angles` gives them as a DataFrame.
     skeleton : Skeleton
         The calibrated skeleton the angles drive.
     rate : float
@@ -100,7 +104,7 @@ class Motion:
         The capture's file.
     """
 
-    angles: pd.DataFrame
+    q: np.ndarray
     skeleton: Skeleton
     rate: float
     marker_labels: list[str] = field(default_factory=list)
@@ -116,10 +120,11 @@ class Motion:
     marker_weights: np.ndarray | None = None
 
     def __post_init__(self):
-        if list(self.angles.columns) != list(DOF_NAMES):
-            raise MocapError("Motion.angles columns must be the skeleton's DOF_NAMES in order",
-                             path=self.source)
-        n = len(self.angles)
+        self.q = np.asarray(self.q, dtype=np.float64)
+        if self.q.ndim != 2 or self.q.shape[1] != len(DOF_NAMES):
+            raise MocapError(f"Motion.q must have shape (F, {len(DOF_NAMES)}), one column per "
+                             f"DOF of the skeleton, got {self.q.shape}", path=self.source)
+        n = len(self.q)
         if self.residuals is None:
             self.residuals = np.full((n, len(self.marker_labels)), np.nan)
         if self.failed is None:
@@ -131,18 +136,23 @@ class Motion:
                              f"got {self.residuals.shape}", path=self.source)
 
     @property
-    def q(self) -> np.ndarray:
-        """Joint coordinates as an array, shape (F, D)."""
-        return self.angles.to_numpy(dtype=np.float64)
-
-    @property
     def time(self) -> np.ndarray:
-        """Seconds from the first frame, shape (F,)."""
-        return self.angles.index.to_numpy(dtype=np.float64)
+        """Seconds from the first frame, shape (F,): ``arange(F) / rate``."""
+        return np.arange(len(self.q)) / float(self.rate)
 
     @property
     def n_frames(self) -> int:
-        return len(self.angles)
+        return len(self.q)
+
+    @property
+    def angles(self) -> "pd.DataFrame":
+        """:attr:`q` as a DataFrame (F, D), built on each call from a copy (change :attr:`q`
+        to change the motion): DOF columns in :data:`~mocaplib.skeleton.DOF_NAMES` order,
+        index ``time_s`` (:attr:`time`)."""
+        import pandas as pd   # here: fitting and writing the angles need no pandas
+
+        return pd.DataFrame(self.q, columns=list(DOF_NAMES),
+                            index=pd.Index(self.time, name="time_s"), copy=True)
 
     def trusted(self) -> np.ndarray:
         """Markers (M,) bool the fit follows closely: weight 1 or more (all without weights)."""
@@ -201,12 +211,3 @@ class Motion:
         if self.marker_segments is None or self.marker_offsets is None:
             raise MocapError("this Motion carries no marker model", path=self.source)
         return self.skeleton.points(self.q, self.marker_segments, self.marker_offsets)
-
-
-def angles_frame(q: np.ndarray, rate: float) -> pd.DataFrame:
-    """Wrap joint coordinates (F, D) as a DataFrame with DOF columns and a ``time_s`` index."""
-    q = np.asarray(q, dtype=np.float64)
-    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
-        raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
-    index = pd.Index(np.arange(q.shape[0]) / float(rate), name="time_s")
-    return pd.DataFrame(q, columns=list(DOF_NAMES), index=index)

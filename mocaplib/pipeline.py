@@ -23,7 +23,8 @@ from .errors import LibraryError, MocapError
 from .io import fs_text
 from .io.atomic import atomic_write_files
 from .sessions import plan_captures
-from .workers import pinned, run_tasks
+from .threads import pinned
+from .workers import run_tasks
 import numpy as np
 
 from .library import (diagnostics_path, DIAGNOSTICS_FORMAT, Library, assemble_library,

@@ -178,23 +178,19 @@ class Retargeted:
     def write(self, path: str | os.PathLike) -> Path:
         """Write the cycle (atomically) as CSV, ``.mot`` or BVH, chosen by the suffix
         (:data:`FORMATS`); returns the path."""
-        from .io.atomic import atomic_write_text
+        from .io.angles_csv import write_angles_csv
         from .io.bvh import write_bvh
         from .io.opensim import write_mot
-        from .motion import Motion, angles_frame
+        from .motion import Motion
 
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix == ".bvh":
             return write_bvh(path, self.q, self.skeleton, rate=self.rate)
         if suffix == ".mot":
-            return write_mot(Motion(angles_frame(self.q, self.rate), self.skeleton, self.rate),
-                             path)
+            return write_mot(Motion(self.q, self.skeleton, self.rate), path)
         if suffix == ".csv":
-            rows = [",".join(["time_s", *DOF_NAMES])]
-            rows += [",".join(f"{v:.10g}" for v in (t, *row)) for t, row in zip(self.time_s,
-                                                                              self.q)]
-            return atomic_write_text(path, "\n".join(rows) + "\n")
+            return write_angles_csv(path, self.time_s, self.q, digits=10)
         raise MocapError(f"unknown output type {path.suffix or '(none)'!r}", path=path,
                          hint=f"end the file name with {', '.join(FORMATS)}")
 

@@ -15,8 +15,9 @@ What it guarantees
       stops them), and a worker whose parent dies (``kill -9``) ends too: on Linux the kernel
       kills it (``PR_SET_PDEATHSIG``), elsewhere it notices within :data:`PARENT_POLL_S` that
       its parent changed.
-    * Every task runs with one BLAS/OpenMP thread (:func:`pinned`), in a worker or not, so its
-      floating-point results do not depend on ``jobs`` or on the machine's thread settings.
+    * Every task runs with one BLAS/OpenMP thread (:func:`mocaplib.threads.pinned`), in a
+      worker or not, so its floating-point results do not depend on ``jobs`` or on the
+      machine's thread settings.
 """
 
 from __future__ import annotations
@@ -31,9 +32,9 @@ import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 
 from .errors import MocapError
+from .threads import pinned, single_threaded_workers
 
 #: How often a task whose worker died is run: once more, in a new worker.
 MAX_ATTEMPTS = 2
@@ -42,8 +43,6 @@ MAX_ATTEMPTS = 2
 PARENT_POLL_S = 1.0
 #: Seconds idle workers get to exit after the pool's end before they are terminated.
 STOP_TIMEOUT_S = 5.0
-#: Thread-count variables of the BLAS/OpenMP libraries numpy and scipy may use.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 class WorkerDied(Exception):
@@ -56,42 +55,6 @@ def max_jobs() -> int:
         return len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         return os.cpu_count() or 1
-
-
-@contextmanager
-def single_threaded_workers():
-    """Worker processes started inside get one BLAS thread each (unless the user chose a
-    number): with one process per core, more threads only compete for the same cores."""
-    unset = [name for name in THREAD_VARIABLES if name not in os.environ]
-    os.environ.update({name: "1" for name in unset})
-    try:
-        yield
-    finally:
-        for name in unset:
-            os.environ.pop(name, None)
-
-
-def one_thread_by_default() -> None:
-    """Give the BLAS/OpenMP libraries one thread each, unless the user chose a number
-    (:data:`THREAD_VARIABLES`) or numpy is loaded already (its libraries read the variables
-    when they load). The command line calls it first: the fit's batched small matrices gain
-    nothing from more threads (on a busy 2-core machine they lose several times over), and a
-    command then computes what a build's task (:func:`pinned`) computes, to the last bit."""
-    if "numpy" not in sys.modules:
-        for name in THREAD_VARIABLES:
-            os.environ.setdefault(name, "1")
-
-
-def pinned(function: Callable, /, *arguments):
-    """``function(*arguments)`` with the BLAS/OpenMP libraries of numpy and scipy limited to
-    one thread: a multi-threaded BLAS splits sums in an order that depends on its thread
-    count, so the last bits of results would depend on ``--jobs`` and the machine."""
-    import numpy  # noqa: F401  (loaded first: the limit applies to loaded libraries)
-    import scipy.linalg  # noqa: F401
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1):
-        return function(*arguments)
 
 
 def run_tasks(function: Callable, tasks: list[tuple], *, jobs: int = 1

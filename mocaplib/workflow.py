@@ -28,12 +28,13 @@ from .io import fs_text, open_regular
 from .entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from .library import qc_failures, to_json_data
 from .qc import cycle_qc, inside_cycle, qc_and_choice, qc_series
-from .settings import BuildSettings
+from .skeleton import DOF_NAMES, SEGMENTS
 
 if TYPE_CHECKING:
     from .calibration import SubjectModel
     from .motion import Motion
     from .protocols import ProtocolMatch
+    from .settings import BuildSettings
     from .trial import Trial
 
 
@@ -278,7 +279,6 @@ def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
     """What a user should know about a fit: the labelling repairs, DOFs held at 0 and why,
     DOFs at a joint limit, frames not fitted, samples removed."""
     from .ik import fit_quality
-    from .skeleton import SEGMENTS
 
     quality = fit_quality(motion)
     notes = motion.repair_warnings()
@@ -716,7 +716,7 @@ def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
     shape = shapes[chosen.index]
     pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
     angles = {"time_s": shape["phase"][pick] * chosen.period}
-    angles.update({name: shape["q"][pick, d] for d, name in enumerate(motion.angles.columns)})
+    angles.update({name: shape["q"][pick, d] for d, name in enumerate(DOF_NAMES)})
     poulaine = None
     if "measured" in shape:
         pick = downsample(len(shape["phase"]), MAX_POULAINE_POINTS)

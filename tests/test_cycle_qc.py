@@ -5,7 +5,6 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from mocaplib.filtering import WALKING_CUTOFF
@@ -16,7 +15,6 @@ from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 def _motion(q: np.ndarray, rate: float):
     return SimpleNamespace(n_frames=len(q), rate=rate, q=q, residuals=np.zeros((len(q), 4)),
                            trusted=lambda: np.ones(4, dtype=bool),
-                           angles=pd.DataFrame(q, columns=DOF_NAMES),
                            skeleton=Skeleton.from_height(1.75))
 
 

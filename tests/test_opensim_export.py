@@ -5,7 +5,7 @@ import pytest
 from fk_data import fk_trial, true_model
 
 from mocaplib.io.opensim import osim_text, write_mot, write_osim, write_trc
-from mocaplib.motion import Motion, angles_frame
+from mocaplib.motion import Motion
 from mocaplib.skeleton import DOF_NAMES
 
 
@@ -59,7 +59,7 @@ def test_mot_in_degrees_translations_in_metres(tmp_path):
     q[:, DOF_NAMES.index("knee_flexion_r")] = np.pi / 2
     q[:, DOF_NAMES.index("pelvis_tx")] = 1.5
     cap = fk_trial(n_frames=2)
-    motion = Motion(angles_frame(q, 100.0), cap.skeleton, 100.0)
+    motion = Motion(q, cap.skeleton, 100.0)
     lines = write_mot(motion, tmp_path / "a.mot").read_text().splitlines()
     assert "inDegrees=yes" in lines and "nRows=3" in lines
     head = lines[lines.index("endheader") + 1].split("\t")

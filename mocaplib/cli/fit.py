@@ -43,9 +43,8 @@ def _run(args) -> int:
     from ..calibration import static_names
     from ..ik import fit_quality
     from ..workflow import fit_capture
-    from ..io.atomic import atomic_write_text
+    from ..io.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
-    from ..io.opensim import write_mot, write_osim
     from ..protocols import match_trial, missing_landmarks_error
     from ._common import print_json, warn
 
@@ -66,11 +65,14 @@ def _run(args) -> int:
     static = None if fitted.static is None else \
         static_names([s.source for s in statics])[fitted.static]
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
-    atomic_write_text(args.output, motion.angles.to_csv(float_format="%.9g"))
-    if args.mot:
-        write_mot(motion, args.mot)
-    if args.osim:
-        write_osim(model, args.osim)
+    write_angles_csv(args.output, motion.time, motion.q)
+    if args.mot or args.osim:
+        from ..io.opensim import write_mot, write_osim     # and xml.etree: only when asked
+
+        if args.mot:
+            write_mot(motion, args.mot)
+        if args.osim:
+            write_osim(model, args.osim)
     quality = fit_quality(motion)
     for note in fitted.warnings:
         warn(f"{args.input}: {note}")
