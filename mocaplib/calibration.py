@@ -50,6 +50,13 @@ Steps (all in metres, world Z up):
    (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
    layout puts them): their markers' offsets are measured in them and each joint centre below
    the hips and shoulders becomes a joint shift.
+4b. **Functional knee axes** (:func:`functional_knee_turns`). The knee hinge's axis from
+   the landmarks, turned about the thigh from the knee's own, takes the shank out of its plane
+   as the knee flexes and the fit turns the hip to follow: hip rotation coupled to knee
+   flexion. Each knee's axis is turned about the femur's long axis by the angle whose poses
+   best fit the thigh and shank markers of step 5's frames (the motion's), the leg frames of
+   step 4 built again on it (:func:`mocaplib.anatomy.segment_frames`, ``knee_turns``); a knee
+   that flexes less than :data:`KNEE_AXIS_MIN_FLEXION` there keeps the anatomical axis.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
@@ -162,7 +169,7 @@ ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
 KNEE_AXIS_TURNS = np.radians(np.arange(-30.0, 31.0, 10.0))
 #: Knee flexion range (radians) the calibration frames must show for a functional knee axis;
 #: a knee that flexes less (a static, standing) keeps its anatomical axis.
-KNEE_AXIS_MIN_FLEXION = np.radians(30.0)
+KNEE_AXIS_MIN_FLEXION = np.radians(20.0)
 
 #: Joint centres from landmarks: child segment (its origin is the joint) and its landmarks
 #: (lateral, medial); the lateral one alone is used with its catalogue offset.
