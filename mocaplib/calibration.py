@@ -278,7 +278,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8, heading_offset: float = 0.0,
               measurements: dict[str, float] | None = None,
-              static_window: tuple[float, float] | None = None) -> SubjectModel:
+              static_window: tuple[float, float] | None = None,
+              knee_turns: dict[str, float] | None = None) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -307,6 +308,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     static_window : (start, end) seconds from the static's first frame: the stretch of the
         static to calibrate on; default: the whole static when it stands still, else its
         quietest stretch (:func:`standing_part`).
+    knee_turns : None (default): each knee's functional flexion axis (step 4b,
+        :func:`functional_knee_turns`); else the knees' axes turned by these from the
+        anatomical ones, radians per side ("l", "r"; internal rotation positive), ``{}``
+        keeping the anatomical axes. Unused with a static in the neutral pose.
 
     Returns
     -------
@@ -420,7 +425,13 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
             X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
                                                       start, free=free))
             poses = None
-    knee_turns, knee_methods = functional_knee_turns(anatomical_model, X, segments, free=free)
+    if knee_turns is None:
+        knee_turns, knee_methods = functional_knee_turns(anatomical_model, X, segments, free=free)
+    else:
+        knee_turns = {side: float(turn) for side, turn in knee_turns.items() if turn}
+        knee_methods = {f"knee_axis_{side}": f"given: turned {np.degrees(turn):+.1f}° "
+                        "(internal rotation positive) about the thigh from the anatomical axis"
+                        for side, turn in knee_turns.items()}
     methods.update(knee_methods)
     if knee_turns:
         offsets, kept, skeleton = anatomical_model(knee_turns)

@@ -90,6 +90,13 @@ def test_calibration_finds_a_knee_axis_turned_from_the_anatomical_one(turn_deg):
         assert abs(slope) < 0.05, (side, slope)
 
 
+def test_given_knee_turns_are_used_as_they_are(walk):
+    model = calibrate(walk.trial, protocol="fullbody38", knee_turns={"l": 0.1, "r": 0.0})
+    assert model.knee_axis_turns == {"l": 0.1}
+    assert model.centre_methods["knee_axis_l"].startswith("given: turned +5.7°")
+    assert "knee_axis_r" not in model.centre_methods          # the anatomical axis
+
+
 def test_a_knee_that_does_not_flex_keeps_its_anatomical_axis():
     static = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=1, seed=0, static=True)
     model = calibrate(static.trial, protocol="fullbody38")
