@@ -1,6 +1,7 @@
 """mocaplib's joint angles against the lab's own Plug-in Gait angles stored in the same files.
 
     python benchmarks/lab_agreement.py [--shared DIR] [--markdown PATH]
+    python benchmarks/lab_agreement.py --knee-turns -20 -10 0 10 20
 
 Plug-in Gait (Vicon's conventional gait model) writes its angles into the C3D as points
 (``LHipAngles``, ``LKneeAngles``, ``LAnkleAngles``... in degrees: x flexion, y ab/adduction,
@@ -17,7 +18,13 @@ mocaplib's order (heading, then obliquity, then tilt): its stored pelvis angles 
 the lab's axes, which is not the subject's heading once the subject turns (HC030A22 turns 88°).
 Also printed: the share of frames each of mocaplib's DOFs spends at a joint limit, the DOFs held
 because the markers cannot see them, and the pelvis obliquity's range against that of the line
-through the two ASIS markers. Prints Markdown; exit code 1 when a target of
+through the two ASIS markers, and the knee's cross-talk: the slope of hip rotation on knee flexion
+over the capture (degrees per degree), mocaplib's against Plug-in Gait's, with the slope of
+Plug-in Gait's knee varus on its knee flexion (a knee flexion axis turned from the true one
+shows in Plug-in Gait's three-DOF knee as varus that follows flexion, and in mocaplib's hinge
+knee as hip rotation that follows it), with each knee's functional axis and, refitted, with
+its anatomical one. ``--knee-turns`` refits instead with both knees' axes turned by fixed
+angles. Prints Markdown; exit code 1 when a target of
 :data:`TARGETS` is missed.
 """
 
@@ -38,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.workflow import fit_capture  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data" / "c3d"
 #: The shared captures that carry Plug-in Gait angles, with their static (or None).
@@ -54,11 +61,12 @@ FLEXIONS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 ARMS = (("ElbowAngles", 0, "elbow_flexion"), ("ShoulderAngles", 0, "shoulder_flexion"))
 #: The issue's targets: flexions (median |offset| over captures and sides, worst |offset|,
 #: r, RMS after offset), frontal angles (r, |offset|), limits, pelvis range, the arms' flexions
-#: (|offset| on every capture and side, r), degrees.
+#: (|offset| on every capture and side, r), degrees; the knee's cross-talk (|slope of hip
+#: rotation on knee flexion| on every capture and side, degrees per degree).
 TARGETS = {"flexion_median_offset": 3.0, "flexion_worst_offset": 5.0, "flexion_r": 0.97,
            "flexion_rms": 3.0, "frontal_r": 0.8, "frontal_offset": 5.0,
            "at_limit_share": 0.02, "obliquity_range_ratio": 1.3,
-           "arm_offset": 5.0, "arm_r": 0.9}
+           "arm_offset": 5.0, "arm_r": 0.9, "crosstalk_slope": 0.1}
 
 
 @dataclass
@@ -123,6 +131,43 @@ class CaptureResult:
     obliquity_range: float
     asis_range: float
     marker_rms_mm: float
+    crosstalk: list[Crosstalk]
+
+
+@dataclass
+class Crosstalk:
+    """One knee's cross-talk over a capture: slopes (degrees per degree) of mocaplib's hip
+    rotation on its knee flexion (functional knee axis, and refitted with the anatomical
+    axis), of Plug-in Gait's, and of Plug-in Gait's knee varus on its knee flexion; the knee
+    axis calibration chose (``SubjectModel.centre_methods``); the RMS (mm) of the thigh and
+    shank markers of that side with each axis."""
+
+    side: str
+    ours: float
+    anatomical: float
+    lab: float
+    lab_varus: float
+    axis: str
+    leg_rms_mm: float
+    anatomical_leg_rms_mm: float
+
+
+def slope(x: np.ndarray, y: np.ndarray) -> float:
+    """Least-squares slope of ``y`` on ``x`` (F,) over the frames both hold."""
+    both = np.isfinite(x) & np.isfinite(y)
+    return float(np.polyfit(x[both], y[both], 1)[0])
+
+
+def knee_crosstalk(fitted, side: str) -> tuple[float, float]:
+    """The slope of hip rotation on knee flexion of ``side`` ("l", "r") of a
+    :class:`~mocaplib.workflow.FittedCapture` (degrees per degree), and the RMS (mm) of that
+    side's thigh and shank markers."""
+    q = fitted.motion.q
+    leg = np.isin(fitted.model.marker_segments, [SEGMENT_NAMES.index(f"{name}_{side}")
+                                                 for name in ("femur", "tibia")])
+    return (slope(q[:, DOF_NAMES.index(f"knee_flexion_{side}")],
+                  q[:, DOF_NAMES.index(f"hip_rotation_{side}")]),
+            float(1000 * np.sqrt(np.nanmean(fitted.motion.residuals[:, leg] ** 2))))
 
 
 def agreement(motion_path: Path, static_path: Path | None, name: str) -> CaptureResult:
@@ -144,13 +189,23 @@ def agreement(motion_path: Path, static_path: Path | None, name: str) -> Capture
     out.append(compare(name, "pelvis_list", q[:, DOF_NAMES.index("pelvis_list")], obliquity))
     lower, upper = Skeleton.bounds()
     at_limit = ((motion.q <= lower + 1e-3) | (motion.q >= upper - 1e-3)).mean(axis=0)
+    anatomical = fit_capture(trial, static=statics, knee_turns={})
+    crosstalk = []
+    for side in ("l", "r"):
+        knee, hip = (points[side.upper() + label] for label in ("KneeAngles", "HipAngles"))
+        (ours, leg_rms), (before, before_rms) = (knee_crosstalk(f, side)
+                                                 for f in (fitted, anatomical))
+        crosstalk.append(Crosstalk(side, ours, before, slope(knee[:, 0], hip[:, 2]),
+                                   slope(knee[:, 0], knee[:, 1]),
+                                   model.centre_methods.get(f"knee_axis_{side}", "anatomical"),
+                                   leg_rms, before_rms))
     asis = trial.marker("LASI") - trial.marker("RASI")
     asis_angle = np.degrees(np.arcsin(asis[:, 2] / np.linalg.norm(asis, axis=1)))
     return CaptureResult(name, out, dict(zip(DOF_NAMES, at_limit.tolist())),
                          {k: float(np.degrees(v)) for k, v in model.unobservable.items()},
                          float(np.ptp(q[:, DOF_NAMES.index("pelvis_list")])),
                          float(np.nanmax(asis_angle) - np.nanmin(asis_angle)),
-                         float(1000 * np.sqrt(np.nanmean(motion.residuals ** 2))))
+                         float(1000 * np.sqrt(np.nanmean(motion.residuals ** 2))), crosstalk)
 
 
 def target_checks(results: list[CaptureResult]) -> list[tuple[str, str, bool]]:
@@ -196,6 +251,11 @@ def target_checks(results: list[CaptureResult]) -> list[tuple[str, str, bool]]:
     checks.append((f"no DOF at a joint limit in more than {TARGETS['at_limit_share']:.0%} of "
                    "frames", f"{share:.1%} ({capture} {dof})",
                    share <= TARGETS["at_limit_share"]))
+    worst, capture, side = max((abs(k.ours), r.capture, k.side) for r in results
+                               for k in r.crosstalk)
+    checks.append((f"hip rotation on knee flexion: every abs. slope ≤ "
+                   f"{TARGETS['crosstalk_slope']:g}", f"{worst:.2f} ({capture} {side})",
+                   worst <= TARGETS["crosstalk_slope"]))
     ratio, capture = max((r.obliquity_range / r.asis_range, r.capture) for r in results)
     checks.append((f"pelvis obliquity range ≤ {TARGETS['obliquity_range_ratio']:g}× the ASIS "
                    "line's", f"{ratio:.2f}× ({capture})",
@@ -219,6 +279,15 @@ def print_tables(results: list[CaptureResult]) -> bool:
         limits = ", ".join(f"{k} {v:.0%}" for k, v in r.at_limit.items() if v > 0.02) or "none"
         print(f"| {r.capture} | {r.marker_rms_mm:.1f} | {held} | {limits} | "
               f"{r.obliquity_range:.1f} / {r.asis_range:.1f} |")
+    print("\n| capture | side | hip rotation / knee flexion: anatomical axis → ours | "
+          "Plug-in Gait's | Plug-in Gait's knee varus / knee flexion | thigh and shank "
+          "markers' RMS (mm): anatomical axis → ours | knee axis |")
+    print("|---|---|---|---|---|---|---|")
+    for r in results:
+        for k in r.crosstalk:
+            print(f"| {r.capture} | {k.side} | {k.anatomical:+.3f} → {k.ours:+.3f} | "
+                  f"{k.lab:+.3f} | {k.lab_varus:+.3f} | {k.anatomical_leg_rms_mm:.1f} → "
+                  f"{k.leg_rms_mm:.1f} | {k.axis} |")
     checks = target_checks(results)
     print("\n| target | measured | met |")
     print("|---|---|---|")
@@ -227,12 +296,41 @@ def print_tables(results: list[CaptureResult]) -> bool:
     return all(met for _, _, met in checks)
 
 
+def print_turned_knees(shared: Path, turns_deg: list[float]) -> None:
+    """Print, per capture, side and fixed knee axis turn (degrees), the slope of hip rotation
+    on knee flexion, Plug-in Gait's, and the thigh and shank markers' RMS."""
+    print("| capture | side | turn (°) | hip rotation / knee flexion | Plug-in Gait's | thigh "
+          "and shank markers' RMS (mm) |")
+    print("|---|---|---|---|---|---|")
+    for motion, static in CAPTURES:
+        trial = read_c3d(shared / motion)
+        statics = [read_c3d(shared / static)] if static else None
+        points = plug_in_gait_points(shared / motion)
+        for turn in turns_deg:
+            fitted = fit_capture(trial, static=statics,
+                                 knee_turns={"l": np.radians(turn), "r": np.radians(turn)})
+            for side in ("l", "r"):
+                ours, leg_rms = knee_crosstalk(fitted, side)
+                lab = slope(points[side.upper() + "KneeAngles"][:, 0],
+                            points[side.upper() + "HipAngles"][:, 2])
+                print(f"| {Path(motion).stem} | {side} | {turn:+g} | {ours:+.3f} | {lab:+.3f} | "
+                      f"{leg_rms:.1f} |")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--shared", type=Path, default=SHARED,
                         help="folder of the shared real captures (default: %(default)s)")
+    parser.add_argument("--knee-turns", type=float, nargs="+", metavar="DEG",
+                        help="instead: refit every capture with both knees' axes turned by each "
+                             "of these angles (degrees, internal rotation positive) from the "
+                             "anatomical ones and print the cross-talk slope and the thigh and "
+                             "shank markers' RMS per turn")
     add_markdown_option(parser)
     args = parser.parse_args(argv)
+    if args.knee_turns:
+        print_turned_knees(args.shared, args.knee_turns)
+        return 0
     with markdown_page(args.markdown, __file__, argv):
         results = [agreement(args.shared / motion, static and args.shared / static,
                              Path(motion).stem) for motion, static in CAPTURES]

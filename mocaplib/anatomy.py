@@ -149,7 +149,8 @@ def frame(primary: np.ndarray, secondary: np.ndarray, *, order: str) -> np.ndarr
 
 
 def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
-                   *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                   *, level_feet: bool = False, knee_turns: dict[str, float] | None = None
+                   ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The anatomical frames of the pelvis, legs and arms that the landmarks define.
 
     ``where`` maps landmark names (``L_ASIS``...) to positions (F, 3); ``centres`` maps
@@ -160,6 +161,10 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
     ``level_feet``: the frames are a static trial's, the soles flat on level ground, so each
     foot's long axis is the heel-to-toe direction made horizontal (Plug-in Gait's flat-foot
     static) rather than the line between the markers, whose heights above the sole differ.
+    ``knee_turns``: per side ("l", "r"), radians in the sense of ``hip_rotation`` (internal
+    positive): the femur's frame is turned about its long axis by it, and with it the knee's
+    flexion axis and the tibia's and foot's frames built on that axis (a functional knee axis,
+    :func:`mocaplib.calibration.functional_knee_turns`).
     """
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     hips = centres.get(("femur_l", 0.0)), centres.get(("femur_r", 0.0))
@@ -170,7 +175,8 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
         out.update(_limb_frames(where, centres, side, sign, ("femur", "tibia"), "KNEE",
-                                centres.get((f"foot_{side}", 0.0))))
+                                centres.get((f"foot_{side}", 0.0)),
+                                turn=(knee_turns or {}).get(side, 0.0)))
         heel, toe = _foot_line(where, side.upper())
         if f"tibia_{side}" in out and heel is not None:
             along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
@@ -185,11 +191,13 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
 
 def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
                  side: str, sign: float, segments: tuple[str, str], joint: str,
-                 distal: np.ndarray | None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                 distal: np.ndarray | None, *, turn: float = 0.0
+                 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The frames of one limb's two segments (femur and tibia, or humerus and forearm) of
     ``side`` ("l", "r"; ``sign`` +1 left, −1 right), as :func:`segment_frames` describes:
     the upper one from its joint centre, the middle joint's centre and its ``joint``'s
-    lateral (and medial) landmark; the lower one from the middle joint and the ``distal``
+    lateral (and medial) landmark, then turned about its long axis by ``turn`` (radians,
+    internal rotation positive); the lower one from the middle joint and the ``distal``
     point (ankle or wrist centre, (F, 3); without it, only the upper frame)."""
     upper, lower = segments
     top, middle = centres.get((f"{upper}_{side}", 0.0)), centres.get((f"{lower}_{side}", 0.0))
@@ -199,6 +207,9 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
     medial = where.get(f"{side.upper()}_{joint}_MED")
     first = frame(top - middle, sign * (lateral - (middle if medial is None else medial)),
                   order="zy")
+    if turn:                                     # internal rotation turns -Z left, +Z right
+        c, s = np.cos(-sign * turn), np.sin(-sign * turn)
+        first = first @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     out = {f"{upper}_{side}": (first, top)}
     if distal is not None:
         out[f"{lower}_{side}"] = (frame(first[..., 1], middle - distal, order="yz"), middle)

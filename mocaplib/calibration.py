@@ -50,6 +50,13 @@ Steps (all in metres, world Z up):
    (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
    layout puts them): their markers' offsets are measured in them and each joint centre below
    the hips and shoulders becomes a joint shift.
+4b. **Functional knee axes** (:func:`functional_knee_turns`). The knee hinge's axis from
+   the landmarks, turned about the thigh from the knee's own, takes the shank out of its plane
+   as the knee flexes and the fit turns the hip to follow: hip rotation coupled to knee
+   flexion. Each knee's axis is turned about the femur's long axis by the angle whose poses
+   best fit the thigh and shank markers of step 5's frames (the motion's), the leg frames of
+   step 4 built again on it (:func:`mocaplib.anatomy.segment_frames`, ``knee_turns``); a knee
+   that flexes less than :data:`KNEE_AXIS_MIN_FLEXION` there keeps the anatomical axis.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
@@ -76,7 +83,7 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -156,6 +163,14 @@ NEUTRAL_CHORD_JOINTS = ("tibia", "foot")
 #: The others follow their markers, unless an anatomical frame of step 4 holds them.
 ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
 
+#: Turns of each knee's flexion axis about the femur's long axis (radians) that step 4b tries
+#: (:func:`functional_knee_turns`); the chosen one is the vertex of the parabola through the
+#: best of them and its neighbours, so within this span.
+KNEE_AXIS_TURNS = np.radians(np.arange(-30.0, 31.0, 10.0))
+#: Knee flexion range (radians) the calibration frames must show for a functional knee axis;
+#: a knee that flexes less (a static, standing) keeps its anatomical axis.
+KNEE_AXIS_MIN_FLEXION = np.radians(20.0)
+
 #: Joint centres from landmarks: child segment (its origin is the joint) and its landmarks
 #: (lateral, medial); the lateral one alone is used with its catalogue offset.
 _LANDMARK_JOINTS = {
@@ -209,6 +224,9 @@ class SubjectModel:
         leave them at (:func:`unobservable_dofs`).
     static_window_s : (start, end) or None. Seconds from the static's first frame of the
         stretch of it used (:func:`standing_part`); None without a static.
+    knee_axis_turns : dict[str, float]. Per side ("l", "r") whose knee has a functional axis,
+        its turn about the femur's long axis from the anatomical one, radians, in the sense
+        of ``hip_rotation`` (:func:`functional_knee_turns`).
     """
 
     skeleton: Skeleton
@@ -225,6 +243,7 @@ class SubjectModel:
     centre_methods: dict[str, str] = field(default_factory=dict)
     unobservable: dict[str, float] = field(default_factory=dict)
     static_window_s: tuple[float, float] | None = None
+    knee_axis_turns: dict[str, float] = field(default_factory=dict)
 
     @property
     def marker_weights(self) -> np.ndarray:
@@ -259,7 +278,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
               height: float | None = None, n_frames: int = 60,
               max_rounds: int = 8, heading_offset: float = 0.0,
               measurements: dict[str, float] | None = None,
-              static_window: tuple[float, float] | None = None) -> SubjectModel:
+              static_window: tuple[float, float] | None = None,
+              knee_turns: dict[str, float] | None = None) -> SubjectModel:
     """Calibrate the subject's skeleton and marker offsets.
 
     Parameters
@@ -288,6 +308,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     static_window : (start, end) seconds from the static's first frame: the stretch of the
         static to calibrate on; default: the whole static when it stands still, else its
         quietest stretch (:func:`standing_part`).
+    knee_turns : None (default): each knee's functional flexion axis (step 4b,
+        :func:`functional_knee_turns`); else the knees' axes turned by these from the
+        anatomical ones, radians per side ("l", "r"; internal rotation positive), ``{}``
+        keeping the anatomical axes. Unused with a static in the neutral pose.
 
     Returns
     -------
@@ -346,6 +370,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     anatomical = _lengths_from_centres(skeleton, centres)
     skeleton = Skeleton(anatomical)
     if neutral:
+        methods.update({f"knee_axis_{side}": "anatomical: a static in the neutral pose shows no "
+                        "flexion axis" for side in ("l", "r") if (f"tibia_{side}", 0.0) in centres})
         offsets, rms, poses, skeleton = neutral_offsets(
             skeleton, X, segments, nominal=nominal_scaled, heading_offset=heading_offset,
             centres=centres)
@@ -360,7 +386,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         np.concatenate([segments, v_seg]), np.vstack([known_offsets, v_off]),
                         free=free, weights=np.r_[np.ones(len(labels)),
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
-    offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
+    registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
     # the pelvis, legs and arms: offsets in their anatomical frames, kept by the refinement;
     # the arms' frames hang from the shoulders where the torso's layout puts them (the model's
     # at the poses), not the acromion's catalogue centre: moved there (21 mm up on the
@@ -370,14 +396,22 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     T = skeleton.forward(poses)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
                  for name in ("humerus_l", "humerus_r") if (name, 0.0) in centres}
-    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                            {**centres, **shoulders}, level_feet=static is not None)
-    in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
-    anatomical_markers = np.isfinite(in_frames).all(axis=1)
-    offsets[anatomical_markers] = in_frames[anatomical_markers]
-    kept = anatomical_markers & ~np.isin(segments, [SEGMENT_NAMES.index(name)
-                                                    for name in FOLLOWING_IN_REFINEMENT])
-    skeleton = Skeleton(skeleton.lengths, joint_shifts(skeleton, frames))
+    where, X_cal, unshifted = {name: X[:, i] for i, name in enumerate(landmarks)}, X, skeleton
+
+    def anatomical_model(knee_turns=None):
+        """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
+        joint shifts, measured in the anatomical frames (the knees' axes turned by
+        ``knee_turns``)."""
+        frames = segment_frames(where, {**centres, **shoulders}, level_feet=static is not None,
+                                knee_turns=knee_turns)
+        in_frames = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames)
+        measured = np.isfinite(in_frames).all(axis=1)
+        kept = measured & ~np.isin(segments, [SEGMENT_NAMES.index(name)
+                                              for name in FOLLOWING_IN_REFINEMENT])
+        return (np.where(measured[:, None], in_frames, registered), kept,
+                Skeleton(unshifted.lengths, joint_shifts(unshifted, frames)))
+
+    offsets, kept, skeleton = anatomical_model()
     fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
                      if all(((name + side, 0.0) in centres) for name in (a, b)
                             for side in ("_l", "_r"))]
@@ -391,6 +425,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
             X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
                                                       start, free=free))
             poses = None
+    if knee_turns is None:
+        knee_turns, knee_methods = functional_knee_turns(anatomical_model, X, segments, free=free)
+    else:
+        knee_turns = {side: float(turn) for side, turn in knee_turns.items() if turn}
+        knee_methods = {f"knee_axis_{side}": f"given: turned {np.degrees(turn):+.1f}° "
+                        "(internal rotation positive) about the thigh from the anatomical axis"
+                        for side, turn in knee_turns.items()}
+    methods.update(knee_methods)
+    if knee_turns:
+        offsets, kept, skeleton = anatomical_model(knee_turns)
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
     best, history = None, []
@@ -401,7 +445,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if best is not None and rms >= best.rms:
             break
         best = SubjectModel(skeleton, proto, labels, segments, offsets.copy(), locked, left_out,
-                            rms, [], cal.source, swapped, methods, static_window_s=window)
+                            rms, [], cal.source, swapped, methods, static_window_s=window,
+                            knee_axis_turns=knee_turns)
         best_poses = fit.q
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
@@ -549,7 +594,6 @@ def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
     :class:`CalibrationError` naming the static when the stretch does not stand still, or a
     ``window`` holds no frame of it.
     """
-    from dataclasses import replace
 
     n = static.n_frames
     if window is not None:
@@ -1058,6 +1102,60 @@ def joint_shifts(skeleton: Skeleton, frames: dict[str, tuple[np.ndarray, np.ndar
         if np.isfinite(shift).all():
             out[name] = tuple(float(x) for x in shift)
     return out
+
+
+def functional_knee_turns(anatomical_model, X: np.ndarray, segments: np.ndarray, *,
+                          free: np.ndarray) -> tuple[dict[str, float], dict[str, str]]:
+    """Each knee's functional flexion axis (step 4b): its turn about the femur's long axis
+    from the anatomical one, radians in the sense of ``hip_rotation`` per side ("l", "r"),
+    and a sentence per side for ``SubjectModel.centre_methods`` (``knee_axis_l``...).
+
+    ``anatomical_model(knee_turns)`` returns the model (offsets (M, 3), kept (M,), skeleton) whose
+    leg frames have the knees' axes turned by ``knee_turns`` (step 4's frames,
+    :func:`mocaplib.anatomy.segment_frames`); ``X`` (F, M, 3) are the markers of step 5 (the
+    motion's). The poses are fitted with both knees turned by each of
+    :data:`KNEE_AXIS_TURNS`; a side's turn is the vertex of the parabola through the smallest
+    mean squared residual of its thigh and shank markers and its two neighbours. A side whose
+    knee flexes less than :data:`KNEE_AXIS_MIN_FLEXION` over ``X`` (a static, standing) keeps
+    its anatomical axis: a hinge's axis shows only when it turns.
+    """
+    def fit(turns):
+        offsets, _, skeleton = anatomical_model(turns)
+        return solve_poses(skeleton, X, segments, offsets, free=free)
+
+    start = fit(None)
+    sides, methods = [], {}
+    for side in ("l", "r"):
+        knee = DOF_NAMES.index(f"knee_flexion_{side}")
+        leg = np.isin(segments, [SEGMENT_NAMES.index(f"{name}_{side}")
+                                 for name in ("femur", "tibia")])
+        if not free[knee] or not leg.any():
+            continue
+        flexion = float(np.ptp(start.q[:, knee])) if len(X) else 0.0
+        if flexion < KNEE_AXIS_MIN_FLEXION:
+            methods[f"knee_axis_{side}"] = (
+                f"anatomical: the knee flexes {np.degrees(flexion):.0f}° in the calibration "
+                f"frames, a functional axis needs {np.degrees(KNEE_AXIS_MIN_FLEXION):.0f}°")
+        else:
+            sides.append((side, leg, flexion))
+    if not sides:
+        return {}, methods
+    costs = np.array([[np.nanmean(pose_fit.residuals[:, leg] ** 2) for _, leg, _ in sides]
+                      for pose_fit in (fit({side: turn for side, _, _ in sides})
+                                       for turn in KNEE_AXIS_TURNS)])
+    step = KNEE_AXIS_TURNS[1] - KNEE_AXIS_TURNS[0]
+    turns = {}
+    for (side, _, flexion), cost in zip(sides, costs.T):
+        i = int(np.clip(np.argmin(cost), 1, len(cost) - 2))
+        a, b, c = cost[i - 1:i + 2]
+        vertex = 0.5 * step * (a - c) / (a - 2 * b + c) if a - 2 * b + c > 0 else 0.0
+        turns[side] = float(np.clip(KNEE_AXIS_TURNS[i] + vertex, KNEE_AXIS_TURNS[0],
+                                    KNEE_AXIS_TURNS[-1]))
+        methods[f"knee_axis_{side}"] = (
+            f"functional: turned {np.degrees(turns[side]):+.1f}° (internal rotation positive) "
+            f"about the thigh from the anatomical axis, fitting the thigh and shank markers over "
+            f"{np.degrees(flexion):.0f}° of knee flexion")
+    return turns, methods
 
 
 def _lengths_from_centres(skeleton: Skeleton,

@@ -206,7 +206,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto",
                 heading_offsets=None, measurements: dict | None = None,
                 static_window: tuple[float, float] | None = None, fallback: bool = False,
-                neutral_model=None, clock: _Clock | None = None) -> FittedCapture:
+                neutral_model=None, clock: _Clock | None = None,
+                knee_turns: dict[str, float] | None = None) -> FittedCapture:
     """Calibrate and fit one capture, as every command does: ``protocol`` matched on the
     capture, markers low-passed at ``cutoff`` (Hz, "auto" or None,
     :func:`mocaplib.filtering.filter_trial`), the subject model calibrated
@@ -226,7 +227,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     (:func:`mocaplib.calibration.standing_part`). ``neutral_model(i)``: the model of static
     ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
     a build calibrates each once per process); None calibrates it here. ``clock`` times the
-    stages ("protocol", "filter", "calibrate", "fit").
+    stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
+    :func:`mocaplib.calibration.calibrate` takes it (None: functional knee axes).
     """
     from .calibration import calibrate, check_static, choose_static, static_names
     from .errors import CalibrationError
@@ -254,14 +256,15 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
                                   static_pose=static_pose,
                                   heading_offset=0.0 if heading_offsets is None or chosen is None
                                   else heading_offsets[chosen],
-                                  measurements=measurements, static_window=static_window)
+                                  measurements=measurements, static_window=static_window,
+                                  knee_turns=knee_turns)
         except CalibrationError as exc:
             if not (fallback and statics):
                 raise
             warnings.append(f"calibrated from the capture itself: no static shows its subject "
                             f"({exc.message})")
             chosen, model = None, calibrate(filtered, protocol=match.protocol,
-                                            measurements=measurements)
+                                            measurements=measurements, knee_turns=knee_turns)
     if chosen is not None:
         name = static_names([s.source or f"static {i + 1}" for i, s in enumerate(statics)])[chosen]
         window = model.static_window_s

@@ -124,3 +124,32 @@ def true_model(cap: FKCapture, *, locked=()):
     proto = load_protocol("fullbody38")
     return SubjectModel(cap.skeleton, proto, proto.labels, cap.segments, cap.offsets,
                         locked_dofs=list(locked))
+
+
+def turn_knee_axis(skeleton: Skeleton, segments: np.ndarray, offsets: np.ndarray, side: str,
+                   angle: float) -> tuple[Skeleton, np.ndarray]:
+    """The model with one knee's flexion axis turned by ``angle`` (radians, the sense of
+    ``hip_rotation_<side>``: positive turns it as internal rotation turns the thigh) about the
+    femur's long axis, the leg itself unchanged.
+
+    The femur's, tibia's and foot's frames of ``side`` ("l", "r") are turned together about
+    the femur's Z axis (all three are parallel in the neutral pose): their markers' offsets
+    (M, 3) and the knee and ankle centres (joint shifts) are turned the other way in them, so
+    a pose with ``hip_rotation`` larger by ``angle`` puts every marker where it was, while
+    the knee (and the ankle, whose frame takes the tibia's flexion axis) now flexes about the
+    turned axis. Returns the new skeleton and offsets; ``offsets`` is not modified.
+    """
+    sign = -1.0 if side == "l" else 1.0         # hip_rotation's axis: -Z left, +Z right
+    c, s = np.cos(sign * angle), np.sin(sign * angle)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])      # frame turned by it
+    names = [f"{name}_{side}" for name in ("femur", "tibia", "foot")]
+    on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in names])
+    out = offsets.copy()
+    out[on] = offsets[on] @ turn                                      # turn.T @ offset
+    joints = skeleton.joint_offsets()
+    nominal = Skeleton(skeleton.lengths).joint_offsets()
+    shifts = dict(skeleton.shifts)
+    for name in names[1:]:
+        i = SEGMENT_NAMES.index(name)
+        shifts[name] = tuple((joints[i] @ turn - nominal[i]).tolist())
+    return Skeleton(skeleton.lengths, shifts), out

@@ -4,7 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from fk_data import fk_trial, neutral_q
+from fk_data import fk_trial, neutral_q, turn_knee_axis
 from protocol_trials import select
 
 from mocaplib.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
@@ -46,6 +46,63 @@ def test_calibration_from_the_motion_recovers_lengths_and_angles(walk):
     # soft-tissue artefact of ±3 mm moves the segment frames by up to ~1 deg
     assert rms[FLEXION].max() < 1.2, dict(zip(np.array(DOF_NAMES)[FLEXION], rms[FLEXION]))
     assert rms[OTHER].max() < 3.0, dict(zip(np.array(DOF_NAMES)[OTHER], rms[OTHER]))
+
+
+def test_the_generator_turns_a_knee_axis_and_keeps_the_leg():
+    cap = fk_trial(n_frames=20, placement_mm=0, sta_mm=0, noise_mm=0, seed=2)
+    skeleton, offsets = turn_knee_axis(cap.skeleton, cap.segments, cap.offsets, "r", 12 * DEG)
+    q = cap.q.copy()
+    q[:, DOF_NAMES.index("hip_rotation_r")] += 12 * DEG
+    straight, turned_straight = cap.q.copy(), q.copy()
+    for name in ("knee_flexion_r", "ankle_dorsiflexion_r", "ankle_inversion_r"):
+        straight[:, DOF_NAMES.index(name)] = turned_straight[:, DOF_NAMES.index(name)] = 0.0
+    # a straight knee and ankle (their axes turn together): every marker in place
+    assert np.abs(skeleton.points(turned_straight, cap.segments, offsets)
+                  - cap.skeleton.points(straight, cap.segments, cap.offsets)).max() < 1e-12
+    # a flexed knee: the shank's markers leave the plane the unturned hinge keeps them in
+    shank = cap.segments == SEGMENT_NAMES.index("tibia_r")
+    moved = np.linalg.norm(skeleton.points(q, cap.segments, offsets)[:, shank]
+                           - cap.skeleton.points(cap.q, cap.segments, cap.offsets)[:, shank], axis=2)
+    assert moved.max() > 0.02
+
+
+@pytest.mark.parametrize("turn_deg", [-15.0, 10.0])
+def test_calibration_finds_a_knee_axis_turned_from_the_anatomical_one(turn_deg):
+    # the markers of a subject whose knees flex about axes turned by a known angle from the one
+    # their landmarks (epicondyle, thigh and shank markers) give
+    cap = fk_trial(n_frames=200, placement_mm=0, sta_mm=3, noise_mm=1, seed=1)
+    skeleton, offsets, q = cap.skeleton, cap.offsets, cap.q.copy()
+    for side in ("l", "r"):
+        skeleton, offsets = turn_knee_axis(skeleton, cap.segments, offsets, side, turn_deg * DEG)
+        q[:, DOF_NAMES.index(f"hip_rotation_{side}")] += turn_deg * DEG
+    X = skeleton.points(q, cap.segments, offsets)
+    trial = dataclasses.replace(cap.trial, markers=X)
+    model = calibrate(trial, protocol="fullbody38")
+    for side in ("l", "r"):
+        assert abs(model.knee_axis_turns[side] / DEG - turn_deg) < 3.0, model.knee_axis_turns
+        assert model.centre_methods[f"knee_axis_{side}"].startswith("functional")
+    # the hip rotation that followed knee flexion with the anatomical axis is gone
+    motion = fit(trial, model)
+    for side in ("l", "r"):
+        hip = DOF_NAMES.index(f"hip_rotation_{side}")
+        error = (motion.q[:, hip] - q[:, hip]) / DEG
+        slope = np.polyfit(q[:, DOF_NAMES.index(f"knee_flexion_{side}")] / DEG, error, 1)[0]
+        assert abs(slope) < 0.05, (side, slope)
+
+
+def test_given_knee_turns_are_used_as_they_are(walk):
+    model = calibrate(walk.trial, protocol="fullbody38", knee_turns={"l": 0.1, "r": 0.0})
+    assert model.knee_axis_turns == {"l": 0.1}
+    assert model.centre_methods["knee_axis_l"].startswith("given: turned +5.7°")
+    assert "knee_axis_r" not in model.centre_methods          # the anatomical axis
+
+
+def test_a_knee_that_does_not_flex_keeps_its_anatomical_axis():
+    static = fk_trial(n_frames=60, placement_mm=0, sta_mm=0, noise_mm=1, seed=0, static=True)
+    model = calibrate(static.trial, protocol="fullbody38")
+    assert model.knee_axis_turns == {}
+    for side in ("l", "r"):
+        assert model.centre_methods[f"knee_axis_{side}"].startswith("anatomical: the knee flexes")
 
 
 def test_static_trial_calibration(walk):

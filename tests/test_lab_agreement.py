@@ -20,12 +20,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from lab_agreement import ARMS, CAPTURES, TARGETS, agreement, target_checks  # noqa: E402
 
+KNEES = [(Path(motion).stem, side) for motion, _ in CAPTURES for side in ("l", "r")]
+
 #: Targets missed on the shared captures, with the measured figure (honest xfails).
 MISSED = {
-    "knee_flexion: RMS after offset ≤ 3°": "measured 3.8° on HC030A05's right knee (Oxford Foot "
+    "knee_flexion: RMS after offset ≤ 3°": "measured 4.0° on HC030A05's right knee (Oxford Foot "
                                           "Model capture, swing: mocaplib's hinge knee flexes "
                                           "7° more than Plug-in Gait's 3-DOF knee)",
     "ankle_dorsiflexion: r ≥ 0.97": "measured 0.958 on PiG_Motion-FlatFoot-Full's right ankle",
+    "hip rotation on knee flexion: every abs. slope ≤ 0.1": "measured 0.20 on HC030A05's right "
+                                                          "knee (see test_knee_crosstalk)",
+}
+#: Knees whose hip rotation still follows their flexion by more than 0.1°/° with the
+#: functional knee axis, measured (slope of hip rotation on knee flexion, °/°).
+CROSSTALK_MISSED = {
+    ("HC030A05", "r"): "measured -0.20 (Plug-in Gait's -0.04)",
+    ("HC030A22", "r"): "measured -0.11 (Plug-in Gait's +0.06)",
+    ("PiG_Motion-FlatFoot-Full", "l"): "measured -0.18 (Plug-in Gait's own -0.16)",
 }
 
 
@@ -41,8 +52,9 @@ def checks(results):
 
 
 def test_every_target_is_checked(checks):
-    # 3 flexions x 4 targets, 3 frontal angles x 2, limits, pelvis range, 2 arm flexions x 2
-    assert len(checks) == 3 * 4 + 3 * 2 + 2 + 2 * 2
+    # 3 flexions x 4 targets, 3 frontal angles x 2, limits, pelvis range, 2 arm flexions x 2,
+    # the knee's cross-talk
+    assert len(checks) == 3 * 4 + 3 * 2 + 2 + 2 * 2 + 1
     assert set(MISSED) <= set(checks)
 
 
@@ -82,3 +94,26 @@ def test_no_dof_sits_at_a_joint_limit_and_the_pelvis_follows_its_markers(checks,
     pig = next(r for r in results if r.capture == "PiG_Motion-FlatFoot-Full")
     assert sorted(pig.held) == ["ankle_inversion_l", "ankle_inversion_r"]
     assert all(sd > 5.0 for sd in pig.held.values())
+
+
+@pytest.mark.parametrize("capture, side", [
+    pytest.param(*knee, marks=pytest.mark.xfail(strict=True, reason=CROSSTALK_MISSED[knee]))
+    if knee in CROSSTALK_MISSED else knee for knee in KNEES])
+def test_knee_crosstalk(results, capture, side):
+    # a knee hinge whose axis is turned from the knee's own makes the fit turn the hip as the
+    # knee flexes: with the anatomical (chord) axis the slope was -0.18 to -0.36 on the
+    # biomechZoo captures; calibration turns each axis to fit the thigh and shank markers
+    knee = next(k for r in results if r.capture == capture for k in r.crosstalk if k.side == side)
+    assert knee.axis.startswith("functional"), knee.axis
+    assert abs(knee.ours) <= TARGETS["crosstalk_slope"], knee
+
+
+def test_the_functional_knee_axis_fits_the_legs_better_than_the_anatomical(results):
+    for result in results:
+        for knee in result.crosstalk:
+            # least squares on the thigh and shank markers: never worse than the chord's axis
+            assert knee.leg_rms_mm < knee.anatomical_leg_rms_mm, (result.capture, knee)
+            if result.capture.startswith("HC030"):
+                # the biomechZoo knees' cross-talk (-0.18 to -0.36 with the chord's axis)
+                # falls by a third at least
+                assert abs(knee.ours) < 0.67 * abs(knee.anatomical), (result.capture, knee)
