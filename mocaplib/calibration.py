@@ -167,6 +167,9 @@ ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
 #: (:func:`functional_knee_turns`); the chosen one is the vertex of the parabola through the
 #: best of them and its neighbours, so within this span.
 KNEE_AXIS_TURNS = np.radians(np.arange(-30.0, 31.0, 10.0))
+#: Every how many of step 5's frames step 4b fits: on the shared real captures every second
+#: frame chooses turns within 0.9° of all frames' at half the cost.
+KNEE_AXIS_FRAME_STEP = 2
 #: Knee flexion range (radians) the calibration frames must show for a functional knee axis;
 #: a knee that flexes less (a static, standing) keeps its anatomical axis.
 KNEE_AXIS_MIN_FLEXION = np.radians(20.0)
@@ -1113,15 +1116,18 @@ def functional_knee_turns(anatomical_model, X: np.ndarray, segments: np.ndarray,
     ``anatomical_model(knee_turns)`` returns the model (offsets (M, 3), kept (M,), skeleton) whose
     leg frames have the knees' axes turned by ``knee_turns`` (step 4's frames,
     :func:`mocaplib.anatomy.segment_frames`); ``X`` (F, M, 3) are the markers of step 5 (the
-    motion's). The poses are fitted with both knees turned by each of
-    :data:`KNEE_AXIS_TURNS`; a side's turn is the vertex of the parabola through the smallest
+    motion's), of which every :data:`KNEE_AXIS_FRAME_STEP`-th frame is fitted. The poses are
+    fitted with both knees turned by each of :data:`KNEE_AXIS_TURNS`, starting from the
+    anatomical axes' poses; a side's turn is the vertex of the parabola through the smallest
     mean squared residual of its thigh and shank markers and its two neighbours. A side whose
     knee flexes less than :data:`KNEE_AXIS_MIN_FLEXION` over ``X`` (a static, standing) keeps
     its anatomical axis: a hinge's axis shows only when it turns.
     """
-    def fit(turns):
+    X = X[::KNEE_AXIS_FRAME_STEP]
+
+    def fit(turns, q0=None):
         offsets, _, skeleton = anatomical_model(turns)
-        return solve_poses(skeleton, X, segments, offsets, free=free)
+        return solve_poses(skeleton, X, segments, offsets, q0=q0, free=free)
 
     start = fit(None)
     sides, methods = [], {}
@@ -1141,7 +1147,7 @@ def functional_knee_turns(anatomical_model, X: np.ndarray, segments: np.ndarray,
     if not sides:
         return {}, methods
     costs = np.array([[np.nanmean(pose_fit.residuals[:, leg] ** 2) for _, leg, _ in sides]
-                      for pose_fit in (fit({side: turn for side, _, _ in sides})
+                      for pose_fit in (fit({side: turn for side, _, _ in sides}, start.q)
                                        for turn in KNEE_AXIS_TURNS)])
     step = KNEE_AXIS_TURNS[1] - KNEE_AXIS_TURNS[0]
     turns = {}
