@@ -38,8 +38,10 @@ Steps (all in metres, world Z up):
    the nominal fit's segment orientation; the elbow's chord, without an upper-arm marker, lies
    in Plug-in Gait's plane: the shoulder centre, the lateral elbow marker and a point along
    the normal of the arm's plane (shoulder centre, elbow marker, mid-wrist), so the centre
-   lies on that normal, the elbow's flexion axis. Shoulder: the acromion moved by the catalogue
-   offset (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
+   lies on that normal, the elbow's flexion axis. Shoulder: the acromion lowered by the
+   subject's measured shoulder offset plus the marker radius along Plug-in Gait's thorax axis
+   (:func:`shoulder_drops`, :func:`thorax_axis`), else moved by the catalogue offset (20 mm
+   medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
    Segment lengths are the median distances between those centres.
 4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
    markers); each marker's offset is re-registered as the least-squares (mean) position in its
@@ -48,8 +50,9 @@ Steps (all in metres, world Z up):
    angles put the markers in the catalogue's layout, as the DOF sign table describes. The
    pelvis, legs and arms then get their anatomical frames from the joint centres
    (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
-   layout puts them): their markers' offsets are measured in them and each joint centre below
-   the hips and shoulders becomes a joint shift.
+   layout puts them, or, with a measured shoulder offset, from the acromion lowered by it,
+   :func:`shoulder_shifts`): their markers' offsets are measured in them and each joint
+   centre below the hips and shoulders becomes a joint shift.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
    joint angle 0 (:func:`neutral_offsets`). Only
@@ -67,8 +70,9 @@ Steps (all in metres, world Z up):
    turned back onto the catalogue layout; the markers on an anatomical frame of step 4 kept,
    but the forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
    lengths by linear least squares (marker positions are affine in the lengths for fixed
-   poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop when
-   the marker RMS falls by less than 1 %; the best model is kept.
+   poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths; shoulders
+   placed by a measured offset follow the acromion marker's new offset. Stop when the marker
+   RMS falls by less than 1 %; the best model is kept.
 """
 
 from __future__ import annotations
@@ -362,14 +366,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     offsets = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
     # the pelvis, legs and arms: offsets in their anatomical frames, kept by the refinement;
-    # the arms' frames hang from the shoulders where the torso's layout puts them (the model's
-    # at the poses), not the acromion's catalogue centre: moved there (21 mm up on the
-    # samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
-    # (4 m/s: -0.029 to -0.034, truth 0), and the elbow and shoulder flexions agree with Plug-in
-    # Gait as well without (docs/guide/fitting.md)
+    # with the subject's shoulder offset measured, the arms hang from the acromion lowered by
+    # it (shoulder_shifts); otherwise from the shoulders where the torso's layout puts them
+    # (the model's at the poses), not the acromion's catalogue centre: moved there (21 mm up
+    # on the samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
+    # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
     T = skeleton.forward(poses)
+    drops = shoulder_drops(measurements)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
-                 for name in ("humerus_l", "humerus_r") if (name, 0.0) in centres}
+                 for name in ("humerus_l", "humerus_r")
+                 if (name, 0.0) in centres and name[-1] not in drops}
     frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
                             {**centres, **shoulders}, level_feet=static is not None)
     in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
@@ -377,7 +383,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     offsets[anatomical_markers] = in_frames[anatomical_markers]
     kept = anatomical_markers & ~np.isin(segments, [SEGMENT_NAMES.index(name)
                                                     for name in FOLLOWING_IN_REFINEMENT])
-    skeleton = Skeleton(skeleton.lengths, joint_shifts(skeleton, frames))
+    skeleton = Skeleton(skeleton.lengths, {**joint_shifts(skeleton, frames),
+                                           **shoulder_shifts(skeleton, offsets, landmarks, drops)})
     fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
                      if all(((name + side, 0.0) in centres) for name in (a, b)
                             for side in ("_l", "_r"))]
@@ -411,6 +418,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         offsets = np.where(kept[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
                                   fixed=fixed_lengths)
+        skeleton = Skeleton(skeleton.lengths, {
+            **skeleton.shifts, **shoulder_shifts(skeleton, offsets, landmarks, drops)})
     best.history = history
     _check_measured(best, cal)
     return _hold_unobservable(best, best_poses)
@@ -825,6 +834,54 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
             for name, values in sides.items()}
 
 
+def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
+    """How far (metres) each side's shoulder centre lies below its acromion marker when the
+    subject's shoulder offset is measured (``shoulder_offset_l``/``_r``, Plug-in Gait's
+    ``ShoulderOffset``): that offset plus the marker radius, as Plug-in Gait places it. Keys
+    "l", "r"; a side not measured is left out."""
+    radius = 0.5 * measurements.get("marker_diameter", DEFAULT_MARKER_DIAMETER)
+    return {side: measurements[f"shoulder_offset_{side}"] + radius for side in "lr"
+            if measurements.get(f"shoulder_offset_{side}")}
+
+
+def thorax_axis(where: dict[str, np.ndarray]) -> np.ndarray | None:
+    """Plug-in Gait's thorax long axis, unit, (..., 3): from the middle of T10 and STRN to the
+    middle of C7 and CLAV (``where`` maps landmark names to positions (..., 3)); None without
+    those four landmarks."""
+    if not {"C7", "CLAV", "T10", "STRN"} <= set(where):
+        return None
+    return _unit(where["C7"] + where["CLAV"] - where["T10"] - where["STRN"])
+
+
+def shoulder_shifts(skeleton: Skeleton, offsets: np.ndarray, landmarks: list[str],
+                    drops: dict[str, float]) -> dict[str, tuple[float, float, float]]:
+    """:attr:`Skeleton.shifts` (metres) that hang the arms from the shoulder centres
+    :func:`shoulder_drops` places: ``drops[side]`` below the acromion marker's offset (M, 3)
+    in the torso's frame (``landmarks`` (M,) names the markers' landmarks). Both sides take
+    the mean of their shifts, mirrored, so the shoulder line keeps the torso's heading (θ_S).
+    Empty without a measured side or its acromion marker.
+
+    Where the torso's catalogue layout puts them instead, the shoulders of the Plug-in Gait
+    captures sit 36-44 mm from Plug-in Gait's centres, 17-39 mm higher: the arm swings about
+    a point that far from the pivot, the distance from the shoulder centre to the wrist
+    changes with the swing, and the elbow hinge takes the change up, about doubling its
+    range on the walks (docs/guide/fitting.md, The arms)."""
+    nominal = Skeleton(skeleton.lengths).joint_offsets()
+    up = thorax_axis({name: offsets[i] for i, name in enumerate(landmarks)})
+    up = np.array([0.0, 0.0, 1.0]) if up is None else up
+    shifts = []
+    for side, drop in drops.items():
+        name = f"{side.upper()}_ACROMION"
+        if name in landmarks:
+            segment = SEGMENT_NAMES.index(f"humerus_{side}")
+            x, y, z = offsets[landmarks.index(name)] - drop * up - nominal[segment]
+            shifts.append((x, y if side == "l" else -y, z))
+    if not shifts:
+        return {}
+    x, y, z = (float(v) for v in np.mean(shifts, axis=0))
+    return {"humerus_l": (x, y, z), "humerus_r": (x, -y, z)}
+
+
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
     """DOFs too few markers can see, and segments with no marker on or below them.
 
@@ -904,7 +961,9 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     ``measurements`` (metres; :data:`mocaplib.anatomy.MEASUREMENTS`) or, without them, the
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
-    ``q`` (F, D). Elbow: likewise; shoulder: the acromion's catalogue offset; wrist:
+    ``q`` (F, D). Elbow: likewise; shoulder: the acromion lowered by the measured shoulder
+    offset (:func:`shoulder_drops`) along Plug-in Gait's thorax axis (:func:`thorax_axis`;
+    without its landmarks, the torso's), else the acromion's catalogue offset; wrist:
     mid-styloids. On a static in the neutral pose (``neutral``) catalogue offsets are turned
     by the pelvis's orientation (every segment's in that pose) and the elbow is not placed by
     the chord (:data:`NEUTRAL_CHORD_JOINTS`). A knee, ankle or elbow none of these place is
@@ -917,6 +976,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     where = {name: X[:, i] for i, name in enumerate(landmarks)}
     catalogue = _protocols.load_landmarks()
     measurements = measurements or {}
+    drops = shoulder_drops(measurements)
     T = skeleton.forward(q)
     joints = skeleton.joint_offsets()
     out: dict[tuple[str, float], np.ndarray] = {}
@@ -981,6 +1041,12 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                     methods[joint] = (f"chord, {_JOINT_NAMES[child]} width "
                                       + ("from the measurements" if width
                                          else "from the landmark catalogue"))
+                elif child == "humerus" and suffix[1] in drops:
+                    up = thorax_axis(where)
+                    if up is None:
+                        up = T[:, SEGMENT_NAMES.index(catalogue[lat].segment), :3, 2]
+                    centre = where[lat] - drops[suffix[1]] * up
+                    methods[joint] = "acromion lowered by the measured shoulder offset"
                 else:
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
