@@ -50,7 +50,7 @@ the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requi
       centre on the normal of the plane through the lateral marker, not the centre: when
       the elbow is nearly straight the two planes differ by tens of degrees, and an axis
       from the centre to the marker would leave the wrist 16-24° out of the plane the
-      forearm flexes in on the Plug-in Gait captures, the forearm's long axis 65-100 mm off
+      forearm flexes in on the Plug-in Gait captures, the forearm's long axis 65-103 mm off
       the wrist.
     * **forearm**: as the tibia: Y the humerus's (the elbow is a hinge), Z from the wrist
       centre (mid-styloids) to the elbow centre made perpendicular to Y; origin at the elbow

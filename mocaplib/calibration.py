@@ -38,7 +38,7 @@ Steps (all in metres, world Z up):
    the nominal fit's segment orientation; the elbow's chord, without an upper-arm marker, lies
    in Plug-in Gait's plane: the shoulder centre, the lateral elbow marker and a point along
    the normal of the arm's plane (shoulder centre, elbow marker, mid-wrist), so the centre
-   lies on that normal, the elbow's flexion axis. Shoulder: the acromion lowered by the
+   lies on that normal. Shoulder: the acromion lowered by the
    subject's measured shoulder offset plus the marker radius along Plug-in Gait's thorax axis
    (:func:`shoulder_drops`, :func:`thorax_axis`), else moved by the catalogue offset (20 mm
    medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
@@ -1080,12 +1080,12 @@ def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
 
 def _elbow_axis(where: dict[str, np.ndarray], side: str, shoulder: np.ndarray,
                 lateral: np.ndarray, *, medial: np.ndarray) -> np.ndarray | None:
-    """The elbow's flexion axis (F, 3), unit, pointing medially: the normal of the arm's plane
-    through the ``shoulder`` centre, the lateral elbow marker ``lateral`` and the middle of
+    """The normal (F, 3), unit, pointing medially, of the arm's plane through the
+    ``shoulder`` centre, the lateral elbow marker ``lateral`` and the middle of
     the wrist landmarks of ``side`` (each (F, 3)), turned to the side of ``medial`` (F, 3),
     the body's medial direction (the torso's). Plug-in Gait's elbow chord sets its plane with
     it (the plane of the shoulder centre, the elbow marker and a point along this normal), so
-    the centre lies on this axis. None without both wrist landmarks."""
+    the centre lies on this normal. None without both wrist landmarks."""
     wrist = [where.get(f"{side}_{name}") for name in ("WRIST_RAD", "WRIST_ULN")]
     if any(point is None for point in wrist):
         return None
