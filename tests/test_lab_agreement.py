@@ -24,7 +24,7 @@ from lab_agreement import ARMS, CAPTURES, TARGETS, agreement, target_checks  # n
 
 #: Targets missed on the shared captures, with the measured figure (honest xfails).
 MISSED = {
-    "knee_flexion: RMS after offset ≤ 3°": "measured 3.8° on HC030A05's right knee (Oxford Foot "
+    "knee_flexion: RMS after offset ≤ 3°": "measured 3.9° on HC030A05's right knee (Oxford Foot "
                                           "Model capture, swing: mocaplib's hinge knee flexes "
                                           "7° more than Plug-in Gait's 3-DOF knee)",
     "ankle_dorsiflexion: r ≥ 0.97": "measured 0.958 on PiG_Motion-FlatFoot-Full's right ankle",
