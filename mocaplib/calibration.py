@@ -65,10 +65,13 @@ Steps (all in metres, world Z up):
    static's. Only for statics recorded in that pose: real lab statics often are not (arms
    abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
    ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
-5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
-   Alternate: fit poses to the markers alone; re-register offsets (torso, head and feet
-   turned back onto the catalogue layout; the markers on an anatomical frame of step 4 kept,
-   but the forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
+5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4). With a
+   static, the arms' anatomical frames of step 4 are first built over the static's frames and
+   the motion's together (:data:`PLACED_ON_STATIC_AND_MOTION`): the elbow centres become the
+   forearms' joint shifts and the upper arms' markers are measured in them. Alternate: fit
+   poses to the markers alone; re-register offsets (torso, head and feet turned back onto
+   the catalogue layout; the markers on an anatomical frame of step 4 kept, but the
+   forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
    lengths by linear least squares (marker positions are affine in the lengths for fixed
    poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths; shoulders
    placed by a measured offset follow the acromion marker's new offset. Stop when the marker
@@ -183,6 +186,16 @@ _ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibi
 #: markers turn about the forearm's long axis with pronation, which the fit's forearm lacks,
 #: by another amount standing than walking.
 FOLLOWING_IN_REFINEMENT = ("forearm_l", "forearm_r")
+#: Segments whose anatomical frames, with a static, are built over the static's calibration
+#: frames and the motion's together before refinement (step 5), the elbow centre (the
+#: forearm's origin) and the upper arm's markers measured in them: the chord places the
+#: elbow centre on the normal of the arm's plane, which the static shows at one flexion
+#: (HC030A01's left elbow 22°, its walks about 33°); Plug-in Gait places it again on every
+#: frame, sliding 10-14 mm fore-aft in the upper arm with flexion. From the static alone the
+#: elbows of HC030A05 and HC030A22 read 4.4-8.0° more flexion than Plug-in Gait's; from the
+#: motion alone within 1.1°, but the right shoulders 5.2-6.3° more; from both, elbows 1.6-4.3°
+#: and shoulders within 4.3° (docs/guide/fitting.md, The arms).
+PLACED_ON_STATIC_AND_MOTION = ("humerus_l", "humerus_r", "forearm_l", "forearm_r")
 #: Joints whose centre a lateral marker and a segment wand give by the chord.
 _CHORD_JOINTS = ("tibia", "foot", "forearm")
 
@@ -371,13 +384,9 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     # (the model's at the poses), not the acromion's catalogue centre: moved there (21 mm up
     # on the samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
     # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
-    T = skeleton.forward(poses)
     drops = shoulder_drops(measurements)
-    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
-                 for name in ("humerus_l", "humerus_r")
-                 if (name, 0.0) in centres and name[-1] not in drops}
-    frames = segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                            {**centres, **shoulders}, level_feet=static is not None)
+    frames = anatomical_frames(skeleton, poses, X, landmarks, centres, drops,
+                               level_feet=static is not None)
     in_frames = offsets_in_frames(X, segments, SEGMENT_NAMES, frames)
     anatomical_markers = np.isfinite(in_frames).all(axis=1)
     offsets[anatomical_markers] = in_frames[anatomical_markers]
@@ -393,11 +402,24 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         # soft tissue of the movement, so step 5 runs on the motion's frames
         pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
         if (pelvis_seen.sum(axis=1) >= 3).any():
+            X_static, static_poses = X, poses
             X = X_motion[_calibration_frames(X_motion, n_frames)]
             start = solve_poses(skeleton, X, segments, offsets, free=free)
             X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
                                                       start, free=free))
             poses = None
+            # the arms' frames and elbow centres over the static's frames and the motion's
+            X_both, q_both = np.concatenate([X_static, X]), np.concatenate([static_poses, start.q])
+            arms = {name: value for name, value in anatomical_frames(
+                skeleton, q_both, X_both, landmarks, joint_centres(
+                    X_both, landmarks, segments, skeleton, q_both, scale=scale,
+                    measurements=measurements)[0], drops).items()
+                    if name in PLACED_ON_STATIC_AND_MOTION}
+            in_arms = offsets_in_frames(X_both, segments, SEGMENT_NAMES, arms)
+            placed = np.isfinite(in_arms).all(axis=1)
+            offsets[placed] = in_arms[placed]
+            skeleton = Skeleton(skeleton.lengths, {**skeleton.shifts,
+                                                   **joint_shifts(skeleton, arms)})
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
     best, history = None, []
@@ -832,6 +854,22 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
             sides.setdefault(key, []).append((x, sign * y, z))
     return {name: tuple(float(v) for v in np.mean(values, axis=0))
             for name, values in sides.items()}
+
+
+def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
+                      centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
+                      *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`mocaplib.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
+    (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
+    from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
+    of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
+    acromion."""
+    T = skeleton.forward(q)
+    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
+                 for name in ("humerus_l", "humerus_r")
+                 if (name, 0.0) in centres and name[-1] not in drops}
+    return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
+                          {**centres, **shoulders}, level_feet=level_feet)
 
 
 def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
