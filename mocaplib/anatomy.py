@@ -42,8 +42,16 @@ the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requi
       rotation offset.
 
     * **humerus**: as the femur, from the shoulder, elbow and lateral elbow landmark: Z from
-      the elbow centre to the shoulder centre, Y along the elbow's flexion axis (epicondyles,
-      or elbow centre to lateral marker); origin at the shoulder centre.
+      the elbow centre to the shoulder centre, Y along the elbow's flexion axis (epicondyles;
+      with the lateral one alone, the normal of the arm's plane through the shoulder, elbow
+      and wrist centres, as Plug-in Gait's humerus, when the elbow is flexed by
+      :data:`ARM_PLANE_FLEXION` or more over the frames, else the elbow centre to the lateral
+      marker), pointing left; origin at the shoulder centre. The chord places the elbow
+      centre on the normal of the plane through the lateral marker, not the centre: when
+      the elbow is nearly straight the two planes differ by tens of degrees, and an axis
+      from the centre to the marker would leave the wrist 16-24° out of the plane the
+      forearm flexes in on the Plug-in Gait captures, the forearm's long axis 65-103 mm off
+      the wrist.
     * **forearm**: as the tibia: Y the humerus's (the elbow is a hinge), Z from the wrist
       centre (mid-styloids) to the elbow centre made perpendicular to Y; origin at the elbow
       centre. Elbow flexion is then the angle between the shoulder–elbow and elbow–wrist
@@ -60,7 +68,7 @@ import numpy as np
 #: Subject measurements mocaplib can use (metres, kilograms), as :attr:`Trial.measurements`
 #: keys: sided ones end in ``_l``/``_r``.
 MEASUREMENTS = ("knee_width_l", "knee_width_r", "ankle_width_l", "ankle_width_r",
-                "elbow_width_l", "elbow_width_r",
+                "elbow_width_l", "elbow_width_r", "shoulder_offset_l", "shoulder_offset_r",
                 "marker_diameter", "body_mass", "height", "leg_length_l", "leg_length_r",
                 "inter_asis_distance", "asis_trochanter_l", "asis_trochanter_r")
 
@@ -73,6 +81,10 @@ WANDS = {"femur": ("THIGH",), "tibia": ("SHANK",), "humerus": ("UPPER_ARM",)}
 HEEL_LANDMARKS = ("HEEL", "HEEL_UPPER", "CALC_LAT")
 TOE_LANDMARKS = ("TOE", "TOE2", "HALLUX")
 FOREFOOT_PAIR = ("MT1", "MT5")
+#: Median elbow flexion (degrees) over the frames from which an elbow with only its lateral
+#: landmark takes its flexion axis from the arm's plane (shoulder, elbow and wrist centres);
+#: straighter, that plane is ill-defined and the axis runs from the centre to the marker.
+ARM_PLANE_FLEXION = 15.0
 #: A wand whose direction from the joint line is within this angle of the medial-lateral
 #: direction (degrees) sets the chord's plane; otherwise the pelvis's medial direction does.
 WAND_ANGLE_LIMIT = 60.0
@@ -196,7 +208,8 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
     """The frames of one limb's two segments (femur and tibia, or humerus and forearm) of
     ``side`` ("l", "r"; ``sign`` +1 left, −1 right), as :func:`segment_frames` describes:
     the upper one from its joint centre, the middle joint's centre and its ``joint``'s
-    lateral (and medial) landmark, then turned about its long axis by ``turn`` (radians,
+    lateral (and medial) landmark (an elbow with the lateral one alone: the arm's plane, the
+    module docstring says when), then turned about its long axis by ``turn`` (radians,
     internal rotation positive); the lower one from the middle joint and the ``distal``
     point (ankle or wrist centre, (F, 3); without it, only the upper frame)."""
     upper, lower = segments
@@ -205,8 +218,14 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
     if top is None or middle is None or lateral is None:
         return {}
     medial = where.get(f"{side.upper()}_{joint}_MED")
-    first = frame(top - middle, sign * (lateral - (middle if medial is None else medial)),
-                  order="zy")
+    across = lateral - (middle if medial is None else medial)
+    if joint == "ELBOW" and medial is None and distal is not None:
+        normal = np.cross(distal - middle, top - middle)          # |normal| = |a| |b| sin(flexion)
+        sines = np.linalg.norm(normal, axis=-1) / np.linalg.norm(distal - middle, axis=-1) \
+            / np.linalg.norm(top - middle, axis=-1)
+        if np.nanmedian(sines) >= np.sin(np.deg2rad(ARM_PLANE_FLEXION)):
+            across = normal * np.sign((normal * across).sum(axis=-1, keepdims=True))
+    first = frame(top - middle, sign * across, order="zy")
     if turn:                                     # internal rotation turns -Z left, +Z right
         c, s = np.cos(-sign * turn), np.sin(-sign * turn)
         first = first @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

@@ -38,8 +38,10 @@ Steps (all in metres, world Z up):
    the nominal fit's segment orientation; the elbow's chord, without an upper-arm marker, lies
    in Plug-in Gait's plane: the shoulder centre, the lateral elbow marker and a point along
    the normal of the arm's plane (shoulder centre, elbow marker, mid-wrist), so the centre
-   lies on that normal, the elbow's flexion axis. Shoulder: the acromion moved by the catalogue
-   offset (20 mm medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
+   lies on that normal. Shoulder: the acromion lowered by the
+   subject's measured shoulder offset plus the marker radius along Plug-in Gait's thorax axis
+   (:func:`shoulder_drops`, :func:`thorax_axis`), else moved by the catalogue offset (20 mm
+   medial, 33.5 mm down, 10 mm forward, scaled). Wrist: mid radial/ulnar styloids.
    Segment lengths are the median distances between those centres.
 4. **Registration.** Poses are fitted to the markers plus the joint centres (as stiff virtual
    markers); each marker's offset is re-registered as the least-squares (mean) position in its
@@ -48,8 +50,9 @@ Steps (all in metres, world Z up):
    angles put the markers in the catalogue's layout, as the DOF sign table describes. The
    pelvis, legs and arms then get their anatomical frames from the joint centres
    (:func:`mocaplib.anatomy.segment_frames`; the arms' from the shoulders where the torso's
-   layout puts them): their markers' offsets are measured in them and each joint centre below
-   the hips and shoulders becomes a joint shift.
+   layout puts them, or, with a measured shoulder offset, from the acromion lowered by it,
+   :func:`shoulder_shifts`): their markers' offsets are measured in them and each joint
+   centre below the hips and shoulders becomes a joint shift.
 4b. **Functional knee axes** (:func:`functional_knee_turns`). The knee hinge's axis from
    the landmarks, turned about the thigh from the knee's own, takes the shank out of its plane
    as the knee flexes and the fit turns the hip to follow: hip rotation coupled to knee
@@ -69,13 +72,17 @@ Steps (all in metres, world Z up):
    static's. Only for statics recorded in that pose: real lab statics often are not (arms
    abducted, feet turned out; docs/results/fit_accuracy.md, Real files), so the default,
    ``static_pose="free"``, runs step 4 on the static and step 5 on the motion.
-5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4).
-   Alternate: fit poses to the markers alone; re-register offsets (torso, head and feet
-   turned back onto the catalogue layout; the markers on an anatomical frame of step 4 kept,
-   but the forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
+5. **Refinement** (on the motion trial, also when a static trial gave steps 1-4). With a
+   static, the arms' anatomical frames of step 4 are first built over the static's frames and
+   the motion's together (:data:`PLACED_ON_STATIC_AND_MOTION`): the elbow centres become the
+   forearms' joint shifts and the upper arms' markers are measured in them. Alternate: fit
+   poses to the markers alone; re-register offsets (torso, head and feet turned back onto
+   the catalogue layout; the markers on an anatomical frame of step 4 kept, but the
+   forearms', :data:`FOLLOWING_IN_REFINEMENT`, re-registered); solve the segment
    lengths by linear least squares (marker positions are affine in the lengths for fixed
-   poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths. Stop when
-   the marker RMS falls by less than 1 %; the best model is kept.
+   poses and offsets) with a 15 mm Gaussian prior towards the anatomical lengths; shoulders
+   placed by a measured offset follow the acromion marker's new offset. Stop when the marker
+   RMS falls by less than 1 %; the best model is kept.
 """
 
 from __future__ import annotations
@@ -197,6 +204,16 @@ _ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibi
 #: markers turn about the forearm's long axis with pronation, which the fit's forearm lacks,
 #: by another amount standing than walking.
 FOLLOWING_IN_REFINEMENT = ("forearm_l", "forearm_r")
+#: Segments whose anatomical frames, with a static, are built over the static's calibration
+#: frames and the motion's together before refinement (step 5), the elbow centre (the
+#: forearm's origin) and the upper arm's markers measured in them: the chord places the
+#: elbow centre on the normal of the arm's plane, which the static shows at one flexion
+#: (HC030A01's left elbow 22°, its walks about 33°); Plug-in Gait places it again on every
+#: frame, sliding 10-14 mm fore-aft in the upper arm with flexion. From the static alone the
+#: elbows of HC030A05 and HC030A22 read 4.4-8.0° more flexion than Plug-in Gait's; from the
+#: motion alone within 1.1°, but the right shoulders 5.2-6.3° more; from both, elbows 1.6-4.3°
+#: and shoulders within 4.3° (docs/guide/fitting.md, The arms).
+PLACED_ON_STATIC_AND_MOTION = ("humerus_l", "humerus_r", "forearm_l", "forearm_r")
 #: Joints whose centre a lateral marker and a segment wand give by the chord.
 _CHORD_JOINTS = ("tibia", "foot", "forearm")
 
@@ -391,38 +408,40 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                                                  np.full(len(v_seg), CENTRE_WEIGHT)]).q
     registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled)
     # the pelvis, legs and arms: offsets in their anatomical frames, kept by the refinement;
-    # the arms' frames hang from the shoulders where the torso's layout puts them (the model's
-    # at the poses), not the acromion's catalogue centre: moved there (21 mm up on the
-    # samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
-    # (4 m/s: -0.029 to -0.034, truth 0), and the elbow and shoulder flexions agree with Plug-in
-    # Gait as well without (docs/guide/fitting.md)
-    T = skeleton.forward(poses)
-    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
-                 for name in ("humerus_l", "humerus_r") if (name, 0.0) in centres}
-    where, X_cal, unshifted = {name: X[:, i] for i, name in enumerate(landmarks)}, X, skeleton
+    # with the subject's shoulder offset measured, the arms hang from the acromion lowered by
+    # it (shoulder_shifts); otherwise from the shoulders where the torso's layout puts them
+    # (the model's at the poses), not the acromion's catalogue centre: moved there (21 mm up
+    # on the samples' runs) they shift v̂_l of a run calibrated from itself by up to 0.005 m/s
+    # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
+    drops = shoulder_drops(measurements)
+    X_cal, poses_cal, unshifted = X, poses, skeleton
 
     def anatomical_model(knee_turns=None):
         """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
         joint shifts, measured in the anatomical frames (the knees' axes turned by
         ``knee_turns``)."""
-        frames = segment_frames(where, {**centres, **shoulders}, level_feet=static is not None,
-                                knee_turns=knee_turns)
+        frames = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
+                                   level_feet=static is not None, knee_turns=knee_turns)
         in_frames = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames)
         measured = np.isfinite(in_frames).all(axis=1)
         kept = measured & ~np.isin(segments, [SEGMENT_NAMES.index(name)
                                               for name in FOLLOWING_IN_REFINEMENT])
-        return (np.where(measured[:, None], in_frames, registered), kept,
-                Skeleton(unshifted.lengths, joint_shifts(unshifted, frames)))
+        placed = np.where(measured[:, None], in_frames, registered)
+        return placed, kept, Skeleton(unshifted.lengths, {
+            **joint_shifts(unshifted, frames),
+            **shoulder_shifts(unshifted, placed, landmarks, drops)})
 
     offsets, kept, skeleton = anatomical_model()
     fixed_lengths = [key for key, (a, b) in _ANATOMICAL_LENGTHS.items()
                      if all(((name + side, 0.0) in centres) for name in (a, b)
                             for side in ("_l", "_r"))]
+    on_motion = False
     if static is not None:
         # the static pose fixed the anatomy; the motion shows the functional axes and the
         # soft tissue of the movement, so step 5 runs on the motion's frames
         pelvis_seen = np.isfinite(X_motion[:, segments == SEGMENT_NAMES.index("pelvis"), 0])
         if (pelvis_seen.sum(axis=1) >= 3).any():
+            on_motion = True
             X = X_motion[_calibration_frames(X_motion, n_frames)]
             start = solve_poses(skeleton, X, segments, offsets, free=free)
             X = apply_repairs(X, labels, find_repairs(skeleton, X, segments, offsets, labels,
@@ -438,6 +457,19 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     methods.update(knee_methods)
     if knee_turns:
         offsets, kept, skeleton = anatomical_model(knee_turns)
+    if on_motion:
+        # the arms' frames and elbow centres over the static's frames and the motion's
+        X_both, q_both = np.concatenate([X_cal, X]), np.concatenate([poses_cal, start.q])
+        arms = {name: value for name, value in anatomical_frames(
+            skeleton, q_both, X_both, landmarks, joint_centres(
+                X_both, landmarks, segments, skeleton, q_both, scale=scale,
+                measurements=measurements)[0], drops).items()
+                if name in PLACED_ON_STATIC_AND_MOTION}
+        in_arms = offsets_in_frames(X_both, segments, SEGMENT_NAMES, arms)
+        placed = np.isfinite(in_arms).all(axis=1)
+        offsets[placed] = in_arms[placed]
+        skeleton = Skeleton(skeleton.lengths, {**skeleton.shifts,
+                                               **joint_shifts(skeleton, arms)})
 
     # step 5: alternate poses, offsets, lengths while the RMS keeps falling
     best, history = None, []
@@ -459,6 +491,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         offsets = np.where(kept[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
                                   fixed=fixed_lengths)
+        skeleton = Skeleton(skeleton.lengths, {
+            **skeleton.shifts, **shoulder_shifts(skeleton, offsets, landmarks, drops)})
     best.history = history
     _check_measured(best, cal)
     return _hold_unobservable(best, best_poses)
@@ -872,6 +906,72 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
             for name, values in sides.items()}
 
 
+def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
+                      centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
+                      *, level_feet: bool = False, knee_turns: dict[str, float] | None = None
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`mocaplib.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
+    (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
+    from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
+    of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
+    acromion; the knees' axes turned by ``knee_turns`` (radians per side, as
+    :func:`mocaplib.anatomy.segment_frames` takes them)."""
+    T = skeleton.forward(q)
+    shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
+                 for name in ("humerus_l", "humerus_r")
+                 if (name, 0.0) in centres and name[-1] not in drops}
+    return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
+                          {**centres, **shoulders}, level_feet=level_feet, knee_turns=knee_turns)
+
+
+def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
+    """How far (metres) each side's shoulder centre lies below its acromion marker when the
+    subject's shoulder offset is measured (``shoulder_offset_l``/``_r``, Plug-in Gait's
+    ``ShoulderOffset``): that offset plus the marker radius, as Plug-in Gait places it. Keys
+    "l", "r"; a side not measured is left out."""
+    radius = 0.5 * measurements.get("marker_diameter", DEFAULT_MARKER_DIAMETER)
+    return {side: measurements[f"shoulder_offset_{side}"] + radius for side in "lr"
+            if measurements.get(f"shoulder_offset_{side}")}
+
+
+def thorax_axis(where: dict[str, np.ndarray]) -> np.ndarray | None:
+    """Plug-in Gait's thorax long axis, unit, (..., 3): from the middle of T10 and STRN to the
+    middle of C7 and CLAV (``where`` maps landmark names to positions (..., 3)); None without
+    those four landmarks."""
+    if not {"C7", "CLAV", "T10", "STRN"} <= set(where):
+        return None
+    return _unit(where["C7"] + where["CLAV"] - where["T10"] - where["STRN"])
+
+
+def shoulder_shifts(skeleton: Skeleton, offsets: np.ndarray, landmarks: list[str],
+                    drops: dict[str, float]) -> dict[str, tuple[float, float, float]]:
+    """:attr:`Skeleton.shifts` (metres) that hang the arms from the shoulder centres
+    :func:`shoulder_drops` places: ``drops[side]`` below the acromion marker's offset (M, 3)
+    in the torso's frame (``landmarks`` (M,) names the markers' landmarks). Both sides take
+    the mean of their shifts, mirrored, so the shoulder line keeps the torso's heading (θ_S).
+    Empty without a measured side or its acromion marker.
+
+    Where the torso's catalogue layout puts them instead, the shoulders of the Plug-in Gait
+    captures sit 36-44 mm from Plug-in Gait's centres, 17-39 mm higher: the arm swings about
+    a point that far from the pivot, the distance from the shoulder centre to the wrist
+    changes with the swing, and the elbow hinge takes the change up, about doubling its
+    range on the walks (docs/guide/fitting.md, The arms)."""
+    nominal = Skeleton(skeleton.lengths).joint_offsets()
+    up = thorax_axis({name: offsets[i] for i, name in enumerate(landmarks)})
+    up = np.array([0.0, 0.0, 1.0]) if up is None else up
+    shifts = []
+    for side, drop in drops.items():
+        name = f"{side.upper()}_ACROMION"
+        if name in landmarks:
+            segment = SEGMENT_NAMES.index(f"humerus_{side}")
+            x, y, z = offsets[landmarks.index(name)] - drop * up - nominal[segment]
+            shifts.append((x, y if side == "l" else -y, z))
+    if not shifts:
+        return {}
+    x, y, z = (float(v) for v in np.mean(shifts, axis=0))
+    return {"humerus_l": (x, y, z), "humerus_r": (x, -y, z)}
+
+
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:
     """DOFs too few markers can see, and segments with no marker on or below them.
 
@@ -951,7 +1051,9 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     ``measurements`` (metres; :data:`mocaplib.anatomy.MEASUREMENTS`) or, without them, the
     catalogue's distance from the lateral landmark to the joint; else (no other marker on
     the segment) the lateral landmark moved by its catalogue offset turned by the nominal fit
-    ``q`` (F, D). Elbow: likewise; shoulder: the acromion's catalogue offset; wrist:
+    ``q`` (F, D). Elbow: likewise; shoulder: the acromion lowered by the measured shoulder
+    offset (:func:`shoulder_drops`) along Plug-in Gait's thorax axis (:func:`thorax_axis`;
+    without its landmarks, the torso's), else the acromion's catalogue offset; wrist:
     mid-styloids. On a static in the neutral pose (``neutral``) catalogue offsets are turned
     by the pelvis's orientation (every segment's in that pose) and the elbow is not placed by
     the chord (:data:`NEUTRAL_CHORD_JOINTS`). A knee, ankle or elbow none of these place is
@@ -964,6 +1066,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     where = {name: X[:, i] for i, name in enumerate(landmarks)}
     catalogue = _protocols.load_landmarks()
     measurements = measurements or {}
+    drops = shoulder_drops(measurements)
     T = skeleton.forward(q)
     joints = skeleton.joint_offsets()
     out: dict[tuple[str, float], np.ndarray] = {}
@@ -1028,6 +1131,12 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                     methods[joint] = (f"chord, {_JOINT_NAMES[child]} width "
                                       + ("from the measurements" if width
                                          else "from the landmark catalogue"))
+                elif child == "humerus" and suffix[1] in drops:
+                    up = thorax_axis(where)
+                    if up is None:
+                        up = T[:, SEGMENT_NAMES.index(catalogue[lat].segment), :3, 2]
+                    centre = where[lat] - drops[suffix[1]] * up
+                    methods[joint] = "acromion lowered by the measured shoulder offset"
                 else:
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
@@ -1061,12 +1170,12 @@ def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
 
 def _elbow_axis(where: dict[str, np.ndarray], side: str, shoulder: np.ndarray,
                 lateral: np.ndarray, *, medial: np.ndarray) -> np.ndarray | None:
-    """The elbow's flexion axis (F, 3), unit, pointing medially: the normal of the arm's plane
-    through the ``shoulder`` centre, the lateral elbow marker ``lateral`` and the middle of
+    """The normal (F, 3), unit, pointing medially, of the arm's plane through the
+    ``shoulder`` centre, the lateral elbow marker ``lateral`` and the middle of
     the wrist landmarks of ``side`` (each (F, 3)), turned to the side of ``medial`` (F, 3),
     the body's medial direction (the torso's). Plug-in Gait's elbow chord sets its plane with
     it (the plane of the shoulder centre, the elbow marker and a point along this normal), so
-    the centre lies on this axis. None without both wrist landmarks."""
+    the centre lies on this normal. None without both wrist landmarks."""
     wrist = [where.get(f"{side}_{name}") for name in ("WRIST_RAD", "WRIST_ULN")]
     if any(point is None for point in wrist):
         return None

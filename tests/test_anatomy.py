@@ -24,8 +24,10 @@ def static(real_c3d):
 
 def test_processing_measurements_are_read_in_si_units(static):
     _, measured = static
-    # the file's PROCESSING group: LKneeWidth 102 mm, RAnkleWidth 59 mm, Bodymass 45.8 kg...
+    # the file's PROCESSING group: LKneeWidth 102 mm, RShoulderOffset 35 mm, RAnkleWidth 59 mm,
+    # Bodymass 45.8 kg...
     assert measured["knee_width_l"] == pytest.approx(0.102)
+    assert measured["shoulder_offset_r"] == pytest.approx(0.035)
     assert measured["ankle_width_r"] == pytest.approx(0.059)
     assert measured["leg_length_l"] == pytest.approx(0.830)
     assert measured["marker_diameter"] == pytest.approx(0.010)

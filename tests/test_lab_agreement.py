@@ -5,9 +5,11 @@ Targets: hip, knee and ankle flexion within 3° median offset (5° on any captur
 3° RMS after the offset; hip adduction and pelvis tilt/obliquity r ≥ 0.8 within 5°; no DOF at
 a joint limit in more than 2 % of frames; the pelvis obliquity's range within 1.3× the ASIS
 line's; elbow and shoulder flexion within 5° of Plug-in Gait's on every capture and side, with
-r ≥ 0.9 (both models define them from the same joint centres: Plug-in Gait's elbow flexion is
-the angle between its shoulder–elbow and elbow–wrist lines, and so is mocaplib's on the
-frames :func:`mocaplib.anatomy.segment_frames` builds)."""
+r ≥ 0.9, 3° RMS after the offset and a range within 1.5× Plug-in Gait's (both models define
+them from the same joint centres: Plug-in Gait's elbow flexion is the angle between its
+shoulder–elbow and elbow–wrist lines, and so is mocaplib's on the frames
+:func:`mocaplib.anatomy.segment_frames` builds); the fitted shoulder centres within 20 mm of
+Plug-in Gait's."""
 
 from __future__ import annotations
 
@@ -28,6 +30,10 @@ MISSED = {
                                           "Model capture, swing: mocaplib's hinge knee flexes "
                                           "7° more than Plug-in Gait's 3-DOF knee)",
     "ankle_dorsiflexion: r ≥ 0.97": "measured 0.958 on PiG_Motion-FlatFoot-Full's right ankle",
+    "elbow_flexion: range within 1.5× Plug-in Gait's": "measured 2.07× on HC030A22's right "
+                                                       "elbow (14.9° / 7.2°): Plug-in Gait's "
+                                                       "elbow centre slides 10-14 mm fore-aft "
+                                                       "in the upper arm as the elbow flexes",
     "hip rotation on knee flexion: every abs. slope ≤ 0.1": "measured 0.20 on HC030A05's right "
                                                           "knee (see test_knee_crosstalk)",
 }
@@ -52,19 +58,23 @@ def checks(results):
 
 
 def test_every_target_is_checked(checks):
-    # 3 flexions x 4 targets, 3 frontal angles x 2, limits, pelvis range, 2 arm flexions x 2,
-    # the knee's cross-talk
-    assert len(checks) == 3 * 4 + 3 * 2 + 2 + 2 * 2 + 1
+    # 3 flexions x 4 targets, 3 frontal angles x 2, limits, pelvis range, 2 arm flexions x 4,
+    # the shoulder centres, the knee's cross-talk
+    assert len(checks) == 3 * 4 + 3 * 2 + 2 + 2 * 4 + 1 + 1
     assert set(MISSED) <= set(checks)
 
 
-@pytest.mark.parametrize("target", [
-    pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=MISSED[t])) if t in MISSED else t
-    for t in (f"{dof}: {what}" for dof in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
-              for what in (f"median abs. offset ≤ {TARGETS['flexion_median_offset']:g}°",
-                           f"every abs. offset ≤ {TARGETS['flexion_worst_offset']:g}°",
-                           f"r ≥ {TARGETS['flexion_r']:g}",
-                           f"RMS after offset ≤ {TARGETS['flexion_rms']:g}°"))])
+def _targets(dofs, whats):
+    """The targets ``"{dof}: {what}"``, those in MISSED as strict xfails with their figure."""
+    return [pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=MISSED[t]))
+            if t in MISSED else t for t in (f"{dof}: {what}" for dof in dofs for what in whats)]
+
+
+@pytest.mark.parametrize("target", _targets(
+    ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"),
+    (f"median abs. offset ≤ {TARGETS['flexion_median_offset']:g}°",
+     f"every abs. offset ≤ {TARGETS['flexion_worst_offset']:g}°",
+     f"r ≥ {TARGETS['flexion_r']:g}", f"RMS after offset ≤ {TARGETS['flexion_rms']:g}°")))
 def test_flexions_agree_with_plug_in_gait(checks, target):
     measured, met = checks[target]
     assert met, f"{target}: {measured}"
@@ -78,12 +88,22 @@ def test_frontal_angles_and_the_pelvis_agree_with_plug_in_gait(checks, dof):
         assert met, f"{target}: {measured}"
 
 
-@pytest.mark.parametrize("dof", [dof for _, _, dof in ARMS])
-def test_arm_flexions_agree_with_plug_in_gait(checks, dof):
-    for target in (f"{dof}: every abs. offset ≤ {TARGETS['arm_offset']:g}°",
-                   f"{dof}: r ≥ {TARGETS['arm_r']:g}"):
-        measured, met = checks[target]
-        assert met, f"{target}: {measured}"
+@pytest.mark.parametrize("target", _targets(
+    [dof for _, _, dof in ARMS],
+    (f"every abs. offset ≤ {TARGETS['arm_offset']:g}°", f"r ≥ {TARGETS['arm_r']:g}",
+     f"RMS after offset ≤ {TARGETS['arm_rms']:g}°",
+     f"range within {TARGETS['arm_range_ratio']:g}× Plug-in Gait's")))
+def test_arm_flexions_agree_with_plug_in_gait(checks, target):
+    measured, met = checks[target]
+    assert met, f"{target}: {measured}"
+
+
+def test_the_arms_swing_about_plug_in_gaits_shoulder_centres(checks):
+    # with the subject's measured shoulder offset the shoulder centre hangs below the acromion
+    # marker; placed by the torso's catalogue layout instead it sat 36-44 mm away
+    target = f"shoulder centres within {TARGETS['shoulder_centre_mm']:g} mm of Plug-in Gait's"
+    measured, met = checks[target]
+    assert met, f"{target}: {measured}"
 
 
 def test_no_dof_sits_at_a_joint_limit_and_the_pelvis_follows_its_markers(checks, results):

@@ -232,8 +232,9 @@ def add_static_options(parser) -> None:
                         default=[],
                         help="a subject measurement, metres or kilograms, that overrides the "
                              "one the calibration file stores (Plug-in Gait's PROCESSING "
-                             "group): knee_width, ankle_width, elbow_width (both sides, or "
-                             "with _l/_r), marker_diameter, leg_length (Davis hip centres), "
+                             "group): knee_width, ankle_width, elbow_width, shoulder_offset "
+                             "(both sides, or with _l/_r), marker_diameter, leg_length (Davis "
+                             "hip centres), "
                              "inter_asis_distance, body_mass, height; repeatable")
     parser.add_argument("--forward-reference", metavar="FILE", action="append",
                         help="a capture in which the subject walks forwards (straight or "

@@ -636,6 +636,8 @@ PROCESSING_MEASUREMENTS = {
     "LKNEEWIDTH": ("knee_width_l", 1e-3), "RKNEEWIDTH": ("knee_width_r", 1e-3),
     "LANKLEWIDTH": ("ankle_width_l", 1e-3), "RANKLEWIDTH": ("ankle_width_r", 1e-3),
     "LELBOWWIDTH": ("elbow_width_l", 1e-3), "RELBOWWIDTH": ("elbow_width_r", 1e-3),
+    "LSHOULDEROFFSET": ("shoulder_offset_l", 1e-3),
+    "RSHOULDEROFFSET": ("shoulder_offset_r", 1e-3),
     "MARKERDIAMETER": ("marker_diameter", 1e-3), "BODYMASS": ("body_mass", 1.0),
     "HEIGHT": ("height", 1e-3), "LLEGLENGTH": ("leg_length_l", 1e-3),
     "RLEGLENGTH": ("leg_length_r", 1e-3), "INTERASISDISTANCE": ("inter_asis_distance", 1e-3),
