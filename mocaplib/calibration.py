@@ -173,9 +173,11 @@ ALIGNED_IN_REFINEMENT = ("pelvis", "torso", "head", "foot_r", "foot_l")
 #: Turns of each knee's flexion axis about the femur's long axis (radians) that step 4b tries
 #: (:func:`functional_knee_turns`); the chosen one is the vertex of the parabola through the
 #: best of them and its neighbours, so within this span.
-KNEE_AXIS_TURNS = np.radians(np.arange(-30.0, 31.0, 10.0))
-#: Every how many of step 5's frames step 4b fits: on the shared real captures every second
-#: frame chooses turns within 0.9° of all frames' at half the cost.
+KNEE_AXIS_TURNS = np.radians(np.arange(-30.0, 31.0, 15.0))
+#: Every how many of step 5's frames step 4b fits. On the 8 shared real captures with a
+#: moving knee, every second frame and turns 15° apart, started from the anatomical axes'
+#: poses, choose turns within 0.9° of every frame's with turns 10° apart started cold (1.8°
+#: on PiG_Motion-FlatFoot-Full's right knee, turned −3.2° against −1.4°), at 40 % of the cost.
 KNEE_AXIS_FRAME_STEP = 2
 #: Knee flexion range (radians) the calibration frames must show for a functional knee axis;
 #: a knee that flexes less (a static, standing) keeps its anatomical axis.
