@@ -220,10 +220,10 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
     medial = where.get(f"{side.upper()}_{joint}_MED")
     across = lateral - (middle if medial is None else medial)
     if joint == "ELBOW" and medial is None and distal is not None:
-        normal = np.cross(distal - middle, top - middle)          # |normal| = |a| |b| sin(flexion)
-        sines = np.linalg.norm(normal, axis=-1) / np.linalg.norm(distal - middle, axis=-1) \
-            / np.linalg.norm(top - middle, axis=-1)
-        if np.nanmedian(sines) >= np.sin(np.deg2rad(ARM_PLANE_FLEXION)):
+        normal = np.cross(distal - middle, top - middle)
+        flexion = 180.0 - np.degrees(np.arctan2(np.linalg.norm(normal, axis=-1), (
+            (distal - middle) * (top - middle)).sum(axis=-1)))
+        if np.nanmedian(flexion) >= ARM_PLANE_FLEXION:
             across = normal * np.sign((normal * across).sum(axis=-1, keepdims=True))
     first = frame(top - middle, sign * across, order="zy")
     if turn:                                     # internal rotation turns -Z left, +Z right
