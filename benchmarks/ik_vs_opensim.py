@@ -178,7 +178,9 @@ def compare(args) -> None:
             theirs = marker_cost(model, q_osim[fitted], markers[fitted])
             costs.append((marker_cost(model, motion.q[fitted], markers[fitted]) - theirs)
                          / theirs)
-            angles.append(np.degrees(motion.q - q_osim)[fitted][:, ROTATIONS])
+            # the same orientation may read a full turn apart (a heading past ±180°)
+            turn = (motion.q - q_osim)[fitted][:, ROTATIONS]
+            angles.append(np.degrees(np.angle(np.exp(1j * turn))))
             failed += int(motion.failed.sum())
         ratios.append((min(osim_times) / min(our_times), Path(trial.source).stem))
         rows.append(f"| {Path(trial.source).name} | {trial.n_frames} | {len(model.labels)} | "

@@ -898,10 +898,16 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
             parent = SEGMENT_NAMES.index(SEGMENTS[SEGMENT_NAMES.index(name)].parent)
             frames.setdefault(SEGMENT_NAMES[parent], (T[:, parent, :3, :3], T[:, parent, :3, 3]))
             frames[name] = (T[:, parent, :3, :3], centres[(name, 0.0)])
-    # one shift for both sides, mirrored: the skeleton stays left-right symmetric (its lengths
-    # are the sides' means), so the shoulder line keeps the torso's heading (θ_S)
+    return _mirrored_mean(joint_shifts(skeleton, frames))
+
+
+def _mirrored_mean(shifts: dict[str, tuple[float, float, float]]
+                   ) -> dict[str, tuple[float, float, float]]:
+    """One shift (metres) for both sides of each segment in ``shifts``: the mean of the
+    sides' own, the right's mirrored (y negated). The skeleton stays left-right symmetric
+    (its lengths are the sides' means), so the shoulder line keeps the torso's heading (θ_S)."""
     sides: dict[str, list] = {}
-    for name, (x, y, z) in joint_shifts(skeleton, frames).items():
+    for name, (x, y, z) in shifts.items():
         for key, sign in ((name, 1.0), (partner_name(name), -1.0)):
             sides.setdefault(key, []).append((x, sign * y, z))
     return {name: tuple(float(v) for v in np.mean(values, axis=0))
@@ -961,17 +967,10 @@ def shoulder_shifts(skeleton: Skeleton, offsets: np.ndarray, landmarks: list[str
     nominal = Skeleton(skeleton.lengths).joint_offsets()
     up = thorax_axis({name: offsets[i] for i, name in enumerate(landmarks)})
     up = np.array([0.0, 0.0, 1.0]) if up is None else up
-    shifts = []
-    for side, drop in drops.items():
-        name = f"{side.upper()}_ACROMION"
-        if name in landmarks:
-            segment = SEGMENT_NAMES.index(f"humerus_{side}")
-            x, y, z = offsets[landmarks.index(name)] - drop * up - nominal[segment]
-            shifts.append((x, y if side == "l" else -y, z))
-    if not shifts:
-        return {}
-    x, y, z = (float(v) for v in np.mean(shifts, axis=0))
-    return {"humerus_l": (x, y, z), "humerus_r": (x, -y, z)}
+    return _mirrored_mean({
+        f"humerus_{side}": tuple(offsets[landmarks.index(f"{side.upper()}_ACROMION")] - drop * up
+                                 - nominal[SEGMENT_NAMES.index(f"humerus_{side}")])
+        for side, drop in drops.items() if f"{side.upper()}_ACROMION" in landmarks})
 
 
 def locked_dofs(segments: np.ndarray) -> tuple[list[str], list[str]]:

@@ -192,6 +192,13 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         return (w_marker[rows] * _soft_l1(d, robust_scale)).sum(axis=1) + mu2 * (
             ((q_rows - q_ref) * free) ** 2).sum(axis=1)
 
+    def descent(twist, about, r, w, q_rows, q_ref):
+        """The cost's descent direction JᵀWr − μ²(q_rows − q_ref) (n, D), 0 on held DOFs."""
+        g = _gradient(twist, about, moved, r, w)
+        g -= mu2 * (q_rows - q_ref)
+        g[:, ~free] = 0.0
+        return g
+
     def cost(q_rows, rows, q_ref):
         """Cost (n,) of poses q_rows for frames ``rows``, their kinematic chain and markers."""
         chain = skeleton.chain(q_rows)
@@ -207,10 +214,8 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         twist, origin = twists(chains if every else tuple(c[rows] for c in chains))
         about = (pts if every else pts[rows]) - origin[:, :, None]
         r = (target if every else target[rows]) - (pts if every else pts[rows])
-        g = _gradient(twist, about, moved, r, w_marker[rows] * _soft_l1_weight(_norm3(r),
-                                                                               robust_scale))
-        g -= mu2 * (q[rows] - _neighbour_mean(q)[rows])
-        g[:, ~free] = 0.0
+        g = descent(twist, about, r, w_marker[rows] * _soft_l1_weight(_norm3(r), robust_scale),
+                    q[rows], _neighbour_mean(q)[rows])
         step = _projected(q[rows], _by_owner(inverse, owner[rows], g))
         _take_steps(q, pts, active, rows, step, np.abs(step).max(axis=1) < step_tol, twist,
                     about, moved, every=every)
@@ -237,9 +242,7 @@ def solve_poses(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
                                & _interior(qa, free))
         last_step[rows] = np.inf
         if check.size:
-            g = _gradient(twist[check], about[check], moved, r[check], w[check])
-            g -= mu2 * (qa[check] - q_ref[check])
-            g[:, ~free] = 0.0
+            g = descent(twist[check], about[check], r[check], w[check], qa[check], q_ref[check])
             step = _projected(qa[check], np.linalg.solve(last_matrix[rows[check]],
                                                          g[..., None])[..., 0])
             c0 = objective(d[check], rows[check], qa[check], q_ref[check])
