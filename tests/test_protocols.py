@@ -378,12 +378,10 @@ def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
     assert match.complete and "L_ACROMION" not in match.missing_landmarks
 
 
-@pytest.mark.parametrize("name", ["cmu/16_07.c3d", "biomechzoo/HC030A05.c3d"])
-def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, name):
-    # every point a candidate: the shortcut (one rigid pair settles both) must change nothing
-    from mocaplib.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD, computed_points
+def _computed_by_definition(trial):
+    """computed_points' definition, point by point against every other point, all frames."""
+    from mocaplib.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
 
-    trial = read_c3d(real_c3d(name))
     X = trial.markers
     expected = set()
     with warnings.catch_warnings():
@@ -396,5 +394,36 @@ def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, na
             rigid[i] = False
             if not extent > MOVING_EXTENT or rigid.any():
                 expected.add(i)
+    return expected
+
+
+@pytest.mark.parametrize("name", ["cmu/16_07.c3d", "biomechzoo/HC030A05.c3d"])
+def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, name):
+    # every point a candidate: the shortcuts (the screen on a few frames, one rigid pair
+    # settling a point) must change nothing
+    from mocaplib.protocols import computed_points
+
+    trial = read_c3d(real_c3d(name))
+    expected = _computed_by_definition(trial)
     assert 0 < len(expected) < len(trial.labels)
     assert computed_points(trial, range(len(trial.labels))) == expected
+
+
+def test_a_point_rigid_over_the_trial_stays_computed_when_it_jumps_on_the_screened_frames():
+    # the quick look at every pair sees only SCREEN_FRAMES frames: a point whose one jump
+    # falls on one of them looks loose there though it is rigid over the whole trial (SD 0.8
+    # times RIGID_SD); a jittering point is loose everywhere
+    from mocaplib.protocols import RIGID_SD, SCREEN_FRAMES, computed_points
+
+    frames = 400
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 1.0, frames)[:, None, None]
+    X = rng.uniform(-0.1, 0.1, (1, 6, 3)) + t * np.array([1.0, 0.2, 0.0])  # six points walk
+    screened = np.linspace(0, frames - 1, SCREEN_FRAMES).round().astype(int)
+    towards = X[screened[3], 1] - X[screened[3], 0]
+    X[screened[3], 0] -= 0.8 * RIGID_SD * frames ** 0.5 * towards / np.linalg.norm(towards)
+    X[:, 5] += rng.normal(0.0, 3 * RIGID_SD, (frames, 3))
+    trial = Trial(markers=X, labels=[f"PT{i}" for i in range(6)], rate=100.0)
+    spread = np.linalg.norm(X[:, 1] - X[:, 0], axis=1)
+    assert np.std(spread) < RIGID_SD < np.std(spread[screened])
+    assert computed_points(trial, range(6)) == _computed_by_definition(trial) == {0, 1, 2, 3, 4}
