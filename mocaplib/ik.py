@@ -622,7 +622,8 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
         step_tol: float = 5e-4, chunk: int = CHUNK, q0: np.ndarray | None = None) -> Motion:
     """Fit the calibrated model's joint angles to every frame of ``trial``.
 
-    Frames are solved together, from keyframes solved from per-segment rigid fits; frames left
+    Frames are solved together (but those whose markers cannot pose the model,
+    :func:`_poseable`), from keyframes solved from per-segment rigid fits; frames left
     with an outlying marker RMS are re-solved from their neighbours' poses, and outlying
     samples are removed (:data:`OUTLIER_LIMIT`): fitted again without them, kept out if still
     further than that, reported in ``Motion.rejected`` (F, M) bool with NaN residuals.
@@ -658,8 +659,14 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
     converged = np.zeros(n_frames, dtype=bool)
     rejected = np.zeros((n_frames, len(model.labels)), dtype=bool)
     repairs: list[Repair] = []
+    # frames whose markers cannot pose the model fail whatever their pose: solved, their free
+    # poses would take the solver's full iterations and pull their neighbours through the
+    # continuity term, so each chunk solves the others only, as if they were consecutive
+    poseable = _poseable(_seen(markers), model)
     for start in range(0, n_frames, chunk):
-        part = slice(start, min(start + chunk, n_frames))
+        part = start + np.flatnonzero(poseable[start:start + chunk])
+        if part.size == 0:
+            continue
         settings = dict(free=free, robust_scale=robust_scale, smoothing=smoothing,
                         max_iter=max_iter, tol=tol, step_tol=step_tol,
                         weights=model.marker_weights)
@@ -674,12 +681,11 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
             lambda x, q: solve_poses(model.skeleton, x, model.marker_segments,
                                      model.marker_offsets, q0=q, **settings),
             res, markers[part], model, settings)
-        repairs += [replace(r, start=r.start + start, stop=r.stop + start) for r in found]
+        repairs += [replace(r, start=int(part[r.start]), stop=int(part[r.stop - 1]) + 1)
+                    for r in found]
         rejected[part] = _reject_outliers(res, markers[part], model, **settings)
         q[part], residuals[part], converged[part] = res.q, res.residuals, res.converged
-    seen = np.isfinite(markers[..., 0]) & ~rejected
-    failed = ((seen[:, model.marker_segments == _ROOT].sum(axis=1) < MIN_PELVIS_MARKERS)
-              | (seen.sum(axis=1) < MIN_MARKERS) | ~converged)
+    failed = ~_poseable(np.isfinite(markers[..., 0]) & ~rejected, model) | ~converged
     if failed.all():
         raise FitError(f"no frame could be fitted (each has fewer than {MIN_PELVIS_MARKERS} "
                        f"pelvis markers or {MIN_MARKERS} markers in all)", path=trial.source,
@@ -698,6 +704,13 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
                   marker_segments=np.array(model.marker_segments),
                   marker_offsets=np.array(model.marker_offsets),
                   repairs=repairs, source=trial.source)
+
+
+def _poseable(seen: np.ndarray, model: "SubjectModel") -> np.ndarray:
+    """Frames (F,) bool whose seen markers (F, M) can pose the model: at least
+    :data:`MIN_PELVIS_MARKERS` on the pelvis and :data:`MIN_MARKERS` in all."""
+    return ((seen[:, model.marker_segments == _ROOT].sum(axis=1) >= MIN_PELVIS_MARKERS)
+            & (seen.sum(axis=1) >= MIN_MARKERS))
 
 
 def _coarse_start(model: "SubjectModel", markers: np.ndarray, settings: dict
