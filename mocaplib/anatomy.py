@@ -65,6 +65,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .numeric import nanmedian
+
 #: Subject measurements mocaplib can use (metres, kilograms), as :attr:`Trial.measurements`
 #: keys: sided ones end in ``_l``/``_r``.
 MEASUREMENTS = ("knee_width_l", "knee_width_r", "ankle_width_l", "ankle_width_r",
@@ -223,7 +225,7 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
         normal = np.cross(distal - middle, top - middle)
         flexion = 180.0 - np.degrees(np.arctan2(np.linalg.norm(normal, axis=-1), (
             (distal - middle) * (top - middle)).sum(axis=-1)))
-        if np.nanmedian(flexion) >= ARM_PLANE_FLEXION:
+        if nanmedian(flexion) >= ARM_PLANE_FLEXION:
             across = normal * np.sign((normal * across).sum(axis=-1, keepdims=True))
     first = frame(top - middle, sign * across, order="zy")
     if turn:                                     # internal rotation turns -Z left, +Z right

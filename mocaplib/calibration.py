@@ -101,6 +101,7 @@ from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harring
                       marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
+from .numeric import nanmedian
 from .protocols import Protocol, label_match, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
@@ -700,9 +701,7 @@ def quietest_stretch(markers: np.ndarray, length: int, /) -> int:
     extent = np.where(enough & np.isfinite(extent), extent, np.nan)
     markers_seen = enough.sum(axis=1)
     candidates = markers_seen >= 0.9 * markers_seen.max()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)      # a stretch seeing no marker: NaN
-        moved = np.nanmedian(extent, axis=1)
+    moved = nanmedian(extent, axis=1)                        # a stretch seeing no marker: NaN
     moved[~candidates | ~np.isfinite(moved)] = np.inf
     return int(np.argmin(moved))
 
@@ -755,10 +754,8 @@ def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, 
     seen together."""
     pairs = np.array([(i, j) for i in range(len(segments)) for j in range(i + 1, len(segments))
                       if segments[i] == segments[j]], dtype=int).reshape(-1, 2)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)          # a pair never seen: NaN
-        d = np.nanmedian(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=2), axis=0) \
-            if len(X) and len(pairs) else np.full(len(pairs), np.nan)
+    d = nanmedian(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=2), axis=0) \
+        if len(X) and len(pairs) else np.full(len(pairs), np.nan)      # a pair never seen: NaN
     return d, pairs
 
 
@@ -1023,7 +1020,7 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
         for a in range(len(idx)):
             for b in range(a + 1, len(idx)):
                 ref = np.linalg.norm(nominal[idx[a]] - nominal[idx[b]])
-                d = np.nanmedian(np.linalg.norm(X[:, idx[a]] - X[:, idx[b]], axis=1)) \
+                d = nanmedian(np.linalg.norm(X[:, idx[a]] - X[:, idx[b]], axis=1)) \
                     if np.isfinite(X[:, [idx[a], idx[b]], 0]).all(axis=1).any() else np.nan
                 if ref > 0.05 and np.isfinite(d):
                     ratios.append(d / ref)
@@ -1209,9 +1206,7 @@ def joint_shifts(skeleton: Skeleton, frames: dict[str, tuple[np.ndarray, np.ndar
             continue
         R, at = frames[parent]
         local = np.einsum("fji,fj->fi", R, origin - at)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)         # never seen together
-            shift = np.nanmedian(local, axis=0) - joints[SEGMENT_NAMES.index(name)]
+        shift = nanmedian(local, axis=0) - joints[SEGMENT_NAMES.index(name)]  # NaN: never seen
         if np.isfinite(shift).all():
             out[name] = tuple(float(x) for x in shift)
     return out
@@ -1282,7 +1277,7 @@ def _lengths_from_centres(skeleton: Skeleton,
     wrist = {seg: pos for (seg, z), pos in centres.items() if z != 0.0}
 
     def dist(a, b):
-        return np.nanmedian(np.linalg.norm(a - b, axis=1))
+        return nanmedian(np.linalg.norm(a - b, axis=1))
 
     def both_sides(key, a, b, table_b=c):
         values = [dist(c[a + s], table_b[b + s]) for s in ("_l", "_r")

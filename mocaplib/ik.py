@@ -42,6 +42,7 @@ from .errors import FitError
 from .filtering import resample
 from .runs import valid_runs
 from .motion import Motion, Repair, apply_repairs
+from .numeric import nanmedian
 from .protocols import label_match
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
@@ -957,7 +958,7 @@ def far_markers(residuals: np.ndarray, labels: list[str]) -> list[Repair]:
     :data:`SWAP_MIN_FRAMES` frames, as :class:`Repair` s of kind ``"drop"`` over the frames."""
     out = []
     seen = np.isfinite(residuals)
-    median = _column_median(residuals)
+    median = nanmedian(residuals, axis=0)
     for m in np.flatnonzero((median > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
         frames = np.flatnonzero(seen[:, m])
         out.append(Repair("drop", (labels[m],), int(frames[0]), int(frames[-1]) + 1,
@@ -1033,8 +1034,8 @@ def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
     :data:`OUTLIER_MADS` robust standard deviations (1.4826 MAD) of that marker's residuals
     (F, M) over the frames where it is seen, at least :data:`SUSPECT_FLOOR` and at most
     :data:`OUTLIER_LIMIT`."""
-    median = _column_median(residuals)
-    limit = median + OUTLIER_MADS * 1.4826 * _column_median(np.abs(residuals - median))
+    median = nanmedian(residuals, axis=0)
+    limit = median + OUTLIER_MADS * 1.4826 * nanmedian(np.abs(residuals - median), axis=0)
     return np.clip(np.where(np.isfinite(limit), limit, SUSPECT_FLOOR), SUSPECT_FLOOR,
                    OUTLIER_LIMIT)
 
@@ -1075,16 +1076,6 @@ def _reject_outliers(res: PoseFit, markers: np.ndarray, model: "SubjectModel",
     return removed
 
 
-def _column_median(values: np.ndarray) -> np.ndarray:
-    """Median of each column of ``values`` (F, M) over its non-NaN entries, shape (M,); NaN
-    for a column without any (as np.nanmedian, without its masked-array path)."""
-    ordered = np.sort(values, axis=0)                      # NaN sort last
-    count = (~np.isnan(values)).sum(axis=0)
-    columns = np.arange(values.shape[1])
-    middle = 0.5 * (ordered[np.maximum(count - 1, 0) // 2, columns] + ordered[count // 2, columns])
-    return np.where(count > 0, middle, np.nan)
-
-
 def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
     """The runs of ``suspect`` (F, M) bool that begin or end with a jump, (F, M) bool.
 
@@ -1117,7 +1108,7 @@ def _restart_outliers(solve, first: PoseFit) -> PoseFit:
     solution has the smaller marker RMS.
     """
     rms = _frame_rms(first.residuals)
-    suspect = rms > max(RESTART_FACTOR * np.nanmedian(rms), 0.015)
+    suspect = rms > max(RESTART_FACTOR * nanmedian(rms), 0.015)
     if not suspect.any() or suspect.all():
         return first
     start = first.q.copy()
