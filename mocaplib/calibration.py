@@ -58,7 +58,7 @@ Steps (all in metres, world Z up):
    as the knee flexes and the fit turns the hip to follow: hip rotation coupled to knee
    flexion. Each knee's axis is turned about the femur's long axis by the angle whose poses
    best fit the thigh and shank markers of step 5's frames (the motion's), the leg frames of
-   step 4 built again on it (:func:`mocaplib.anatomy.segment_frames`, ``knee_turns``); a knee
+   step 4 built again on it (:func:`mocaplib.anatomy.leg_frames`, ``knee_turn``); a knee
    that flexes less than :data:`KNEE_AXIS_MIN_FLEXION` there keeps the anatomical axis.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
@@ -98,7 +98,7 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
-                      marker_frames, offsets_in_frames, segment_frames)
+                      leg_frames, marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
 from .numeric import nanmedian
@@ -418,14 +418,21 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
     drops = shoulder_drops(measurements)
     X_cal, poses_cal, unshifted = X, poses, skeleton
+    frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
+                                   level_feet=static is not None)
+    in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
 
     def anatomical_model(knee_turns=None):
         """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
         joint shifts, measured in the anatomical frames (the knees' axes turned by
-        ``knee_turns``)."""
-        frames = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
-                                   level_feet=static is not None, knee_turns=knee_turns)
-        in_frames = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames)
+        ``knee_turns``: only the legs' frames built again)."""
+        frames, in_frames = dict(frames_cal), in_frames_cal.copy()
+        for side, turn in (knee_turns or {}).items():
+            legs = leg_frames({name: X_cal[:, i] for i, name in enumerate(landmarks)}, centres,
+                              side, level_feet=static is not None, knee_turn=turn)
+            frames.update(legs)
+            on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in legs])
+            in_frames[on] = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, legs)[on]
         measured = np.isfinite(in_frames).all(axis=1)
         kept = measured & ~np.isin(segments, [SEGMENT_NAMES.index(name)
                                               for name in FOLLOWING_IN_REFINEMENT])
@@ -913,20 +920,18 @@ def _mirrored_mean(shifts: dict[str, tuple[float, float, float]]
 
 def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
                       centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
-                      *, level_feet: bool = False, knee_turns: dict[str, float] | None = None
-                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                      *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """:func:`mocaplib.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
     (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
     from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
     of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
-    acromion; the knees' axes turned by ``knee_turns`` (radians per side, as
-    :func:`mocaplib.anatomy.segment_frames` takes them)."""
+    acromion."""
     T = skeleton.forward(q)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
                  for name in ("humerus_l", "humerus_r")
                  if (name, 0.0) in centres and name[-1] not in drops}
     return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                          {**centres, **shoulders}, level_feet=level_feet, knee_turns=knee_turns)
+                          {**centres, **shoulders}, level_feet=level_feet)
 
 
 def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
