@@ -496,11 +496,12 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
+        T = skeleton.forward(poses)
         registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
-                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets)
+                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets, transforms=T)
         offsets = np.where(kept[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
-                                  fixed=fixed_lengths)
+                                  fixed=fixed_lengths, transforms=T)
         skeleton = Skeleton(skeleton.lengths, {
             **skeleton.shifts, **shoulder_shifts(skeleton, offsets, landmarks, drops)})
     best.history = history
@@ -876,8 +877,9 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     q[:, ROOT_HEADING] += heading_offset
     if centres:
         skeleton = Skeleton(skeleton.lengths, neutral_shifts(skeleton, q, centres))
-    offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
-    residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
+    T = skeleton.forward(q)
+    offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=(), transforms=T)
+    residual = np.linalg.norm(skeleton.points(q, segments, offsets, transforms=T) - X, axis=2)
     return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q, skeleton
 
 
@@ -1320,7 +1322,8 @@ def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.nda
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
                      nominal: np.ndarray, align=SEGMENT_NAMES,
-                     unseen: np.ndarray | None = None) -> np.ndarray:
+                     unseen: np.ndarray | None = None,
+                     transforms: np.ndarray | None = None) -> np.ndarray:
     """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
 
     Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
@@ -1332,9 +1335,10 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     one is turned about the origin onto its nominal direction); a tracking marker (NaN row of
     ``nominal``) turns with its segment's landmark markers. The frame is thus anatomical: zero
     angles put the landmark markers in the catalogue's layout, as the DOF sign table
-    describes. Only segments named in ``align`` are turned.
+    describes. Only segments named in ``align`` are turned. ``transforms``:
+    :meth:`Skeleton.forward` (q), when already computed.
     """
-    T = skeleton.forward(q)[:, segments]
+    T = (skeleton.forward(q) if transforms is None else transforms)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # a marker never seen: NaN
@@ -1391,19 +1395,21 @@ def _check_measured(model: SubjectModel, cal: Trial) -> None:
 
 
 def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,
-                   offsets: np.ndarray, *, prior: dict[str, float], fixed=()) -> Skeleton:
+                   offsets: np.ndarray, *, prior: dict[str, float], fixed=(),
+                   transforms: np.ndarray | None = None) -> Skeleton:
     """Segment lengths by linear least squares for fixed poses q (F, D) and offsets (M, 3).
 
     Marker positions are affine in the lengths (joint offsets are linear in them), so one
     solve is exact: minimise Σ ||x − p(L)||² / σ_m² + Σ (L − prior)² / σ_L² with
     σ_m = :data:`MARKER_SIGMA`, σ_L = :data:`LENGTH_PRIOR`. Lengths named in ``fixed`` keep
-    their value.
+    their value. ``transforms``: :meth:`Skeleton.forward` (q), when already computed.
     """
     keys = list(HEIGHT_PROPORTIONS)
     L0 = np.array([skeleton.lengths[k] for k in keys])
-    base = skeleton.points(q, segments, offsets)
+    T = skeleton.forward(q) if transforms is None else transforms
+    base = skeleton.points(q, segments, offsets, transforms=T)
     valid = np.isfinite(X).all(axis=2)
-    G = skeleton.length_jacobian(q, segments)[valid].reshape(-1, len(keys))
+    G = skeleton.length_jacobian(q, segments, transforms=T)[valid].reshape(-1, len(keys))
     G[:, np.isin(keys, list(fixed))] = 0.0
     r = (X - base)[valid].reshape(-1)
     prior_vec = np.array([prior[k] for k in keys])

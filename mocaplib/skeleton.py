@@ -326,9 +326,10 @@ class Skeleton:
         if any(len(v) != 3 or not np.isfinite(v).all() for v in shifts.values()):
             raise MocapError(f"joint shifts must be 3 finite numbers (metres), got {self.shifts}")
         self.shifts = shifts
-        self._shift_array = np.zeros((len(SEGMENTS), 3))
+        shift_array = np.zeros((len(SEGMENTS), 3))
         for name, value in shifts.items():
-            self._shift_array[_SEGMENT_INDEX[name]] = value
+            shift_array[_SEGMENT_INDEX[name]] = value
+        self._joints = _joint_offsets(self.lengths) + shift_array     # read by every chain()
 
     def scaled(self, factor: float) -> "Skeleton":
         """This skeleton with every length and joint shift multiplied by ``factor``."""
@@ -354,15 +355,16 @@ class Skeleton:
         The root's row is zero (its position is the pelvis_t* DOFs). The lengths place each
         centre (:data:`HEIGHT_PROPORTIONS`), then :attr:`shifts` move it.
         """
-        return _joint_offsets(self.lengths) + self._shift_array
+        return self._joints.copy()
 
-    def length_jacobian(self, q: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    def length_jacobian(self, q: np.ndarray, segments: np.ndarray, *,
+                        transforms: np.ndarray | None = None) -> np.ndarray:
         """Derivative of the position of a point fixed on each of ``segments`` (M,) with respect
         to each length (:data:`HEIGHT_PROPORTIONS` order), in poses ``q`` (F, D): shape
         (F, M, 3, K), metres per metre. Exact, as positions are linear in the joint offsets and
         those in the lengths: a joint centre moves along its parent's axes, and with it all
-        below it."""
-        T = self.forward(q)
+        below it. ``transforms``: :meth:`forward` (q), when already computed."""
+        T = self.forward(q) if transforms is None else transforms
         origin = np.zeros(T.shape[:2] + _OFFSETS_PER_LENGTH.shape[1:])         # (F, S, 3, K)
         for segs, parents, *_ in LEVELS[1:]:
             origin[:, segs] = (origin[:, parents]
@@ -396,7 +398,7 @@ class Skeleton:
         if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
             raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
         n = q.shape[0]
-        offsets = self.joint_offsets()
+        offsets = self._joints
         local = elementary_rotations(q)
         out = np.empty((n, len(SEGMENTS), 4, 4))
         out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
@@ -450,7 +452,8 @@ class Skeleton:
         about = (pts - origin[:, None]).transpose(0, 2, 1)
         return pts, twist_jacobian(twist, about, MOVES[segments]).transpose(0, 2, 1, 3)
 
-    def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
+               transforms: np.ndarray | None = None) -> np.ndarray:
         """World positions of points fixed in segments (markers, joint centres).
 
         Parameters
@@ -460,12 +463,13 @@ class Skeleton:
             Segment index of each point.
         offsets : ndarray, shape (M, 3)
             Each point in its segment's frame, metres.
+        transforms : :meth:`forward` (q), when already computed.
 
         Returns
         -------
         ndarray, shape (F, M, 3), metres.
         """
-        T = self.forward(q)[:, np.asarray(segments, dtype=int)]
+        T = (self.forward(q) if transforms is None else transforms)[:, np.asarray(segments, int)]
         return (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
 
 
