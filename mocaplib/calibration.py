@@ -616,11 +616,12 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         hint="check the labels against the protocol, or pass --protocol")
 
 
-def check_standing(static: Trial) -> None:
+def check_standing(static: Trial, *, moved: float | None = None) -> None:
     """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
     (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
-    calibrates a subject in mid-stride."""
-    moved = moved_extent(static.markers)
+    calibrates a subject in mid-stride. ``moved``: :func:`moved_extent` of its markers, when
+    already computed."""
+    moved = moved_extent(static.markers) if moved is None else moved
     if moved > STANDING_EXTENT:   # NaN, no marker seen: calibration refuses it with its reason
         raise CalibrationError(
             f"is not a standing static trial: its markers move {moved:.2f} m (median over the "
@@ -653,16 +654,17 @@ def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
                                    path=static.source,
                                    hint="give START:END within the static, in seconds from "
                                         "its first frame")
-        lo, hi = int(frames[0]), int(frames[-1]) + 1
+        lo, hi, moved = int(frames[0]), int(frames[-1]) + 1, None
     else:
         lo, hi = 0, n
         length = int(round(STATIC_WINDOW_S * static.rate)) + 1
-        if n > length and moved_extent(static.markers) > STANDING_EXTENT:
+        moved = moved_extent(static.markers)
+        if n > length and moved > STANDING_EXTENT:
             lo = quietest_stretch(static.markers, length)
             hi = lo + length
     span = (lo / static.rate, (hi - 1) / static.rate)
     if (lo, hi) == (0, n):
-        check_standing(static)
+        check_standing(static, moved=moved)
         return static, span
     part = replace(static, markers=static.markers[lo:hi], first_frame=static.first_frame + lo,
                    events=[], warnings=list(static.warnings))
@@ -1022,15 +1024,11 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
     :data:`PLAUSIBLE_HEIGHT` (the file's units are wrong).
     """
     ratios = []
-    for s in np.unique(segments):
-        idx = np.flatnonzero(segments == s)
-        for a in range(len(idx)):
-            for b in range(a + 1, len(idx)):
-                ref = np.linalg.norm(nominal[idx[a]] - nominal[idx[b]])
-                d = nanmedian(np.linalg.norm(X[:, idx[a]] - X[:, idx[b]], axis=1)) \
-                    if np.isfinite(X[:, [idx[a], idx[b]], 0]).all(axis=1).any() else np.nan
-                if ref > 0.05 and np.isfinite(d):
-                    ratios.append(d / ref)
+    distances, pairs = segment_distances(X, segments)
+    for (a, b), d in zip(pairs, distances):
+        ref = np.linalg.norm(nominal[a] - nominal[b])
+        if ref > 0.05 and np.isfinite(d):
+            ratios.append(d / ref)
     if not ratios:
         return _protocols.REFERENCE_HEIGHT
     height = float(np.median(ratios) * _protocols.REFERENCE_HEIGHT)
