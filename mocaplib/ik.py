@@ -121,7 +121,7 @@ assert (np.tril(_ANCESTOR, -1) <= _ANCESTOR.T).all(), "a DOF listed before its p
 #: the symmetric matrix of A's upper triangle, to the bit (halving and doubling are exact).
 _HALF_UPPER = np.triu(_ANCESTOR) - 0.5 * np.diag(np.diag(_ANCESTOR))
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
-_QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
+_QI, _QJ = np.array([0, 1, 2, 0, 0, 1]), np.array([0, 1, 2, 1, 2, 2])
 
 
 @dataclass
@@ -419,7 +419,7 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     moments = np.empty((n, 10, m))                                              # (F, 10, M)
     moments[:, 0] = w
     wp = np.multiply(w[:, None], p, out=moments[:, 1:4])
-    np.multiply(wp[:, _QI], p[:, _QJ], out=moments[:, 4:10])
+    np.multiply(np.take(wp, _QI, axis=1), np.take(p, _QJ, axis=1), out=moments[:, 4:10])
     total = (moments.reshape(n * 10, m) @ moved).reshape(n, 10, moved.shape[1])  # (F, 10, D)
     W, P, Q = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
     qxx, qyy, qzz, qxy, qxz, qyz = Q

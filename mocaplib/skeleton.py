@@ -238,7 +238,7 @@ _SPINS, _SPIN_ONE, _SPIN_COS, _SPIN_COS_DOF, _SPIN_SIN, _SPIN_SIN_DOF, _SPIN_SIN
     _spin_entries()
 _AXES = np.array([d.axis for d in DOFS])
 _ROOT = int(LEVELS[0][0][0])                             # the root segment (the pelvis)
-_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])    # cyclic shifts for cross products
 _EYE = np.eye(3)[None, None]                             # the root's parent frame (1, 1, 3, 3)
 assert all(SEGMENTS[_SEGMENT_INDEX[DOFS[j].segment]].parent is None
            for j in SHIFTS), "chain() takes translations at the root only"
@@ -410,10 +410,10 @@ class Skeleton:
                 R = _EYE
                 p = offsets[segments] + (q[:, SHIFTS] @ _AXES[SHIFTS])[:, None]
             else:
-                parent = out[:, parents]
+                parent = np.take(out, parents, axis=1)
                 R = parent[..., :3, :3]
                 p = (R @ offsets[segments, :, None])[..., 0] + parent[..., :3, 3]
-            turns = local[:, spins]              # (F, k, 3, 3, 3): each joint's rotations
+            turns = np.take(local, spins, axis=1)       # (F, k, 3, 3, 3): each joint's rotations
             columns = np.empty((n, len(segments), 3, 3))
             for i, letter in enumerate(letters):
                 columns[:, :, i] = R[..., letter]    # a DOF's axis: a column of the rotation so far
@@ -535,5 +535,6 @@ def twist_jacobian(twist: np.ndarray, points: np.ndarray, moved: np.ndarray) -> 
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
-    axis shuffling."""
-    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
+    axis shuffling (np.take: cheaper than indexing for these small gathers)."""
+    return (np.take(a, _NEXT, axis=1) * np.take(b, _AFTER, axis=1)
+            - np.take(a, _AFTER, axis=1) * np.take(b, _NEXT, axis=1))
