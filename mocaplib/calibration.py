@@ -101,7 +101,7 @@ from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harring
                       leg_frames, marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
-from .numeric import nanmedian
+from .numeric import distinct, median, nanmedian
 from .protocols import Protocol, label_match, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
@@ -539,7 +539,7 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
 
     def sd_of(mask):
         sub = A[:, mask][:, :, mask] + 1e-12 * np.eye(int(mask.sum()))
-        return MARKER_SIGMA * np.sqrt(np.median(
+        return MARKER_SIGMA * np.sqrt(median(
             np.diagonal(np.linalg.inv(sub), axis1=1, axis2=2), axis=0))
 
     held: dict[str, float] = {}
@@ -687,7 +687,7 @@ def moved_extent(markers: np.ndarray, /) -> float:
     if not seen.any():
         return float("nan")
     points = markers[:, seen]
-    return float(np.median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
+    return float(median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
                                           axis=1)))
 
 
@@ -788,23 +788,23 @@ def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.
     if usable.sum() < MIN_PAIRS:
         return float("nan")
     diff = d_motion[usable] - d_static[usable]
-    median = float(np.median(np.abs(diff)))
-    if median > limit:
+    difference = float(median(np.abs(diff)))
+    if difference > limit:
         worst = np.argsort(-np.abs(diff))[:3]
         pairs_used = pairs[usable]
         examples = ", ".join(f"{labels[pairs_used[k, 0]]}-{labels[pairs_used[k, 1]]} "
                              f"{1000 * d_static[usable][k]:.0f} mm in the static, "
                              f"{1000 * d_motion[usable][k]:.0f} mm in the motion" for k in worst)
-        scale = float(np.exp(np.median(np.log(d_motion[usable] / d_static[usable]))))
+        scale = float(np.exp(median(np.log(d_motion[usable] / d_static[usable]))))
         raise CalibrationError(
             f"this static trial does not match the motion trial {trial.source or '(unnamed)'}: "
             f"distances between markers on one segment differ by "
-            f"{1000 * median:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
+            f"{1000 * difference:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
             f"same markers stays within {1000 * limit:.0f} mm; motion/static size ratio "
             f"{scale:.3f}); e.g. {examples}", path=static.source,
             hint="use the static recorded with this subject in this session (markers not moved "
                  "since), or calibrate from the motion itself (leave out --static)")
-    return median
+    return difference
 
 
 def static_names(paths: Sequence[str]) -> list[str]:
@@ -1010,7 +1010,7 @@ def _calibration_frames(X: np.ndarray, n_frames: int) -> np.ndarray:
         return np.arange(0)
     good = np.flatnonzero(count >= count.max() - max(1, X.shape[1] // 10))
     pick = np.linspace(0, len(good) - 1, min(n_frames, len(good))).round().astype(int)
-    return good[np.unique(pick)]
+    return good[distinct(pick)]
 
 
 def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
@@ -1031,7 +1031,7 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
             ratios.append(d / ref)
     if not ratios:
         return _protocols.REFERENCE_HEIGHT
-    height = float(np.median(ratios) * _protocols.REFERENCE_HEIGHT)
+    height = float(median(ratios) * _protocols.REFERENCE_HEIGHT)
     if not PLAUSIBLE_HEIGHT[0] <= height <= PLAUSIBLE_HEIGHT[1]:
         raise CalibrationError(
             f"the distances between markers on one segment suggest a subject {height:.3g} m "
@@ -1343,7 +1343,7 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
         mean = np.nanmean(local, axis=0) if len(q) else np.full_like(nominal, np.nan)
     out = np.where(np.isfinite(mean), mean, nominal if unseen is None else unseen)
     catalogued = np.isfinite(nominal).all(axis=1) & np.isfinite(out).all(axis=1)
-    for s in np.unique(segments):
+    for s in distinct(segments):
         idx = np.flatnonzero(segments == s)
         ref = idx[catalogued[idx]]
         if SEGMENT_NAMES[s] not in align or not len(ref):

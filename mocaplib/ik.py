@@ -42,7 +42,7 @@ from .errors import FitError
 from .filtering import resample
 from .runs import valid_runs
 from .motion import Motion, Repair, apply_repairs
-from .numeric import nanmedian
+from .numeric import distinct, median, nanmedian
 from .protocols import label_match
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
@@ -729,7 +729,7 @@ def _warm_start(model: "SubjectModel", markers: np.ndarray, settings: dict, q0: 
     sparse = np.flatnonzero(np.diff(keys) > LONGEST_STRIDE // 2)
     if sparse.size == 0:
         return q0, None
-    ends = np.unique(np.r_[keys[sparse], keys[sparse + 1]])
+    ends = distinct(np.r_[keys[sparse], keys[sparse + 1]])
     solved = solve_poses(model.skeleton, markers[ends], model.marker_segments,
                          model.marker_offsets, q0=q0[ends], **settings)
     start, (inverse, owner) = _predict_between(model, markers, ends, solved.q, settings)
@@ -797,7 +797,7 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
     line between its positions there by more than ``tolerance`` metres (or is seen there but
     not at an end). Markers (F, M, 3), NaN where missing."""
     n = len(markers)
-    keys = np.unique(np.r_[np.arange(0, n, longest), n - 1])
+    keys = distinct(np.r_[np.arange(0, n, longest), n - 1])
     gap = longest
     seen = np.isfinite(markers[:, :, 0])
     while gap > shortest and len(keys) < n:
@@ -811,7 +811,7 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
         if not split.any():                    # the same lines again at the next level
             break
         mid = (keys[:-1] + keys[1:]) // 2
-        keys = np.unique(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
+        keys = distinct(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
         gap //= 2
     return keys
 
@@ -878,8 +878,8 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         for start, stop, inside in _merged(stretches):
             taken[start:stop, [i, j]] = True
             out.append(Repair("swap", (labels[i], labels[j]), int(start), int(stop),
-                              f"each lay {500 * np.median(own[inside]):.0f} mm from its model "
-                              f"place and {500 * np.median(other[inside]):.0f} mm from the "
+                              f"each lay {500 * median(own[inside]):.0f} mm from its model "
+                              f"place and {500 * median(other[inside]):.0f} mm from the "
                               f"other's (median of {int(inside.sum())} frames)"))
     return out
 
@@ -958,11 +958,11 @@ def far_markers(residuals: np.ndarray, labels: list[str]) -> list[Repair]:
     :data:`SWAP_MIN_FRAMES` frames, as :class:`Repair` s of kind ``"drop"`` over the frames."""
     out = []
     seen = np.isfinite(residuals)
-    median = nanmedian(residuals, axis=0)
-    for m in np.flatnonzero((median > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
+    typical = nanmedian(residuals, axis=0)
+    for m in np.flatnonzero((typical > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
         frames = np.flatnonzero(seen[:, m])
         out.append(Repair("drop", (labels[m],), int(frames[0]), int(frames[-1]) + 1,
-                          f"it stays {1000 * median[m]:.0f} mm from its model place (median of "
+                          f"it stays {1000 * typical[m]:.0f} mm from its model place (median of "
                           f"{len(frames)} frames)"))
     return out
 
@@ -1034,8 +1034,8 @@ def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
     :data:`OUTLIER_MADS` robust standard deviations (1.4826 MAD) of that marker's residuals
     (F, M) over the frames where it is seen, at least :data:`SUSPECT_FLOOR` and at most
     :data:`OUTLIER_LIMIT`."""
-    median = nanmedian(residuals, axis=0)
-    limit = median + OUTLIER_MADS * 1.4826 * nanmedian(np.abs(residuals - median), axis=0)
+    typical = nanmedian(residuals, axis=0)
+    limit = typical + OUTLIER_MADS * 1.4826 * nanmedian(np.abs(residuals - typical), axis=0)
     return np.clip(np.where(np.isfinite(limit), limit, SUSPECT_FLOOR), SUSPECT_FLOOR,
                    OUTLIER_LIMIT)
 
