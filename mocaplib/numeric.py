@@ -1,5 +1,5 @@
 """Array reductions equal to numpy's own to the bit, without numpy.ma: ``np.nanmedian`` along
-an axis shorter than 600 goes through a masked array (~0.2 ms a call), and ``np.median``,
+an axis shorter than 600 goes through a masked array (~0.1 ms a call), and ``np.median``,
 ``np.percentile`` and ``np.unique`` (numpy 2) look numpy.ma up, which imports it (~7 ms of a
 command's start-up). The stages of ``mocaplib fit`` use these instead."""
 
