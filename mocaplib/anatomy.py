@@ -65,6 +65,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .numeric import nanmedian
+
 #: Subject measurements mocaplib can use (metres, kilograms), as :attr:`Trial.measurements`
 #: keys: sided ones end in ``_l``/``_r``.
 MEASUREMENTS = ("knee_width_l", "knee_width_r", "ankle_width_l", "ankle_width_r",
@@ -186,18 +188,29 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
         out["pelvis"] = (pelvis_axes(where["L_ASIS"], where["R_ASIS"], back),
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        out.update(_limb_frames(where, centres, side, sign, ("femur", "tibia"), "KNEE",
-                                centres.get((f"foot_{side}", 0.0)),
-                                turn=(knee_turns or {}).get(side, 0.0)))
-        heel, toe = _foot_line(where, side.upper())
-        if f"tibia_{side}" in out and heel is not None:
-            along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
-            out[f"foot_{side}"] = (frame(out[f"tibia_{side}"][0][..., 1], along, order="yx"),
-                                   centres[(f"foot_{side}", 0.0)])
+        out.update(leg_frames(where, centres, side, level_feet=level_feet,
+                              knee_turn=(knee_turns or {}).get(side, 0.0)))
         wrist = next((point for (segment, z), point in centres.items()
                       if segment == f"forearm_{side}" and z != 0.0), None)
         out.update(_limb_frames(where, centres, side, sign, ("humerus", "forearm"), "ELBOW",
                                 wrist))
+    return out
+
+
+def leg_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
+               side: str, *, level_feet: bool = False, knee_turn: float = 0.0
+               ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The frames (rotations (F, 3, 3), origins (F, 3)) of the femur, tibia and foot of
+    ``side`` ("l", "r") that :func:`segment_frames` builds from the same ``where``,
+    ``centres`` and ``level_feet``, the knee's axis turned by ``knee_turn`` (radians,
+    internal rotation positive); those it cannot build left out."""
+    out = _limb_frames(where, centres, side, 1.0 if side == "l" else -1.0, ("femur", "tibia"),
+                       "KNEE", centres.get((f"foot_{side}", 0.0)), turn=knee_turn)
+    heel, toe = _foot_line(where, side.upper())
+    if f"tibia_{side}" in out and heel is not None:
+        along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
+        out[f"foot_{side}"] = (frame(out[f"tibia_{side}"][0][..., 1], along, order="yx"),
+                               centres[(f"foot_{side}", 0.0)])
     return out
 
 
@@ -223,7 +236,7 @@ def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], 
         normal = np.cross(distal - middle, top - middle)
         flexion = 180.0 - np.degrees(np.arctan2(np.linalg.norm(normal, axis=-1), (
             (distal - middle) * (top - middle)).sum(axis=-1)))
-        if np.nanmedian(flexion) >= ARM_PLANE_FLEXION:
+        if nanmedian(flexion) >= ARM_PLANE_FLEXION:
             across = normal * np.sign((normal * across).sum(axis=-1, keepdims=True))
     first = frame(top - middle, sign * across, order="zy")
     if turn:                                     # internal rotation turns -Z left, +Z right

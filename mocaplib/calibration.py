@@ -58,7 +58,7 @@ Steps (all in metres, world Z up):
    as the knee flexes and the fit turns the hip to follow: hip rotation coupled to knee
    flexion. Each knee's axis is turned about the femur's long axis by the angle whose poses
    best fit the thigh and shank markers of step 5's frames (the motion's), the leg frames of
-   step 4 built again on it (:func:`mocaplib.anatomy.segment_frames`, ``knee_turns``); a knee
+   step 4 built again on it (:func:`mocaplib.anatomy.leg_frames`, ``knee_turn``); a knee
    that flexes less than :data:`KNEE_AXIS_MIN_FLEXION` there keeps the anatomical axis.
 4'. **Neutral static** (``static_pose="neutral"``, as OpenSim's MarkerPlacer does with the
    model's default pose): the subject is taken to stand in the anatomical neutral pose, every
@@ -98,9 +98,10 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
-                      marker_frames, offsets_in_frames, segment_frames)
+                      leg_frames, marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
+from .numeric import distinct, median, nanmedian
 from .protocols import Protocol, label_match, match_trial
 from .skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, ROOT_HEADING, SEGMENT_NAMES,
                        SEGMENTS, SHIFTS, Skeleton, partner_name)
@@ -417,14 +418,21 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
     drops = shoulder_drops(measurements)
     X_cal, poses_cal, unshifted = X, poses, skeleton
+    frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
+                                   level_feet=static is not None)
+    in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
 
     def anatomical_model(knee_turns=None):
         """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
         joint shifts, measured in the anatomical frames (the knees' axes turned by
-        ``knee_turns``)."""
-        frames = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
-                                   level_feet=static is not None, knee_turns=knee_turns)
-        in_frames = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames)
+        ``knee_turns``: only the legs' frames built again)."""
+        frames, in_frames = dict(frames_cal), in_frames_cal.copy()
+        for side, turn in (knee_turns or {}).items():
+            legs = leg_frames({name: X_cal[:, i] for i, name in enumerate(landmarks)}, centres,
+                              side, level_feet=static is not None, knee_turn=turn)
+            frames.update(legs)
+            on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in legs])
+            in_frames[on] = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, legs)[on]
         measured = np.isfinite(in_frames).all(axis=1)
         kept = measured & ~np.isin(segments, [SEGMENT_NAMES.index(name)
                                               for name in FOLLOWING_IN_REFINEMENT])
@@ -488,11 +496,12 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         if len(history) > 1 and rms > 0.99 * history[-2]:
             break
         poses = fit.q
+        T = skeleton.forward(poses)
         registered = register_offsets(skeleton, poses, X, segments, nominal=nominal_scaled,
-                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets)
+                                      align=ALIGNED_IN_REFINEMENT, unseen=offsets, transforms=T)
         offsets = np.where(kept[:, None], offsets, registered)
         skeleton = refine_lengths(skeleton, poses, X, segments, offsets, prior=anatomical,
-                                  fixed=fixed_lengths)
+                                  fixed=fixed_lengths, transforms=T)
         skeleton = Skeleton(skeleton.lengths, {
             **skeleton.shifts, **shoulder_shifts(skeleton, offsets, landmarks, drops)})
     best.history = history
@@ -530,7 +539,7 @@ def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:
 
     def sd_of(mask):
         sub = A[:, mask][:, :, mask] + 1e-12 * np.eye(int(mask.sum()))
-        return MARKER_SIGMA * np.sqrt(np.median(
+        return MARKER_SIGMA * np.sqrt(median(
             np.diagonal(np.linalg.inv(sub), axis1=1, axis2=2), axis=0))
 
     held: dict[str, float] = {}
@@ -607,11 +616,12 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         hint="check the labels against the protocol, or pass --protocol")
 
 
-def check_standing(static: Trial) -> None:
+def check_standing(static: Trial, *, moved: float | None = None) -> None:
     """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
     (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
-    calibrates a subject in mid-stride."""
-    moved = moved_extent(static.markers)
+    calibrates a subject in mid-stride. ``moved``: :func:`moved_extent` of its markers, when
+    already computed."""
+    moved = moved_extent(static.markers) if moved is None else moved
     if moved > STANDING_EXTENT:   # NaN, no marker seen: calibration refuses it with its reason
         raise CalibrationError(
             f"is not a standing static trial: its markers move {moved:.2f} m (median over the "
@@ -644,16 +654,17 @@ def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
                                    path=static.source,
                                    hint="give START:END within the static, in seconds from "
                                         "its first frame")
-        lo, hi = int(frames[0]), int(frames[-1]) + 1
+        lo, hi, moved = int(frames[0]), int(frames[-1]) + 1, None
     else:
         lo, hi = 0, n
         length = int(round(STATIC_WINDOW_S * static.rate)) + 1
-        if n > length and moved_extent(static.markers) > STANDING_EXTENT:
+        moved = moved_extent(static.markers)
+        if n > length and moved > STANDING_EXTENT:
             lo = quietest_stretch(static.markers, length)
             hi = lo + length
     span = (lo / static.rate, (hi - 1) / static.rate)
     if (lo, hi) == (0, n):
-        check_standing(static)
+        check_standing(static, moved=moved)
         return static, span
     part = replace(static, markers=static.markers[lo:hi], first_frame=static.first_frame + lo,
                    events=[], warnings=list(static.warnings))
@@ -676,7 +687,7 @@ def moved_extent(markers: np.ndarray, /) -> float:
     if not seen.any():
         return float("nan")
     points = markers[:, seen]
-    return float(np.median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
+    return float(median(np.linalg.norm(np.nanmax(points, axis=0) - np.nanmin(points, axis=0),
                                           axis=1)))
 
 
@@ -700,9 +711,7 @@ def quietest_stretch(markers: np.ndarray, length: int, /) -> int:
     extent = np.where(enough & np.isfinite(extent), extent, np.nan)
     markers_seen = enough.sum(axis=1)
     candidates = markers_seen >= 0.9 * markers_seen.max()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)      # a stretch seeing no marker: NaN
-        moved = np.nanmedian(extent, axis=1)
+    moved = nanmedian(extent, axis=1)                        # a stretch seeing no marker: NaN
     moved[~candidates | ~np.isfinite(moved)] = np.inf
     return int(np.argmin(moved))
 
@@ -755,10 +764,8 @@ def segment_distances(X: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, 
     seen together."""
     pairs = np.array([(i, j) for i in range(len(segments)) for j in range(i + 1, len(segments))
                       if segments[i] == segments[j]], dtype=int).reshape(-1, 2)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)          # a pair never seen: NaN
-        d = np.nanmedian(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=2), axis=0) \
-            if len(X) and len(pairs) else np.full(len(pairs), np.nan)
+    d = nanmedian(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=2), axis=0) \
+        if len(X) and len(pairs) else np.full(len(pairs), np.nan)      # a pair never seen: NaN
     return d, pairs
 
 
@@ -781,23 +788,23 @@ def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.
     if usable.sum() < MIN_PAIRS:
         return float("nan")
     diff = d_motion[usable] - d_static[usable]
-    median = float(np.median(np.abs(diff)))
-    if median > limit:
+    difference = float(median(np.abs(diff)))
+    if difference > limit:
         worst = np.argsort(-np.abs(diff))[:3]
         pairs_used = pairs[usable]
         examples = ", ".join(f"{labels[pairs_used[k, 0]]}-{labels[pairs_used[k, 1]]} "
                              f"{1000 * d_static[usable][k]:.0f} mm in the static, "
                              f"{1000 * d_motion[usable][k]:.0f} mm in the motion" for k in worst)
-        scale = float(np.exp(np.median(np.log(d_motion[usable] / d_static[usable]))))
+        scale = float(np.exp(median(np.log(d_motion[usable] / d_static[usable]))))
         raise CalibrationError(
             f"this static trial does not match the motion trial {trial.source or '(unnamed)'}: "
             f"distances between markers on one segment differ by "
-            f"{1000 * median:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
+            f"{1000 * difference:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
             f"same markers stays within {1000 * limit:.0f} mm; motion/static size ratio "
             f"{scale:.3f}); e.g. {examples}", path=static.source,
             hint="use the static recorded with this subject in this session (markers not moved "
                  "since), or calibrate from the motion itself (leave out --static)")
-    return median
+    return difference
 
 
 def static_names(paths: Sequence[str]) -> list[str]:
@@ -872,8 +879,9 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     q[:, ROOT_HEADING] += heading_offset
     if centres:
         skeleton = Skeleton(skeleton.lengths, neutral_shifts(skeleton, q, centres))
-    offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=())
-    residual = np.linalg.norm(skeleton.points(q, segments, offsets) - X, axis=2)
+    T = skeleton.forward(q)
+    offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=(), transforms=T)
+    residual = np.linalg.norm(skeleton.points(q, segments, offsets, transforms=T) - X, axis=2)
     return offsets, float(np.sqrt(np.nanmean(residual ** 2))), q, skeleton
 
 
@@ -916,20 +924,18 @@ def _mirrored_mean(shifts: dict[str, tuple[float, float, float]]
 
 def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
                       centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
-                      *, level_feet: bool = False, knee_turns: dict[str, float] | None = None
-                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                      *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """:func:`mocaplib.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
     (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
     from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
     of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
-    acromion; the knees' axes turned by ``knee_turns`` (radians per side, as
-    :func:`mocaplib.anatomy.segment_frames` takes them)."""
+    acromion."""
     T = skeleton.forward(q)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
                  for name in ("humerus_l", "humerus_r")
                  if (name, 0.0) in centres and name[-1] not in drops}
     return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                          {**centres, **shoulders}, level_feet=level_feet, knee_turns=knee_turns)
+                          {**centres, **shoulders}, level_feet=level_feet)
 
 
 def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
@@ -1004,7 +1010,7 @@ def _calibration_frames(X: np.ndarray, n_frames: int) -> np.ndarray:
         return np.arange(0)
     good = np.flatnonzero(count >= count.max() - max(1, X.shape[1] // 10))
     pick = np.linspace(0, len(good) - 1, min(n_frames, len(good))).round().astype(int)
-    return good[np.unique(pick)]
+    return good[distinct(pick)]
 
 
 def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
@@ -1018,18 +1024,14 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
     :data:`PLAUSIBLE_HEIGHT` (the file's units are wrong).
     """
     ratios = []
-    for s in np.unique(segments):
-        idx = np.flatnonzero(segments == s)
-        for a in range(len(idx)):
-            for b in range(a + 1, len(idx)):
-                ref = np.linalg.norm(nominal[idx[a]] - nominal[idx[b]])
-                d = np.nanmedian(np.linalg.norm(X[:, idx[a]] - X[:, idx[b]], axis=1)) \
-                    if np.isfinite(X[:, [idx[a], idx[b]], 0]).all(axis=1).any() else np.nan
-                if ref > 0.05 and np.isfinite(d):
-                    ratios.append(d / ref)
+    distances, pairs = segment_distances(X, segments)
+    for (a, b), d in zip(pairs, distances):
+        ref = np.linalg.norm(nominal[a] - nominal[b])
+        if ref > 0.05 and np.isfinite(d):
+            ratios.append(d / ref)
     if not ratios:
         return _protocols.REFERENCE_HEIGHT
-    height = float(np.median(ratios) * _protocols.REFERENCE_HEIGHT)
+    height = float(median(ratios) * _protocols.REFERENCE_HEIGHT)
     if not PLAUSIBLE_HEIGHT[0] <= height <= PLAUSIBLE_HEIGHT[1]:
         raise CalibrationError(
             f"the distances between markers on one segment suggest a subject {height:.3g} m "
@@ -1209,9 +1211,7 @@ def joint_shifts(skeleton: Skeleton, frames: dict[str, tuple[np.ndarray, np.ndar
             continue
         R, at = frames[parent]
         local = np.einsum("fji,fj->fi", R, origin - at)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)         # never seen together
-            shift = np.nanmedian(local, axis=0) - joints[SEGMENT_NAMES.index(name)]
+        shift = nanmedian(local, axis=0) - joints[SEGMENT_NAMES.index(name)]  # NaN: never seen
         if np.isfinite(shift).all():
             out[name] = tuple(float(x) for x in shift)
     return out
@@ -1282,7 +1282,7 @@ def _lengths_from_centres(skeleton: Skeleton,
     wrist = {seg: pos for (seg, z), pos in centres.items() if z != 0.0}
 
     def dist(a, b):
-        return np.nanmedian(np.linalg.norm(a - b, axis=1))
+        return nanmedian(np.linalg.norm(a - b, axis=1))
 
     def both_sides(key, a, b, table_b=c):
         values = [dist(c[a + s], table_b[b + s]) for s in ("_l", "_r")
@@ -1320,7 +1320,8 @@ def _virtual_markers(skeleton: Skeleton, centres: dict[tuple[str, float], np.nda
 
 def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray, *,
                      nominal: np.ndarray, align=SEGMENT_NAMES,
-                     unseen: np.ndarray | None = None) -> np.ndarray:
+                     unseen: np.ndarray | None = None,
+                     transforms: np.ndarray | None = None) -> np.ndarray:
     """Marker offsets (M, 3) in their segments for poses q (F, D) and markers X (F, M, 3).
 
     Each offset is first the least-squares one, the mean of ``R_s^T (x − t_s)`` over the frames
@@ -1332,16 +1333,17 @@ def register_offsets(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments:
     one is turned about the origin onto its nominal direction); a tracking marker (NaN row of
     ``nominal``) turns with its segment's landmark markers. The frame is thus anatomical: zero
     angles put the landmark markers in the catalogue's layout, as the DOF sign table
-    describes. Only segments named in ``align`` are turned.
+    describes. Only segments named in ``align`` are turned. ``transforms``:
+    :meth:`Skeleton.forward` (q), when already computed.
     """
-    T = skeleton.forward(q)[:, segments]
+    T = (skeleton.forward(q) if transforms is None else transforms)[:, segments]
     local = np.einsum("fmji,fmj->fmi", T[..., :3, :3], X - T[..., :3, 3])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # a marker never seen: NaN
         mean = np.nanmean(local, axis=0) if len(q) else np.full_like(nominal, np.nan)
     out = np.where(np.isfinite(mean), mean, nominal if unseen is None else unseen)
     catalogued = np.isfinite(nominal).all(axis=1) & np.isfinite(out).all(axis=1)
-    for s in np.unique(segments):
+    for s in distinct(segments):
         idx = np.flatnonzero(segments == s)
         ref = idx[catalogued[idx]]
         if SEGMENT_NAMES[s] not in align or not len(ref):
@@ -1391,19 +1393,21 @@ def _check_measured(model: SubjectModel, cal: Trial) -> None:
 
 
 def refine_lengths(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, segments: np.ndarray,
-                   offsets: np.ndarray, *, prior: dict[str, float], fixed=()) -> Skeleton:
+                   offsets: np.ndarray, *, prior: dict[str, float], fixed=(),
+                   transforms: np.ndarray | None = None) -> Skeleton:
     """Segment lengths by linear least squares for fixed poses q (F, D) and offsets (M, 3).
 
     Marker positions are affine in the lengths (joint offsets are linear in them), so one
     solve is exact: minimise Σ ||x − p(L)||² / σ_m² + Σ (L − prior)² / σ_L² with
     σ_m = :data:`MARKER_SIGMA`, σ_L = :data:`LENGTH_PRIOR`. Lengths named in ``fixed`` keep
-    their value.
+    their value. ``transforms``: :meth:`Skeleton.forward` (q), when already computed.
     """
     keys = list(HEIGHT_PROPORTIONS)
     L0 = np.array([skeleton.lengths[k] for k in keys])
-    base = skeleton.points(q, segments, offsets)
+    T = skeleton.forward(q) if transforms is None else transforms
+    base = skeleton.points(q, segments, offsets, transforms=T)
     valid = np.isfinite(X).all(axis=2)
-    G = skeleton.length_jacobian(q, segments)[valid].reshape(-1, len(keys))
+    G = skeleton.length_jacobian(q, segments, transforms=T)[valid].reshape(-1, len(keys))
     G[:, np.isin(keys, list(fixed))] = 0.0
     r = (X - base)[valid].reshape(-1)
     prior_vec = np.array([prior[k] for k in keys])

@@ -42,6 +42,7 @@ import numpy as np
 
 from .calibration import STANDING_EXTENT
 from .errors import ProtocolError
+from .numeric import nanmedian
 from .protocols import (REFERENCE_HEIGHT, _read_toml, computed_points, forward_direction,
                         is_model_output, load_landmarks, numbered_candidates, protocol_folders)
 from .skeleton import SEGMENT_NAMES, Skeleton
@@ -259,9 +260,9 @@ def body_positions(X: np.ndarray, cues: dict[str, np.ndarray]) -> tuple[np.ndarr
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         floor = np.nanpercentile(X[..., 2], 1)
-        heights = np.nanmedian(X[..., 2], axis=0) - floor
+        heights = nanmedian(X[..., 2], axis=0) - floor
         band = (heights > 0.45 * np.nanmax(heights)) & (heights < 0.72 * np.nanmax(heights))
-        origin = np.nanmedian(X[:, band if band.any() else slice(None), :2], axis=1)   # (F, 2)
+        origin = nanmedian(X[:, band if band.any() else slice(None), :2], axis=1)   # (F, 2)
     forward = forward_direction(cues, n)
     how = "the pelvis's front (ASIS and PSIS or sacrum, by name)"
     if np.isnan(forward[:, 0]).mean() > 0.5:
@@ -278,9 +279,7 @@ def body_positions(X: np.ndarray, cues: dict[str, np.ndarray]) -> tuple[np.ndarr
     d = X[..., :2] - origin[:, None]
     local = np.stack([np.einsum("fmi,fi->fm", d, forward), np.einsum("fmi,fi->fm", d, left),
                       X[..., 2] - floor], axis=2)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmedian(local, axis=0), how
+    return nanmedian(local, axis=0), how
 
 
 def rigid_groups(X: np.ndarray) -> list[list[int]]:
@@ -505,7 +504,7 @@ def _moves(X: np.ndarray) -> bool:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         extent = np.linalg.norm(np.nanmax(X, axis=0) - np.nanmin(X, axis=0), axis=1)
-        return bool(np.nanmedian(extent) > STANDING_EXTENT)
+        return bool(nanmedian(extent) > STANDING_EXTENT)
 
 
 def _motion_markers(trial: Trial, labels: list[str]) -> np.ndarray:

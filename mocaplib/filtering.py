@@ -42,6 +42,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from .errors import FitError
+from .numeric import distinct
 from .trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
@@ -228,7 +229,7 @@ def _run_groups(flat: np.ndarray, shortest: int
     ``flat[rows, columns]`` is (n, k)."""
     column, start, stop = _column_runs(np.isfinite(flat))
     length = stop - start
-    for n in np.unique(length[length >= max(shortest, 2)]):
+    for n in distinct(length[length >= max(shortest, 2)]):
         chosen = length == n
         yield start[chosen] + np.arange(n)[:, None], column[chosen][None, :]
 

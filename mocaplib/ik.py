@@ -42,6 +42,7 @@ from .errors import FitError
 from .filtering import resample
 from .runs import valid_runs
 from .motion import Motion, Repair, apply_repairs
+from .numeric import distinct, median, nanmedian
 from .protocols import label_match
 from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
@@ -120,7 +121,7 @@ assert (np.tril(_ANCESTOR, -1) <= _ANCESTOR.T).all(), "a DOF listed before its p
 #: the symmetric matrix of A's upper triangle, to the bit (halving and doubling are exact).
 _HALF_UPPER = np.triu(_ANCESTOR) - 0.5 * np.diag(np.diag(_ANCESTOR))
 #: index pairs of the 6 distinct entries of a symmetric 3x3 moment (xx, yy, zz, xy, xz, yz)
-_QI, _QJ = [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]
+_QI, _QJ = np.array([0, 1, 2, 0, 0, 1]), np.array([0, 1, 2, 1, 2, 2])
 
 
 @dataclass
@@ -418,7 +419,7 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     moments = np.empty((n, 10, m))                                              # (F, 10, M)
     moments[:, 0] = w
     wp = np.multiply(w[:, None], p, out=moments[:, 1:4])
-    np.multiply(wp[:, _QI], p[:, _QJ], out=moments[:, 4:10])
+    np.multiply(np.take(wp, _QI, axis=1), np.take(p, _QJ, axis=1), out=moments[:, 4:10])
     total = (moments.reshape(n * 10, m) @ moved).reshape(n, 10, moved.shape[1])  # (F, 10, D)
     W, P, Q = total[:, 0], total[:, 1:4], total[:, 4:10].swapaxes(0, 1)
     qxx, qyy, qzz, qxy, qxz, qyz = Q
@@ -741,7 +742,7 @@ def _warm_start(model: "SubjectModel", markers: np.ndarray, settings: dict, q0: 
     sparse = np.flatnonzero(np.diff(keys) > LONGEST_STRIDE // 2)
     if sparse.size == 0:
         return q0, None
-    ends = np.unique(np.r_[keys[sparse], keys[sparse + 1]])
+    ends = distinct(np.r_[keys[sparse], keys[sparse + 1]])
     solved = solve_poses(model.skeleton, markers[ends], model.marker_segments,
                          model.marker_offsets, q0=q0[ends], **settings)
     start, (inverse, owner) = _predict_between(model, markers, ends, solved.q, settings)
@@ -809,7 +810,7 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
     line between its positions there by more than ``tolerance`` metres (or is seen there but
     not at an end). Markers (F, M, 3), NaN where missing."""
     n = len(markers)
-    keys = np.unique(np.r_[np.arange(0, n, longest), n - 1])
+    keys = distinct(np.r_[np.arange(0, n, longest), n - 1])
     gap = longest
     seen = np.isfinite(markers[:, :, 0])
     while gap > shortest and len(keys) < n:
@@ -823,7 +824,7 @@ def keyframes(markers: np.ndarray, *, longest: int = LONGEST_STRIDE,
         if not split.any():                    # the same lines again at the next level
             break
         mid = (keys[:-1] + keys[1:]) // 2
-        keys = np.unique(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
+        keys = distinct(np.r_[keys, mid[split[1:] & (keys[1:] - keys[:-1] > 1)]])
         gap //= 2
     return keys
 
@@ -890,8 +891,8 @@ def find_repairs(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         for start, stop, inside in _merged(stretches):
             taken[start:stop, [i, j]] = True
             out.append(Repair("swap", (labels[i], labels[j]), int(start), int(stop),
-                              f"each lay {500 * np.median(own[inside]):.0f} mm from its model "
-                              f"place and {500 * np.median(other[inside]):.0f} mm from the "
+                              f"each lay {500 * median(own[inside]):.0f} mm from its model "
+                              f"place and {500 * median(other[inside]):.0f} mm from the "
                               f"other's (median of {int(inside.sum())} frames)"))
     return out
 
@@ -970,11 +971,11 @@ def far_markers(residuals: np.ndarray, labels: list[str]) -> list[Repair]:
     :data:`SWAP_MIN_FRAMES` frames, as :class:`Repair` s of kind ``"drop"`` over the frames."""
     out = []
     seen = np.isfinite(residuals)
-    median = _column_median(residuals)
-    for m in np.flatnonzero((median > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
+    typical = nanmedian(residuals, axis=0)
+    for m in np.flatnonzero((typical > OUTLIER_LIMIT) & (seen.sum(axis=0) >= SWAP_MIN_FRAMES)):
         frames = np.flatnonzero(seen[:, m])
         out.append(Repair("drop", (labels[m],), int(frames[0]), int(frames[-1]) + 1,
-                          f"it stays {1000 * median[m]:.0f} mm from its model place (median of "
+                          f"it stays {1000 * typical[m]:.0f} mm from its model place (median of "
                           f"{len(frames)} frames)"))
     return out
 
@@ -1046,8 +1047,8 @@ def suspect_threshold(residuals: np.ndarray) -> np.ndarray:
     :data:`OUTLIER_MADS` robust standard deviations (1.4826 MAD) of that marker's residuals
     (F, M) over the frames where it is seen, at least :data:`SUSPECT_FLOOR` and at most
     :data:`OUTLIER_LIMIT`."""
-    median = _column_median(residuals)
-    limit = median + OUTLIER_MADS * 1.4826 * _column_median(np.abs(residuals - median))
+    typical = nanmedian(residuals, axis=0)
+    limit = typical + OUTLIER_MADS * 1.4826 * nanmedian(np.abs(residuals - typical), axis=0)
     return np.clip(np.where(np.isfinite(limit), limit, SUSPECT_FLOOR), SUSPECT_FLOOR,
                    OUTLIER_LIMIT)
 
@@ -1088,16 +1089,6 @@ def _reject_outliers(res: PoseFit, markers: np.ndarray, model: "SubjectModel",
     return removed
 
 
-def _column_median(values: np.ndarray) -> np.ndarray:
-    """Median of each column of ``values`` (F, M) over its non-NaN entries, shape (M,); NaN
-    for a column without any (as np.nanmedian, without its masked-array path)."""
-    ordered = np.sort(values, axis=0)                      # NaN sort last
-    count = (~np.isnan(values)).sum(axis=0)
-    columns = np.arange(values.shape[1])
-    middle = 0.5 * (ordered[np.maximum(count - 1, 0) // 2, columns] + ordered[count // 2, columns])
-    return np.where(count > 0, middle, np.nan)
-
-
 def jumping_runs(error: np.ndarray, suspect: np.ndarray) -> np.ndarray:
     """The runs of ``suspect`` (F, M) bool that begin or end with a jump, (F, M) bool.
 
@@ -1130,7 +1121,7 @@ def _restart_outliers(solve, first: PoseFit) -> PoseFit:
     solution has the smaller marker RMS.
     """
     rms = _frame_rms(first.residuals)
-    suspect = rms > max(RESTART_FACTOR * np.nanmedian(rms), 0.015)
+    suspect = rms > max(RESTART_FACTOR * nanmedian(rms), 0.015)
     if not suspect.any() or suspect.all():
         return first
     start = first.q.copy()

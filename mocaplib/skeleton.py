@@ -238,7 +238,7 @@ _SPINS, _SPIN_ONE, _SPIN_COS, _SPIN_COS_DOF, _SPIN_SIN, _SPIN_SIN_DOF, _SPIN_SIN
     _spin_entries()
 _AXES = np.array([d.axis for d in DOFS])
 _ROOT = int(LEVELS[0][0][0])                             # the root segment (the pelvis)
-_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]           # cyclic index shifts for cross products
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])    # cyclic shifts for cross products
 _EYE = np.eye(3)[None, None]                             # the root's parent frame (1, 1, 3, 3)
 assert all(SEGMENTS[_SEGMENT_INDEX[DOFS[j].segment]].parent is None
            for j in SHIFTS), "chain() takes translations at the root only"
@@ -326,9 +326,10 @@ class Skeleton:
         if any(len(v) != 3 or not np.isfinite(v).all() for v in shifts.values()):
             raise MocapError(f"joint shifts must be 3 finite numbers (metres), got {self.shifts}")
         self.shifts = shifts
-        self._shift_array = np.zeros((len(SEGMENTS), 3))
+        shift_array = np.zeros((len(SEGMENTS), 3))
         for name, value in shifts.items():
-            self._shift_array[_SEGMENT_INDEX[name]] = value
+            shift_array[_SEGMENT_INDEX[name]] = value
+        self._joints = _joint_offsets(self.lengths) + shift_array     # read by every chain()
 
     def scaled(self, factor: float) -> "Skeleton":
         """This skeleton with every length and joint shift multiplied by ``factor``."""
@@ -354,15 +355,16 @@ class Skeleton:
         The root's row is zero (its position is the pelvis_t* DOFs). The lengths place each
         centre (:data:`HEIGHT_PROPORTIONS`), then :attr:`shifts` move it.
         """
-        return _joint_offsets(self.lengths) + self._shift_array
+        return self._joints.copy()
 
-    def length_jacobian(self, q: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    def length_jacobian(self, q: np.ndarray, segments: np.ndarray, *,
+                        transforms: np.ndarray | None = None) -> np.ndarray:
         """Derivative of the position of a point fixed on each of ``segments`` (M,) with respect
         to each length (:data:`HEIGHT_PROPORTIONS` order), in poses ``q`` (F, D): shape
         (F, M, 3, K), metres per metre. Exact, as positions are linear in the joint offsets and
         those in the lengths: a joint centre moves along its parent's axes, and with it all
-        below it."""
-        T = self.forward(q)
+        below it. ``transforms``: :meth:`forward` (q), when already computed."""
+        T = self.forward(q) if transforms is None else transforms
         origin = np.zeros(T.shape[:2] + _OFFSETS_PER_LENGTH.shape[1:])         # (F, S, 3, K)
         for segs, parents, *_ in LEVELS[1:]:
             origin[:, segs] = (origin[:, parents]
@@ -396,7 +398,7 @@ class Skeleton:
         if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
             raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
         n = q.shape[0]
-        offsets = self.joint_offsets()
+        offsets = self._joints
         local = elementary_rotations(q)
         out = np.empty((n, len(SEGMENTS), 4, 4))
         out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
@@ -408,10 +410,10 @@ class Skeleton:
                 R = _EYE
                 p = offsets[segments] + (q[:, SHIFTS] @ _AXES[SHIFTS])[:, None]
             else:
-                parent = out[:, parents]
+                parent = np.take(out, parents, axis=1)
                 R = parent[..., :3, :3]
                 p = (R @ offsets[segments, :, None])[..., 0] + parent[..., :3, 3]
-            turns = local[:, spins]              # (F, k, 3, 3, 3): each joint's rotations
+            turns = np.take(local, spins, axis=1)       # (F, k, 3, 3, 3): each joint's rotations
             columns = np.empty((n, len(segments), 3, 3))
             for i, letter in enumerate(letters):
                 columns[:, :, i] = R[..., letter]    # a DOF's axis: a column of the rotation so far
@@ -450,7 +452,8 @@ class Skeleton:
         about = (pts - origin[:, None]).transpose(0, 2, 1)
         return pts, twist_jacobian(twist, about, MOVES[segments]).transpose(0, 2, 1, 3)
 
-    def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    def points(self, q: np.ndarray, segments: np.ndarray, offsets: np.ndarray, *,
+               transforms: np.ndarray | None = None) -> np.ndarray:
         """World positions of points fixed in segments (markers, joint centres).
 
         Parameters
@@ -460,12 +463,13 @@ class Skeleton:
             Segment index of each point.
         offsets : ndarray, shape (M, 3)
             Each point in its segment's frame, metres.
+        transforms : :meth:`forward` (q), when already computed.
 
         Returns
         -------
         ndarray, shape (F, M, 3), metres.
         """
-        T = self.forward(q)[:, np.asarray(segments, dtype=int)]
+        T = (self.forward(q) if transforms is None else transforms)[:, np.asarray(segments, int)]
         return (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
 
 
@@ -531,5 +535,6 @@ def twist_jacobian(twist: np.ndarray, points: np.ndarray, moved: np.ndarray) -> 
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of vectors stored along axis 1 (shapes (F, 3, N)), without np.cross's
-    axis shuffling."""
-    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
+    axis shuffling (np.take: cheaper than indexing for these small gathers)."""
+    return (np.take(a, _NEXT, axis=1) * np.take(b, _AFTER, axis=1)
+            - np.take(a, _AFTER, axis=1) * np.take(b, _NEXT, axis=1))

@@ -112,3 +112,37 @@ def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
     np.testing.assert_allclose(np.median(found, axis=0), knee, atol=0.004)
     still = [marker_frames(np.broadcast_to(x, (n, 3, 3)).copy()) for x in (thigh, shank_local)]
     assert functional_centre(*still) is None                 # no turn: nothing to find
+
+
+def test_leg_frames_are_the_legs_of_segment_frames_to_the_bit():
+    # calibration builds the legs again for each trial knee axis (leg_frames) and keeps the
+    # other frames: the legs must be those segment_frames builds with the same turns
+    from mocaplib.anatomy import leg_frames, segment_frames
+
+    rng = np.random.default_rng(1)
+    n = 20
+
+    def wobble():
+        return rng.normal(scale=0.01, size=(n, 3))
+
+    centres, where = {}, {}
+    for side, y in (("l", 0.09), ("r", -0.09)):
+        centres[(f"femur_{side}", 0.0)] = np.array([0.0, y, 0.9]) + wobble()
+        centres[(f"tibia_{side}", 0.0)] = np.array([0.03, y, 0.5]) + wobble()
+        centres[(f"foot_{side}", 0.0)] = np.array([0.0, y, 0.08]) + wobble()
+        where[f"{side.upper()}_KNEE_LAT"] = np.array([0.03, y * 1.6, 0.5]) + wobble()
+        where[f"{side.upper()}_HEEL"] = np.array([-0.05, y, 0.04]) + wobble()
+        where[f"{side.upper()}_TOE"] = np.array([0.15, y, 0.03]) + wobble()
+    turns = {"l": 0.2, "r": -0.1}
+    for level_feet in (False, True):
+        whole = segment_frames(where, centres, level_feet=level_feet, knee_turns=turns)
+        for side, turn in turns.items():
+            legs = leg_frames(where, centres, side, level_feet=level_feet, knee_turn=turn)
+            assert sorted(legs) == [f"femur_{side}", f"foot_{side}", f"tibia_{side}"]
+            for name, (R, origin) in legs.items():
+                assert R.tobytes() == whole[name][0].tobytes()
+                assert origin.tobytes() == whole[name][1].tobytes()
+            # the turn turns the femur's frame about its long axis (Z)
+            plain = leg_frames(where, centres, side, level_feet=level_feet)[f"femur_{side}"][0]
+            assert np.allclose(plain[..., 2], legs[f"femur_{side}"][0][..., 2])
+            assert not np.allclose(plain[..., 1], legs[f"femur_{side}"][0][..., 1])

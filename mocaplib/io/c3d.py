@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import C3DError
+from ..numeric import distinct, percentile
 from . import open_regular, printable
 from ..trial import Event, Trial
 
@@ -711,8 +712,8 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     """
     notes: list[str] = []
     frames = markers.shape[0]
-    sample = markers[np.unique(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
-                               .astype(int))]
+    sample = markers[distinct(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
+                              .astype(int))]
     seen = np.isfinite(sample[..., 0])
     counts = seen.sum(axis=1)
     sample, seen = sample[counts >= 3], seen[counts >= 3]
@@ -723,7 +724,7 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
             seen.sum(axis=1), 1)[:, None]                  # each frame's mean seen marker
         offsets = (sample - mean[:, None])[seen]
         if len(offsets) >= 10:
-            low, high = np.percentile(np.ascontiguousarray(offsets.T), [10, 90], axis=1)
+            low, high = percentile(offsets.T, [10, 90], axis=1)
             spread = high - low
     order = np.argsort(spread)[::-1]
     fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
