@@ -57,6 +57,7 @@ import numpy as np
 
 from .errors import ProtocolError
 from .io.tomlfile import read_toml
+from .numeric import distinct, median
 from .skeleton import SEGMENT_NAMES
 from .trial import Trial, normalise_label
 
@@ -547,8 +548,8 @@ def computed_points(trial: Trial, candidates, /) -> set[int]:
         return out
     seen = np.isfinite(X).all(axis=2).astype(float)                           # (F, N)
     together = seen[:, moving].T @ seen                                       # (c, N) frames
-    screen = np.unique(np.linspace(0, len(X) - 1, min(len(X), SCREEN_FRAMES)).round()
-                       .astype(int))
+    screen = distinct(np.linspace(0, len(X) - 1, min(len(X), SCREEN_FRAMES)).round()
+                      .astype(int))
     Z = np.ascontiguousarray(X[screen].transpose(0, 2, 1))                    # (k, 3, N)
     spread = np.concatenate([_squared_deviations(Z[:, :, chunk, None] - Z[:, :, None])
                              for chunk in np.array_split(moving, -(-moving.size // 64))])
@@ -791,9 +792,9 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
             continue
         lateral = np.einsum("fi,fi->f", by_landmark[lm][:, :2] - by_landmark[rm][:, :2], left)
         lateral = lateral[np.isfinite(lateral)]
-        if lateral.size and np.median(lateral) < -SWAP_MARGIN:
+        if lateral.size and median(lateral) < -SWAP_MARGIN:
             out.append(f"left/right swap suspected: {label_of[lm]} (labelled left) lies "
-                       f"{-np.median(lateral) * 100:.0f} cm to the subject's RIGHT of "
+                       f"{-median(lateral) * 100:.0f} cm to the subject's RIGHT of "
                        f"{label_of[rm]} in {np.mean(lateral < 0):.0%} of {lateral.size} frames; "
                        "check the labelling (not corrected)")
     return tuple(out)

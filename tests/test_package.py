@@ -6,7 +6,6 @@ import importlib.util
 import subprocess
 import sys
 
-import pytest
 
 import mocaplib
 from conftest import REPO
@@ -80,9 +79,6 @@ def test_fit_imports_nothing_heavy(sample_dir, tmp_path):
     assert (tmp_path / "angles.csv").read_text().startswith("time_s,pelvis_tx,")
 
 
-@pytest.mark.xfail(strict=True, reason="protocols.find_side_swaps' np.median imports numpy.ma "
-                   "(numpy 2's np.median, np.percentile and np.unique look it up); "
-                   "mocaplib.numeric.median gives its value without it")
 def test_fit_does_not_import_numpy_ma(sample_dir, tmp_path):
     # numpy.ma costs ~7 ms of the command's start-up; the stages of the fit use
     # mocaplib.numeric's reductions instead of numpy's that import it
