@@ -74,7 +74,7 @@ def _run(args) -> int:
         if args.osim:
             write_osim(model, args.osim)
     quality = fit_quality(motion)
-    for note in fitted.warnings:
+    for note in [*trial.warnings, *fitted.warnings]:
         warn(f"{args.input}: {note}")
     if args.json:
         print_json({"file": args.input, "protocol": model.protocol.name, "static": static,

@@ -17,11 +17,12 @@ What :func:`read_c3d` does
       finite, or when all three coordinates are exactly 0 (how Vicon/CMU files store a missing
       sample with a non-negative residual; a real marker never sits exactly at the origin).
     * Labels from POINT:LABELS, LABELS2, LABELS3... (files with more than 255 points), NULs and
-      padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``.
+      padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``,
+      as are the subject prefixes of a file whose labels name several (``A:LASI``, ``B:LASI``).
     * Points the file itself declares as model outputs (labels listed in POINT:ANGLES, FORCES,
       MOMENTS, POWERS, SCALARS, REACTIONS) are dropped, with one warning giving the count.
     * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
-    * Vertical axis: see :func:`detect_vertical_axis`; Y-up files are rotated +90 degrees about X
+    * Vertical axis: see :func:`detect_vertical_axis` (each subject's markers apart); Y-up files are rotated +90 degrees about X
       (x, y, z) -> (x, -z, y), a proper rotation, so the Trial is Z up and right-handed.
     * Events from the EVENT group (CONTEXTS, LABELS, TIMES as minutes/seconds) in seconds on the
       lab clock (frame ``first_frame`` is at ``(first_frame - 1) / rate``).
@@ -104,8 +105,14 @@ def _read_trial(handle, path: Path) -> Trial:
     if duplicates:
         notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
 
-    screen = _screen_up_axis(reader)
-    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
+    subjects = subject_prefixes(labels)
+    prefixes = sorted(set(subjects) - {""})
+    if len(prefixes) > 1:
+        notes.append(f"labels of {len(prefixes)} subjects ({', '.join(prefixes)}): each "
+                     "landmark is taken from the first label that names it, whichever subject "
+                     "it belongs to; export one subject per file to fit each")
+    axis, axis_notes = detect_vertical_axis(markers, screen_axis=_screen_up_axis(reader),
+                                            subjects=subjects)
     notes.extend(axis_notes)
     if axis == "Y":
         for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
@@ -698,33 +705,45 @@ def _screen_up_axis(reader) -> str | None:
     return text[-1] if text[-1:] in ("X", "Y", "Z") else None
 
 
-def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None
-                         ) -> tuple[str, list[str]]:
+def subject_prefixes(labels: list[str], /) -> list[str]:
+    """Each label's subject prefix: the text before its last ``:`` (``Subj01`` of
+    ``Subj01:LASI``), ``""`` for a label without one."""
+    return [label.rpartition(":")[0] for label in labels]
+
+
+def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None,
+                         subjects: list[str] | None = None) -> tuple[str, list[str]]:
     """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)``; and notes.
 
     Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames each
-    marker is taken relative to the frame's mean marker; the axis with the widest spread of
-    those offsets (10th to 90th percentile) is the body's long axis, i.e. vertical. It must beat
-    the next axis by 25 %; otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides,
-    and Z without it. When POINT:Y_SCREEN names another axis than the data, the data win and a
-    note says so. Only Y and Z are supported as vertical axes.
+    marker is taken relative to the mean of its subject's markers in the frame (``subjects``,
+    length M, :func:`subject_prefixes`: the people of a file with several stand apart on the
+    floor, which would otherwise look like one wide body; default: one subject), where 3 or
+    more of them are seen; the axis with the widest spread of those offsets (10th to 90th
+    percentile) is the body's long axis, i.e. vertical. It must beat the next axis by 25 %;
+    otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides, and Z without it. When
+    POINT:Y_SCREEN names another axis than the data, the data win and a note says so. Only Y
+    and Z are supported as vertical axes.
     """
     notes: list[str] = []
     frames = markers.shape[0]
     sample = markers[np.unique(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
                                .astype(int))]
-    seen = np.isfinite(sample[..., 0])
-    counts = seen.sum(axis=1)
-    sample, seen = sample[counts >= 3], seen[counts >= 3]
+    seen = np.isfinite(sample).all(axis=2)
+    subjects = np.array([""] * markers.shape[1] if subjects is None else subjects)
+    offsets = []
+    for subject in np.unique(subjects):
+        own, seen_own = sample[:, subjects == subject], seen[:, subjects == subject]
+        counts = seen_own.sum(axis=1)
+        mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
+            counts, 1)[:, None]                            # each frame's mean seen marker
+        seen_own &= (counts >= 3)[:, None]
+        offsets.append((own - mean[:, None])[seen_own])
+    offsets = np.concatenate(offsets)
     spread = np.zeros(3)
-    if len(sample):
-        seen &= np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
-        mean = np.where(seen[..., None], sample, 0.0).sum(axis=1) / np.maximum(
-            seen.sum(axis=1), 1)[:, None]                  # each frame's mean seen marker
-        offsets = (sample - mean[:, None])[seen]
-        if len(offsets) >= 10:
-            low, high = np.percentile(np.ascontiguousarray(offsets.T), [10, 90], axis=1)
-            spread = high - low
+    if len(offsets) >= 10:
+        low, high = np.percentile(np.ascontiguousarray(offsets.T), [10, 90], axis=1)
+        spread = high - low
     order = np.argsort(spread)[::-1]
     fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
