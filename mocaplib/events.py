@@ -708,7 +708,7 @@ def feet_of(trial, match, /, *, motion=None
     modelled = motion.model_markers() if motion is not None else None
 
     def track(side, label):
-        measured = match.marker(trial, label)
+        measured = stored = match.marker(trial, label)
         if motion is not None:
             measured = motion.repaired_track(label, lambda other: match.marker(trial, other))
         points = measured
@@ -717,6 +717,13 @@ def feet_of(trial, match, /, *, motion=None
             usable = (np.isnan(measured) & ~np.asarray(motion.failed, dtype=bool)[:, None]
                       & _between_samples(np.isfinite(measured).all(axis=1))[:, None])
             points = np.where(usable, model_points, measured)
+        if np.isnan(points[:, 2]).all() and not np.isnan(stored[:, 2]).all():
+            raise EventError(f"{side} foot marker {label} was left out by the fit in every "
+                             "frame: it stays far from where the calibrated skeleton puts it",
+                             path=trial.source,
+                             hint="check its label and the file's vertical axis (the fit's "
+                                  "warnings name the markers left out; a file whose vertical "
+                                  "axis points down leaves most of them out)")
         if np.isnan(points[:, 2]).all():
             raise EventError(f"{side} foot marker {label} is missing in every frame",
                              path=trial.source,

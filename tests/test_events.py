@@ -146,6 +146,24 @@ def test_a_foot_marker_missing_in_every_frame_is_named():
         feet_of(trial, match_trial(trial, "fullbody38"))
 
 
+def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing(real_c3d):
+    """PiG_Motion-FlatFoot-Full stored upside down (Z down: turned 180 degrees about X): the
+    fit leaves the heels out in every frame, though the file holds them in every frame; the
+    events must say so, not that the marker is missing."""
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+    from mocaplib.workflow import fit_capture
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    trial.markers[..., 1:] *= -1
+    match = match_trial(trial, "auto")
+    motion = fit_capture(trial, protocol=match).motion
+    assert np.isfinite(match.marker(trial, "LHEE")).all()
+    with pytest.raises(EventError, match=r"PiG_Motion-FlatFoot-Full.c3d: left foot marker LHEE "
+                                         r"was left out by the fit in every frame.*vertical axis"):
+        feet_of(trial, match, motion=motion)
+
+
 @pytest.mark.usefixtures("sample_dir")
 def test_a_capture_without_a_heel_label_is_told_what_to_do():
     # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
