@@ -95,6 +95,22 @@ def test_model_outputs_are_dropped_with_one_warning(real_c3d):
     assert {"LSHO", "RSHO", "LHEE", "RHEE"} <= set(trial.names)
 
 
+def test_a_corrupt_sample_astronomically_far_is_missing(real_c3d, tmp_path):
+    """One float word of LKNE corrupt (1e17 m, as garbage floats mostly are): read as missing,
+    the rest as it was; kept, the low-pass filter spreads it over the whole track and the fit
+    leaves LKNE, LTIB, LANK, LHEE and LTOE out in every frame."""
+    original = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    markers = original.markers.copy()
+    knee = original.labels.index("LKNE")
+    markers[100, knee] = 1e17
+    trial = read_c3d(write_c3d(tmp_path / "corrupt.c3d", markers, original.labels,
+                               original.rate))
+    assert np.isnan(trial.markers[100, knee]).all()
+    markers[100, knee] = np.nan
+    # float32 storage in mm: 1e-6 m is below its step at a few metres
+    np.testing.assert_allclose(trial.markers, markers, atol=1e-6)
+
+
 def test_dec_file_with_nul_padded_units(real_c3d):
     trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.units == "mm"  # stored as 'mm\x00\x00'

@@ -14,8 +14,10 @@ What :func:`read_c3d` does
       (POINT:SCALE > 0, coordinates = int16 x SCALE) or float storage (SCALE < 0), for Intel,
       DEC (VAX F-float, converted vectorised) and SGI/MIPS (big-endian) processor types.
       A sample is missing (NaN) when its residual word is negative, when a coordinate is not
-      finite, or when all three coordinates are exactly 0 (how Vicon/CMU files store a missing
-      sample with a non-negative residual; a real marker never sits exactly at the origin).
+      finite or lies beyond :data:`MAX_COORDINATE_M` (a corrupt word: garbage floats are mostly
+      astronomically large), or when all three coordinates are exactly 0 (how Vicon/CMU files
+      store a missing sample with a non-negative residual; a real marker never sits exactly at
+      the origin).
     * Labels from POINT:LABELS, LABELS2, LABELS3... (files with more than 255 points), NULs and
       padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``,
       as are the subject prefixes of a file whose labels name several (``A:LASI``, ``B:LASI``).
@@ -60,6 +62,10 @@ _AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by t
 CHUNK_BYTES = 1 << 23
 #: The largest frame count a 16-bit field holds: a file whose count is at it may hold more.
 UINT16_MAX = 65535
+#: Coordinates (m) beyond this are corrupt words, read as missing: no capture volume is near
+#: 10 km across, and one stray sample of 1e17 m spoils its whole marker track in the low-pass
+#: filter (and, with it, the markers calibrated against it).
+MAX_COORDINATE_M = 1e4
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
@@ -519,9 +525,9 @@ def _point_words(data, layout: PointLayout, points: list[int] | None) -> np.ndar
 
 
 def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
-             out: np.ndarray | None = None) -> np.ndarray:
+             out: np.ndarray | None = None, bound: float = np.inf) -> np.ndarray:
     """Markers (F, M, 3) float64 of stored words ``block`` (F, M, 4), written into ``out``
-    when given."""
+    when given; NaN where invalid, a coordinate beyond ``bound`` (output units) included."""
     is_float = layout.scale < 0
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
@@ -530,7 +536,8 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
         markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
-        valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
+        valid = ((block[..., 3] >= 0) & np.isfinite(x + y + z)
+                 & ((x != 0) | (y != 0) | (z != 0)) & (np.abs(markers) <= bound).all(axis=-1))
     np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
 
@@ -538,7 +545,8 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
 def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
                  path: Path) -> np.ndarray:
     """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
-    read :data:`CHUNK_BYTES` of frames at a time."""
+    ``factor`` its units to metres, coordinates beyond :data:`MAX_COORDINATE_M` missing; read
+    :data:`CHUNK_BYTES` of frames at a time."""
     frame_bytes = _frame_bytes(layout)
     step = max(1, CHUNK_BYTES // frame_bytes)
     out = np.empty((layout.frames, len(points), 3))
@@ -551,7 +559,7 @@ def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
             raise C3DError("the file is shorter than when it was opened (written to while "
                            "read?)", path=path, hint="read it again once it is complete")
         _decoded(_point_words(view, chunk, points), chunk, factor,
-                 out=out[first:first + chunk.frames])
+                 out=out[first:first + chunk.frames], bound=MAX_COORDINATE_M)
     return out
 
 
