@@ -4,7 +4,9 @@ The detector uses only features that need no direction of progression, so it wor
 straight walking at any speed, curves, turning on the spot, side-steps, diagonal steps and
 running, overground or on a treadmill:
 
-1. **Gaps.** Missing samples (NaN) are filled linearly over gaps up to ``max_gap_s``; longer
+1. **Gaps.** Spikes (a ghost of a heel or toe for a few frames) are gapped
+   (:func:`mocaplib.filtering.remove_spikes`), then missing samples (NaN) are filled linearly
+   over gaps up to ``max_gap_s``; longer
    gaps stay missing and no event is placed in or next to them: every event lies between two
    frames where the foot's heel and toe are known (measured, or filled inside a gap).
 2. **Floor.** Heights are taken above the floor each point stands on: a plane (one offset per
@@ -71,7 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from .errors import UNITS_HINT, EventError
-from .filtering import lowpass
+from .filtering import lowpass, remove_spikes
 from .runs import valid_runs
 from .trial import check_gait_rate
 
@@ -237,6 +239,7 @@ def _prepared_feet(feet, rate, config: EventSettings, source) -> list[_Foot]:
     prepared = []
     for side in (side for side in SIDES if side in feet):
         heel, toe = _checked_points(*feet[side], rate, side, source)
+        heel, toe = remove_spikes(np.stack([heel, toe], axis=1), rate).transpose(1, 0, 2)
         given = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
         raw, points, velocity = _prepared(heel, toe, rate, config.cutoff_hz, config.max_gap_s)
         prepared.append(_Foot(side, given, raw, points, velocity, *_floor(points, velocity)))

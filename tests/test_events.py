@@ -164,6 +164,23 @@ def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing(real_c3
         feet_of(trial, match, motion=motion)
 
 
+def test_a_ghost_heel_for_three_frames_does_not_move_the_events(real_c3d):
+    """LHEE of PiG_Motion-FlatFoot-Full 2 m away for 3 frames, 5 frames before a left heel
+    strike: low-passed with the track it moved that heel strike 65 ms early; gapped first
+    (:func:`mocaplib.filtering.remove_spikes`), every event stays within a frame."""
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    match = match_trial(trial, "auto")
+    before = capture_events(trial, match)[0]
+    trial.markers[150:153, trial.labels.index("LHEE")] += [2.0, 1.0, 0.0]
+    after = capture_events(trial, match)[0]
+    assert [(e.side, e.kind) for e in after] == [(e.side, e.kind) for e in before]
+    np.testing.assert_allclose([e.time_s for e in after], [e.time_s for e in before],
+                               atol=1 / trial.rate)
+
+
 @pytest.mark.usefixtures("sample_dir")
 def test_a_capture_without_a_heel_label_is_told_what_to_do():
     # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
