@@ -111,6 +111,24 @@ def test_a_corrupt_sample_astronomically_far_is_missing(real_c3d, tmp_path):
     np.testing.assert_allclose(trial.markers, markers, atol=1e-6)
 
 
+def test_model_outputs_are_dropped_whatever_the_subject_prefix(real_c3d, tmp_path):
+    """PiG_Motion-FlatFoot-Full with its labels prefixed (``Patient_03:LHipAngles``) while
+    POINT:ANGLES, FORCES... keep the bare names (a relabelling script that touched LABELS
+    only): its 80 model outputs are still dropped; kept, their angles in degrees and forces in
+    newtons read as 80 more markers and the vertical axis looked unclear."""
+    ezc3d = pytest.importorskip("ezc3d")
+    source = real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+    c3d = ezc3d.c3d(str(source))
+    point = c3d["parameters"]["POINT"]
+    point["LABELS"]["value"] = [f"Patient_03:{label}" for label in point["LABELS"]["value"]]
+    path = tmp_path / "prefixed.c3d"
+    c3d.write(str(path))
+    original, trial = read_c3d(source), read_c3d(path)
+    assert trial.labels == [f"Patient_03:{label}" for label in original.labels]
+    assert trial.warnings == original.warnings          # the one note: 80 outputs dropped
+    np.testing.assert_array_equal(trial.markers, original.markers)
+
+
 def test_dec_file_with_nul_padded_units(real_c3d):
     trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.units == "mm"  # stored as 'mm\x00\x00'

@@ -22,7 +22,8 @@ What :func:`read_c3d` does
       padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``,
       as are the subject prefixes of a file whose labels name several (``A:LASI``, ``B:LASI``).
     * Points the file itself declares as model outputs (labels listed in POINT:ANGLES, FORCES,
-      MOMENTS, POWERS, SCALARS, REACTIONS) are dropped, with one warning giving the count.
+      MOMENTS, POWERS, SCALARS, REACTIONS, subject prefixes aside) are dropped, with one
+      warning giving the count.
     * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
     * Vertical axis: see :func:`detect_vertical_axis` (each subject's markers apart); Y-up files are rotated +90 degrees about X
       (x, y, z) -> (x, -z, y), a proper rotation, so the Trial is Z up and right-handed.
@@ -100,7 +101,7 @@ def _read_trial(handle, path: Path) -> Trial:
     labels = _point_labels(reader, layout.count, path, notes)
     units, to_metres = _point_units(reader, path, notes)
     declared = _model_outputs(reader, path)
-    keep = [i for i, label in enumerate(labels) if label not in declared]
+    keep = [i for i, label in enumerate(labels) if label.rpartition(":")[2] not in declared]
     if len(keep) < len(labels):
         notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
                      f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
@@ -634,13 +635,14 @@ def _point_units(reader, path: Path, notes: list[str]) -> tuple[str, float]:
 
 
 def _model_outputs(reader, path: Path) -> set[str]:
-    """Labels the file declares as model outputs (angles, forces...), as stripped strings."""
+    """Labels the file declares as model outputs (angles, forces...), as stripped strings
+    without their subject prefix: a file may list ``LHipAngles`` for ``Subj01:LHipAngles``."""
     declared: set[str] = set()
     for name in MODEL_OUTPUT_PARAMETERS:
         key = f"POINT:{name}"
         param = reader.get(key)
         if param is not None and param.bytes_per_element == -1:
-            declared.update(_strings(param, path, key))
+            declared.update(text.rpartition(":")[2] for text in _strings(param, path, key))
     declared.discard("")
     return declared
 
