@@ -53,6 +53,8 @@ def _run(args) -> int:
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
+    for note in trial.warnings:         # said before the fit, which they may explain
+        warn(f"{args.input}: {note}")
     match = match_trial(trial, args.protocol)
     missing = missing_landmarks_error(match, args.input)
     if missing is not None:
@@ -74,7 +76,7 @@ def _run(args) -> int:
         if args.osim:
             write_osim(model, args.osim)
     quality = fit_quality(motion)
-    for note in [*trial.warnings, *fitted.warnings]:
+    for note in fitted.warnings:
         warn(f"{args.input}: {note}")
     if args.json:
         print_json({"file": args.input, "protocol": model.protocol.name, "static": static,
