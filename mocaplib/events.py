@@ -724,9 +724,9 @@ def feet_of(trial, match, /, *, motion=None
             raise EventError(f"{side} foot marker {label} was left out by the fit in every "
                              "frame: it stays far from where the calibrated skeleton puts it",
                              path=trial.source,
-                             hint="check its label and the file's vertical axis (the fit's "
-                                  "warnings name the markers left out; a file whose vertical "
-                                  "axis points down leaves most of them out)")
+                             hint="check its label, and that the file's vertical axis points "
+                                  "up: the fit's warnings name the markers it left out, and a "
+                                  "file stored upside down leaves most of them out")
         if np.isnan(points[:, 2]).all():
             raise EventError(f"{side} foot marker {label} is missing in every frame",
                              path=trial.source,

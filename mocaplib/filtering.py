@@ -310,9 +310,9 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto"
     """The trial with low-pass filtered markers, and the cutoff used (Hz; None: unfiltered).
 
     ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the trial's markers) or None /
-    ``"none"`` (the trial itself is returned). Spikes are gapped first (:func:`remove_spikes`). The cutoff is returned only when some run of
-    valid samples was long enough to be filtered (:func:`shortest_run`); otherwise the trial
-    itself and None. The input trial is not modified. Raises :class:`FitError` for a frame rate
+    ``"none"`` (the trial itself is returned). Spikes are gapped first (:func:`remove_spikes`).
+    The cutoff is returned only when some run of valid samples was long enough to be filtered
+    (:func:`shortest_run`); otherwise the trial itself and None. The input trial is not modified. Raises :class:`FitError` for a frame rate
     no gait capture has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in
     (0, rate / 2), or a cutoff in Hz whose period is longer than the whole capture.
     """

@@ -25,8 +25,9 @@ What :func:`read_c3d` does
       MOMENTS, POWERS, SCALARS, REACTIONS, subject prefixes aside) are dropped, with one
       warning giving the count.
     * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
-    * Vertical axis: see :func:`detect_vertical_axis` (each subject's markers apart); Y-up files are rotated +90 degrees about X
-      (x, y, z) -> (x, -z, y), a proper rotation, so the Trial is Z up and right-handed.
+    * Vertical axis: see :func:`detect_vertical_axis` (each subject's markers apart); Y-up
+      files are rotated +90 degrees about X (x, y, z) -> (x, -z, y), a proper rotation, so the
+      Trial is Z up and right-handed.
     * Events from the EVENT group (CONTEXTS, LABELS, TIMES as minutes/seconds) in seconds on the
       lab clock (frame ``first_frame`` is at ``(first_frame - 1) / rate``).
 
