@@ -312,9 +312,10 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto"
     ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the trial's markers) or None /
     ``"none"`` (the trial itself is returned). Spikes are gapped first (:func:`remove_spikes`).
     The cutoff is returned only when some run of valid samples was long enough to be filtered
-    (:func:`shortest_run`); otherwise the trial itself and None. The input trial is not modified. Raises :class:`FitError` for a frame rate
-    no gait capture has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in
-    (0, rate / 2), or a cutoff in Hz whose period is longer than the whole capture.
+    (:func:`shortest_run`); otherwise the trial itself and None. The input trial is not
+    modified. Raises :class:`FitError` for a frame rate no gait capture has
+    (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in (0, rate / 2), or a cutoff in
+    Hz whose period is longer than the whole capture.
     """
     check_gait_rate(trial.rate, trial.source, FitError)
     if cutoff is None or cutoff == "none" or trial.n_frames == 0:
