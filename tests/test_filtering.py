@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.filtering import (MIN_RUN, SPIKE_DISTANCE, filter_trial, lowpass, remove_spikes,
-                                residual_cutoff, residual_curve)
+from mocaplib.filtering import (MIN_RUN, filter_trial, lowpass, remove_spikes, residual_cutoff,
+                                residual_curve)
 from mocaplib.runs import valid_runs
 from mocaplib.trial import Trial
 
@@ -304,8 +304,8 @@ def test_automatic_cutoffs_of_the_samples_are_those_of_the_filter_applied(sample
 
 
 def test_remove_spikes_gaps_a_ghost_and_nothing_of_fast_smooth_motion():
-    """A foot swinging at 10 m/s peak (0.5 m in 0.1 s at 100 Hz) keeps every sample; a ghost
-    2 m away for 3 frames is gapped, and so is a lone sample 1 m away."""
+    """A foot swinging at 10 m/s peak keeps every sample but a ghost 2 m away for 3 frames;
+    a lone sample 1 m away is gapped too."""
     rate = 100.0
     t = np.arange(200) / rate
     swing = np.stack([0.5 * np.sin(2 * np.pi * 3.2 * t), 0.1 * np.cos(2 * np.pi * 3.2 * t),
@@ -320,8 +320,7 @@ def test_remove_spikes_gaps_a_ghost_and_nothing_of_fast_smooth_motion():
     expected[100:103, 0] = np.nan
     expected[150, 1] = np.nan
     np.testing.assert_array_equal(cleaned, expected)
-    np.testing.assert_array_equal(remove_spikes(markers, rate), markers)
-    assert SPIKE_DISTANCE > 2 * np.abs(np.diff(swing, axis=0)).max()  # the test is not trivial
+    assert np.linalg.norm(np.diff(swing, axis=0), axis=1).max() * rate > 9.9   # m/s
 
 
 def test_a_ghost_of_three_frames_fits_as_a_gap_would(real_c3d):
