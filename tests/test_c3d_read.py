@@ -129,6 +129,18 @@ def test_model_outputs_are_dropped_whatever_the_subject_prefix(real_c3d, tmp_pat
     np.testing.assert_array_equal(trial.markers, original.markers)
 
 
+def test_units_spelled_out_are_refused_saying_what_to_do(real_c3d, tmp_path):
+    ezc3d = pytest.importorskip("ezc3d")
+    c3d = ezc3d.c3d(str(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")))
+    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["millimeters"]
+    path = tmp_path / "spelled.c3d"
+    c3d.write(str(path))
+    with pytest.raises(C3DError, match=r"spelled.c3d: unknown POINT:UNITS 'millimeters' "
+                                       r"\(mocaplib knows mm, cm, dm, m: set POINT:UNITS to the "
+                                       r"one the coordinates are in, or re-export the file\)"):
+        read_c3d(path)
+
+
 def test_dec_file_with_nul_padded_units(real_c3d):
     trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.units == "mm"  # stored as 'mm\x00\x00'

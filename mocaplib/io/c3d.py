@@ -631,7 +631,8 @@ def _point_units(reader, path: Path, notes: list[str]) -> tuple[str, float]:
     factor = UNITS_TO_METRES.get(units.lower())
     if factor is None:
         raise C3DError(f"unknown POINT:UNITS {units!r}", path=path,
-                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}")
+                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}: set POINT:UNITS to "
+                            "the one the coordinates are in, or re-export the file")
     return units, factor
 
 
