@@ -4,15 +4,17 @@ The detector uses only features that need no direction of progression, so it wor
 straight walking at any speed, curves, turning on the spot, side-steps, diagonal steps and
 running, overground or on a treadmill:
 
-1. **Gaps.** Missing samples (NaN) are filled linearly over gaps up to ``max_gap_s``; longer
+1. **Gaps.** Spikes (a ghost of a heel or toe for a few frames) are gapped
+   (:func:`mocaplib.filtering.remove_spikes`), then missing samples (NaN) are filled linearly
+   over gaps up to ``max_gap_s``; longer
    gaps stay missing and no event is placed in or next to them: every event lies between two
    frames where the foot's heel and toe are known (measured, or filled inside a gap).
 2. **Floor.** Heights are taken above the floor each point stands on: a plane (one offset per
    point, one slope) fitted to the samples where the point stands still relative to the ground,
    so tilted lab floors (the CMU walkway rises ~2.5 cm per stride) and raised treadmill belts
    (the running file's heels never go below 0.24 m) need no setting. The ground's velocity
-   (zero overground, the belt's on a treadmill) is the foot's median horizontal velocity while
-   low.
+   (zero overground, the belt's on a treadmill) is the horizontal velocity most of the foot's
+   frames near the floor share: the foot flat on it.
 3. **Swings.** On low-passed points (:func:`mocaplib.filtering.lowpass`: zero-lag Butterworth,
    gap-aware, ``cutoff_hz`` its -3 dB point),
    the foot is in contact when its lowest point is within ``min_clearance`` of the floor *and*
@@ -71,7 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from .errors import UNITS_HINT, EventError
-from .filtering import lowpass
+from .filtering import lowpass, remove_spikes
 from .runs import valid_runs
 from .trial import check_gait_rate
 
@@ -187,7 +189,8 @@ def ground_velocity(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: flo
     zeros overground (an estimate slower than ``min_speed`` counts as overground).
 
     ``feet`` and ``settings`` as for :func:`detect_events`. The estimate is the median, over
-    the feet, of each foot's median horizontal velocity while low (module docstring, step 2).
+    the feet, of the horizontal velocity each foot shares with the floor (module docstring,
+    step 2).
     Pass it to :func:`mocaplib.cycles.analyse_cycles` so treadmill cycles are measured relative
     to the belt (a runner on a belt at 2.2 m/s runs at 2.2 m/s, not on the spot).
     """
@@ -236,6 +239,7 @@ def _prepared_feet(feet, rate, config: EventSettings, source) -> list[_Foot]:
     prepared = []
     for side in (side for side in SIDES if side in feet):
         heel, toe = _checked_points(*feet[side], rate, side, source)
+        heel, toe = remove_spikes(np.stack([heel, toe], axis=1), rate).transpose(1, 0, 2)
         given = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
         raw, points, velocity = _prepared(heel, toe, rate, config.cutoff_hz, config.max_gap_s)
         prepared.append(_Foot(side, given, raw, points, velocity, *_floor(points, velocity)))
@@ -401,9 +405,9 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
     """Heights (2, F) of heel and toe above the floor they stand on (m), and the floor's
     horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill).
 
-    The ground velocity is the median horizontal velocity of the foot over the frames where
-    its lowest point is within 3 cm of its lowest height, then again over those of them that
-    move within ``still_speed`` of that first estimate. Samples where a point moves slower
+    The ground velocity is the horizontal velocity most of the frames where the foot's
+    lowest point is within 3 cm of its lowest height share (:func:`_shared_velocity`, within
+    ``still_speed``): the foot flat on the floor. Samples where a point moves slower
     than ``still_speed`` relative to the ground are standing on the floor; the floor is the
     plane ``z = a_p + slope·xy`` (an offset per point, one slope) fitted to them by least
     squares, dropping samples more than 1 cm off and refitting. Lab floors and calibrations
@@ -419,12 +423,7 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
         near = (rough.min(axis=0) < 0.03) & np.isfinite(centre_velocity[:, 0])
     ground = np.zeros(3)
     if near.any():
-        ground[:2] = np.median(centre_velocity[near, :2], axis=0)
-        # again over the frames that move with that estimate: flat on the floor, not rolling
-        with np.errstate(invalid="ignore"):
-            flat = near & (np.linalg.norm(centre_velocity - ground, axis=1) < still_speed)
-        if flat.any():
-            ground[:2] = np.median(centre_velocity[flat, :2], axis=0)
+        ground[:2] = _shared_velocity(centre_velocity[near, :2], still_speed)
         if not _is_belt(centre_velocity, near, ground, still_speed):
             ground[:] = 0.0
     with np.errstate(invalid="ignore"):
@@ -452,6 +451,25 @@ def _floor(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2
         keep = new_keep
     floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
     return z - floor, ground
+
+
+def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
+    """The horizontal velocity (2,) m/s most of ``velocity`` (N, 2) share: of 256 evenly
+    spaced samples, the one with the most of 4096 evenly spaced samples within ``radius``/2;
+    then, twice, the median of the samples within ``radius`` of it.
+
+    A foot near the floor is flat on it (moving with the ground) for most of its stance, and
+    arriving or leaving for the rest, each at its own speed: the median of all lies between
+    the two, 0.17 m/s off a belt's speed on a short treadmill capture, and may sit further
+    than ``radius`` from it; the velocity most samples share is the flat foot's.
+    """
+    sample = velocity[np.linspace(0, len(velocity) - 1, min(len(velocity), 4096)).astype(int)]
+    picks = sample[np.linspace(0, len(sample) - 1, min(len(sample), 256)).astype(int)]
+    close = np.linalg.norm(sample[None] - picks[:, None], axis=2) < radius / 2     # (256, 4096)
+    shared = picks[np.argmax(close.sum(axis=1))]
+    for _ in range(2):
+        shared = np.median(velocity[np.linalg.norm(velocity - shared, axis=1) < radius], axis=0)
+    return shared
 
 
 def _is_belt(centre_velocity: np.ndarray, low: np.ndarray, ground: np.ndarray,
@@ -693,7 +711,7 @@ def feet_of(trial, match, /, *, motion=None
     modelled = motion.model_markers() if motion is not None else None
 
     def track(side, label):
-        measured = match.marker(trial, label)
+        measured = stored = match.marker(trial, label)
         if motion is not None:
             measured = motion.repaired_track(label, lambda other: match.marker(trial, other))
         points = measured
@@ -702,6 +720,13 @@ def feet_of(trial, match, /, *, motion=None
             usable = (np.isnan(measured) & ~np.asarray(motion.failed, dtype=bool)[:, None]
                       & _between_samples(np.isfinite(measured).all(axis=1))[:, None])
             points = np.where(usable, model_points, measured)
+        if np.isnan(points[:, 2]).all() and not np.isnan(stored[:, 2]).all():
+            raise EventError(f"{side} foot marker {label} was left out by the fit in every "
+                             "frame: it stays far from where the calibrated skeleton puts it",
+                             path=trial.source,
+                             hint="check its label, and that the file's vertical axis points "
+                                  "up: the fit's warnings name the markers it left out, and a "
+                                  "file stored upside down leaves most of them out")
         if np.isnan(points[:, 2]).all():
             raise EventError(f"{side} foot marker {label} is missing in every frame",
                              path=trial.source,

@@ -95,6 +95,52 @@ def test_model_outputs_are_dropped_with_one_warning(real_c3d):
     assert {"LSHO", "RSHO", "LHEE", "RHEE"} <= set(trial.names)
 
 
+def test_a_corrupt_sample_astronomically_far_is_missing(real_c3d, tmp_path):
+    """One float word of LKNE corrupt (1e17 m, as garbage floats mostly are): read as missing,
+    the rest as it was; kept, the low-pass filter spreads it over the whole track and the fit
+    leaves LKNE, LTIB, LANK, LHEE and LTOE out in every frame."""
+    original = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    markers = original.markers.copy()
+    knee = original.labels.index("LKNE")
+    markers[100, knee] = 1e17
+    trial = read_c3d(write_c3d(tmp_path / "corrupt.c3d", markers, original.labels,
+                               original.rate))
+    assert np.isnan(trial.markers[100, knee]).all()
+    markers[100, knee] = np.nan
+    # float32 storage in mm: 1e-6 m is below its step at a few metres
+    np.testing.assert_allclose(trial.markers, markers, atol=1e-6)
+
+
+def test_model_outputs_are_dropped_whatever_the_subject_prefix(real_c3d, tmp_path):
+    """PiG_Motion-FlatFoot-Full with its labels prefixed (``Patient_03:LHipAngles``) while
+    POINT:ANGLES, FORCES... keep the bare names (a relabelling script that touched LABELS
+    only): its 80 model outputs are still dropped; kept, their angles in degrees and forces in
+    newtons read as 80 more markers and the vertical axis looked unclear."""
+    ezc3d = pytest.importorskip("ezc3d")
+    source = real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+    c3d = ezc3d.c3d(str(source))
+    point = c3d["parameters"]["POINT"]
+    point["LABELS"]["value"] = [f"Patient_03:{label}" for label in point["LABELS"]["value"]]
+    path = tmp_path / "prefixed.c3d"
+    c3d.write(str(path))
+    original, trial = read_c3d(source), read_c3d(path)
+    assert trial.labels == [f"Patient_03:{label}" for label in original.labels]
+    assert trial.warnings == original.warnings          # the one note: 80 outputs dropped
+    np.testing.assert_array_equal(trial.markers, original.markers)
+
+
+def test_units_spelled_out_are_refused_saying_what_to_do(real_c3d, tmp_path):
+    ezc3d = pytest.importorskip("ezc3d")
+    c3d = ezc3d.c3d(str(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")))
+    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["millimeters"]
+    path = tmp_path / "spelled.c3d"
+    c3d.write(str(path))
+    with pytest.raises(C3DError, match=r"spelled.c3d: unknown POINT:UNITS 'millimeters' "
+                                       r"\(mocaplib knows mm, cm, dm, m: set POINT:UNITS to the "
+                                       r"one the coordinates are in, or re-export the file\)"):
+        read_c3d(path)
+
+
 def test_dec_file_with_nul_padded_units(real_c3d):
     trial = read_c3d(real_c3d("btkdata/Gait.c3d"))
     assert trial.units == "mm"  # stored as 'mm\x00\x00'
@@ -332,6 +378,31 @@ def test_vertical_axis_unclear_falls_back_to_screen_axis():
     axis, notes = detect_vertical_axis(ball, screen_axis="Y")
     assert axis == "Y" and "unclear" in notes[0]
     assert detect_vertical_axis(ball)[0] == "Z"
+
+
+def test_two_subjects_side_by_side_do_not_make_the_floor_look_vertical():
+    """Two people 3 m apart across the floor: relative to the mean of all markers the floor's
+    axis spreads widest (3 m against a body's 1.7 m); each subject's markers relative to their
+    own mean show Z."""
+    person = standing_person()
+    pair = np.concatenate([person, person + [0.0, 3.0, 0.0]], axis=1)
+    assert detect_vertical_axis(pair)[0] == "Y"          # one cloud: the floor looks vertical
+    assert detect_vertical_axis(pair, subjects=["A"] * 20 + ["B"] * 20) == ("Z", [])
+
+
+def test_a_file_of_two_subjects_is_read_z_up_and_says_so(real_c3d, tmp_path):
+    """Qualisys.c3d with a copy of its subject 3 m to the side, labels prefixed A: and B: (how
+    Vicon Nexus stores a capture of two people): the file stays Z up, subject A's markers are
+    the original's, and a note names both subjects."""
+    original = read_c3d(real_c3d("ezc3d_testfiles/Qualisys.c3d"))
+    markers = np.concatenate([original.markers, original.markers + [0.0, 3.0, 0.0]], axis=1)
+    labels = [f"{subject}:{label}" for subject in "AB" for label in original.labels]
+    trial = read_c3d(write_c3d(tmp_path / "pair.c3d", markers, labels, original.rate))
+    assert trial.vertical_axis == "Z"
+    # float32 storage in mm: 1e-6 m is far below its precision step at a few metres
+    np.testing.assert_allclose(trial.markers[:, :len(original.labels)], original.markers,
+                               atol=1e-6)
+    assert any("labels of 2 subjects (A, B)" in note for note in trial.warnings)
 
 
 def test_screen_axis_disagreeing_with_data_is_noted():

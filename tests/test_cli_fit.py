@@ -94,3 +94,33 @@ def test_fit_takes_the_static_that_shows_the_subject(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["static"] == f"{SAMPLES.name}/rest.c3d"
     assert main([*args, "--static", str(other_rest)]) == 1          # the other subject's only
     assert "does not match the motion trial" in capsys.readouterr().err
+
+
+def test_fit_says_what_the_reader_noticed(tmp_path, capsys):
+    """A label stored twice (the first a stray 30 cm away): the fit uses the first occurrence,
+    so it must say the label is duplicated, as inspect and the build's diagnostics do."""
+    cap = fk_trial(n_frames=30, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=3)
+    markers = np.concatenate([cap.trial.markers[:, :1] + 0.3, cap.trial.markers], axis=1)
+    labels = [cap.trial.labels[0], *cap.trial.labels]
+    path = write_c3d(tmp_path / "dup.c3d", markers, labels, 100.0)
+    assert main(["fit", str(path), "--protocol", "fullbody38",
+                 "-o", str(tmp_path / "x.csv")]) == 0
+    err = capsys.readouterr().err
+    assert f"dup.c3d: duplicate labels kept as separate markers: {labels[0]}" in err
+
+
+def test_the_readers_notes_are_said_even_when_the_fit_fails(real_c3d, tmp_path, capsys):
+    """Two subjects in one file, subject A without LASI: the protocol takes B's LASI, 3 m
+    away, and no frame can be fitted; the note naming both subjects must come out with the
+    error, as it is what explains it."""
+    from mocaplib.io.c3d import read_c3d
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    without = [i for i, label in enumerate(trial.labels) if label != "LASI"]
+    markers = np.concatenate([trial.markers[:, without], trial.markers + [0.0, 3.0, 0.0]],
+                             axis=1)
+    labels = [f"A:{trial.labels[i]}" for i in without] + [f"B:{x}" for x in trial.labels]
+    path = write_c3d(tmp_path / "pair.c3d", markers, labels, trial.rate)
+    assert main(["fit", str(path), "-o", str(tmp_path / "x.csv")]) == 1
+    err = capsys.readouterr().err
+    assert "pair.c3d: labels of 2 subjects (A, B)" in err and "Traceback" not in err

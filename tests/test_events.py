@@ -146,6 +146,42 @@ def test_a_foot_marker_missing_in_every_frame_is_named():
         feet_of(trial, match_trial(trial, "fullbody38"))
 
 
+def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing(real_c3d):
+    """PiG_Motion-FlatFoot-Full stored upside down (Z down: turned 180 degrees about X): the
+    fit leaves the heels out in every frame, though the file holds them in every frame; the
+    events must say so, not that the marker is missing."""
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+    from mocaplib.workflow import fit_capture
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    trial.markers[..., 1:] *= -1
+    match = match_trial(trial, "auto")
+    motion = fit_capture(trial, protocol=match).motion
+    assert np.isfinite(match.marker(trial, "LHEE")).all()
+    with pytest.raises(EventError, match=r"PiG_Motion-FlatFoot-Full.c3d: left foot marker LHEE "
+                                         r"was left out by the fit in every frame.*vertical "
+                                         r"axis points up"):
+        feet_of(trial, match, motion=motion)
+
+
+def test_a_ghost_heel_for_three_frames_does_not_move_the_events(real_c3d):
+    """LHEE of PiG_Motion-FlatFoot-Full 2 m away for 3 frames, 5 frames before a left heel
+    strike: low-passed with the track it moved that heel strike 65 ms early; gapped first
+    (:func:`mocaplib.filtering.remove_spikes`), every event stays within a frame."""
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import match_trial
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    match = match_trial(trial, "auto")
+    before = capture_events(trial, match)[0]
+    trial.markers[150:153, trial.labels.index("LHEE")] += [2.0, 1.0, 0.0]
+    after = capture_events(trial, match)[0]
+    assert [(e.side, e.kind) for e in after] == [(e.side, e.kind) for e in before]
+    np.testing.assert_allclose([e.time_s for e in after], [e.time_s for e in before],
+                               atol=1 / trial.rate)
+
+
 @pytest.mark.usefixtures("sample_dir")
 def test_a_capture_without_a_heel_label_is_told_what_to_do():
     # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
@@ -563,8 +599,33 @@ def test_real_treadmill_jogging_is_recognised(real_c3d):
 
     trial = read_c3d(real_c3d("c3dviewer_examples/running.c3d"))
     belt = ground_velocity(feet_of(trial, detect_protocol(trial))[0], trial.rate)
-    # a jog on a treadmill (SOURCES.md): recognised as one; measured 2.35 m/s
+    # a jog on a treadmill (SOURCES.md): recognised as one; measured 2.47 m/s (its heels move
+    # at 2.38-2.48 m/s in the middle of each stance)
     assert 2.0 <= np.hypot(*belt[:2]) <= 2.7, belt
+
+
+def test_a_real_walk_moved_onto_a_treadmill_gives_the_walking_speed(real_c3d):
+    """Qualisys.c3d (a straight overground walk) seen from a treadmill: every marker minus the
+    walker's mean velocity (the slope of the marker centroid's path), so the belt carries each
+    foot flat on it at that velocity. The frames near the floor include the foot arriving and
+    leaving: their median velocity is 0.17 m/s off the belt; the one most of them share is
+    not."""
+    from mocaplib.events import ground_velocity
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.protocols import detect_protocol
+    from mocaplib.trial import Trial
+
+    walk = read_c3d(real_c3d("ezc3d_testfiles/Qualisys.c3d"))
+    centroid = np.nanmean(walk.markers, axis=1)
+    seen = np.isfinite(centroid[:, 0])
+    speed = np.polyfit(walk.time[seen], centroid[seen, :2], 1)[0]          # (2,) m/s
+    belt_shift = np.outer(walk.time, [*speed, 0.0])[:, None]
+    treadmill = Trial(walk.markers - belt_shift, walk.labels, walk.rate, source="treadmill.c3d")
+    belt = ground_velocity(feet_of(treadmill, detect_protocol(treadmill))[0], treadmill.rate)
+    # the overground foot flat on the floor rolls forward by a few cm/s (measured 0.03 m/s
+    # here), which the belt's estimate inherits; the median of the frames near the floor is
+    # 0.17 m/s off
+    np.testing.assert_allclose(belt[:2], -speed, atol=0.05)
 
 
 @pytest.mark.usefixtures("sample_dir")

@@ -167,3 +167,17 @@ def test_no_complete_protocol_gives_null_and_the_closest_candidate(tmp_path, cap
                      [trial.labels[i] for i in keep], 100.0)
     code, out, _ = _cli(capsys, "inspect", str(path))
     assert code == 0 and "closest plugin_gait (40/42 markers) lacks L_ACROMION, R_ACROMION" in out
+
+
+def test_a_required_landmark_labelled_but_never_seen_is_a_warning(real_c3d):
+    """LASI present as a label but missing in every frame: the protocol finds the label, so
+    'missing required landmarks' says none; the summary must still say the landmark is never
+    seen (dropping the label instead makes it a missing landmark)."""
+    from mocaplib.io.c3d import read_c3d
+
+    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    trial.markers[:, trial.labels.index("LASI")] = np.nan
+    summary = inspect_trial(trial)
+    assert summary["missing_landmarks"] == []
+    assert ("required landmarks labelled but never seen: L_ASIS (LASI): the fit goes without "
+            "them (check the capture's labelling)") in summary["warnings"]

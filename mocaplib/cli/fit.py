@@ -53,6 +53,8 @@ def _run(args) -> int:
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
                   [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
+    for note in trial.warnings:         # said before the fit, which they may explain
+        warn(f"{args.input}: {note}")
     match = match_trial(trial, args.protocol)
     missing = missing_landmarks_error(match, args.input)
     if missing is not None:

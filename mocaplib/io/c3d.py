@@ -14,15 +14,20 @@ What :func:`read_c3d` does
       (POINT:SCALE > 0, coordinates = int16 x SCALE) or float storage (SCALE < 0), for Intel,
       DEC (VAX F-float, converted vectorised) and SGI/MIPS (big-endian) processor types.
       A sample is missing (NaN) when its residual word is negative, when a coordinate is not
-      finite, or when all three coordinates are exactly 0 (how Vicon/CMU files store a missing
-      sample with a non-negative residual; a real marker never sits exactly at the origin).
+      finite or lies beyond :data:`MAX_COORDINATE_M` (a corrupt word: garbage floats are mostly
+      astronomically large), or when all three coordinates are exactly 0 (how Vicon/CMU files
+      store a missing sample with a non-negative residual; a real marker never sits exactly at
+      the origin).
     * Labels from POINT:LABELS, LABELS2, LABELS3... (files with more than 255 points), NULs and
-      padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``.
+      padding stripped; duplicate labels are kept, distinct, and named in ``Trial.warnings``,
+      as are the subject prefixes of a file whose labels name several (``A:LASI``, ``B:LASI``).
     * Points the file itself declares as model outputs (labels listed in POINT:ANGLES, FORCES,
-      MOMENTS, POWERS, SCALARS, REACTIONS) are dropped, with one warning giving the count.
+      MOMENTS, POWERS, SCALARS, REACTIONS, subject prefixes aside) are dropped, with one
+      warning giving the count.
     * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
-    * Vertical axis: see :func:`detect_vertical_axis`; Y-up files are rotated +90 degrees about X
-      (x, y, z) -> (x, -z, y), a proper rotation, so the Trial is Z up and right-handed.
+    * Vertical axis: see :func:`detect_vertical_axis` (each subject's markers apart); Y-up
+      files are rotated +90 degrees about X (x, y, z) -> (x, -z, y), a proper rotation, so the
+      Trial is Z up and right-handed.
     * Events from the EVENT group (CONTEXTS, LABELS, TIMES as minutes/seconds) in seconds on the
       lab clock (frame ``first_frame`` is at ``(first_frame - 1) / rate``).
 
@@ -60,6 +65,10 @@ _AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by t
 CHUNK_BYTES = 1 << 23
 #: The largest frame count a 16-bit field holds: a file whose count is at it may hold more.
 UINT16_MAX = 65535
+#: Coordinates (m) beyond this are corrupt words, read as missing: no capture volume is near
+#: 10 km across, and one stray sample of 1e17 m spoils its whole marker track in the low-pass
+#: filter (and, with it, the markers calibrated against it).
+MAX_COORDINATE_M = 1e4
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
@@ -94,7 +103,7 @@ def _read_trial(handle, path: Path) -> Trial:
     labels = _point_labels(reader, layout.count, path, notes)
     units, to_metres = _point_units(reader, path, notes)
     declared = _model_outputs(reader, path)
-    keep = [i for i, label in enumerate(labels) if label not in declared]
+    keep = [i for i, label in enumerate(labels) if label.rpartition(":")[2] not in declared]
     if len(keep) < len(labels):
         notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
                      f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
@@ -105,8 +114,14 @@ def _read_trial(handle, path: Path) -> Trial:
     if duplicates:
         notes.append(f"duplicate labels kept as separate markers: {', '.join(duplicates)}")
 
-    screen = _screen_up_axis(reader)
-    axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen)
+    subjects = subject_prefixes(labels)
+    prefixes = sorted(set(subjects) - {""})
+    if len(prefixes) > 1:
+        notes.append(f"labels of {len(prefixes)} subjects ({', '.join(prefixes)}): each "
+                     "landmark is taken from the first label that names it, whichever subject "
+                     "it belongs to; export one subject per file to fit each")
+    axis, axis_notes = detect_vertical_axis(markers, screen_axis=_screen_up_axis(reader),
+                                            subjects=subjects)
     notes.extend(axis_notes)
     if axis == "Y":
         for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
@@ -513,9 +528,9 @@ def _point_words(data, layout: PointLayout, points: list[int] | None) -> np.ndar
 
 
 def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
-             out: np.ndarray | None = None) -> np.ndarray:
+             out: np.ndarray | None = None, bound: float = np.inf) -> np.ndarray:
     """Markers (F, M, 3) float64 of stored words ``block`` (F, M, 4), written into ``out``
-    when given."""
+    when given; NaN where invalid, a coordinate beyond ``bound`` (output units) included."""
     is_float = layout.scale < 0
     if is_float and layout.processor == "DEC":
         block = dec_to_ieee(block)
@@ -524,7 +539,8 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
         markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
-        valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
+        valid = ((block[..., 3] >= 0) & np.isfinite(x + y + z)
+                 & ((x != 0) | (y != 0) | (z != 0)) & (np.abs(markers) <= bound).all(axis=-1))
     np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
 
@@ -532,7 +548,8 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
 def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
                  path: Path) -> np.ndarray:
     """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
-    read :data:`CHUNK_BYTES` of frames at a time."""
+    ``factor`` its units to metres, coordinates beyond :data:`MAX_COORDINATE_M` missing; read
+    :data:`CHUNK_BYTES` of frames at a time."""
     frame_bytes = _frame_bytes(layout)
     step = max(1, CHUNK_BYTES // frame_bytes)
     out = np.empty((layout.frames, len(points), 3))
@@ -545,7 +562,7 @@ def _read_points(handle, layout: PointLayout, points: list[int], factor: float,
             raise C3DError("the file is shorter than when it was opened (written to while "
                            "read?)", path=path, hint="read it again once it is complete")
         _decoded(_point_words(view, chunk, points), chunk, factor,
-                 out=out[first:first + chunk.frames])
+                 out=out[first:first + chunk.frames], bound=MAX_COORDINATE_M)
     return out
 
 
@@ -615,18 +632,20 @@ def _point_units(reader, path: Path, notes: list[str]) -> tuple[str, float]:
     factor = UNITS_TO_METRES.get(units.lower())
     if factor is None:
         raise C3DError(f"unknown POINT:UNITS {units!r}", path=path,
-                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}")
+                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}: set POINT:UNITS to "
+                            "the one the coordinates are in, or re-export the file")
     return units, factor
 
 
 def _model_outputs(reader, path: Path) -> set[str]:
-    """Labels the file declares as model outputs (angles, forces...), as stripped strings."""
+    """Labels the file declares as model outputs (angles, forces...), as stripped strings
+    without their subject prefix: a file may list ``LHipAngles`` for ``Subj01:LHipAngles``."""
     declared: set[str] = set()
     for name in MODEL_OUTPUT_PARAMETERS:
         key = f"POINT:{name}"
         param = reader.get(key)
         if param is not None and param.bytes_per_element == -1:
-            declared.update(_strings(param, path, key))
+            declared.update(text.rpartition(":")[2] for text in _strings(param, path, key))
     declared.discard("")
     return declared
 
@@ -699,33 +718,45 @@ def _screen_up_axis(reader) -> str | None:
     return text[-1] if text[-1:] in ("X", "Y", "Z") else None
 
 
-def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None
-                         ) -> tuple[str, list[str]]:
+def subject_prefixes(labels: list[str], /) -> list[str]:
+    """Each label's subject prefix: the text before its last ``:`` (``Subj01`` of
+    ``Subj01:LASI``), ``""`` for a label without one."""
+    return [label.rpartition(":")[0] for label in labels]
+
+
+def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None,
+                         subjects: list[str] | None = None) -> tuple[str, list[str]]:
     """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)``; and notes.
 
     Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames each
-    marker is taken relative to the frame's mean marker; the axis with the widest spread of
-    those offsets (10th to 90th percentile) is the body's long axis, i.e. vertical. It must beat
-    the next axis by 25 %; otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides,
-    and Z without it. When POINT:Y_SCREEN names another axis than the data, the data win and a
-    note says so. Only Y and Z are supported as vertical axes.
+    marker is taken relative to the mean of its subject's markers in the frame (``subjects``,
+    length M, :func:`subject_prefixes`: the people of a file with several stand apart on the
+    floor, which would otherwise look like one wide body; default: one subject), where 3 or
+    more of them are seen; the axis with the widest spread of those offsets (10th to 90th
+    percentile) is the body's long axis, i.e. vertical. It must beat the next axis by 25 %;
+    otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides, and Z without it. When
+    POINT:Y_SCREEN names another axis than the data, the data win and a note says so. Only Y
+    and Z are supported as vertical axes.
     """
     notes: list[str] = []
     frames = markers.shape[0]
     sample = markers[distinct(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
                               .astype(int))]
-    seen = np.isfinite(sample[..., 0])
-    counts = seen.sum(axis=1)
-    sample, seen = sample[counts >= 3], seen[counts >= 3]
+    seen = np.isfinite(sample).all(axis=2)
+    subjects = np.array([""] * markers.shape[1] if subjects is None else subjects)
+    offsets = []
+    for subject in sorted(set(subjects)):
+        own, seen_own = sample[:, subjects == subject], seen[:, subjects == subject]
+        counts = seen_own.sum(axis=1)
+        mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
+            counts, 1)[:, None]                            # each frame's mean seen marker
+        seen_own &= (counts >= 3)[:, None]
+        offsets.append((own - mean[:, None])[seen_own])
+    offsets = np.concatenate(offsets)
     spread = np.zeros(3)
-    if len(sample):
-        seen &= np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
-        mean = np.where(seen[..., None], sample, 0.0).sum(axis=1) / np.maximum(
-            seen.sum(axis=1), 1)[:, None]                  # each frame's mean seen marker
-        offsets = (sample - mean[:, None])[seen]
-        if len(offsets) >= 10:
-            low, high = percentile(offsets.T, [10, 90], axis=1)
-            spread = high - low
+    if len(offsets) >= 10:
+        low, high = percentile(offsets.T, [10, 90], axis=1)
+        spread = high - low
     order = np.argsort(spread)[::-1]
     fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
