@@ -40,13 +40,12 @@ All arrays have time on axis 0; positions are metres, rates and cutoffs Hz.
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Iterator
 
 import numpy as np
 
 from .errors import FitError
-from .numeric import distinct
+from .numeric import distinct, nanmedian
 from .trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
@@ -298,9 +297,7 @@ def remove_spikes(markers: np.ndarray, rate: float, /) -> np.ndarray:
         track = markers[:, m]
         windows = np.lib.stride_tricks.sliding_window_view(
             np.pad(track, ((half, half), (0, 0)), constant_values=np.nan), 2 * half + 1, axis=0)
-        with warnings.catch_warnings():      # a window of gap only: NaN, compared False
-            warnings.simplefilter("ignore", RuntimeWarning)
-            median = np.nanmedian(windows, axis=2)
+        median = nanmedian(windows, axis=2)      # a window of gap only: NaN, compared False
         with np.errstate(invalid="ignore"):
             out[np.linalg.norm(track - median, axis=1) > SPIKE_DISTANCE, m] = np.nan
     return out
