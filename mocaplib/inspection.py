@@ -96,13 +96,6 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
                            "missing_landmarks": match.missing_landmarks,
                            "missing_labels": list(match.missing)})
     gaps, longest = trial.gap_fraction(), trial.longest_gap()
-    if match is not None:
-        unseen = [f"{m.landmark.name} ({trial.labels[i]})"
-                  for m, i in zip(match.protocol.markers, match.indices)
-                  if i >= 0 and m.required and gaps[i] == 1.0]
-        if unseen:
-            warnings.append(f"required landmarks labelled but never seen: {', '.join(unseen)}: "
-                            "the fit goes without them (check the capture's labelling)")
     out["markers"] = [
         {"label": label, "landmark": landmark_of.get(i), "gap_pct": 100.0 * float(gaps[i]),
          "longest_gap_frames": int(longest[i]), "longest_gap_s": int(longest[i]) / trial.rate}

@@ -593,7 +593,7 @@ class ProtocolMatch:
     ``missing_any_of`` names the ``[any_of]`` groups with no label present. ``ignored`` holds
     the trial labels set aside as model outputs, ``unknown`` the labels that are neither in the
     protocol nor model outputs, ``duplicates`` the protocol labels found more than once (the
-    first occurrence is used). ``warnings`` says all of that, plus left/right swaps, in words.
+    copy seen in most frames is used). ``warnings`` says all of that, plus left/right swaps, in words.
     """
 
     protocol: Protocol
@@ -647,7 +647,9 @@ class ProtocolMatch:
 
 def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True,
                    computed: set[int] | None = None, classify: bool = True) -> ProtocolMatch:
-    """Map ``protocol``'s markers to ``trial``'s by normalised label (first occurrence wins).
+    """Map ``protocol``'s markers to ``trial``'s by normalised label: of a label found more
+    than once, the copy seen in most frames (the first of equals); a label never seen counts
+    as missing (the fit could do nothing with it).
 
     With ``classify``, labels the protocol does not list are sorted into model outputs
     (ignored: by name, or numbered points a model computed, :func:`computed_points`, which
@@ -658,10 +660,13 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     corrected.
     """
     names = trial.names
-    first: dict[str, int] = {}
+    seen = np.isfinite(trial.markers[..., 0]).sum(axis=0)             # (N,) frames seen in
+    chosen: dict[str, int] = {}               # each name's copy seen in most frames, if any
     for i, name in enumerate(names):
-        first.setdefault(name, i)
-    indices = tuple(next((first[k] for k in m.keys if k in first), -1) for m in protocol.markers)
+        if seen[i] and (name not in chosen or seen[i] > seen[chosen[name]]):
+            chosen[name] = i
+    indices = tuple(next((chosen[k] for k in m.keys if k in chosen), -1)
+                    for m in protocol.markers)
     missing = tuple(m.label for m, i in zip(protocol.markers, indices) if i < 0)
     missing_required = tuple(m.label for m, i in zip(protocol.markers, indices)
                              if i < 0 and m.required)
@@ -675,9 +680,8 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     for i, (label, name) in enumerate(zip(trial.labels, names)):
         if classify and name not in claimed:
             (ignored if is_model_output(label) or i in computed else unknown).append(label)
-    counts = {name: names.count(name) for name in claimed if name in first}
-    duplicates = tuple(trial.labels[first[k]] for m in protocol.markers for k in m.keys
-                       if counts.get(k, 0) > 1)
+    duplicates = tuple(trial.labels[chosen[k]] for m in protocol.markers for k in m.keys
+                       if k in chosen and names.count(k) > 1)
     match = ProtocolMatch(protocol, indices, missing, missing_required, missing_any_of,
                           tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates)
     swaps = find_side_swaps(trial, match) if check_swaps else ()
@@ -694,8 +698,8 @@ def label_match(trial: Trial, protocol: Protocol, /) -> ProtocolMatch:
 def _match_warnings(match: ProtocolMatch, swaps: tuple[str, ...]) -> tuple[str, ...]:
     out = list(swaps)
     if match.duplicates:
-        out.append(f"duplicate labels {', '.join(match.duplicates)}: the first occurrence of "
-                   "each is used, the repeats are ignored")
+        out.append(f"duplicate labels {', '.join(match.duplicates)}: the copy of each seen in "
+                   "most frames is used, the others are ignored")
     if match.ignored:
         out.append(f"ignored {len(match.ignored)} model-output points ({_few(match.ignored)})")
     if match.unknown:

@@ -14,7 +14,7 @@ from mocaplib.cli import main
 from mocaplib.inspection import SUMMARY_KEYS, inspect_c3d, inspect_trial
 from mocaplib.io.c3d_write import write_c3d
 from mocaplib.protocols import load_protocol
-from mocaplib.trial import Event
+from mocaplib.trial import Event, Trial
 
 REQUIRED_KEYS = {"file", "ok", "error", "frames", "rate_hz", "units", "vertical_axis", "labels",
                  "protocol", "missing_landmarks", "warnings", "events"}
@@ -169,15 +169,17 @@ def test_no_complete_protocol_gives_null_and_the_closest_candidate(tmp_path, cap
     assert code == 0 and "closest plugin_gait (40/42 markers) lacks L_ACROMION, R_ACROMION" in out
 
 
-def test_a_required_landmark_labelled_but_never_seen_is_a_warning(real_c3d):
-    """LASI present as a label but missing in every frame: the protocol finds the label, so
-    'missing required landmarks' says none; the summary must still say the landmark is never
-    seen (dropping the label instead makes it a missing landmark)."""
+def test_a_required_landmark_labelled_but_never_seen_counts_as_missing(real_c3d):
+    """LASI present as a label but missing in every frame: the summary says the landmark is
+    missing, as when the label is not in the file at all (the fit could do nothing with it)."""
     from mocaplib.io.c3d import read_c3d
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    keep = [i for i, label in enumerate(trial.labels) if label != "LASI"]
+    dropped = inspect_trial(Trial(trial.markers[:, keep], [trial.labels[i] for i in keep],
+                                  trial.rate), protocol="plugin_gait")
     trial.markers[:, trial.labels.index("LASI")] = np.nan
-    summary = inspect_trial(trial)
-    assert summary["missing_landmarks"] == []
-    assert ("required landmarks labelled but never seen: L_ASIS (LASI): the fit goes without "
-            "them (check the capture's labelling)") in summary["warnings"]
+    summary = inspect_trial(trial, protocol="plugin_gait")
+    assert summary["missing_landmarks"] == dropped["missing_landmarks"] == ["L_ASIS"]
+    assert any(w.startswith("missing required landmarks for plugin_gait: L_ASIS")
+               for w in summary["warnings"])

@@ -120,15 +120,22 @@ def test_pig_model_outputs_are_ignored_not_unknown(real_c3d):
     assert zoo.unknown == ("LD1M0", "RD1M0", "JUG")
 
 
-def test_duplicates_flagged_and_first_occurrence_used(real_c3d):
+def test_duplicates_flagged_and_the_copy_seen_in_most_frames_used(real_c3d):
     trial = _read(real_c3d("btkdata/Gait.c3d"))
     match = detect_protocol(trial)
     assert set(match.duplicates) == {"RKNE", "RANK", "LKNE", "LANK", "RFOO", "LFOO"}
     rkne = [i for i, label in enumerate(trial.labels) if label == "RKNE"]
+    # both copies seen in 194 frames: the first of equals
     assert match.indices[match.protocol.labels.index("RKNE")] == rkne[0] < rkne[1]
     # LFOO is a real marker in this set even though PiG uses the name for a model output
     assert "LFOO" not in match.ignored
-    assert any("duplicate labels" in w for w in match.warnings)
+    assert any("duplicate labels" in w and "seen in most frames" in w for w in match.warnings)
+    # a stray first copy holding a three-frame ghost loses to the copy that tracks the knee
+    seen = np.flatnonzero(np.isfinite(trial.markers[:, rkne[0], 0]))
+    trial.markers[seen[3:], rkne[0]] = np.nan
+    match = match_protocol(trial, match.protocol)
+    assert match.indices[match.protocol.labels.index("RKNE")] == rkne[1]
+    assert "RKNE" in match.duplicates
 
 
 def test_cmu_subject_prefix_and_aliases(real_c3d):
