@@ -368,6 +368,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
+    _check_upright(X, segments, cal)
     nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     landmarks = [m.landmark.name for m in markers]
     if height is None:
@@ -614,6 +615,24 @@ def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
         f"only {n_seen} pelvis marker(s) of protocol {proto.name!r} are in the trial; "
         "3 are needed to place the pelvis", path=cal.source,
         hint="check the labels against the protocol, or pass --protocol")
+
+
+def _check_upright(X: np.ndarray, segments: np.ndarray, cal: Trial) -> None:
+    """Raise :class:`CalibrationError` naming ``cal`` when the pelvis markers of the
+    calibration frames ``X`` (F, M, 3) (``segments`` (M,)) lie below the feet's in most frames:
+    the file's vertical axis points down (a skeleton fitted upside down turns every joint)."""
+    feet = np.isin(segments, [SEGMENT_NAMES.index("foot_l"), SEGMENT_NAMES.index("foot_r")])
+    pelvis = segments == SEGMENT_NAMES.index("pelvis")
+    if not feet.any() or not len(X):
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # frames without feet: NaN
+        height = np.nanmean(X[:, pelvis, 2], axis=1) - np.nanmean(X[:, feet, 2], axis=1)
+    if nanmedian(height) < 0:
+        raise CalibrationError(
+            f"the pelvis markers lie {-nanmedian(height) * 1000:.0f} mm below the feet's: the "
+            "file's vertical axis points down", path=cal.source,
+            hint="export the capture with the vertical axis pointing up (Z or Y up)")
 
 
 def check_standing(static: Trial, *, moved: float | None = None) -> None:

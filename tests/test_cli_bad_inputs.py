@@ -429,3 +429,22 @@ def test_the_diagnostics_sidecar_given_for_the_library_is_named_as_such(tmp_path
     assert said in capsys.readouterr().out
     assert main(["query", str(sidecar), "1", "0", "0"]) == 1
     assert said in capsys.readouterr().err
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_an_upside_down_capture_is_refused_not_fitted_upside_down(tmp_path, capsys):
+    # a file whose vertical axis points down (turned 180 deg about X): fitted, every joint
+    # turned (angles a median 30 deg off); the calibration sees the pelvis below the feet
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(sample("walk_straight_normal", tmp_path))
+    markers = trial.markers * (1.0, -1.0, -1.0)
+    path = write_c3d(tmp_path / "down.c3d", markers, trial.labels, trial.rate)
+    assert read_c3d(path).vertical_axis == "Z"
+    assert main(["fit", str(path), "-o", str(tmp_path / "angles.csv")]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: the pelvis markers lie " in err and "vertical axis points down" in err
+    assert "Traceback" not in err and not (tmp_path / "angles.csv").exists()
+    assert main(["fit", str(SAMPLES / "walk_straight_normal.c3d"),
+                 "-o", str(tmp_path / "angles.csv")]) == 0
