@@ -36,13 +36,16 @@ def percentile(values: np.ndarray, q, /, *, axis: int) -> np.ndarray:
     """``np.percentile`` (its default, linear method) of ``values`` along ``axis`` at the
     percentages ``q`` (scalar or 1-D): shape ``np.shape(q)`` + the shape of ``values`` without
     ``axis``; NaN where a NaN is among the entries. The entry at (n − 1) q / 100 of the n sorted
-    ones, interpolated between its neighbours as numpy interpolates."""
-    ordered = np.moveaxis(np.sort(np.asarray(values, dtype=np.float64), axis=axis), axis, 0)
-    n, q = len(ordered), np.asarray(q, dtype=np.float64)
+    ones (partitioned there, not sorted), interpolated between its neighbours as numpy
+    interpolates."""
+    values = np.asarray(values, dtype=np.float64)
+    n, q = values.shape[axis], np.asarray(q, dtype=np.float64)
     at = (n - 1) * np.true_divide(q.ravel(), 100)
     below = np.floor(at).astype(np.intp)
     above = below + 1
-    below[at >= n - 1], above[at >= n - 1] = -1, -1
+    below[at >= n - 1], above[at >= n - 1] = n - 1, n - 1
+    kth = distinct(np.r_[below, above, n - 1]) if n else None      # the last: NaN sort last
+    ordered = np.moveaxis(np.partition(values, kth, axis=axis) if n else values, axis, 0)
     gamma = (at - below).reshape(at.shape + (1,) * (ordered.ndim - 1))
     low, high = ordered[below], ordered[above]
     step = high - low

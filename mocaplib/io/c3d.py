@@ -539,8 +539,9 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
         markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
-        valid = ((block[..., 3] >= 0) & np.isfinite(x + y + z)
-                 & ((x != 0) | (y != 0) | (z != 0)) & (np.abs(markers) <= bound).all(axis=-1))
+        valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
+        if not (markers.min(initial=0.0) >= -bound and markers.max(initial=0.0) <= bound):
+            valid &= (np.abs(x) <= bound) & (np.abs(y) <= bound) & (np.abs(z) <= bound)
     np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
 
