@@ -413,7 +413,8 @@ def _clean(raw: bytes) -> str:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
-    return printable(text.replace("\x00", "").strip(), keep="")
+    text = text.replace("\x00", "").strip()
+    return text if text.isprintable() else printable(text, keep="")   # most labels: as they are
 
 
 def _number(reader, key: str, kind: str, default=None):
@@ -540,7 +541,9 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
         markers *= factor if is_float else factor * layout.scale
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
-        if not (markers.min(initial=0.0) >= -bound and markers.max(initial=0.0) <= bound):
+        bounded = not is_float and 32768 * abs(factor * layout.scale) <= bound   # int16 words
+        if not (bounded or markers.min(initial=0.0) >= -bound
+                and markers.max(initial=0.0) <= bound):
             valid &= (np.abs(x) <= bound) & (np.abs(y) <= bound) & (np.abs(z) <= bound)
     np.copyto(markers, np.nan, where=~valid[..., None])
     return markers
@@ -743,11 +746,12 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     frames = markers.shape[0]
     sample = markers[distinct(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
                               .astype(int))]
-    seen = np.isfinite(sample).all(axis=2)
+    seen = np.isfinite(sample[..., 0]) & np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
     subjects = np.array([""] * markers.shape[1] if subjects is None else subjects)
     offsets = []
     for subject in sorted(set(subjects)):
-        own, seen_own = sample[:, subjects == subject], seen[:, subjects == subject]
+        mine = slice(None) if len(set(subjects)) == 1 else subjects == subject
+        own, seen_own = sample[:, mine], seen[:, mine]
         counts = seen_own.sum(axis=1)
         mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
             counts, 1)[:, None]                            # each frame's mean seen marker
