@@ -362,7 +362,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     segments = np.array([SEGMENT_NAMES.index(m.landmark.segment) for m in markers], dtype=int)
     n_pelvis = int((segments == SEGMENT_NAMES.index("pelvis")).sum())
     if n_pelvis < 3:
-        _refuse_pelvis(cal, proto, cal_match, n_pelvis)
+        _refuse_pelvis(cal, proto, n_pelvis)
     if static is not None:
         X_motion = _check_static(X_all[:, used], trial, proto, used, segments, labels, static)
     locked, left_out = locked_dofs(segments)
@@ -599,11 +599,12 @@ def _hold_unobservable(model: SubjectModel, q: np.ndarray) -> SubjectModel:
 
 
 # ----------------------------------------------------------------------------- pieces
-def _refuse_pelvis(cal: Trial, proto: Protocol, match, n_seen: int) -> None:
+def _refuse_pelvis(cal: Trial, proto: Protocol, n_seen: int) -> None:
     """Raise the error for a trial with fewer than 3 usable pelvis markers, saying whether
     they are not labelled or labelled but missing in most frames."""
-    labelled = [m.label for m, i in zip(proto.markers, match.indices)
-                if i >= 0 and m.landmark.segment == "pelvis"]
+    names = set(cal.names)                      # seen or not: a label never seen is there
+    labelled = [m.label for m in proto.markers
+                if m.landmark.segment == "pelvis" and names.intersection(m.keys)]
     if len(labelled) >= 3:
         raise CalibrationError(
             f"pelvis markers {', '.join(labelled)} are labelled but only {n_seen} of them are "
@@ -766,7 +767,8 @@ def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: li
     if most >= MIN_PELVIS_MARKERS:
         return
     names = np.array(labels)[pelvis]
-    present = label_match(trial, proto).present_landmarks.values()
+    labelled = set(trial.names)                 # seen or not: the labels tell the marker set
+    present = {m.label for m in proto.markers if labelled.intersection(m.keys)}
     shows = (f"never shows {MIN_PELVIS_MARKERS} of the static's pelvis markers "
              f"({', '.join(names)}, protocol {proto.name!r}) in one frame")
     if sum(name in present for name in names) >= MIN_PELVIS_MARKERS:

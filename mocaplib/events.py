@@ -705,13 +705,13 @@ def feet_of(trial, match, /, *, motion=None
     LHEE/RHEE swap, a marker left out) are undone here too, as the fit read them. Raises
     :class:`EventError` naming
     the landmark the capture has no label for (and the labels the protocol gives for it), or
-    the marker missing in every frame.
+    the marker the fit left out in every frame.
     """
     present = match.present_landmarks
     modelled = motion.model_markers() if motion is not None else None
 
     def track(side, label):
-        measured = stored = match.marker(trial, label)
+        measured = match.marker(trial, label)
         if motion is not None:
             measured = motion.repaired_track(label, lambda other: match.marker(trial, other))
         points = measured
@@ -720,18 +720,12 @@ def feet_of(trial, match, /, *, motion=None
             usable = (np.isnan(measured) & ~np.asarray(motion.failed, dtype=bool)[:, None]
                       & _between_samples(np.isfinite(measured).all(axis=1))[:, None])
             points = np.where(usable, model_points, measured)
-        if np.isnan(points[:, 2]).all() and not np.isnan(stored[:, 2]).all():
+        if np.isnan(points[:, 2]).all():        # the match takes only labels seen somewhere
             raise EventError(f"{side} foot marker {label} was left out by the fit in every "
                              "frame: it stays far from where the calibrated skeleton puts it",
                              path=trial.source,
-                             hint="check its label, and that the file's vertical axis points "
-                                  "up: the fit's warnings name the markers it left out, and a "
-                                  "file stored upside down leaves most of them out")
-        if np.isnan(points[:, 2]).all():
-            raise EventError(f"{side} foot marker {label} is missing in every frame",
-                             path=trial.source,
-                             hint="gait events need it: check the capture's gaps with `mocaplib "
-                                  "inspect`; samples at exactly 0,0,0 count as missing")
+                             hint="check its label and its placement: the fit's warnings name "
+                                  "the markers it left out")
         return points, np.isfinite(measured).all(axis=1)
 
     feet, measured = {}, {}
@@ -774,4 +768,5 @@ def _no_foot_marker(trial, match, what: str, landmarks: tuple[str, ...]) -> None
                      path=trial.source,
                      hint=f"{need}: rename the capture's {what} label to one of those, add it "
                           "to the protocol as an alias, or pass --protocol (`mocaplib inspect` "
-                          "lists the capture's labels)")
+                          "lists the capture's labels and their gaps: a label missing in every "
+                          "frame counts as absent)")

@@ -865,4 +865,5 @@ def missing_landmarks_error(match, source: str | os.PathLike | None) -> Protocol
         f"protocol {protocol.name!r}: {'; '.join(missing)}", path=source,
         hint="rename the capture's label to the one the protocol expects, add the capture's "
              "label to the protocol as an alias, or pass --protocol with a protocol for this "
-             "marker set (`mocaplib inspect` lists the capture's labels)")
+             "marker set (`mocaplib inspect` lists the capture's labels and their gaps: a label "
+             "missing in every frame counts as absent)")

@@ -155,6 +155,12 @@ def test_pelvis_markers_missing_in_most_frames_are_told_apart_from_absent_labels
                                                r"RASI, LPSI, RPSI are labelled but only 0 .* "
                                                r"40 frames.*too short"):
         calibrate(trial, protocol="fullbody38")
+    # labels never seen count as missing in the match, but are still labels here
+    markers[2:] = cap.trial.markers[2:]
+    markers[:, [trial.labels.index(label) for label in ("LASI", "RASI")]] = np.nan
+    with pytest.raises(CalibrationError, match=r"pelvis markers LASI, RASI, LPSI, RPSI are "
+                                               r"labelled but only 2 "):
+        calibrate(dataclasses.replace(cap.trial, markers=markers), protocol="fullbody38")
 
 
 def test_static_of_another_marker_set_is_refused(walk):

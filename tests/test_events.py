@@ -134,34 +134,36 @@ def test_bad_input_names_the_file():
 
 @pytest.mark.usefixtures("sample_dir")
 def test_a_foot_marker_missing_in_every_frame_is_named():
-    # the message said 'left heel or toe is missing in every frame', naming no marker
+    # the message said 'left heel or toe is missing in every frame', naming no marker; a
+    # label missing in every frame counts as absent, and the error says so
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import match_trial
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
     trial.markers[:, trial.labels.index("LHEE")] = np.nan
-    with pytest.raises(EventError, match=r"walk_straight_normal.c3d: left foot marker LHEE is "
-                                         r"missing in every frame.*mocaplib inspect"):
+    with pytest.raises(EventError, match=r"walk_straight_normal.c3d: the capture has no left "
+                                         r"heel \(L_HEEL\) marker.*\(LHEE\).*a label missing "
+                                         r"in every frame counts as absent"):
         feet_of(trial, match_trial(trial, "fullbody38"))
 
 
-def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing(real_c3d):
-    """PiG_Motion-FlatFoot-Full stored upside down (Z down: turned 180 degrees about X): the
-    fit leaves the heels out in every frame, though the file holds them in every frame; the
-    events must say so, not that the marker is missing."""
+def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing():
+    """LHEE 25 cm above where the static puts it in every frame of the walk: the fit leaves it
+    out in every frame, though the file holds it in every frame; the events must say so, not
+    that the marker is missing."""
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import match_trial
     from mocaplib.workflow import fit_capture
+    from conftest import SAMPLES
 
-    trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
-    trial.markers[..., 1:] *= -1
-    match = match_trial(trial, "auto")
-    motion = fit_capture(trial, protocol=match).motion
+    trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    trial.markers[:, trial.labels.index("LHEE")] += (0.0, 0.0, 0.25)
+    match = match_trial(trial, "fullbody38")
+    motion = fit_capture(trial, protocol=match, static=read_c3d(SAMPLES / "rest.c3d")).motion
     assert np.isfinite(match.marker(trial, "LHEE")).all()
-    with pytest.raises(EventError, match=r"PiG_Motion-FlatFoot-Full.c3d: left foot marker LHEE "
-                                         r"was left out by the fit in every frame.*vertical "
-                                         r"axis points up"):
+    with pytest.raises(EventError, match=r"walk_straight_normal.c3d: left foot marker LHEE was "
+                                         r"left out by the fit in every frame.*its placement"):
         feet_of(trial, match, motion=motion)
 
 
