@@ -59,7 +59,7 @@ from .errors import ProtocolError
 from .io.tomlfile import read_toml
 from .numeric import distinct, median
 from .skeleton import SEGMENT_NAMES
-from .trial import Trial, normalise_label
+from .trial import Trial, normalise_label, subject_prefixes
 
 #: Height of the subject the catalogue's nominal positions are written for, metres.
 REFERENCE_HEIGHT = 1.75
@@ -593,7 +593,9 @@ class ProtocolMatch:
     ``missing_any_of`` names the ``[any_of]`` groups with no label present. ``ignored`` holds
     the trial labels set aside as model outputs, ``unknown`` the labels that are neither in the
     protocol nor model outputs, ``duplicates`` the protocol labels found more than once (the
-    copy seen in most frames is used). ``warnings`` says all of that, plus left/right swaps, in words.
+    copy seen in most frames is used). ``subject`` is the subject prefix matched when the
+    labels name several people (None otherwise). ``warnings`` says all of that, plus
+    left/right swaps, in words.
     """
 
     protocol: Protocol
@@ -606,6 +608,14 @@ class ProtocolMatch:
     duplicates: tuple[str, ...] = ()
     swaps: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
+    subject: str | None = None
+
+    @property
+    def subject_note(self) -> str | None:
+        """Which person the match took, when the labels name several (None otherwise)."""
+        if self.subject is None:
+            return None
+        return f"matched on subject {self.subject}'s labels, the other subjects' left aside"
 
     @property
     def found(self) -> int:
@@ -661,9 +671,12 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     """
     names = trial.names
     seen = np.isfinite(trial.markers[..., 0]).sum(axis=0)             # (N,) frames seen in
+    subjects = subject_prefixes(trial.labels)
+    subject = _matched_subject(protocol, names, subjects, seen)
+    mine = [not subject or s in (subject, "") for s in subjects]       # the labels matched
     chosen: dict[str, int] = {}               # each name's copy seen in most frames, if any
     for i, name in enumerate(names):
-        if seen[i] and (name not in chosen or seen[i] > seen[chosen[name]]):
+        if seen[i] and mine[i] and (name not in chosen or seen[i] > seen[chosen[name]]):
             chosen[name] = i
     indices = tuple(next((chosen[k] for k in m.keys if k in chosen), -1)
                     for m in protocol.markers)
@@ -680,12 +693,32 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     for i, (label, name) in enumerate(zip(trial.labels, names)):
         if classify and name not in claimed:
             (ignored if is_model_output(label) or i in computed else unknown).append(label)
+    own = [name for name, m in zip(names, mine) if m]
     duplicates = tuple(trial.labels[chosen[k]] for m in protocol.markers for k in m.keys
-                       if k in chosen and names.count(k) > 1)
+                       if k in chosen and own.count(k) > 1)
     match = ProtocolMatch(protocol, indices, missing, missing_required, missing_any_of,
-                          tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates)
+                          tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates,
+                          subject=subject or None)
     swaps = find_side_swaps(trial, match) if check_swaps else ()
     return replace(match, swaps=swaps, warnings=_match_warnings(match, swaps))
+
+
+def _matched_subject(protocol: Protocol, names: list[str], subjects: list[str],
+                     seen: np.ndarray) -> str:
+    """With labels of several subjects (``subjects``: each label's prefix, ``""`` for none), the
+    prefix whose labels seen in some frame (``seen`` (N,) frame counts; ``names`` normalised),
+    with the unprefixed ones, give the most of ``protocol``'s markers, the first in the file of
+    equals: a file holding several people is matched on one. ``""`` with one subject or none
+    (every label is matched)."""
+    prefixes = list(dict.fromkeys(s for s in subjects if s))
+    if len(prefixes) < 2:
+        return ""
+
+    def found(subject):
+        have = {n for n, s, k in zip(names, subjects, seen) if s in (subject, "") and k}
+        return sum(bool(have.intersection(m.keys)) for m in protocol.markers)
+
+    return max(prefixes, key=found)
 
 
 def label_match(trial: Trial, protocol: Protocol, /) -> ProtocolMatch:
@@ -697,6 +730,8 @@ def label_match(trial: Trial, protocol: Protocol, /) -> ProtocolMatch:
 
 def _match_warnings(match: ProtocolMatch, swaps: tuple[str, ...]) -> tuple[str, ...]:
     out = list(swaps)
+    if match.subject_note:
+        out.append(match.subject_note)
     if match.duplicates:
         out.append(f"duplicate labels {', '.join(match.duplicates)}: the copy of each seen in "
                    "most frames is used, the others are ignored")

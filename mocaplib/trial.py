@@ -34,6 +34,12 @@ _PREFIX = re.compile(r"^.*:")
 _SEPARATORS = re.compile(r"[\s_\-\.]+")
 
 
+def subject_prefixes(labels: list[str], /) -> list[str]:
+    """Each label's subject prefix: the text before its last ``:`` (``Subj01`` of
+    ``Subj01:LASI``), ``""`` for a label without one (what :func:`normalise_label` drops)."""
+    return [label.rpartition(":")[0] for label in labels]
+
+
 def normalise_label(label: str) -> str:
     """Label as compared by protocols: subject prefix, NULs, spaces, ``_ - .`` removed, upper case.
 

@@ -109,10 +109,11 @@ def test_fit_says_what_the_reader_noticed(tmp_path, capsys):
     assert f"dup.c3d: duplicate labels kept as separate markers: {labels[0]}" in err
 
 
-def test_the_readers_notes_are_said_even_when_the_fit_fails(real_c3d, tmp_path, capsys):
-    """Two subjects in one file, subject A without LASI: the protocol takes B's LASI, 3 m
-    away, and no frame can be fitted; the note naming both subjects must come out with the
-    error, as it is what explains it."""
+def test_a_file_of_two_subjects_is_fitted_on_the_one_with_most_markers(real_c3d, tmp_path,
+                                                                       capsys):
+    """Two subjects in one file, 3 m apart, subject A without LASI: the protocol took B's LASI
+    for A's and no frame could be fitted; the match keeps to one subject, the one whose labels
+    give the most markers (B), and fits it as the file of B alone; the notes say so."""
     from mocaplib.io.c3d import read_c3d
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
@@ -121,6 +122,11 @@ def test_the_readers_notes_are_said_even_when_the_fit_fails(real_c3d, tmp_path, 
                              axis=1)
     labels = [f"A:{trial.labels[i]}" for i in without] + [f"B:{x}" for x in trial.labels]
     path = write_c3d(tmp_path / "pair.c3d", markers, labels, trial.rate)
-    assert main(["fit", str(path), "-o", str(tmp_path / "x.csv")]) == 1
+    alone = write_c3d(tmp_path / "alone.c3d", trial.markers + [0.0, 3.0, 0.0],
+                      [f"B:{x}" for x in trial.labels], trial.rate)
+    assert main(["fit", str(path), "-o", str(tmp_path / "pair.csv")]) == 0
     err = capsys.readouterr().err
-    assert "pair.c3d: labels of 2 subjects (A, B)" in err and "Traceback" not in err
+    assert "pair.c3d: labels of 2 subjects (A, B)" in err
+    assert "pair.c3d: matched on subject B's labels, the other subjects' left aside" in err
+    assert main(["fit", str(alone), "-o", str(tmp_path / "alone.csv")]) == 0
+    assert (tmp_path / "pair.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()

@@ -56,6 +56,8 @@ def _run(args) -> int:
     for note in trial.warnings:         # said before the fit, which they may explain
         warn(f"{args.input}: {note}")
     match = match_trial(trial, args.protocol)
+    if match.subject_note:
+        warn(f"{args.input}: {match.subject_note}")
     missing = missing_landmarks_error(match, args.input)
     if missing is not None:
         warn(str(missing))

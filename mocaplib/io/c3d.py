@@ -52,7 +52,7 @@ import numpy as np
 from ..errors import C3DError
 from ..numeric import distinct, percentile
 from . import open_regular, printable
-from ..trial import Event, Trial
+from ..trial import Event, Trial, subject_prefixes
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
 UNITS_TO_METRES = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0}
@@ -117,9 +117,9 @@ def _read_trial(handle, path: Path) -> Trial:
     subjects = subject_prefixes(labels)
     prefixes = sorted(set(subjects) - {""})
     if len(prefixes) > 1:
-        notes.append(f"labels of {len(prefixes)} subjects ({', '.join(prefixes)}): each "
-                     "landmark is taken from the first label that names it, whichever subject "
-                     "it belongs to; export one subject per file to fit each")
+        notes.append(f"labels of {len(prefixes)} subjects ({', '.join(prefixes)}): the "
+                     "protocol is matched on the subject whose labels give the most of its "
+                     "markers; export one subject per file to fit each")
     axis, axis_notes = detect_vertical_axis(markers, screen_axis=_screen_up_axis(reader),
                                             subjects=subjects)
     notes.extend(axis_notes)
@@ -720,12 +720,6 @@ def _screen_up_axis(reader) -> str | None:
         return None
     text = _clean(param.bytes[:8]).upper()
     return text[-1] if text[-1:] in ("X", "Y", "Z") else None
-
-
-def subject_prefixes(labels: list[str], /) -> list[str]:
-    """Each label's subject prefix: the text before its last ``:`` (``Subj01`` of
-    ``Subj01:LASI``), ``""`` for a label without one."""
-    return [label.rpartition(":")[0] for label in labels]
 
 
 def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None,
