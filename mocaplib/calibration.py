@@ -98,7 +98,8 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
-                      leg_frames, marker_frames, offsets_in_frames, segment_frames)
+                      leg_frames, marker_frames, offsets_in_frames, pelvis_axes,
+                      segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
 from .numeric import distinct, median, nanmedian
@@ -369,6 +370,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
     _check_upright(X, segments, cal)
+    _check_sides(X, [m.landmark.name for m in markers], cal)
     nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     landmarks = [m.landmark.name for m in markers]
     if height is None:
@@ -634,6 +636,26 @@ def _check_upright(X: np.ndarray, segments: np.ndarray, cal: Trial) -> None:
             f"the pelvis markers lie {-nanmedian(height) * 1000:.0f} mm below the feet's: the "
             "file's vertical axis points down", path=cal.source,
             hint="export the capture with the vertical axis pointing up (Z or Y up)")
+
+
+def _check_sides(X: np.ndarray, landmarks: list[str], cal: Trial) -> None:
+    """Raise :class:`CalibrationError` naming ``cal`` when, in most calibration frames ``X``
+    (F, M, 3) (``landmarks`` (M,) names), the left ASIS lies to the subject's right of the
+    right one (facing from the PSIS or sacrum to the ASIS, Z up): the left and right labels
+    are exchanged, and a mirrored body would be fitted to every frame."""
+    at = {name: X[:, i] for i, name in enumerate(landmarks)}
+    back = (0.5 * (at["L_PSIS"] + at["R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= at.keys()
+            else at.get("SACRUM"))
+    if back is None or not {"L_ASIS", "R_ASIS"} <= at.keys():
+        return
+    with np.errstate(invalid="ignore"):               # frames without them: NaN
+        up = pelvis_axes(at["L_ASIS"], at["R_ASIS"], back)[:, 2, 2]
+    if nanmedian(up) < 0:
+        raise CalibrationError(
+            "the left pelvis markers lie on the subject's right (the left ASIS to the right of "
+            "the right one, facing from the back of the pelvis to its front): the left and "
+            "right labels are exchanged", path=cal.source,
+            hint="relabel the capture's left and right markers, or check the protocol's sides")
 
 
 def check_standing(static: Trial, *, moved: float | None = None) -> None:

@@ -448,3 +448,20 @@ def test_an_upside_down_capture_is_refused_not_fitted_upside_down(tmp_path, caps
     assert "Traceback" not in err and not (tmp_path / "angles.csv").exists()
     assert main(["fit", str(SAMPLES / "walk_straight_normal.c3d"),
                  "-o", str(tmp_path / "angles.csv")]) == 0
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_left_and_right_labels_exchanged_throughout_are_refused(tmp_path, capsys):
+    # every L* label named R* and the other way round: a mirrored body was fitted, and the
+    # calibration blamed pairs like C7/CLAV; the pelvis's handedness tells the exchange
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(sample("walk_straight_normal", tmp_path))
+    mirrored = [{"L": "R", "R": "L"}.get(label[0], label[0]) + label[1:] for label in trial.labels]
+    assert sorted(mirrored) == sorted(trial.labels) and mirrored != trial.labels
+    path = write_c3d(tmp_path / "mirrored.c3d", trial.markers, mirrored, trial.rate)
+    assert main(["fit", str(path), "-o", str(tmp_path / "angles.csv")]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: the left pelvis markers lie on the subject's right" in err
+    assert "left and right labels are exchanged" in err and "Traceback" not in err
