@@ -98,8 +98,7 @@ import numpy as np
 from . import protocols as _protocols
 from .errors import UNITS_HINT, CalibrationError
 from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
-                      leg_frames, marker_frames, offsets_in_frames, pelvis_axes,
-                      segment_frames)
+                      leg_frames, marker_frames, offsets_in_frames, segment_frames)
 from .ik import MIN_PELVIS_MARKERS, find_repairs, initial_pose, solve_poses
 from .motion import apply_repairs
 from .numeric import distinct, median, nanmedian
@@ -639,22 +638,29 @@ def _check_upright(X: np.ndarray, segments: np.ndarray, cal: Trial) -> None:
 
 
 def _check_sides(X: np.ndarray, landmarks: list[str], cal: Trial) -> None:
-    """Raise :class:`CalibrationError` naming ``cal`` when, in most calibration frames ``X``
-    (F, M, 3) (``landmarks`` (M,) names), the left ASIS lies to the subject's right of the
-    right one (facing from the PSIS or sacrum to the ASIS, Z up): the left and right labels
-    are exchanged, and a mirrored body would be fitted to every frame."""
+    """Raise :class:`CalibrationError` naming ``cal`` when, by every front/back cue its
+    landmarks give (two at least: :func:`mocaplib.protocols.forward_cues`, which an exchange
+    of sides leaves, Z up), most of its left/right landmark pairs (``landmarks`` (M,) names of
+    the calibration frames ``X`` (F, M, 3)) have the left one on the subject's right: the left
+    and right labels are exchanged throughout, and a mirrored body would be fitted. One cue
+    alone is not trusted: a single exchange of a front and a back label turns it."""
     at = {name: X[:, i] for i, name in enumerate(landmarks)}
-    back = (0.5 * (at["L_PSIS"] + at["R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= at.keys()
-            else at.get("SACRUM"))
-    if back is None or not {"L_ASIS", "R_ASIS"} <= at.keys():
+    pairs = [(name, "R" + name[1:]) for name in at
+             if name.startswith("L_") and "R" + name[1:] in at]
+    cues = _protocols.forward_cues(at, len(X))
+    if len(pairs) < 3 or len(cues) < 2:
         return
-    with np.errstate(invalid="ignore"):               # frames without them: NaN
-        up = pelvis_axes(at["L_ASIS"], at["R_ASIS"], back)[:, 2, 2]
-    if nanmedian(up) < 0:
+    counts = []
+    for forward in cues:
+        left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)         # up x forward
+        lateral = np.array([nanmedian(((at[a][:, :2] - at[b][:, :2]) * left).sum(axis=1))
+                            for a, b in pairs])
+        counts.append(int((lateral < 0).sum()))
+    if min(counts) > len(pairs) / 2:
         raise CalibrationError(
-            "the left pelvis markers lie on the subject's right (the left ASIS to the right of "
-            "the right one, facing from the back of the pelvis to its front): the left and "
-            "right labels are exchanged", path=cal.source,
+            f"{min(counts)} of the {len(pairs)} left markers that have a right one lie on the "
+            "subject's right of it (facing from the back of the body to its front): the left "
+            "and right labels are exchanged", path=cal.source,
             hint="relabel the capture's left and right markers, or check the protocol's sides")
 
 

@@ -840,8 +840,21 @@ def find_side_swaps(trial: Trial, match: ProtocolMatch, /) -> tuple[str, ...]:
 
 
 def forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
-    """Unit horizontal forward direction per frame, shape (F, 2), NaN where unknown."""
+    """Unit horizontal forward direction per frame, shape (F, 2), NaN where unknown: the
+    first of :func:`forward_cues` known in each frame."""
     forward = np.full((n_frames, 2), np.nan)
+    for cue in forward_cues(by_landmark, n_frames):
+        todo = np.isnan(forward[:, 0])
+        forward[todo] = cue[todo]
+    return forward
+
+
+def forward_cues(by_landmark: dict[str, np.ndarray], n_frames: int) -> list[np.ndarray]:
+    """The unit horizontal forward direction per frame (F, 2), NaN where unknown, from each
+    front/back cue the landmarks (``by_landmark``: name -> (F, 3)) give, in this order: ASIS
+    against PSIS or sacrum, sternum against spine, front against back of the head (each the
+    mean of a pair, so an exchange of left and right leaves it)."""
+    out = []
     for anterior, posterior in _FORWARD_CUES:
         front, back = _side_mean(by_landmark, anterior), _side_mean(by_landmark, posterior)
         if front is None or back is None:
@@ -849,10 +862,8 @@ def forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.n
         cue = (front - back)[:, :2]
         norm = np.linalg.norm(cue, axis=1, keepdims=True)
         with np.errstate(invalid="ignore", divide="ignore"):
-            cue = np.where(norm > 1e-3, cue / norm, np.nan)
-        todo = np.isnan(forward[:, 0])
-        forward[todo] = cue[todo]
-    return forward
+            out.append(np.where(norm > 1e-3, cue / norm, np.nan))
+    return out
 
 
 def _side_mean(by_landmark: dict[str, np.ndarray], names: tuple[str, ...]) -> np.ndarray | None:
