@@ -368,10 +368,10 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
     X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
-    _check_upright(X, segments, cal)
-    _check_sides(X, [m.landmark.name for m in markers], cal)
-    nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     landmarks = [m.landmark.name for m in markers]
+    _check_upright(X, segments, cal)
+    _check_sides(X, landmarks, cal)
+    nominal = proto.nominal_offsets()[1][used]        # NaN rows: tracking markers
     if height is None:
         height = estimate_height(X, segments, nominal, source=cal.source)
     scale = height / _protocols.REFERENCE_HEIGHT
@@ -629,10 +629,10 @@ def _check_upright(X: np.ndarray, segments: np.ndarray, cal: Trial) -> None:
         return
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # frames without feet: NaN
-        height = np.nanmean(X[:, pelvis, 2], axis=1) - np.nanmean(X[:, feet, 2], axis=1)
-    if nanmedian(height) < 0:
+        height = nanmedian(np.nanmean(X[:, pelvis, 2], axis=1) - np.nanmean(X[:, feet, 2], axis=1))
+    if height < 0:
         raise CalibrationError(
-            f"the pelvis markers lie {-nanmedian(height) * 1000:.0f} mm below the feet's: the "
+            f"the pelvis markers lie {-height * 1000:.0f} mm below the feet's: the "
             "file's vertical axis points down", path=cal.source,
             hint="export the capture with the vertical axis pointing up (Z or Y up)")
 
@@ -691,7 +691,6 @@ def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
     :class:`CalibrationError` naming the static when the stretch does not stand still, or a
     ``window`` holds no frame of it.
     """
-
     n = static.n_frames
     if window is not None:
         start, end = (float(value) for value in window)
@@ -848,8 +847,8 @@ def check_same_subject(X_static: np.ndarray, X_motion: np.ndarray, segments: np.
         raise CalibrationError(
             f"this static trial does not match the motion trial {trial.source or '(unnamed)'}: "
             f"distances between markers on one segment differ by "
-            f"{1000 * difference:.1f} mm (median of {int(usable.sum())} pairs; one subject with the "
-            f"same markers stays within {1000 * limit:.0f} mm; motion/static size ratio "
+            f"{1000 * difference:.1f} mm (median of {int(usable.sum())} pairs; one subject with "
+            f"the same markers stays within {1000 * limit:.0f} mm; motion/static size ratio "
             f"{scale:.3f}); e.g. {examples}", path=static.source,
             hint="use the static recorded with this subject in this session (markers not moved "
                  "since), or calibrate from the motion itself (leave out --static)")

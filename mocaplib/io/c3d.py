@@ -742,9 +742,9 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
                               .astype(int))]
     seen = np.isfinite(sample[..., 0]) & np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
     subjects = np.array([""] * markers.shape[1] if subjects is None else subjects)
+    groups = sorted(set(subjects))
     offsets = []
-    for subject in sorted(set(subjects)):
-        mine = slice(None) if len(set(subjects)) == 1 else subjects == subject
+    for mine in [slice(None)] if len(groups) == 1 else [subjects == s for s in groups]:
         own, seen_own = sample[:, mine], seen[:, mine]
         counts = seen_own.sum(axis=1)
         mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
