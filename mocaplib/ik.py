@@ -1004,8 +1004,9 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     A low-pass filter turns a jumping trajectory into a ramp the jump rule cannot see, so
     labelling errors and outlying samples are found on the raw markers (a :func:`fit` of
     ``trial``, stopped by :data:`OUTLIER_PASS`'s looser rule unless ``options`` give one),
-    undone and gapped, and the markers are filtered
-    (:func:`mocaplib.filtering.filter_trial`, gap-aware) and fitted again, starting from the
+    undone and gapped, and the model's markers are filtered
+    (:func:`mocaplib.filtering.filter_trial`, gap-aware; "auto" judges the cutoff on them) and
+    fitted again, starting from the
     raw fit's poses low-passed at the same cutoff. The motion's
     ``rejected`` holds the samples removed by either fit, its ``repairs`` those of both. Returns
     the motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
@@ -1015,16 +1016,16 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     if cutoff is None or cutoff == "none":
         return fit(trial, model, **options), None
     raw = fit(trial, model, **{**OUTLIER_PASS, **options})
+    # only the model's markers are filtered and fitted again (the filter treats each marker
+    # on its own): a file's other points (virtual points, other subjects) cost nothing
     columns = _trial_columns(trial, model)
     found = columns >= 0
-    markers = trial.markers.copy()
-    markers[:, columns[found]] = apply_repairs(trial.markers[:, columns[found]],
-                                               [label for label, f in zip(model.labels, found)
-                                                if f], raw.repairs)
-    frames, m = np.nonzero(raw.rejected)
-    markers[frames, columns[m]] = np.nan
-    cleaned, used = filter_trial(replace(trial, markers=markers, warnings=list(trial.warnings)),
-                                 cutoff=cutoff)
+    labels = [label for label, f in zip(model.labels, found) if f]
+    markers = apply_repairs(trial.markers[:, columns[found]], labels, raw.repairs)
+    frames, m = np.nonzero(raw.rejected[:, found])
+    markers[frames, m] = np.nan
+    cleaned, used = filter_trial(replace(trial, markers=markers, labels=[
+        trial.labels[c] for c in columns[found]], warnings=list(trial.warnings)), cutoff=cutoff)
     # the raw fit low-passed like the markers is the warm start: closer to the filtered poses
     start = raw.q if used is None else lowpass(np.unwrap(raw.q, axis=0), trial.rate, used)
     motion = fit(cleaned, model, q0=start, **options)

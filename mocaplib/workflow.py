@@ -243,7 +243,9 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     with clock.stage("protocol"):
         match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
     with clock.stage("filter"):
-        filtered, used = filter_trial(trial, cutoff=cutoff)
+        # the cutoff judged on all the capture's points, the protocol's markers filtered
+        filtered, used = filter_trial(trial, cutoff=cutoff,
+                                      keep=[i for i in match.indices if i >= 0])
     with clock.stage("calibrate"):
         try:
             chosen = choose_static(filtered, statics, match.protocol, check_one=fallback)

@@ -122,6 +122,26 @@ def test_filter_trial_returns_a_new_trial():
     assert 2.0 <= fc <= 20.0
 
 
+def test_filter_trial_keeps_the_columns_asked_for_with_the_cutoff_of_them_all():
+    t = _time(300)
+    rng = np.random.default_rng(6)
+    slow = np.stack([np.sin(2 * np.pi * t), np.cos(2 * np.pi * t), t], -1)
+    fast = 0.2 * np.stack([np.sin(12 * np.pi * t), np.cos(12 * np.pi * t), t], -1)
+    markers = np.stack([slow, fast, slow + 0.1], axis=1) + rng.normal(0, 0.001, (300, 3, 3))
+    markers[100:103, 2] += 1.0                                   # a spike on the kept marker
+    trial = Trial(markers, ["SLOW", "FAST", "C"], RATE, source="walk.c3d")
+    whole, cutoff = filter_trial(trial, cutoff="auto")
+    kept, same = filter_trial(trial, cutoff="auto", keep=[2, 0])
+    # the 6 Hz marker left out still sets the cutoff: it is the capture's, not the kept ones'
+    assert same == cutoff and filter_trial(kept, cutoff="auto")[1] != cutoff
+    assert kept.labels == ["C", "SLOW"]
+    np.testing.assert_array_equal(kept.markers, whole.markers[:, [2, 0]])
+    given, _ = filter_trial(trial, cutoff=6.0, keep=[2])
+    np.testing.assert_array_equal(given.markers,
+                                  filter_trial(trial, cutoff=6.0)[0].markers[:, [2]])
+    assert filter_trial(trial, cutoff=None, keep=[1])[0].labels == ["FAST"]
+
+
 @pytest.mark.parametrize("frames", [1, 5, MIN_RUN - 1])
 def test_auto_cutoff_of_a_capture_too_short_to_filter(frames):
     # a one-frame static (btkdata's PiG_Calibration-FlatFoot-One) has no residual curve: it

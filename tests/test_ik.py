@@ -264,6 +264,20 @@ def test_outliers_are_found_before_the_low_pass_spreads_them():
     assert np.nanmax(motion.residuals[:, t10]) < 0.01
 
 
+def test_points_outside_the_model_do_not_change_the_filtered_fit():
+    # fit_filtered filters and refits the model's markers only: a file's other points (here
+    # noisy virtual points, as CMU's files hold hundreds of) change nothing
+    cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=3, noise_mm=0.7, seed=8)
+    model = true_model(cap)
+    extra = np.random.default_rng(1).normal(0, 0.5, (120, 30, 3))
+    wide = Trial(np.concatenate([extra, cap.trial.markers], axis=1),
+                 [f"V{i}" for i in range(30)] + cap.trial.labels, cap.trial.rate)
+    alone, _ = fit_filtered(cap.trial, model, cutoff=6.0)
+    among, _ = fit_filtered(wide, model, cutoff=6.0)
+    np.testing.assert_array_equal(among.q, alone.q)
+    np.testing.assert_array_equal(among.rejected, alone.rejected)
+
+
 def test_normal_equations_from_moments_equal_the_jacobians():
     cap = fk_trial(n_frames=4, placement_mm=0, sta_mm=6, noise_mm=1, seed=9)
     q = cap.q + np.random.default_rng(0).normal(0, 2 * DEG, cap.q.shape)
