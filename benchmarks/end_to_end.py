@@ -107,7 +107,7 @@ def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
     from mocaplib.io.opensim import opensim_name, write_osim, write_trc
     from mocaplib.protocols import REFERENCE_HEIGHT
     from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
 
     trial = read_c3d(path)
     statics = [read_c3d(static)] if static else None

@@ -58,7 +58,7 @@ from mocaplib.errors import MocapError  # noqa: E402
 from mocaplib.filtering import filter_trial, lowpass  # noqa: E402
 from mocaplib.fourier import encode_cycle  # noqa: E402
 from mocaplib.ik import fit, fit_quality  # noqa: E402
-from mocaplib.workflow import fit_capture  # noqa: E402
+from mocaplib.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build  # noqa: E402
@@ -418,7 +418,7 @@ def forward_kinematics(seeds: int) -> None:
 def real(folder: Path) -> None:
     """Each walking file as ``mocaplib fit`` does it: calibrated from the capture's markers
     low-passed at Winter's cutoff; fitted with outlying samples found on the raw markers,
-    gapped, then low-passed (:func:`mocaplib.workflow.fit_capture`, :func:`mocaplib.ik.fit_filtered`);
+    gapped, then low-passed (:func:`mocaplib.fitting.fit_capture`, :func:`mocaplib.ik.fit_filtered`);
     removed samples counted."""
     print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | removed samples | seconds |")

@@ -44,7 +44,7 @@ from mocaplib.criteria import internal_power, segment_energies  # noqa: E402
 from mocaplib.cycles import motion_cycles  # noqa: E402
 from mocaplib.events import capture_events  # noqa: E402
 from mocaplib.fourier import ROOT_X, ROOT_Y  # noqa: E402
-from mocaplib.workflow import fit_capture  # noqa: E402
+from mocaplib.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.pipeline import BuildSettings, build  # noqa: E402
 from mocaplib.workflow import cycle_shape  # noqa: E402

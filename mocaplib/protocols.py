@@ -391,13 +391,15 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
 def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tuple[str, ...]:
     """``[cycles] fallback_starts`` (or ``inherited``, the parent's): names of the stride's
     events other than the left toe-off (:data:`mocaplib.entry.CYCLE_STARTS`), each once."""
-    from .entry import CYCLE_STARTS
-
     unknown = sorted(set(table) - {"fallback_starts"})
     if unknown:
         raise ProtocolError(f"[cycles] has no key {unknown[0]!r}", path=path,
                             hint="[cycles] takes fallback_starts only")
     starts = table.get("fallback_starts", list(inherited))
+    if starts == []:            # no [cycles]: the library's modules need not be loaded
+        return ()
+    from .entry import CYCLE_STARTS
+
     if (not isinstance(starts, list) or any(s not in CYCLE_STARTS for s in starts)
             or len(set(starts)) != len(starts)):
         raise ProtocolError(f"[cycles] fallback_starts must list events among "

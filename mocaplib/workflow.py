@@ -13,9 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import time
 import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 from pathlib import Path
@@ -24,18 +22,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import MocapError, NoCycleError
+from .fitting import StageClock, fit_capture
 from .io import fs_text, open_regular
 from .entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from .library import qc_failures, to_json_data
 from .qc import cycle_qc, inside_cycle, qc_and_choice, qc_series
-from .skeleton import DOF_NAMES, SEGMENTS
+from .skeleton import DOF_NAMES
 
 if TYPE_CHECKING:
-    from .calibration import SubjectModel
-    from .motion import Motion
-    from .protocols import ProtocolMatch
     from .settings import BuildSettings
-    from .trial import Trial
 
 
 #: Long series in the diagnostics are downsampled to at most this many points.
@@ -146,24 +141,6 @@ class CaptureResult:
 
 
 # --------------------------------------------------------------------------- one capture
-class _Clock:
-    """Times named stages and remembers the one running (to blame it when it fails)."""
-
-    def __init__(self):
-        self.times: dict[str, float] = {}
-        self.current: str | None = None
-
-    @contextmanager
-    def stage(self, name: str):
-        self.current = name
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
-        self.current = None
-
-
 def file_sha256(path: str | os.PathLike) -> str:
     """Hex SHA-256 of a file's bytes; OSError for anything but a regular file (a pipe or
     device could block or never end: :func:`mocaplib.io.open_regular`)."""
@@ -172,135 +149,6 @@ def file_sha256(path: str | os.PathLike) -> str:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
-
-
-@dataclass
-class FittedCapture:
-    """One capture calibrated and fitted (:func:`fit_capture`).
-
-    Attributes
-    ----------
-    match : ProtocolMatch
-        The capture's labels matched with its protocol (:func:`mocaplib.protocols.match_trial`).
-    cutoff : float or None
-        Hz the markers were low-passed at (None: not filtered).
-    model : SubjectModel
-        The subject model; its ``source`` names the static trial used.
-    motion : Motion
-        The fitted joint angles.
-    static : int or None
-        Index of the static trial used among those given (None: calibrated from the capture).
-    warnings : list[str]
-        What the user should know about the calibration and the fit, one sentence each.
-    """
-
-    match: ProtocolMatch
-    cutoff: float | None
-    model: SubjectModel
-    motion: Motion
-    static: int | None
-    warnings: list[str]
-
-
-def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
-                static_pose: str = "free", cutoff: float | str | None = "auto",
-                heading_offsets=None, measurements: dict | None = None,
-                static_window: tuple[float, float] | None = None, fallback: bool = False,
-                neutral_model=None, clock: _Clock | None = None,
-                knee_turns: dict[str, float] | None = None) -> FittedCapture:
-    """Calibrate and fit one capture, as every command does: ``protocol`` matched on the
-    capture, markers low-passed at ``cutoff`` (Hz, "auto" or None,
-    :func:`mocaplib.filtering.filter_trial`), the subject model calibrated
-    (:func:`mocaplib.calibration.calibrate`) on the static that shows the capture's subject or
-    on the capture itself, then :func:`mocaplib.ik.fit_filtered`.
-
-    ``protocol``: a :class:`~mocaplib.protocols.ProtocolMatch` of this trial, or what
-    :func:`mocaplib.protocols.match_trial` takes (a Protocol, shipped name, TOML path or
-    "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
-    a list of them, one per subject or session (the one that shows this capture's subject is
-    used, :func:`mocaplib.calibration.choose_static`), in ``static_pose``. When none shows the
-    subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
-    from the capture itself and says so. ``heading_offsets``: per static, the heading correction
-    of a forward reference, radians (:func:`forward_offsets`; the static in the neutral pose).
-    ``measurements``: subject measurements overriding the calibration file's;
-    ``static_window``: the (start, end) seconds of the static to calibrate on
-    (:func:`mocaplib.calibration.standing_part`). ``neutral_model(i)``: the model of static
-    ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
-    a build calibrates each once per process); None calibrates it here. ``clock`` times the
-    stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
-    :func:`mocaplib.calibration.calibrate` takes it (None: functional knee axes).
-    """
-    from .calibration import calibrate, check_static, choose_static, static_names
-    from .errors import CalibrationError
-    from .filtering import filter_trial
-    from .ik import fit_filtered
-    from .protocols import ProtocolMatch, match_trial
-
-    clock = clock or _Clock()
-    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
-        else [static]
-    warnings: list[str] = []
-    with clock.stage("protocol"):
-        match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
-    with clock.stage("filter"):
-        # the cutoff judged on all the capture's points, the protocol's markers filtered
-        filtered, used = filter_trial(trial, cutoff=cutoff,
-                                      keep=[i for i in match.indices if i >= 0])
-    with clock.stage("calibrate"):
-        try:
-            chosen = choose_static(filtered, statics, match.protocol, check_one=fallback)
-            if chosen is not None and static_pose == "neutral" and neutral_model is not None:
-                model = neutral_model(chosen)
-                check_static(filtered, statics[chosen], model)
-            else:
-                model = calibrate(filtered, protocol=match.protocol,
-                                  static=None if chosen is None else statics[chosen],
-                                  static_pose=static_pose,
-                                  heading_offset=0.0 if heading_offsets is None or chosen is None
-                                  else heading_offsets[chosen],
-                                  measurements=measurements, static_window=static_window,
-                                  knee_turns=knee_turns)
-        except CalibrationError as exc:
-            if not (fallback and statics):
-                raise
-            warnings.append(f"calibrated from the capture itself: no static shows its subject "
-                            f"({exc.message})")
-            chosen, model = None, calibrate(filtered, protocol=match.protocol,
-                                            measurements=measurements, knee_turns=knee_turns)
-    if chosen is not None:
-        name = static_names([s.source or f"static {i + 1}" for i, s in enumerate(statics)])[chosen]
-        window = model.static_window_s
-        if window != (0.0, statics[chosen].duration):
-            warnings.append(f"static {name}: calibrated on its stretch {window[0]:.2f}-"
-                            f"{window[1]:.2f} s (of {statics[chosen].duration:.2f} s)")
-        warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
-    with clock.stage("fit"):
-        motion, _ = fit_filtered(trial, model, cutoff=used)
-    warnings.extend(_fit_warnings(model, motion))
-    return FittedCapture(match, used, model, motion, chosen, warnings)
-
-
-def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
-    """What a user should know about a fit: the labelling repairs, DOFs held at 0 and why,
-    DOFs at a joint limit, frames not fitted, samples removed."""
-    from .ik import fit_quality
-
-    quality = fit_quality(motion)
-    notes = motion.repair_warnings()
-    if model.left_out:
-        notes.append(f"no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
-    left_out = {dof for seg in SEGMENTS if seg.name in model.left_out for dof in seg.dofs}
-    unseen = [dof for dof in motion.locked_dofs if dof not in left_out]
-    if unseen:
-        notes.append(f"the markers of protocol {model.protocol.name!r} cannot see "
-                     f"{', '.join(unseen)}; held at 0")
-    notes.extend(motion.limit_warnings())
-    if quality["failed_frames"]:
-        notes.append(f"{len(quality['failed_frames'])} frames could not be fitted (interpolated)")
-    if quality["rejected_samples"]:
-        notes.append(f"{quality['rejected_samples']} marker samples removed as outliers "
-                     f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
-    return notes
 
 
 def process_capture(path: str | os.PathLike, settings: BuildSettings) -> CaptureResult:
@@ -317,7 +165,7 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     if result.file != Path(path).name:
         result.warnings.append(f"the file name is not valid UTF-8: its entries name it "
                                f"{result.file!r} (the bytes read as Latin-1)")
-    clock = _Clock()
+    clock = StageClock()
     is_static = os.path.realpath(path) in {os.path.realpath(s) for s in settings.statics}
     try:
         with clock.stage("read"):
@@ -344,7 +192,7 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     return result
 
 
-def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
+def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
     """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
     image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
     trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
@@ -374,17 +222,17 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                 DIAGNOSTICS_DIGITS)
 
 
-def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: _Clock):
+def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
     """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
     Fourier); returns the trial, its :class:`~mocaplib.motion.Motion`, its cycles, its gait
     events and the ground's velocity (3,) m/s (:func:`mocaplib.events.capture_events`), and puts
     the warnings, the static used and the capture's diagnostic series in ``result``.
 
-    The stages are chained as ``mocaplib cycles`` chains them (:func:`fit_capture`, timed by
-    ``clock``, then :func:`mocaplib.events.capture_events` and
-    :func:`mocaplib.cycles.motion_cycles`), so both give the same cycles; a build falls back
-    to calibrating from the capture when none of its statics shows the subject, unless
-    ``settings.require_static``. Settings with a forward reference must carry its measured
+    The stages are chained as ``mocaplib cycles`` chains them
+    (:func:`mocaplib.fitting.fit_capture`, timed by ``clock``, then
+    :func:`mocaplib.events.capture_events` and :func:`mocaplib.cycles.motion_cycles`), so both
+    give the same cycles; a build falls back to calibrating from the capture when none of its
+    statics shows the subject, unless ``settings.require_static``. Settings with a forward reference must carry its measured
     ``heading_offsets`` (:func:`build` measures them).
     """
     if settings.forward_reference is not None and settings.heading_offsets is None:
@@ -532,7 +380,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
         result = CaptureResult(source=reference)
         try:
             _, motion, cycles, _, ground = _cut_capture(
-                Path(reference), replace(settings, require_static=True), result, _Clock())
+                Path(reference), replace(settings, require_static=True), result, StageClock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None

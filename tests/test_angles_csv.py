@@ -13,7 +13,7 @@ from mocaplib.io.angles_csv import write_angles_csv
 from mocaplib.io.c3d import read_c3d
 from mocaplib.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, Skeleton
-from mocaplib.workflow import fit_capture
+from mocaplib.fitting import fit_capture
 
 
 def _pandas_csv(motion: Motion) -> bytes:

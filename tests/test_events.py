@@ -154,7 +154,7 @@ def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing():
     that the marker is missing."""
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import match_trial
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -235,7 +235,7 @@ def test_settings_reach_the_detector_and_are_checked():
 def test_model_filled_samples_do_not_count_as_measured():
     # with the fit filling the gaps (build, cycles, events --fit), every event had quality 1.0,
     # so the event-quality QC and choice rule could never act
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
     from conftest import SAMPLES
@@ -263,7 +263,7 @@ def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3
     # alone has the same quality (filled samples never count), and the cycles' event quality
     # is the smaller of their bounds'
     from mocaplib.cycles import motion_cycles
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 
@@ -290,7 +290,7 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
     # with the fit filling the foot markers, toe-offs and heel-strikes were placed after the
     # foot markers' last measured sample (Walking3: a left toe-off 0.47 s after it, cutting a
     # cycle of 0.73 s in a walk of 1.18 s strides)
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
     from mocaplib.protocols import detect_protocol
 

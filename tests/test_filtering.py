@@ -350,7 +350,7 @@ def test_a_ghost_of_three_frames_fits_as_a_gap_would(real_c3d):
     from dataclasses import replace
 
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.workflow import fit_capture
+    from mocaplib.fitting import fit_capture
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     knee = trial.labels.index("LKNE")

@@ -11,7 +11,7 @@ import pytest
 
 from mocaplib.cli import main
 from mocaplib.ik import fit_quality
-from mocaplib.workflow import fit_capture
+from mocaplib.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
 from mocaplib.synth.capture import synthesize_capture

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import plan_capture
 
-from mocaplib.workflow import fit_capture
+from mocaplib.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.pipeline import BuildSettings, process_capture
 from mocaplib.skeleton import DOF_NAMES

@@ -1,5 +1,5 @@
 """One capture workflow: ``mocaplib fit`` and ``mocaplib build`` calibrate and fit a capture
-through the same :func:`mocaplib.workflow.fit_capture`, with the same warnings."""
+through the same :func:`mocaplib.fitting.fit_capture`, with the same warnings."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.pipeline import BuildSettings
 from mocaplib.protocols import match_trial
-from mocaplib.workflow import fit_capture, process_capture
+from mocaplib.fitting import fit_capture
+from mocaplib.workflow import process_capture
 
 
 def test_the_build_fits_a_capture_as_fit_capture_does_and_says_what_it_says(real_c3d):

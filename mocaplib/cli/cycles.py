@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..cycles import LEFT_TOE_OFF, motion_cycles
     from ..events import capture_events
-    from ..workflow import fit_capture
+    from ..fitting import fit_capture
     from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
     from ..qc import qc_and_choice
     from ._common import print_json

@@ -47,7 +47,7 @@ def load(args):
 def _run(args) -> int:
     from ..cycles import check_rest_duration
     from ..events import capture_events
-    from ..workflow import fit_capture
+    from ..fitting import fit_capture
     from ._common import print_json
 
     check_inputs([args.file])

@@ -1,6 +1,6 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
-Only parses options and writes outputs: the work is :func:`mocaplib.workflow.fit_capture`
+Only parses options and writes outputs: the work is :func:`mocaplib.fitting.fit_capture`
 (:func:`mocaplib.calibration.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
 """
 
@@ -42,7 +42,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..calibration import static_names
     from ..ik import fit_quality
-    from ..workflow import fit_capture
+    from ..fitting import fit_capture
     from ..io.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
     from ..protocols import match_trial, missing_landmarks_error
