@@ -418,8 +418,8 @@ def forward_kinematics(seeds: int) -> None:
 def real(folder: Path) -> None:
     """Each walking file as ``mocaplib fit`` does it: calibrated from the capture's markers
     low-passed at Winter's cutoff; fitted with outlying samples found on the raw markers,
-    gapped, then low-passed (:func:`mocaplib.fitting.fit_capture`, :func:`mocaplib.ik.fit_filtered`);
-    removed samples counted."""
+    gapped, then low-passed (:func:`mocaplib.fitting.fit_capture`,
+    :func:`mocaplib.ik.fit_filtered`); removed samples counted."""
     print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | removed samples | seconds |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -312,9 +312,9 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto",
     The cutoff is returned only when some run of valid samples was long enough to be filtered
     (:func:`shortest_run`); otherwise the trial itself and None. ``keep``: the marker columns
     (int, (K,)) the returned trial holds, in that order (default all): only those are filtered.
-    The input trial is not modified. Raises :class:`FitError` for a frame rate no gait capture has
-    (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in (0, rate / 2), or a cutoff in
-    Hz whose period is longer than the whole capture.
+    The input trial is not modified. Raises :class:`FitError` for a frame rate no gait capture
+    has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in (0, rate / 2), or a cutoff
+    in Hz whose period is longer than the whole capture.
     """
     check_gait_rate(trial.rate, trial.source, FitError)
     kept = trial if keep is None else dataclasses.replace(

@@ -37,7 +37,6 @@ class StageClock:
         self.current = None
 
 
-
 @dataclass
 class FittedCapture:
     """One capture calibrated and fitted (:func:`fit_capture`).
@@ -85,8 +84,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     used, :func:`mocaplib.calibration.choose_static`), in ``static_pose``. When none shows the
     subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
     from the capture itself and says so. ``heading_offsets``: per static, the heading correction
-    of a forward reference, radians (:func:`mocaplib.workflow.forward_offsets`; the static in the neutral pose).
-    ``measurements``: subject measurements overriding the calibration file's;
+    of a forward reference, radians (:func:`mocaplib.workflow.forward_offsets`; the static in
+    the neutral pose). ``measurements``: subject measurements overriding the calibration file's;
     ``static_window``: the (start, end) seconds of the static to calibrate on
     (:func:`mocaplib.calibration.standing_part`). ``neutral_model(i)``: the model of static
     ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:

@@ -1006,8 +1006,7 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     ``trial``, stopped by :data:`OUTLIER_PASS`'s looser rule unless ``options`` give one),
     undone and gapped, and the model's markers are filtered
     (:func:`mocaplib.filtering.filter_trial`, gap-aware; "auto" judges the cutoff on them) and
-    fitted again, starting from the
-    raw fit's poses low-passed at the same cutoff. The motion's
+    fitted again, starting from the raw fit's poses low-passed at the same cutoff. The motion's
     ``rejected`` holds the samples removed by either fit, its ``repairs`` those of both. Returns
     the motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
     """

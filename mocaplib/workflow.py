@@ -232,8 +232,8 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     (:func:`mocaplib.fitting.fit_capture`, timed by ``clock``, then
     :func:`mocaplib.events.capture_events` and :func:`mocaplib.cycles.motion_cycles`), so both
     give the same cycles; a build falls back to calibrating from the capture when none of its
-    statics shows the subject, unless ``settings.require_static``. Settings with a forward reference must carry its measured
-    ``heading_offsets`` (:func:`build` measures them).
+    statics shows the subject, unless ``settings.require_static``. Settings with a forward
+    reference must carry its measured ``heading_offsets`` (:func:`build` measures them).
     """
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
