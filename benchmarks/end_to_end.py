@@ -149,14 +149,15 @@ def stage_times(path: Path, static: Path | None) -> dict[str, float]:
     from mocaplib.protocols import match_trial
 
     trial = read_c3d(path)
-    protocol = match_trial(trial, "auto").protocol
+    match = match_trial(trial, "auto")
+    keep = [i for i in match.indices if i >= 0]          # the protocol's markers, as fit_capture
     seconds = {}
     start = time.process_time()
-    residual_cutoff(trial.markers, trial.rate)
+    residual_cutoff(trial.markers[:, keep], trial.rate)
     seconds["cutoff"] = time.process_time() - start
-    filtered, used = filter_trial(trial, cutoff="auto")
+    filtered, used = filter_trial(trial, cutoff="auto", keep=keep)
     start = time.process_time()
-    model = calibrate(filtered, protocol=protocol,
+    model = calibrate(filtered, protocol=match.protocol,
                       static=read_c3d(static) if static else None)
     seconds["calibrate"] = time.process_time() - start
     start = time.process_time()

@@ -307,11 +307,13 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto",
                  keep: np.ndarray | None = None) -> tuple[Trial, float | None]:
     """The trial with low-pass filtered markers, and the cutoff used (Hz; None: unfiltered).
 
-    ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of all the trial's markers) or None /
+    ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the markers kept) or None /
     ``"none"`` (the trial itself is returned). Spikes are gapped first (:func:`remove_spikes`).
     The cutoff is returned only when some run of valid samples was long enough to be filtered
     (:func:`shortest_run`); otherwise the trial itself and None. ``keep``: the marker columns
-    (int, (K,)) the returned trial holds, in that order (default all): only those are filtered.
+    (int, (K,)) the returned trial holds, in that order (default all): only those are judged
+    and filtered (a file's other points, a model's virtual points or another subject's markers,
+    neither sway the cutoff nor cost anything).
     The input trial is not modified. Raises :class:`FitError` for a frame rate no gait capture
     has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in (0, rate / 2), or a cutoff
     in Hz whose period is longer than the whole capture.
@@ -322,12 +324,11 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto",
         warnings=list(trial.warnings))
     if cutoff is None or cutoff == "none" or trial.n_frames == 0:
         return kept, None
+    trial = kept
     given = cutoff != "auto"
-    markers = remove_spikes((kept if given else trial).markers, trial.rate)  # marker by marker
+    markers = remove_spikes(trial.markers, trial.rate)
     if not given:
         cutoff = residual_cutoff(markers, trial.rate)
-        markers = markers if keep is None else markers[:, keep]
-    trial = kept
     try:
         cutoff = float(cutoff)
         _check_cutoff(cutoff, trial.rate)

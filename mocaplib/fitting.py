@@ -106,7 +106,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     with clock.stage("protocol"):
         match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
     with clock.stage("filter"):
-        # the cutoff judged on all the capture's points, the protocol's markers filtered
+        # the protocol's markers only: the cutoff is judged on them, and they are filtered
         filtered, used = filter_trial(trial, cutoff=cutoff,
                                       keep=[i for i in match.indices if i >= 0])
     with clock.stage("calibrate"):

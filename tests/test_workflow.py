@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import CalibrationError
+from mocaplib.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.pipeline import BuildSettings
 from mocaplib.protocols import match_trial
-from mocaplib.fitting import fit_capture
+from mocaplib.trial import Trial
 from mocaplib.workflow import process_capture
 
 
@@ -23,6 +24,20 @@ def test_the_build_fits_a_capture_as_fit_capture_does_and_says_what_it_says(real
     assert result.ok, result.error
     for note in fitted.warnings:
         assert note in result.warnings
+
+
+def test_points_outside_the_protocol_neither_sway_the_cutoff_nor_change_the_fit(sample_dir):
+    # a model's virtual points or another subject's markers (here 12 points jittering at
+    # 20 Hz, which judged with the markers would raise the cutoff) are left out from the start
+    trial = read_c3d(sample_dir / "walk_straight_normal.c3d")
+    t = trial.time[:, None, None]
+    jitter = 0.01 * np.sin(2 * np.pi * 20.0 * t + np.arange(36).reshape(1, 12, 3))
+    wide = Trial(np.concatenate([trial.markers, 1.0 + jitter], axis=1),
+                 trial.labels + [f"V{i:03d}" for i in range(12)], trial.rate,
+                 source=trial.source)
+    alone, among = fit_capture(trial), fit_capture(wide)
+    assert among.cutoff == alone.cutoff
+    np.testing.assert_array_equal(among.motion.q, alone.motion.q)
 
 
 def test_a_static_of_another_subject_fails_unless_the_caller_falls_back(real_c3d):
