@@ -150,7 +150,7 @@ def stage_times(path: Path, static: Path | None) -> dict[str, float]:
 
     trial = read_c3d(path)
     match = match_trial(trial, "auto")
-    keep = [i for i in match.indices if i >= 0]          # the protocol's markers, as fit_capture
+    keep = match.columns                                 # the protocol's markers, as fit_capture
     seconds = {}
     start = time.process_time()
     residual_cutoff(trial.markers[:, keep], trial.rate)

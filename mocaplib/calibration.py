@@ -423,6 +423,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
                                    level_feet=static is not None)
     in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
+    where_cal = {name: X_cal[:, i] for i, name in enumerate(landmarks)}
 
     def anatomical_model(knee_turns=None):
         """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
@@ -430,8 +431,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         ``knee_turns``: only the legs' frames built again)."""
         frames, in_frames = dict(frames_cal), in_frames_cal.copy()
         for side, turn in (knee_turns or {}).items():
-            legs = leg_frames({name: X_cal[:, i] for i, name in enumerate(landmarks)}, centres,
-                              side, level_feet=static is not None, knee_turn=turn)
+            legs = leg_frames(where_cal, centres, side, level_feet=static is not None,
+                              knee_turn=turn)
             frames.update(legs)
             on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in legs])
             in_frames[on] = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, legs)[on]

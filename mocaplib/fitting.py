@@ -107,8 +107,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
         match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
     with clock.stage("filter"):
         # the protocol's markers only: the cutoff is judged on them, and they are filtered
-        filtered, used = filter_trial(trial, cutoff=cutoff,
-                                      keep=[i for i in match.indices if i >= 0])
+        filtered, used = filter_trial(trial, cutoff=cutoff, keep=match.columns)
     with clock.stage("calibrate"):
         try:
             chosen = choose_static(filtered, statics, match.protocol, check_one=fallback)

@@ -49,6 +49,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from collections import Counter
 from dataclasses import dataclass, replace
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -624,6 +625,11 @@ class ProtocolMatch:
         return sum(i >= 0 for i in self.indices)
 
     @property
+    def columns(self) -> list[int]:
+        """The trial's marker indices of the protocol's markers found, in protocol order."""
+        return [i for i in self.indices if i >= 0]
+
+    @property
     def complete(self) -> bool:
         """True when every required marker and one marker of each ``any_of`` group is present."""
         return not self.missing_required and not self.missing_any_of
@@ -695,9 +701,9 @@ def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True
     for i, (label, name) in enumerate(zip(trial.labels, names)):
         if classify and name not in claimed:
             (ignored if is_model_output(label) or i in computed else unknown).append(label)
-    own = [name for name, m in zip(names, mine) if m]
+    copies = Counter(name for name, m in zip(names, mine) if m)
     duplicates = tuple(trial.labels[chosen[k]] for m in protocol.markers for k in m.keys
-                       if k in chosen and own.count(k) > 1)
+                       if k in chosen and copies[k] > 1)
     match = ProtocolMatch(protocol, indices, missing, missing_required, missing_any_of,
                           tuple(ignored), tuple(dict.fromkeys(unknown)), duplicates,
                           subject=subject or None)

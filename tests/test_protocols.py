@@ -136,6 +136,9 @@ def test_duplicates_flagged_and_the_copy_seen_in_most_frames_used(real_c3d):
     match = match_protocol(trial, match.protocol)
     assert match.indices[match.protocol.labels.index("RKNE")] == rkne[1]
     assert "RKNE" in match.duplicates
+    # the columns a fit reads: one per protocol marker found, the chosen copy's
+    assert len(match.columns) == match.found and rkne[1] in match.columns
+    assert rkne[0] not in match.columns
 
 
 def test_cmu_subject_prefix_and_aliases(real_c3d):
