@@ -171,10 +171,13 @@ class Motion:
             return np.sqrt(np.nanmean(self.residuals ** 2, axis=0))
 
     def limit_shares(self, frames: np.ndarray | slice = slice(None)) -> dict[str, float]:
-        """Share of ``frames`` (default all) each DOF spends at one of its joint limits
-        (within :data:`AT_LIMIT` of it), for the DOFs that reach one: {name: fraction}."""
+        """Share of the fitted ``frames`` (default all; :attr:`failed` ones left out, their
+        angles copied from the fitted frames beside them) each DOF spends at one of its joint
+        limits (within :data:`AT_LIMIT` of it), for the DOFs that reach one: {name: fraction}."""
         lower, upper = self.skeleton.bounds()
-        q = self.q[frames]
+        chosen = np.zeros(self.n_frames, dtype=bool)
+        chosen[frames] = True
+        q = self.q[chosen & ~self.failed]
         at = ((q <= lower + AT_LIMIT) | (q >= upper - AT_LIMIT)).mean(axis=0) if len(q) else \
             np.zeros(len(DOF_NAMES))
         return {name: float(share) for name, share in zip(DOF_NAMES, at) if share > 0}

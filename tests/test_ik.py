@@ -10,6 +10,7 @@ from mocaplib.calibration import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
 from mocaplib.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtered, fit_quality,
                          initial_pose, keyframes, solve_poses)
+from mocaplib.motion import Motion
 from mocaplib.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
 from mocaplib.trial import Trial
@@ -165,6 +166,23 @@ def test_frames_that_cannot_be_posed_are_not_solved_and_leave_their_neighbours_a
     assert motion.failed.tolist() == [40 <= f < 80 for f in range(120)]
     beside = np.r_[30:40, 80:90]
     assert np.abs(motion.q[beside] - cap.q[beside])[:, ROT].max() < 2 * DEG
+
+
+def test_failed_frames_do_not_count_at_a_joint_limit():
+    # the angles of unsolved frames are copies of the solved frames beside them: a capture
+    # whose first solved frame sits at a limit would otherwise seem to spend its whole
+    # unsolved start there (Walking1's pelvis tilt: "30 % of the frames" from 2 %)
+    skeleton = Skeleton.from_height(1.75)
+    lower, _ = skeleton.bounds()
+    j = DOF_NAMES.index("pelvis_tilt")
+    q = np.zeros((100, len(DOF_NAMES)))
+    q[:31, j] = lower[j]                              # 30 unsolved frames and one solved
+    failed = np.arange(100) < 30
+    assert Motion(q, skeleton, 100.0).limit_shares() == pytest.approx({"pelvis_tilt": 0.31})
+    motion = Motion(q, skeleton, 100.0, failed=failed)
+    assert motion.limit_shares() == pytest.approx({"pelvis_tilt": 1 / 70})
+    assert motion.limit_shares(np.arange(100) < 50) == pytest.approx({"pelvis_tilt": 0.05})
+    assert motion.limit_warnings() == []              # 1.4 %, under the 2 % warning
 
 
 def test_initial_pose_is_exact_on_exact_markers():
