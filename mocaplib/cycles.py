@@ -22,7 +22,9 @@ on one, so callers keep all of them on request (``--all-cycles``).
 
 **Partial visibility (documented rule).** A cycle is not cut across a gap longer than
 ``max_gap_s`` (:data:`MAX_GAP_S`, 0.25 s): a run of frames the fit could not solve (too few
-markers: :attr:`mocaplib.motion.Motion.failed`), whose joint angles are interpolated. When no
+markers: :attr:`mocaplib.motion.Motion.failed`), whose joint angles are interpolated; nor
+into such a run at the capture's start or end, whose angles are held from the one solved frame
+beside it (a walker leaving the volume would stop there). When no
 cycle from left toe-off to left toe-off is left (fewer than two left toe-offs visible, or
 every such cycle spans a longer gap), the protocol's ``fallback_starts``
 (:attr:`mocaplib.protocols.Protocol.fallback_starts`) are tried in order: a cycle from one
@@ -201,14 +203,23 @@ def cycle_bounds(events: list[GaitEvent], /, *, start: str = LEFT_TOE_OFF
 
 def longest_gap(filled: np.ndarray | None, rate: float, start_s: float, end_s: float) -> float:
     """Longest run (s) of ``filled`` (F,) bool frames inside [start_s, end_s]: a run of n
-    frames spans (n + 1) / rate between the solved frames around it; 0 when none."""
+    frames spans (n + 1) / rate between the solved frames around it; 0 when none. A run at the
+    capture's first or last frame has a solved frame on one side only (its angles are held
+    from it, not interpolated): inf when the window reaches into one."""
     if filled is None:
         return 0.0
+    filled = np.asarray(filled, dtype=bool)
     frames = np.arange(len(filled)) / rate
-    inside = np.asarray(filled, dtype=bool) & (frames >= start_s) & (frames <= end_s)
-    edges = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
-    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
-    return float((runs.max() + 1) / rate) if len(runs) else 0.0
+    inside = (frames >= start_s) & (frames <= end_s)
+    edges = np.diff(np.concatenate([[0], filled.astype(np.int8), [0]]))
+    longest = 0.0
+    for first, stop in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        n = int(inside[first:stop].sum())
+        if n and (first == 0 or stop == len(filled)):
+            return float("inf")
+        if n:
+            longest = max(longest, (n + 1) / rate)
+    return longest
 
 
 def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
@@ -300,8 +311,10 @@ def _cut(events: list[GaitEvent], rate: float, /, *, filled, fallback_starts, ma
         for first, last in cycle_bounds(events, start=start):
             gap = longest_gap(filled, rate, first.time_s, last.time_s)
             if gap > max_gap_s:
-                too_long.append(f"{first.time_s:.2f}-{last.time_s:.2f} s ({start}) spans "
-                                f"{gap:.2f} s the fit could not solve")
+                too_long.append(f"{first.time_s:.2f}-{last.time_s:.2f} s ({start}) " + (
+                    f"spans {gap:.2f} s the fit could not solve" if np.isfinite(gap) else
+                    "reaches into the frames the fit could not solve at the capture's start "
+                    "or end (held, not interpolated: no max_gap_s admits them)"))
             else:
                 pairs.append((first, last))
         if pairs:

@@ -55,8 +55,11 @@ if TYPE_CHECKING:
 ROBUST_SCALE = 0.02
 #: Continuity weight μ, metres per radian (per metre for translations).
 SMOOTHING = 0.01
-#: A frame with fewer markers on the pelvis, or in all, is flagged as failed.
-MIN_PELVIS_MARKERS = 2
+#: A frame with fewer markers on the pelvis, or in all, is flagged as failed. Three place the
+#: root segment by its own markers, as a six-DOF segment needs; with two, its turn about the
+#: line through them rests on the legs' and trunk's soft tissue (the real walks entering the
+#: volume: pelvis tilt at its -45° limit or 10-15° above the frames beside them).
+MIN_PELVIS_MARKERS = 3
 MIN_MARKERS = 6
 #: Frames with a marker RMS above this many times the median are re-solved from neighbours.
 RESTART_FACTOR = 3.0

@@ -237,10 +237,12 @@ def test_cli_cycles_real_file_with_marker_gaps(capsys, real_c3d):
     path = real_c3d("ezc3d_testfiles/BTS.c3d")  # foot markers missing 40-70 % of frames
     assert main(["cycles", str(path), "--json"]) == 0
     cycles = json.loads(capsys.readouterr().out)["cycles"]
-    # foot-marker gaps filled from the fitted skeleton between measured samples: the two
+    # foot-marker gaps filled from the fitted skeleton between measured samples: of the two
     # strides the left foot's markers span (3.45-6.3 s; the skeleton's foot before 3.45 s put
-    # a third toe-off at 3.1 s that no sample supports); a straight walk at 1.3-1.5 m/s
-    assert len(cycles) == 2 and cycles[0]["start_s"] >= 3.45
+    # a third toe-off at 3.1 s that no sample supports), the first; the second runs into the
+    # last frames, unsolved from 5.95 s (fewer than 3 pelvis markers); a straight walk at
+    # 1.3-1.5 m/s
+    assert len(cycles) == 1 and cycles[0]["start_s"] >= 3.45
     for row in cycles:
         assert 1.2 <= row["v"] <= 1.6 and abs(row["omega"]) < 0.1
 
@@ -387,6 +389,27 @@ def test_cycles_span_gaps_up_to_max_gap_s(gap_s, kept):
                                                r"0.25 s: 1.41-2.51 s \(left_toe_off\) spans "
                                                r"0.30 s the fit could not solve"):
             analyse_cycles(events(n=2, first=1.41), left, right, RATE, filled=filled)
+
+
+def test_no_cycle_reaches_into_the_unsolved_frames_at_either_end():
+    from mocaplib.errors import NoCycleError
+
+    # a walker leaving the volume (ezc3d's BTS.c3d): the last frames unsolved. Their angles
+    # are held from the last solved frame, not interpolated, so the shoulders would stand still
+    # there: the cycle reaching 0.1 s into them is not cut, whatever max_gap_s says
+    left, right = shoulders(TIME, v_f=1.0, period=PERIOD)
+    evs = events(n=4)                                 # cycles 0.31-1.41, 1.41-2.51, 2.51-3.61
+    filled = TIME > 3.51
+    cycles = analyse_cycles(evs, left, right, RATE, filled=filled, max_gap_s=10.0)
+    assert [round(c.start_s, 2) for c in cycles] == [0.31, 1.41]
+    # entering the volume: the same at the start
+    cycles = analyse_cycles(evs, left, right, RATE, filled=TIME < 0.41, max_gap_s=10.0)
+    assert [round(c.start_s, 2) for c in cycles] == [1.41, 2.51]
+    # ending at the last solved frame is fine, and a run inside the capture is still a gap
+    assert len(analyse_cycles(evs, left, right, RATE, filled=TIME > 3.615)) == 3
+    with pytest.raises(NoCycleError, match=r"2.51-3.61 s \(left_toe_off\) reaches into the "
+                                           r"frames the fit could not solve at the capture's"):
+        analyse_cycles(events(n=2, first=2.51), left, right, RATE, filled=filled)
 
 
 def test_one_gap_limit_for_the_events_the_cycles_the_build_and_the_cli():
