@@ -59,6 +59,27 @@ def inside_cycle(cycle, motion) -> np.ndarray:
     return (frames >= cycle.start_s) & (frames <= cycle.end_s)
 
 
+def named_failures(cycle, motion, qc: dict, thresholds: dict) -> list[str]:
+    """The cycle's QC failures (:func:`mocaplib.library.qc_failures` of its metrics ``qc``),
+    those of the marker metrics naming their marker: for ``marker_max_m`` the trusted marker
+    with the largest residual and when ("RPSIS at 3.58 s", from the capture's first frame), for
+    ``marker_rms_m`` the one of largest RMS over the cycle."""
+    failures = qc_failures(qc, thresholds)
+    inside = np.flatnonzero(inside_cycle(cycle, motion))
+    trusted = np.flatnonzero(motion.trusted())
+    residuals = motion.residuals[np.ix_(inside, trusted)]
+    if not np.isfinite(residuals).any():
+        return failures
+    labels = [motion.marker_labels[m] for m in trusted]
+    frame, worst = np.unravel_index(np.nanargmax(residuals), residuals.shape)
+    with np.errstate(invalid="ignore"):
+        rms = np.sqrt(np.nanmean(residuals ** 2, axis=0))
+    culprits = {"marker_max_m": f"{labels[worst]} at {inside[frame] / motion.rate:.2f} s",
+                "marker_rms_m": labels[int(np.nanargmax(rms))]}
+    return [f"{f} ({culprits[f.split()[0]]})" if f.split()[0] in culprits else f
+            for f in failures]
+
+
 def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     """QC metrics of one cycle (names and units of :data:`mocaplib.entry.QC_LIMITS`).
 

@@ -26,7 +26,7 @@ from .fitting import StageClock, fit_capture
 from .io import fs_text, open_regular
 from .entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from .library import qc_failures, to_json_data
-from .qc import cycle_qc, inside_cycle, qc_and_choice, qc_series
+from .qc import cycle_qc, inside_cycle, named_failures, qc_and_choice, qc_series
 from .skeleton import DOF_NAMES
 
 if TYPE_CHECKING:
@@ -208,7 +208,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         if not result.entries:
             result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
-                + ", ".join(qc_failures(qcs[c.index], settings.qc_thresholds)) for c in kept)
+                + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds))
+                for c in kept)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:
@@ -433,7 +434,9 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
                  f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
         waived = {}
         if failures and settings.qc_policy == "drop":
-            result.warnings.append(f"{where} left out of the library: {'; '.join(failures)}")
+            result.warnings.append(f"{where} left out of the library: "
+                                   + "; ".join(named_failures(cycle, motion, qc,
+                                                              settings.qc_thresholds)))
             continue
         if failures:
             waived = {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"

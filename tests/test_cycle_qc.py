@@ -71,3 +71,23 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
                                                            rel=1e-6)
     assert overground["internal_power_w_kg"] > 0.1
 
+
+
+def test_a_marker_qc_failure_names_its_marker_and_when():
+    from mocaplib.library import DEFAULT_QC_THRESHOLDS
+    from mocaplib.qc import named_failures
+
+    # 4 markers over 3 s at 100 Hz, the cycle 1-2 s: C's largest residual inside it is at 1.5 s
+    # (the 0.09 m at 0.5 s, outside, does not count); D, untrusted, is left out
+    residuals = np.full((300, 4), 0.005)
+    residuals[150, 2], residuals[50, 2], residuals[:, 3] = 0.05, 0.09, 0.2
+    residuals[100:201, 1] = 0.03
+    motion = SimpleNamespace(rate=100.0, n_frames=300, residuals=residuals,
+                             marker_labels=["A", "B", "C", "D"],
+                             trusted=lambda: np.array([True, True, True, False]))
+    cycle = SimpleNamespace(start_s=1.0, end_s=2.0)
+    qc = {"marker_max_m": 0.05, "marker_rms_m": 0.016, "gap_fraction": 0.0}
+    assert named_failures(cycle, motion, qc, {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.01}) \
+        == ["marker_max_m 0.05 > 0.04 (C at 1.50 s)", "marker_rms_m 0.016 > 0.01 (B)"]
+    assert named_failures(cycle, motion, {"marker_max_m": 0.01, "gap_fraction": 0.5},
+                          {"marker_max_m": 0.04, "gap_fraction": 0.1}) == ["gap_fraction 0.5 > 0.1"]

@@ -39,8 +39,8 @@ def _run(args) -> int:
     from ..cycles import LEFT_TOE_OFF, motion_cycles
     from ..events import capture_events
     from ..fitting import fit_capture
-    from ..library import DEFAULT_QC_THRESHOLDS, qc_failures
-    from ..qc import qc_and_choice
+    from ..library import DEFAULT_QC_THRESHOLDS
+    from ..qc import named_failures, qc_and_choice
     from ._common import print_json
     from .events import load
 
@@ -59,7 +59,8 @@ def _run(args) -> int:
                            fallback_starts=match.protocol.fallback_starts,
                            max_gap_s=args.max_gap_s)
     qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)
-    rows = [{**c.to_dict(), "qc_failures": qc_failures(qcs[c.index], DEFAULT_QC_THRESHOLDS)}
+    rows = [{**c.to_dict(), "qc_failures": named_failures(c, motion, qcs[c.index],
+                                                          DEFAULT_QC_THRESHOLDS)}
             for c in cycles]
     if args.json:
         print_json({"file": args.file, "cycles": rows})
