@@ -604,9 +604,8 @@ def _hold_unobservable(model: SubjectModel, q: np.ndarray) -> SubjectModel:
 def _refuse_pelvis(cal: Trial, proto: Protocol, n_seen: int) -> None:
     """Raise the error for a trial with fewer than 3 usable pelvis markers, saying whether
     they are not labelled or labelled but missing in most frames."""
-    names = set(cal.names)                      # seen or not: a label never seen is there
-    labelled = [m.label for m in proto.markers
-                if m.landmark.segment == "pelvis" and names.intersection(m.keys)]
+    labelled = [label for label in proto.labelled_in(cal)
+                if proto.marker(label).landmark.segment == "pelvis"]
     if len(labelled) >= 3:
         raise CalibrationError(
             f"pelvis markers {', '.join(labelled)} are labelled but only {n_seen} of them are "
@@ -795,8 +794,7 @@ def _check_motion_markers(X_motion: np.ndarray, segments: np.ndarray, labels: li
     if most >= MIN_PELVIS_MARKERS:
         return
     names = np.array(labels)[pelvis]
-    labelled = set(trial.names)                 # seen or not: the labels tell the marker set
-    present = {m.label for m in proto.markers if labelled.intersection(m.keys)}
+    present = set(proto.labelled_in(trial))
     shows = (f"never shows {MIN_PELVIS_MARKERS} of the static's pelvis markers "
              f"({', '.join(names)}, protocol {proto.name!r}) in one frame")
     if sum(name in present for name in names) >= MIN_PELVIS_MARKERS:

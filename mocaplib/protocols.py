@@ -221,6 +221,12 @@ class Protocol:
     def required(self) -> list[str]:
         return [m.label for m in self.markers if m.required]
 
+    def labelled_in(self, trial: Trial) -> list[str]:
+        """The labels of its markers that ``trial`` names under any of their keys, seen in
+        some frame or not (the labels tell the marker set; gaps do not)."""
+        names = set(trial.names)
+        return [m.label for m in self.markers if names.intersection(m.keys)]
+
     def marker(self, label: str) -> ProtocolMarker:
         for m in self.markers:
             if m.label == label:

@@ -65,6 +65,8 @@ def named_failures(cycle, motion, qc: dict, thresholds: dict) -> list[str]:
     with the largest residual and when ("RPSIS at 3.58 s", from the capture's first frame), for
     ``marker_rms_m`` the one of largest RMS over the cycle."""
     failures = qc_failures(qc, thresholds)
+    if not any(f.split()[0] in ("marker_max_m", "marker_rms_m") for f in failures):
+        return failures
     inside = np.flatnonzero(inside_cycle(cycle, motion))
     trusted = np.flatnonzero(motion.trusted())
     residuals = motion.residuals[np.ix_(inside, trusted)]
