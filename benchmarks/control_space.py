@@ -5,12 +5,12 @@
 Without a library, builds the quick start's one from ``--samples`` (``mocaplib build SAMPLES
 --static SAMPLES/rest.c3d --static-pose neutral --forward-reference
 SAMPLES/walk_straight_normal.c3d --jobs 2``). Then, on its tangential and frontal control
-spaces (:class:`mocaplib.controlspace.ControlSpace`): each entry inside the hull of the others
-rebuilt from them (:func:`mocaplib.controlspace.leave_one_out`), the medians over the entries
+spaces (:class:`mocaplib.library.controlspace.ControlSpace`): each entry inside the hull of the others
+rebuilt from them (:func:`mocaplib.library.controlspace.leave_one_out`), the medians over the entries
 in motion of the joint-angle RMS and max, heading, root, stride, turn and period errors, the
 rows rebuilt mostly (> 50 %) from another gait mode (walking from running or back), and the
 worst stride error; and the share of the default envelope the library covers
-(:func:`mocaplib.controlspace.coverage`). Prints Markdown (``--markdown PATH`` also writes it
+(:func:`mocaplib.library.controlspace.coverage`). Prints Markdown (``--markdown PATH`` also writes it
 into a results page, :mod:`markdown_results`).
 """
 
@@ -28,8 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.controlspace import ControlSpace, coverage, leave_one_out  # noqa: E402
-from mocaplib.library import load_library  # noqa: E402
+from mocaplib.library.controlspace import ControlSpace, coverage, leave_one_out  # noqa: E402
+from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.report.plan import default_envelope  # noqa: E402
 
 #: Columns of the medians table: (column of leave_one_out, heading, format).

@@ -103,11 +103,11 @@ def _last_line(text: str) -> str:
 def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
     """The inputs of OpenSim's job for the capture ``path`` (and its ``static``), written
     into ``folder``: the calibrated or the generic model, the markers as .trc."""
-    from mocaplib.ik import model_markers
-    from mocaplib.io.opensim import opensim_name, write_osim, write_trc
-    from mocaplib.protocols import REFERENCE_HEIGHT
-    from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
-    from mocaplib.fitting import fit_capture
+    from mocaplib.model.ik import model_markers
+    from mocaplib.export.opensim import opensim_name, write_osim, write_trc
+    from mocaplib.markersets.protocols import REFERENCE_HEIGHT
+    from mocaplib.model.skeleton import SEGMENT_NAMES, Skeleton
+    from mocaplib.model.fitting import fit_capture
 
     trial = read_c3d(path)
     statics = [read_c3d(static)] if static else None
@@ -143,10 +143,10 @@ def stage_times(path: Path, static: Path | None) -> dict[str, float]:
     """CPU seconds (one thread, this process) of the stages of ``mocaplib fit`` on ``path``:
     the automatic cutoff, the calibration, one ``fit()`` of the filtered markers, and
     ``fit_filtered`` (both fits)."""
-    from mocaplib.calibration import calibrate
-    from mocaplib.filtering import filter_trial, residual_cutoff
-    from mocaplib.ik import fit, fit_filtered
-    from mocaplib.protocols import match_trial
+    from mocaplib.model.calibration import calibrate
+    from mocaplib.model.filtering import filter_trial, residual_cutoff
+    from mocaplib.model.ik import fit, fit_filtered
+    from mocaplib.markersets.protocols import match_trial
 
     trial = read_c3d(path)
     match = match_trial(trial, "auto")
@@ -171,9 +171,9 @@ def stage_times(path: Path, static: Path | None) -> dict[str, float]:
 
 def growth(data: Path, folder: Path) -> None:
     """Print ``fit_filtered``'s CPU time per second of capture as frames and rate grow."""
-    from mocaplib.filtering import resample
+    from mocaplib.model.filtering import resample
     from mocaplib.io.c3d_write import write_c3d
-    from mocaplib.protocols import match_trial
+    from mocaplib.markersets.protocols import match_trial
 
     rows = []
     walk = read_c3d(data / "ezc3d_testfiles" / "Qualisys.c3d")

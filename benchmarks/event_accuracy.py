@@ -3,7 +3,7 @@
     python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR] [--markdown PATH]
     python benchmarks/event_accuracy.py --noise-sd 0     # samples without noise
 
-Runs :func:`mocaplib.events.capture_events` on every synthetic capture of ``--samples`` (their
+Runs :func:`mocaplib.gait.events.capture_events` on every synthetic capture of ``--samples`` (their
 EVENT group holds the true Foot Off / Foot Strike) and on the four real files with lab-recorded
 events under ``--real`` (default ``../shared/data/c3d``; skipped when absent), for each toe-off
 definition, and prints:
@@ -44,10 +44,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.events import (LAB_EVENT_KINDS, TOE_OFF_DEFINITIONS,  # noqa: E402
+from mocaplib.gait.events import (LAB_EVENT_KINDS, TOE_OFF_DEFINITIONS,  # noqa: E402
                              EventSettings, capture_events, event_differences)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.protocols import detect_protocol  # noqa: E402
+from mocaplib.markersets.protocols import detect_protocol  # noqa: E402
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
 
 #: The real files whose EVENT group holds lab (force-plate or operator) Foot Off events.

@@ -53,15 +53,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.calibration import calibrate  # noqa: E402
+from mocaplib.model.calibration import calibrate  # noqa: E402
 from mocaplib.errors import MocapError  # noqa: E402
-from mocaplib.filtering import filter_trial, lowpass  # noqa: E402
-from mocaplib.fourier import encode_cycle  # noqa: E402
-from mocaplib.ik import fit, fit_quality  # noqa: E402
-from mocaplib.fitting import fit_capture  # noqa: E402
+from mocaplib.model.filtering import filter_trial, lowpass  # noqa: E402
+from mocaplib.gait.fourier import encode_cycle  # noqa: E402
+from mocaplib.model.ik import fit, fit_quality  # noqa: E402
+from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
-from mocaplib.pipeline import BuildSettings, build  # noqa: E402
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
+from mocaplib.build.pipeline import BuildSettings, build  # noqa: E402
 from mocaplib.synth import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402
 from velocity_accuracy import compare  # noqa: E402
@@ -285,7 +285,7 @@ EXACT_MARKERS = {"placement_sd": 0.0, "soft_tissue": 0.0, "noise_sd": 0.0}
 #: foot's long axis (no elevation, no medial deviation)...
 ANKLE_BODIES = (("as shipped", {}), ("subtalar axis along the foot", {"subtalar": [0.0, 0.0]}))
 #: ...the joints a neutral static moves to their anatomical centres (the hips added to
-#: :data:`mocaplib.calibration.NEUTRAL_CENTRES`, or not)...
+#: :data:`mocaplib.model.calibration.NEUTRAL_CENTRES`, or not)...
 ANKLE_HIPS = (("nominal", ()), ("Harrington", ("femur_l", "femur_r")))
 #: ...and how far (m) the fitted ankles are then moved up; on these captures.
 ANKLE_RAISES = (-0.025, 0.0, 0.025)
@@ -353,7 +353,7 @@ def ankle_pivot(plan_path: Path) -> None:
     (midway between the malleoli) on the static, the RMS errors (deg) and, on ``run_3p0``, the
     inversion error's mean in swing and in stance and its correlation with the foot's true
     rotation about the shank (which the fit's ankle has no DOF for)."""
-    from mocaplib import calibration
+    from mocaplib.model import calibration
     from mocaplib.synth.truth import extra_angles
 
     inversion, knee = DOF_NAMES.index("ankle_inversion_l"), DOF_NAMES.index("knee_flexion_l")
@@ -418,8 +418,8 @@ def forward_kinematics(seeds: int) -> None:
 def real(folder: Path) -> None:
     """Each walking file as ``mocaplib fit`` does it: calibrated from the capture's markers
     low-passed at Winter's cutoff; fitted with outlying samples found on the raw markers,
-    gapped, then low-passed (:func:`mocaplib.fitting.fit_capture`,
-    :func:`mocaplib.ik.fit_filtered`); removed samples counted."""
+    gapped, then low-passed (:func:`mocaplib.model.fitting.fit_capture`,
+    :func:`mocaplib.model.ik.fit_filtered`); removed samples counted."""
     print("| file | protocol | markers | cutoff (Hz) | frames fitted / failed | marker RMS (mm) "
           "| max error (mm) | at marker | removed samples | seconds |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -2,7 +2,7 @@
 
 One run: calibrate the subject with mocaplib, export the model (.osim) and the markers (.trc),
 then solve every frame with OpenSim's IK (each marker task weighted as mocaplib's fit weights
-the marker, coordinate ranges clamped, accuracy 1e-5) and with ``mocaplib.ik.fit``,
+the marker, coordinate ranges clamped, accuracy 1e-5) and with ``mocaplib.model.ik.fit``,
 alternately ``--repeat`` times each on one thread (fastest CPU time of the solve, so that
 other jobs on a shared machine do not skew the ratio); print each one's frames/s, the speed
 ratio and both joint-angle RMS errors against the truth.
@@ -12,7 +12,7 @@ ratio and both joint-angle RMS errors against the truth.
 weights; it then compares what each stopping rule reached, frame by frame: the weighted sum of
 squared marker errors of mocaplib's poses against OpenSim's (evaluated on the same model), and
 the angles between the two. ``--solver fit_filtered`` times what ``mocaplib fit`` runs (the
-marker low-pass at ``--cutoff`` and two fits, :func:`mocaplib.ik.fit_filtered`) against
+marker low-pass at ``--cutoff`` and two fits, :func:`mocaplib.model.ik.fit_filtered`) against
 OpenSim's IK on the filtered markers (the filter not in OpenSim's time).
 
 Data: synthetic captures with ground truth (``--c3d FILE...``, files or folders of them, each
@@ -26,7 +26,7 @@ by default the tests' forward-kinematics walk (gait-like angles, 6 mm soft-tissu
         [--markdown PATH]
 
 ``--static`` calibrates from a static trial in the anatomical neutral pose (as ``mocaplib build
---static`` does); ``--cutoff`` low-passes the markers first (:mod:`mocaplib.filtering`), and
+--static`` does); ``--cutoff`` low-passes the markers first (:mod:`mocaplib.model.filtering`), and
 both solvers then get the same filtered markers (with ``--solver fit``, the filter's time is
 not in either figure).
 
@@ -56,10 +56,10 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from opensim_tools import inverse_kinematics, read_mot  # noqa: E402
-from mocaplib.calibration import calibrate  # noqa: E402
-from mocaplib.ik import fit, fit_filtered, model_markers  # noqa: E402
-from mocaplib.io.opensim import opensim_name, write_osim, write_trc  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
+from mocaplib.model.calibration import calibrate  # noqa: E402
+from mocaplib.model.ik import fit, fit_filtered, model_markers  # noqa: E402
+from mocaplib.export.opensim import opensim_name, write_osim, write_trc  # noqa: E402
+from mocaplib.model.skeleton import DOF_NAMES, DOFS  # noqa: E402
 
 ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
@@ -135,7 +135,7 @@ def main() -> int:
 
 def compare(args) -> None:
     """Time both solvers on the captures the parsed ``args`` name and print the tables."""
-    from mocaplib.filtering import filter_trial
+    from mocaplib.model.filtering import filter_trial
     from mocaplib.io.c3d import read_c3d
 
     static = read_c3d(args.static) if args.static else None

@@ -7,12 +7,12 @@ Plug-in Gait (Vicon's conventional gait model) writes its angles into the C3D as
 (``LHipAngles``, ``LKneeAngles``, ``LAnkleAngles``... in degrees: x flexion, y ab/adduction,
 z rotation) and its pelvis frame as the points ``PELO``, ``PELA``, ``PELL``, ``PELP`` (origin
 and 100 mm along each axis). They are read with ezc3d, a reader mocaplib does not use. Each
-capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.fitting.fit_capture`, with its
+capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.model.fitting.fit_capture`, with its
 static when it has one) and every angle both report is compared over the frames Plug-in Gait
 wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
 motion of each. The arms are compared too: Plug-in Gait's elbow flexion is the angle between
 its shoulder–elbow and elbow–wrist centre lines, its shoulder flexion the upper arm's line
-against its thorax frame (:func:`mocaplib.anatomy.segment_frames` builds mocaplib's arm frames
+against its thorax frame (:func:`mocaplib.model.anatomy.segment_frames` builds mocaplib's arm frames
 the same way). Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
 mocaplib's order (heading, then obliquity, then tilt): its stored pelvis angles are relative to
 the lab's axes, which is not the subject's heading once the subject turns (HC030A22 turns 88°).
@@ -47,8 +47,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.fitting import fit_capture  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
+from mocaplib.model.fitting import fit_capture  # noqa: E402
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data" / "c3d"
 #: The shared captures that carry Plug-in Gait angles, with their static (or None).
@@ -167,7 +167,7 @@ def slope(x: np.ndarray, y: np.ndarray) -> float:
 
 def knee_crosstalk(fitted, side: str) -> tuple[float, float]:
     """The slope of hip rotation on knee flexion of ``side`` ("l", "r") of a
-    :class:`~mocaplib.fitting.FittedCapture` (degrees per degree), and the RMS (mm) of that
+    :class:`~mocaplib.model.fitting.FittedCapture` (degrees per degree), and the RMS (mm) of that
     side's thigh and shank markers."""
     q = fitted.motion.q
     leg = np.isin(fitted.model.marker_segments, [SEGMENT_NAMES.index(f"{name}_{side}")

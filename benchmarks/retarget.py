@@ -16,7 +16,7 @@ its captured cycles. Then, per cycle:
   RMS against the captured cycle of each pelvis, hip and knee DOF (the IK's); the worst DOF's
   RMS against the issue's 0.05 rad, to be met by 90 % of the walking cycles;
 * the cycle retargeted to its body scaled by 0.85 and 1.15: ankle error, foot skate (the
-  ankles' median speed in support, :func:`mocaplib.retarget.foot_skate`) of the entry and of
+  ankles' median speed in support, :func:`mocaplib.library.retarget.foot_skate`) of the entry and of
   the result, joint-limit violations and IK steps a limit stopped, C1-C3 of entry and result;
 * C3 of every entry as the QC stores it, against Pronost et al.'s 5.1-7.2 W/kg for natural
   walking, and the same on the unfiltered fitted angles (how much the 6 Hz low-pass takes);
@@ -40,17 +40,17 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mocaplib.criteria import internal_power, segment_energies  # noqa: E402
-from mocaplib.cycles import motion_cycles  # noqa: E402
-from mocaplib.events import capture_events  # noqa: E402
-from mocaplib.fourier import ROOT_X, ROOT_Y  # noqa: E402
-from mocaplib.fitting import fit_capture  # noqa: E402
+from mocaplib.gait.criteria import internal_power, segment_energies  # noqa: E402
+from mocaplib.gait.cycles import motion_cycles  # noqa: E402
+from mocaplib.gait.events import capture_events  # noqa: E402
+from mocaplib.gait.fourier import ROOT_X, ROOT_Y  # noqa: E402
+from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.pipeline import BuildSettings, build  # noqa: E402
-from mocaplib.workflow import cycle_shape  # noqa: E402
-from mocaplib.protocols import match_trial  # noqa: E402
-from mocaplib.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
+from mocaplib.build.pipeline import BuildSettings, build  # noqa: E402
+from mocaplib.build.workflow import cycle_shape  # noqa: E402
+from mocaplib.markersets.protocols import match_trial  # noqa: E402
+from mocaplib.library.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
 
 FIT_TARGET, SELF_TARGET, SELF_SHARE = 0.005, 0.05, 0.9

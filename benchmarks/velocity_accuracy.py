@@ -24,7 +24,7 @@ line on the static itself, and the v̂_l error of the capture's true cycles (the
 pattern and velocity stages on the fitted shoulder centres); then the same with the heading
 offset the forward reference (``--forward-reference``, regenerated with the same placement
 and written as C3D) measures through
-:func:`mocaplib.pipeline.forward_offsets`. Last, the sd of δ, its correlation with the v̂_l
+:func:`mocaplib.build.pipeline.forward_offsets`. Last, the sd of δ, its correlation with the v̂_l
 error, and how many draws miss with and without the reference.
 """
 
@@ -44,14 +44,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.calibration import calibrate  # noqa: E402
-from mocaplib.cycles import shoulder_centres  # noqa: E402
-from mocaplib.events import TOE_OFF_DEFINITIONS  # noqa: E402
-from mocaplib.filtering import filter_trial  # noqa: E402
-from mocaplib.ik import fit  # noqa: E402
-from mocaplib.library import load_library  # noqa: E402
-from mocaplib.patterns import cycle_samples, path_velocities, shoulder_heading  # noqa: E402
-from mocaplib.pipeline import BuildSettings, forward_offsets  # noqa: E402
+from mocaplib.model.calibration import calibrate  # noqa: E402
+from mocaplib.gait.cycles import shoulder_centres  # noqa: E402
+from mocaplib.gait.events import TOE_OFF_DEFINITIONS  # noqa: E402
+from mocaplib.model.filtering import filter_trial  # noqa: E402
+from mocaplib.model.ik import fit  # noqa: E402
+from mocaplib.library.format import load_library  # noqa: E402
+from mocaplib.gait.patterns import cycle_samples, path_velocities, shoulder_heading  # noqa: E402
+from mocaplib.build.pipeline import BuildSettings, forward_offsets  # noqa: E402
 from mocaplib.synth.capture import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan, locomotion_type  # noqa: E402
 

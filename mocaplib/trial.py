@@ -92,7 +92,7 @@ class Trial:
         Things a technician should know (duplicate labels, dropped points, axis rotation...).
     measurements : dict[str, float]
         Subject measurements the file stores (metres, kilograms), keys of
-        :data:`mocaplib.anatomy.MEASUREMENTS` (``knee_width_l``, ``marker_diameter``...).
+        :data:`mocaplib.model.anatomy.MEASUREMENTS` (``knee_width_l``, ``marker_diameter``...).
     """
 
     markers: np.ndarray

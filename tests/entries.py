@@ -1,11 +1,11 @@
-"""Library entries for tests, from plain values: a :class:`mocaplib.entry.LibraryEntry` with its
+"""Library entries for tests, from plain values: a :class:`mocaplib.library.entry.LibraryEntry` with its
 nested records built from arrays and dicts, as a test writes them."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mocaplib.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
+from mocaplib.library.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 
 
 def plain_entry(*, pattern: dict, a: np.ndarray, b: np.ndarray, root_drift: dict,
@@ -15,7 +15,7 @@ def plain_entry(*, pattern: dict, a: np.ndarray, b: np.ndarray, root_drift: dict
     optionally ``parameters``, ``residual_m``, ``arc_angle_rad``), Fourier ``a``, ``b``
     (D, N+1) fitted to order N (and ``ramp``), ``root_drift`` the path frame's velocities
     ``u_f_m_s``, ``u_l_m_s``, ``omega_rad_s`` (its displacement over ``T`` derived) and
-    ``poulaine`` as :meth:`mocaplib.poulaine.Poulaine.to_dict` gives it."""
+    ``poulaine`` as :meth:`mocaplib.gait.poulaine.Poulaine.to_dict` gives it."""
     fields.setdefault("qc_waived", {})
     fields.setdefault("locomotion_class", None)
     return LibraryEntry(

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocaplib.calibration import SubjectModel
-from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
+from mocaplib.model.calibration import SubjectModel
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -120,7 +120,7 @@ def fk_trial(*, protocol: str = "fullbody38", n_frames: int = 200, rate: float =
 
 def true_model(cap: FKCapture, *, locked=()):
     """The model that generated a fullbody38 ``cap`` (exact skeleton and offsets), as
-    :func:`mocaplib.calibration.calibrate` returns it."""
+    :func:`mocaplib.model.calibration.calibrate` returns it."""
     proto = load_protocol("fullbody38")
     return SubjectModel(cap.skeleton, proto, proto.labels, cap.segments, cap.offsets,
                         locked_dofs=list(locked))

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from fk_data import neutral_q
-from mocaplib.protocols import Protocol
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.markersets.protocols import Protocol
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
 from mocaplib.trial import Trial
 
 

@@ -10,9 +10,9 @@ from conftest import SAMPLES
 
 @lru_cache(maxsize=1)
 def _load():
-    from mocaplib.events import capture_events
+    from mocaplib.gait.events import capture_events
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     out = []
     for path in sorted(SAMPLES.glob("*.c3d")):

@@ -1,4 +1,4 @@
-"""Anatomical joint centres and frames (mocaplib.anatomy) against Plug-in Gait's own points in
+"""Anatomical joint centres and frames (mocaplib.model.anatomy) against Plug-in Gait's own points in
 the shared captures, and their geometry."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocaplib.anatomy import chord_centre, davis_hip, frame, pelvis_axes
+from mocaplib.model.anatomy import chord_centre, davis_hip, frame, pelvis_axes
 from mocaplib.io.c3d import read_c3d
 
 
@@ -90,7 +90,7 @@ def test_the_pelvis_frame_is_level_when_the_asis_and_psis_are():
 
 
 def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
-    from mocaplib.anatomy import functional_centre, marker_frames
+    from mocaplib.model.anatomy import functional_centre, marker_frames
 
     rng = np.random.default_rng(0)
     n = 200
@@ -117,7 +117,7 @@ def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
 def test_leg_frames_are_the_legs_of_segment_frames_to_the_bit():
     # calibration builds the legs again for each trial knee axis (leg_frames) and keeps the
     # other frames: the legs must be those segment_frames builds with the same turns
-    from mocaplib.anatomy import leg_frames, segment_frames
+    from mocaplib.model.anatomy import leg_frames, segment_frames
 
     rng = np.random.default_rng(1)
     n = 20

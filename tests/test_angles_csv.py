@@ -1,4 +1,4 @@
-"""The joint-coordinate CSV (:mod:`mocaplib.io.angles_csv`) has the bytes pandas writes for
+"""The joint-coordinate CSV (:mod:`mocaplib.export.angles_csv`) has the bytes pandas writes for
 ``Motion.angles.to_csv(float_format="%.9g")``; ``Motion.angles`` is ``Motion.q`` at
 ``Motion.time``."""
 
@@ -9,11 +9,11 @@ import pytest
 
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
-from mocaplib.io.angles_csv import write_angles_csv
+from mocaplib.export.angles_csv import write_angles_csv
 from mocaplib.io.c3d import read_c3d
-from mocaplib.motion import Motion
-from mocaplib.skeleton import DOF_NAMES, Skeleton
-from mocaplib.fitting import fit_capture
+from mocaplib.model.motion import Motion
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.model.fitting import fit_capture
 
 
 def _pandas_csv(motion: Motion) -> bytes:

@@ -7,11 +7,11 @@ import json
 
 import pytest
 
-from mocaplib import pipeline
+from mocaplib.build import pipeline
 from mocaplib.cli import main
 from mocaplib.errors import LibraryError
-from mocaplib.library import load_library
-from mocaplib.pipeline import BuildSettings, build, process_capture
+from mocaplib.library.format import load_library
+from mocaplib.build.pipeline import BuildSettings, build, process_capture
 from conftest import SAMPLES
 from test_pipeline import TRIPLES, fake_process, write_captures
 

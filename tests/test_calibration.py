@@ -7,11 +7,11 @@ import pytest
 from fk_data import fk_trial, neutral_q, turn_knee_axis
 from protocol_trials import select
 
-from mocaplib.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
+from mocaplib.model.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
 from mocaplib.errors import CalibrationError, MocapError
-from mocaplib.ik import fit
-from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES
+from mocaplib.model.ik import fit
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -284,8 +284,8 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
     # to print numpy's "Mean of empty slice" on the technician's terminal
     import warnings
 
-    from mocaplib.calibration import register_offsets
-    from mocaplib.skeleton import Skeleton
+    from mocaplib.model.calibration import register_offsets
+    from mocaplib.model.skeleton import Skeleton
 
     skeleton = Skeleton.from_height(1.75)
     q = neutral_q(skeleton, 3)

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import SAMPLES, plan_capture
 
-import mocaplib.calibration as calibration
-from mocaplib.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
+import mocaplib.model.calibration as calibration
+from mocaplib.model.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
-from mocaplib.protocols import load_protocol, match_protocol
-from mocaplib.skeleton import SEGMENT_NAMES
+from mocaplib.markersets.protocols import load_protocol, match_protocol
+from mocaplib.model.skeleton import SEGMENT_NAMES
 
 REPO = SAMPLES.parent
 

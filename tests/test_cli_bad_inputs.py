@@ -130,7 +130,7 @@ def _sidecar_copy(library: Path, folder: Path, edit) -> tuple[Path, dict]:
 
 def test_a_malformed_capture_record_in_the_sidecar_loses_only_its_plots(tmp_path, library,
                                                                         monkeypatch):
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
     from mocaplib.report import html
     from mocaplib.report.html import _captures, read_diagnostics
 
@@ -157,7 +157,7 @@ def test_a_capture_record_of_the_wrong_shape_is_left_out_with_a_warning(edit, pr
                                                                         library, monkeypatch):
     # These crashed `mocaplib report` (AttributeError) in the summary, the planned captures or
     # the capture tables, which all read the sidecar's records (figures are not drawn here).
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
     from mocaplib.report import html
     from mocaplib.report.html import _captures, _summary, read_diagnostics
     from mocaplib.report.plan import find_plan, plan_commands, planned_status
@@ -339,7 +339,7 @@ def test_a_missing_input_is_a_usage_error_in_every_command(command, tmp_path, ca
 
 @pytest.mark.usefixtures("sample_dir")
 def test_the_statics_at_hand_count_as_standing(real_c3d):
-    from mocaplib.calibration import check_standing
+    from mocaplib.model.calibration import check_standing
     from mocaplib.io.c3d import read_c3d
 
     rest = SAMPLES / "rest.c3d"

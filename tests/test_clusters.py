@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from mocaplib.calibration import calibrate
+from mocaplib.model.calibration import calibrate
 from mocaplib.cli import main
-from mocaplib.ik import fit, fit_quality
-from mocaplib.protocols import detect_protocol, load_protocol
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.model.ik import fit, fit_quality
+from mocaplib.markersets.protocols import detect_protocol, load_protocol
+from mocaplib.model.skeleton import DOF_NAMES
 from mocaplib.synth.capture import synthesize_capture
 from mocaplib.synth.command import Command
 

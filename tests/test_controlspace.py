@@ -9,13 +9,13 @@ import pytest
 
 from scipy.spatial import ConvexHull, Delaunay
 
-from mocaplib.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, Envelope, coverage,
+from mocaplib.library.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, Envelope, coverage,
                                    delaunay_tetrahedra,
                                    leave_one_out, tetra_quality)
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.fourier import root_drift, synthesize
-from mocaplib.library import assemble_library
-from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES
+from mocaplib.gait.fourier import root_drift, synthesize
+from mocaplib.library.format import assemble_library
+from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES
 
 from entries import plain_entry
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocaplib.anthropometry import DE_LEVA, bodies
-from mocaplib.criteria import (GRAVITY, closure, internal_power, jerk_rms, segment_energies,
+from mocaplib.model.anthropometry import DE_LEVA, bodies
+from mocaplib.gait.criteria import (GRAVITY, closure, internal_power, jerk_rms, segment_energies,
                                third_derivative)
-from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, SEGMENT_NAMES, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES, SEGMENT_NAMES, Skeleton
 
 D = len(DOF_NAMES)
 

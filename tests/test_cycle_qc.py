@@ -1,4 +1,4 @@
-"""The per-cycle QC metrics of the build (:func:`mocaplib.qc.cycle_qc`)."""
+"""The per-cycle QC metrics of the build (:func:`mocaplib.gait.qc.cycle_qc`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mocaplib.filtering import WALKING_CUTOFF
-from mocaplib.qc import cycle_qc
-from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
+from mocaplib.model.filtering import WALKING_CUTOFF
+from mocaplib.gait.qc import cycle_qc
+from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 
 
 def _motion(q: np.ndarray, rate: float):
@@ -44,7 +44,7 @@ def test_no_jerk_nor_internal_power_for_a_capture_too_short_to_filter():
 
 
 def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor():
-    from mocaplib.criteria import GRAVITY
+    from mocaplib.gait.criteria import GRAVITY
 
     rate, amplitude, w = 200.0, 0.02, 2 * np.pi * 1.0   # 1 Hz bounce: in the pass band
     t = np.arange(int(4 * rate)) / rate
@@ -59,7 +59,7 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
         expected, rel=0.01)
     # on a treadmill belt running backwards at the walking speed, the body stays in place in
     # the lab: its energy is measured relative to the belt, where it moves steadily forwards
-    from mocaplib.qc import qc_series
+    from mocaplib.gait.qc import qc_series
 
     q[:, DOF_NAMES.index("pelvis_tz")] = 0.9
     q[:, DOF_NAMES.index("hip_flexion_r")] = 0.3 * np.sin(w * t)   # a leg swinging
@@ -74,8 +74,8 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
 
 
 def test_a_marker_qc_failure_names_its_marker_and_when():
-    from mocaplib.library import DEFAULT_QC_THRESHOLDS
-    from mocaplib.qc import named_failures
+    from mocaplib.library.format import DEFAULT_QC_THRESHOLDS
+    from mocaplib.gait.qc import named_failures
 
     # 4 markers over 3 s at 100 Hz, the cycle 1-2 s: C's largest residual inside it is at 1.5 s
     # (the 0.09 m at 0.5 s, outside, does not count); D, untrusted, is left out

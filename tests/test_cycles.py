@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocaplib.cycles import REST_PERIOD, analyse_cycles, choose_cycle, cycle_bounds
+from mocaplib.gait.cycles import REST_PERIOD, analyse_cycles, choose_cycle, cycle_bounds
 from mocaplib.errors import EventError
-from mocaplib.events import GaitEvent
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.gait.events import GaitEvent
+from mocaplib.model.skeleton import DOF_NAMES
 
 from gait_model import shoulders
 
@@ -130,7 +130,7 @@ def truth_shoulder_centres(truth):
 
 @pytest.mark.usefixtures("sample_dir")
 def test_synthetic_truth_shoulders_give_the_true_velocities():
-    from mocaplib.patterns import cycle_velocities
+    from mocaplib.gait.patterns import cycle_velocities
 
     from sample_captures import samples
 
@@ -155,7 +155,7 @@ def test_synthetic_truth_shoulders_give_the_true_velocities():
 def test_synthetic_captures_from_markers():
     from sample_captures import samples
 
-    from mocaplib.events import feet_of, ground_velocity
+    from mocaplib.gait.events import feet_of, ground_velocity
 
     checked = 0
     for name, trial, match, events, truth in samples():
@@ -278,7 +278,7 @@ def test_treadmill_cycles_relative_to_the_belt():
 @pytest.mark.parametrize("command", [dict(v_f=3.5, gait="run"), dict(v_f=1.8),
                                      dict(v_f=1.2, omega=-1.2), dict(v_f=0.8, v_l=0.6, omega=0.3)])
 def test_velocities_are_the_truths_time_averages(command):
-    from mocaplib.patterns import cycle_velocities
+    from mocaplib.gait.patterns import cycle_velocities
     from mocaplib.synth.capture import min_duration, synthesize_capture
     from mocaplib.synth.command import Command
 
@@ -369,7 +369,7 @@ def test_a_fallback_cycle_holds_one_stride_in_walking_or_running_order():
 
 @pytest.mark.parametrize("gap_s, kept", [(0.2, True), (0.3, False)])
 def test_cycles_span_gaps_up_to_max_gap_s(gap_s, kept):
-    from mocaplib.cycles import MAX_GAP_S
+    from mocaplib.gait.cycles import MAX_GAP_S
     from mocaplib.errors import NoCycleError
 
     assert MAX_GAP_S == 0.25
@@ -414,10 +414,10 @@ def test_no_cycle_reaches_into_the_unsolved_frames_at_either_end():
 
 def test_one_gap_limit_for_the_events_the_cycles_the_build_and_the_cli():
     from mocaplib.cli._common import MAX_GAP_DEFAULT
-    from mocaplib.cycles import MAX_GAP_S
+    from mocaplib.gait.cycles import MAX_GAP_S
     from mocaplib.errors import MocapError
-    from mocaplib.events import EventSettings
-    from mocaplib.settings import BuildSettings
+    from mocaplib.gait.events import EventSettings
+    from mocaplib.build.settings import BuildSettings
 
     assert MAX_GAP_DEFAULT == MAX_GAP_S == EventSettings().max_gap_s == \
         BuildSettings().max_gap_s == 0.25

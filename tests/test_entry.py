@@ -11,10 +11,10 @@ from dataclasses import MISSING, fields, replace
 import numpy as np
 import pytest
 
-from mocaplib.entry import (EntryAnkle, EntryDrift, EntryFourier, EntryPattern, EntryPoulaine,
+from mocaplib.library.entry import (EntryAnkle, EntryDrift, EntryFourier, EntryPattern, EntryPoulaine,
                             LibraryEntry)
 from mocaplib.errors import LibraryError
-from mocaplib.library import (CHECKSUM_KEY, assemble_library, load_library, schema,
+from mocaplib.library.format import (CHECKSUM_KEY, assemble_library, load_library, schema,
                               validate_library)
 
 #: What each record stores, in the schema (a path of keys from its root).
@@ -64,10 +64,10 @@ def sample_library(sample_dir, tmp_path_factory):
     walk cycle and a copy of that cycle given what a lab subject has and the synthetic walker
     has not (joint shifts, held DOFs, DOFs at a limit): every optional key of an entry occurs
     in it. The marker RMS limit is 0.1 mm, so that every entry waives it."""
-    from mocaplib.library import DEFAULT_QC_THRESHOLDS
-    from mocaplib.mirror import mirror_entry
-    from mocaplib.phase import start_later
-    from mocaplib.pipeline import BuildSettings, build
+    from mocaplib.library.format import DEFAULT_QC_THRESHOLDS
+    from mocaplib.library.mirror import mirror_entry
+    from mocaplib.library.phase import start_later
+    from mocaplib.build.pipeline import BuildSettings, build
 
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 1e-4}
     settings = BuildSettings(static=str(sample_dir / "rest.c3d"), static_pose="neutral",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import EventError
-from mocaplib.events import (GaitEvent, capture_events, detect_events, event_differences, feet_of,
+from mocaplib.gait.events import (GaitEvent, capture_events, detect_events, event_differences, feet_of,
                              foot_events, running)
 
 from gait_model import foot
@@ -137,7 +137,7 @@ def test_a_foot_marker_missing_in_every_frame_is_named():
     # the message said 'left heel or toe is missing in every frame', naming no marker; a
     # label missing in every frame counts as absent, and the error says so
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import match_trial
+    from mocaplib.markersets.protocols import match_trial
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -153,8 +153,8 @@ def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing():
     out in every frame, though the file holds it in every frame; the events must say so, not
     that the marker is missing."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import match_trial
-    from mocaplib.fitting import fit_capture
+    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.model.fitting import fit_capture
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -170,9 +170,9 @@ def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing():
 def test_a_ghost_heel_for_three_frames_does_not_move_the_events(real_c3d):
     """LHEE of PiG_Motion-FlatFoot-Full 2 m away for 3 frames, 5 frames before a left heel
     strike: low-passed with the track it moved that heel strike 65 ms early; gapped first
-    (:func:`mocaplib.filtering.remove_spikes`), every event stays within a frame."""
+    (:func:`mocaplib.model.filtering.remove_spikes`), every event stays within a frame."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import match_trial
+    from mocaplib.markersets.protocols import match_trial
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     match = match_trial(trial, "auto")
@@ -189,7 +189,7 @@ def test_a_capture_without_a_heel_label_is_told_what_to_do():
     # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
     # when the protocol has LHEE and the capture does not
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import match_trial
+    from mocaplib.markersets.protocols import match_trial
     from mocaplib.trial import Trial
     from conftest import SAMPLES
 
@@ -235,9 +235,9 @@ def test_settings_reach_the_detector_and_are_checked():
 def test_model_filled_samples_do_not_count_as_measured():
     # with the fit filling the gaps (build, cycles, events --fit), every event had quality 1.0,
     # so the event-quality QC and choice rule could never act
-    from mocaplib.fitting import fit_capture
+    from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -262,10 +262,10 @@ def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3
     # gaps between measured samples, an event found at the same frame as from the markers
     # alone has the same quality (filled samples never count), and the cycles' event quality
     # is the smaller of their bounds'
-    from mocaplib.cycles import motion_cycles
-    from mocaplib.fitting import fit_capture
+    from mocaplib.gait.cycles import motion_cycles
+    from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     trial = read_c3d(real_c3d("ezc3d_testfiles/BTS.c3d"))
     match = detect_protocol(trial)
@@ -290,9 +290,9 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
     # with the fit filling the foot markers, toe-offs and heel-strikes were placed after the
     # foot markers' last measured sample (Walking3: a left toe-off 0.47 s after it, cutting a
     # cycle of 0.73 s in a walk of 1.18 s strides)
-    from mocaplib.fitting import fit_capture
+    from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     trial = read_c3d(real_c3d(name))
     match = detect_protocol(trial)
@@ -307,10 +307,10 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
 
 def test_events_and_ground_velocity_prepare_each_foot_once(monkeypatch, real_c3d):
     # build and cycles prepared every foot twice (detect_events, then ground_velocity)
-    from mocaplib import events as events_module
-    from mocaplib.events import ground_velocity
+    from mocaplib.gait import events as events_module
+    from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     trial = read_c3d(real_c3d("c3dviewer_examples/running.c3d"))   # a treadmill
     match = detect_protocol(trial)
@@ -334,7 +334,7 @@ def lab_differences(real_c3d, kind, toe_off="foot_velocity", side=None):
     "R", when given) in the 4 files that has a detected event within 0.1 s (lab events at the
     trial's edges have none); ``real_c3d`` is the fixture."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     out = []
     for name in LAB_FILES:
@@ -473,7 +473,7 @@ def test_noise_free_synthetic_toe_offs_within_one_frame(noise_free_captures):
     # Without marker noise the default finds the toes' release on these captures, slow walks
     # included (`benchmarks/event_accuracy.py --noise-sd 0` measures all 68), so this pins the
     # detector on exact data.
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     assert len(noise_free_captures) == len(NOISE_FREE)
     for capture in noise_free_captures:
@@ -492,7 +492,7 @@ def test_slow_walk_toe_offs_within_one_frame(speed):
     # Slow walks below the sample plan's 0.6 m/s (the push-off is slow, and an upward-velocity
     # peak alone comes up to 1.4 frames early here): the default finds the synthetic toes'
     # release within a frame (measured worst 0.75 frames, marker noise included).
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
     from mocaplib.synth import Command, synthesize_capture
     from mocaplib.synth.capture import min_duration
 
@@ -565,7 +565,7 @@ def on_treadmill(points, speed):
 
 
 def test_treadmill_belt_velocity_and_events():
-    from mocaplib.events import ground_velocity
+    from mocaplib.gait.events import ground_velocity
 
     speed = 1.3 / 1.1  # the foot model's mean speed: step / period
     lh, lt, offs, _ = foot(TIME, noise=0.0007)
@@ -582,7 +582,7 @@ def test_treadmill_belt_velocity_and_events():
 
 @pytest.mark.usefixtures("sample_dir")
 def test_overground_captures_are_not_treadmills():
-    from mocaplib.events import ground_velocity
+    from mocaplib.gait.events import ground_velocity
     from sample_captures import samples
 
     captures = samples()
@@ -595,9 +595,9 @@ def test_overground_captures_are_not_treadmills():
 
 
 def test_real_treadmill_jogging_is_recognised(real_c3d):
-    from mocaplib.events import ground_velocity
+    from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     trial = read_c3d(real_c3d("c3dviewer_examples/running.c3d"))
     belt = ground_velocity(feet_of(trial, detect_protocol(trial))[0], trial.rate)
@@ -612,9 +612,9 @@ def test_a_real_walk_moved_onto_a_treadmill_gives_the_walking_speed(real_c3d):
     foot flat on it at that velocity. The frames near the floor include the foot arriving and
     leaving: their median velocity is 0.17 m/s off the belt; the one most of them share is
     not."""
-    from mocaplib.events import ground_velocity
+    from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
     from mocaplib.trial import Trial
 
     walk = read_c3d(real_c3d("ezc3d_testfiles/Qualisys.c3d"))
@@ -636,10 +636,10 @@ def test_feet_follow_the_fits_left_right_exchange():
     # the other's trajectory, and the gait events must too (not the file's raw labels)
     from conftest import SAMPLES
 
-    from mocaplib.calibration import calibrate
-    from mocaplib.ik import fit
+    from mocaplib.model.calibration import calibrate
+    from mocaplib.model.ik import fit
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
     from mocaplib.trial import Trial
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -663,6 +663,6 @@ def test_feet_follow_the_fits_left_right_exchange():
 
 def test_cli_toe_off_choices_are_the_detector_definitions():
     from mocaplib.cli._common import TOE_OFF_CHOICES
-    from mocaplib.events import TOE_OFF_DEFINITIONS
+    from mocaplib.gait.events import TOE_OFF_DEFINITIONS
 
     assert TOE_OFF_CHOICES == TOE_OFF_DEFINITIONS

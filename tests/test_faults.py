@@ -6,7 +6,7 @@ reader would take for one (a library and a sidecar of two builds); no process is
 running; no traceback, only a message that names the file and says what to do.
 
 Builds run in subprocesses (``python -m mocaplib``, or a script calling
-:func:`mocaplib.pipeline.build` with ``fake_process`` from test_pipeline) in their own session,
+:func:`mocaplib.build.pipeline.build` with ``fake_process`` from test_pipeline) in their own session,
 so that every process they start can be found afterwards, wherever it was re-parented.
 """
 
@@ -30,10 +30,10 @@ import pytest
 
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
-from mocaplib.library import load_library
-from mocaplib.pipeline import build
+from mocaplib.library.format import load_library
+from mocaplib.build.pipeline import build
 from mocaplib.report.html import read_diagnostics
-from mocaplib.workers import max_jobs
+from mocaplib.build.workers import max_jobs
 
 from conftest import SAMPLES
 from test_pipeline import TRIPLES, calls, fake_process, write_captures
@@ -115,7 +115,7 @@ def build_script(captures: Path, out: Path, *, jobs: int = 1, kill_at_replace: i
         import os, signal, sys
         sys.path.insert(0, {str(TESTS)!r})
         from test_pipeline import fake_process
-        from mocaplib.pipeline import build
+        from mocaplib.build.pipeline import build
 
         renames, replace = [], os.replace
 
@@ -334,8 +334,7 @@ def test_a_real_full_disk_during_a_build_keeps_the_old_pair(tmp_path):
 
 
 def test_a_full_disk_in_the_cli_is_one_line_and_exit_1(tmp_path, monkeypatch, capsys):
-    from mocaplib import pipeline
-
+    from mocaplib.build import pipeline
     monkeypatch.setattr(pipeline, "process_capture", fake_process)
     write_captures(tmp_path / "caps")
     real = os.fsync
@@ -416,8 +415,7 @@ def test_the_report_says_when_a_library_was_changed_after_it_was_written(tmp_pat
 @pytest.fixture
 def counted_build(monkeypatch):
     """The CLI build with ``fake_process``, counting captures processed."""
-    from mocaplib import pipeline
-
+    from mocaplib.build import pipeline
     processed = []
 
     def counted(path, settings):

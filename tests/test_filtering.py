@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.filtering import (MIN_RUN, filter_trial, lowpass, remove_spikes, residual_cutoff,
+from mocaplib.model.filtering import (MIN_RUN, filter_trial, lowpass, remove_spikes, residual_cutoff,
                                 residual_curve)
 from mocaplib.runs import valid_runs
 from mocaplib.trial import Trial
@@ -208,7 +208,7 @@ def test_fit_reports_no_cutoff_for_a_capture_too_short_to_filter(tmp_path, capsy
 
 
 def test_resample_bridges_gaps_per_column_and_keeps_empty_columns_nan():
-    from mocaplib.filtering import resample
+    from mocaplib.model.filtering import resample
 
     values = np.array([[0.0, np.nan, np.nan], [1.0, 10.0, np.nan], [np.nan, 20.0, np.nan],
                        [3.0, np.nan, np.nan]])
@@ -223,7 +223,7 @@ def _sosfiltfilt_lowpass(data, rate, cutoff):
     samples of each column (runs shorter than shortest_run left as they are)."""
     from scipy.signal import butter, sosfiltfilt
 
-    from mocaplib.filtering import pass_correction, shortest_run
+    from mocaplib.model.filtering import pass_correction, shortest_run
 
     design = rate / np.pi * np.arctan(np.tan(np.pi * cutoff / rate) / pass_correction(2))
     sos = butter(2, design, fs=rate, output="sos")
@@ -290,7 +290,7 @@ def _time_domain_residual(data, rate, cutoffs):
 
 
 def _compare_cutoffs(paths, monkeypatch):
-    import mocaplib.filtering as filtering
+    import mocaplib.model.filtering as filtering
     from mocaplib.io.c3d import read_c3d
 
     steps = []
@@ -351,7 +351,7 @@ def test_a_ghost_of_three_frames_fits_as_a_gap_would(real_c3d):
     from dataclasses import replace
 
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.fitting import fit_capture
+    from mocaplib.model.fitting import fit_capture
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     knee = trial.labels.index("LKNE")

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from mocaplib.calibration import calibrate
-from mocaplib.fitting import fit_capture
-from mocaplib.ik import fit, fit_quality
+from mocaplib.model.calibration import calibrate
+from mocaplib.model.fitting import fit_capture
+from mocaplib.model.ik import fit, fit_quality
 from mocaplib.io.c3d import read_c3d
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.model.skeleton import DOF_NAMES
 
 
 def test_plug_in_gait_walk_fits_within_opensim_best_practice(real_c3d):

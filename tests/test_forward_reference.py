@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 from conftest import SAMPLES, plan_capture
 
-from mocaplib.calibration import calibrate
+from mocaplib.model.calibration import calibrate
 from mocaplib.cli import main
 from mocaplib.errors import CalibrationError, MocapError
-from mocaplib.ik import fit
+from mocaplib.model.ik import fit
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.cache import cache_key
-from mocaplib.pipeline import BuildSettings, build
-from mocaplib.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
+from mocaplib.build.cache import cache_key
+from mocaplib.build.pipeline import BuildSettings, build
+from mocaplib.build.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
                                process_capture)
-from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING
+from mocaplib.model.skeleton import JOINT_ANGLES, ROOT_HEADING
 
 STATIC = SAMPLES / "rest.c3d"
 WALK = SAMPLES / "walk_straight_normal.c3d"
@@ -287,8 +287,7 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
 def test_references_that_do_not_settle_are_an_error(monkeypatch):
     # the sample reference needs a second turn (its first is -0.187°, measured); allowed a
     # single turn, it is refused
-    from mocaplib import workflow
-
+    from mocaplib.build import workflow
     monkeypatch.setattr(workflow, "FORWARD_PASSES", 1)
     with pytest.raises(CalibrationError, match=r"turn 1 of 1 was still rest\.c3d -0\.1\d\d° "
                                                r"\(the turns stop below 0\.01°\)") as caught:

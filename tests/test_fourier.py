@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.fourier import (ROOT_HEADING, ROOT_X, ROOT_Y, encode, encode_cycle,
+from mocaplib.gait.fourier import (ROOT_HEADING, ROOT_X, ROOT_Y, encode, encode_cycle,
                               fit_series, root_drift, synthesize)
-from mocaplib.skeleton import DOF_NAMES, TRANSLATION
+from mocaplib.model.skeleton import DOF_NAMES, TRANSLATION
 
 T = 1.1
 D = len(DOF_NAMES)
@@ -135,7 +135,7 @@ def test_real_chosen_cycles_encode_with_few_harmonics():
 def test_a_cycle_that_does_not_close_keeps_a_low_order_and_its_ramp():
     # a real cycle ends a few degrees from where it started: forced through that step, the
     # series needed every harmonic; taken out as a ramp, the periodic part is encoded as usual
-    from mocaplib.fourier import MAX_ANGLE_TOLERANCE, channel_tolerance
+    from mocaplib.gait.fourier import MAX_ANGLE_TOLERANCE, channel_tolerance
 
     time = np.arange(0, T, 0.01)
     q = walking_q(time)

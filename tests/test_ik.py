@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from fk_data import fk_trial, true_model
 
-from mocaplib.calibration import SubjectModel, locked_dofs
+from mocaplib.model.calibration import SubjectModel, locked_dofs
 from mocaplib.errors import FitError
-from mocaplib.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtered, fit_quality,
+from mocaplib.model.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtered, fit_quality,
                          initial_pose, keyframes, solve_poses)
-from mocaplib.motion import Motion
-from mocaplib.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
+from mocaplib.model.motion import Motion
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.model.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -145,7 +145,7 @@ def test_frames_that_cannot_be_posed_are_not_solved_and_leave_their_neighbours_a
     # free poses would take the solver's full iterations and pull their neighbours through
     # the continuity term), and the frames beside them are fitted as the ends of a capture
     # (1.3 deg from the truth at most; 0.5 deg without the gap: a one-sided continuity term)
-    import mocaplib.ik as ik
+    import mocaplib.model.ik as ik
 
     cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=0, noise_mm=0.5, seed=7)
     markers = cap.trial.markers.copy()
@@ -277,7 +277,7 @@ def test_a_marker_drifting_smoothly_away_is_kept():
 
 
 def test_outliers_are_found_before_the_low_pass_spreads_them():
-    from mocaplib.filtering import filter_trial
+    from mocaplib.model.filtering import filter_trial
 
     cap = fk_trial(n_frames=150, placement_mm=0, sta_mm=3, noise_mm=0.7, seed=5)
     markers = cap.trial.markers.copy()
@@ -363,7 +363,7 @@ def test_fit_reaches_the_minimum_of_a_full_solve(static):
 def test_a_warm_started_fit_reaches_the_minimum_of_a_full_solve(still):
     from dataclasses import replace
 
-    from mocaplib.ik import LONGEST_STRIDE, OUTLIER_PASS
+    from mocaplib.model.ik import LONGEST_STRIDE, OUTLIER_PASS
 
     cap = fk_trial(n_frames=120, placement_mm=0, sta_mm=6, noise_mm=0, seed=10)
     rng = np.random.default_rng(3)
@@ -398,7 +398,7 @@ def test_initial_pose_interpolates_a_segment_unseen_for_a_while():
 
 
 def test_fit_stops_by_the_callers_tolerances(monkeypatch):
-    import mocaplib.ik as ik
+    import mocaplib.model.ik as ik
 
     cap = fk_trial(n_frames=60, placement_mm=0, sta_mm=6, noise_mm=1, seed=12)
     model = true_model(cap)

@@ -11,9 +11,9 @@ import pytest
 from protocol_trials import walker_trial
 
 from mocaplib.cli import main
-from mocaplib.inspection import SUMMARY_KEYS, inspect_c3d, inspect_trial
+from mocaplib.markersets.inspection import SUMMARY_KEYS, inspect_c3d, inspect_trial
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.protocols import load_protocol
+from mocaplib.markersets.protocols import load_protocol
 from mocaplib.trial import Event, Trial
 
 REQUIRED_KEYS = {"file", "ok", "error", "frames", "rate_hz", "units", "vertical_axis", "labels",

@@ -8,7 +8,7 @@ line's; elbow and shoulder flexion within 5° of Plug-in Gait's on every capture
 r ≥ 0.9, 3° RMS after the offset and a range within 1.5× Plug-in Gait's (both models define
 them from the same joint centres: Plug-in Gait's elbow flexion is the angle between its
 shoulder–elbow and elbow–wrist lines, and so is mocaplib's on the frames
-:func:`mocaplib.anatomy.segment_frames` builds); the fitted shoulder centres within 20 mm of
+:func:`mocaplib.model.anatomy.segment_frames` builds); the fitted shoulder centres within 20 mm of
 Plug-in Gait's."""
 
 from __future__ import annotations

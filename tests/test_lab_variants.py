@@ -13,8 +13,8 @@ import pytest
 
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.skeleton import DOF_NAMES
-from mocaplib.fitting import fit_capture
+from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.model.fitting import fit_capture
 
 SOURCE = "btkdata/PiG_Motion-FlatFoot-Full.c3d"
 #: DOFs that do not depend on where the subject walks.

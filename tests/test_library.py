@@ -16,9 +16,9 @@ import mocaplib
 import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.library import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
+from mocaplib.library.format import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
                               checksum_status, schema, validate_library)
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
 
 from entries import plain_entry
 
@@ -71,7 +71,7 @@ def test_shipped_schema_is_a_valid_draft_2020_12_schema():
 def test_the_schema_requires_every_length_of_the_fixed_skeleton():
     # a reader rebuilds the skeleton from segment_lengths_m (`mocaplib query --bvh` does): a
     # library missing one must not validate (it did, then query failed)
-    from mocaplib.skeleton import HEIGHT_PROPORTIONS
+    from mocaplib.model.skeleton import HEIGHT_PROPORTIONS
 
     assert set(schema()["$defs"]["segment_lengths"]["required"]) == set(HEIGHT_PROPORTIONS)
     doc = library().document
@@ -248,8 +248,8 @@ def test_validate_reports_unreadable_file(tmp_path):
 
 # --------------------------------------------------------------------------- semantic checks
 def test_the_entry_drift_derives_its_displacement_from_its_velocities():
-    from mocaplib.entry import EntryDrift
-    from mocaplib.fourier import RootDrift
+    from mocaplib.library.entry import EntryDrift
+    from mocaplib.gait.fourier import RootDrift
 
     e = entry(1)  # u_f 1.2, u_l 0.1, omega 0.5 rad/s over T 1.1 s
     x, y, turned = RootDrift(0.0, 0.0, 0.0, 1.2, 0.1, 0.5).frame(1.1)
@@ -382,7 +382,7 @@ def test_nan_and_infinity_are_refused_where_they_are(mutate, where, token, tmp_p
 
 # --------------------------------------------------------------------------- control space
 def test_validation_and_the_control_space_use_the_chosen_entries():
-    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library.controlspace import ControlSpace
 
     # --all-cycles: 3 chosen entries (one per capture) and 3 more cycles that span 3-D
     entries = [entry(i, chosen=i < 3) for i in range(6)]
@@ -403,7 +403,7 @@ def test_validation_and_the_control_space_use_the_chosen_entries():
 def test_validation_refuses_exactly_the_control_spaces_query_refuses(thickness):
     # the validator counted rank with 1e-6 of all entries, the control space with 1e-9 of the
     # chosen ones: a library 1e-7 thick passed one and not the other
-    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library.controlspace import ControlSpace
 
     rng = np.random.default_rng(7)
     points = rng.uniform([0.0, -1.0, -0.3], [1.8, 1.0, 0.3], (8, 3))
@@ -424,7 +424,7 @@ def test_validation_refuses_exactly_the_control_spaces_query_refuses(thickness):
 
 def test_a_library_without_drift_is_an_error_not_a_walk_on_the_spot():
     # one entry without u_f_m_s made the whole library's root motion vanish at query time
-    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library.controlspace import ControlSpace
 
     doc = copy.deepcopy(library().document)
     assert ControlSpace.from_library(Library(doc)).drift.shape == (5, 3)
@@ -507,7 +507,7 @@ def test_numbers_beyond_a_double_are_problems_not_crashes(tmp_path, capsys, numb
 # --------------------------------------------------------------------------- poulaines
 def poulaine() -> dict:
     """A poulaine as the build stores it, of two analytic ankle loops half a cycle apart."""
-    from mocaplib.poulaine import Poulaine, fit_ankle
+    from mocaplib.gait.poulaine import Poulaine, fit_ankle
 
     phase = np.arange(80) / 80
 
@@ -586,7 +586,7 @@ def test_validate_catches_a_broken_poulaine(mutate, expected):
 
 
 def test_version_2_is_written_and_version_1_files_still_read(tmp_path):
-    from mocaplib.library import FORMAT_VERSION
+    from mocaplib.library.format import FORMAT_VERSION
 
     path = library().write(tmp_path / "lib.json")
     document = json.loads(path.read_text())

@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.mirror import (MIRROR_INDEX, MIRROR_SIGN, REFLECTION, mirror_dofs, mirror_id,
+from mocaplib.library.mirror import (MIRROR_INDEX, MIRROR_SIGN, REFLECTION, mirror_dofs, mirror_id,
                              partner_name)
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
 
 
 def test_mirrored_poses_put_every_segment_at_the_mirror_image_of_its_partner():
@@ -67,8 +67,8 @@ def _entry(seed: int = 3, n: int = 6):
     """A library entry with gait-sized random coefficients, a turning drift and a right
     toe-off (its numbers as a build writes them: 10 significant digits)."""
     from entries import plain_entry
-    from mocaplib.entry import LibraryEntry
-    from mocaplib.library import to_json_data
+    from mocaplib.library.entry import LibraryEntry
+    from mocaplib.library.format import to_json_data
 
     rng = np.random.default_rng(seed)
     a, b = rng.normal(0, 0.1, (2, len(DOF_NAMES), n + 1))
@@ -102,7 +102,7 @@ def _numbers(x, y, path=""):
 
 
 def test_mirroring_an_entry_twice_gives_it_back():
-    from mocaplib.mirror import mirror_entry
+    from mocaplib.library.mirror import mirror_entry
 
     entry = _entry()
     image = mirror_entry(entry)
@@ -124,9 +124,9 @@ def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
     """Put back in the world (library-format.md's root-drift formula), the image's motion is
     the source's from its right toe-off on, reflected, up to one rigid motion of the floor:
     joints equal, root pose a constant SE(2) transform away."""
-    from mocaplib.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
-    from mocaplib.mirror import mirror_entry
-    from mocaplib.skeleton import ROOT_HEADING
+    from mocaplib.gait.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
+    from mocaplib.library.mirror import mirror_entry
+    from mocaplib.model.skeleton import ROOT_HEADING
 
     def world(entry, t):
         q = synthesize(entry.fourier.a, entry.fourier.b, entry.T, t)
@@ -151,7 +151,7 @@ def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
 
 def test_an_entry_without_its_right_toe_off_cannot_be_mirrored():
     from mocaplib.errors import MocapError
-    from mocaplib.mirror import mirror_entry
+    from mocaplib.library.mirror import mirror_entry
 
     entry = replace(_entry(), right_toe_off_s=None)
     with pytest.raises(MocapError, match="walk_curve_r2_left_normal_c1 does not record its "
@@ -184,7 +184,7 @@ def test_the_mirror_command_refuses_what_it_cannot_mirror(tmp_path, capsys):
     """An entry without its right toe-off (an older library): exit 1, the entries named,
     nothing written; the output naming the input: a usage error (2) before any work."""
     from mocaplib.cli import main
-    from mocaplib.library import assemble_library
+    from mocaplib.library.format import assemble_library
 
     old = replace(_entry(), right_toe_off_s=None)
     straight = replace(_entry(seed=4), id="walk_straight_normal_c0", omega=0.001, v_l=0.0)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from conftest import SAMPLES
-from mocaplib.fourier import synthesize
-from mocaplib.skeleton import JOINT_ANGLES
+from mocaplib.gait.fourier import synthesize
+from mocaplib.model.skeleton import JOINT_ANGLES
 
 #: The velocity targets of the library (README, Pattern and velocities): v̂ within 2 %,
 #: ω̂ (rad/s) and v̂_l (m/s) within 0.02.
@@ -23,7 +23,7 @@ SYMMETRIC = ("walk_straight_slow", "walk_straight_normal", "walk_straight_fast",
 @pytest.fixture(scope="module")
 def mirrored_samples(tmp_path_factory):
     """The quick start's library of the 68 samples, built with --mirror."""
-    from mocaplib.pipeline import BuildSettings, build
+    from mocaplib.build.pipeline import BuildSettings, build
 
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral",
                              forward_reference=str(SAMPLES / "walk_straight_normal.c3d"),
@@ -77,8 +77,8 @@ def test_a_mirrored_library_of_the_samples_covers_the_default_envelope(mirrored_
     """Target: >= 99 % of the default envelope (the paper plan's commands) with the mirror
     images in, flagged as such (3 straight walks, 2 runs and rest are their own mirror
     images). Measured: 99.16 % with the images, 99.13 % without."""
-    from mocaplib.controlspace import ControlSpace, coverage
-    from mocaplib.library import validate_library
+    from mocaplib.library.controlspace import ControlSpace, coverage
+    from mocaplib.library.format import validate_library
     from mocaplib.report.plan import default_envelope
 
     library = mirrored_samples.library
@@ -106,7 +106,7 @@ def test_mirrored_left_gaits_match_the_captured_right_ones(mirrored_samples):
     differently on the two sides. Measured: 60 pairs, joint RMS median 0.46°, max 0.90°;
     own asymmetry 0.55-1.11° (straight walks 0.55-0.85°, runs 0.83-1.11°); velocities within
     0.2 % (v̂), 0.0039 rad/s, 0.0062 m/s."""
-    from mocaplib.mirror import mirror_entry
+    from mocaplib.library.mirror import mirror_entry
 
     library = mirrored_samples.library
     df = library.table
@@ -133,7 +133,7 @@ def test_series_images_agree_with_the_images_cut_from_the_captures(mirrored_samp
     --mirror (the capture cut at its right toe-offs), entry by entry: they mirror different
     strides of a steady walker, so they should agree within the velocity targets and the
     Fourier encoding tolerance (0.5°). Measured: joint RMS median 0.17°, max 0.32°."""
-    from mocaplib.mirror import mirror_entry
+    from mocaplib.library.mirror import mirror_entry
 
     library = mirrored_samples.library
     df = library.table
@@ -150,7 +150,7 @@ def test_series_images_agree_with_the_images_cut_from_the_captures(mirrored_samp
 @pytest.mark.slow
 def test_the_mirror_command_adds_the_series_images_once(mirrored_samples, tmp_path, capsys):
     from mocaplib.cli import main
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
 
     document = mirrored_samples.library.document
     captured = {**document, "entries": [e for e in document["entries"]
@@ -177,9 +177,9 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
     rad/s) has as mirror image, cut at right toe-offs, the stride into the turn (ω̂ +0.63
     rad/s), whose marker_max_m is 45 mm, over the 40 mm limit: kept with --qc waive. The
     series image of the chosen turn keeps its QC: ω̂ +0.21 rad/s."""
-    from mocaplib.controlspace import ControlSpace
-    from mocaplib.mirror import mirror_library
-    from mocaplib.pipeline import BuildSettings, build
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.mirror import mirror_library
+    from mocaplib.build.pipeline import BuildSettings, build
 
     static = real_c3d("biomechzoo/HC030A01.c3d")
     walks = [real_c3d("biomechzoo/HC030A05.c3d"), real_c3d("biomechzoo/HC030A22.c3d")]

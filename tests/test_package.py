@@ -21,10 +21,10 @@ def test_no_public_name_is_also_a_submodule():
 
 
 def test_exports_resolve_to_their_objects_whatever_was_imported_first():
-    code = ("import mocaplib.calibration, mocaplib.ik\n"
+    code = ("import mocaplib.model.calibration, mocaplib.model.ik\n"
             "from mocaplib import calibrate, fit, SubjectModel\n"
-            "assert callable(calibrate) and calibrate.__module__ == 'mocaplib.calibration'\n"
-            "assert fit.__module__ == 'mocaplib.ik' and isinstance(SubjectModel, type)\n")
+            "assert callable(calibrate) and calibrate.__module__ == 'mocaplib.model.calibration'\n"
+            "assert fit.__module__ == 'mocaplib.model.ik' and isinstance(SubjectModel, type)\n")
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
                           text=True)
     assert done.returncode == 0, done.stderr
@@ -83,8 +83,8 @@ def test_fit_imports_neither_numpy_ma_nor_the_library_modules(sample_dir, tmp_pa
     # numpy.ma costs ~7 ms of the command's start-up (the stages of the fit use
     # mocaplib.numeric's reductions instead of numpy's that import it); the library's modules
     # (entry, library, qc, the build's workflow) and hashlib's OpenSSL about 12 ms more
-    unused = ("numpy.ma", "mocaplib.entry", "mocaplib.library", "mocaplib.qc",
-              "mocaplib.workflow", "hashlib")
+    unused = ("numpy.ma", "mocaplib.library.entry", "mocaplib.library.format", "mocaplib.gait.qc",
+              "mocaplib.build.workflow", "hashlib")
     program = ("import sys\nfrom mocaplib.cli import main\n"
                "assert main(['fit', sys.argv[1], '-o', sys.argv[2]]) == 0\n"
                f"print(*[name for name in {unused!r} if name in sys.modules])")

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.pipeline import BuildSettings, build, process_capture
+from mocaplib.build.pipeline import BuildSettings, build, process_capture
 from mocaplib.synth import Command, synthesize_capture, write_capture
 from mocaplib.trial import Trial
 
@@ -54,7 +54,7 @@ def short_run(request, tmp_path_factory):
 
 @pytest.mark.slow
 def test_a_short_run_at_250_hz_gives_an_entry_from_its_right_toe_off(short_run):
-    from mocaplib.library import validate_library
+    from mocaplib.library.format import validate_library
 
     path, protocol, capture, full = short_run
     result = build([path], BuildSettings(protocol=str(protocol)), progress=False)

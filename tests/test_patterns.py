@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import EventError
-from mocaplib.patterns import cycle_velocities, fit_circle, fit_line, fit_pattern
+from mocaplib.gait.patterns import cycle_velocities, fit_circle, fit_line, fit_pattern
 
 from gait_model import shoulders
 

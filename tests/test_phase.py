@@ -1,4 +1,4 @@
-"""An entry's cycle seen from a later instant (mocaplib.phase): the same motion, and a cycle that
+"""An entry's cycle seen from a later instant (mocaplib.library.phase): the same motion, and a cycle that
 starts at a right toe-off read from its left toe-off by the control space and the mirror."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
-from mocaplib.phase import from_left_toe_off, start_later
-from mocaplib.skeleton import DOF_NAMES, ROOT_HEADING
+from mocaplib.gait.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
+from mocaplib.library.phase import from_left_toe_off, start_later
+from mocaplib.model.skeleton import DOF_NAMES, ROOT_HEADING
 
 from test_controlspace import hand_library
 from test_mirror import _entry
@@ -73,7 +73,7 @@ def test_an_entry_needs_both_cycle_start_and_its_left_toe_off():
 
 
 def test_the_mirror_of_a_fallback_entry_is_that_of_its_cycle_from_left_toe_off():
-    from mocaplib.mirror import mirror_entry
+    from mocaplib.library.mirror import mirror_entry
 
     entry = _entry()
     image = mirror_entry(_right_toe_off_start(entry))
@@ -85,8 +85,8 @@ def test_the_mirror_of_a_fallback_entry_is_that_of_its_cycle_from_left_toe_off()
 
 
 def test_the_control_space_blends_a_fallback_entry_from_its_left_toe_off():
-    from mocaplib.controlspace import ControlSpace
-    from mocaplib.library import assemble_library
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.format import assemble_library
 
     rng = np.random.default_rng(2)
     n = len(DOF_NAMES)

@@ -18,15 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib import pipeline, workflow
+from mocaplib.build import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
-from mocaplib.library import DEFAULT_QC_THRESHOLDS, load_library, qc_failures, validate_library
-from mocaplib.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
+from mocaplib.library.format import DEFAULT_QC_THRESHOLDS, load_library, qc_failures, validate_library
+from mocaplib.build.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
                                file_sha256, find_captures, process_capture)
-from mocaplib.skeleton import DOF_NAMES
-from mocaplib.workers import max_jobs
+from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.build.workers import max_jobs
 
 from entries import plain_entry
 
@@ -163,7 +163,7 @@ def test_cache_made_by_other_code_is_not_reused(tmp_path, monkeypatch):
     write_captures(folder, TRIPLES[:2])
     build([folder], cache_dir=cache, progress=False, process=fake_process)
     # Same version number, edited code (a development checkout): everything is re-processed.
-    monkeypatch.setattr("mocaplib.cache.code_fingerprint", lambda: "edited")
+    monkeypatch.setattr("mocaplib.build.cache.code_fingerprint", lambda: "edited")
     again = build([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 4 and not any(c.from_cache for c in again.captures)
 
@@ -415,7 +415,7 @@ def test_cli_validate_prints_problems(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def synthetic_folder(tmp_path_factory) -> Path:
     """Three synthetic captures of the paper plan (a side-step, a curve, rest) with truth."""
-    from mocaplib.protocols import protocols_dir
+    from mocaplib.markersets.protocols import protocols_dir
     from mocaplib.synth import generate_plan, load_plan
 
     folder = tmp_path_factory.mktemp("synthetic")
@@ -560,10 +560,10 @@ def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_cap
         synthetic_folder, tmp_path, capsys):
     # fit detected the protocol on the static (calibrate's choice), build and cycles on the
     # capture: a static with one more Plug-in Gait label (RBAK) made fit use plugin_gait
-    from mocaplib.calibration import calibrate
+    from mocaplib.model.calibration import calibrate
     from mocaplib.io.c3d import read_c3d
     from mocaplib.io.c3d_write import write_c3d
-    from mocaplib.protocols import detect_protocol
+    from mocaplib.markersets.protocols import detect_protocol
 
     rest = read_c3d(synthetic_folder / "rest.c3d")
     back = rest.markers[:, [rest.labels.index("T10")]] + [-0.05, -0.05, 0.0]

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import MocapError
-from mocaplib.fourier import RootDrift
-from mocaplib.poulaine import (KINDS, MIN_TRAVEL_SPEED, AnklePath, Poulaine, blend,
+from mocaplib.gait.fourier import RootDrift
+from mocaplib.gait.poulaine import (KINDS, MIN_TRAVEL_SPEED, AnklePath, Poulaine, blend,
                                characteristic_indices, cycle_poulaine, fit_ankle, travel_angle,
                                travel_coordinates)
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
 
 
 def loop(phase, *, x0=0.05, half_step=0.32, y=0.06, z=-0.85, lift=0.12):
@@ -153,7 +153,7 @@ def test_fit_error_target_on_the_real_walks():
 
 
 def test_aligned_phases_put_a_source_s_points_where_the_timing_has_its_own():
-    from mocaplib.poulaine import aligned_phases
+    from mocaplib.gait.poulaine import aligned_phases
 
     phase = np.arange(120) / 120
     timing = fit_ankle(loop(phase), phase)

@@ -13,7 +13,7 @@ from protocol_trials import select, walker_trial
 
 from mocaplib.errors import ProtocolError
 from mocaplib.io.c3d import read_c3d
-from mocaplib.protocols import (detect_protocol, find_side_swaps, is_model_output,
+from mocaplib.markersets.protocols import (detect_protocol, find_side_swaps, is_model_output,
                                 is_numbered_point, list_protocols, load_protocol,
                                 match_protocol)
 from mocaplib.trial import Trial
@@ -315,7 +315,7 @@ def _user_folder(tmp_path, monkeypatch):
 
 
 def test_a_users_folder_adds_protocols_and_landmarks_to_the_shipped_ones(tmp_path, monkeypatch):
-    from mocaplib.protocols import load_landmarks, overrides
+    from mocaplib.markersets.protocols import load_landmarks, overrides
 
     folder = _user_folder(tmp_path, monkeypatch)
     names = list_protocols()
@@ -390,7 +390,7 @@ def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
 
 def _computed_by_definition(trial):
     """computed_points' definition, point by point against every other point, all frames."""
-    from mocaplib.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
+    from mocaplib.markersets.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
 
     X = trial.markers
     expected = set()
@@ -411,7 +411,7 @@ def _computed_by_definition(trial):
 def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, name):
     # every point a candidate: the shortcuts (the screen on a few frames, one rigid pair
     # settling a point) must change nothing
-    from mocaplib.protocols import computed_points
+    from mocaplib.markersets.protocols import computed_points
 
     trial = read_c3d(real_c3d(name))
     expected = _computed_by_definition(trial)
@@ -423,7 +423,7 @@ def test_a_point_rigid_over_the_trial_stays_computed_when_it_jumps_on_the_screen
     # the quick look at every pair sees only SCREEN_FRAMES frames: a point whose one jump
     # falls on one of them looks loose there though it is rigid over the whole trial (SD 0.8
     # times RIGID_SD); a jittering point is loose everywhere
-    from mocaplib.protocols import RIGID_SD, SCREEN_FRAMES, computed_points
+    from mocaplib.markersets.protocols import RIGID_SD, SCREEN_FRAMES, computed_points
 
     frames = 400
     rng = np.random.default_rng(3)

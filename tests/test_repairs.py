@@ -10,8 +10,8 @@ from dataclasses import replace
 import pytest
 
 from mocaplib.cli import main
-from mocaplib.ik import fit_quality
-from mocaplib.fitting import fit_capture
+from mocaplib.model.ik import fit_quality
+from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
 from mocaplib.synth.capture import synthesize_capture
@@ -108,7 +108,7 @@ def test_fit_json_and_build_diagnostics_report_the_repair(cluster_session, tmp_p
     (repair,) = json.loads(captured.out)["repairs"]
     assert repair["markers"] == ["RFHD", "LBHD"] and repair["kind"] == "swap"
     assert "labels RFHD and LBHD look exchanged in frames" in captured.err
-    from mocaplib.pipeline import BuildSettings, process_capture
+    from mocaplib.build.pipeline import BuildSettings, process_capture
 
     result = process_capture(capture, BuildSettings(static=str(static)))
     assert result.ok, result.error

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.library import assemble_library
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.library.format import assemble_library
+from mocaplib.model.skeleton import DOF_NAMES
 
 from entries import plain_entry
 
@@ -207,8 +207,8 @@ def test_report_shows_no_absolute_paths(report):
 
 
 def test_entries_too_close_to_tell_apart_are_listed_and_warned_about(tmp_path):
-    from mocaplib.controlspace import ControlSpace
-    from mocaplib.library import load_library
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.format import load_library
     from mocaplib.report.html import _close_rows, _close_warning
 
     # A 60° and a 120° diagonal at 1 m/s: same v̂ and v̂_l, so the same tangential point.
@@ -393,8 +393,8 @@ def test_a_broken_shipped_plan_falls_back(tmp_path, monkeypatch):
 def test_report_and_build_read_the_plans_beside_the_protocols(tmp_path, monkeypatch):
     # An installed mocaplib has no source tree: the plans are found where the protocols are
     # (the package's data and $MOCAPLIB_PROTOCOLS), whatever the current folder.
-    from mocaplib import workflow
-    from mocaplib.protocols import protocols_dir
+    from mocaplib.build import workflow
+    from mocaplib.markersets.protocols import protocols_dir
     from mocaplib.report.plan import find_plan
 
     shipped = find_plan()
@@ -512,7 +512,7 @@ def test_envelope_and_planned_captures_from_a_capture_plan(tmp_path):
     ("v = [0.0, true]", "v"), ("points = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, nan]]", "points"),
 ])
 def test_an_envelope_holds_finite_numbers_only(table, key, tmp_path):
-    from mocaplib.controlspace import Envelope
+    from mocaplib.library.controlspace import Envelope
     from mocaplib.errors import MocapError
 
     path = tmp_path / "env.toml"
@@ -523,7 +523,7 @@ def test_an_envelope_holds_finite_numbers_only(table, key, tmp_path):
 
 
 def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
-    from mocaplib.controlspace import Envelope
+    from mocaplib.library.controlspace import Envelope
 
     scale = np.array([1.5, np.pi / 2, 0.5])
     for box in ({"v": (0, 1.8), "omega": (-1.2, 1.2), "v_l": (-0.5, 0.5)},   # symmetric
@@ -534,7 +534,7 @@ def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
 
 
 def test_capture_next_finds_a_missing_straight_walk_as_one():
-    from mocaplib.controlspace import ControlSpace, Envelope, coverage
+    from mocaplib.library.controlspace import ControlSpace, Envelope, coverage
     from mocaplib.report.html import describe_command
 
     # Turns, side-steps and their mixtures both ways, no straight walking: the gap is there.
@@ -550,7 +550,7 @@ def test_capture_next_finds_a_missing_straight_walk_as_one():
 
 
 def test_ties_go_to_the_sample_nearest_the_centre():
-    from mocaplib.controlspace import _farthest
+    from mocaplib.library.controlspace import _farthest
 
     distance = np.array([1.0, 2.0, 2.0, 2.0 - 1e-12, 0.5])
     off_centre = np.array([0.0, 0.9, 0.5, 0.1, 0.0])
@@ -599,8 +599,8 @@ def test_the_headline_blending_error_leaves_rest_out_and_flags_cross_mode_blends
 
 
 def test_entries_at_the_fourier_order_cap_are_flagged():
-    from mocaplib.library import assemble_library
-    from mocaplib.fourier import ANGLE_TOLERANCE, MAX_ORDER as cap
+    from mocaplib.library.format import assemble_library
+    from mocaplib.gait.fourier import ANGLE_TOLERANCE, MAX_ORDER as cap
     from mocaplib.report.html import _entry_rows, _summary
 
     assert (cap, round(np.degrees(ANGLE_TOLERANCE), 6)) == (20, 0.5)  # the encoder's defaults
@@ -620,7 +620,7 @@ def test_entries_at_the_fourier_order_cap_are_flagged():
 
 
 def test_a_sidecar_of_another_build_is_not_used(tmp_path):
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
     from mocaplib.report.html import read_diagnostics
 
     lib_path = make_library(tmp_path)
@@ -642,7 +642,7 @@ def test_a_sidecar_of_another_build_is_not_used(tmp_path):
 
 
 def test_the_capture_figure_draws_the_pattern_the_sidecar_stores():
-    from mocaplib.patterns import fit_pattern
+    from mocaplib.gait.patterns import fit_pattern
     from mocaplib.report.figures import pattern_curve
 
     angle = np.linspace(0.0, 1.2, 60)
@@ -655,7 +655,7 @@ def test_the_capture_figure_draws_the_pattern_the_sidecar_stores():
 
 
 def test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one(tmp_path):
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
     from mocaplib.report.html import _captures, read_diagnostics
 
     path = make_library(tmp_path)
@@ -678,7 +678,7 @@ def test_the_capture_figure_draws_both_ankles_poulaines_measured_and_modelled():
 
     from mocaplib.report import figures
     from test_library import poulaine as stored_poulaine
-    from mocaplib.poulaine import Poulaine
+    from mocaplib.gait.poulaine import Poulaine
 
     model = Poulaine.from_dict(stored_poulaine())
     phase = np.linspace(0.0, 1.0, 40)
@@ -709,8 +709,8 @@ def test_report_marks_mirror_images_and_counts_coverage_without_them(tmp_path):
     """Two right curves flagged as the series mirror images of the left ones: the Entries
     table names their sources, the coverage is given without them too (as computed on the
     captured entries alone), and the sidecar, which names no series image, is still used."""
-    from mocaplib.controlspace import ControlSpace, coverage
-    from mocaplib.library import load_library
+    from mocaplib.library.controlspace import ControlSpace, coverage
+    from mocaplib.library.format import load_library
     from mocaplib.report import write_report
     from mocaplib.report.plan import default_envelope
 
@@ -746,8 +746,8 @@ def test_the_motion_viewer_animates_and_blends_in_headless_chromium(report, tmp_
     panel plays a blend, with its weights shown, which changes the pose; the weights the page
     finds for a point are the control space's. Screenshots stay in the test's tmp_path."""
     from browser import Browser
-    from mocaplib.controlspace import ControlSpace
-    from mocaplib.library import load_library
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.format import load_library
     from matplotlib.image import imread
 
     path, _ = report

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
 
 NODE = shutil.which("node")
 MOTION_JS = Path(__file__).parents[1] / "mocaplib" / "report" / "templates" / "motion.js"
@@ -51,7 +51,7 @@ def test_forward_kinematics_in_javascript_is_mocaplibs():
 
 
 def test_the_series_and_the_drift_in_javascript_are_mocaplibs():
-    from mocaplib.fourier import RootDrift, synthesize
+    from mocaplib.gait.fourier import RootDrift, synthesize
 
     rng = np.random.default_rng(2)
     a, b = rng.normal(size=(2, 5, 7))
@@ -68,7 +68,7 @@ def test_the_series_and_the_drift_in_javascript_are_mocaplibs():
 def test_blending_in_javascript_is_the_control_spaces():
     """The tetrahedron and weights found in the stored triangulation, and the blended
     coefficients, period and drift, for points inside and outside the hull."""
-    from mocaplib.controlspace import ControlSpace
+    from mocaplib.library.controlspace import ControlSpace
 
     rng = np.random.default_rng(7)
     points = rng.uniform([0.0, -1.5, -0.5], [1.8, 1.5, 0.5], (25, 3))

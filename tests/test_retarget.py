@@ -10,9 +10,9 @@ import pytest
 
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
-from mocaplib.poulaine import ankle_centres
-from mocaplib.retarget import FORMATS, TASK_DOFS, Weights, foot_skate, retarget
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.gait.poulaine import ankle_centres
+from mocaplib.library.retarget import FORMATS, TASK_DOFS, Weights, foot_skate, retarget
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
 
 #: The issue's target: joint-angle RMS of the pelvis, hip and knee DOFs (the IK's, TASK_DOFS)
 #: between a cycle retargeted to its own body and the captured cycle, rad.
@@ -109,7 +109,7 @@ def test_requested_values_are_met_exactly_and_checked(walks):
     assert result.requested == (0.55, 0.12, 0.74)
     assert result.ankle_error_m < 1e-5
     # the output's ankles, where the entry passes its characteristic points, have them
-    from mocaplib.poulaine import travel_coordinates
+    from mocaplib.gait.poulaine import travel_coordinates
 
     own = walks.poulaine(entry)
     ankles = ankle_centres(body, travel_coordinates(result.path_coordinates(), own.travel))
@@ -181,7 +181,7 @@ def test_outputs_are_written_by_suffix(walks, tmp_path):
 
 def test_a_rest_entry_has_nothing_to_retarget(tmp_path):
     from test_library import entry as library_entry
-    from mocaplib.library import assemble_library
+    from mocaplib.library.format import assemble_library
 
     lib = assemble_library([library_entry(i, locomotion_class="rest") for i in range(5)],
                            settings={})

@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.calibration import STATIC_WINDOW_S, standing_part
+from mocaplib.model.calibration import STATIC_WINDOW_S, standing_part
 from mocaplib.cli import main
 from mocaplib.errors import CalibrationError, MocapError, NoCycleError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.pipeline import BuildSettings, build
-from mocaplib.sessions import SESSION_FILE, load_session, plan_captures
+from mocaplib.build.pipeline import BuildSettings, build
+from mocaplib.build.sessions import SESSION_FILE, load_session, plan_captures
 
 pytestmark = pytest.mark.usefixtures("sample_dir")
 
@@ -80,8 +80,8 @@ def test_the_hint_for_a_static_given_as_a_motion_says_it_stands(tmp_path):
     path = _stepping_in(tmp_path)
     assert main(["cycles", str(path)]) == 1
     # it has a step or none; either way it is told it stands, not to check POINT:RATE
-    from mocaplib.cycles import analyse_cycles
-    from mocaplib.events import GaitEvent
+    from mocaplib.gait.cycles import analyse_cycles
+    from mocaplib.gait.events import GaitEvent
 
     trial = read_c3d(path)
     shoulders = [trial.marker(label) for label in ("LSHO", "RSHO")]
@@ -184,7 +184,7 @@ def test_the_shared_files_with_two_statics_build_without_failure(shared_c3d, tmp
                  str(statics[1]), "-o", str(out), "--no-cache", "-q", "--jobs", "2"]) == 0
     printed = capsys.readouterr().out
     assert "captures 17  ok 17  failed 0" in printed
-    from mocaplib.library import load_library
+    from mocaplib.library.format import load_library
 
     library = load_library(out)
     assert len(library) >= 10

@@ -11,7 +11,7 @@ from scipy.interpolate import CubicSpline
 
 from mocaplib.errors import SynthError
 from mocaplib.runs import valid_runs
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.model.skeleton import DOF_NAMES, Skeleton
 from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
 from mocaplib.synth.body import SWING_KNEE_FLOOR, body_motion
 from mocaplib.synth.gait import FLAT, SWING
@@ -257,7 +257,7 @@ def test_markers_ride_on_the_body_with_artefacts():
     """Without artefacts every marker is exactly where the generator's body puts its landmark
     (its own catalogue, synthetic_body.toml), and that is not where the fit's catalogue puts
     it; with them, a few millimetres off."""
-    from mocaplib.protocols import load_protocol
+    from mocaplib.markersets.protocols import load_protocol
     clean = capture("straight_normal", placement_sd=0.0, soft_tissue=0.0, noise_sd=0.0)
     names = [m.landmark.name for m in load_protocol("fullbody38").markers]
     exact = clean.body.landmark_points(clean.motion.pose, names)
@@ -274,8 +274,8 @@ def test_the_body_is_not_the_fitting_skeleton():
     """The generator's geometry is its own: its hip centres are Bell's, about a centimetre from
     where Harrington's regression (the fit's) puts them from the same ASIS and PSIS, and its
     knee markers are further apart than the fit's landmark catalogue has them."""
-    from mocaplib.anatomy import harrington_hips
-    from mocaplib.protocols import load_landmarks
+    from mocaplib.model.anatomy import harrington_hips
+    from mocaplib.markersets.protocols import load_landmarks
     from mocaplib.synth.bones import synthetic_body
     from mocaplib.synth.truth import neutral_pose
     body = synthetic_body(1.75)

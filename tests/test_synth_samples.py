@@ -11,7 +11,7 @@ import pytest
 from conftest import REPO, SAMPLES
 from mocaplib.cli import main
 from mocaplib.errors import SynthError
-from mocaplib.skeleton import DOF_NAMES
+from mocaplib.model.skeleton import DOF_NAMES
 from mocaplib.synth import generate_plan, load_plan, min_duration
 
 PLAN = REPO / "protocols" / "paper_plan.toml"
@@ -35,7 +35,7 @@ def test_paper_plan_has_the_68_captures():
 
 
 def test_plan_is_not_listed_as_a_protocol():
-    from mocaplib.protocols import list_protocols
+    from mocaplib.markersets.protocols import list_protocols
     assert "paper_plan" not in list_protocols()
 
 
@@ -198,9 +198,9 @@ MISSED_DOFS = {
 def sample_angle_errors():
     """Each shipped capture's RMS joint-angle error (deg) per DOF against its truth: calibrated
     on the session's static (neutral pose), markers low-passed at Winter's cutoff."""
-    from mocaplib.calibration import calibrate
-    from mocaplib.filtering import filter_trial
-    from mocaplib.ik import fit
+    from mocaplib.model.calibration import calibrate
+    from mocaplib.model.filtering import filter_trial
+    from mocaplib.model.ik import fit
     from mocaplib.io.c3d import read_c3d
 
     static = read_c3d(SAMPLES / "rest.c3d")

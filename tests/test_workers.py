@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from mocaplib.workers import MAX_ATTEMPTS, WorkerDied, max_jobs, run_tasks
+from mocaplib.build.workers import MAX_ATTEMPTS, WorkerDied, max_jobs, run_tasks
 
 needs_two = pytest.mark.skipif(max_jobs() < 2, reason="needs two processors for two workers")
 
@@ -118,7 +118,7 @@ def test_workers_end_when_their_parent_is_killed(tmp_path):
         import os, sys, time
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_workers import record_and_sleep
-        from mocaplib.workers import run_tasks
+        from mocaplib.build.workers import run_tasks
         if __name__ == "__main__":
             list(run_tasks(record_and_sleep, [({str(pids)!r},)] * 2, jobs=2))
         """)
@@ -195,7 +195,7 @@ def test_a_function_defined_in_a_script_runs_in_workers(tmp_path):
     # `if __name__ == "__main__":` part does not run there)
     script = tmp_path / "script.py"
     script.write_text(textwrap.dedent("""
-        from mocaplib.workers import run_tasks
+        from mocaplib.build.workers import run_tasks
 
         def triple(x):
             return 3 * x

@@ -1,5 +1,5 @@
 """One capture workflow: ``mocaplib fit`` and ``mocaplib build`` calibrate and fit a capture
-through the same :func:`mocaplib.fitting.fit_capture`, with the same warnings."""
+through the same :func:`mocaplib.model.fitting.fit_capture`, with the same warnings."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import CalibrationError
-from mocaplib.fitting import fit_capture
+from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
-from mocaplib.pipeline import BuildSettings
-from mocaplib.protocols import match_trial
+from mocaplib.build.pipeline import BuildSettings
+from mocaplib.markersets.protocols import match_trial
 from mocaplib.trial import Trial
-from mocaplib.workflow import process_capture
+from mocaplib.build.workflow import process_capture
 
 
 def test_the_build_fits_a_capture_as_fit_capture_does_and_says_what_it_says(real_c3d):

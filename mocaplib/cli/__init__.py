@@ -18,7 +18,7 @@ import sys
 from .. import __version__
 from ..errors import MocapError
 from ..io import printable
-from ..threads import one_thread_by_default
+from ..build.threads import one_thread_by_default
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",

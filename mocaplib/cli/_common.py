@@ -115,10 +115,10 @@ def add_protocol_folders_option(parser) -> None:
 
 
 def apply_protocol_options(args) -> None:
-    """Add ``args.protocols`` folders (:func:`mocaplib.protocols.use_protocol_folders`) and
+    """Add ``args.protocols`` folders (:func:`mocaplib.markersets.protocols.use_protocol_folders`) and
     check ``args.protocol`` loads; :class:`UsageError` (exit 2) otherwise. Commands without
     the options pass through."""
-    from ..protocols import load_protocol, use_protocol_folders
+    from ..markersets.protocols import load_protocol, use_protocol_folders
 
     option = "--protocols"
     try:
@@ -131,13 +131,13 @@ def apply_protocol_options(args) -> None:
         raise UsageError(f"{option}: {exc}") from None
 
 
-#: ``--toe-off`` choices: :data:`mocaplib.events.TOE_OFF_DEFINITIONS`, not imported here so that
+#: ``--toe-off`` choices: :data:`mocaplib.gait.events.TOE_OFF_DEFINITIONS`, not imported here so that
 #: the command line parses without loading scipy (~0.8 s); a test keeps the two equal.
 TOE_OFF_CHOICES = ("foot_velocity", "lift")
 
 
 def add_toe_off_option(parser) -> None:
-    """``--toe-off``: which toe-off definition cuts the cycles (:mod:`mocaplib.events`)."""
+    """``--toe-off``: which toe-off definition cuts the cycles (:mod:`mocaplib.gait.events`)."""
     parser.add_argument("--toe-off", choices=TOE_OFF_CHOICES, default="foot_velocity",
                         help="toe-off definition: 'foot_velocity' (the foot's upward-velocity "
                              "peak and the end of its roll, close to a force plate's Foot Off; "
@@ -146,12 +146,12 @@ def add_toe_off_option(parser) -> None:
                              "fastest, ~18 ms before Foot Off on real feet)")
 
 
-#: ``--max-gap`` default: :data:`mocaplib.cycles.MAX_GAP_S` (a test keeps the two equal).
+#: ``--max-gap`` default: :data:`mocaplib.gait.cycles.MAX_GAP_S` (a test keeps the two equal).
 MAX_GAP_DEFAULT = 0.25
 
 
 def add_gap_option(parser) -> None:
-    """``--max-gap``: the longest gap filled by interpolation (:mod:`mocaplib.cycles`)."""
+    """``--max-gap``: the longest gap filled by interpolation (:mod:`mocaplib.gait.cycles`)."""
     parser.add_argument("--max-gap", type=positive(float, unit=" s"), default=MAX_GAP_DEFAULT,
                         metavar="S", dest="max_gap_s",
                         help="longest gap (s) filled by interpolation: in the foot markers the "
@@ -178,9 +178,9 @@ def positive(kind: type, *, unit: str = "", most: float = math.inf):
 
 def jobs_count(text: str) -> int:
     """argparse ``type=`` of ``--jobs``: a whole number from 1 to
-    :func:`mocaplib.workers.max_jobs` (more processes than processors only compete for
+    :func:`mocaplib.build.workers.max_jobs` (more processes than processors only compete for
     them, each holding its own memory); else exit 2."""
-    from ..workers import max_jobs
+    from ..build.workers import max_jobs
 
     jobs, limit = positive(int)(text), max_jobs()
     if jobs > limit:
@@ -260,7 +260,7 @@ def time_window(text: str) -> tuple[float, float]:
 def measurement(text: str) -> tuple[str, float]:
     """One ``--subject NAME=VALUE``: a known measurement name (sided names without ``_l`` or
     ``_r`` mean both sides) and a number > 0, SI units."""
-    from ..anatomy import MEASUREMENTS
+    from ..model.anatomy import MEASUREMENTS
 
     name, _, value = text.partition("=")
     name = name.strip()
@@ -280,7 +280,7 @@ def measurement(text: str) -> tuple[str, float]:
 def measurements(args) -> dict[str, float]:
     """The ``--subject`` values as :attr:`mocaplib.trial.Trial.measurements` keys (a sided
     name given bare sets both sides)."""
-    from ..anatomy import MEASUREMENTS
+    from ..model.anatomy import MEASUREMENTS
 
     out: dict[str, float] = {}
     for name, value in args.subject:
@@ -307,7 +307,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
     """Raise :class:`UsageError` before any work when a path given on the command line does
     not exist (the message ends with ``hint``), a ``--static`` cannot be read or does not
     stand still in ``static_window`` or its quietest second
-    (:func:`mocaplib.calibration.standing_part`), a ``--forward-reference``
+    (:func:`mocaplib.model.calibration.standing_part`), a ``--forward-reference``
     cannot be read, or ``--static-pose neutral`` comes without a static or
     ``--forward-reference`` without a neutral static; a static or reference must be one C3D
     file. Returns the static trials, each file read once (the same file given twice counts
@@ -338,7 +338,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
             raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
     for path in unique_paths(statics or ()):
-        from ..calibration import standing_part   # here: a command without statics needs none
+        from ..model.calibration import standing_part   # here: a command without statics needs none
 
         try:
             trials.append(read_c3d(path))
@@ -356,11 +356,11 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
 def heading_offsets(args) -> tuple[float, ...] | None:
     """Per ``--static``, the heading correction (radians) its ``--forward-reference`` captures
     measure, through the stages ``mocaplib build`` runs with these options
-    (:func:`mocaplib.workflow.forward_offsets`); None without a reference."""
+    (:func:`mocaplib.build.workflow.forward_offsets`); None without a reference."""
     if not args.forward_reference:
         return None
-    from ..settings import BuildSettings
-    from ..workflow import forward_offsets
+    from ..build.settings import BuildSettings
+    from ..build.workflow import forward_offsets
 
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,

@@ -62,11 +62,11 @@ def _check_usage(args):
     settings; raise :class:`UsageError` for what would fail or do harm before any capture is
     processed: a missing input, a --static that is missing, cannot be read or is not standing
     (every capture would fail on it), an output that would overwrite a file the build reads
-    (:func:`mocaplib.pipeline.build_inputs`) or cannot be written, a --report folder that
+    (:func:`mocaplib.build.pipeline.build_inputs`) or cannot be written, a --report folder that
     cannot take the report."""
-    from ..library import diagnostics_path
-    from ..pipeline import build_inputs, find_captures
-    from ..settings import BuildSettings
+    from ..library.format import diagnostics_path
+    from ..build.pipeline import build_inputs, find_captures
+    from ..build.settings import BuildSettings
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference, static_window=args.static_window)
@@ -92,8 +92,8 @@ def _check_usage(args):
 
 
 def _run(args) -> int:
-    from ..library import validate_library
-    from ..pipeline import build
+    from ..library.format import validate_library
+    from ..build.pipeline import build
 
     captures, settings = _check_usage(args)
     output = Path(args.output)

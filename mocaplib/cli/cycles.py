@@ -2,8 +2,8 @@
 velocities and Fourier order, and the one chosen for the library.
 
 Parses options and formats; the work is done by the stages: import, protocol, calibration, fit
-(:mod:`mocaplib.calibration`, :mod:`mocaplib.ik`), events (as ``mocaplib events``, with missing
-foot-marker samples taken from the fitted skeleton) and :func:`mocaplib.cycles.analyse_cycles`
+(:mod:`mocaplib.model.calibration`, :mod:`mocaplib.model.ik`), events (as ``mocaplib events``, with missing
+foot-marker samples taken from the fitted skeleton) and :func:`mocaplib.gait.cycles.analyse_cycles`
 on the fitted shoulder joint centres.
 """
 
@@ -36,11 +36,11 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..cycles import LEFT_TOE_OFF, motion_cycles
-    from ..events import capture_events
-    from ..fitting import fit_capture
-    from ..library import DEFAULT_QC_THRESHOLDS
-    from ..qc import named_failures, qc_and_choice
+    from ..gait.cycles import LEFT_TOE_OFF, motion_cycles
+    from ..gait.events import capture_events
+    from ..model.fitting import fit_capture
+    from ..library.format import DEFAULT_QC_THRESHOLDS
+    from ..gait.qc import named_failures, qc_and_choice
     from ._common import print_json
     from .events import load
 

@@ -1,7 +1,7 @@
 """``mocaplib events FILE``: left/right toe-offs and heel-strikes detected from the foot markers.
 
-Parses options and formats; the work is :func:`mocaplib.events.capture_events` on the heel and
-toe markers the protocol names (:func:`mocaplib.events.feet_of`).
+Parses options and formats; the work is :func:`mocaplib.gait.events.capture_events` on the heel and
+toe markers the protocol names (:func:`mocaplib.gait.events.feet_of`).
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ def add_common_options(parser) -> None:
 
 def load(args):
     """(trial, protocol match, missing-landmarks error or None) of ``args.file`` with
-    ``args.protocol`` (:func:`mocaplib.protocols.missing_landmarks_error`)."""
+    ``args.protocol`` (:func:`mocaplib.markersets.protocols.missing_landmarks_error`)."""
     from ..io.c3d import read_c3d
-    from ..protocols import match_trial, missing_landmarks_error
+    from ..markersets.protocols import match_trial, missing_landmarks_error
 
     trial = read_c3d(args.file)
     match = match_trial(trial, args.protocol)
@@ -45,9 +45,9 @@ def load(args):
 
 
 def _run(args) -> int:
-    from ..cycles import check_rest_duration
-    from ..events import capture_events
-    from ..fitting import fit_capture
+    from ..gait.cycles import check_rest_duration
+    from ..gait.events import capture_events
+    from ..model.fitting import fit_capture
     from ._common import print_json
 
     check_inputs([args.file])

@@ -1,7 +1,7 @@
 """``mocaplib fit``: calibrate the subject and fit joint angles to one capture.
 
-Only parses options and writes outputs: the work is :func:`mocaplib.fitting.fit_capture`
-(:func:`mocaplib.calibration.calibrate`, then :func:`mocaplib.ik.fit_filtered`).
+Only parses options and writes outputs: the work is :func:`mocaplib.model.fitting.fit_capture`
+(:func:`mocaplib.model.calibration.calibrate`, then :func:`mocaplib.model.ik.fit_filtered`).
 """
 
 from __future__ import annotations
@@ -40,12 +40,12 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..calibration import static_names
-    from ..ik import fit_quality
-    from ..fitting import fit_capture
-    from ..io.angles_csv import write_angles_csv
+    from ..model.calibration import static_names
+    from ..model.ik import fit_quality
+    from ..model.fitting import fit_capture
+    from ..export.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
-    from ..protocols import match_trial, missing_landmarks_error
+    from ..markersets.protocols import match_trial, missing_landmarks_error
     from ._common import print_json, warn
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
@@ -71,7 +71,7 @@ def _run(args) -> int:
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
     write_angles_csv(args.output, motion.time, motion.q)
     if args.mot or args.osim:
-        from ..io.opensim import write_mot, write_osim     # and xml.etree: only when asked
+        from ..export.opensim import write_mot, write_osim     # and xml.etree: only when asked
 
         if args.mot:
             write_mot(motion, args.mot)

@@ -1,6 +1,6 @@
 """``mocaplib inspect``: what is in each C3D file (frames, rate, protocol, gaps, events, warnings).
 
-Only parses options and formats: the per-file work is :func:`mocaplib.inspection.inspect_c3d`.
+Only parses options and formats: the per-file work is :func:`mocaplib.markersets.inspection.inspect_c3d`.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..inspection import failed_summary, format_summary, inspect_c3d
-    from ..protocols import load_protocol
-    from ..pipeline import find_captures
+    from ..markersets.inspection import failed_summary, format_summary, inspect_c3d
+    from ..markersets.protocols import load_protocol
+    from ..build.pipeline import find_captures
     from ._common import check_inputs, print_json
 
     check_inputs(args.inputs)

@@ -23,9 +23,9 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     import sys
 
-    from ..library import load_library, validate_library
-    from ..mirror import mirror_library, write_mirrored
-    from ..library import diagnostics_path
+    from ..library.format import load_library, validate_library
+    from ..library.mirror import mirror_library, write_mirrored
+    from ..library.format import diagnostics_path
     from ._common import LIBRARY_HINT, check_inputs, check_outputs, warn
 
     check_inputs([args.library], hint=LIBRARY_HINT)

@@ -1,6 +1,6 @@
 """``mocaplib protocol draft``: a draft protocol for a marker set mocaplib does not know.
 
-Only parses options and writes the file: the work is :func:`mocaplib.draft.draft_protocol`.
+Only parses options and writes the file: the work is :func:`mocaplib.markersets.draft.draft_protocol`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..draft import draft_protocol
+    from ..markersets.draft import draft_protocol
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
 

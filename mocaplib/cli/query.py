@@ -58,9 +58,9 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..controlspace import ControlSpace
+    from ..library.controlspace import ControlSpace
     from ..errors import MocapError
-    from ..library import checksum_status, load_library
+    from ..library.format import checksum_status, load_library
     from ._common import print_json, warn
 
     ignored = [option for option, value in (("--cycles", args.cycles), ("--rate", args.rate))
@@ -96,7 +96,7 @@ def _run(args) -> int:
                 "cannot write a BVH: the command is outside the control space",
                 path=args.library, hint=f"the nearest point on the hull is "
                 f"{_triple(res.nearest[0])}; query it, or add --clamp")
-        from ..io.bvh import write_bvh
+        from ..export.bvh import write_bvh
 
         rate = args.rate or BVH_RATE
         _, q = blend.world(0, rate=rate, cycles=args.cycles or BVH_CYCLES)

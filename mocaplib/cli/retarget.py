@@ -8,7 +8,7 @@ from pathlib import Path
 from ._common import (LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs,
                       positive)
 
-#: Output types: :data:`mocaplib.retarget.FORMATS`, not imported here so that the command line
+#: Output types: :data:`mocaplib.library.retarget.FORMATS`, not imported here so that the command line
 #: parses without loading numpy's stack; a test keeps the two equal.
 FORMATS = (".csv", ".mot", ".bvh")
 
@@ -28,7 +28,7 @@ def register(subparsers) -> None:
     body = parser.add_mutually_exclusive_group(required=True)
     body.add_argument("--height", type=positive(float, unit=" m"), metavar="H",
                       help="target standing height, m (segment lengths in the nominal "
-                           "proportions of mocaplib.skeleton)")
+                           "proportions of mocaplib.model.skeleton)")
     body.add_argument("--segment-lengths", metavar="FILE",
                       help="JSON object of the target's segment lengths in metres, every "
                            "length of the skeleton (the library's skeleton.segment_lengths_m "
@@ -59,8 +59,8 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..errors import MocapError
-    from ..library import load_library
-    from ..retarget import Weights, retarget
+    from ..library.format import load_library
+    from ..library.retarget import Weights, retarget
     from ._common import print_json
 
     check_inputs([args.library] + ([args.segment_lengths] if args.segment_lengths else []),
@@ -110,7 +110,7 @@ def _skeleton(args):
     """The target skeleton of ``--height`` or ``--segment-lengths`` (UsageError when the file
     is not a JSON object of every length, in metres)."""
     from ..errors import MocapError
-    from ..skeleton import Skeleton
+    from ..model.skeleton import Skeleton
 
     try:
         if args.height is not None:

@@ -18,7 +18,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..library import NO_CHECKSUM_NOTE, checksum_status, validate_library
+    from ..library.format import NO_CHECKSUM_NOTE, checksum_status, validate_library
     from ._common import LIBRARY_HINT, check_inputs, print_json
 
     check_inputs([args.library], hint=LIBRARY_HINT)

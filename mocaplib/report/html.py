@@ -20,14 +20,14 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
-from ..controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, Envelope,
+from ..library.controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, Envelope,
                             close_entries, coverage, leave_one_out)
 from ..errors import MocapError
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import parse_json
-from ..fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
-from ..library import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
+from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
+from ..library.format import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
                        validate_library)
 from . import figures
 from .files import report_name
@@ -47,7 +47,7 @@ def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
                  envelope=None, renderer: str = "auto", jobs: int = 1) -> Path:
     """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
 
-    ``envelope``: an :class:`~mocaplib.controlspace.Envelope`, a TOML file (an ``[envelope]``
+    ``envelope``: an :class:`~mocaplib.library.controlspace.Envelope`, a TOML file (an ``[envelope]``
     table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
     back to matplotlib without OpenGL) or ``"matplotlib"``. ``jobs``: processes drawing the
@@ -98,7 +98,7 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     build's) and the report warnings about it.
 
     A sidecar belongs to the library whose bytes have the SHA-256 it names
-    (``library_sha256``, compared with :attr:`mocaplib.library.Library.file_sha256`): one that
+    (``library_sha256``, compared with :attr:`mocaplib.library.format.Library.file_sha256`): one that
     names another was left by another build (a build killed between writing the library and
     its sidecar, or a library moved beside another one's sidecar) and is not used, since its
     counts and plots would contradict the library. A sidecar without the hash (written before
@@ -107,7 +107,7 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     Capture records are checked once here, so the rest of the report can rely on their shape:
     a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
     out with a warning naming it (:func:`_record_problem`)."""
-    from ..library import diagnostics_path
+    from ..library.format import diagnostics_path
 
     path = diagnostics_path(library_path)
     if not os.path.lexists(path):
@@ -416,7 +416,7 @@ def _built_with(settings: dict) -> list[str]:
 
 
 def _entry_rows(entries, label) -> list[dict]:
-    """The entries table: one row per :class:`~mocaplib.entry.LibraryEntry`, in degrees and
+    """The entries table: one row per :class:`~mocaplib.library.entry.LibraryEntry`, in degrees and
     millimetres where a person reads; a value not computed is NaN (None for the degrees)."""
     def number(value) -> float:
         return math.nan if value is None else float(value)
@@ -612,7 +612,7 @@ def _cross_mode(mode: str | None, neighbours, weights, mode_of: dict) -> dict | 
     return {"mode": other, "share": shares[other]}
 
 
-#: Numeric columns of :func:`mocaplib.controlspace.leave_one_out` shown in the report.
+#: Numeric columns of :func:`mocaplib.library.controlspace.leave_one_out` shown in the report.
 LOO_COLUMNS = ("rms_deg", "max_deg", "heading_rms_deg", "root_rms_mm", "stride_error_mm",
                "turn_error_deg", "T_error_s")
 #: Axis names as the report's tables show them.
@@ -668,7 +668,7 @@ def _css_colours(colours: dict) -> dict[str, str]:
 def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
     """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
     warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
-    from ..skeleton import DOF_NAMES
+    from ..model.skeleton import DOF_NAMES
     from .figureview import viewer_data
 
     if not len(library):
@@ -763,9 +763,9 @@ def _capture_figure(record: dict, reconstructions: dict, poulaine: dict | None
 
 def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
     """``[function(*a) for a in arguments]`` by ``jobs`` worker processes
-    (:func:`mocaplib.workers.run_tasks`, as the build's); ``function`` returns ``(value,
+    (:func:`mocaplib.build.workers.run_tasks`, as the build's); ``function`` returns ``(value,
     error)``, and a call that raised or whose worker died gives ``(None, reason)``."""
-    from ..workers import run_tasks
+    from ..build.workers import run_tasks
 
     results: list = [None] * len(arguments)
     for i, value, error in run_tasks(function, arguments, jobs=jobs):

@@ -5,10 +5,10 @@ Envelope definition (documented, overridable)
 The target region of the control space is the **convex hull of the commanded velocities of the
 captures in a capture plan**: each planned capture's command ``(v_f, v_l, ω)`` becomes the
 point ``(v̂ = hypot(v_f, v_l), ω̂, v̂_l)``. The plan is the one given (``--envelope``), else the
-plan shipped with mocaplib (:func:`mocaplib.protocols.capture_plans`, the plan of its synthetic
+plan shipped with mocaplib (:func:`mocaplib.markersets.protocols.capture_plans`, the plan of its synthetic
 sample captures: a default, not the lab's plan, and the report says so). A plan (or any TOML
 file) may instead carry an explicit ``[envelope]`` table, which wins (see
-:meth:`mocaplib.controlspace.Envelope.from_toml`). Without any plan the report uses
+:meth:`mocaplib.library.controlspace.Envelope.from_toml`). Without any plan the report uses
 :data:`FALLBACK_ENVELOPE`, a small hand-written set of the same locomotion types, and says so.
 
 Planned captures are matched to the library by file stem: capture ``name`` in the plan,
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..controlspace import Envelope
+from ..library.controlspace import Envelope
 from ..errors import MocapError
 from ..io.tomlfile import read_toml
 
@@ -37,9 +37,9 @@ FALLBACK_ENVELOPE = np.array([
 
 
 def find_plan() -> Path | None:
-    """The first capture plan shipped with mocaplib (:func:`mocaplib.protocols.capture_plans`,
+    """The first capture plan shipped with mocaplib (:func:`mocaplib.markersets.protocols.capture_plans`,
     the same plans the build takes locomotion classes from), or None."""
-    from ..protocols import capture_plans
+    from ..markersets.protocols import capture_plans
 
     plans = capture_plans()
     return plans[0] if plans else None
@@ -107,7 +107,7 @@ def planned_status(plan: pd.DataFrame | None, plan_name: str | None, entries: li
     ``matched`` counts the planned captures found by file stem in the library or among the
     failed captures: 0 means the library's captures are not named after this plan, and the
     missing ones are not listed (they would be the whole plan, not the lab's omissions).
-    ``entries``: the library's :class:`~mocaplib.entry.LibraryEntry` objects."""
+    ``entries``: the library's :class:`~mocaplib.library.entry.LibraryEntry` objects."""
     if plan is None:
         return None
     in_library = {Path(e.source_file).stem for e in entries}

@@ -42,8 +42,8 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import SynthError
 from ..io.tomlfile import read_toml
-from ..protocols import protocols_dir
-from ..skeleton import axis_rotation
+from ..markersets.protocols import protocols_dir
+from ..model.skeleton import axis_rotation
 
 SIDES = ("l", "r")
 #: The joint angles each bone's proximal joint takes (the root, the pelvis, has none: its

@@ -32,8 +32,8 @@ from ..errors import SynthError
 from ..io.atomic import atomic_write_text
 from ..io.c3d_write import write_c3d
 from ..io.jsonvalues import json_values
-from ..protocols import load_protocol
-from ..skeleton import DOF_NAMES
+from ..markersets.protocols import load_protocol
+from ..model.skeleton import DOF_NAMES
 from ..trial import Event, Trial
 from .body import BodyMotion, body_motion, shoulder_path
 from .bones import Body, synthetic_body

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..skeleton import axis_rotation
+from ..model.skeleton import axis_rotation
 from .bones import FootShape, vector_turn
 from .command import Command, frame_to_world, world_to_frame
 

@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import SynthError
-from ..protocols import Protocol
+from ..markersets.protocols import Protocol
 from .body import BodyMotion
 from .bones import Body, vector_turn
 

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from ..errors import MocapError, SynthError
 from ..io.tomlfile import read_toml
-from ..protocols import load_protocol
+from ..markersets.protocols import load_protocol
 from .capture import (TRUTH_FORMATS, Subject, SynthCapture, check_timing, min_duration,
                       synthesize_capture, write_capture)
 from .command import Command

@@ -1,0 +1,165 @@
+"""Capture sessions: which static calibrates which capture of a build, and which files are statics.
+
+A build's inputs may mix subjects and sessions, some with a static trial and some without
+(docs/guide/build.md, *Capture sessions*). :func:`plan_captures` gives each capture the
+settings it is processed with:
+
+1. **A ``session.toml`` beside captures** (:data:`SESSION_FILE`, :func:`load_session`) names
+   their session's static(s), and optionally its static pose, the stretch of the static to
+   use and the marker-set protocol. Those captures are calibrated with it.
+2. **Other captures** are calibrated with the ``--static`` trials and the *standing* files
+   found among the inputs (:func:`mocaplib.model.calibration.check_standing` over the whole file):
+   each with the one that shows its subject (:func:`mocaplib.model.calibration.choose_static`).
+3. **A capture no static shows** is calibrated from itself, with a warning, unless the build
+   requires a static (``require_static``): then it fails, naming each static and why.
+
+A file that is a static — named by ``--static`` or a ``session.toml``, or found standing — is
+used as one and never counts as a failed capture: processed as a capture it gives its rest
+entry when it spans the second a rest entry needs, otherwise no entry, and says why
+(:func:`mocaplib.build.workflow.process_capture`).
+
+The format of ``session.toml`` (every key optional but one of ``static``/``protocol``)::
+
+    static = "Static1.c3d"        # or a list, one per subject; paths relative to this file
+    static_pose = "neutral"       # "free" or "neutral" (default: the build's --static-pose)
+    static_window = [0.5, 2.0]    # seconds of the static to calibrate on (default: the
+                                  # whole static when standing, else its quietest second)
+    protocol = "padova30"         # a shipped protocol name or a TOML path (relative to this
+                                  # file; default: the build's --protocol)
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..errors import MocapError
+
+#: The name of a session's description, beside its captures.
+SESSION_FILE = "session.toml"
+#: The keys a session file may hold.
+SESSION_KEYS = ("static", "static_pose", "static_window", "protocol")
+
+
+@dataclass(frozen=True)
+class Session:
+    """One folder's ``session.toml``: its statics (absolute paths), static pose, static window
+    (start, end) s and protocol; None where the file leaves the build's setting."""
+
+    source: Path
+    statics: tuple[str, ...] = ()
+    static_pose: str | None = None
+    static_window: tuple[float, float] | None = None
+    protocol: str | None = None
+
+
+def load_session(path: str | os.PathLike, /) -> Session:
+    """Read and check a ``session.toml`` (module docstring); :class:`MocapError` naming the
+    file and the key for a file that cannot be read or holds a wrong value."""
+    from ..model.calibration import STATIC_POSES
+    from ..io.tomlfile import read_toml
+
+    path = Path(path)
+    hint = f"see docs/guide/build.md (Capture sessions) for the keys of {SESSION_FILE}"
+    data = read_toml(path, what="session file", hint=hint)
+    unknown = sorted(set(data) - set(SESSION_KEYS))
+    if unknown:
+        raise MocapError(f"unknown key(s) {', '.join(unknown)}; known: {', '.join(SESSION_KEYS)}",
+                         path=path, hint=hint)
+    statics = data.get("static", [])
+    statics = [statics] if isinstance(statics, str) else statics
+    if not isinstance(statics, list) or not all(isinstance(s, str) and s for s in statics):
+        raise MocapError("static must be a file name or a list of file names", path=path,
+                         hint=hint)
+    statics = tuple(os.fspath((path.parent / name).absolute()) for name in statics)
+    for static in statics:
+        if not Path(static).is_file():
+            raise MocapError(f"its static {static} does not exist", path=path,
+                             hint="name a C3D file beside the session file, or a path "
+                                  "relative to it")
+    pose = data.get("static_pose")
+    if pose is not None and pose not in STATIC_POSES:
+        raise MocapError(f"static_pose must be one of {', '.join(STATIC_POSES)}, got {pose!r}",
+                         path=path, hint=hint)
+    if pose == "neutral" and not statics:
+        raise MocapError("static_pose 'neutral' describes a static: name it with static",
+                         path=path, hint=hint)
+    window = data.get("static_window")
+    if window is not None:
+        if not (isinstance(window, list) and len(window) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in window)
+                and 0 <= window[0] <= window[1]):
+            raise MocapError(f"static_window must be [start, end] seconds with 0 <= start <= "
+                             f"end, got {window!r}", path=path, hint=hint)
+        window = (float(window[0]), float(window[1]))
+    protocol = data.get("protocol")
+    if protocol is not None:
+        if not isinstance(protocol, str) or not protocol:
+            raise MocapError("protocol must be a protocol name or a TOML path", path=path,
+                             hint=hint)
+        relative = path.parent / protocol
+        protocol = os.fspath(relative.absolute()) if relative.suffix == ".toml" else protocol
+    return Session(path, statics, pose, window, protocol)
+
+
+def sessions_of(captures: list[Path], /) -> dict[Path, Session]:
+    """The :class:`Session` of each folder holding captures and a :data:`SESSION_FILE`, by
+    folder (absolute)."""
+    folders = {Path(os.path.abspath(c)).parent for c in captures}
+    return {folder: load_session(folder / SESSION_FILE) for folder in sorted(folders)
+            if (folder / SESSION_FILE).is_file()}
+
+
+def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) -> list[str]:
+    """The captures (paths as given) whose markers stand still over the whole file
+    (:func:`mocaplib.model.calibration.check_standing`), except those whose real path is in
+    ``exclude``; a file that cannot be read is not one (its processing says why)."""
+    from ..model.calibration import check_standing
+    from ..io.c3d import read_c3d
+
+    found = []
+    for capture in captures:
+        if os.path.realpath(capture) in exclude:
+            continue
+        try:
+            trial = read_c3d(capture)
+            if trial.n_frames:
+                check_standing(trial)
+                found.append(os.fspath(capture))
+        except (MocapError, OSError):
+            continue
+    return found
+
+
+def plan_captures(captures: list[Path], settings, /) -> tuple:
+    """The settings (:class:`mocaplib.build.settings.BuildSettings`) of the captures that no
+    ``session.toml`` describes — ``settings`` with the standing files among the captures added
+    to its statics (their heading offsets 0 when ``settings`` has measured ones) — and those
+    each capture is processed with, in order (module docstring): that pool, or for the
+    captures beside a ``session.toml`` its statics, pose, window and protocol (without forward
+    references). Raises :class:`MocapError` naming a session file that cannot be used."""
+    sessions = sessions_of(captures)
+    named = {os.path.realpath(s) for s in settings.statics}
+    named |= {os.path.realpath(s) for session in sessions.values() for s in session.statics}
+    found = tuple(standing_files(captures, exclude=named))
+    pool = settings
+    if found:
+        offsets = settings.heading_offsets
+        pool = replace(settings, static=(*settings.statics, *found),
+                       heading_offsets=None if offsets is None else (*offsets,
+                                                                     *(0.0 for _ in found)))
+    planned = []
+    for capture in captures:
+        session = sessions.get(Path(os.path.abspath(capture)).parent)
+        if session is None:
+            planned.append(pool)
+            continue
+        statics = session.statics or pool.statics
+        planned.append(replace(
+            settings, static=statics or None,
+            static_pose=session.static_pose or (settings.static_pose if statics else "free"),
+            static_window=session.static_window or settings.static_window,
+            protocol=session.protocol or settings.protocol, forward_reference=None,
+            heading_offsets=None))
+    return pool, planned

@@ -1,0 +1,632 @@
+"""One capture through every stage: import, protocol, calibration, fit, events, cycles, pattern
+and velocities, Fourier, library entries (:func:`process_capture`), and the forward
+reference's heading correction (:func:`forward_offsets`).
+
+:func:`process_capture` is a pure, picklable function of the file's content and the settings: it
+never raises for a bad capture but returns a :class:`CaptureResult` carrying the error (file,
+stage, reason).
+"""
+
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import warnings
+from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import MocapError, NoCycleError
+from ..model.fitting import StageClock, fit_capture
+from ..io import fs_text, open_regular
+from ..library.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
+from ..library.format import qc_failures, to_json_data
+from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_and_choice, qc_series
+from ..model.skeleton import DOF_NAMES
+
+if TYPE_CHECKING:
+    from .settings import BuildSettings
+
+
+#: Long series in the diagnostics are downsampled to at most this many points.
+MAX_SERIES_POINTS = 300
+
+
+#: The chosen cycle's angles are downsampled to at most this many points per DOF.
+MAX_CYCLE_POINTS = 100
+
+
+#: The chosen cycle's measured ankle paths are downsampled to at most this many points.
+MAX_POULAINE_POINTS = 60
+
+
+#: Significant digits of the diagnostics' numbers (plots need no more).
+DIAGNOSTICS_DIGITS = 6
+
+
+#: A forward reference whose subject faces further than this (degrees) from the direction of
+#: travel is refused: that is a side-step or a diagonal (the paper's diagonals start at 60°),
+#: not a forward walk. Measured uncorrected: 0.23° on the samples (placement error alone), up
+#: to 7.7° on lab walks with their static taken as neutral (docs/guide/patterns.md).
+FORWARD_LIMIT_DEG = 15.0
+
+
+#: A forward reference's cycles slower than this (m/s) show no direction of travel.
+MIN_FORWARD_SPEED = 0.3
+
+
+#: The QC metrics a forward reference's cycles must pass (at the build's thresholds): the
+#: marker fit, the gaps and the events, which speak for the shoulder line and the cycle. The
+#: marker maximum and the Fourier metrics judge the encoding and would leave out every lab walk
+#: at hand with its static taken as neutral (non-periodic arms, one marker 52-60 mm off).
+FORWARD_QC = ("marker_rms_m", "gap_fraction", "event_quality")
+
+
+#: A forward reference's heading correction is repeated until the reference faces its path
+#: within this (degrees), at most FORWARD_PASSES times.
+FORWARD_TOLERANCE_DEG = 0.01
+
+
+FORWARD_PASSES = 4
+
+
+@dataclass
+class CaptureResult:
+    """What one capture gave: library entries and diagnostics, or the error that stopped it.
+
+    Attributes
+    ----------
+    source : str
+        The capture's path as given.
+    sha256 : str
+        SHA-256 of the file's bytes ("" when unreadable).
+    ok : bool
+    error, stage : str or None
+        Why and in which stage the capture failed (None when ok).
+    entries : list[LibraryEntry]
+        Library entries (:class:`mocaplib.library.entry.LibraryEntry`).
+    diagnostics : dict
+        This capture's record of the diagnostics sidecar (see ``docs/library-format.md``).
+    warnings : list[str]
+    stage_times : dict[str, float]
+        Seconds spent in each stage.
+    n_frames : int
+    n_cycles : int
+        Complete cycles found (entries may be fewer: one chosen, QC drops).
+    from_cache : bool
+    static : str or None
+        File name of the static trial the capture was calibrated with (None: none).
+    no_entry : str or None
+        Why a capture that did not fail gave no library entry (None when it gave some, or
+        failed): no complete cycle, every cycle left out by QC, or a static trial that cannot
+        be a rest entry.
+    """
+
+    source: str
+    sha256: str = ""
+    ok: bool = True
+    error: str | None = None
+    stage: str | None = None
+    entries: list = field(default_factory=list)
+    diagnostics: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+    stage_times: dict = field(default_factory=dict)
+    n_frames: int = 0
+    n_cycles: int = 0
+    from_cache: bool = False
+    static: str | None = None
+    no_entry: str | None = None
+
+    @property
+    def file(self) -> str:
+        """The capture's file name as text (:func:`mocaplib.io.fs_text`)."""
+        return fs_text(Path(self.source).name)
+
+    def to_dict(self) -> dict:
+        """As JSON data (entries as the library stores them), 10 significant digits."""
+        return to_json_data({f.name: getattr(self, f.name) for f in fields(self)}
+                            | {"entries": [e.to_json() for e in self.entries]})
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "CaptureResult":
+        """The result :meth:`to_dict` gave; LibraryError for an entry that is not one."""
+        values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
+        values["entries"] = [LibraryEntry.from_json(e) for e in values.get("entries", [])]
+        return cls(**values)
+
+
+# --------------------------------------------------------------------------- one capture
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's bytes; OSError for anything but a regular file (a pipe or
+    device could block or never end: :func:`mocaplib.io.open_regular`)."""
+    digest = hashlib.sha256()
+    with open_regular(path) as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def process_capture(path: str | os.PathLike, settings: BuildSettings) -> CaptureResult:
+    """Take one capture through every stage; never raises for a bad capture.
+
+    Returns a :class:`CaptureResult`: entries and diagnostics when it worked, otherwise
+    ``ok=False`` with ``stage`` and ``error`` (the error names the file). A capture that holds
+    no complete cycle (:class:`~mocaplib.errors.NoCycleError`), or whose cycles QC leaves out,
+    is not a failure: it gives no entry and ``no_entry`` says why. Nor is a static trial of the
+    settings (:attr:`BuildSettings.statics`) processed as a capture: whatever stops it,
+    ``no_entry`` says so.
+    """
+    result = CaptureResult(source=os.fspath(path))
+    if result.file != Path(path).name:
+        result.warnings.append(f"the file name is not valid UTF-8: its entries name it "
+                               f"{result.file!r} (the bytes read as Latin-1)")
+    clock = StageClock()
+    is_static = os.path.realpath(path) in {os.path.realpath(s) for s in settings.statics}
+    try:
+        with clock.stage("read"):
+            result.sha256 = file_sha256(path)
+        _run_stages(Path(path), settings, result, clock)
+    except NoCycleError as exc:
+        result.no_entry = f"{exc.message} ({exc.hint})" if exc.hint else exc.message
+    except MocapError as exc:
+        _fail(result, clock.current, str(exc) if exc.path else f"{path}: {exc}")
+    except OSError as exc:
+        _fail(result, clock.current, f"{path}: cannot read: {exc.strerror or exc}")
+    except Exception as exc:  # a bug on an odd capture must not stop a whole build
+        _fail(result, clock.current, f"{path}: internal error in stage {clock.current}: "
+                                     f"{type(exc).__name__}: {exc}")
+    if is_static and not result.ok:
+        why = (result.error or "").removeprefix(f"{path}: ")
+        result.ok, result.error, result.no_entry = True, None, \
+            f"a static trial: used to calibrate, no entry of its own ({result.stage}: {why})"
+        result.stage = None
+    elif is_static and result.no_entry:
+        result.no_entry = f"a static trial: used to calibrate, no entry of its own " \
+                          f"({result.no_entry})"
+    result.stage_times = clock.times
+    return result
+
+
+def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
+    """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
+    image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
+    trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
+    with clock.stage("entries"):
+        result.n_cycles = sum(not c.rest for c in cycles)
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
+        kept = [c for c in cycles if c.chosen or settings.all_cycles]
+    with clock.stage("poulaines"):
+        shapes = {c.index: cycle_shape(motion, c) for c in kept}
+    with clock.stage("entries"):
+        result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
+                                  shapes)
+        if not result.entries:
+            result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
+                f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
+                + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds))
+                for c in kept)
+        result.diagnostics.update(_cycle_diagnostics(
+            motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
+    if settings.mirror and result.entries:
+        with clock.stage("mirror"):
+            images, entries = mirror_entries(path, result, cycles, motion, events, ground,
+                                             settings, trial.first_frame)
+            result.entries += entries
+            ids = {e.cycle_index: e.id for e in entries}
+            result.diagnostics["mirror_cycles"] = to_json_data(
+                [{**c.to_dict(), "entry_id": ids.get(c.index)} for c in images],
+                DIAGNOSTICS_DIGITS)
+
+
+def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
+    """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
+    Fourier); returns the trial, its :class:`~mocaplib.model.motion.Motion`, its cycles, its gait
+    events and the ground's velocity (3,) m/s (:func:`mocaplib.gait.events.capture_events`), and puts
+    the warnings, the static used and the capture's diagnostic series in ``result``.
+
+    The stages are chained as ``mocaplib cycles`` chains them
+    (:func:`mocaplib.model.fitting.fit_capture`, timed by ``clock``, then
+    :func:`mocaplib.gait.events.capture_events` and :func:`mocaplib.gait.cycles.motion_cycles`), so both
+    give the same cycles; a build falls back to calibrating from the capture when none of its
+    statics shows the subject, unless ``settings.require_static``. Settings with a forward
+    reference must carry its measured ``heading_offsets`` (:func:`build` measures them).
+    """
+    if settings.forward_reference is not None and settings.heading_offsets is None:
+        raise MocapError("the forward reference's heading offsets are not measured: build with "
+                         "pipeline.build, or set heading_offsets=forward_offsets(settings)")
+    from ..model.calibration import static_names
+    from ..errors import CalibrationError
+    from ..gait.cycles import motion_cycles, shoulder_centres
+    from ..gait.events import capture_events
+    from ..io.c3d import read_c3d
+    from ..markersets.protocols import match_trial, missing_landmarks_error
+
+    with clock.stage("import"):
+        trial = read_c3d(path)
+        statics = [(static, static_sha256(static)) for static in settings.statics]
+        static_trials = [_read_static(*key) for key in statics]
+    result.n_frames = trial.n_frames
+    result.warnings.extend(trial.warnings)
+    with clock.stage("protocol"):
+        match = match_trial(trial, settings.protocol)
+        missing = missing_landmarks_error(match, path)
+        if missing is not None:
+            raise missing
+    if not statics and settings.require_static:
+        raise CalibrationError("no static trial given, and the build requires one "
+                               "(require_static)", path=trial.source,
+                               hint="give the subject's static with --static or a "
+                                    "session.toml, or leave --require-static out")
+
+    def neutral_model(i: int):
+        return _neutral_model(*statics[i], match.protocol, settings.heading_offset(i),
+                              tuple(sorted(settings.measurements.items())),
+                              settings.static_window)
+
+    fitted = fit_capture(trial, protocol=match, static=static_trials,
+                         static_pose=settings.static_pose, cutoff=settings.cutoff,
+                         measurements=settings.measurements, static_window=settings.static_window,
+                         fallback=not settings.require_static, neutral_model=neutral_model,
+                         clock=clock)
+    motion, cutoff = fitted.motion, fitted.cutoff
+    if fitted.static is not None:
+        result.static = static_names(settings.statics)[fitted.static]
+        result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
+    result.warnings.extend(fitted.warnings)
+    with clock.stage("events"):
+        events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off,
+                                        max_gap_s=settings.max_gap_s)
+        shoulders = shoulder_centres(motion)
+        result.diagnostics.update(_series(trial, motion, shoulders, events, cutoff))
+    with clock.stage("cycles"):
+        cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders,
+                               fallback_starts=match.protocol.fallback_starts,
+                               max_gap_s=settings.max_gap_s, source=path)
+    return trial, motion, cycles, events, ground
+
+
+def static_sha256(path: str) -> str:
+    """SHA-256 of a static trial's file; one that cannot be read is named (C3DError)."""
+    from ..errors import C3DError
+
+    try:
+        return file_sha256(path)
+    except OSError as exc:
+        raise C3DError(f"cannot read the static trial: {exc.strerror or exc}", path=path,
+                       hint="check the --static path") from None
+
+
+@lru_cache(maxsize=None)
+def _read_static(path: str, sha256: str):
+    """The static trial, read once per worker process for each content (``sha256``)."""
+    from ..io.c3d import read_c3d
+    return read_c3d(path)
+
+
+@lru_cache(maxsize=None)
+def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
+                   measurements: tuple = (), window: tuple[float, float] | None = None):
+    """The model calibrated on the neutral-pose static ``path`` with its heading turned by
+    ``heading_offset`` (radians), once per worker process for each content, protocol and
+    offset and measurements ((name, value) pairs) and static ``window``: it depends on nothing
+    else, so each
+    capture only checks that it shows the same subject
+    (:func:`mocaplib.model.calibration.check_static`)."""
+    from ..model.calibration import calibrate
+    static = _read_static(path, sha256)
+    return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
+                     heading_offset=heading_offset, measurements=dict(measurements),
+                     static_window=window)
+
+
+def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
+    """Per static of ``settings``, the heading correction (radians) that its forward references
+    measure; 0 for a static that none shows.
+
+    A neutral static fixes the heading of every segment frame by fitting the root to all
+    markers at their catalogue positions, so the placement error turns it by a fraction of a
+    degree, and v̂_l of every capture is off by about −v̂ times that angle
+    (docs/guide/patterns.md). A forward reference — a capture in which the subject walks
+    forwards — measures the angle: it is taken through the build's stages with the static that
+    shows its subject (:func:`_cut_capture`), and the mean of atan2(v̂_l, v̂_f) over its cycles
+    (:func:`_facing_angles`) is how far the static's heading must turn for the subject to
+    face where they walk. Several references of one static are averaged. The turn is repeated
+    on the turned static until each reference faces its path within
+    :data:`FORWARD_TOLERANCE_DEG` (one turn leaves 4 % on the samples, 5 % on a lab walk,
+    whose poses are further from the static's); the offset is the sum of the turns.
+    Raises :class:`~mocaplib.errors.CalibrationError` naming a reference that cannot be
+    processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
+    its path, or the references when :data:`FORWARD_PASSES` turns do not settle it.
+    """
+    from ..model.calibration import static_names
+    from ..errors import CalibrationError
+
+    offsets = tuple(0.0 for _ in settings.statics)
+    for _ in range(FORWARD_PASSES):
+        residuals = _facing_angles(replace(settings, heading_offsets=offsets))
+        offsets = tuple(offset + residual for offset, residual in zip(offsets, residuals))
+        if max(map(abs, residuals)) < np.deg2rad(FORWARD_TOLERANCE_DEG):
+            return offsets
+    unsettled = ", ".join(f"{name} {np.rad2deg(r):+.3f}°" for name, r in
+                          zip(static_names(settings.statics), residuals)
+                          if abs(r) >= np.deg2rad(FORWARD_TOLERANCE_DEG))
+    raise CalibrationError(f"the forward references do not settle the heading of the static: "
+                           f"turn {FORWARD_PASSES} of {FORWARD_PASSES} was still {unsettled} "
+                           f"(the turns stop below {FORWARD_TOLERANCE_DEG:g}°)",
+                           path=", ".join(settings.forward_references),
+                           hint="give references whose cycles pass QC steadily (more cycles, "
+                                "a better fit), or build without --forward-reference")
+
+
+def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
+    """Per static, the mean over its forward references of where the subject moves relative
+    to where they face (radians, to the left; 0 for a static without a reference): the mean
+    atan2(v̂_l, v̂_f) of each reference's complete cycles that are at least
+    :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
+    is calibrated with the static that shows its subject, never from itself
+    (``require_static``)."""
+    from ..model.calibration import static_names
+    from ..errors import CalibrationError
+
+    names = static_names(settings.statics)
+    found: list[list[float]] = [[] for _ in names]
+    hint = "give a capture in which the subject walks forwards, straight or curving"
+    limits = {name: settings.qc_thresholds.get(name) for name in FORWARD_QC}
+    for reference in settings.forward_references:
+        result = CaptureResult(source=reference)
+        try:
+            _, motion, cycles, _, ground = _cut_capture(
+                Path(reference), replace(settings, require_static=True), result, StageClock())
+        except OSError as exc:
+            raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
+                                   path=reference, hint="check the path") from None
+        except MocapError as exc:
+            where = "" if exc.path in (None, reference) else f"{exc.path}: "
+            own = ("give a forward walk of a subject whose static you pass with --static"
+                   if isinstance(exc, CalibrationError) else exc.hint)
+            raise CalibrationError(f"the forward reference cannot be processed: "
+                                   f"{where}{exc.message}", path=reference,
+                                   hint=own or hint) from None
+        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
+        walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
+        failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
+                                         limits) for c in walking}
+        moving = [c.velocities for c in walking if not failures[c.index]]
+        if not moving:
+            why = "; ".join(f"cycle {i}: {', '.join(f)}" for i, f in failures.items())
+            raise CalibrationError(
+                f"the forward reference has no complete gait cycle at {MIN_FORWARD_SPEED} m/s "
+                f"or faster that passes QC" + (f" ({why})" if why else ""), path=reference,
+                hint="the fit of its markers must pass QC: check the static is this subject's "
+                     "and the labels" if why else hint)
+        angle = float(np.mean([np.arctan2(c.v_l, c.v_f) for c in moving]))
+        if abs(np.rad2deg(angle)) > FORWARD_LIMIT_DEG:
+            raise CalibrationError(
+                f"in the forward reference the subject moves {abs(np.rad2deg(angle)):.1f}° to "
+                f"the {'left' if angle > 0 else 'right'} of where they face (limit "
+                f"{FORWARD_LIMIT_DEG:g}°): a side-step or a diagonal, not a forward walk",
+                path=reference, hint=hint)
+        found[names.index(result.static)].append(angle)
+    return tuple(float(np.mean(angles)) if angles else 0.0 for angles in found)
+
+
+def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
+             settings: BuildSettings, motion, first_frame: int, shapes: dict, *,
+             mirror_of: dict[int, str] | None = None):
+    """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
+    dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
+    ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
+    ``shapes``: :func:`cycle_shape` by cycle index; ``mirror_of``: for the cycles of a mirror
+    image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
+    from ..library.mirror import MIRROR_TAG
+
+    entries = []
+    for cycle in cycles:
+        qc = qcs[cycle.index]
+        failures = qc_failures(qc, settings.qc_thresholds)
+        image_of = None if mirror_of is None else mirror_of[cycle.index]
+        where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
+                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
+        waived = {}
+        if failures and settings.qc_policy == "drop":
+            result.warnings.append(f"{where} left out of the library: "
+                                   + "; ".join(named_failures(cycle, motion, qc,
+                                                              settings.qc_thresholds)))
+            continue
+        if failures:
+            waived = {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
+                      for f in failures}
+            result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
+        vel, enc = cycle.velocities, cycle.encoding
+        entries.append(LibraryEntry(
+            id=f"{fs_text(path.stem)}{MIRROR_TAG if image_of else ''}_c{cycle.index}",
+            source_file=fs_text(path.name),
+            source_sha256=result.sha256, cycle_index=cycle.index, chosen=cycle.chosen,
+            start_s=cycle.start_s, end_s=cycle.end_s, T=cycle.period,
+            pattern=EntryPattern(**vel.pattern.to_dict()), v=vel.v, omega=vel.omega,
+            v_l=vel.v_l, v_f=vel.v_f, fourier=EntryFourier.of(enc.series.a, enc.series.b,
+                                                                ramp=enc.ramp),
+            root_drift=EntryDrift.moving(enc.drift.u_f, enc.drift.u_l, enc.drift.omega,
+                                         cycle.period),
+            qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
+            segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
+            first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
+            held_dofs=motion.unobservable,
+            dofs_at_limit=motion.limit_shares(inside_cycle(cycle, motion)),
+            right_toe_off_s=cycle.right_toe_off, left_toe_off_s=cycle.left_toe_off,
+            cycle_start=None if cycle.left_toe_off is None else cycle.start_event,
+            mirror_of=image_of, mirror_method=None if image_of is None else "capture",
+            poulaine=None if cycle.rest else EntryPoulaine.of(shapes[cycle.index]["poulaine"])))
+    return entries
+
+
+def cycle_shape(motion, cycle) -> dict:
+    """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
+    path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
+    (:class:`mocaplib.gait.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
+    models (:func:`mocaplib.gait.poulaine.cycle_poulaine`)."""
+    from ..model.filtering import resample
+    from ..gait.patterns import cycle_times
+    from ..gait.poulaine import cycle_poulaine
+
+    times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
+    shape = {"phase": (times - cycle.start_s) / cycle.period,
+             "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
+    if not cycle.rest:
+        shape["poulaine"], shape["measured"] = cycle_poulaine(
+            motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
+    return shape
+
+
+def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
+                   settings: BuildSettings, first_frame: int) -> tuple[list, list[LibraryEntry]]:
+    """The capture's mirror image, cut and measured as a capture: its cycles (all of them,
+    :class:`~mocaplib.gait.cycles.Cycle`) and the entries they give.
+
+    The fitted ``motion`` is reflected (world y -> -y, :func:`mocaplib.library.mirror.mirror_motion`)
+    and its gait events exchange sides, so its cycles run between the capture's *right*
+    toe-offs; patterns, velocities, Fourier series and QC are measured on them as on any
+    capture (:func:`mocaplib.gait.cycles.motion_cycles`, :func:`cycle_qc`). Each names in
+    ``mirror_of`` the capture's entry (in ``result.entries``) whose cycle overlaps it most in
+    time (the nearest when none overlaps). Which become entries: the image of the capture's
+    chosen cycle, the one overlapping it most (chosen when its source is in the library), or
+    with ``settings.all_cycles`` every image. QC failures are dropped or waived as for the
+    capture's own cycles; an image within :data:`mocaplib.library.mirror.SYMMETRIC_DISTANCE` of its
+    source in the control space is left out (the cycle is its own mirror image: straight
+    walks, runs, rest). What is left out is said in ``result.warnings``.
+    """
+    from ..gait.cycles import motion_cycles
+    from ..library.mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
+                         mirror_motion)
+
+    mirrored = mirror_motion(motion)
+    try:
+        images = motion_cycles(mirror_events(events), mirrored,
+                               ground=None if ground is None else REFLECTION @ ground,
+                               max_gap_s=settings.max_gap_s, source=path)
+    except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
+        result.warnings.append(f"no mirror image: {exc.message}")
+        return [], []
+    sources = {e.cycle_index: e for e in result.entries}
+    chosen = next(c for c in cycles if c.chosen)
+    partner = _nearest(chosen, images)
+    for image in images:
+        image.chosen = image is partner and chosen.index in sources
+    kept = images if settings.all_cycles else [partner]
+    own = [c for c in cycles if c.index in sources]
+    mirror_of = {image.index: sources[_nearest(image, own).index].id for image in kept}
+    series = qc_series(mirrored, None if ground is None else REFLECTION @ ground)
+    qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
+    shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
+    entries = []
+    for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
+                          mirror_of=mirror_of):
+        source = next(e for e in result.entries if e.id == entry.mirror_of)
+        distance = image_distance(source.velocity, entry.velocity)
+        if distance < SYMMETRIC_DISTANCE:
+            result.warnings.append(f"mirror image cycle {entry.cycle_index} left out: it "
+                                   f"lies {distance:.3f} (normalised) from {source.id} in "
+                                   f"the control space, within {SYMMETRIC_DISTANCE}: that "
+                                   "cycle is its own mirror image")
+        else:
+            entries.append(entry)
+    return images, entries
+
+
+def _nearest(cycle, others):
+    """The cycle of ``others`` (not empty) overlapping ``cycle`` longest in time, or nearest
+    to it when none overlaps (the earlier of equals)."""
+    def overlap(other):
+        return min(cycle.end_s, other.end_s) - max(cycle.start_s, other.start_s)
+    return max(others, key=lambda other: (overlap(other), -other.start_s))
+
+
+def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
+    """The diagnostics known once events are detected (kept when a later stage fails)."""
+    every = downsample(trial.n_frames)
+    with warnings.catch_warnings():  # frames without any marker have no RMS: NaN, said so
+        warnings.simplefilter("ignore", RuntimeWarning)
+        frame_rms = motion.frame_rms()
+    mid = 0.5 * (shoulders[0] + shoulders[1])
+    return to_json_data({
+        "rate_hz": trial.rate,
+        "marker_cutoff_hz": cutoff_hz,
+        "time_s": trial.time[every],
+        "shoulder_mid_xy": mid[every, :2],
+        "frame_rms_m": frame_rms[every],
+        "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s} for e in events],
+        "repairs": [r.as_dict(trial.rate) for r in motion.repairs],
+    }, DIAGNOSTICS_DIGITS)
+
+
+def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
+    """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
+    measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
+    chosen = next(c for c in cycles if c.chosen)
+    shape = shapes[chosen.index]
+    pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
+    angles = {"time_s": shape["phase"][pick] * chosen.period}
+    angles.update({name: shape["q"][pick, d] for d, name in enumerate(DOF_NAMES)})
+    poulaine = None
+    if "measured" in shape:
+        pick = downsample(len(shape["phase"]), MAX_POULAINE_POINTS)
+        poulaine = {"phase": shape["phase"][pick], "left_m": shape["measured"][pick, 0],
+                    "right_m": shape["measured"][pick, 1]}
+    return to_json_data({
+        "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
+        "angles": angles, "poulaine": poulaine,
+    }, DIAGNOSTICS_DIGITS)
+
+
+def locomotion_class(path: Path, rest: bool) -> str | None:
+    """The capture's locomotion class, if known, else None.
+
+    In order: the ``class`` of its truth sidecar ``<stem>.truth.json`` (written by
+    :mod:`mocaplib.synth`); the class of the capture named like the file in a shipped capture
+    plan (``protocols/*plan*.toml``); ``"rest"`` for a standing capture.
+    """
+    truth = path.with_name(f"{path.stem}.truth.json")
+    if truth.is_file():
+        try:
+            found = json.loads(truth.read_text(encoding="utf-8")).get("class")
+        except (OSError, ValueError, AttributeError):
+            found = None
+        if isinstance(found, str) and found:
+            return found
+    planned = _planned_classes().get(path.stem)
+    if planned:
+        return planned
+    return "rest" if rest else None
+
+
+@lru_cache(maxsize=1)
+def _planned_classes() -> dict[str, str]:
+    """Capture name -> class over the shipped capture plans."""
+    from ..markersets.protocols import capture_plans
+    from ..synth.plan import load_plan
+
+    classes: dict[str, str] = {}
+    for plan_path in capture_plans():
+        try:
+            plan = load_plan(plan_path)
+        except MocapError:
+            continue  # a broken plan does not stop a build; `mocaplib synth` reports it
+        for capture in plan.captures:
+            classes.setdefault(capture.name, capture.cls)
+    return classes
+
+
+def _fail(result: CaptureResult, stage: str | None, reason: str) -> None:
+    result.ok, result.stage, result.error = False, stage, reason
+    result.entries = []
+
+
+def downsample(n_points: int, limit: int = MAX_SERIES_POINTS) -> slice:
+    """A slice keeping at most about ``limit`` evenly spaced points of a series of ``n_points``."""
+    return slice(None, None, max(1, -(-n_points // limit)))

@@ -1,0 +1,144 @@
+"""What is in a capture: the per-file summary behind ``mocaplib inspect``.
+
+:func:`inspect_c3d` reads one C3D file and returns a plain, JSON-ready dict (see
+:data:`SUMMARY_KEYS`); a file that cannot be read gives ``ok = False`` and the reason in
+``error`` instead of an exception. :func:`inspect_trial` does the same for a :class:`Trial`
+already in memory. Times are seconds, gaps in percent of the frames and in frames/seconds.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..errors import MocapError, ProtocolError
+from .protocols import Protocol, match_trial, overrides
+from ..trial import Trial, check_gait_rate
+
+#: Keys of every summary, in order (failed files have None or empty values).
+SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
+                "units", "vertical_axis", "labels", "protocol", "markers_found",
+                "protocol_markers", "missing_landmarks", "missing_labels", "closest_protocol",
+                "markers", "ignored_points", "unknown_labels", "duplicates", "swaps", "events",
+                "warnings")
+
+_EMPTY_LISTS = ("labels", "missing_landmarks", "missing_labels", "markers", "ignored_points",
+                "unknown_labels", "duplicates", "swaps", "events", "warnings")
+
+
+def inspect_c3d(path: str | os.PathLike, /, *, protocol: Protocol | str = "auto") -> dict:
+    """Summary of one C3D file; ``protocol`` is ``"auto"``, a shipped name, a path or a
+    :class:`Protocol`. Never raises for a bad file: ``ok`` is False and ``error`` says why."""
+    from ..io.c3d import read_c3d
+
+    try:
+        trial = read_c3d(path)
+    except (MocapError, OSError) as exc:
+        return failed_summary(path, exc)
+    return inspect_trial(trial, protocol=protocol)
+
+
+def failed_summary(path: str | os.PathLike, error: BaseException | str) -> dict:
+    """The summary of a file that could not be read: every key, ``ok`` False, the reason."""
+    out = {key: None for key in SUMMARY_KEYS}
+    out.update({key: [] for key in _EMPTY_LISTS})
+    out.update(file=os.fspath(path), ok=False, error=_reason(error))
+    return out
+
+
+def _reason(error: BaseException | str) -> str:
+    if isinstance(error, OSError):
+        return f"{error.filename or ''}: {error.strerror or error}".lstrip(": ")
+    return str(error)
+
+
+def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict:
+    """Summary of a trial in memory (see :data:`SUMMARY_KEYS`).
+
+    With ``protocol="auto"``, ``protocol`` is None when no protocol finds its required
+    landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
+    ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
+    column is that candidate's. A protocol or landmark that a user folder redefines is noted in
+    ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`).
+    """
+    out = failed_summary(trial.source or "", "")
+    out.update(ok=True, error=None, frames=trial.n_frames, rate_hz=trial.rate,
+               duration_s=trial.duration, first_frame=trial.first_frame, units=trial.units,
+               vertical_axis=trial.vertical_axis, labels=list(trial.labels),
+               events=[{"context": e.context, "label": e.label, "time_s": e.time_s}
+                       for e in trial.events])
+    warnings = list(trial.warnings) + [f"note: {n}" for n in overrides()]
+    try:
+        check_gait_rate(trial.rate, None)
+    except MocapError as exc:  # shown, so the file can still be looked at
+        warnings.append(f"{exc.message}; fit, events and build refuse it ({exc.hint})")
+    try:
+        match = match_trial(trial, protocol)
+    except ProtocolError as exc:
+        match = None
+        warnings.append(str(exc))
+    landmark_of: dict[int, str] = {}
+    ignored: set[str] = set()
+    if match is not None:
+        landmark_of = {i: m.landmark.name for m, i in zip(match.protocol.markers, match.indices)
+                       if i >= 0}
+        ignored = set(match.ignored)
+        out.update(protocol=match.protocol.name, markers_found=match.found,
+                   protocol_markers=len(match.indices),
+                   missing_landmarks=match.missing_landmarks, missing_labels=list(match.missing),
+                   ignored_points=list(match.ignored), unknown_labels=list(match.unknown),
+                   duplicates=list(match.duplicates), swaps=list(match.swaps))
+        warnings.extend(match.warnings)
+        if protocol == "auto" and not match.complete:
+            out.update(protocol=None, markers_found=None, protocol_markers=None,
+                       missing_landmarks=[], missing_labels=[], closest_protocol={
+                           "name": match.protocol.name, "markers_found": match.found,
+                           "protocol_markers": len(match.indices),
+                           "missing_landmarks": match.missing_landmarks,
+                           "missing_labels": list(match.missing)})
+    gaps, longest = trial.gap_fraction(), trial.longest_gap()
+    out["markers"] = [
+        {"label": label, "landmark": landmark_of.get(i), "gap_pct": 100.0 * float(gaps[i]),
+         "longest_gap_frames": int(longest[i]), "longest_gap_s": int(longest[i]) / trial.rate}
+        for i, label in enumerate(trial.labels) if label not in ignored]
+    out["warnings"] = warnings
+    return out
+
+
+def format_summary(summary: dict) -> str:
+    """A summary as the readable text block ``mocaplib inspect`` prints (degrees-free, SI)."""
+    lines = [summary["file"]]
+    if not summary["ok"]:
+        return "\n".join(lines + [f"  FAILED: {summary['error']}"])
+    rotated = "" if summary["vertical_axis"] == "Z" else " (rotated to Z up)"
+    lines.append(f"  {summary['frames']} frames at {summary['rate_hz']:g} Hz "
+                 f"({summary['duration_s']:.2f} s), units {summary['units']}, vertical axis "
+                 f"{summary['vertical_axis']}{rotated}")
+    closest = summary.get("closest_protocol")
+    if summary["protocol"] is None and closest:
+        lines.append(f"  protocol: none has its required landmarks; closest {closest['name']} "
+                     f"({closest['markers_found']}/{closest['protocol_markers']} markers) lacks "
+                     f"{', '.join(closest['missing_landmarks'])}")
+    elif summary["protocol"] is None:
+        lines.append("  protocol: none matched")
+    else:
+        missing = ", ".join(summary["missing_landmarks"]) or "none"
+        lines.append(f"  protocol {summary['protocol']}: {summary['markers_found']}/"
+                     f"{summary['protocol_markers']} markers; missing required landmarks: "
+                     f"{missing}")
+        if summary["missing_labels"]:
+            lines.append(f"  not found: {', '.join(summary['missing_labels'])}")
+    events = summary["events"]
+    lines.append("  events: " + (", ".join(
+        f"{e['context']} {e['label']} {e['time_s']:.3f} s".strip() for e in events) or "none"))
+    rows = [(m["label"], m["landmark"] or "(not in protocol)", f"{m['gap_pct']:.1f}",
+             f"{m['longest_gap_s']:.2f} s ({m['longest_gap_frames']} frames)"
+             if m["longest_gap_frames"] else "-") for m in summary["markers"]]
+    widths = [max(len(r[k]) for r in rows + [("marker", "landmark", "gap %", "")])
+              for k in range(3)]
+    for label, landmark, gap, longest in [("marker", "landmark", "gap %", "longest gap")] + rows:
+        lines.append(f"  {label:<{widths[0]}}  {landmark:<{widths[1]}}  {gap:>{widths[2]}}  "
+                     f"{longest}")
+    if summary["warnings"]:
+        lines.append("  warnings:")
+        lines.extend(f"    - {w}" for w in summary["warnings"])
+    return "\n".join(lines)

@@ -1,0 +1,165 @@
+"""Calibrate and fit one capture, as every command does (:func:`fit_capture`): the protocol
+matched, the markers low-passed, the subject calibrated on a static or on the capture, every
+frame fitted. ``mocaplib fit`` needs only this, not the library's modules.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from .skeleton import SEGMENTS
+
+if TYPE_CHECKING:
+    from .calibration import SubjectModel
+    from .motion import Motion
+    from ..markersets.protocols import ProtocolMatch
+    from ..trial import Trial
+
+
+class StageClock:
+    """Times named stages and remembers the one running (to blame it when it fails)."""
+
+    def __init__(self):
+        self.times: dict[str, float] = {}
+        self.current: str | None = None
+
+    @contextmanager
+    def stage(self, name: str):
+        self.current = name
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
+        self.current = None
+
+
+@dataclass
+class FittedCapture:
+    """One capture calibrated and fitted (:func:`fit_capture`).
+
+    Attributes
+    ----------
+    match : ProtocolMatch
+        The capture's labels matched with its protocol (:func:`mocaplib.markersets.protocols.match_trial`).
+    cutoff : float or None
+        Hz the markers were low-passed at (None: not filtered).
+    model : SubjectModel
+        The subject model; its ``source`` names the static trial used.
+    motion : Motion
+        The fitted joint angles.
+    static : int or None
+        Index of the static trial used among those given (None: calibrated from the capture).
+    warnings : list[str]
+        What the user should know about the calibration and the fit, one sentence each.
+    """
+
+    match: ProtocolMatch
+    cutoff: float | None
+    model: SubjectModel
+    motion: Motion
+    static: int | None
+    warnings: list[str]
+
+
+def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
+                static_pose: str = "free", cutoff: float | str | None = "auto",
+                heading_offsets=None, measurements: dict | None = None,
+                static_window: tuple[float, float] | None = None, fallback: bool = False,
+                neutral_model=None, clock: StageClock | None = None,
+                knee_turns: dict[str, float] | None = None) -> FittedCapture:
+    """Calibrate and fit one capture, as every command does: ``protocol`` matched on the
+    capture, markers low-passed at ``cutoff`` (Hz, "auto" or None,
+    :func:`mocaplib.model.filtering.filter_trial`), the subject model calibrated
+    (:func:`mocaplib.model.calibration.calibrate`) on the static that shows the capture's subject or
+    on the capture itself, then :func:`mocaplib.model.ik.fit_filtered`.
+
+    ``protocol``: a :class:`~mocaplib.markersets.protocols.ProtocolMatch` of this trial, or what
+    :func:`mocaplib.markersets.protocols.match_trial` takes (a Protocol, shipped name, TOML path or
+    "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
+    a list of them, one per subject or session (the one that shows this capture's subject is
+    used, :func:`mocaplib.model.calibration.choose_static`), in ``static_pose``. When none shows the
+    subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
+    from the capture itself and says so. ``heading_offsets``: per static, the heading correction
+    of a forward reference, radians (:func:`mocaplib.build.workflow.forward_offsets`; the static in
+    the neutral pose). ``measurements``: subject measurements overriding the calibration file's;
+    ``static_window``: the (start, end) seconds of the static to calibrate on
+    (:func:`mocaplib.model.calibration.standing_part`). ``neutral_model(i)``: the model of static
+    ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
+    a build calibrates each once per process); None calibrates it here. ``clock`` times the
+    stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
+    :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
+    """
+    from .calibration import calibrate, check_static, choose_static, static_names
+    from ..errors import CalibrationError
+    from .filtering import filter_trial
+    from .ik import fit_filtered
+    from ..markersets.protocols import ProtocolMatch, match_trial
+
+    clock = clock or StageClock()
+    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
+        else [static]
+    warnings: list[str] = []
+    with clock.stage("protocol"):
+        match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
+    with clock.stage("filter"):
+        # the protocol's markers only: the cutoff is judged on them, and they are filtered
+        filtered, used = filter_trial(trial, cutoff=cutoff, keep=match.columns)
+    with clock.stage("calibrate"):
+        try:
+            chosen = choose_static(filtered, statics, match.protocol, check_one=fallback)
+            if chosen is not None and static_pose == "neutral" and neutral_model is not None:
+                model = neutral_model(chosen)
+                check_static(filtered, statics[chosen], model)
+            else:
+                model = calibrate(filtered, protocol=match.protocol,
+                                  static=None if chosen is None else statics[chosen],
+                                  static_pose=static_pose,
+                                  heading_offset=0.0 if heading_offsets is None or chosen is None
+                                  else heading_offsets[chosen],
+                                  measurements=measurements, static_window=static_window,
+                                  knee_turns=knee_turns)
+        except CalibrationError as exc:
+            if not (fallback and statics):
+                raise
+            warnings.append(f"calibrated from the capture itself: no static shows its subject "
+                            f"({exc.message})")
+            chosen, model = None, calibrate(filtered, protocol=match.protocol,
+                                            measurements=measurements, knee_turns=knee_turns)
+    if chosen is not None:
+        name = static_names([s.source or f"static {i + 1}" for i, s in enumerate(statics)])[chosen]
+        window = model.static_window_s
+        if window != (0.0, statics[chosen].duration):
+            warnings.append(f"static {name}: calibrated on its stretch {window[0]:.2f}-"
+                            f"{window[1]:.2f} s (of {statics[chosen].duration:.2f} s)")
+        warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
+    with clock.stage("fit"):
+        motion, _ = fit_filtered(trial, model, cutoff=used)
+    warnings.extend(_fit_warnings(model, motion))
+    return FittedCapture(match, used, model, motion, chosen, warnings)
+
+
+def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
+    """What a user should know about a fit: the labelling repairs, DOFs held at 0 and why,
+    DOFs at a joint limit, frames not fitted, samples removed."""
+    from .ik import fit_quality
+
+    quality = fit_quality(motion)
+    notes = motion.repair_warnings()
+    if model.left_out:
+        notes.append(f"no markers on {', '.join(model.left_out)}; their DOFs are held at 0")
+    left_out = {dof for seg in SEGMENTS if seg.name in model.left_out for dof in seg.dofs}
+    unseen = [dof for dof in motion.locked_dofs if dof not in left_out]
+    if unseen:
+        notes.append(f"the markers of protocol {model.protocol.name!r} cannot see "
+                     f"{', '.join(unseen)}; held at 0")
+    notes.extend(motion.limit_warnings())
+    if quality["failed_frames"]:
+        notes.append(f"{len(quality['failed_frames'])} frames could not be fitted (interpolated)")
+    if quality["rejected_samples"]:
+        notes.append(f"{quality['rejected_samples']} marker samples removed as outliers "
+                     f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
+    return notes
