@@ -106,7 +106,7 @@ def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
     from mocaplib.model.ik import model_markers
     from mocaplib.export.opensim import opensim_name, write_osim, write_trc
     from mocaplib.markersets.protocols import REFERENCE_HEIGHT
-    from mocaplib.model.skeleton import SEGMENT_NAMES, Skeleton
+    from mocaplib.skeleton import SEGMENT_NAMES, Skeleton
     from mocaplib.model.fitting import fit_capture
 
     trial = read_c3d(path)

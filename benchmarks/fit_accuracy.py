@@ -60,7 +60,7 @@ from mocaplib.gait.fourier import encode_cycle  # noqa: E402
 from mocaplib.model.ik import fit, fit_quality  # noqa: E402
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
 from mocaplib.build.pipeline import BuildSettings, build  # noqa: E402
 from mocaplib.synth import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan  # noqa: E402

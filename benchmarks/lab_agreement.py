@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.model.fitting import fit_capture  # noqa: E402
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data" / "c3d"
 #: The shared captures that carry Plug-in Gait angles, with their static (or None).

@@ -50,7 +50,7 @@ from mocaplib.build.pipeline import BuildSettings, build  # noqa: E402
 from mocaplib.build.workflow import cycle_shape  # noqa: E402
 from mocaplib.markersets.protocols import match_trial  # noqa: E402
 from mocaplib.library.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
 
 FIT_TARGET, SELF_TARGET, SELF_SHARE = 0.005, 0.05, 0.9

@@ -15,7 +15,7 @@ _EXPORTS = {
     "C3DError": "mocaplib.errors",
     "Trial": "mocaplib.trial",
     "Event": "mocaplib.trial",
-    "Skeleton": "mocaplib.model.skeleton",
+    "Skeleton": "mocaplib.skeleton",
     "Motion": "mocaplib.model.motion",
     "calibrate": "mocaplib.model.calibration",
     "SubjectModel": "mocaplib.model.calibration",

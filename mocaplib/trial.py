@@ -185,3 +185,8 @@ class Trial:
         missing = np.isnan(self.markers[:, :, 0])
         return np.array([max((stop - start for start, stop in valid_runs(missing[:, m])),
                              default=0) for m in range(self.n_markers)], dtype=int)
+
+
+#: Events a cycle may start at besides a left toe-off (``cycle_start``): the other events of
+#: one stride, :data:`mocaplib.gait.cycles.STRIDE_EVENTS`.
+CYCLE_STARTS = ("left_heel_strike", "right_toe_off", "right_heel_strike")

@@ -15,7 +15,7 @@ import numpy as np
 
 from mocaplib.model.calibration import SubjectModel
 from mocaplib.markersets.protocols import load_protocol
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180

@@ -7,7 +7,7 @@ import numpy as np
 
 from fk_data import neutral_q
 from mocaplib.markersets.protocols import Protocol
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 from mocaplib.trial import Trial
 
 

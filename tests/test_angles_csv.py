@@ -12,7 +12,7 @@ from mocaplib.errors import MocapError
 from mocaplib.export.angles_csv import write_angles_csv
 from mocaplib.io.c3d import read_c3d
 from mocaplib.model.motion import Motion
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 from mocaplib.model.fitting import fit_capture
 
 

@@ -8,7 +8,7 @@ from fk_data import neutral_q
 
 from mocaplib.errors import MocapError
 from mocaplib.export.bvh import bvh_text, write_bvh
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 
 
 def _rot(axis: str, deg: np.ndarray) -> np.ndarray:

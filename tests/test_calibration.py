@@ -11,7 +11,7 @@ from mocaplib.model.calibration import calibrate, choose_protocol, harrington_hi
 from mocaplib.errors import CalibrationError, MocapError
 from mocaplib.model.ik import fit
 from mocaplib.markersets.protocols import load_protocol
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180
@@ -285,7 +285,7 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
     import warnings
 
     from mocaplib.model.calibration import register_offsets
-    from mocaplib.model.skeleton import Skeleton
+    from mocaplib.skeleton import Skeleton
 
     skeleton = Skeleton.from_height(1.75)
     q = neutral_q(skeleton, 3)

@@ -11,7 +11,7 @@ from mocaplib.model.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.protocols import load_protocol, match_protocol
-from mocaplib.model.skeleton import SEGMENT_NAMES
+from mocaplib.skeleton import SEGMENT_NAMES
 
 REPO = SAMPLES.parent
 

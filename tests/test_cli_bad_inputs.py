@@ -339,7 +339,7 @@ def test_a_missing_input_is_a_usage_error_in_every_command(command, tmp_path, ca
 
 @pytest.mark.usefixtures("sample_dir")
 def test_the_statics_at_hand_count_as_standing(real_c3d):
-    from mocaplib.model.calibration import check_standing
+    from mocaplib.statics import check_standing
     from mocaplib.io.c3d import read_c3d
 
     rest = SAMPLES / "rest.c3d"

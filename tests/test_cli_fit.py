@@ -9,7 +9,7 @@ from fk_data import fk_trial
 
 from mocaplib.cli import main
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 
 
 def test_fit_writes_angles_mot_osim_and_prints_quality(tmp_path, capsys):

@@ -12,9 +12,9 @@ from mocaplib.model.calibration import calibrate
 from mocaplib.cli import main
 from mocaplib.model.ik import fit, fit_quality
 from mocaplib.markersets.protocols import detect_protocol, load_protocol
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth.capture import synthesize_capture
-from mocaplib.synth.command import Command
+from mocaplib.library.command import Command
 
 SESSION = 2010
 #: The motions compared: a straight walk, a curve and a side-step (speed m/s, radius m).

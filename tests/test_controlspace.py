@@ -15,7 +15,7 @@ from mocaplib.library.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, E
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.gait.fourier import root_drift, synthesize
 from mocaplib.library.format import assemble_library
-from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES
+from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES
 
 from entries import plain_entry
 

@@ -8,7 +8,7 @@ import pytest
 from mocaplib.model.anthropometry import DE_LEVA, bodies
 from mocaplib.gait.criteria import (GRAVITY, closure, internal_power, jerk_rms, segment_energies,
                                third_derivative)
-from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES, SEGMENT_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, SEGMENT_NAMES, Skeleton
 
 D = len(DOF_NAMES)
 

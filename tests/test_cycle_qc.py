@@ -9,7 +9,7 @@ import pytest
 
 from mocaplib.model.filtering import WALKING_CUTOFF
 from mocaplib.gait.qc import cycle_qc
-from mocaplib.model.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 
 
 def _motion(q: np.ndarray, rate: float):
@@ -74,7 +74,7 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
 
 
 def test_a_marker_qc_failure_names_its_marker_and_when():
-    from mocaplib.library.format import DEFAULT_QC_THRESHOLDS
+    from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS
     from mocaplib.gait.qc import named_failures
 
     # 4 markers over 3 s at 100 Hz, the cycle 1-2 s: C's largest residual inside it is at 1.5 s

@@ -8,7 +8,7 @@ import pytest
 from mocaplib.gait.cycles import REST_PERIOD, analyse_cycles, choose_cycle, cycle_bounds
 from mocaplib.errors import EventError
 from mocaplib.gait.events import GaitEvent
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 
 from gait_model import shoulders
 
@@ -280,7 +280,7 @@ def test_treadmill_cycles_relative_to_the_belt():
 def test_velocities_are_the_truths_time_averages(command):
     from mocaplib.gait.patterns import cycle_velocities
     from mocaplib.synth.capture import min_duration, synthesize_capture
-    from mocaplib.synth.command import Command
+    from mocaplib.library.command import Command
 
     cmd = Command(**command)
     capture = synthesize_capture(cmd, duration=min_duration(cmd) + 0.2, seed=1)

@@ -11,7 +11,7 @@ from mocaplib.markersets.draft import draft_protocol, label_stem, name_landmarks
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.protocols import detect_protocol, load_protocol, match_protocol
 from mocaplib.synth.capture import synthesize_capture
-from mocaplib.synth.command import Command
+from mocaplib.library.command import Command
 from mocaplib.trial import normalise_label
 
 #: Files whose draft misses the 90 % target, with what was measured and why.

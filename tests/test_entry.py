@@ -64,7 +64,7 @@ def sample_library(sample_dir, tmp_path_factory):
     walk cycle and a copy of that cycle given what a lab subject has and the synthetic walker
     has not (joint shifts, held DOFs, DOFs at a limit): every optional key of an entry occurs
     in it. The marker RMS limit is 0.1 mm, so that every entry waives it."""
-    from mocaplib.library.format import DEFAULT_QC_THRESHOLDS
+    from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS
     from mocaplib.library.mirror import mirror_entry
     from mocaplib.library.phase import start_later
     from mocaplib.build.pipeline import BuildSettings, build

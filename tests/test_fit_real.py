@@ -7,7 +7,7 @@ from mocaplib.model.calibration import calibrate
 from mocaplib.model.fitting import fit_capture
 from mocaplib.model.ik import fit, fit_quality
 from mocaplib.io.c3d import read_c3d
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 
 
 def test_plug_in_gait_walk_fits_within_opensim_best_practice(real_c3d):

@@ -25,7 +25,7 @@ from mocaplib.build.cache import cache_key
 from mocaplib.build.pipeline import BuildSettings, build
 from mocaplib.build.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
                                process_capture)
-from mocaplib.model.skeleton import JOINT_ANGLES, ROOT_HEADING
+from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING
 
 STATIC = SAMPLES / "rest.c3d"
 WALK = SAMPLES / "walk_straight_normal.c3d"

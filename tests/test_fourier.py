@@ -8,7 +8,7 @@ import pytest
 from mocaplib.errors import FitError
 from mocaplib.gait.fourier import (ROOT_HEADING, ROOT_X, ROOT_Y, encode, encode_cycle,
                               fit_series, root_drift, synthesize)
-from mocaplib.model.skeleton import DOF_NAMES, TRANSLATION
+from mocaplib.skeleton import DOF_NAMES, TRANSLATION
 
 T = 1.1
 D = len(DOF_NAMES)

@@ -12,7 +12,7 @@ from mocaplib.model.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtere
                          initial_pose, keyframes, solve_poses)
 from mocaplib.model.motion import Motion
 from mocaplib.markersets.protocols import load_protocol
-from mocaplib.model.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
+from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180

@@ -13,7 +13,7 @@ import pytest
 
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.model.fitting import fit_capture
 
 SOURCE = "btkdata/PiG_Motion-FlatFoot-Full.c3d"

@@ -18,7 +18,7 @@ from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.library.format import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
                               checksum_status, schema, validate_library)
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 from entries import plain_entry
 
@@ -71,7 +71,7 @@ def test_shipped_schema_is_a_valid_draft_2020_12_schema():
 def test_the_schema_requires_every_length_of_the_fixed_skeleton():
     # a reader rebuilds the skeleton from segment_lengths_m (`mocaplib query --bvh` does): a
     # library missing one must not validate (it did, then query failed)
-    from mocaplib.model.skeleton import HEIGHT_PROPORTIONS
+    from mocaplib.skeleton import HEIGHT_PROPORTIONS
 
     assert set(schema()["$defs"]["segment_lengths"]["required"]) == set(HEIGHT_PROPORTIONS)
     doc = library().document

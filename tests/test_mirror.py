@@ -9,7 +9,7 @@ import pytest
 
 from mocaplib.library.mirror import (MIRROR_INDEX, MIRROR_SIGN, REFLECTION, mirror_dofs, mirror_id,
                              partner_name)
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
 
 
 def test_mirrored_poses_put_every_segment_at_the_mirror_image_of_its_partner():
@@ -126,7 +126,7 @@ def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
     joints equal, root pose a constant SE(2) transform away."""
     from mocaplib.gait.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
     from mocaplib.library.mirror import mirror_entry
-    from mocaplib.model.skeleton import ROOT_HEADING
+    from mocaplib.skeleton import ROOT_HEADING
 
     def world(entry, t):
         q = synthesize(entry.fourier.a, entry.fourier.b, entry.T, t)

@@ -10,7 +10,7 @@ import pytest
 
 from conftest import SAMPLES
 from mocaplib.gait.fourier import synthesize
-from mocaplib.model.skeleton import JOINT_ANGLES
+from mocaplib.skeleton import JOINT_ANGLES
 
 #: The velocity targets of the library (README, Pattern and velocities): v̂ within 2 %,
 #: ω̂ (rad/s) and v̂_l (m/s) within 0.02.

@@ -6,7 +6,7 @@ from fk_data import fk_trial, true_model
 
 from mocaplib.export.opensim import osim_text, write_mot, write_osim, write_trc
 from mocaplib.model.motion import Motion
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 
 
 def test_opensim_places_markers_where_we_do(tmp_path, monkeypatch):

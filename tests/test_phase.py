@@ -10,7 +10,7 @@ import pytest
 
 from mocaplib.gait.fourier import ROOT_X, ROOT_Y, RootDrift, synthesize
 from mocaplib.library.phase import from_left_toe_off, start_later
-from mocaplib.model.skeleton import DOF_NAMES, ROOT_HEADING
+from mocaplib.skeleton import DOF_NAMES, ROOT_HEADING
 
 from test_controlspace import hand_library
 from test_mirror import _entry

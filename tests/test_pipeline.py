@@ -22,10 +22,11 @@ from mocaplib.build import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
-from mocaplib.library.format import DEFAULT_QC_THRESHOLDS, load_library, qc_failures, validate_library
+from mocaplib.library.format import load_library, validate_library
+from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS, qc_failures
 from mocaplib.build.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
                                file_sha256, find_captures, process_capture)
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.build.workers import max_jobs
 
 from entries import plain_entry

@@ -10,7 +10,7 @@ from mocaplib.gait.fourier import RootDrift
 from mocaplib.gait.poulaine import (KINDS, MIN_TRAVEL_SPEED, AnklePath, Poulaine, blend,
                                characteristic_indices, cycle_poulaine, fit_ankle, travel_angle,
                                travel_coordinates)
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 
 def loop(phase, *, x0=0.05, half_step=0.32, y=0.06, z=-0.85, lift=0.12):

@@ -15,7 +15,7 @@ from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
 from mocaplib.synth.capture import synthesize_capture
-from mocaplib.synth.command import Command
+from mocaplib.library.command import Command
 
 
 def swapped(trial, a: str, b: str, frames: slice = slice(None)):

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
 
 NODE = shutil.which("node")
 MOTION_JS = Path(__file__).parents[1] / "mocaplib" / "report" / "templates" / "motion.js"

@@ -12,7 +12,7 @@ from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.gait.poulaine import ankle_centres
 from mocaplib.library.retarget import FORMATS, TASK_DOFS, Weights, foot_skate, retarget
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 #: The issue's target: joint-angle RMS of the pelvis, hip and knee DOFs (the IK's, TASK_DOFS)
 #: between a cycle retargeted to its own body and the captured cycle, rad.

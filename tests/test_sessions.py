@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.model.calibration import STATIC_WINDOW_S, standing_part
+from mocaplib.statics import STATIC_WINDOW_S, standing_part
 from mocaplib.cli import main
 from mocaplib.errors import CalibrationError, MocapError, NoCycleError
 from mocaplib.io.c3d import read_c3d

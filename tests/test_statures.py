@@ -11,7 +11,7 @@ from conftest import plan_capture
 from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.build.pipeline import BuildSettings, process_capture
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 
 FLEXION = [j for j, n in enumerate(DOF_NAMES)
            if n.startswith(("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))]

@@ -11,7 +11,7 @@ from scipy.interpolate import CubicSpline
 
 from mocaplib.errors import SynthError
 from mocaplib.runs import valid_runs
-from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
 from mocaplib.synth.body import SWING_KNEE_FLOOR, body_motion
 from mocaplib.synth.gait import FLAT, SWING

@@ -11,7 +11,7 @@ import pytest
 from conftest import REPO, SAMPLES
 from mocaplib.cli import main
 from mocaplib.errors import SynthError
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth import generate_plan, load_plan, min_duration
 
 PLAN = REPO / "protocols" / "paper_plan.toml"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocaplib.markersets.protocols import load_protocol
-from mocaplib.model.skeleton import DOF_NAMES
+from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth import Command, MarkerSettings, synthesize_capture
 from mocaplib.synth.body import SWAY_ANGLE
 

@@ -20,7 +20,7 @@ from ..io.jsonvalues import canonical_sha256, parse_json
 
 from ..library.format import (json_text, to_json_data)
 from .settings import BuildSettings
-from .workflow import CaptureResult, file_sha256, static_sha256
+from .workflow import CaptureResult, static_sha256
 
 
 @functools.lru_cache(maxsize=1)
@@ -42,8 +42,7 @@ def code_fingerprint() -> str:
 def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     """Hex key of a capture's cached result: file name and content, settings, tool version.
 
-    The static trial's content, the capture's truth sidecar (which names its locomotion
-    class), :func:`code_fingerprint` and the users' protocol folders
+    The static trial's content, :func:`code_fingerprint` and the users' protocol folders
     (:func:`mocaplib.markersets.protocols.user_fingerprint`) are part of the key, so editing any of them
     invalidates the cache.
     """
@@ -54,9 +53,6 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     if settings.statics:
         shas = [static_sha256(static) for static in settings.statics]
         parts["static_sha256"] = shas if len(shas) > 1 else shas[0]
-    truth = path.with_name(f"{path.stem}.truth.json")
-    if truth.is_file():
-        parts["truth_sha256"] = file_sha256(truth)
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 

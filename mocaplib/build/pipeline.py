@@ -88,7 +88,7 @@ class BuildResult:
         lines = [f"captures {s['captures']}  ok {s['succeeded']}  failed {s['failed']}  "
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
                  f"({s['seconds']:.1f} s)"]
-        from ..model.calibration import static_names
+        from ..statics import static_names
 
         names = static_names(self.settings.statics)
         if len(names) > 1:

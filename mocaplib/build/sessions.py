@@ -8,7 +8,7 @@ settings it is processed with:
    their session's static(s), and optionally its static pose, the stretch of the static to
    use and the marker-set protocol. Those captures are calibrated with it.
 2. **Other captures** are calibrated with the ``--static`` trials and the *standing* files
-   found among the inputs (:func:`mocaplib.model.calibration.check_standing` over the whole file):
+   found among the inputs (:func:`mocaplib.statics.check_standing` over the whole file):
    each with the one that shows its subject (:func:`mocaplib.model.calibration.choose_static`).
 3. **A capture no static shows** is calibrated from itself, with a warning, unless the build
    requires a static (``require_static``): then it fails, naming each static and why.
@@ -57,7 +57,7 @@ class Session:
 def load_session(path: str | os.PathLike, /) -> Session:
     """Read and check a ``session.toml`` (module docstring); :class:`MocapError` naming the
     file and the key for a file that cannot be read or holds a wrong value."""
-    from ..model.calibration import STATIC_POSES
+    from ..statics import STATIC_POSES
     from ..io.tomlfile import read_toml
 
     path = Path(path)
@@ -113,9 +113,9 @@ def sessions_of(captures: list[Path], /) -> dict[Path, Session]:
 
 def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) -> list[str]:
     """The captures (paths as given) whose markers stand still over the whole file
-    (:func:`mocaplib.model.calibration.check_standing`), except those whose real path is in
+    (:func:`mocaplib.statics.check_standing`), except those whose real path is in
     ``exclude``; a file that cannot be read is not one (its processing says why)."""
-    from ..model.calibration import check_standing
+    from ..statics import check_standing
     from ..io.c3d import read_c3d
 
     found = []

@@ -11,7 +11,8 @@ from ..errors import MocapError
 from ..gait.events import TOE_OFF_DEFINITIONS, EventSettings
 from ..io import unique_paths
 
-from ..library.format import (DEFAULT_QC_THRESHOLDS, to_json_data)
+from ..library.format import to_json_data
+from ..gait.qc import DEFAULT_QC_THRESHOLDS
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,7 @@ class BuildSettings:
         takes a folder's ``session.toml`` for the captures beside it (:mod:`mocaplib.build.sessions`).
     static_window : (start, end) seconds of each static to calibrate on, or None: the whole
         static when it stands still, else its quietest second
-        (:func:`mocaplib.model.calibration.standing_part`).
+        (:func:`mocaplib.statics.standing_part`).
     require_static : a capture that no static shows fails instead of being calibrated from
         itself.
     static_pose : ``"free"`` or ``"neutral"`` (the static subject stands with every joint
@@ -48,7 +49,7 @@ class BuildSettings:
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.
     qc_thresholds : QC metric -> limit (None = reported only); see
-        :data:`mocaplib.library.entry.QC_LIMITS`.
+        :data:`mocaplib.gait.qc.QC_LIMITS`.
     measurements : subject measurements (metres, kilograms) overriding those each
         calibration file stores (see :func:`mocaplib.model.calibration.calibrate`).
     """
@@ -115,7 +116,7 @@ class BuildSettings:
         """The settings as JSON data, as stored in the library (static files and forward
         references by name only: one name, a list of names when several were given, or None)."""
         data = asdict(self)
-        from ..model.calibration import static_names
+        from ..statics import static_names
 
         for key, paths in (("static", self.statics),
                            ("forward_reference", self.forward_references)):

@@ -11,7 +11,6 @@ stage, reason).
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import warnings
 from dataclasses import dataclass, field, fields, replace
@@ -25,9 +24,12 @@ from ..errors import MocapError, NoCycleError
 from ..model.fitting import StageClock, fit_capture
 from ..io import fs_text, open_regular
 from ..library.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
-from ..library.format import qc_failures, to_json_data
-from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_and_choice, qc_series
-from ..model.skeleton import DOF_NAMES
+from ..library.format import to_json_data
+from ..gait.qc import qc_failures
+from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_series
+from ..gait.cycles import qc_and_choice
+from ..gait.locomotion import locomotion_class
+from ..skeleton import DOF_NAMES
 
 if TYPE_CHECKING:
     from .settings import BuildSettings
@@ -204,7 +206,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         shapes = {c.index: cycle_shape(motion, c) for c in kept}
     with clock.stage("entries"):
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
-                                  shapes)
+                                  shapes, events)
         if not result.entries:
             result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
@@ -239,7 +241,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
                          "pipeline.build, or set heading_offsets=forward_offsets(settings)")
-    from ..model.calibration import static_names
+    from ..statics import static_names
     from ..errors import CalibrationError
     from ..gait.cycles import motion_cycles, shoulder_centres
     from ..gait.events import capture_events
@@ -343,7 +345,7 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
     processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
     its path, or the references when :data:`FORWARD_PASSES` turns do not settle it.
     """
-    from ..model.calibration import static_names
+    from ..statics import static_names
     from ..errors import CalibrationError
 
     offsets = tuple(0.0 for _ in settings.statics)
@@ -370,7 +372,7 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
     is calibrated with the static that shows its subject, never from itself
     (``require_static``)."""
-    from ..model.calibration import static_names
+    from ..statics import static_names
     from ..errors import CalibrationError
 
     names = static_names(settings.statics)
@@ -416,12 +418,14 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
 
 
 def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
-             settings: BuildSettings, motion, first_frame: int, shapes: dict, *,
+             settings: BuildSettings, motion, first_frame: int, shapes: dict, events, *,
              mirror_of: dict[int, str] | None = None):
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
     ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
-    ``shapes``: :func:`cycle_shape` by cycle index; ``mirror_of``: for the cycles of a mirror
+    ``shapes``: :func:`cycle_shape` by cycle index; ``events``: the gait events the cycles were
+    cut at (their order gives a cycle's gait, :func:`mocaplib.gait.locomotion.locomotion_class`);
+    ``mirror_of``: for the cycles of a mirror
     image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
     from ..library.mirror import MIRROR_TAG
 
@@ -453,7 +457,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
                                                                 ramp=enc.ramp),
             root_drift=EntryDrift.moving(enc.drift.u_f, enc.drift.u_l, enc.drift.omega,
                                          cycle.period),
-            qc=qc, qc_waived=waived, locomotion_class=locomotion_class(path, cycle.rest),
+            qc=qc, qc_waived=waived, locomotion_class=locomotion_class(cycle, events),
             segment_lengths_m=motion.skeleton.lengths, rate_hz=motion.rate,
             first_frame=first_frame, joint_shifts_m=motion.skeleton.shifts,
             held_dofs=motion.unobservable,
@@ -506,8 +510,9 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
                          mirror_motion)
 
     mirrored = mirror_motion(motion)
+    image_events = mirror_events(events)
     try:
-        images = motion_cycles(mirror_events(events), mirrored,
+        images = motion_cycles(image_events, mirrored,
                                ground=None if ground is None else REFLECTION @ ground,
                                max_gap_s=settings.max_gap_s, source=path)
     except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
@@ -526,7 +531,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
     entries = []
     for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
-                          mirror_of=mirror_of):
+                          image_events, mirror_of=mirror_of):
         source = next(e for e in result.entries if e.id == entry.mirror_of)
         distance = image_distance(source.velocity, entry.velocity)
         if distance < SYMMETRIC_DISTANCE:
@@ -582,44 +587,6 @@ def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
         "cycles": [{**c.to_dict(), "entry_id": entry_ids.get(c.index)} for c in cycles],
         "angles": angles, "poulaine": poulaine,
     }, DIAGNOSTICS_DIGITS)
-
-
-def locomotion_class(path: Path, rest: bool) -> str | None:
-    """The capture's locomotion class, if known, else None.
-
-    In order: the ``class`` of its truth sidecar ``<stem>.truth.json`` (written by
-    :mod:`mocaplib.synth`); the class of the capture named like the file in a shipped capture
-    plan (``protocols/*plan*.toml``); ``"rest"`` for a standing capture.
-    """
-    truth = path.with_name(f"{path.stem}.truth.json")
-    if truth.is_file():
-        try:
-            found = json.loads(truth.read_text(encoding="utf-8")).get("class")
-        except (OSError, ValueError, AttributeError):
-            found = None
-        if isinstance(found, str) and found:
-            return found
-    planned = _planned_classes().get(path.stem)
-    if planned:
-        return planned
-    return "rest" if rest else None
-
-
-@lru_cache(maxsize=1)
-def _planned_classes() -> dict[str, str]:
-    """Capture name -> class over the shipped capture plans."""
-    from ..markersets.protocols import capture_plans
-    from ..synth.plan import load_plan
-
-    classes: dict[str, str] = {}
-    for plan_path in capture_plans():
-        try:
-            plan = load_plan(plan_path)
-        except MocapError:
-            continue  # a broken plan does not stop a build; `mocaplib synth` reports it
-        for capture in plan.captures:
-            classes.setdefault(capture.name, capture.cls)
-    return classes
 
 
 def _fail(result: CaptureResult, stage: str | None, reason: str) -> None:

@@ -307,7 +307,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
     """Raise :class:`UsageError` before any work when a path given on the command line does
     not exist (the message ends with ``hint``), a ``--static`` cannot be read or does not
     stand still in ``static_window`` or its quietest second
-    (:func:`mocaplib.model.calibration.standing_part`), a ``--forward-reference``
+    (:func:`mocaplib.statics.standing_part`), a ``--forward-reference``
     cannot be read, or ``--static-pose neutral`` comes without a static or
     ``--forward-reference`` without a neutral static; a static or reference must be one C3D
     file. Returns the static trials, each file read once (the same file given twice counts
@@ -338,7 +338,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
             raise UsageError(f"{option}: {path}: is a folder: give one C3D file")
     trials = []
     for path in unique_paths(statics or ()):
-        from ..model.calibration import standing_part   # here: a command without statics needs none
+        from ..statics import standing_part
 
         try:
             trials.append(read_c3d(path))

@@ -39,8 +39,9 @@ def _run(args) -> int:
     from ..gait.cycles import LEFT_TOE_OFF, motion_cycles
     from ..gait.events import capture_events
     from ..model.fitting import fit_capture
-    from ..library.format import DEFAULT_QC_THRESHOLDS
-    from ..gait.qc import named_failures, qc_and_choice
+    from ..gait.qc import DEFAULT_QC_THRESHOLDS
+    from ..gait.qc import named_failures
+    from ..gait.cycles import qc_and_choice
     from ._common import print_json
     from .events import load
 

@@ -40,7 +40,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..model.calibration import static_names
+    from ..statics import static_names
     from ..model.ik import fit_quality
     from ..model.fitting import fit_capture
     from ..export.angles_csv import write_angles_csv

@@ -28,7 +28,7 @@ def register(subparsers) -> None:
     body = parser.add_mutually_exclusive_group(required=True)
     body.add_argument("--height", type=positive(float, unit=" m"), metavar="H",
                       help="target standing height, m (segment lengths in the nominal "
-                           "proportions of mocaplib.model.skeleton)")
+                           "proportions of mocaplib.skeleton)")
     body.add_argument("--segment-lengths", metavar="FILE",
                       help="JSON object of the target's segment lengths in metres, every "
                            "length of the skeleton (the library's skeleton.segment_lengths_m "
@@ -110,7 +110,7 @@ def _skeleton(args):
     """The target skeleton of ``--height`` or ``--segment-lengths`` (UsageError when the file
     is not a JSON object of every length, in metres)."""
     from ..errors import MocapError
-    from ..model.skeleton import Skeleton
+    from ..skeleton import Skeleton
 
     try:
         if args.height is not None:

@@ -1,6 +1,6 @@
 """Joint coordinates as CSV: a ``time_s`` column, then one column per DOF.
 
-The header is ``time_s`` and :data:`mocaplib.model.skeleton.DOF_NAMES`; each row is one frame, every
+The header is ``time_s`` and :data:`mocaplib.skeleton.DOF_NAMES`; each row is one frame, every
 number written with ``%.{digits}g`` (radians, ``pelvis_t*`` metres, seconds), NaN as an empty
 field, lines ending in ``\\n``: the bytes ``pandas.DataFrame.to_csv(float_format="%.9g")``
 writes for :attr:`mocaplib.model.motion.Motion.angles`, without importing pandas.
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..model.skeleton import DOF_NAMES
+from ..skeleton import DOF_NAMES
 from ..io.atomic import atomic_write_text
 
 

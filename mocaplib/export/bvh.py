@@ -13,14 +13,14 @@ Channels
 --------
 A BVH joint's rotation channels are Euler angles in degrees about the *file's* coordinate axes,
 applied in the listed order as ``R = R_1 · R_2 · R_3`` (intrinsic), after the joint's OFFSET in
-the parent frame: the same composition as :meth:`mocaplib.model.skeleton.Skeleton.forward`. Every
+the parent frame: the same composition as :meth:`mocaplib.skeleton.Skeleton.forward`. Every
 skeleton DOF turns about ±X, ±Y or ±Z of its segment; its axis maps through the change of
 coordinates above to ±one file axis (X→X, Y→-Z, Z→Y), so each DOF becomes exactly one channel
 whose value is ``sign · degrees(q)``. Joints with fewer than three DOFs get the remaining axes
 as zero-valued channels (three rotation channels per joint suit every importer). The root has
 ``Xposition Yposition Zposition`` (pelvis_tx, pelvis_tz, -pelvis_ty) first. Joint names are
-:data:`mocaplib.model.skeleton.SEGMENT_NAMES`; end sites mark the vertex, the finger tips and the toes
-(display only: the toe tip at :data:`~mocaplib.model.skeleton.TOE_AHEAD` of the foot length ahead of the
+:data:`mocaplib.skeleton.SEGMENT_NAMES`; end sites mark the vertex, the finger tips and the toes
+(display only: the toe tip at :data:`~mocaplib.skeleton.TOE_AHEAD` of the foot length ahead of the
 ankle, on the sole).
 """
 
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..model.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
 from ..io.atomic import atomic_write_text
 
 #: Our coordinates to BVH file coordinates (Y up): file = TO_FILE @ ours.

@@ -1,10 +1,10 @@
 """OpenSim exports: the calibrated model (.osim), markers (.trc) and joint angles (.mot).
 
-The .osim reproduces :mod:`mocaplib.model.skeleton` exactly, so OpenSim's marker positions for our q
+The .osim reproduces :mod:`mocaplib.skeleton` exactly, so OpenSim's marker positions for our q
 equal ours and OpenSim's InverseKinematicsTool solves the very problem :func:`mocaplib.model.ik.fit`
 solves (without the robust loss and continuity term):
 
-- one body per segment, named as in :data:`~mocaplib.model.skeleton.SEGMENT_NAMES`, with its frame
+- one body per segment, named as in :data:`~mocaplib.skeleton.SEGMENT_NAMES`, with its frame
   at the joint centre (X forward, Y left, Z up in the neutral pose);
 - one ``CustomJoint`` per segment: its parent frame offset by the segment's joint offset, its
   ``SpatialTransform`` rotations the segment's DOFs in order about the same signed axes
@@ -28,7 +28,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..model.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
 from ..io.atomic import atomic_write_text
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ internal power.
   Leva's (1996), laid on the subject's skeleton (:mod:`mocaplib.model.anthropometry`), per kilogram of
   body mass, so the body mass itself is never needed.
 
-"Joint angles" are :data:`mocaplib.model.skeleton.JOINT_ANGLES`: the rotational DOFs except the root's
+"Joint angles" are :data:`mocaplib.skeleton.JOINT_ANGLES`: the rotational DOFs except the root's
 heading. Arrays: time on axis 0, radians (``pelvis_t*`` metres), seconds.
 """
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.anthropometry import Bodies, bodies
-from ..model.skeleton import JOINT_ANGLES, Skeleton
+from ..skeleton import JOINT_ANGLES, Skeleton
 
 #: Standard gravity, m/s².
 GRAVITY = 9.80665

@@ -16,7 +16,7 @@ stumbles and turns that start mid-cycle all raise it. The chosen cycle is the on
 lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
 if none qualifies); ties go to the earlier cycle. ``mocaplib cycles`` and ``mocaplib build``
 first narrow the candidates to the cycles that pass the library's QC, when any does
-(:func:`mocaplib.gait.qc.qc_and_choice`), so a capture whose steadiest cycle fails QC
+(:func:`mocaplib.gait.cycles.qc_and_choice`), so a capture whose steadiest cycle fails QC
 contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
 on one, so callers keep all of them on request (``--all-cycles``).
 
@@ -51,14 +51,27 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EventError, NoCycleError
-from .events import EventSettings, GaitEvent
 from ..model.filtering import resample
-from .fourier import (ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding,
-                      encode_cycle)
-from ..library.entry import CYCLE_STARTS, QC_LIMITS
-from ..model.skeleton import TRANSLATION
-from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
-                       sample_shoulders)
+from ..skeleton import TRANSLATION
+from ..trial import CYCLE_STARTS
+from .events import EventSettings, GaitEvent
+from .fourier import (
+    ANGLE_TOLERANCE,
+    LENGTH_TOLERANCE,
+    ROOT_X,
+    ROOT_Y,
+    CycleEncoding,
+    encode_cycle,
+)
+from .patterns import (
+    CycleVelocities,
+    Pattern,
+    cycle_samples,
+    cycle_times,
+    path_velocities,
+    sample_shoulders,
+)
+from .qc import QC_LIMITS, cycle_qc, qc_failures, qc_series
 
 #: Nominal period of the rest entry, seconds.
 REST_PERIOD = 1.0
@@ -158,7 +171,7 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
     twice as close to the truth as the acromion markers (whose placement error yaws the
     shoulder line), see docs/results/velocity_accuracy.md.
     """
-    from ..model.skeleton import SEGMENT_NAMES
+    from ..skeleton import SEGMENT_NAMES
 
     frames = motion.segment_transforms()
     return (frames[:, SEGMENT_NAMES.index("humerus_l"), :3, 3],
@@ -240,7 +253,7 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     rate
         Frame rate, Hz.
     q
-        Optional joint coordinates (F, D) in :data:`mocaplib.model.skeleton.DOF_NAMES` order; when
+        Optional joint coordinates (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order; when
         given each cycle gets its Fourier encoding (tolerances ``tol_angle`` rad, raised to
         each angle's noise floor, and ``tol_length`` m: :func:`mocaplib.gait.fourier.encode_cycle`).
     ground
@@ -339,10 +352,15 @@ def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float,
                    filled: np.ndarray | None = None) -> str:
     """What to do about a capture without two left toe-offs: a capture seen (not ``filled``,
     (F,) bool) for less than half its frames is out of view most of the time; one whose
-    shoulders stand still (:data:`mocaplib.model.calibration.STANDING_EXTENT`) for a second or more,
+    shoulders stand still (:data:`mocaplib.statics.STANDING_EXTENT`) for a second or more,
     half of it at least, is a static with a step; otherwise it holds too few strides, or a
     wrong rate."""
-    from ..model.calibration import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
+    from ..statics import (
+        STANDING_EXTENT,
+        STATIC_WINDOW_S,
+        moved_extent,
+        quietest_stretch,
+    )
 
     mid = 0.5 * (np.asarray(left, dtype=float) + np.asarray(right, dtype=float))[:, None]
     seen = np.ones(len(mid), dtype=bool) if filled is None else ~np.asarray(filled, dtype=bool)
@@ -372,7 +390,7 @@ def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) ->
     """Mark and return the steadiest cycle (module docstring's rule); clears other marks.
 
     ``eligible``: indices of the cycles that may be chosen (those passing the library's QC,
-    :func:`mocaplib.gait.qc.qc_and_choice`); every cycle when None or when none is eligible.
+    :func:`mocaplib.gait.cycles.qc_and_choice`); every cycle when None or when none is eligible.
     """
     if not cycles:
         raise EventError("no cycle to choose from")
@@ -457,7 +475,7 @@ def _smoothed(q: np.ndarray, rate: float) -> np.ndarray | None:
 
 def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> np.ndarray:
     """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
-    from ..model.skeleton import DOF_NAMES
+    from ..skeleton import DOF_NAMES
 
     never = ~np.isfinite(q).any(axis=0)
     if never.any():
@@ -465,3 +483,19 @@ def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> 
         raise EventError(f"joint coordinate {name} is missing in every frame", path=source,
                          hint="check the fit: this DOF was never fitted")
     return resample(q, rate, times)
+
+
+def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
+                  ) -> dict[int, dict]:
+    """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
+    chosen cycle re-chosen among those that pass ``thresholds`` when any does
+    (:func:`mocaplib.gait.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
+    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
+    ``ground``: the floor's velocity (3,) m/s on a treadmill
+    (:func:`mocaplib.gait.events.capture_events`), for the internal power."""
+    series = qc_series(motion, ground)
+    qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
+    if len(cycles) > 1:
+        choose_cycle(cycles, eligible={i for i, qc in qcs.items()
+                                       if not qc_failures(qc, thresholds)})
+    return qcs

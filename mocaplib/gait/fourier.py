@@ -27,7 +27,7 @@ support: its *noise floor* — the RMS over the cycle of the fitted angle minus 
 low-passed at :data:`mocaplib.model.filtering.WALKING_CUTOFF` (6 Hz; what a gait analysis keeps) —
 clipped to [``tol_angle``, :data:`MAX_ANGLE_TOLERANCE`] = [0.5°, 1°]. A clean angle is encoded
 within 0.5° (Skejø 2021: about 5 harmonic pairs); a noisy one within its own noise, never
-looser than 1°, which is the library's Fourier QC limit (:data:`mocaplib.library.entry.QC_LIMITS`):
+looser than 1°, which is the library's Fourier QC limit (:data:`mocaplib.gait.qc.QC_LIMITS`):
 a cycle fails it only when 20 harmonics cannot reach 1° on some angle. Measured orders:
 docs/guide/fourier.md.
 """
@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FitError
-from ..model.skeleton import DOF_NAMES, ROOT_HEADING, TRANSLATION
+from ..skeleton import DOF_NAMES, ROOT_HEADING, TRANSLATION
 
 #: Root channels re-expressed in the moving frame (indices into :data:`DOF_NAMES`), with
-#: :data:`~mocaplib.model.skeleton.ROOT_HEADING`.
+#: :data:`~mocaplib.skeleton.ROOT_HEADING`.
 ROOT_X, ROOT_Y = DOF_NAMES.index("pelvis_tx"), DOF_NAMES.index("pelvis_ty")
 #: The encoder's defaults: the reconstruction tolerance of angles (rad) and of translations (m),
 #: and the highest order it may reach.

@@ -59,7 +59,7 @@ import numpy as np
 from ..errors import MocapError
 from ..io.jsonvalues import float_or_nan
 from .fourier import ROOT_X, ROOT_Y, RootDrift
-from ..model.skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, Skeleton
+from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, Skeleton
 
 #: The characteristic points, in the paper's numbering (1 to 4).
 KINDS = ("highest", "foremost", "under_pelvis", "rearmost")

@@ -1,45 +1,27 @@
 """Quality control of a fitted capture's cycles: the QC metrics of each cycle (names and units of
-:data:`mocaplib.library.entry.QC_LIMITS`) and the choice of the cycle a capture contributes."""
+:data:`mocaplib.gait.qc.QC_LIMITS`) and the choice of the cycle a capture contributes."""
 
 
 from __future__ import annotations
 
+import math
 
 import numpy as np
 
-from ..library.format import (qc_failures)
-
-
-def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
-                  ) -> dict[int, dict]:
-    """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
-    chosen cycle re-chosen among those that pass ``thresholds`` when any does
-    (:func:`mocaplib.gait.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
-    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
-    ``ground``: the floor's velocity (3,) m/s on a treadmill
-    (:func:`mocaplib.gait.events.capture_events`), for the internal power."""
-    from .cycles import choose_cycle
-
-    series = qc_series(motion, ground)
-    qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
-    if len(cycles) > 1:
-        choose_cycle(cycles, eligible={i for i, qc in qcs.items()
-                                       if not qc_failures(qc, thresholds)})
-    return qcs
 
 
 def qc_series(motion, ground: np.ndarray | None = None) -> dict:
     """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
     rotations unwrapped; ``third`` the third time derivative (F, J) rad/s^3 of the joint angles
-    (:data:`mocaplib.model.skeleton.JOINT_ANGLES`) and ``energies`` each body segment's energy (F, B)
+    (:data:`mocaplib.skeleton.JOINT_ANGLES`) and ``energies`` each body segment's energy (F, B)
     J/kg (:func:`mocaplib.gait.criteria.segment_energies`, positions relative to the floor moving at
     ``ground`` m/s), both from the coordinates low-passed at
     :data:`mocaplib.model.filtering.WALKING_CUTOFF` (None when the capture is too short to be
     filtered): derivatives of unfiltered angles would measure fit noise only."""
-    from .criteria import segment_energies, third_derivative
     from ..model.filtering import WALKING_CUTOFF, lowpass, shortest_run
+    from ..skeleton import JOINT_ANGLES, TRANSLATION
+    from .criteria import segment_energies, third_derivative
     from .fourier import ROOT_X, ROOT_Y
-    from ..model.skeleton import JOINT_ANGLES, TRANSLATION
 
     q = motion.q.copy()
     q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)
@@ -60,7 +42,7 @@ def inside_cycle(cycle, motion) -> np.ndarray:
 
 
 def named_failures(cycle, motion, qc: dict, thresholds: dict) -> list[str]:
-    """The cycle's QC failures (:func:`mocaplib.library.format.qc_failures` of its metrics ``qc``),
+    """The cycle's QC failures (:func:`mocaplib.gait.qc.qc_failures` of its metrics ``qc``),
     those of the marker metrics naming their marker: for ``marker_max_m`` the trusted marker
     with the largest residual and when ("RPSIS at 3.58 s", from the capture's first frame), for
     ``marker_rms_m`` the one of largest RMS over the cycle."""
@@ -83,7 +65,7 @@ def named_failures(cycle, motion, qc: dict, thresholds: dict) -> list[str]:
 
 
 def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
-    """QC metrics of one cycle (names and units of :data:`mocaplib.library.entry.QC_LIMITS`).
+    """QC metrics of one cycle (names and units of :data:`mocaplib.gait.qc.QC_LIMITS`).
 
     marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
     follows (:meth:`mocaplib.model.motion.Motion.trusted`); gap fraction: missing marker samples
@@ -96,9 +78,9 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     capture is too short to be filtered. ``series``: the capture's :func:`qc_series`, when
     already computed.
     """
-    from .criteria import closure, internal_power, jerk_rms
     from ..model.filtering import resample
-    from ..model.skeleton import TRANSLATION
+    from ..skeleton import TRANSLATION
+    from .criteria import closure, internal_power, jerk_rms
 
     series = qc_series(motion) if series is None else series
     inside = inside_cycle(cycle, motion)
@@ -118,3 +100,47 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
             "internal_power_w_kg": None if energies is None or spanned <= 0
             else internal_power(energies[inside], spanned),
         }
+
+
+#: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
+#: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
+#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding
+#: target of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose
+#: frame-to-frame noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about
+#: 0.5 deg itself, so 1 deg flags cycles that are not periodic or not followed, not fit noise.
+#: A threshold of None means the metric is reported, not checked.
+QC_LIMITS: dict[str, tuple[float | None, str]] = {
+    "marker_rms_m": (0.02, "max"),
+    "marker_max_m": (0.04, "max"),
+    "gap_fraction": (0.5, "max"),
+    "event_quality": (0.5, "min"),   # also mocaplib.gait.cycles.MIN_EVENT_QUALITY (the choice)
+    # the loosest encoding tolerance, mocaplib.gait.fourier.MAX_ANGLE_TOLERANCE: see docs
+    "fourier_rms_rad": (math.radians(1.0), "max"),
+    "cycle_closure_rad": (None, "max"),
+    "jerk_rms_rad_s3": (None, "max"),
+    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.gait.criteria; absent in older files
+}
+
+
+QC_NAMES = tuple(QC_LIMITS)
+
+
+DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
+
+
+# --------------------------------------------------------------------------- building
+def qc_failures(qc: dict, thresholds: dict, waived: dict | None = None) -> list[str]:
+    """Human-readable QC metrics outside their threshold and not waived (empty when all pass)."""
+    failures = []
+    for name, value in qc.items():
+        limit = thresholds.get(name)
+        if limit is None or (waived and name in waived):
+            continue
+        if value is None or not math.isfinite(value):
+            failures.append(f"{name} is not finite")
+            continue
+        if QC_LIMITS[name][1] == "max" and value > limit:
+            failures.append(f"{name} {value:.4g} > {limit:.4g}")
+        elif QC_LIMITS[name][1] == "min" and value < limit:
+            failures.append(f"{name} {value:.4g} < {limit:.4g}")
+    return failures

@@ -62,7 +62,7 @@ from .entry import DRIFT_VELOCITIES
 from ..errors import LibraryError, MocapError
 from ..io.tomlfile import read_toml
 from ..gait.fourier import RootDrift, synthesize
-from ..model.skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
+from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
@@ -503,7 +503,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     channel in the units they are stored in (the Fourier convention: root in the path frame,
     per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
     the hull of the others, or the others are degenerate), ``neighbours`` (ids), ``weights``;
-    joint angles (:data:`mocaplib.model.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs
+    joint angles (:data:`mocaplib.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs
     and phases), ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation``
     relative to the path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS
     over the three and the phases); drift over one cycle: ``stride_error_mm`` (distance

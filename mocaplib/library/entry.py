@@ -17,41 +17,20 @@ Fourier coefficients numpy arrays.
 
 from __future__ import annotations
 
-import math
 from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
 
 from ..errors import LibraryError
+from ..gait.qc import QC_NAMES
 from ..io.jsonvalues import float_or_nan, json_values
+from ..trial import CYCLE_STARTS
 
-#: QC metric name -> (threshold, "max" if the value must not exceed it, "min" if not fall below).
-#: Marker limits are OpenSim's IK best practice. Event quality below 0.5 means most foot samples
-#: around a bounding toe-off were gap-filled, not measured. The Fourier limit is twice the encoding
-#: target of 0.5 deg (Skejø 2021): the RMS is measured against the fitted angles, whose
-#: frame-to-frame noise on poorly observed DOFs (ankle inversion, shoulder rotation) is about
-#: 0.5 deg itself, so 1 deg flags cycles that are not periodic or not followed, not fit noise.
-#: A threshold of None means the metric is reported, not checked.
-QC_LIMITS: dict[str, tuple[float | None, str]] = {
-    "marker_rms_m": (0.02, "max"),
-    "marker_max_m": (0.04, "max"),
-    "gap_fraction": (0.5, "max"),
-    "event_quality": (0.5, "min"),   # also mocaplib.gait.cycles.MIN_EVENT_QUALITY (the choice)
-    # the loosest encoding tolerance, mocaplib.gait.fourier.MAX_ANGLE_TOLERANCE: see docs
-    "fourier_rms_rad": (math.radians(1.0), "max"),
-    "cycle_closure_rad": (None, "max"),
-    "jerk_rms_rad_s3": (None, "max"),
-    "internal_power_w_kg": (None, "max"),   # C3, mocaplib.gait.criteria; absent in older files
-}
-QC_NAMES = tuple(QC_LIMITS)
 #: How a mirror image was made: ``capture``, from the capture's fitted motion reflected and cut
 #: at its right toe-offs (``build --mirror``: every value measured again); ``series``, from the
 #: source entry's stored series shifted to its right toe-off (``mocaplib mirror``: velocities
 #: reflected, QC the source's). See :mod:`mocaplib.library.mirror`.
 MIRROR_METHODS = ("capture", "series")
-#: Events a cycle may start at besides a left toe-off (``cycle_start``): the other events of
-#: one stride, :data:`mocaplib.gait.cycles.STRIDE_EVENTS`.
-CYCLE_STARTS = ("left_heel_strike", "right_toe_off", "right_heel_strike")
 #: Keys of an entry's ``root_drift``: the path frame's velocities and its displacement over one
 #: cycle (derived from them and T: :meth:`EntryDrift.moving`).
 DRIFT_VELOCITIES = ("u_f_m_s", "u_l_m_s", "omega_rad_s")
@@ -124,7 +103,6 @@ class EntryPattern(_Record):
     parameters: dict
     residual_m: float | None
     arc_angle_rad: float | None
-
 
 
 @dataclass(frozen=True, eq=False)
@@ -403,7 +381,7 @@ class LibraryEntry:
     mirror_method : str | None
         How the mirror image was made (:data:`MIRROR_METHODS`).
     segment_lengths_m : dict[str, float] | None
-        The subject's segment lengths, name -> m (:attr:`mocaplib.model.skeleton.Skeleton.lengths`).
+        The subject's segment lengths, name -> m (:attr:`mocaplib.skeleton.Skeleton.lengths`).
     poulaine : EntryPoulaine | None
         Each ankle's path over the cycle (None: rest, or a file written before poulaines).
     joint_shifts_m : dict[str, tuple[float, float, float]]

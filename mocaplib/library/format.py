@@ -2,7 +2,7 @@
 
 A library holds, for every entry, the cycle's average velocities (v̂, ω̂, v̂_l, v̂_f) and the
 Fourier coefficients of every degree of freedom of the fixed skeleton
-(:data:`mocaplib.model.skeleton.DOF_NAMES`), with the quality metrics that justify keeping it.
+(:data:`mocaplib.skeleton.DOF_NAMES`), with the quality metrics that justify keeping it.
 The format is specified in ``docs/library-format.md`` and by the JSON Schema shipped as
 ``mocaplib/schema/library.schema.json``.
 
@@ -35,13 +35,24 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import __version__
-from .entry import (DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, QC_LIMITS, QC_NAMES, LibraryEntry,
-                    drift_displacement)
 from ..errors import LibraryError
+from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES, qc_failures
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
-from ..io.jsonvalues import OutOfRange, canonical_sha256, float_or_nan, json_values, parse_json
-from ..model.skeleton import DOFS
+from ..io.jsonvalues import (
+    OutOfRange,
+    canonical_sha256,
+    float_or_nan,
+    json_values,
+    parse_json,
+)
+from ..skeleton import DOFS
+from .entry import (
+    DRIFT_DISPLACEMENT,
+    DRIFT_VELOCITIES,
+    LibraryEntry,
+    drift_displacement,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -77,7 +88,6 @@ POULAINE_TOLERANCE = 1e-6
 #: (BTS.c3d with --all-cycles), 5 times below this.
 TURN_SIGN_RATE = 0.2
 
-DEFAULT_QC_THRESHOLDS = {name: limit for name, (limit, _) in QC_LIMITS.items()}
 _SIGNIFICANT = 10
 #: The top-level key of the content checksum (:func:`content_sha256`).
 CHECKSUM_KEY = "content_sha256"
@@ -97,24 +107,6 @@ class Problem:
         return f"{self.where}: {self.message}"
 
 
-# --------------------------------------------------------------------------- building
-def qc_failures(qc: dict, thresholds: dict, waived: dict | None = None) -> list[str]:
-    """Human-readable QC metrics outside their threshold and not waived (empty when all pass)."""
-    failures = []
-    for name, value in qc.items():
-        limit = thresholds.get(name)
-        if limit is None or (waived and name in waived):
-            continue
-        if value is None or not math.isfinite(value):
-            failures.append(f"{name} is not finite")
-            continue
-        if QC_LIMITS[name][1] == "max" and value > limit:
-            failures.append(f"{name} {value:.4g} > {limit:.4g}")
-        elif QC_LIMITS[name][1] == "min" and value < limit:
-            failures.append(f"{name} {value:.4g} < {limit:.4g}")
-    return failures
-
-
 def assemble_library(entries: list[LibraryEntry], *, settings: dict,
                      qc_thresholds: dict | None = None) -> "Library":
     """A library of ``entries``, sorted by id, their numbers as the file stores them (10
@@ -126,7 +118,7 @@ def assemble_library(entries: list[LibraryEntry], *, settings: dict,
     entry order and smaller orders are zero-padded (exact); control-space scales are
     :func:`control_scale`.
     """
-    from ..model.skeleton import Skeleton
+    from ..skeleton import Skeleton
 
     entries = sorted((LibraryEntry.from_json(to_json_data(e.to_json())) for e in entries),
                      key=lambda e: e.id)
@@ -211,17 +203,17 @@ class Library:
     # ------------------------------------------------------------------ views
     @property
     def skeleton(self):
-        """The header's :class:`~mocaplib.model.skeleton.Skeleton`: the entries' median lengths and
+        """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
         joint shifts."""
-        from ..model.skeleton import Skeleton
+        from ..skeleton import Skeleton
 
         header = self.document["skeleton"]
         return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
 
     def entry_skeleton(self, entry_id: str):
-        """The :class:`~mocaplib.model.skeleton.Skeleton` of the subject of entry ``entry_id``: its
+        """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
         own segment lengths and joint shifts when it records them, the header's otherwise."""
-        from ..model.skeleton import Skeleton
+        from ..skeleton import Skeleton
 
         entry, header = self.entry(entry_id), self.document["skeleton"]
         return Skeleton(entry.segment_lengths_m or header["segment_lengths_m"],
@@ -254,7 +246,7 @@ class Library:
 
     @cached_property
     def table(self) -> pd.DataFrame:
-        import pandas as pd   # here: reading and writing a library need no pandas
+        import pandas as pd  # here: reading and writing a library need no pandas
 
         rows = []
         for e in self.entries:
@@ -415,7 +407,7 @@ def _read_document(path: str | os.PathLike) -> tuple[object, str]:
 
 def schema() -> dict:
     """The JSON Schema (draft 2020-12) of library files, as shipped in the package."""
-    from importlib import resources   # here: only validation reads the schema
+    from importlib import resources  # here: only validation reads the schema
 
     text = resources.files("mocaplib").joinpath("schema/library.schema.json").read_text("utf-8")
     return json.loads(text)

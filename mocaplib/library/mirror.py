@@ -12,8 +12,8 @@ image of ``foot_r``: each DOF ``k`` takes the value of its partner ``p(k)`` (``�
 itself for the root, trunk and neck), times a sign. Conjugating a rotation by a reflection turns
 it about the *axial* image of its axis, ``M R(a, q) M = R(det(M)·M a, q) = R(−M a, q)``, and
 moves a translation along ``M a``; so, with ``a_j`` the world axis of DOF ``j`` in the neutral
-pose (:meth:`mocaplib.model.skeleton.Skeleton.chain` at q = 0: the DOF definitions of
-:mod:`mocaplib.model.skeleton`, their ``_sided`` axes included),
+pose (:meth:`mocaplib.skeleton.Skeleton.chain` at q = 0: the DOF definitions of
+:mod:`mocaplib.skeleton`, their ``_sided`` axes included),
 
     sign_k = (−M a_p(k)) · a_k  for a rotation,    (M a_p(k)) · a_k  for a translation.
 
@@ -47,7 +47,7 @@ import numpy as np
 
 from .controlspace import CLOSE_DISTANCE
 from ..errors import MocapError
-from ..model.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
 
 #: The reflection of the mirror: y -> -y (3, 3).
 REFLECTION = np.diag([1.0, -1.0, 1.0])

@@ -30,7 +30,7 @@ def shifted_series(entry, tau: float, /) -> tuple[np.ndarray, np.ndarray, float,
     cycle on, root channels re-anchored (module docstring), and the path frame's forward and
     lateral velocities (u_f, u_l) m/s carried with them."""
     from ..gait.fourier import ROOT_X, ROOT_Y, synthesize
-    from ..model.skeleton import ROOT_HEADING
+    from ..skeleton import ROOT_HEADING
 
     period = float(entry.T)
     a, b = entry.fourier.a.copy(), entry.fourier.b.copy()

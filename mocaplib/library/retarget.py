@@ -56,7 +56,7 @@ import numpy as np
 
 from ..errors import MocapError
 from ..gait.fourier import ROOT_X, ROOT_Y, RootDrift
-from ..model.skeleton import DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, TRANSLATION, Skeleton
+from ..skeleton import DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, TRANSLATION, Skeleton
 
 #: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis.
 TASK_DOFS = tuple(DOF_NAMES.index(name) for name in (
@@ -117,7 +117,7 @@ class Retargeted:
     time_s : ndarray, shape (n + 1,)
         Sample times over the cycle, 0 to T s.
     q : ndarray, shape (n + 1, D)
-        Joint coordinates in :data:`~mocaplib.model.skeleton.DOF_NAMES` order (rad; ``pelvis_t*`` m),
+        Joint coordinates in :data:`~mocaplib.skeleton.DOF_NAMES` order (rad; ``pelvis_t*`` m),
         world frame, the pelvis starting at the origin facing +X.
     requested : tuple[float, float, float]
         Step length, foot spacing and stance, m.

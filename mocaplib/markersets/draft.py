@@ -40,12 +40,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..model.calibration import STANDING_EXTENT
+from ..statics import STANDING_EXTENT
 from ..errors import ProtocolError
 from ..numeric import nanmedian
 from .protocols import (REFERENCE_HEIGHT, _read_toml, computed_points, forward_direction,
                         is_model_output, load_landmarks, numbered_candidates, protocol_folders)
-from ..model.skeleton import SEGMENT_NAMES, Skeleton
+from ..skeleton import SEGMENT_NAMES, Skeleton
 from ..trial import Trial, normalise_label
 
 #: Cost (m) a name that points to a landmark takes off the distance to it...

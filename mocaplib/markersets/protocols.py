@@ -59,7 +59,7 @@ import numpy as np
 from ..errors import ProtocolError
 from ..io.tomlfile import read_toml
 from ..numeric import distinct, median
-from ..model.skeleton import SEGMENT_NAMES
+from ..skeleton import SEGMENT_NAMES
 from ..trial import Trial, normalise_label, subject_prefixes
 
 #: Height of the subject the catalogue's nominal positions are written for, metres.
@@ -397,7 +397,7 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
 
 def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tuple[str, ...]:
     """``[cycles] fallback_starts`` (or ``inherited``, the parent's): names of the stride's
-    events other than the left toe-off (:data:`mocaplib.library.entry.CYCLE_STARTS`), each once."""
+    events other than the left toe-off (:data:`mocaplib.trial.CYCLE_STARTS`), each once."""
     unknown = sorted(set(table) - {"fallback_starts"})
     if unknown:
         raise ProtocolError(f"[cycles] has no key {unknown[0]!r}", path=path,
@@ -405,7 +405,7 @@ def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tup
     starts = table.get("fallback_starts", list(inherited))
     if starts == []:            # no [cycles]: the library's modules need not be loaded
         return ()
-    from ..library.entry import CYCLE_STARTS
+    from ..trial import CYCLE_STARTS
 
     if (not isinstance(starts, list) or any(s not in CYCLE_STARTS for s in starts)
             or len(set(starts)) != len(starts)):

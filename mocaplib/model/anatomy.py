@@ -24,7 +24,7 @@ Joint centres
       each segment over a motion that flexes the joint.
 
 Segment frames (rotation matrices, columns = the segment's X forward, Y left, Z up axes when
-the subject stands in the anatomical position, as :mod:`mocaplib.model.skeleton` requires)
+the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requires)
     * **pelvis**: Y from the right to the left ASIS, Z normal to the plane of the ASIS and the
       mid-PSIS (or sacrum), X forward; origin midway between the hip centres. Pelvis tilt is
       0 when that plane is level.

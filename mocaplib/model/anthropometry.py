@@ -11,7 +11,7 @@ the transverse column as the medio-lateral axis (Y) and the longitudinal one as 
 long axis (Z; X for the foot), as R. Gurchiek's lookup of the same table reads them.
 
 Scaling to a subject: every de Leva segment is laid on the subject's own skeleton — its
-endpoints are the joint centres of :meth:`mocaplib.model.skeleton.Skeleton.joint_offsets` (or the end
+endpoints are the joint centres of :meth:`mocaplib.skeleton.Skeleton.joint_offsets` (or the end
 points the skeleton's lengths give: top of the head, finger tip, heel and toe tip), so lengths,
 centres of mass and radii follow the subject's segment lengths; masses are fractions of the body
 mass, so every quantity here is **per kilogram of body mass** (masses in kg/kg, inertias in
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .skeleton import HEEL_AHEAD, SEGMENT_NAMES, TOE_AHEAD, Skeleton
+from ..skeleton import HEEL_AHEAD, SEGMENT_NAMES, TOE_AHEAD, Skeleton
 
 #: de Leva (1996), Table 4, males: mass fraction of the body, centre of mass from the first
 #: endpoint (fraction of the length), radii of gyration (sagittal, transverse, longitudinal;
@@ -65,7 +65,7 @@ class Bodies:
     names : tuple[str, ...], length B
         de Leva segment of each body, with ``_l``/``_r`` for the limbs.
     segments : int ndarray, shape (B,)
-        Skeleton segment (:data:`~mocaplib.model.skeleton.SEGMENT_NAMES` index) each body rides on.
+        Skeleton segment (:data:`~mocaplib.skeleton.SEGMENT_NAMES` index) each body rides on.
     mass : ndarray, shape (B,)
         Mass, kg per kg of body mass.
     com : ndarray, shape (B, 3)

@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from .skeleton import SEGMENTS
+from ..skeleton import SEGMENTS
 
 if TYPE_CHECKING:
     from .calibration import SubjectModel
@@ -87,13 +87,14 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     of a forward reference, radians (:func:`mocaplib.build.workflow.forward_offsets`; the static in
     the neutral pose). ``measurements``: subject measurements overriding the calibration file's;
     ``static_window``: the (start, end) seconds of the static to calibrate on
-    (:func:`mocaplib.model.calibration.standing_part`). ``neutral_model(i)``: the model of static
+    (:func:`mocaplib.statics.standing_part`). ``neutral_model(i)``: the model of static
     ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
     a build calibrates each once per process); None calibrates it here. ``clock`` times the
     stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
     :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
     """
-    from .calibration import calibrate, check_static, choose_static, static_names
+    from .calibration import calibrate, check_static, choose_static
+    from ..statics import static_names
     from ..errors import CalibrationError
     from .filtering import filter_trial
     from .ik import fit_filtered

@@ -8,7 +8,7 @@ where ``p_m(q)`` is marker ``m`` of the calibrated model (:mod:`mocaplib.model.c
 soft-L1 loss ``2c²(√(1 + (d/c)²) − 1)`` (quadratic below the scale c = 20 mm, linear above, so
 one bad marker cannot drag the pose), ``q̄_f`` the mean of the neighbouring frames' current
 solution (a weak continuity term; μ is small so it only steadies poorly seen DOFs) and ``q`` is
-kept within :meth:`mocaplib.model.skeleton.Skeleton.bounds` (projected steps; a DOF on a bound whose
+kept within :meth:`mocaplib.skeleton.Skeleton.bounds` (projected steps; a DOF on a bound whose
 gradient points outwards leaves the step). Missing markers (NaN) drop out.
 
 All frames of a chunk are solved together: the (F, D, D) Gauss–Newton normal equations of the
@@ -44,7 +44,7 @@ from ..runs import valid_runs
 from .motion import Motion, Repair, apply_repairs
 from ..numeric import distinct, median, nanmedian
 from ..markersets.protocols import label_match
-from .skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
+from ..skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
 
 if TYPE_CHECKING:
@@ -385,7 +385,7 @@ def _marker_map(segments: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 
 def _points(transforms: np.ndarray, marker_map: np.ndarray) -> np.ndarray:
     """Points (F, 3, M) (coordinates on axis 1) from the segment transforms (F, S, 4, 4) of
-    :meth:`~mocaplib.model.skeleton.Skeleton.chain` and :func:`_marker_map`: one matrix product."""
+    :meth:`~mocaplib.skeleton.Skeleton.chain` and :func:`_marker_map`: one matrix product."""
     n, s = transforms.shape[:2]
     rows = transforms[:, :, :3, :].transpose(0, 2, 1, 3).reshape(n * 3, s * 4)
     return (rows @ marker_map).reshape(n, 3, marker_map.shape[1])
@@ -407,7 +407,7 @@ def _normal_equations(twist: np.ndarray, p: np.ndarray, moved: np.ndarray, r: np
     """Gauss–Newton normal equations ``JᵀWJ`` (F, D, D) and ``JᵀWr`` (F, D) without the
     (F, M, 3, D) Jacobian.
 
-    ``twist`` (F, 6, D): :func:`~mocaplib.model.skeleton.twists` at the current poses; ``p``
+    ``twist`` (F, 6, D): :func:`~mocaplib.skeleton.twists` at the current poses; ``p``
     (F, 3, M) the markers there, about the twists' origin; ``moved`` (M, D) 1 where DOF d moves
     marker m; ``r`` (F, 3, M) marker minus model; ``w`` (F, M) weights (0 for missing markers).
 

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import MocapError
-from .skeleton import DOF_NAMES, Skeleton
+from ..skeleton import DOF_NAMES, Skeleton
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -70,7 +70,7 @@ class Motion:
     Attributes
     ----------
     q : ndarray, shape (F, D)
-        Joint coordinates, one column per DOF in :data:`mocaplib.model.skeleton.DOF_NAMES` order
+        Joint coordinates, one column per DOF in :data:`mocaplib.skeleton.DOF_NAMES` order
         (radians; ``pelvis_t*`` metres); frame ``f`` is at ``f / rate`` seconds from the
         trial's first frame (:attr:`time`). :attr:`angles` gives them as a DataFrame.
     skeleton : Skeleton
@@ -147,7 +147,7 @@ class Motion:
     @property
     def angles(self) -> "pd.DataFrame":
         """:attr:`q` as a DataFrame (F, D), built on each call from a copy (change :attr:`q`
-        to change the motion): DOF columns in :data:`~mocaplib.model.skeleton.DOF_NAMES` order,
+        to change the motion): DOF columns in :data:`~mocaplib.skeleton.DOF_NAMES` order,
         index ``time_s`` (:attr:`time`)."""
         import pandas as pd   # here: fitting and writing the angles need no pandas
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..export.bvh import end_sites
-from ..model.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: Significant digits of the Fourier coefficients in the page (1e-6 rad: far below a pixel).
 COEFFICIENT_DIGITS = 6

@@ -668,7 +668,7 @@ def _css_colours(colours: dict) -> dict[str, str]:
 def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
     """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
     warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
-    from ..model.skeleton import DOF_NAMES
+    from ..skeleton import DOF_NAMES
     from .figureview import viewer_data
 
     if not len(library):

@@ -25,6 +25,7 @@ import pandas as pd
 from ..library.controlspace import Envelope
 from ..errors import MocapError
 from ..io.tomlfile import read_toml
+from ..library.command import plan_command
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
@@ -46,14 +47,28 @@ def find_plan() -> Path | None:
 
 
 def plan_commands(path: str | Path) -> pd.DataFrame:
-    """Planned captures of a plan file (:func:`mocaplib.synth.plan.load_plan`): columns
-    ``name, class, v_f, v_l, omega`` (SI)."""
-    from ..synth.plan import load_plan
-
-    plan = load_plan(path)
-    return pd.DataFrame([(c.name, c.cls, c.command.v_f, c.command.v_l, c.command.omega)
-                         for c in plan.captures],
-                        columns=["name", "class", "v_f", "v_l", "omega"])
+    """Planned captures of a capture plan file (its ``[[capture]]`` tables, as
+    ``mocaplib synth`` reads them): columns ``name, class, v_f, v_l, omega`` (SI). Raises
+    :class:`~mocaplib.errors.MocapError` naming the file and capture for a table that is not
+    a named capture with a command (:func:`mocaplib.library.command.plan_command`)."""
+    data = read_toml(path, what="capture plan",
+                     hint="a plan is a TOML file like protocols/paper_plan.toml")
+    captures = data.get("capture")
+    if not isinstance(captures, list) or not captures:
+        raise MocapError("no [[capture]] entries", path=path,
+                         hint="each capture needs name, class, command, duration, seed")
+    rows = []
+    for i, capture in enumerate(captures):
+        if not isinstance(capture, dict) or not isinstance(capture.get("name"), str):
+            raise MocapError(f"capture #{i + 1} must be a table with a name", path=path)
+        try:
+            command = plan_command(capture.get("command"))
+        except MocapError as exc:
+            raise MocapError(f"capture {capture['name']!r}: {exc.message}", path=path,
+                             hint=exc.hint) from None
+        rows.append((capture["name"], str(capture.get("class")), command.v_f, command.v_l,
+                     command.omega))
+    return pd.DataFrame(rows, columns=["name", "class", "v_f", "v_l", "omega"])
 
 
 def default_envelope(plan: Path | None) -> tuple[Envelope, dict]:

@@ -8,7 +8,7 @@ conventions), :mod:`.capture` (one capture, its truth, writing), :mod:`.plan` (c
 """
 
 from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
-from .command import Command
+from ..library.command import Command
 from .markers import MarkerSettings
 from .plan import Plan, PlannedCapture, check_targets, generate_plan, load_plan, locomotion_type
 

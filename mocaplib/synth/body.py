@@ -3,7 +3,7 @@ kinematics, on the generator's own body (:mod:`.bones`).
 
 Gait phase ``phi = 2 pi (t - t_L) / T`` is 0 at a left heel strike. Patterns (amplitudes from
 :class:`~mocaplib.synth.gait.GaitParameters`), written as the angles a fit would report
-(:mod:`mocaplib.model.skeleton`'s DOF names, in the conventions of :mod:`.truth`): the pelvis turns
+(:mod:`mocaplib.skeleton`'s DOF names, in the conventions of :mod:`.truth`): the pelvis turns
 forward on the swing side (``pelvis_rotation`` = heading − A cos phi), drops on the swing side
 after heel strike (``pelvis_list``), tilts twice a stride; it sways towards the stance foot and
 bounces (lowest in double support when walking, at mid-stance when running). The thorax
@@ -41,9 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SynthError
-from ..model.skeleton import SEGMENT_NAMES, axis_rotation
+from ..skeleton import SEGMENT_NAMES, axis_rotation
 from .bones import SIDES, Body, BodyPose, ball_angles, turn_vector
-from .command import Command, frame_to_world, reference_path, world_to_frame
+from .command import frame_to_world, reference_path, world_to_frame
+from ..library.command import Command
 from .gait import DEG, FLAT, SWING, GaitParameters, foot_trajectory, plan_footprints
 from .truth import convention, neutral_pose
 
@@ -114,7 +115,7 @@ def _patterns(params: GaitParameters, t: np.ndarray, xy: np.ndarray, theta: np.n
               offset: np.ndarray) -> dict[str, np.ndarray]:
     """The upper body's motion (F,) each, as a fit would report it: the pelvis frame's origin
     (``pelvis_tx/ty``; ``pelvis_tz`` its bounce alone) and angles, the trunk, neck, shoulder and
-    elbow DOFs (:mod:`mocaplib.model.skeleton` names), and ``wrist_l`` / ``wrist_r`` flexion."""
+    elbow DOFs (:mod:`mocaplib.skeleton` names), and ``wrist_l`` / ``wrist_r`` flexion."""
     phi = _phase(params, t)
     run = params.gait == "run"
     mid_stance = np.pi * params.duty

@@ -43,7 +43,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import SynthError
 from ..io.tomlfile import read_toml
 from ..markersets.protocols import protocols_dir
-from ..model.skeleton import axis_rotation
+from ..skeleton import axis_rotation
 
 SIDES = ("l", "r")
 #: The joint angles each bone's proximal joint takes (the root, the pelvis, has none: its

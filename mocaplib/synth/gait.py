@@ -38,9 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.skeleton import axis_rotation
+from ..skeleton import axis_rotation
 from .bones import FootShape, vector_turn
-from .command import Command, frame_to_world, world_to_frame
+from .command import frame_to_world, world_to_frame
+from ..library.command import Command
 
 DEG = np.pi / 180.0
 Y_AXIS, Z_AXIS = (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)

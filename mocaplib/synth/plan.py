@@ -33,15 +33,20 @@ from pathlib import Path
 
 from ..errors import MocapError, SynthError
 from ..io.tomlfile import read_toml
+from ..library.command import Command, plan_command
 from ..markersets.protocols import load_protocol
-from .capture import (TRUTH_FORMATS, Subject, SynthCapture, check_timing, min_duration,
-                      synthesize_capture, write_capture)
-from .command import Command
+from .capture import (
+    TRUTH_FORMATS,
+    Subject,
+    SynthCapture,
+    check_timing,
+    min_duration,
+    synthesize_capture,
+    write_capture,
+)
 from .markers import MarkerSettings
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-_COMMAND_KEYS = {"v_f", "v_l", "omega", "gait"}
-_KIND_KEYS = {"kind", "speed", "radius", "direction", "side"}
 
 
 #: Speed and size parts of a capture name in the sample plan (``_fast``, ``_r2``, ``_3p5``,
@@ -112,21 +117,6 @@ class Plan:
         return [c for c in self.captures if not only or c.name in only]
 
 
-def _command(spec) -> Command:
-    """A command from a plan's inline table (either form); raises SynthError."""
-    if not isinstance(spec, dict):
-        raise SynthError("command must be a table")
-    keys = set(spec)
-    if keys <= _COMMAND_KEYS:
-        return Command(**{k: (v if k == "gait" else float(v)) for k, v in spec.items()})
-    if "kind" in keys and keys <= _KIND_KEYS:
-        options = {k: (v if k == "side" else float(v)) for k, v in spec.items() if k != "kind"}
-        return Command.from_kind(spec["kind"], **options)
-    raise SynthError(f"command keys {sorted(keys)} mix or miss the two forms",
-                     hint="use { kind, speed, radius|direction, side } or "
-                          "{ v_f, v_l, omega, gait }")
-
-
 def _markers(spec) -> MarkerSettings:
     names = {f.name for f in fields(MarkerSettings)}
     unknown = set(spec) - names
@@ -176,7 +166,7 @@ def load_plan(path: str | os.PathLike) -> Plan:
             subject = Subject(float(get("height", 1.75)), float(get("mass", 70.0)))
             placement_seed = get("session_seed", None)
             captures.append(PlannedCapture(
-                name, str(entry["class"]), _command(entry["command"]),
+                name, str(entry["class"]), plan_command(entry["command"]),
                 float(entry["duration"]), int(entry["seed"]), subject, float(get("rate", 100.0)),
                 str(get("protocol", "fullbody38")),
                 _markers({**defaults.get("markers", {}), **entry.get("markers", {})}),

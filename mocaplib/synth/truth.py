@@ -2,7 +2,7 @@
 definitions, a documented conversion.
 
 The generator's body (:mod:`.bones`) has its own joints; the fit reports the angles of
-:mod:`mocaplib.model.skeleton`'s 32 DOFs in the frames :mod:`mocaplib.model.anatomy` builds. The truth is
+:mod:`mocaplib.skeleton`'s 32 DOFs in the frames :mod:`mocaplib.model.anatomy` builds. The truth is
 what those definitions give on the generator's body, exactly, without any marker error:
 
 1. **Anatomical frames, once.** In the neutral pose (:func:`neutral_pose`) the fit's
@@ -18,7 +18,7 @@ what those definitions give on the generator's body, exactly, without any marker
    tibia → tibia, foot → foot (the rear foot).
 2. **Every frame.** Each bone carries its anatomical frame; each joint's rotation (child
    frame relative to its parent's) is decomposed into the fitting skeleton's DOFs in their
-   order (:mod:`mocaplib.model.skeleton`: intrinsic, the DOF axes with their signs), the pelvis
+   order (:mod:`mocaplib.skeleton`: intrinsic, the DOF axes with their signs), the pelvis
    translations are the pelvis frame's origin (midway between the Harrington hip centres).
 
 What a DOF of the fit cannot hold is left out of ``q`` and reported apart
@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..model.anatomy import harrington_hips, segment_frames
-from ..model.skeleton import DOF_NAMES, DOFS, SEGMENTS, SEGMENT_NAMES
+from ..skeleton import DOF_NAMES, DOFS, SEGMENTS, SEGMENT_NAMES
 from .bones import SIDES, Body, BodyPose, turn_vector
 
 #: The generator's bone carrying each fitting segment's frame, by unsided name.
@@ -55,7 +55,7 @@ _SOLVE_TOLERANCE = 1e-12
 @dataclass(frozen=True)
 class Convention:
     """The fit's anatomical frames fixed in the generator's bones (module docstring, step 1):
-    per fitting segment (:data:`mocaplib.model.skeleton.SEGMENT_NAMES` order) the bone index (S,)
+    per fitting segment (:data:`mocaplib.skeleton.SEGMENT_NAMES` order) the bone index (S,)
     and the turn from the bone's frame to the segment's (S, 3, 3); the pelvis frame's origin
     in the pelvis bone's frame (3,) m."""
 
@@ -159,7 +159,7 @@ def convention(body: Body) -> Convention:
 
 def segment_rotations(body: Body, pose: BodyPose) -> tuple[np.ndarray, np.ndarray]:
     """The fitting segments' anatomical frames over ``pose``: rotations (F, S, 3, 3) in
-    :data:`mocaplib.model.skeleton.SEGMENT_NAMES` order and the pelvis frame's origin (F, 3)."""
+    :data:`mocaplib.skeleton.SEGMENT_NAMES` order and the pelvis frame's origin (F, 3)."""
     conv = convention(body)
     R, t = body.forward(pose)
     p = body.index("pelvis")

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import MocapError
+from .errors import MocapError
 
 X, Y, Z = np.eye(3)
 DEG = np.pi / 180.0
