@@ -32,7 +32,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from markdown_results import add_markdown_option, markdown_page, shown  # noqa: E402
-from mocaplib.build.pipeline import BuildSettings, build, find_captures  # noqa: E402
+from mocaplib.build.pipeline import build
+from mocaplib.io import find_captures
+from mocaplib.build.settings import BuildSettings
 
 STAGES = ("read", "import", "protocol", "filter", "calibrate", "fit", "events", "cycles",
           "entries")

@@ -136,7 +136,8 @@ def real_table(real: Path, toe_off: str) -> bool:
 def slow_walks() -> list[tuple[float, object, dict]]:
     """The :data:`SLOW_WALKS` generated: (speed m/s, Trial, truth) each, in the sample plan's
     session (marker placement seed 2010)."""
-    from mocaplib.synth import Command, synthesize_capture
+    from mocaplib.library.command import Command
+    from mocaplib.synth.capture import synthesize_capture
     from mocaplib.synth.capture import min_duration
 
     out = []

@@ -61,8 +61,9 @@ from mocaplib.model.ik import fit, fit_quality  # noqa: E402
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
-from mocaplib.build.pipeline import BuildSettings, build  # noqa: E402
-from mocaplib.synth import write_capture  # noqa: E402
+from mocaplib.build.pipeline import build
+from mocaplib.build.settings import BuildSettings
+from mocaplib.synth.capture import write_capture
 from mocaplib.synth.plan import load_plan  # noqa: E402
 from velocity_accuracy import compare  # noqa: E402
 
@@ -285,7 +286,7 @@ EXACT_MARKERS = {"placement_sd": 0.0, "soft_tissue": 0.0, "noise_sd": 0.0}
 #: foot's long axis (no elevation, no medial deviation)...
 ANKLE_BODIES = (("as shipped", {}), ("subtalar axis along the foot", {"subtalar": [0.0, 0.0]}))
 #: ...the joints a neutral static moves to their anatomical centres (the hips added to
-#: :data:`mocaplib.model.calibration.NEUTRAL_CENTRES`, or not)...
+#: :data:`mocaplib.model.joint_centres.NEUTRAL_CENTRES`, or not)...
 ANKLE_HIPS = (("nominal", ()), ("Harrington", ("femur_l", "femur_r")))
 #: ...and how far (m) the fitted ankles are then moved up; on these captures.
 ANKLE_RAISES = (-0.025, 0.0, 0.025)

@@ -59,7 +59,7 @@ from opensim_tools import inverse_kinematics, read_mot  # noqa: E402
 from mocaplib.model.calibration import calibrate  # noqa: E402
 from mocaplib.model.ik import fit, fit_filtered, model_markers  # noqa: E402
 from mocaplib.export.opensim import opensim_name, write_osim, write_trc  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
+from mocaplib.skeleton import DOF_NAMES, DOFS
 
 ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES

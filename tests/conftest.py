@@ -131,7 +131,7 @@ def plan_capture(name: str, height: float, folder: Path):
     """The sample plan's capture ``name`` for a subject ``height`` m tall (same seeds and marker
     placement, :meth:`mocaplib.synth.PlannedCapture.for_height`), written into ``folder`` as
     ``<name>_<height>.c3d``. Returns its path and the :class:`~mocaplib.synth.SynthCapture`."""
-    from mocaplib.synth import write_capture
+    from mocaplib.synth.capture import write_capture
     from mocaplib.synth.plan import load_plan
 
     planned = next(c for c in load_plan(REPO / "protocols" / "paper_plan.toml").captures

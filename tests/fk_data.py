@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocaplib.model.calibration import SubjectModel
+from mocaplib.model.subject import SubjectModel
 from mocaplib.markersets.protocols import load_protocol
-from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, SEGMENTS, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton, SEGMENTS
 from mocaplib.trial import Trial
 
 DEG = np.pi / 180

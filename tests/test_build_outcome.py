@@ -11,7 +11,9 @@ from mocaplib.build import pipeline
 from mocaplib.cli import main
 from mocaplib.errors import LibraryError
 from mocaplib.library.format import load_library
-from mocaplib.build.pipeline import BuildSettings, build, process_capture
+from mocaplib.build.pipeline import build
+from mocaplib.build.settings import BuildSettings
+from mocaplib.build.workflow import process_capture
 from conftest import SAMPLES
 from test_pipeline import TRIPLES, fake_process, write_captures
 

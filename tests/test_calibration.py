@@ -7,7 +7,9 @@ import pytest
 from fk_data import fk_trial, neutral_q, turn_knee_axis
 from protocol_trials import select
 
-from mocaplib.model.calibration import calibrate, choose_protocol, harrington_hips, neutral_offsets
+from mocaplib.model.calibration import calibrate, choose_protocol
+from mocaplib.model.anatomy import harrington_hips
+from mocaplib.model.joint_centres import neutral_offsets
 from mocaplib.errors import CalibrationError, MocapError
 from mocaplib.model.ik import fit
 from mocaplib.markersets.protocols import load_protocol
@@ -284,7 +286,7 @@ def test_a_marker_never_seen_takes_its_nominal_offset_silently():
     # to print numpy's "Mean of empty slice" on the technician's terminal
     import warnings
 
-    from mocaplib.model.calibration import register_offsets
+    from mocaplib.model.joint_centres import register_offsets
     from mocaplib.skeleton import Skeleton
 
     skeleton = Skeleton.from_height(1.75)

@@ -7,7 +7,8 @@ import pytest
 from conftest import SAMPLES, plan_capture
 
 import mocaplib.model.calibration as calibration
-from mocaplib.model.calibration import SAME_SUBJECT_LIMIT, calibrate, check_same_subject
+from mocaplib.model.calibration import calibrate
+from mocaplib.model.calibration_checks import SAME_SUBJECT_LIMIT, check_same_subject
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.protocols import load_protocol, match_protocol

@@ -67,7 +67,8 @@ def sample_library(sample_dir, tmp_path_factory):
     from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS
     from mocaplib.library.mirror import mirror_entry
     from mocaplib.library.phase import start_later
-    from mocaplib.build.pipeline import BuildSettings, build
+    from mocaplib.build.pipeline import build
+    from mocaplib.build.settings import BuildSettings
 
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 1e-4}
     settings = BuildSettings(static=str(sample_dir / "rest.c3d"), static_pose="neutral",

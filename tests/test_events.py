@@ -493,7 +493,8 @@ def test_slow_walk_toe_offs_within_one_frame(speed):
     # peak alone comes up to 1.4 frames early here): the default finds the synthetic toes'
     # release within a frame (measured worst 0.75 frames, marker noise included).
     from mocaplib.markersets.protocols import detect_protocol
-    from mocaplib.synth import Command, synthesize_capture
+    from mocaplib.library.command import Command
+    from mocaplib.synth.capture import synthesize_capture
     from mocaplib.synth.capture import min_duration
 
     command = Command.from_kind("straight", speed=speed)

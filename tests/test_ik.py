@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from fk_data import fk_trial, true_model
 
-from mocaplib.model.calibration import SubjectModel, locked_dofs
+from mocaplib.model.calibration import locked_dofs
+from mocaplib.model.subject import SubjectModel
 from mocaplib.errors import FitError
 from mocaplib.model.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtered, fit_quality,
                          initial_pose, keyframes, solve_poses)

@@ -16,8 +16,8 @@ import mocaplib
 import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.library.format import (CHECKSUM_KEY, QC_NAMES, Library, assemble_library,
-                              checksum_status, schema, validate_library)
+from mocaplib.library.format import CHECKSUM_KEY, Library, assemble_library, checksum_status, schema, validate_library
+from mocaplib.gait.qc import QC_NAMES
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 from entries import plain_entry

@@ -23,7 +23,8 @@ SYMMETRIC = ("walk_straight_slow", "walk_straight_normal", "walk_straight_fast",
 @pytest.fixture(scope="module")
 def mirrored_samples(tmp_path_factory):
     """The quick start's library of the 68 samples, built with --mirror."""
-    from mocaplib.build.pipeline import BuildSettings, build
+    from mocaplib.build.pipeline import build
+    from mocaplib.build.settings import BuildSettings
 
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral",
                              forward_reference=str(SAMPLES / "walk_straight_normal.c3d"),
@@ -179,7 +180,8 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
     series image of the chosen turn keeps its QC: ω̂ +0.21 rad/s."""
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.mirror import mirror_library
-    from mocaplib.build.pipeline import BuildSettings, build
+    from mocaplib.build.pipeline import build
+    from mocaplib.build.settings import BuildSettings
 
     static = real_c3d("biomechzoo/HC030A01.c3d")
     walks = [real_c3d("biomechzoo/HC030A05.c3d"), real_c3d("biomechzoo/HC030A22.c3d")]

@@ -9,8 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.build.pipeline import BuildSettings, build, process_capture
-from mocaplib.synth import Command, synthesize_capture, write_capture
+from mocaplib.build.pipeline import build
+from mocaplib.build.settings import BuildSettings
+from mocaplib.build.workflow import process_capture
+from mocaplib.library.command import Command
+from mocaplib.synth.capture import synthesize_capture, write_capture
 from mocaplib.trial import Trial
 
 RATE = 250.0

@@ -24,8 +24,11 @@ from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
 from mocaplib.library.format import load_library, validate_library
 from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS, qc_failures
-from mocaplib.build.pipeline import (BuildSettings, CaptureResult, build, diagnostics_path,
-                               file_sha256, find_captures, process_capture)
+from mocaplib.build.pipeline import build
+from mocaplib.io import find_captures
+from mocaplib.build.settings import BuildSettings
+from mocaplib.build.workflow import CaptureResult, file_sha256, process_capture
+from mocaplib.library.format import diagnostics_path
 from mocaplib.skeleton import DOF_NAMES
 from mocaplib.build.workers import max_jobs
 
@@ -417,7 +420,7 @@ def test_cli_validate_prints_problems(tmp_path, capsys):
 def synthetic_folder(tmp_path_factory) -> Path:
     """Three synthetic captures of the paper plan (a side-step, a curve, rest) with truth."""
     from mocaplib.markersets.protocols import protocols_dir
-    from mocaplib.synth import generate_plan, load_plan
+    from mocaplib.synth.plan import generate_plan, load_plan
 
     folder = tmp_path_factory.mktemp("synthetic")
     generate_plan(load_plan(protocols_dir() / "paper_plan.toml"), folder,

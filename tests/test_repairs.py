@@ -108,7 +108,8 @@ def test_fit_json_and_build_diagnostics_report_the_repair(cluster_session, tmp_p
     (repair,) = json.loads(captured.out)["repairs"]
     assert repair["markers"] == ["RFHD", "LBHD"] and repair["kind"] == "swap"
     assert "labels RFHD and LBHD look exchanged in frames" in captured.err
-    from mocaplib.build.pipeline import BuildSettings, process_capture
+    from mocaplib.build.settings import BuildSettings
+    from mocaplib.build.workflow import process_capture
 
     result = process_capture(capture, BuildSettings(static=str(static)))
     assert result.ok, result.error

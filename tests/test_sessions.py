@@ -17,7 +17,8 @@ from mocaplib.cli import main
 from mocaplib.errors import CalibrationError, MocapError, NoCycleError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.build.pipeline import BuildSettings, build
+from mocaplib.build.pipeline import build
+from mocaplib.build.settings import BuildSettings
 from mocaplib.build.sessions import SESSION_FILE, load_session, plan_captures
 
 pytestmark = pytest.mark.usefixtures("sample_dir")

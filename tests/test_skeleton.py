@@ -134,7 +134,7 @@ def test_bad_q_shape_is_reported():
 def test_chain_equals_joint_by_joint_composition():
     """chain() batches segments by depth; it must equal composing each joint's offset and
     elementary rotations (axis_rotation) segment by segment, root first."""
-    from mocaplib.skeleton import DOFS, SEGMENTS, axis_rotation
+    from mocaplib.skeleton import axis_rotation, DOFS, SEGMENTS
 
     rng = np.random.default_rng(3)
     q = rng.normal(size=(7, len(DOF_NAMES)))

@@ -10,7 +10,8 @@ from conftest import plan_capture
 
 from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
-from mocaplib.build.pipeline import BuildSettings, process_capture
+from mocaplib.build.settings import BuildSettings
+from mocaplib.build.workflow import process_capture
 from mocaplib.skeleton import DOF_NAMES
 
 FLEXION = [j for j, n in enumerate(DOF_NAMES)

@@ -12,7 +12,9 @@ from scipy.interpolate import CubicSpline
 from mocaplib.errors import SynthError
 from mocaplib.runs import valid_runs
 from mocaplib.skeleton import DOF_NAMES, Skeleton
-from mocaplib.synth import Command, MarkerSettings, min_duration, synthesize_capture
+from mocaplib.library.command import Command
+from mocaplib.synth.markers import MarkerSettings
+from mocaplib.synth.capture import min_duration, synthesize_capture
 from mocaplib.synth.body import SWING_KNEE_FLOOR, body_motion
 from mocaplib.synth.gait import FLAT, SWING
 
@@ -359,7 +361,7 @@ def test_bad_commands_and_durations_raise_synth_error():
 
 
 def test_soft_tissue_artefact_grows_with_body_mass():
-    from mocaplib.synth import Subject
+    from mocaplib.synth.capture import Subject
     quiet = MarkerSettings(placement_sd=0.0, noise_sd=0.0)
     sizes = []
     for mass in (60.0, 100.0):
@@ -433,7 +435,7 @@ def test_running_joint_patterns_are_human():
 
 
 def test_bad_settings_raise_synth_error():
-    from mocaplib.synth import Subject
+    from mocaplib.synth.capture import Subject
     with pytest.raises(SynthError, match="marker settings must be >= 0"):
         MarkerSettings(noise_sd=-0.001)
     with pytest.raises(SynthError, match="out of range"):

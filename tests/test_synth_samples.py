@@ -12,7 +12,8 @@ from conftest import REPO, SAMPLES
 from mocaplib.cli import main
 from mocaplib.errors import SynthError
 from mocaplib.skeleton import DOF_NAMES
-from mocaplib.synth import generate_plan, load_plan, min_duration
+from mocaplib.synth.plan import generate_plan, load_plan
+from mocaplib.synth.capture import min_duration
 
 PLAN = REPO / "protocols" / "paper_plan.toml"
 #: One capture of each class that moves differently (regenerating all 68 takes ~30 s).

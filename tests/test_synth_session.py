@@ -6,7 +6,9 @@ import numpy as np
 
 from mocaplib.markersets.protocols import load_protocol
 from mocaplib.skeleton import DOF_NAMES
-from mocaplib.synth import Command, MarkerSettings, synthesize_capture
+from mocaplib.library.command import Command
+from mocaplib.synth.markers import MarkerSettings
+from mocaplib.synth.capture import synthesize_capture
 from mocaplib.synth.body import SWAY_ANGLE
 
 #: Placement only: no soft tissue, no noise, so a marker's position on its bone is exact.

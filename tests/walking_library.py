@@ -20,7 +20,7 @@ def _library(paths, settings):
     """The library of ``paths`` processed with ``settings`` and, by entry id, the sidecar's
     record of the capture whose chosen cycle it is."""
     from mocaplib.library.format import assemble_library
-    from mocaplib.build.pipeline import process_capture
+    from mocaplib.build.workflow import process_capture
 
     entries, records = [], {}
     for path in paths:
@@ -36,7 +36,7 @@ def _library(paths, settings):
 def synthetic_walks():
     """The 21 synthetic walks (straight and curved, 3 speeds), chosen cycles, calibrated on the
     session's static as the quick start builds them (without the forward reference)."""
-    from mocaplib.build.pipeline import BuildSettings
+    from mocaplib.build.settings import BuildSettings
 
     paths = sorted(SAMPLES.glob("walk_*.c3d"))
     if not paths:
@@ -48,7 +48,7 @@ def synthetic_walks():
 @lru_cache(maxsize=1)
 def real_walks():
     """The real walks, every complete cycle that passes the default QC."""
-    from mocaplib.build.pipeline import BuildSettings
+    from mocaplib.build.settings import BuildSettings
 
     paths = [SHARED_C3D / name for name in REAL_WALKS]
     if not all(path.is_file() for path in paths):

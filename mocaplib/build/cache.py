@@ -17,8 +17,7 @@ from ..errors import LibraryError
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import canonical_sha256, parse_json
-
-from ..library.format import (json_text, to_json_data)
+from ..library.format import json_text, to_json_data
 from .settings import BuildSettings
 from .workflow import CaptureResult, static_sha256
 

@@ -19,21 +19,20 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..errors import LibraryError, MocapError
-from ..io import fs_text
-from ..io.atomic import atomic_write_files
-from .sessions import plan_captures
-from .threads import pinned
-from .workers import run_tasks
 import numpy as np
 
-from ..library.format import (diagnostics_path, DIAGNOSTICS_FORMAT, Library, assemble_library,
-                      json_text, to_json_data)
+from ..errors import LibraryError, MocapError
+from ..io import find_captures, fs_text
+from ..io.atomic import atomic_write_files
+from ..library.format import (DIAGNOSTICS_FORMAT, Library, assemble_library, diagnostics_path,
+                              json_text, to_json_data)
 from .cache import cache_key, internal_result, read_cache, write_cache
+from .sessions import plan_captures
 from .settings import BuildSettings
+from .threads import pinned
+from .workers import run_tasks
 from .workflow import (DIAGNOSTICS_DIGITS, CaptureResult, file_sha256, forward_offsets,
                        process_capture)
-
 
 DIAGNOSTICS_VERSION = 1
 
@@ -156,39 +155,6 @@ class BuildResult:
         return path, sidecar
 
 
-def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """C3D files named directly, plus the ``*.c3d`` entries found recursively (sorted) in
-    folders.
-
-    In a folder, every entry named ``*.c3d`` that is not a folder is a capture: a pipe, a
-    device, a dangling link or a link loop too, which then fails alone, saying why, when it is
-    read. Links to folders are not followed (a link loop cannot trap the search). The same file
-    named twice is processed once. Raises :class:`MocapError` for a path that does not exist.
-    """
-    found: dict[str, Path] = {}
-    for item in inputs:
-        path = Path(item)
-        if path.is_dir():  # a folder or pipe named like a capture is not one
-            candidates = _c3d_entries(path)
-        elif os.path.lexists(path):  # reading a pipe or a broken link fails and says why
-            candidates = [path]
-        else:
-            raise MocapError("no such file or folder", path=path,
-                             hint="check the path; folders are searched for *.c3d")
-        for candidate in candidates:
-            found.setdefault(os.path.realpath(candidate), candidate)
-    return list(found.values())
-
-
-def _c3d_entries(folder: Path) -> list[Path]:
-    """Entries named ``*.c3d`` (any case) in ``folder`` and its subfolders that are not
-    folders, sorted; links to folders are neither taken nor followed."""
-    entries = []
-    for root, _, names in os.walk(folder):
-        entries += [Path(root, name) for name in names if Path(name).suffix.lower() == ".c3d"]
-    return sorted(entries)
-
-
 def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = None, *,
           jobs: int = 1, scheduler: str | None = None, cache_dir: str | os.PathLike | None = None,
           progress: bool = True,
@@ -287,9 +253,9 @@ def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = 
 
 
 def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings) -> list[Path]:
-    """Every file a build of ``captures`` reads: the captures, their truth sidecars
-    (``<stem>.truth.json``, which name the locomotion class) that exist, the statics and the
-    forward references. An output must be none of them."""
+    """Every file a build of ``captures`` reads, and the files beside them an output must not
+    replace: the captures, their truth sidecars (``<stem>.truth.json``, written by ``mocaplib
+    synth`` beside its captures) that exist, the statics and the forward references."""
     files = [Path(c) for c in captures]
     files += [t for c in files if (t := c.with_name(f"{c.stem}.truth.json")).is_file()]
     return files + [Path(f) for f in (*settings.statics, *settings.forward_references)]
@@ -313,7 +279,8 @@ def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
 
 def _run_dask(process, work, address: str):
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError as exc:
         raise MocapError("a Dask scheduler needs the optional dask extra",
                          hint="pip install 'mocaplib[dask]'") from exc

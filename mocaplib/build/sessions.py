@@ -9,7 +9,7 @@ settings it is processed with:
    use and the marker-set protocol. Those captures are calibrated with it.
 2. **Other captures** are calibrated with the ``--static`` trials and the *standing* files
    found among the inputs (:func:`mocaplib.statics.check_standing` over the whole file):
-   each with the one that shows its subject (:func:`mocaplib.model.calibration.choose_static`).
+   each with the one that shows its subject (:func:`mocaplib.model.calibration_checks.choose_static`).
 3. **A capture no static shows** is calibrated from itself, with a warning, unless the build
    requires a static (``require_static``): then it fails, naming each static and why.
 
@@ -57,8 +57,8 @@ class Session:
 def load_session(path: str | os.PathLike, /) -> Session:
     """Read and check a ``session.toml`` (module docstring); :class:`MocapError` naming the
     file and the key for a file that cannot be read or holds a wrong value."""
-    from ..statics import STATIC_POSES
     from ..io.tomlfile import read_toml
+    from ..statics import STATIC_POSES
 
     path = Path(path)
     hint = f"see docs/guide/build.md (Capture sessions) for the keys of {SESSION_FILE}"
@@ -115,8 +115,8 @@ def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) 
     """The captures (paths as given) whose markers stand still over the whole file
     (:func:`mocaplib.statics.check_standing`), except those whose real path is in
     ``exclude``; a file that cannot be read is not one (its processing says why)."""
-    from ..statics import check_standing
     from ..io.c3d import read_c3d
+    from ..statics import check_standing
 
     found = []
     for capture in captures:

@@ -9,10 +9,9 @@ from dataclasses import asdict, dataclass, field
 
 from ..errors import MocapError
 from ..gait.events import TOE_OFF_DEFINITIONS, EventSettings
-from ..io import unique_paths
-
-from ..library.format import to_json_data
 from ..gait.qc import DEFAULT_QC_THRESHOLDS
+from ..io import unique_paths
+from ..library.format import to_json_data
 
 
 @dataclass(frozen=True)
@@ -21,7 +20,7 @@ class BuildSettings:
 
     protocol : ``"auto"`` or a protocol name / TOML path (see :mod:`mocaplib.markersets.protocols`).
     static : a static calibration capture, several (one per subject or session: each capture
-        is calibrated with the one showing its subject, :func:`mocaplib.model.calibration.choose_static`;
+        is calibrated with the one showing its subject, :func:`mocaplib.model.calibration_checks.choose_static`;
         one that none shows is calibrated from itself, with a warning), or None to calibrate
         from each motion capture. :func:`build` adds the standing files among its inputs and
         takes a folder's ``session.toml`` for the captures beside it (:mod:`mocaplib.build.sessions`).

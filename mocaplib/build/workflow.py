@@ -21,14 +21,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import MocapError, NoCycleError
-from ..model.fitting import StageClock, fit_capture
+from ..gait.cycles import qc_and_choice
+from ..gait.locomotion import locomotion_class
+from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_failures, qc_series
 from ..io import fs_text, open_regular
 from ..library.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from ..library.format import to_json_data
-from ..gait.qc import qc_failures
-from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_series
-from ..gait.cycles import qc_and_choice
-from ..gait.locomotion import locomotion_class
+from ..model.fitting import StageClock, fit_capture
 from ..skeleton import DOF_NAMES
 
 if TYPE_CHECKING:
@@ -241,12 +240,12 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
                          "pipeline.build, or set heading_offsets=forward_offsets(settings)")
-    from ..statics import static_names
     from ..errors import CalibrationError
     from ..gait.cycles import motion_cycles, shoulder_centres
     from ..gait.events import capture_events
     from ..io.c3d import read_c3d
     from ..markersets.protocols import match_trial, missing_landmarks_error
+    from ..statics import static_names
 
     with clock.stage("import"):
         trial = read_c3d(path)
@@ -318,7 +317,7 @@ def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
     offset and measurements ((name, value) pairs) and static ``window``: it depends on nothing
     else, so each
     capture only checks that it shows the same subject
-    (:func:`mocaplib.model.calibration.check_static`)."""
+    (:func:`mocaplib.model.calibration_checks.check_static`)."""
     from ..model.calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
@@ -345,8 +344,8 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
     processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
     its path, or the references when :data:`FORWARD_PASSES` turns do not settle it.
     """
-    from ..statics import static_names
     from ..errors import CalibrationError
+    from ..statics import static_names
 
     offsets = tuple(0.0 for _ in settings.statics)
     for _ in range(FORWARD_PASSES):
@@ -372,8 +371,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
     is calibrated with the static that shows its subject, never from itself
     (``require_static``)."""
-    from ..statics import static_names
     from ..errors import CalibrationError
+    from ..statics import static_names
 
     names = static_names(settings.statics)
     found: list[list[float]] = [[] for _ in names]
@@ -474,9 +473,9 @@ def cycle_shape(motion, cycle) -> dict:
     path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
     (:class:`mocaplib.gait.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
     models (:func:`mocaplib.gait.poulaine.cycle_poulaine`)."""
-    from ..model.filtering import resample
     from ..gait.patterns import cycle_times
     from ..gait.poulaine import cycle_poulaine
+    from ..model.filtering import resample
 
     times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
     q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
@@ -507,7 +506,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     """
     from ..gait.cycles import motion_cycles
     from ..library.mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
-                         mirror_motion)
+                                  mirror_motion)
 
     mirrored = mirror_motion(motion)
     image_events = mirror_events(events)

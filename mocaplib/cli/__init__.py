@@ -16,9 +16,9 @@ import os
 import sys
 
 from .. import __version__
+from ..build.threads import one_thread_by_default
 from ..errors import MocapError
 from ..io import printable
-from ..build.threads import one_thread_by_default
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    from ._common import UsageError, apply_protocol_options   # loads numpy: after the threads
+    from ._common import UsageError, apply_protocol_options  # loads numpy: after the threads
 
     parser = build_parser()
     try:

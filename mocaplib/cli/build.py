@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import (UsageError, add_cutoff_option, add_protocol_option, add_static_options,
-                      add_gap_option, add_toe_off_option, check_inputs, check_output_folder, check_outputs,
-                      jobs_count, measurements, warn)
+from ._common import (UsageError, add_cutoff_option, add_gap_option, add_protocol_option,
+                      add_static_options, add_toe_off_option, check_inputs, check_output_folder,
+                      check_outputs, jobs_count, measurements, warn)
 
 
 def register(subparsers) -> None:
@@ -64,9 +64,10 @@ def _check_usage(args):
     (every capture would fail on it), an output that would overwrite a file the build reads
     (:func:`mocaplib.build.pipeline.build_inputs`) or cannot be written, a --report folder that
     cannot take the report."""
-    from ..library.format import diagnostics_path
-    from ..build.pipeline import build_inputs, find_captures
+    from ..build.pipeline import build_inputs
+    from ..io import find_captures
     from ..build.settings import BuildSettings
+    from ..library.format import diagnostics_path
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference, static_window=args.static_window)
@@ -92,8 +93,8 @@ def _check_usage(args):
 
 
 def _run(args) -> int:
-    from ..library.format import validate_library
     from ..build.pipeline import build
+    from ..library.format import validate_library
 
     captures, settings = _check_usage(args)
     output = Path(args.output)

@@ -36,12 +36,10 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..gait.cycles import LEFT_TOE_OFF, motion_cycles
+    from ..gait.cycles import LEFT_TOE_OFF, motion_cycles, qc_and_choice
     from ..gait.events import capture_events
+    from ..gait.qc import DEFAULT_QC_THRESHOLDS, named_failures
     from ..model.fitting import fit_capture
-    from ..gait.qc import DEFAULT_QC_THRESHOLDS
-    from ..gait.qc import named_failures
-    from ..gait.cycles import qc_and_choice
     from ._common import print_json
     from .events import load
 

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import (add_cutoff_option, add_protocol_option, add_static_options,
-                      check_inputs, check_outputs, heading_offsets,
-                      measurements)
+from ._common import (add_cutoff_option, add_protocol_option, add_static_options, check_inputs,
+                      check_outputs, heading_offsets, measurements)
 
 
 def register(subparsers) -> None:
@@ -40,12 +39,12 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..statics import static_names
-    from ..model.ik import fit_quality
-    from ..model.fitting import fit_capture
     from ..export.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
     from ..markersets.protocols import match_trial, missing_landmarks_error
+    from ..model.fitting import fit_capture
+    from ..model.ik import fit_quality
+    from ..statics import static_names
     from ._common import print_json, warn
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
@@ -71,7 +70,7 @@ def _run(args) -> int:
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
     write_angles_csv(args.output, motion.time, motion.q)
     if args.mot or args.osim:
-        from ..export.opensim import write_mot, write_osim     # and xml.etree: only when asked
+        from ..export.opensim import write_mot, write_osim  # and xml.etree: only when asked
 
         if args.mot:
             write_mot(motion, args.mot)

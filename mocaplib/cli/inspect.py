@@ -27,9 +27,9 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
+    from ..io import find_captures
     from ..markersets.inspection import failed_summary, format_summary, inspect_c3d
     from ..markersets.protocols import load_protocol
-    from ..build.pipeline import find_captures
     from ._common import check_inputs, print_json
 
     check_inputs(args.inputs)

@@ -23,9 +23,8 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     import sys
 
-    from ..library.format import load_library, validate_library
+    from ..library.format import diagnostics_path, load_library, validate_library
     from ..library.mirror import mirror_library, write_mirrored
-    from ..library.format import diagnostics_path
     from ._common import LIBRARY_HINT, check_inputs, check_outputs, warn
 
     check_inputs([args.library], hint=LIBRARY_HINT)

@@ -38,9 +38,9 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..markersets.draft import draft_protocol
     from ..io.atomic import atomic_write_text
     from ..io.c3d import read_c3d
+    from ..markersets.draft import draft_protocol
 
     check_inputs([args.input] + ([args.static] if args.static else []))
     check_outputs({"-o": args.output}, [args.input] + ([args.static] if args.static else []))

@@ -7,7 +7,6 @@ import math
 
 from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
 
-
 #: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
 #: typing mistakes (and overflow in the geometry) are kept out.
 SPEED_LIMIT = 100.0
@@ -58,8 +57,8 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..library.controlspace import ControlSpace
     from ..errors import MocapError
+    from ..library.controlspace import ControlSpace
     from ..library.format import checksum_status, load_library
     from ._common import print_json, warn
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ._common import (LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs,
-                      positive)
+from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
 
 #: Output types: :data:`mocaplib.library.retarget.FORMATS`, not imported here so that the command line
 #: parses without loading numpy's stack; a test keeps the two equal.

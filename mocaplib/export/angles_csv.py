@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..skeleton import DOF_NAMES
 from ..io.atomic import atomic_write_text
+from ..skeleton import DOF_NAMES
 
 
 def write_angles_csv(path: str | os.PathLike, time: np.ndarray, q: np.ndarray, /, *,

@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
 from ..io.atomic import atomic_write_text
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
 
 #: Our coordinates to BVH file coordinates (Y up): file = TO_FILE @ ours.
 TO_FILE = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])

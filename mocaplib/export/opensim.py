@@ -28,12 +28,12 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
 from ..io.atomic import atomic_write_text
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
 
 if TYPE_CHECKING:
-    from ..model.calibration import SubjectModel
     from ..model.motion import Motion
+    from ..model.subject import SubjectModel
 
 #: Rotation ranges without a finite bound (the heading) are written as ± this, radians.
 _OPEN_RANGE = 4 * np.pi

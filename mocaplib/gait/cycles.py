@@ -55,22 +55,9 @@ from ..model.filtering import resample
 from ..skeleton import TRANSLATION
 from ..trial import CYCLE_STARTS
 from .events import EventSettings, GaitEvent
-from .fourier import (
-    ANGLE_TOLERANCE,
-    LENGTH_TOLERANCE,
-    ROOT_X,
-    ROOT_Y,
-    CycleEncoding,
-    encode_cycle,
-)
-from .patterns import (
-    CycleVelocities,
-    Pattern,
-    cycle_samples,
-    cycle_times,
-    path_velocities,
-    sample_shoulders,
-)
+from .fourier import ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding, encode_cycle
+from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
+                       sample_shoulders)
 from .qc import QC_LIMITS, cycle_qc, qc_failures, qc_series
 
 #: Nominal period of the rest entry, seconds.
@@ -355,12 +342,7 @@ def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float,
     shoulders stand still (:data:`mocaplib.statics.STANDING_EXTENT`) for a second or more,
     half of it at least, is a static with a step; otherwise it holds too few strides, or a
     wrong rate."""
-    from ..statics import (
-        STANDING_EXTENT,
-        STATIC_WINDOW_S,
-        moved_extent,
-        quietest_stretch,
-    )
+    from ..statics import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 
     mid = 0.5 * (np.asarray(left, dtype=float) + np.asarray(right, dtype=float))[:, None]
     seen = np.ones(len(mid), dtype=bool) if filled is None else ~np.asarray(filled, dtype=bool)

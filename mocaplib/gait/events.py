@@ -72,6 +72,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
 from ..errors import UNITS_HINT, EventError
 from ..model.filtering import lowpass, remove_spikes
 from ..runs import valid_runs

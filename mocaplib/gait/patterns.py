@@ -46,8 +46,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import EventError
-from ..model.filtering import resample
 from ..io.jsonvalues import json_values
+from ..model.filtering import resample
 
 
 @dataclass(frozen=True)

@@ -58,8 +58,8 @@ import numpy as np
 
 from ..errors import MocapError
 from ..io.jsonvalues import float_or_nan
-from .fourier import ROOT_X, ROOT_Y, RootDrift
 from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, Skeleton
+from .fourier import ROOT_X, ROOT_Y, RootDrift
 
 #: The characteristic points, in the paper's numbering (1 to 4).
 KINDS = ("highest", "foremost", "under_pelvis", "rearmost")

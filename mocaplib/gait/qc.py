@@ -9,7 +9,6 @@ import math
 import numpy as np
 
 
-
 def qc_series(motion, ground: np.ndarray | None = None) -> dict:
     """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
     rotations unwrapped; ``third`` the third time derivative (F, J) rad/s^3 of the joint angles

@@ -1,8 +1,8 @@
-"""Reading and writing files: C3D import, exports, atomic writes.
+"""Reading and writing files: C3D import and writing, atomic writes, JSON and TOML.
 
-Helpers every reader shares: :func:`open_regular` / :func:`read_regular` refuse what is not a
-regular file (a pipe, socket or device could block forever or never end) before reading from
-it; :func:`fs_text` turns a file name the system could not decode into text any file can hold;
+Helpers every reader shares: :func:`find_captures` lists the captures a command is given;
+:func:`open_regular` / :func:`read_regular` refuse what is not a regular file (a pipe, socket
+or device could block forever or never end) before reading from it; :func:`fs_text` turns a file name the system could not decode into text any file can hold;
 :func:`printable` escapes control characters before text reaches a terminal.
 """
 
@@ -12,6 +12,10 @@ import errno
 import os
 import re
 import stat
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import MocapError
 
 
 def unique_paths(paths) -> list[str]:
@@ -95,3 +99,36 @@ def printable(text: str, /, *, keep: str = "\n\t") -> str:
     colours or retitle the terminal it is printed on."""
     return _CONTROL.sub(lambda found: found.group() if found.group() in keep
                         else f"\\x{ord(found.group()):02x}", text)
+
+
+def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """C3D files named directly, plus the ``*.c3d`` entries found recursively (sorted) in
+    folders.
+
+    In a folder, every entry named ``*.c3d`` that is not a folder is a capture: a pipe, a
+    device, a dangling link or a link loop too, which then fails alone, saying why, when it is
+    read. Links to folders are not followed (a link loop cannot trap the search). The same file
+    named twice is processed once. Raises :class:`MocapError` for a path that does not exist.
+    """
+    found: dict[str, Path] = {}
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():  # a folder or pipe named like a capture is not one
+            candidates = _c3d_entries(path)
+        elif os.path.lexists(path):  # reading a pipe or a broken link fails and says why
+            candidates = [path]
+        else:
+            raise MocapError("no such file or folder", path=path,
+                             hint="check the path; folders are searched for *.c3d")
+        for candidate in candidates:
+            found.setdefault(os.path.realpath(candidate), candidate)
+    return list(found.values())
+
+
+def _c3d_entries(folder: Path) -> list[Path]:
+    """Entries named ``*.c3d`` (any case) in ``folder`` and its subfolders that are not
+    folders, sorted; links to folders are neither taken nor followed."""
+    entries = []
+    for root, _, names in os.walk(folder):
+        entries += [Path(root, name) for name in names if Path(name).suffix.lower() == ".c3d"]
+    return sorted(entries)

@@ -58,11 +58,11 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from .entry import DRIFT_VELOCITIES
 from ..errors import LibraryError, MocapError
-from ..io.tomlfile import read_toml
 from ..gait.fourier import RootDrift, synthesize
+from ..io.tomlfile import read_toml
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
+from .entry import DRIFT_VELOCITIES
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}

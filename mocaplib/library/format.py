@@ -39,20 +39,9 @@ from ..errors import LibraryError
 from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES, qc_failures
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
-from ..io.jsonvalues import (
-    OutOfRange,
-    canonical_sha256,
-    float_or_nan,
-    json_values,
-    parse_json,
-)
+from ..io.jsonvalues import OutOfRange, canonical_sha256, float_or_nan, json_values, parse_json
 from ..skeleton import DOFS
-from .entry import (
-    DRIFT_DISPLACEMENT,
-    DRIFT_VELOCITIES,
-    LibraryEntry,
-    drift_displacement,
-)
+from .entry import DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, LibraryEntry, drift_displacement
 
 if TYPE_CHECKING:
     import pandas as pd

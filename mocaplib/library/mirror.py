@@ -45,9 +45,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .controlspace import CLOSE_DISTANCE
 from ..errors import MocapError
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
+from .controlspace import CLOSE_DISTANCE
 
 #: The reflection of the mirror: y -> -y (3, 3).
 REFLECTION = np.diag([1.0, -1.0, 1.0])
@@ -290,8 +290,7 @@ def write_mirrored(library, library_path, out_path, /):
     from pathlib import Path
 
     from ..io.atomic import atomic_write_files
-    from .format import json_text
-    from .format import diagnostics_path
+    from .format import diagnostics_path, json_text
 
     text = library.to_json().encode("utf-8")
     files = [(Path(out_path), text)]

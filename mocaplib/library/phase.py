@@ -57,8 +57,8 @@ def shifted_poulaine(poulaine, start: float, /, *, reflect: bool = False):
     order); with ``reflect`` also seen in the mirror (y → −y): the left ankle's path becomes
     the right one's with y negated (points and tangents), the travel direction negated. The fit
     errors and the step parameters are unchanged."""
-    from .entry import EntryPoulaine
     from ..gait.poulaine import AnklePath, Poulaine
+    from .entry import EntryPoulaine
 
     flip = np.array([1.0, -1.0 if reflect else 1.0, 1.0])
 

@@ -335,8 +335,8 @@ def periodic_lowpass(values: np.ndarray, period: float, /, *, cutoff: float | No
     :data:`mocaplib.model.filtering.WALKING_CUTOFF`): the least-squares Fourier series of order
     floor(cutoff·T) (:func:`mocaplib.gait.fourier.fit_series`), a
     :class:`~mocaplib.gait.fourier.FourierSeries` to evaluate at any time."""
-    from ..model.filtering import WALKING_CUTOFF
     from ..gait.fourier import fit_series
+    from ..model.filtering import WALKING_CUTOFF
 
     values = np.asarray(values, dtype=np.float64)
     times = np.arange(len(values)) * period / len(values)
@@ -354,7 +354,7 @@ def cycle_criteria(skeleton: Skeleton, q_path: np.ndarray, drift: RootDrift,
     velocities by centred differences with one more sample each side, taken periodically in
     the path frame."""
     from ..gait.criteria import (closure, internal_power, jerk_rms, segment_energies,
-                           third_derivative)
+                                 third_derivative)
 
     steps = len(q_path) - 1
     rate = steps / period
@@ -379,8 +379,8 @@ def solve(skeleton: Skeleton, targets: np.ndarray, reference: np.ndarray, /, *,
     kept); ``step``: seconds between frames. Returns the joint coordinates (m, D), each frame's
     largest ankle error (m,) m and the number of steps a joint limit stopped.
     """
-    from ..model.anthropometry import bodies
     from ..gait.poulaine import FEET
+    from ..model.anthropometry import bodies
 
     task = np.array(TASK_DOFS)
     lower, upper = (bound[task] for bound in Skeleton.bounds())

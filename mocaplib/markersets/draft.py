@@ -40,13 +40,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..statics import STANDING_EXTENT
 from ..errors import ProtocolError
 from ..numeric import nanmedian
+from ..skeleton import SEGMENT_NAMES, Skeleton
+from ..statics import STANDING_EXTENT
+from ..trial import Trial, normalise_label
 from .protocols import (REFERENCE_HEIGHT, _read_toml, computed_points, forward_direction,
                         is_model_output, load_landmarks, numbered_candidates, protocol_folders)
-from ..skeleton import SEGMENT_NAMES, Skeleton
-from ..trial import Trial, normalise_label
 
 #: Cost (m) a name that points to a landmark takes off the distance to it...
 NAME_BONUS = 0.20

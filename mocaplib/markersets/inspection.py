@@ -11,8 +11,8 @@ from __future__ import annotations
 import os
 
 from ..errors import MocapError, ProtocolError
-from .protocols import Protocol, match_trial, overrides
 from ..trial import Trial, check_gait_rate
+from .protocols import Protocol, match_trial, overrides
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",

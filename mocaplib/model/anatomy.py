@@ -169,7 +169,7 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
 
     ``where`` maps landmark names (``L_ASIS``...) to positions (F, 3); ``centres`` maps
     ``(segment, 0.0)`` to that segment's joint centre (F, 3), as
-    :func:`mocaplib.model.calibration.joint_centres` returns them. Returns, for each segment whose
+    :func:`mocaplib.model.joint_centres.joint_centres` returns them. Returns, for each segment whose
     frame can be built, its rotation (F, 3, 3) and origin (F, 3), as the module describes;
     a segment whose landmarks are missing is left out (and so are the segments below it).
     ``level_feet``: the frames are a static trial's, the soles flat on level ground, so each
@@ -178,7 +178,7 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
     ``knee_turns``: per side ("l", "r"), radians in the sense of ``hip_rotation`` (internal
     positive): the femur's frame is turned about its long axis by it, and with it the knee's
     flexion axis and the tibia's and foot's frames built on that axis (a functional knee axis,
-    :func:`mocaplib.model.calibration.functional_knee_turns`).
+    :func:`mocaplib.model.joint_centres.functional_knee_turns`).
     """
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     hips = centres.get(("femur_l", 0.0)), centres.get(("femur_r", 0.0))

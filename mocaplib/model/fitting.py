@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING
 from ..skeleton import SEGMENTS
 
 if TYPE_CHECKING:
-    from .calibration import SubjectModel
-    from .motion import Motion
     from ..markersets.protocols import ProtocolMatch
     from ..trial import Trial
+    from .motion import Motion
+    from .subject import SubjectModel
 
 
 class StageClock:
@@ -81,7 +81,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     :func:`mocaplib.markersets.protocols.match_trial` takes (a Protocol, shipped name, TOML path or
     "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
     a list of them, one per subject or session (the one that shows this capture's subject is
-    used, :func:`mocaplib.model.calibration.choose_static`), in ``static_pose``. When none shows the
+    used, :func:`mocaplib.model.calibration_checks.choose_static`), in ``static_pose``. When none shows the
     subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
     from the capture itself and says so. ``heading_offsets``: per static, the heading correction
     of a forward reference, radians (:func:`mocaplib.build.workflow.forward_offsets`; the static in
@@ -93,12 +93,13 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
     :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
     """
-    from .calibration import calibrate, check_static, choose_static
-    from ..statics import static_names
     from ..errors import CalibrationError
+    from ..markersets.protocols import ProtocolMatch, match_trial
+    from ..statics import static_names
+    from .calibration import calibrate
+    from .calibration_checks import check_static, choose_static
     from .filtering import filter_trial
     from .ik import fit_filtered
-    from ..markersets.protocols import ProtocolMatch, match_trial
 
     clock = clock or StageClock()
     statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \

@@ -39,17 +39,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import FitError
-from .filtering import resample
-from ..runs import valid_runs
-from .motion import Motion, Repair, apply_repairs
-from ..numeric import distinct, median, nanmedian
 from ..markersets.protocols import label_match
+from ..numeric import distinct, median, nanmedian
+from ..runs import valid_runs
 from ..skeleton import (DOF_NAMES, DOFS, LEVELS, MOVES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS,
-                       SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
+                        SHIFTS, Skeleton, cross_rows, elementary_rotations, twist_jacobian, twists)
+from .filtering import resample
+from .motion import Motion, Repair, apply_repairs
 
 if TYPE_CHECKING:
-    from .calibration import SubjectModel
     from ..trial import Trial
+    from .subject import SubjectModel
 
 #: Soft-L1 scale c, metres: residuals above it count linearly (soft tissue moves markers 5-20 mm).
 ROBUST_SCALE = 0.02

@@ -149,7 +149,7 @@ class Motion:
         """:attr:`q` as a DataFrame (F, D), built on each call from a copy (change :attr:`q`
         to change the motion): DOF columns in :data:`~mocaplib.skeleton.DOF_NAMES` order,
         index ``time_s`` (:attr:`time`)."""
-        import pandas as pd   # here: fitting and writing the angles need no pandas
+        import pandas as pd  # here: fitting and writing the angles need no pandas
 
         return pd.DataFrame(self.q, columns=list(DOF_NAMES),
                             index=pd.Index(self.time, name="time_s"), copy=True)

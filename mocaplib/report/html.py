@@ -20,15 +20,15 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
-from ..library.controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, Envelope,
-                            close_entries, coverage, leave_one_out)
 from ..errors import MocapError
+from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import parse_json
-from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
+from ..library.controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace,
+                                    Envelope, close_entries, coverage, leave_one_out)
 from ..library.format import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
-                       validate_library)
+                              validate_library)
 from . import figures
 from .files import report_name
 from .plan import default_envelope, planned_status

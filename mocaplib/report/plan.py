@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..library.controlspace import Envelope
 from ..errors import MocapError
 from ..io.tomlfile import read_toml
 from ..library.command import plan_command
+from ..library.controlspace import Envelope
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at

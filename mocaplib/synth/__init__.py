@@ -7,8 +7,8 @@ the fitting skeleton), :mod:`.body` (pelvis, trunk, arms, leg inverse kinematics
 conventions), :mod:`.capture` (one capture, its truth, writing), :mod:`.plan` (capture plans).
 """
 
-from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from ..library.command import Command
+from .capture import Subject, SynthCapture, min_duration, synthesize_capture, write_capture
 from .markers import MarkerSettings
 from .plan import Plan, PlannedCapture, check_targets, generate_plan, load_plan, locomotion_type
 

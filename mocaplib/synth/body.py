@@ -41,10 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SynthError
+from ..library.command import Command
 from ..skeleton import SEGMENT_NAMES, axis_rotation
 from .bones import SIDES, Body, BodyPose, ball_angles, turn_vector
 from .command import frame_to_world, reference_path, world_to_frame
-from ..library.command import Command
 from .gait import DEG, FLAT, SWING, GaitParameters, foot_trajectory, plan_footprints
 from .truth import convention, neutral_pose
 

@@ -32,13 +32,13 @@ from ..errors import SynthError
 from ..io.atomic import atomic_write_text
 from ..io.c3d_write import write_c3d
 from ..io.jsonvalues import json_values
+from ..library.command import Command
 from ..markersets.protocols import load_protocol
 from ..skeleton import DOF_NAMES
 from ..trial import Event, Trial
 from .body import BodyMotion, body_motion, shoulder_path
 from .bones import Body, synthetic_body
 from .command import world_to_frame
-from ..library.command import Command
 from .gait import LEAD_S, GaitParameters, gait_parameters
 from .markers import MarkerSettings, skin_markers
 from .truth import extra_angles, true_angles

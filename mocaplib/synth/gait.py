@@ -38,10 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..library.command import Command
 from ..skeleton import axis_rotation
 from .bones import FootShape, vector_turn
 from .command import frame_to_world, world_to_frame
-from ..library.command import Command
 
 DEG = np.pi / 180.0
 Y_AXIS, Z_AXIS = (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)

@@ -35,15 +35,8 @@ from ..errors import MocapError, SynthError
 from ..io.tomlfile import read_toml
 from ..library.command import Command, plan_command
 from ..markersets.protocols import load_protocol
-from .capture import (
-    TRUTH_FORMATS,
-    Subject,
-    SynthCapture,
-    check_timing,
-    min_duration,
-    synthesize_capture,
-    write_capture,
-)
+from .capture import (TRUTH_FORMATS, Subject, SynthCapture, check_timing, min_duration,
+                      synthesize_capture, write_capture)
 from .markers import MarkerSettings
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..model.anatomy import harrington_hips, segment_frames
-from ..skeleton import DOF_NAMES, DOFS, SEGMENTS, SEGMENT_NAMES
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
 from .bones import SIDES, Body, BodyPose, turn_vector
 
 #: The generator's bone carrying each fitting segment's frame, by unsided name.
