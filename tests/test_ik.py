@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from fk_data import fk_trial, true_model
 
-from mocaplib.model.calibration import locked_dofs
-from mocaplib.model.subject import SubjectModel
 from mocaplib.errors import FitError
-from mocaplib.model.ik import (ROBUST_SCALE, _normal_equations, fit, fit_filtered, fit_quality,
-                         initial_pose, keyframes, solve_poses)
-from mocaplib.model.motion import Motion
 from mocaplib.markersets.protocols import load_protocol
+from mocaplib.model.calibration import locked_dofs
+from mocaplib.model.ik import fit, fit_filtered, fit_quality, keyframes
+from mocaplib.model.motion import Motion
+from mocaplib.model.solver import ROBUST_SCALE, initial_pose, normal_equations, solve_poses
+from mocaplib.model.subject import SubjectModel
 from mocaplib.skeleton import DOF_NAMES, MOVES, SEGMENT_NAMES, Skeleton, twists
 from mocaplib.trial import Trial
 
@@ -322,7 +322,7 @@ def test_normal_equations_from_moments_equal_the_jacobians():
     w = np.random.default_rng(1).uniform(0.2, 1.0, r.shape[:2])
     twist, origin = twists(chain)
     about = pts.transpose(0, 2, 1) - origin[:, :, None]
-    A, g = _normal_equations(twist, about, MOVES[cap.segments].astype(float),
+    A, g = normal_equations(twist, about, MOVES[cap.segments].astype(float),
                              r.transpose(0, 2, 1).copy(), w)
     J = jac.reshape(len(q), -1, len(DOF_NAMES))
     W = np.repeat(w, 3, axis=1)[..., None]

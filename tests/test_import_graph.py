@@ -1,6 +1,7 @@
 """The package's import graph has no cycle: a module never imports, directly or through
-others, a module that imports it (imports inside functions count; those under
-``if TYPE_CHECKING:`` are for type annotations only and do not)."""
+others, a module that imports it (imports inside functions and those under
+``if TYPE_CHECKING:`` count). The layers the imports run down are pyproject.toml's
+import-linter contract (``lint-imports``), checked by tests/test_package_layout.py."""
 
 from __future__ import annotations
 
@@ -22,14 +23,9 @@ def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     """The package's modules ``name`` imports (its own package's root excluded: the root
     holds only ``__version__`` and lazy exports)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    typing_only = {id(node) for branch in ast.walk(tree) if isinstance(branch, ast.If)
-                   and isinstance(branch.test, ast.Name) and branch.test.id == "TYPE_CHECKING"
-                   for node in ast.walk(branch)}
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     out = set()
     for node in ast.walk(tree):
-        if id(node) in typing_only:
-            continue
         if isinstance(node, ast.ImportFrom):
             base = package
             for _ in range(node.level - 1):

@@ -17,7 +17,7 @@ Steps (all in metres, world Z up):
    for a 3-DOF joint) has its DOFs *locked* (held at 0 by the fit); a segment with no marker
    below it is also listed as *left out*. Fewer than 3 pelvis markers is an error. Two markers
    whose labels are exchanged, in all or part of the frames (each marker far from its model
-   position, near the other's after the nominal fit of step 2; :func:`mocaplib.model.ik.find_repairs`)
+   position, near the other's after the nominal fit of step 2; :func:`mocaplib.model.repairs.find_repairs`)
    are exchanged back, and listed in ``swapped``; the motion's frames of step 5 are checked the
    same way against the static's model. Tracking markers (no landmark) are left out of the
    nominal fits: their offsets are measured in step 4 (4' with a neutral static), in the
@@ -100,12 +100,13 @@ from ..trial import Trial
 from .anatomy import leg_frames, offsets_in_frames
 from .calibration_checks import (MIN_PRESENCE, check_sides, check_static_markers, check_upright,
                                  refuse_unmarked_pelvis)
-from .ik import find_repairs, solve_poses
 from .joint_centres import (ANATOMICAL_LENGTHS, anatomical_frames, estimate_height,
                             functional_knee_turns, joint_centres, joint_shifts, landmark_markers,
                             lengths_from_centres, neutral_offsets, register_offsets, shoulder_drops,
                             shoulder_shifts)
 from .motion import apply_repairs
+from .repairs import find_repairs
+from .solver import solve_poses
 from .subject import SubjectModel
 
 #: Prior standard deviation of segment lengths around the anatomical estimate, metres.

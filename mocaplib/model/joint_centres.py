@@ -18,7 +18,7 @@ from ..numeric import distinct, median, nanmedian
 from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
 from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
                       marker_frames, segment_frames)
-from .ik import initial_pose, solve_poses
+from .solver import initial_pose, solve_poses
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
 #: the shoulders (from the acromion) and the elbows. The hips, knees and ankles keep the

@@ -28,7 +28,7 @@ class SubjectModel:
     history : list[float]. Marker RMS after each refinement round, metres.
     source : str or None. The calibration trial's file (the static one when given).
     swapped : list of (label, label). Pairs whose labels the calibration trial exchanges (in
-        all or part of its frames, :func:`mocaplib.model.ik.find_repairs`); calibration read them
+        all or part of its frames, :func:`mocaplib.model.repairs.find_repairs`); calibration read them
         exchanged back. A fit finds the motion's own (``Motion.repairs``).
     centre_methods : dict[str, str]. How each joint centre was found (``"knee_l"``: ``"chord,
         knee width from the measurements"``...), see :func:`joint_centres`.
