@@ -146,7 +146,7 @@ def stage_times(path: Path, static: Path | None) -> dict[str, float]:
     from mocaplib.model.calibration import calibrate
     from mocaplib.model.filtering import filter_trial, residual_cutoff
     from mocaplib.model.ik import fit, fit_filtered
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
 
     trial = read_c3d(path)
     match = match_trial(trial, "auto")
@@ -173,7 +173,7 @@ def growth(data: Path, folder: Path) -> None:
     """Print ``fit_filtered``'s CPU time per second of capture as frames and rate grow."""
     from mocaplib.model.filtering import resample
     from mocaplib.io.c3d_write import write_c3d
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
 
     rows = []
     walk = read_c3d(data / "ezc3d_testfiles" / "Qualisys.c3d")

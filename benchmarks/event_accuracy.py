@@ -47,7 +47,7 @@ from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.events import (LAB_EVENT_KINDS, TOE_OFF_DEFINITIONS,  # noqa: E402
                              EventSettings, capture_events, event_differences)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.markersets.protocols import detect_protocol  # noqa: E402
+from mocaplib.markersets.matching import detect_protocol
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
 
 #: The real files whose EVENT group holds lab (force-plate or operator) Foot Off events.

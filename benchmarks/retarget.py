@@ -49,7 +49,7 @@ from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.build.pipeline import build
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import cycle_shape  # noqa: E402
-from mocaplib.markersets.protocols import match_trial  # noqa: E402
+from mocaplib.markersets.matching import match_trial
 from mocaplib.library.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402

@@ -12,7 +12,7 @@ from conftest import SAMPLES
 def _load():
     from mocaplib.gait.events import capture_events
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     out = []
     for path in sorted(SAMPLES.glob("*.c3d")):

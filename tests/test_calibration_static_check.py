@@ -11,7 +11,8 @@ from mocaplib.model.calibration import calibrate
 from mocaplib.model.calibration_checks import SAME_SUBJECT_LIMIT, check_same_subject
 from mocaplib.errors import CalibrationError
 from mocaplib.io.c3d import read_c3d
-from mocaplib.markersets.protocols import load_protocol, match_protocol
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.markersets.matching import match_protocol
 from mocaplib.skeleton import SEGMENT_NAMES
 
 REPO = SAMPLES.parent

@@ -11,7 +11,8 @@ import pytest
 from mocaplib.model.calibration import calibrate
 from mocaplib.cli import main
 from mocaplib.model.ik import fit, fit_quality
-from mocaplib.markersets.protocols import detect_protocol, load_protocol
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.markersets.matching import detect_protocol
 from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth.capture import synthesize_capture
 from mocaplib.library.command import Command

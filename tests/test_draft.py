@@ -9,7 +9,8 @@ from conftest import real_files
 from mocaplib.cli import main
 from mocaplib.markersets.draft import draft_protocol, label_stem, name_landmarks
 from mocaplib.io.c3d import read_c3d
-from mocaplib.markersets.protocols import detect_protocol, load_protocol, match_protocol
+from mocaplib.markersets.protocols import load_protocol
+from mocaplib.markersets.matching import detect_protocol, match_protocol
 from mocaplib.synth.capture import synthesize_capture
 from mocaplib.library.command import Command
 from mocaplib.trial import normalise_label

@@ -137,7 +137,7 @@ def test_a_foot_marker_missing_in_every_frame_is_named():
     # the message said 'left heel or toe is missing in every frame', naming no marker; a
     # label missing in every frame counts as absent, and the error says so
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -153,7 +153,7 @@ def test_a_foot_marker_the_fit_left_out_everywhere_is_not_called_missing():
     out in every frame, though the file holds it in every frame; the events must say so, not
     that the marker is missing."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
     from mocaplib.model.fitting import fit_capture
     from conftest import SAMPLES
 
@@ -172,7 +172,7 @@ def test_a_ghost_heel_for_three_frames_does_not_move_the_events(real_c3d):
     strike: low-passed with the track it moved that heel strike 65 ms early; gapped first
     (:func:`mocaplib.model.filtering.remove_spikes`), every event stays within a frame."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
 
     trial = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
     match = match_trial(trial, "auto")
@@ -189,7 +189,7 @@ def test_a_capture_without_a_heel_label_is_told_what_to_do():
     # the message blamed the protocol ("no left heel (L_HEEL) marker in protocol 'fullbody38'")
     # when the protocol has LHEE and the capture does not
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import match_trial
+    from mocaplib.markersets.matching import match_trial
     from mocaplib.trial import Trial
     from conftest import SAMPLES
 
@@ -237,7 +237,7 @@ def test_model_filled_samples_do_not_count_as_measured():
     # so the event-quality QC and choice rule could never act
     from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
     from conftest import SAMPLES
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")
@@ -265,7 +265,7 @@ def test_event_quality_on_a_gappy_real_file_counts_only_measured_samples(real_c3
     from mocaplib.gait.cycles import motion_cycles
     from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     trial = read_c3d(real_c3d("ezc3d_testfiles/BTS.c3d"))
     match = detect_protocol(trial)
@@ -292,7 +292,7 @@ def test_events_never_leave_the_samples_that_support_them(real_c3d, name):
     # cycle of 0.73 s in a walk of 1.18 s strides)
     from mocaplib.model.fitting import fit_capture
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     trial = read_c3d(real_c3d(name))
     match = detect_protocol(trial)
@@ -310,7 +310,7 @@ def test_events_and_ground_velocity_prepare_each_foot_once(monkeypatch, real_c3d
     from mocaplib.gait import events as events_module
     from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     trial = read_c3d(real_c3d("c3dviewer_examples/running.c3d"))   # a treadmill
     match = detect_protocol(trial)
@@ -334,7 +334,7 @@ def lab_differences(real_c3d, kind, toe_off="foot_velocity", side=None):
     "R", when given) in the 4 files that has a detected event within 0.1 s (lab events at the
     trial's edges have none); ``real_c3d`` is the fixture."""
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     out = []
     for name in LAB_FILES:
@@ -473,7 +473,7 @@ def test_noise_free_synthetic_toe_offs_within_one_frame(noise_free_captures):
     # Without marker noise the default finds the toes' release on these captures, slow walks
     # included (`benchmarks/event_accuracy.py --noise-sd 0` measures all 68), so this pins the
     # detector on exact data.
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     assert len(noise_free_captures) == len(NOISE_FREE)
     for capture in noise_free_captures:
@@ -492,7 +492,7 @@ def test_slow_walk_toe_offs_within_one_frame(speed):
     # Slow walks below the sample plan's 0.6 m/s (the push-off is slow, and an upward-velocity
     # peak alone comes up to 1.4 frames early here): the default finds the synthetic toes'
     # release within a frame (measured worst 0.75 frames, marker noise included).
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
     from mocaplib.library.command import Command
     from mocaplib.synth.capture import synthesize_capture
     from mocaplib.synth.capture import min_duration
@@ -598,7 +598,7 @@ def test_overground_captures_are_not_treadmills():
 def test_real_treadmill_jogging_is_recognised(real_c3d):
     from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     trial = read_c3d(real_c3d("c3dviewer_examples/running.c3d"))
     belt = ground_velocity(feet_of(trial, detect_protocol(trial))[0], trial.rate)
@@ -615,7 +615,7 @@ def test_a_real_walk_moved_onto_a_treadmill_gives_the_walking_speed(real_c3d):
     not."""
     from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
     from mocaplib.trial import Trial
 
     walk = read_c3d(real_c3d("ezc3d_testfiles/Qualisys.c3d"))
@@ -640,7 +640,7 @@ def test_feet_follow_the_fits_left_right_exchange():
     from mocaplib.model.calibration import calibrate
     from mocaplib.model.ik import fit
     from mocaplib.io.c3d import read_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
     from mocaplib.trial import Trial
 
     trial = read_c3d(SAMPLES / "walk_straight_normal.c3d")

@@ -567,7 +567,7 @@ def test_with_one_static_and_auto_every_command_resolves_the_protocol_on_the_cap
     from mocaplib.model.calibration import calibrate
     from mocaplib.io.c3d import read_c3d
     from mocaplib.io.c3d_write import write_c3d
-    from mocaplib.markersets.protocols import detect_protocol
+    from mocaplib.markersets.matching import detect_protocol
 
     rest = read_c3d(synthetic_folder / "rest.c3d")
     back = rest.markers[:, [rest.labels.index("T10")]] + [-0.05, -0.05, 0.0]

@@ -13,9 +13,9 @@ from protocol_trials import select, walker_trial
 
 from mocaplib.errors import ProtocolError
 from mocaplib.io.c3d import read_c3d
-from mocaplib.markersets.protocols import (detect_protocol, find_side_swaps, is_model_output,
-                                is_numbered_point, list_protocols, load_protocol,
-                                match_protocol)
+from mocaplib.markersets.protocols import list_protocols, load_protocol
+from mocaplib.markersets.matching import detect_protocol, is_model_output, is_numbered_point, match_protocol
+from mocaplib.markersets.matching import find_side_swaps
 from mocaplib.trial import Trial
 
 #: The protocol each real file must be detected as (see protocols/*.toml and SOURCES.md).
@@ -390,7 +390,7 @@ def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
 
 def _computed_by_definition(trial):
     """computed_points' definition, point by point against every other point, all frames."""
-    from mocaplib.markersets.protocols import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
+    from mocaplib.markersets.matching import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
 
     X = trial.markers
     expected = set()
@@ -411,7 +411,7 @@ def _computed_by_definition(trial):
 def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, name):
     # every point a candidate: the shortcuts (the screen on a few frames, one rigid pair
     # settling a point) must change nothing
-    from mocaplib.markersets.protocols import computed_points
+    from mocaplib.markersets.matching import computed_points
 
     trial = read_c3d(real_c3d(name))
     expected = _computed_by_definition(trial)
@@ -423,7 +423,7 @@ def test_a_point_rigid_over_the_trial_stays_computed_when_it_jumps_on_the_screen
     # the quick look at every pair sees only SCREEN_FRAMES frames: a point whose one jump
     # falls on one of them looks loose there though it is rigid over the whole trial (SD 0.8
     # times RIGID_SD); a jittering point is loose everywhere
-    from mocaplib.markersets.protocols import RIGID_SD, SCREEN_FRAMES, computed_points
+    from mocaplib.markersets.matching import RIGID_SD, SCREEN_FRAMES, computed_points
 
     frames = 400
     rng = np.random.default_rng(3)

@@ -10,7 +10,7 @@ from mocaplib.errors import CalibrationError
 from mocaplib.model.fitting import fit_capture
 from mocaplib.io.c3d import read_c3d
 from mocaplib.build.settings import BuildSettings
-from mocaplib.markersets.protocols import match_trial
+from mocaplib.markersets.matching import match_trial
 from mocaplib.trial import Trial
 from mocaplib.build.workflow import process_capture
 

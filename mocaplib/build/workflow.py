@@ -244,7 +244,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
     from ..gait.cycles import motion_cycles, shoulder_centres
     from ..gait.events import capture_events
     from ..io.c3d import read_c3d
-    from ..markersets.protocols import match_trial, missing_landmarks_error
+    from ..markersets.matching import match_trial, missing_landmarks_error
     from ..statics import static_names
 
     with clock.stage("import"):

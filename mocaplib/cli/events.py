@@ -35,9 +35,9 @@ def add_common_options(parser) -> None:
 
 def load(args):
     """(trial, protocol match, missing-landmarks error or None) of ``args.file`` with
-    ``args.protocol`` (:func:`mocaplib.markersets.protocols.missing_landmarks_error`)."""
+    ``args.protocol`` (:func:`mocaplib.markersets.matching.missing_landmarks_error`)."""
     from ..io.c3d import read_c3d
-    from ..markersets.protocols import match_trial, missing_landmarks_error
+    from ..markersets.matching import match_trial, missing_landmarks_error
 
     trial = read_c3d(args.file)
     match = match_trial(trial, args.protocol)

@@ -41,7 +41,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from ..export.angles_csv import write_angles_csv
     from ..io.c3d import read_c3d
-    from ..markersets.protocols import match_trial, missing_landmarks_error
+    from ..markersets.matching import match_trial, missing_landmarks_error
     from ..model.fitting import fit_capture
     from ..model.ik import fit_quality
     from ..statics import static_names

@@ -204,7 +204,7 @@ def capture_events(trial, match, /, *, motion=None, **settings
     under it (:func:`ground_velocity`), each foot prepared once; what ``mocaplib events``,
     ``mocaplib cycles`` and ``mocaplib build`` run.
 
-    The feet are the markers ``match`` (:class:`mocaplib.markersets.protocols.ProtocolMatch`) names, gaps
+    The feet are the markers ``match`` (:class:`mocaplib.markersets.matching.ProtocolMatch`) names, gaps
     filled from the fitted ``motion`` when given (:func:`feet_of`); the events' ``quality``
     counts only the samples the capture measured. ``settings`` as for :func:`detect_events`.
     """
@@ -697,7 +697,7 @@ def feet_of(trial, match, /, *, motion=None
 
     Returns ``{"left": (heel, toe), "right": ...}`` (F, 3) m and ``{"left": (F,) bool, ...}``,
     the frames where the capture measured both (pass it as :func:`detect_events`'s
-    ``measured``). ``match`` is a :class:`mocaplib.markersets.protocols.ProtocolMatch`; the toe is the
+    ``measured``). ``match`` is a :class:`mocaplib.markersets.matching.ProtocolMatch`; the toe is the
     first present of :data:`FOOT_LANDMARKS`. With a fitted ``motion``
     (:class:`mocaplib.Motion`), samples where a marker is missing are taken from the fitted
     skeleton's position of that marker, except in frames the fit flagged as failed and before

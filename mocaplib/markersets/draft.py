@@ -45,8 +45,9 @@ from ..numeric import nanmedian
 from ..skeleton import SEGMENT_NAMES, Skeleton
 from ..statics import STANDING_EXTENT
 from ..trial import Trial, normalise_label
-from .protocols import (REFERENCE_HEIGHT, _read_toml, computed_points, forward_direction,
-                        is_model_output, load_landmarks, numbered_candidates, protocol_folders)
+from .matching import computed_points, is_model_output, numbered_candidates
+from .protocols import REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml
+from .sides import forward_direction
 
 #: Cost (m) a name that points to a landmark takes off the distance to it...
 NAME_BONUS = 0.20
@@ -175,7 +176,7 @@ def _name_table(folders: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
         path = os.path.join(folder, "label_names.toml")
         if not os.path.isfile(path):
             continue
-        for key, stems in _read_toml(path).items():
+        for key, stems in read_protocol_toml(path).items():
             if not isinstance(stems, list) or not all(isinstance(x, str) for x in stems):
                 raise ProtocolError(f"{key!r} must list name stems", path=path)
             for stem in stems:
@@ -254,7 +255,7 @@ def body_positions(X: np.ndarray, cues: dict[str, np.ndarray]) -> tuple[np.ndarr
     metres, and how the forward direction was found. The origin is the median of the markers
     at pelvis height (45-72 % of the highest marker's height), on the floor (the lowest 1 % of
     the samples). ``cues`` maps landmark names found by name to their trajectories (F, 3): the
-    pelvis's front (:func:`mocaplib.markersets.protocols.forward_direction`) sets forward where it can;
+    pelvis's front (:func:`mocaplib.markersets.sides.forward_direction`) sets forward where it can;
     else the direction of travel."""
     n = len(X)
     with warnings.catch_warnings():

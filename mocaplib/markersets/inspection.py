@@ -12,7 +12,8 @@ import os
 
 from ..errors import MocapError, ProtocolError
 from ..trial import Trial, check_gait_rate
-from .protocols import Protocol, match_trial, overrides
+from .matching import match_trial
+from .protocols import Protocol, overrides
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",

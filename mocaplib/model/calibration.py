@@ -91,7 +91,8 @@ import numpy as np
 
 from ..errors import CalibrationError
 from ..markersets import protocols as _protocols
-from ..markersets.protocols import Protocol, label_match, match_trial
+from ..markersets.protocols import Protocol
+from ..markersets.matching import label_match, match_trial
 from ..numeric import distinct, median
 from ..skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGMENTS, SHIFTS,
                         Skeleton, partner_name)
@@ -151,8 +152,8 @@ PLACED_ON_STATIC_AND_MOTION = ("humerus_l", "humerus_r", "forearm_l", "forearm_r
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
     """The protocol to use: the one given (object, shipped name or TOML path), else (None or
-    "auto") the one :func:`mocaplib.markersets.protocols.detect_protocol` finds for the trial's labels;
-    resolved by :func:`mocaplib.markersets.protocols.match_trial`, as every command resolves it."""
+    "auto") the one :func:`mocaplib.markersets.matching.detect_protocol` finds for the trial's labels;
+    resolved by :func:`mocaplib.markersets.matching.match_trial`, as every command resolves it."""
     if isinstance(protocol, Protocol):
         return protocol
     return match_trial(trial, "auto" if protocol is None else protocol).protocol

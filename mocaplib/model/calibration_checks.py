@@ -15,8 +15,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import CalibrationError
-from ..markersets import protocols as _protocols
-from ..markersets.protocols import Protocol, label_match
+from ..markersets.matching import label_match
+from ..markersets.protocols import Protocol
+from ..markersets.sides import forward_cues
 from ..numeric import median, nanmedian
 from ..skeleton import SEGMENT_NAMES
 from ..statics import static_names
@@ -78,7 +79,7 @@ def check_upright(X: np.ndarray, segments: np.ndarray, cal: Trial) -> None:
 
 def check_sides(X: np.ndarray, landmarks: list[str], cal: Trial) -> None:
     """Raise :class:`CalibrationError` naming ``cal`` when, by every front/back cue its
-    landmarks give (two at least: :func:`mocaplib.markersets.protocols.forward_cues`, which an exchange
+    landmarks give (two at least: :func:`mocaplib.markersets.sides.forward_cues`, which an exchange
     of sides leaves, Z up), most of its left/right landmark pairs (``landmarks`` (M,) names of
     the calibration frames ``X`` (F, M, 3)) have the left one on the subject's right: the left
     and right labels are exchanged throughout, and a mirrored body would be fitted. One cue
@@ -86,7 +87,7 @@ def check_sides(X: np.ndarray, landmarks: list[str], cal: Trial) -> None:
     at = {name: X[:, i] for i, name in enumerate(landmarks)}
     pairs = [(name, "R" + name[1:]) for name in at
              if name.startswith("L_") and "R" + name[1:] in at]
-    cues = _protocols.forward_cues(at, len(X))
+    cues = forward_cues(at, len(X))
     if len(pairs) < 3 or len(cues) < 2:
         return
     counts = []

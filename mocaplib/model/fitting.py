@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from ..skeleton import SEGMENTS
 
 if TYPE_CHECKING:
-    from ..markersets.protocols import ProtocolMatch
+    from ..markersets.matching import ProtocolMatch
     from ..trial import Trial
     from .motion import Motion
     from .subject import SubjectModel
@@ -44,7 +44,7 @@ class FittedCapture:
     Attributes
     ----------
     match : ProtocolMatch
-        The capture's labels matched with its protocol (:func:`mocaplib.markersets.protocols.match_trial`).
+        The capture's labels matched with its protocol (:func:`mocaplib.markersets.matching.match_trial`).
     cutoff : float or None
         Hz the markers were low-passed at (None: not filtered).
     model : SubjectModel
@@ -77,8 +77,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     (:func:`mocaplib.model.calibration.calibrate`) on the static that shows the capture's subject or
     on the capture itself, then :func:`mocaplib.model.ik.fit_filtered`.
 
-    ``protocol``: a :class:`~mocaplib.markersets.protocols.ProtocolMatch` of this trial, or what
-    :func:`mocaplib.markersets.protocols.match_trial` takes (a Protocol, shipped name, TOML path or
+    ``protocol``: a :class:`~mocaplib.markersets.matching.ProtocolMatch` of this trial, or what
+    :func:`mocaplib.markersets.matching.match_trial` takes (a Protocol, shipped name, TOML path or
     "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
     a list of them, one per subject or session (the one that shows this capture's subject is
     used, :func:`mocaplib.model.calibration_checks.choose_static`), in ``static_pose``. When none shows the
@@ -94,7 +94,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
     """
     from ..errors import CalibrationError
-    from ..markersets.protocols import ProtocolMatch, match_trial
+    from ..markersets.matching import ProtocolMatch, match_trial
     from ..statics import static_names
     from .calibration import calibrate
     from .calibration_checks import check_static, choose_static

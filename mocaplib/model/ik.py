@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import FitError
-from ..markersets.protocols import label_match
+from ..markersets.matching import label_match
 from ..numeric import distinct
 from ..skeleton import DOF_NAMES, MOVES, twist_jacobian, twists
 from .motion import Motion, Repair, apply_repairs
@@ -97,7 +97,7 @@ def fit(trial: "Trial", model: "SubjectModel", /, *, robust_scale: float = ROBUS
 
     Parameters
     ----------
-    trial : Trial with the model's protocol labels (matched as :func:`mocaplib.markersets.protocols.label_match` does).
+    trial : Trial with the model's protocol labels (matched as :func:`mocaplib.markersets.matching.label_match` does).
     model : SubjectModel from :func:`mocaplib.model.calibration.calibrate`.
     robust_scale : soft-L1 scale, metres; ``np.inf`` for plain least squares.
     smoothing : continuity weight μ (metres per radian); 0 switches it off.
