@@ -44,8 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.gait.events import (LAB_EVENT_KINDS, TOE_OFF_DEFINITIONS,  # noqa: E402
-                             EventSettings, capture_events, event_differences)
+from mocaplib.gait.events import TOE_OFF_DEFINITIONS, EventSettings, capture_events
+from mocaplib.gait.feet import LAB_EVENT_KINDS, event_differences
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.markersets.matching import detect_protocol
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402

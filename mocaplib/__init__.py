@@ -22,7 +22,7 @@ _EXPORTS = {
     "fit": "mocaplib.model.ik",
     "filter_trial": "mocaplib.model.filtering",
     "detect_events": "mocaplib.gait.events",
-    "GaitEvent": "mocaplib.gait.events",
+    "GaitEvent": "mocaplib.gait.foot_events",
     "analyse_cycles": "mocaplib.gait.cycles",
     "Cycle": "mocaplib.gait.cycles",
     "read_c3d": "mocaplib.io.c3d",

@@ -7,7 +7,7 @@ import pytest
 
 from mocaplib.gait.cycles import REST_PERIOD, analyse_cycles, choose_cycle, cycle_bounds
 from mocaplib.errors import EventError
-from mocaplib.gait.events import GaitEvent
+from mocaplib.gait.foot_events import GaitEvent
 from mocaplib.skeleton import DOF_NAMES
 
 from gait_model import shoulders
@@ -155,7 +155,8 @@ def test_synthetic_truth_shoulders_give_the_true_velocities():
 def test_synthetic_captures_from_markers():
     from sample_captures import samples
 
-    from mocaplib.gait.events import feet_of, ground_velocity
+    from mocaplib.gait.events import ground_velocity
+    from mocaplib.gait.feet import feet_of
 
     checked = 0
     for name, trial, match, events, truth in samples():

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import EventError
-from mocaplib.gait.events import (GaitEvent, capture_events, detect_events, event_differences, feet_of,
-                             foot_events, running)
+from mocaplib.gait.events import capture_events, detect_events, foot_events, running
+from mocaplib.gait.foot_events import GaitEvent
+from mocaplib.gait.feet import event_differences, feet_of
 
 from gait_model import foot
 
@@ -318,8 +319,8 @@ def test_events_and_ground_velocity_prepare_each_foot_once(monkeypatch, real_c3d
     separate = (detect_events(feet, trial.rate, measured=measured),
                 ground_velocity(feet, trial.rate))
     calls = []
-    floor = events_module._floor
-    monkeypatch.setattr(events_module, "_floor", lambda *a, **k: calls.append(1) or floor(*a, **k))
+    floor = events_module.floor_height
+    monkeypatch.setattr(events_module, "floor_height", lambda *a, **k: calls.append(1) or floor(*a, **k))
     found, ground = capture_events(trial, match)
     assert len(calls) == 2                         # one per foot
     assert found == separate[0] and np.array_equal(ground, separate[1]) and ground.any()

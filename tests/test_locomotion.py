@@ -12,7 +12,7 @@ from conftest import SAMPLES
 from mocaplib.build.pipeline import build
 from mocaplib.build.settings import BuildSettings
 from mocaplib.gait.cycles import Cycle
-from mocaplib.gait.events import GaitEvent
+from mocaplib.gait.foot_events import GaitEvent
 from mocaplib.gait.locomotion import locomotion_class, stride_gait
 from mocaplib.gait.patterns import CycleVelocities, Pattern
 

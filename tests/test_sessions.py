@@ -82,7 +82,7 @@ def test_the_hint_for_a_static_given_as_a_motion_says_it_stands(tmp_path):
     assert main(["cycles", str(path)]) == 1
     # it has a step or none; either way it is told it stands, not to check POINT:RATE
     from mocaplib.gait.cycles import analyse_cycles
-    from mocaplib.gait.events import GaitEvent
+    from mocaplib.gait.foot_events import GaitEvent
 
     trial = read_c3d(path)
     shoulders = [trial.marker(label) for label in ("LSHO", "RSHO")]

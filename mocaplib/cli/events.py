@@ -1,7 +1,7 @@
 """``mocaplib events FILE``: left/right toe-offs and heel-strikes detected from the foot markers.
 
 Parses options and formats; the work is :func:`mocaplib.gait.events.capture_events` on the heel and
-toe markers the protocol names (:func:`mocaplib.gait.events.feet_of`).
+toe markers the protocol names (:func:`mocaplib.gait.feet.feet_of`).
 """
 
 from __future__ import annotations

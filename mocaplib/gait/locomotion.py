@@ -26,7 +26,7 @@ import math
 from collections.abc import Sequence
 
 from .cycles import GAIT_ORDERS, Cycle, event_name
-from .events import GaitEvent
+from .foot_events import GaitEvent
 
 #: Largest angle (rad) between the path and the facing direction of a nonholonomic cycle: half
 #: the smallest holonomic direction of the paper's plan (60°).

@@ -1,0 +1,105 @@
+"""The floor under the feet: its height from the feet's low samples, and the ground's velocity
+on a treadmill (the belt's, shared by both feet in stance).
+
+Foot points are ``(F, 3)`` arrays in metres, Z up; velocities m/s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2,
+           min_extent: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Heights (2, F) of heel and toe above the floor they stand on (m), and the floor's
+    horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill).
+
+    The ground velocity is the horizontal velocity most of the frames where the foot's
+    lowest point is within 3 cm of its lowest height share (:func:`_shared_velocity`, within
+    ``still_speed``): the foot flat on the floor. Samples where a point moves slower
+    than ``still_speed`` relative to the ground are standing on the floor; the floor is the
+    plane ``z = a_p + slope·xy`` (an offset per point, one slope) fitted to them by least
+    squares, dropping samples more than 1 cm off and refitting. Lab floors and calibrations
+    tilt by a degree or so (2-3 cm over a stride in the CMU files) and treadmill belts are
+    raised (0.24 m in the running file); a percentile of the raw height would take either for
+    swing. The slope is fitted only along horizontal directions the standing samples span by
+    ``min_extent`` or more (none when standing or turning on the spot, one on a straight walk).
+    """
+    z = points[:, :, 2]
+    rough = z - np.nanpercentile(z, 5, axis=1)[:, None]
+    centre_velocity = velocity.mean(axis=0)
+    with np.errstate(invalid="ignore"):
+        near = (rough.min(axis=0) < 0.03) & np.isfinite(centre_velocity[:, 0])
+    ground = np.zeros(3)
+    if near.any():
+        ground[:2] = _shared_velocity(centre_velocity[near, :2], still_speed)
+        if not _is_belt(centre_velocity, near, ground, still_speed):
+            ground[:] = 0.0
+    with np.errstate(invalid="ignore"):
+        still = np.linalg.norm(velocity - ground, axis=2) < still_speed
+    still &= np.isfinite(z)
+    if still.sum() < 10:  # never still (odd data): the lowest tenth of each point's samples
+        with np.errstate(invalid="ignore"):
+            still = rough < np.nanpercentile(rough, 10, axis=1)[:, None]
+    owner, frame = np.nonzero(still)
+    if len(owner) <= len(points):  # too few samples for a floor: heights above the lowest
+        return rough, ground
+    xy = points[owner, frame, :2]
+    centre = xy.mean(axis=0)
+    _, _, axes = np.linalg.svd(xy - centre, full_matrices=False)
+    axes = axes[np.ptp((xy - centre) @ axes.T, axis=0) >= min_extent]
+    design = np.column_stack([owner[:, None] == np.arange(len(points)),
+                              (xy - centre) @ axes.T]).astype(float)
+    target = z[owner, frame]
+    keep = np.ones(len(target), dtype=bool)
+    for _ in range(5):
+        coef, *_ = np.linalg.lstsq(design[keep], target[keep], rcond=None)
+        new_keep = np.abs(target - design @ coef) < 0.01
+        if np.array_equal(new_keep, keep) or new_keep.sum() <= design.shape[1]:
+            break
+        keep = new_keep
+    floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
+    return z - floor, ground
+
+
+def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
+    """The horizontal velocity (2,) m/s most of ``velocity`` (N, 2) share: of 256 evenly
+    spaced samples, the one with the most of 4096 evenly spaced samples within ``radius``/2;
+    then, twice, the median of the samples within ``radius`` of it.
+
+    A foot near the floor is flat on it (moving with the ground) for most of its stance, and
+    arriving or leaving for the rest, each at its own speed: the median of all lies between
+    the two, 0.17 m/s off a belt's speed on a short treadmill capture, and may sit further
+    than ``radius`` from it; the velocity most samples share is the flat foot's.
+    """
+    sample = velocity[np.linspace(0, len(velocity) - 1, min(len(velocity), 4096)).astype(int)]
+    picks = sample[np.linspace(0, len(sample) - 1, min(len(sample), 256)).astype(int)]
+    close = np.linalg.norm(sample[None] - picks[:, None], axis=2) < radius / 2     # (256, 4096)
+    shared = picks[np.argmax(close.sum(axis=1))]
+    for _ in range(2):
+        shared = np.median(velocity[np.linalg.norm(velocity - shared, axis=1) < radius], axis=0)
+    return shared
+
+
+def _is_belt(centre_velocity: np.ndarray, low: np.ndarray, ground: np.ndarray,
+             still_speed: float) -> bool:
+    """Whether ``ground`` (3,) m/s, estimated from the foot centre's velocity (F, 3) over the
+    ``low`` frames (F,) bool, is a treadmill belt's rather than a foot's on a fixed floor.
+
+    The median over the low frames is not zero overground: at fast walking and running the
+    frames within 3 cm of the floor include the foot arriving and leaving, which pull it to
+    ~0.25 m/s along the travel. A belt needs both kinds of evidence: (1) more low frames move
+    with ``ground`` than stand still (each within ``still_speed``/2), as a foot flat on a belt
+    does for most of its stance; (2) the foot's mean horizontal velocity over the capture (its
+    net travel / duration) is under half the belt's speed: a treadmill walker stays in place,
+    while overground the foot travels at the walking speed, several times the false estimate.
+    """
+    speed = float(np.hypot(*ground[:2]))
+    if speed == 0.0:
+        return False
+    tolerance = 0.5 * still_speed
+    horizontal = centre_velocity[low, :2]
+    moving = np.sum(np.linalg.norm(horizontal - ground[:2], axis=1) < tolerance)
+    standing = np.sum(np.linalg.norm(horizontal, axis=1) < tolerance)
+    travel = np.hypot(*np.nanmean(centre_velocity[:, :2], axis=0))
+    return bool(moving > standing and travel < 0.5 * speed)

@@ -1,0 +1,221 @@
+"""One foot's gait events (:class:`GaitEvent`): when, within one swing of the foot, its toe-off
+and its heel-strike happen: the release of the last marker to leave the floor, the lift, the
+arrival, each refined to sub-frame precision from the kink of the foot's trajectory.
+
+Foot points are ``(F, 3)`` arrays in metres, Z up; times in seconds or frames as named.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..runs import valid_runs
+
+
+def swing_spans(contact: np.ndarray, clearance: np.ndarray, min_frames: int) -> list[tuple[int, int]]:
+    """[start, end) of each run of at least ``min_frames`` measured frames out of contact; a
+    run cut short by either end of the capture needs only 3 (its one visible event is seen)."""
+    runs = valid_runs(~contact & np.isfinite(clearance)).tolist()
+    return [(s, e) for s, e in runs
+            if e - s >= min_frames or ((s == 0 or e == len(contact)) and e - s >= 3)]
+
+
+def peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
+    """Sub-frame time (frames) of the maximum of ``signal[lo:hi]`` by a parabola; None if none."""
+    window = signal[lo:hi]
+    if window.size == 0 or not np.isfinite(window).any():
+        return None
+    i = lo + int(np.nanargmax(window))
+    if 0 < i < len(signal) - 1 and np.isfinite(signal[i - 1:i + 2]).all():
+        y0, y1, y2 = signal[i - 1:i + 2]
+        curvature = y0 - 2 * y1 + y2
+        if curvature < 0:
+            return i + 0.5 * (y0 - y2) / curvature
+    return float(i)
+
+
+def toe_off_time(foot: FootTrack, last: int, lo: int, hi: int, rate: float) -> float | None:
+    """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames): the mean of
+    the upward-velocity peak of the point :data:`TOE_OFF_WEIGHT` of the way from the other
+    marker to the one that left last (index ``last``) and the time the foot's pitch rate falls
+    to :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (module docstring); None when
+    either is not found."""
+    velocity = foot.velocity[:, :, 2]
+    push = TOE_OFF_WEIGHT * velocity[last] + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last]
+    peak = peak_time(push, lo, hi)
+    release = _release_time(_pitch_rate(foot.points, last, rate), lo, hi)
+    return None if peak is None or release is None else 0.5 * (peak + release)
+
+
+def _pitch_rate(points: np.ndarray, last: int, rate: float) -> np.ndarray:
+    """The foot's pitch rate (F,) rad/s from low-passed heel and toe ``points`` (2, F, 3) m:
+    how fast the marker that left the floor first rises over the one that left last (index
+    ``last``), as the elevation angle of the line between them; > 0 while the foot rolls over
+    its forefoot."""
+    rolling = points[1 - last] - points[last]
+    pitch = np.arctan2(rolling[:, 2], np.linalg.norm(rolling[:, :2], axis=1))
+    return np.gradient(pitch) * rate if len(pitch) > 1 else 0.0 * pitch
+
+
+def _release_time(pitch_rate: np.ndarray, lo: int, hi: int) -> float | None:
+    """When the pitch rate (F,) rad/s, past its push-off peak in ``[lo, hi)`` (frames), has
+    fallen to :data:`TOE_OFF_PITCH_FRACTION` of that peak (frames, sub-frame by linear
+    interpolation); None without a positive peak or a crossing before ``hi``."""
+    window = pitch_rate[lo:hi]
+    if window.size == 0 or not np.isfinite(window).any():
+        return None
+    peak = lo + int(np.nanargmax(window))
+    level = TOE_OFF_PITCH_FRACTION * pitch_rate[peak]
+    if not pitch_rate[peak] > 0:
+        return None
+    below = np.flatnonzero(~(pitch_rate[peak:hi] > level))
+    if not below.size:
+        return None
+    i = peak + int(below[0])
+    if not np.isfinite(pitch_rate[i]):
+        return None
+    return (i - 1) + (pitch_rate[i - 1] - level) / (pitch_rate[i - 1] - pitch_rate[i])
+
+
+def lift_time(upward: np.ndarray, peak: float, rate: float) -> float:
+    """When a point's low-passed upward velocity ``upward`` (F,) m/s rises fastest (frames),
+    from 0.1 s before to 0.05 s after the foot centre's upward-velocity ``peak`` (frames)."""
+    reach = round(0.1 * rate)
+    lift = peak_time(np.gradient(upward), max(0, int(peak) - reach), int(peak) + reach // 2)
+    return peak if lift is None else lift
+
+
+def arrival_time(speed, top, end, hi, window, rise=0.3) -> float | None:
+    """When a contact point stops: the knot where its speed ceases to fall (mirror image)."""
+    peak = top + int(np.nanargmax(speed[top:end + 1]))
+    rest = peak + int(np.nanargmin(speed[peak:hi]))
+    lo = rest - int(np.argmax(speed[peak:rest + 1][::-1] > rise * speed[peak]))
+    return _knot(speed, lo, min(hi, lo + window + 1))
+
+
+def _knot(signal: np.ndarray, lo: int, hi: int, step: float = 0.05) -> float | None:
+    """Sub-frame knot (frames) of the best continuous two-line fit to ``signal[lo:hi]`` whose
+    slope increases at the knot (a speed starting to rise, or ceasing to fall); None if the
+    window is too short or holds missing samples."""
+    hi = min(hi, len(signal))
+    y = signal[lo:hi]
+    if len(y) < 5 or not np.isfinite(y).all():
+        return None
+    x = np.arange(lo, hi, dtype=np.float64)
+    knots = np.arange(lo + 1, hi - 2 + step / 2, step)
+    design = np.stack([np.ones((len(knots), len(x))), x - knots[:, None],
+                       np.maximum(x - knots[:, None], 0.0)], axis=2)         # (K, n, 3)
+    gram = design.transpose(0, 2, 1) @ design
+    coef = np.linalg.solve(gram, (design.transpose(0, 2, 1) @ y)[:, :, None])  # (K, 3, 1)
+    cost = np.sum(((design @ coef)[:, :, 0] - y) ** 2, axis=1)
+    coef = coef[:, :, 0]
+    cost[coef[:, 2] <= 0] = np.inf
+    best = int(np.argmin(cost))
+    return float(knots[best]) if np.isfinite(cost[best]) else None
+
+
+def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> float | None:
+    """Sub-frame time (frames) of the best kink in ``values`` (F,) or (F, C) near ``centre``.
+
+    Fits, over ``centre ± half`` frames of the *unfiltered* samples, a curve that is quadratic
+    on each side of a knot and continuous there (so its velocity and acceleration may jump), for
+    every knot on a ``step`` grid within ``centre ± half/2``, and returns the knot of least
+    squared error: where a foot point's velocity jumps (lift-off or landing of a rigid foot) or,
+    for smooth data, where its acceleration changes most.
+    """
+    values = values.reshape(len(values), -1)
+    lo = max(0, int(np.floor(centre - half / 2)) - half // 2)
+    hi = min(len(values), int(np.ceil(centre)) + half + 1)
+    y = values[lo:hi]
+    if hi - lo < 2 * half // 2 + 6 or not np.isfinite(y).all():
+        return None
+    x = np.arange(lo, hi, dtype=np.float64)
+    knots = np.arange(max(centre - half / 2, lo + 2), min(centre + half / 2, hi - 3) + step / 2,
+                      step)
+    if knots.size == 0:
+        return None
+    d = x - knots[:, None]                                                   # (K, n)
+    after = np.maximum(d, 0.0)
+    design = np.stack([np.ones_like(d), d, d * d, after, after * after], axis=2)  # (K, n, 5)
+    gram = design.transpose(0, 2, 1) @ design
+    coef = np.linalg.solve(gram, design.transpose(0, 2, 1) @ y)             # (K, 5, C)
+    cost = np.sum((design @ coef - y) ** 2, axis=(1, 2))
+    return float(knots[int(np.argmin(cost))])
+
+
+def _refined(values: np.ndarray, coarse: float, half: int, rounds: int = 4) -> float:
+    """``coarse`` (frames) moved to the kink of the unfiltered ``values``: the search window is
+    re-centred on each kink found until it stays put (at most ``rounds`` times)."""
+    time = coarse
+    for _ in range(rounds):
+        fine = _kink(values, time, half)
+        if fine is None or abs(fine - time) < 0.5:
+            return time if fine is None else fine
+        time = fine
+    return time
+
+
+def median_kink(raw: np.ndarray, point: int, coarse: float, half: int) -> float:
+    """Median of the refined times (frames) from ``raw[point]`` (F, 3), its height, and both
+    points together; ``raw`` is (2, F, 3) unfiltered heel and toe."""
+    return float(np.median([_refined(signal, coarse, half) for signal in
+                            (raw[point], raw[point, :, 2], raw.transpose(1, 0, 2))]))
+
+
+def gait_event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float) -> GaitEvent:
+    frame = int(np.clip(round(time_s * rate), 0, len(measured) - 1))
+    half = max(1, round(0.05 * rate))
+    quality = float(measured[max(0, frame - half):frame + half + 1].mean())
+    return GaitEvent(side, kind, float(time_s), frame, quality)
+
+
+#: Where the default toe-off's velocity-peak point lies between a foot's two markers: this
+#: share of the way from the one that left the floor first to the one that left last.
+TOE_OFF_WEIGHT = 0.6
+
+
+#: Share of its push-off peak the foot's pitch rate has fallen to at the default toe-off's
+#: end-of-roll mark (half: the peak's half-maximum on its falling side).
+TOE_OFF_PITCH_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class GaitEvent:
+    """One detected gait event.
+
+    Attributes
+    ----------
+    side : ``"left"`` or ``"right"``
+    kind : ``"toe_off"`` or ``"heel_strike"``
+    time_s : float
+        Seconds from the capture's first frame, with sub-frame precision.
+    frame : int
+        Nearest frame index (0-based).
+    quality : float
+        Fraction (0..1) of the frames within 50 ms of the event where the capture measured both
+        the heel and the toe (not filled in, linearly or from a fitted model).
+    """
+
+    side: str
+    kind: str
+    time_s: float
+    frame: int
+    quality: float
+
+
+@dataclass(frozen=True)
+class FootTrack:
+    """One foot ready for detection: the frames (F,) bool where heel and toe were both given,
+    the gap-filled raw heel and toe (2, F, 3) m, their low-passed version and its velocity
+    (m/s), their heights above the floor (2, F) m and the floor's horizontal velocity (3,) m/s.
+    """
+
+    side: str
+    given: np.ndarray
+    raw: np.ndarray
+    points: np.ndarray
+    velocity: np.ndarray
+    heights: np.ndarray
+    ground: np.ndarray
