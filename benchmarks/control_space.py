@@ -10,7 +10,7 @@ rebuilt from them (:func:`mocaplib.library.controlspace.leave_one_out`), the med
 in motion of the joint-angle RMS and max, heading, root, stride, turn and period errors, the
 rows rebuilt mostly (> 50 %) from another gait mode (walking from running or back), and the
 worst stride error; and the share of the default envelope the library covers
-(:func:`mocaplib.library.controlspace.coverage`). Prints Markdown (``--markdown PATH`` also writes it
+(:func:`mocaplib.library.coverage.coverage`). Prints Markdown (``--markdown PATH`` also writes it
 into a results page, :mod:`markdown_results`).
 """
 
@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.library.controlspace import ControlSpace, coverage, leave_one_out  # noqa: E402
+from mocaplib.library.controlspace import ControlSpace, leave_one_out
+from mocaplib.library.coverage import coverage
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.report.plan import default_envelope  # noqa: E402
 

@@ -9,9 +9,9 @@ import pytest
 
 from scipy.spatial import ConvexHull, Delaunay
 
-from mocaplib.library.controlspace import (DEFAULT_SCALE, Blend, ControlSpace, Envelope, coverage,
-                                   delaunay_tetrahedra,
-                                   leave_one_out, tetra_quality)
+from mocaplib.library.controlspace import DEFAULT_SCALE, Blend, ControlSpace, leave_one_out
+from mocaplib.library.coverage import Envelope, coverage
+from mocaplib.library.triangulation import delaunay_tetrahedra, tetra_quality
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.gait.fourier import root_drift, synthesize
 from mocaplib.library.format import assemble_library

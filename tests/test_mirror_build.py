@@ -78,7 +78,8 @@ def test_a_mirrored_library_of_the_samples_covers_the_default_envelope(mirrored_
     """Target: >= 99 % of the default envelope (the paper plan's commands) with the mirror
     images in, flagged as such (3 straight walks, 2 runs and rest are their own mirror
     images). Measured: 99.16 % with the images, 99.13 % without."""
-    from mocaplib.library.controlspace import ControlSpace, coverage
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.coverage import coverage
     from mocaplib.library.format import validate_library
     from mocaplib.report.plan import default_envelope
 

@@ -505,7 +505,7 @@ def test_envelope_and_planned_captures_from_a_capture_plan(tmp_path):
     ("v = [0.0, true]", "v"), ("points = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, nan]]", "points"),
 ])
 def test_an_envelope_holds_finite_numbers_only(table, key, tmp_path):
-    from mocaplib.library.controlspace import Envelope
+    from mocaplib.library.coverage import Envelope
     from mocaplib.errors import MocapError
 
     path = tmp_path / "env.toml"
@@ -516,7 +516,7 @@ def test_an_envelope_holds_finite_numbers_only(table, key, tmp_path):
 
 
 def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
-    from mocaplib.library.controlspace import Envelope
+    from mocaplib.library.coverage import Envelope
 
     scale = np.array([1.5, np.pi / 2, 0.5])
     for box in ({"v": (0, 1.8), "omega": (-1.2, 1.2), "v_l": (-0.5, 0.5)},   # symmetric
@@ -527,7 +527,8 @@ def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
 
 
 def test_capture_next_finds_a_missing_straight_walk_as_one():
-    from mocaplib.library.controlspace import ControlSpace, Envelope, coverage
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.coverage import Envelope, coverage
     from mocaplib.report.html import describe_command
 
     # Turns, side-steps and their mixtures both ways, no straight walking: the gap is there.
@@ -543,7 +544,7 @@ def test_capture_next_finds_a_missing_straight_walk_as_one():
 
 
 def test_ties_go_to_the_sample_nearest_the_centre():
-    from mocaplib.library.controlspace import _farthest
+    from mocaplib.library.coverage import _farthest
 
     distance = np.array([1.0, 2.0, 2.0, 2.0 - 1e-12, 0.5])
     off_centre = np.array([0.0, 0.9, 0.5, 0.1, 0.0])
@@ -702,7 +703,8 @@ def test_report_marks_mirror_images_and_counts_coverage_without_them(tmp_path):
     """Two right curves flagged as the series mirror images of the left ones: the Entries
     table names their sources, the coverage is given without them too (as computed on the
     captured entries alone), and the sidecar, which names no series image, is still used."""
-    from mocaplib.library.controlspace import ControlSpace, coverage
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.coverage import coverage
     from mocaplib.library.format import load_library
     from mocaplib.report import write_report
     from mocaplib.report.plan import default_envelope

@@ -42,27 +42,26 @@ padded with zeros), and the joint angles are synthesised with the team's convent
 
 Coverage
 --------
-A target :class:`Envelope` (the convex hull of a few points, SI units; by default the commanded
-velocities of a capture plan) is sampled on a regular grid; :func:`coverage` reports the
+A target :class:`~mocaplib.library.coverage.Envelope` (the convex hull of a few points, SI units; by default the commanded
+velocities of a capture plan) is sampled on a regular grid; :func:`~mocaplib.library.coverage.coverage` reports the
 fraction of those samples inside the library's hull, the largest hole (the sample farthest from
 every entry), sliver tetrahedra, entries per class and a greedy farthest-point "capture next" list.
 """
 
 from __future__ import annotations
 
-import hashlib
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import cKDTree
 
 from ..errors import LibraryError, MocapError
 from ..gait.fourier import RootDrift, synthesize
-from ..io.tomlfile import read_toml
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
+from .triangulation import (DEGENERACY_HINT, Triangulation, closest_on_triangles, degeneracy,
+                            delaunay_tetrahedra, locate, stack_padded, tetra_quality)
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
@@ -76,185 +75,6 @@ SLIVER_QUALITY = 0.1
 #: Entries closer than this (normalised: 30 mm/s of v̂, 1.8°/s, 10 mm/s of v̂_l) are hard to tell
 #: apart in the control space: blending between them switches motions over a tiny distance.
 CLOSE_DISTANCE = 0.02
-#: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
-#: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
-LIFT_PERTURBATION = 1e-8
-#: Largest ratio s3/s1 of the singular values of centred, normalised points that counts as
-#: flat (on a plane or a line: no tetrahedra). Measured (12 points on a plane, 6 of them moved
-#: off it by ±eps, 3 draws): the triangulation fails at s3/s1 ≈ 1e-12 and "succeeds" above,
-#: but at 1e-6 its thinnest tetrahedra have radius ratios ≤ 1e-13, a slab no query falls into;
-#: the chosen entries of the libraries at hand have s3/s1 ≥ 0.13 (17 real files; the 68 samples
-#: 0.49). Values are stored with 10 significant digits, so points on a plane before rounding
-#: stay below 1e-9 after it.
-DEGENERACY_TOLERANCE = 1e-6
-#: What to do about a degenerate control space (see :func:`degeneracy`).
-DEGENERACY_HINT = ("add captures with other speeds, turns and side-steps so the entries span "
-                   "all three axes")
-def degeneracy(x) -> str | None:
-    """Why finite normalised points x (E, 3) have no 3-D triangulation, or None when they have.
-
-    The one rule of library validation and :class:`ControlSpace`: fewer than 4 distinct points
-    (equal to 12 decimals, relative to the largest coordinate when it exceeds 1), or distinct
-    points within a plane or a line (singular values of the centred points: s3 <=
-    :data:`DEGENERACY_TOLERANCE` · s1). The reason completes "the control space is degenerate:
-    it …": "needs at least 4 entries with distinct velocities, got 3" or "lies on a plane, so
-    there are no tetrahedra".
-    """
-    x = np.asarray(x, dtype=float).reshape(-1, 3)
-    size = max(float(np.abs(x).max(initial=0.0)), 1.0)
-    distinct = np.unique(np.round(x / size, 12), axis=0)
-    if len(distinct) < 4:
-        return f"needs at least 4 entries with distinct velocities, got {len(distinct)}"
-    centred = distinct - distinct.mean(axis=0)
-    sv = np.linalg.svd(centred / np.abs(centred).max(), compute_uv=False)
-    if sv[2] <= DEGENERACY_TOLERANCE * sv[0]:
-        flat = "a line" if sv[1] <= DEGENERACY_TOLERANCE * sv[0] else "a plane"
-        return f"lies on {flat}, so there are no tetrahedra"
-    return None
-
-
-def _stack_padded(arrays) -> np.ndarray:
-    """Coefficient arrays of shapes (D, N_i+1) stacked into (E, D, max N_i + 1), zero-padded
-    (a missing harmonic is a zero harmonic, so padding changes nothing)."""
-    arrays = [np.asarray(x, dtype=float) for x in arrays]
-    out = np.zeros((len(arrays), arrays[0].shape[0], max(x.shape[1] for x in arrays)))
-    for i, x in enumerate(arrays):
-        out[i, :, :x.shape[1]] = x
-    return out
-
-
-# --------------------------------------------------------------------------- geometry
-def _closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray):
-    """Closest point of each triangle (A, B, C each (H, 3)) to each point p (Q, 3).
-
-    Returns the points (Q, H, 3) and their squared distances (Q, H): the projection onto the
-    triangle's plane when it falls inside the triangle, else the closest point of its edges.
-    """
-    n = np.cross(B - A, C - A)                       # (H, 3)
-    nn = np.einsum("hi,hi->h", n, n)
-    d = p[:, None, :] - A[None]                      # (Q, H, 3)
-    proj = p[:, None, :] - (np.einsum("qhi,hi->qh", d, n) / nn)[..., None] * n[None]
-    # Barycentric sign tests of the projection: inside when all three edge tests agree with n.
-    inside = np.ones(proj.shape[:2], bool)
-    for U, V in ((A, B), (B, C), (C, A)):
-        inside &= np.einsum("qhi,hi->qh", np.cross(V - U, proj - U[None]), n) >= 0
-    best = proj.copy()
-    best_d = np.where(inside, np.einsum("qhi,qhi->qh", p[:, None] - proj, p[:, None] - proj),
-                      np.inf)
-    for U, V in ((A, B), (B, C), (C, A)):
-        e = V - U
-        s = np.clip(np.einsum("qhi,hi->qh", p[:, None] - U[None], e)
-                    / np.einsum("hi,hi->h", e, e), 0.0, 1.0)
-        c = U[None] + s[..., None] * e[None]
-        dd = np.einsum("qhi,qhi->qh", p[:, None] - c, p[:, None] - c)
-        closer = (dd < best_d) & ~inside
-        best[closer] = c[closer]
-        best_d = np.where(closer, dd, best_d)
-    return best, best_d
-
-
-@dataclass(frozen=True)
-class Triangulation:
-    """Tetrahedra of a point set: ``points`` (E, 3), ``simplices`` (S, 4) and the boundary
-    triangles ``convex_hull`` (H, 3), both as row numbers of ``points``."""
-
-    points: np.ndarray
-    simplices: np.ndarray
-    convex_hull: np.ndarray
-
-
-def _lift_heights(x: np.ndarray) -> np.ndarray:
-    """A pseudo-random number in [0, 1) per point (E,), a hash of its coordinates (so a point
-    gets the same one whatever the other points are)."""
-    rows = np.ascontiguousarray(x, dtype=np.float64) + 0.0  # -0.0 hashes as 0.0
-    return np.array([int.from_bytes(hashlib.blake2b(r.tobytes(), digest_size=8).digest(),
-                                    "little") / 2.0 ** 64 for r in rows])
-
-
-def _volumes(vertices: np.ndarray) -> np.ndarray:
-    """Volumes (T,) of tetrahedra (T, 4, 3)."""
-    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
-    return np.abs(np.einsum("ti,ti->t", p1 - p0, np.cross(p2 - p0, p3 - p0))) / 6.0
-
-
-def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
-    """Delaunay tetrahedra of points x (E, 3) spanning 3-D, none flat, even for gridded points.
-
-    The lower hull of the points lifted onto ``|x|²`` + :data:`LIFT_PERTURBATION` × a per-point
-    hash (see the module docstring): a conforming triangulation refining the Delaunay
-    subdivision, whose tetrahedra all have positive volume and tile the convex hull. Raises
-    LibraryError if Qhull fails or the tetrahedra do not tile the hull.
-    """
-    x = np.asarray(x, dtype=float)
-    c = x - x.mean(axis=0)
-    c = c / np.abs(c).max()  # well-conditioned lift whatever the units
-    lift = np.einsum("ij,ij->i", c, c)
-    lift = lift + LIFT_PERTURBATION * max(float(np.ptp(lift)), 1.0) * _lift_heights(x)
-    # One point high above the centroid (Qhull's "Qz") makes 4 entries enough; it is never on
-    # the lower hull, so never in a tetrahedron.
-    above = np.append(np.zeros(3), 2.0 * lift.max() + 1.0)
-    try:
-        lifted = ConvexHull(np.vstack([np.column_stack([c, lift]), above]))
-        hull_volume = ConvexHull(x).volume
-    except QhullError as exc:
-        raise LibraryError(f"Delaunay triangulation failed: {exc}", path=source) from exc
-    simplices = lifted.simplices[lifted.equations[:, 3] < 0]  # lower hull: facing down
-    volume = _volumes(x[simplices])
-    simplices = simplices[volume > 1e-12 * hull_volume]  # vertical facets of the silhouette
-    covered = volume[volume > 1e-12 * hull_volume].sum()
-    if not abs(covered - hull_volume) <= 1e-9 * hull_volume:
-        raise LibraryError(f"the tetrahedra cover {covered / hull_volume:.9f} of the hull",
-                           path=source, hint="report this library as a bug")
-    faces = np.sort(simplices[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3),
-                    axis=1)
-    faces, count = np.unique(faces, axis=0, return_counts=True)
-    return Triangulation(x, simplices, faces[count == 1])
-
-
-def locate(tri: Triangulation, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
-    """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
-
-    Plain numpy, closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex,
-    which can stall for a second on a busy multi-threaded BLAS); brute force over simplices,
-    fine for libraries of hundreds of entries. A point within ``tol`` of a face counts inside;
-    the simplex with the largest smallest weight is chosen.
-    """
-    pts = tri.points[tri.simplices]                        # (S, 4, 3)
-    a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
-    rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (S, 3, 3)
-    det = np.einsum("si,si->s", a, rows[:, 0])             # 6 × signed volume, never 0
-    inv = rows / det[:, None, None]                        # rows of the inverse of [a b c]
-    origin = pts[:, 3]
-    simplex = np.full(len(x), -1)
-    weights = np.full((len(x), 4), np.nan)
-    for lo in range(0, len(x), chunk):
-        w3 = np.einsum("sij,qsj->qsi", inv, x[lo:lo + chunk, None, :] - origin[None])
-        w = np.concatenate([w3, 1.0 - w3.sum(axis=2, keepdims=True)], axis=2)  # (q, S, 4)
-        worst = w.min(axis=2)
-        best = np.argmax(worst, axis=1)
-        q = np.arange(len(best))
-        hit = worst[q, best] >= -tol
-        simplex[lo:lo + chunk] = np.where(hit, best, -1)
-        weights[lo:lo + chunk][hit] = w[q[hit], best[hit]]
-    return simplex, weights
-
-
-def tetra_quality(vertices: np.ndarray) -> np.ndarray:
-    """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
-    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
-    vol = _volumes(vertices)
-    faces = ((p1, p2, p3), (p0, p2, p3), (p0, p1, p3), (p0, p1, p2))
-    area = sum(np.linalg.norm(np.cross(b - a, c - a), axis=1) / 2 for a, b, c in faces)
-    r_in = 3 * vol / np.where(area > 0, area, np.inf)
-    # Circumcentre relative to p0 in closed form (stable for nearly flat tetrahedra).
-    u, v, w = p1 - p0, p2 - p0, p3 - p0
-    num = (np.einsum("ti,ti->t", u, u)[:, None] * np.cross(v, w)
-           + np.einsum("ti,ti->t", v, v)[:, None] * np.cross(w, u)
-           + np.einsum("ti,ti->t", w, w)[:, None] * np.cross(u, v))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        R = np.linalg.norm(num, axis=1) / (12 * vol)
-        q = np.where(vol > 0, 3 * r_in / R, 0.0)
-    return np.clip(np.nan_to_num(q), 0.0, 1.0)
 
 
 # --------------------------------------------------------------------------- results
@@ -353,8 +173,8 @@ class ControlSpace:
             raise LibraryError("control-space points must be finite", path=source,
                                hint="drop entries without velocities before building")
         self.tri = self._triangulate()
-        self.a = None if a is None else _stack_padded(a)
-        self.b = None if b is None else _stack_padded(b)
+        self.a = None if a is None else stack_padded(a)
+        self.b = None if b is None else stack_padded(b)
         self.T = None if T is None else np.asarray(T, dtype=float)
         self.drift = None if drift is None else np.asarray(drift, dtype=float)
 
@@ -448,7 +268,7 @@ class ControlSpace:
         near = np.empty_like(x)
         dist = np.empty(len(x))
         for lo in range(0, len(x), chunk):
-            c, d = _closest_on_triangles(x[lo:lo + chunk], A, B, C)
+            c, d = closest_on_triangles(x[lo:lo + chunk], A, B, C)
             j = np.argmin(d, axis=1)
             rows = np.arange(len(j))
             near[lo:lo + chunk] = c[rows, j]
@@ -562,181 +382,3 @@ def _cycle_displacement(drift: np.ndarray, T: float) -> tuple[float, float, floa
     return float(x), float(y), float(turned)
 
 
-# --------------------------------------------------------------------------- coverage
-@dataclass
-class Envelope:
-    """The target region of the control space: convex hull of ``vertices`` (P, 3), SI units.
-
-    Build one with :meth:`box`, :meth:`from_toml` or :meth:`from_commands`.
-    """
-
-    vertices: np.ndarray
-    axes: tuple[str, str, str] = AXES["tangential"]
-    source: str = "explicit"
-
-    @classmethod
-    def box(cls, ranges: dict[str, tuple[float, float]], *, source: str = "box") -> "Envelope":
-        """Axis-aligned box, e.g. ``{"v": (0, 1.8), "omega": (-1.5, 1.5), "v_l": (-.5, .5)}``."""
-        axes = AXES["frontal"] if "v_f" in ranges else AXES["tangential"]
-        missing = [k for k in axes if k not in ranges]
-        if missing:
-            raise MocapError(f"envelope box needs ranges for {', '.join(missing)}", path=source)
-        lo = np.array([min(ranges[k]) for k in axes], float)
-        hi = np.array([max(ranges[k]) for k in axes], float)
-        corners = np.array([[(lo, hi)[(c >> i) & 1][i] for i in range(3)] for c in range(8)])
-        return cls(corners, axes, source)
-
-    @classmethod
-    def from_commands(cls, commands: pd.DataFrame, *, source: str = "commands") -> "Envelope":
-        """Hull of commanded velocities: a DataFrame with columns v_f, omega, v_l (SI)."""
-        v = np.hypot(commands["v_f"].to_numpy(float), commands["v_l"].to_numpy(float))
-        pts = np.column_stack([v, commands["omega"].to_numpy(float),
-                               commands["v_l"].to_numpy(float)])
-        return cls(pts, AXES["tangential"], source)
-
-    @classmethod
-    def from_toml(cls, path) -> "Envelope":
-        """Read an ``[envelope]`` table: either ``points = [[v, omega, v_l], ...]`` (optionally
-        ``axes = ["v_f", "omega", "v_l"]``) or one ``[lo, hi]`` range per axis name. Values
-        must be finite numbers (:class:`MocapError` naming the file and key otherwise)."""
-        path = Path(path)
-        table = read_toml(path, what="envelope file",
-                          hint="give a TOML file with an [envelope] table").get("envelope")
-        if not isinstance(table, dict):
-            raise MocapError("no [envelope] table", path=path,
-                             hint="add [envelope] with v/omega/v_l ranges or points")
-        try:
-            if "points" in table:
-                axes = tuple(table.get("axes", AXES["tangential"]))
-                if axes not in AXES.values():
-                    raise ValueError(f"axes must be one of {list(AXES.values())}")
-                pts = _finite_numbers("points", table["points"], "triples of finite numbers")
-                if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
-                    raise ValueError("points must be at least 4 triples")
-                return cls(pts, axes, str(path))
-            ranges = {}
-            for k, v in table.items():
-                if k in AXIS_UNITS:
-                    ranges[k] = tuple(_finite_numbers(k, v, "[lo, hi], two finite numbers"))
-                    if len(ranges[k]) != 2:
-                        raise ValueError(f"{k} must be [lo, hi], two finite numbers, got {v!r}")
-            return cls.box(ranges, source=str(path))
-        except (ValueError, TypeError) as exc:
-            raise MocapError(f"bad [envelope] table: {exc}", path=path,
-                             hint="ranges are [lo, hi] in m/s or rad/s") from exc
-
-    def sample(self, scale: np.ndarray, *, n: int = 25) -> np.ndarray:
-        """Regular grid of about n³ points over the bounding box, the points inside the hull
-        (S, 3). An axis whose range straddles 0 is gridded through 0 (steps of
-        (hi - lo)/(n - 1) from 0; with odd n on a symmetric range that is linspace), so straight
-        walks, no turning and no side-step are sampled exactly, not ± half a step away."""
-        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
-        axes = [_grid_through_zero(a, b, n) for a, b in zip(lo, hi)]
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        x = self.vertices / scale
-        if degeneracy(x) is not None:
-            return grid  # a flat envelope: its bounding box is the envelope
-        inside = locate(delaunay_tetrahedra(x, source=self.source), grid / scale)[0] >= 0
-        return grid[inside]
-
-
-def _finite_numbers(key: str, value, expected: str) -> np.ndarray:
-    """``value`` (a list of numbers, or of lists of numbers, from a TOML file) as a float
-    array; ValueError naming ``key`` and what was ``expected`` for text, booleans, NaN or
-    infinity."""
-    def bad(x) -> bool:
-        if isinstance(x, list):
-            return any(bad(y) for y in x)
-        return isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x)
-    if not isinstance(value, list) or bad(value):
-        raise ValueError(f"{key} must be {expected}, got {repr(value)[:80]}")
-    return np.asarray(value, dtype=float)
-
-
-def _grid_through_zero(lo: float, hi: float, n: int) -> np.ndarray:
-    """n (about) evenly spaced values over [lo, hi]; through 0 when lo < 0 < hi."""
-    if not hi > lo:
-        return np.array([lo])
-    if not lo < 0.0 < hi:
-        return np.linspace(lo, hi, n)
-    step = (hi - lo) / (n - 1)
-    k = np.arange(np.ceil(lo / step - 1e-9), np.floor(hi / step + 1e-9) + 1)
-    return np.clip(k * step, lo, hi)
-
-
-@dataclass
-class Coverage:
-    """Coverage of an :class:`Envelope` by a :class:`ControlSpace` (distances normalised).
-
-    Attributes
-    ----------
-    fraction_inside : share of envelope samples inside the hull of the entries.
-    n_samples : number of envelope samples.
-    largest_hole : (3,) the envelope sample farthest from every entry, SI.
-    largest_hole_distance : its normalised distance to the nearest entry.
-    slivers : DataFrame of tetrahedra with quality < threshold: ``entries`` (ids), ``quality``.
-    entries_per_class : counts of entries by locomotion class ("unknown" when None).
-    capture_next : DataFrame of suggested velocity triples (axes columns, SI) and the
-        normalised ``gap`` each one fills (greedy farthest point).
-    axes : the control-space axes of every triple above.
-    samples : (S, 3) the envelope samples, SI; samples_inside : (S,) bool, inside the hull.
-    """
-
-    fraction_inside: float
-    n_samples: int
-    largest_hole: np.ndarray
-    largest_hole_distance: float
-    slivers: pd.DataFrame
-    entries_per_class: dict[str, int]
-    capture_next: pd.DataFrame
-    axes: tuple[str, str, str] = AXES["tangential"]
-    samples_inside: np.ndarray = field(default=None, repr=False)
-    samples: np.ndarray = field(default=None, repr=False)
-
-
-def coverage(cs: ControlSpace, envelope: Envelope, *, n_grid: int = 25, n_next: int = 5,
-             sliver_quality: float = SLIVER_QUALITY) -> Coverage:
-    """How well the entries cover ``envelope`` (see :class:`Coverage`).
-
-    Samples equally far from the entries (mirror images on a symmetric library) are told
-    apart by their distance to the envelope's centre, nearest first, so ties do not fall to
-    whichever side the grid lists first."""
-    if tuple(envelope.axes) != tuple(cs.axes):
-        raise MocapError(f"envelope axes {envelope.axes} differ from the control space's "
-                         f"{cs.axes}", path=envelope.source)
-    samples = envelope.sample(cs.scale, n=n_grid)
-    inside = cs.contains(samples)
-    xs = cs.normalise(samples)
-    dist, _ = cKDTree(cs.normalise(cs.points)).query(xs)
-    centre = cs.normalise(envelope.vertices).mean(axis=0)
-    off_centre = np.linalg.norm(xs - centre, axis=1)
-    hole = _farthest(dist, off_centre)
-    picks, gaps = [], []
-    d = dist.copy()
-    for _ in range(min(n_next, len(xs))):
-        j = _farthest(d, off_centre)
-        if d[j] <= 0:
-            break
-        picks.append(samples[j])
-        gaps.append(d[j])
-        d = np.minimum(d, np.linalg.norm(xs - xs[j], axis=1))
-    nxt = pd.DataFrame(np.reshape(picks, (-1, 3)), columns=list(cs.axes))
-    nxt["gap"] = gaps
-    quality = cs.tetra_quality()
-    bad = np.flatnonzero(quality < sliver_quality)
-    slivers = pd.DataFrame({"entries": [[cs.ids[k] for k in cs.tri.simplices[s]] for s in bad],
-                            "quality": quality[bad]})
-    classes = pd.Series([c if c is not None and c == c else "unknown" for c in cs.classes])
-    return Coverage(fraction_inside=float(inside.mean()) if len(inside) else float("nan"),
-                    n_samples=len(samples), largest_hole=samples[hole],
-                    largest_hole_distance=float(dist[hole]), slivers=slivers,
-                    entries_per_class={str(k): int(v) for k, v in
-                                       classes.value_counts().sort_index().items()},
-                    capture_next=nxt, axes=cs.axes, samples_inside=inside, samples=samples)
-
-
-def _farthest(distance: np.ndarray, off_centre: np.ndarray, *, tol: float = 1e-9) -> int:
-    """Index of the largest ``distance``; among ties (within ``tol``) the smallest
-    ``off_centre``, then the first."""
-    ties = np.flatnonzero(distance >= distance.max() - tol)
-    return int(ties[np.argmin(off_centre[ties])])

@@ -424,7 +424,7 @@ def validate_library(library) -> list[Problem]:
     parameters those of its type; the root drift's displacement the one its velocities give
     over T, its turn rate of the entry's ω̂'s sign; a poulaine's phases in order, speed
     profiles rising and parameters those of its characteristic points; the chosen entries' normalised
-    (v, omega, v_l) points not degenerate (:func:`mocaplib.library.controlspace.degeneracy`: the rule
+    (v, omega, v_l) points not degenerate (:func:`mocaplib.library.triangulation.degeneracy`: the rule
     the control space uses); every QC metric within ``qc_thresholds`` or listed in the
     entry's ``qc_waived`` with a reason. Returns an empty list for a valid library.
     """
@@ -751,9 +751,9 @@ def _is_number(value) -> bool:
 
 def _control_space_problems(doc: dict) -> list[Problem]:
     """The chosen entries' control space, as :class:`mocaplib.library.controlspace.ControlSpace`
-    builds it for queries: degenerate (:func:`~mocaplib.library.controlspace.degeneracy`), or failing
+    builds it for queries: degenerate (:func:`~mocaplib.library.triangulation.degeneracy`), or failing
     to triangulate."""
-    from .controlspace import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
+    from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
     points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
     points = points[np.isfinite(points).all(axis=1)]

@@ -25,8 +25,8 @@ from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import parse_json
-from ..library.controlspace import (AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace,
-                                    Envelope, close_entries, coverage, leave_one_out)
+from ..library.controlspace import AXIS_UNITS, CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, close_entries, leave_one_out
+from ..library.coverage import Envelope, coverage
 from ..library.format import (DIAGNOSTICS_FORMAT, NO_CHECKSUM_NOTE, checksum_status, load_library,
                               validate_library)
 from . import figures
@@ -47,7 +47,7 @@ def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
                  envelope=None, renderer: str = "auto", jobs: int = 1) -> Path:
     """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
 
-    ``envelope``: an :class:`~mocaplib.library.controlspace.Envelope`, a TOML file (an ``[envelope]``
+    ``envelope``: an :class:`~mocaplib.library.coverage.Envelope`, a TOML file (an ``[envelope]``
     table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
     back to matplotlib without OpenGL) or ``"matplotlib"``. ``jobs``: processes drawing the

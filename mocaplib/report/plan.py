@@ -8,7 +8,7 @@ point ``(v̂ = hypot(v_f, v_l), ω̂, v̂_l)``. The plan is the one given (``--e
 plan shipped with mocaplib (:func:`mocaplib.markersets.protocols.capture_plans`, the plan of its synthetic
 sample captures: a default, not the lab's plan, and the report says so). A plan (or any TOML
 file) may instead carry an explicit ``[envelope]`` table, which wins (see
-:meth:`mocaplib.library.controlspace.Envelope.from_toml`). Without any plan the report uses
+:meth:`mocaplib.library.coverage.Envelope.from_toml`). Without any plan the report uses
 :data:`FALLBACK_ENVELOPE`, a small hand-written set of the same locomotion types, and says so.
 
 Planned captures are matched to the library by file stem: capture ``name`` in the plan,
@@ -25,7 +25,7 @@ import pandas as pd
 from ..errors import MocapError
 from ..io.tomlfile import read_toml
 from ..library.command import plan_command
-from ..library.controlspace import Envelope
+from ..library.coverage import Envelope
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at

@@ -1,0 +1,203 @@
+"""The Delaunay tetrahedra of the control space's points, and locating a query in them: which
+tetrahedron holds a point and its barycentric weights (:func:`locate`), the points nearest on
+the hull's faces, each tetrahedron's quality, and whether the points span three dimensions
+(:func:`degeneracy`).
+
+Points are ``(N, 3)`` arrays in the control space's normalised units.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from ..errors import LibraryError
+
+#: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
+#: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
+LIFT_PERTURBATION = 1e-8
+
+
+#: Largest ratio s3/s1 of the singular values of centred, normalised points that counts as
+#: flat (on a plane or a line: no tetrahedra). Measured (12 points on a plane, 6 of them moved
+#: off it by ±eps, 3 draws): the triangulation fails at s3/s1 ≈ 1e-12 and "succeeds" above,
+#: but at 1e-6 its thinnest tetrahedra have radius ratios ≤ 1e-13, a slab no query falls into;
+#: the chosen entries of the libraries at hand have s3/s1 ≥ 0.13 (17 real files; the 68 samples
+#: 0.49). Values are stored with 10 significant digits, so points on a plane before rounding
+#: stay below 1e-9 after it.
+DEGENERACY_TOLERANCE = 1e-6
+
+
+#: What to do about a degenerate control space (see :func:`degeneracy`).
+DEGENERACY_HINT = ("add captures with other speeds, turns and side-steps so the entries span "
+                   "all three axes")
+
+
+def degeneracy(x) -> str | None:
+    """Why finite normalised points x (E, 3) have no 3-D triangulation, or None when they have.
+
+    The one rule of library validation and :class:`ControlSpace`: fewer than 4 distinct points
+    (equal to 12 decimals, relative to the largest coordinate when it exceeds 1), or distinct
+    points within a plane or a line (singular values of the centred points: s3 <=
+    :data:`DEGENERACY_TOLERANCE` · s1). The reason completes "the control space is degenerate:
+    it …": "needs at least 4 entries with distinct velocities, got 3" or "lies on a plane, so
+    there are no tetrahedra".
+    """
+    x = np.asarray(x, dtype=float).reshape(-1, 3)
+    size = max(float(np.abs(x).max(initial=0.0)), 1.0)
+    distinct = np.unique(np.round(x / size, 12), axis=0)
+    if len(distinct) < 4:
+        return f"needs at least 4 entries with distinct velocities, got {len(distinct)}"
+    centred = distinct - distinct.mean(axis=0)
+    sv = np.linalg.svd(centred / np.abs(centred).max(), compute_uv=False)
+    if sv[2] <= DEGENERACY_TOLERANCE * sv[0]:
+        flat = "a line" if sv[1] <= DEGENERACY_TOLERANCE * sv[0] else "a plane"
+        return f"lies on {flat}, so there are no tetrahedra"
+    return None
+
+
+def stack_padded(arrays) -> np.ndarray:
+    """Coefficient arrays of shapes (D, N_i+1) stacked into (E, D, max N_i + 1), zero-padded
+    (a missing harmonic is a zero harmonic, so padding changes nothing)."""
+    arrays = [np.asarray(x, dtype=float) for x in arrays]
+    out = np.zeros((len(arrays), arrays[0].shape[0], max(x.shape[1] for x in arrays)))
+    for i, x in enumerate(arrays):
+        out[i, :, :x.shape[1]] = x
+    return out
+
+
+# --------------------------------------------------------------------------- geometry
+def closest_on_triangles(p: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray):
+    """Closest point of each triangle (A, B, C each (H, 3)) to each point p (Q, 3).
+
+    Returns the points (Q, H, 3) and their squared distances (Q, H): the projection onto the
+    triangle's plane when it falls inside the triangle, else the closest point of its edges.
+    """
+    n = np.cross(B - A, C - A)                       # (H, 3)
+    nn = np.einsum("hi,hi->h", n, n)
+    d = p[:, None, :] - A[None]                      # (Q, H, 3)
+    proj = p[:, None, :] - (np.einsum("qhi,hi->qh", d, n) / nn)[..., None] * n[None]
+    # Barycentric sign tests of the projection: inside when all three edge tests agree with n.
+    inside = np.ones(proj.shape[:2], bool)
+    for U, V in ((A, B), (B, C), (C, A)):
+        inside &= np.einsum("qhi,hi->qh", np.cross(V - U, proj - U[None]), n) >= 0
+    best = proj.copy()
+    best_d = np.where(inside, np.einsum("qhi,qhi->qh", p[:, None] - proj, p[:, None] - proj),
+                      np.inf)
+    for U, V in ((A, B), (B, C), (C, A)):
+        e = V - U
+        s = np.clip(np.einsum("qhi,hi->qh", p[:, None] - U[None], e)
+                    / np.einsum("hi,hi->h", e, e), 0.0, 1.0)
+        c = U[None] + s[..., None] * e[None]
+        dd = np.einsum("qhi,qhi->qh", p[:, None] - c, p[:, None] - c)
+        closer = (dd < best_d) & ~inside
+        best[closer] = c[closer]
+        best_d = np.where(closer, dd, best_d)
+    return best, best_d
+
+
+@dataclass(frozen=True)
+class Triangulation:
+    """Tetrahedra of a point set: ``points`` (E, 3), ``simplices`` (S, 4) and the boundary
+    triangles ``convex_hull`` (H, 3), both as row numbers of ``points``."""
+
+    points: np.ndarray
+    simplices: np.ndarray
+    convex_hull: np.ndarray
+
+
+def _lift_heights(x: np.ndarray) -> np.ndarray:
+    """A pseudo-random number in [0, 1) per point (E,), a hash of its coordinates (so a point
+    gets the same one whatever the other points are)."""
+    rows = np.ascontiguousarray(x, dtype=np.float64) + 0.0  # -0.0 hashes as 0.0
+    return np.array([int.from_bytes(hashlib.blake2b(r.tobytes(), digest_size=8).digest(),
+                                    "little") / 2.0 ** 64 for r in rows])
+
+
+def _volumes(vertices: np.ndarray) -> np.ndarray:
+    """Volumes (T,) of tetrahedra (T, 4, 3)."""
+    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
+    return np.abs(np.einsum("ti,ti->t", p1 - p0, np.cross(p2 - p0, p3 - p0))) / 6.0
+
+
+def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
+    """Delaunay tetrahedra of points x (E, 3) spanning 3-D, none flat, even for gridded points.
+
+    The lower hull of the points lifted onto ``|x|²`` + :data:`LIFT_PERTURBATION` × a per-point
+    hash (see the module docstring): a conforming triangulation refining the Delaunay
+    subdivision, whose tetrahedra all have positive volume and tile the convex hull. Raises
+    LibraryError if Qhull fails or the tetrahedra do not tile the hull.
+    """
+    x = np.asarray(x, dtype=float)
+    c = x - x.mean(axis=0)
+    c = c / np.abs(c).max()  # well-conditioned lift whatever the units
+    lift = np.einsum("ij,ij->i", c, c)
+    lift = lift + LIFT_PERTURBATION * max(float(np.ptp(lift)), 1.0) * _lift_heights(x)
+    # One point high above the centroid (Qhull's "Qz") makes 4 entries enough; it is never on
+    # the lower hull, so never in a tetrahedron.
+    above = np.append(np.zeros(3), 2.0 * lift.max() + 1.0)
+    try:
+        lifted = ConvexHull(np.vstack([np.column_stack([c, lift]), above]))
+        hull_volume = ConvexHull(x).volume
+    except QhullError as exc:
+        raise LibraryError(f"Delaunay triangulation failed: {exc}", path=source) from exc
+    simplices = lifted.simplices[lifted.equations[:, 3] < 0]  # lower hull: facing down
+    volume = _volumes(x[simplices])
+    simplices = simplices[volume > 1e-12 * hull_volume]  # vertical facets of the silhouette
+    covered = volume[volume > 1e-12 * hull_volume].sum()
+    if not abs(covered - hull_volume) <= 1e-9 * hull_volume:
+        raise LibraryError(f"the tetrahedra cover {covered / hull_volume:.9f} of the hull",
+                           path=source, hint="report this library as a bug")
+    faces = np.sort(simplices[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3),
+                    axis=1)
+    faces, count = np.unique(faces, axis=0, return_counts=True)
+    return Triangulation(x, simplices, faces[count == 1])
+
+
+def locate(tri: Triangulation, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
+    """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
+
+    Plain numpy, closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex,
+    which can stall for a second on a busy multi-threaded BLAS); brute force over simplices,
+    fine for libraries of hundreds of entries. A point within ``tol`` of a face counts inside;
+    the simplex with the largest smallest weight is chosen.
+    """
+    pts = tri.points[tri.simplices]                        # (S, 4, 3)
+    a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
+    rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (S, 3, 3)
+    det = np.einsum("si,si->s", a, rows[:, 0])             # 6 × signed volume, never 0
+    inv = rows / det[:, None, None]                        # rows of the inverse of [a b c]
+    origin = pts[:, 3]
+    simplex = np.full(len(x), -1)
+    weights = np.full((len(x), 4), np.nan)
+    for lo in range(0, len(x), chunk):
+        w3 = np.einsum("sij,qsj->qsi", inv, x[lo:lo + chunk, None, :] - origin[None])
+        w = np.concatenate([w3, 1.0 - w3.sum(axis=2, keepdims=True)], axis=2)  # (q, S, 4)
+        worst = w.min(axis=2)
+        best = np.argmax(worst, axis=1)
+        q = np.arange(len(best))
+        hit = worst[q, best] >= -tol
+        simplex[lo:lo + chunk] = np.where(hit, best, -1)
+        weights[lo:lo + chunk][hit] = w[q[hit], best[hit]]
+    return simplex, weights
+
+
+def tetra_quality(vertices: np.ndarray) -> np.ndarray:
+    """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
+    p0, p1, p2, p3 = (vertices[:, i] for i in range(4))
+    vol = _volumes(vertices)
+    faces = ((p1, p2, p3), (p0, p2, p3), (p0, p1, p3), (p0, p1, p2))
+    area = sum(np.linalg.norm(np.cross(b - a, c - a), axis=1) / 2 for a, b, c in faces)
+    r_in = 3 * vol / np.where(area > 0, area, np.inf)
+    # Circumcentre relative to p0 in closed form (stable for nearly flat tetrahedra).
+    u, v, w = p1 - p0, p2 - p0, p3 - p0
+    num = (np.einsum("ti,ti->t", u, u)[:, None] * np.cross(v, w)
+           + np.einsum("ti,ti->t", v, v)[:, None] * np.cross(w, u)
+           + np.einsum("ti,ti->t", w, w)[:, None] * np.cross(u, v))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = np.linalg.norm(num, axis=1) / (12 * vol)
+        q = np.where(vol > 0, 3 * r_in / R, 0.0)
+    return np.clip(np.nan_to_num(q), 0.0, 1.0)
