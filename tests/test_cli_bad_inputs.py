@@ -132,7 +132,8 @@ def test_a_malformed_capture_record_in_the_sidecar_loses_only_its_plots(tmp_path
                                                                         monkeypatch):
     from mocaplib.library.format import load_library
     from mocaplib.report import html
-    from mocaplib.report.html import _captures, read_diagnostics
+    from mocaplib.report.html import _captures
+    from mocaplib.report.diagnostics import read_diagnostics
 
     monkeypatch.setattr(html, "MAX_CAPTURE_FIGURES", 2)  # the bad record and the next one
     copy, sidecar = _sidecar_copy(library, tmp_path,
@@ -159,7 +160,8 @@ def test_a_capture_record_of_the_wrong_shape_is_left_out_with_a_warning(edit, pr
     # the capture tables, which all read the sidecar's records (figures are not drawn here).
     from mocaplib.library.format import load_library
     from mocaplib.report import html
-    from mocaplib.report.html import _captures, _summary, read_diagnostics
+    from mocaplib.report.html import _captures, _summary
+    from mocaplib.report.diagnostics import read_diagnostics
     from mocaplib.report.plan import find_plan, plan_commands, planned_status
 
     monkeypatch.setattr(html, "MAX_CAPTURE_FIGURES", 0)

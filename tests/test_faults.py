@@ -32,7 +32,7 @@ from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.library.format import load_library
 from mocaplib.build.pipeline import build
-from mocaplib.report.html import read_diagnostics
+from mocaplib.report.diagnostics import read_diagnostics
 from mocaplib.build.workers import max_jobs
 
 from conftest import SAMPLES

@@ -209,7 +209,7 @@ def test_report_shows_no_absolute_paths(report):
 def test_entries_too_close_to_tell_apart_are_listed_and_warned_about(tmp_path):
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.format import load_library
-    from mocaplib.report.html import _close_rows, _close_warning
+    from mocaplib.report.space_sections import _close_rows, _close_warning
 
     # A 60° and a 120° diagonal at 1 m/s: same v̂ and v̂_l, so the same tangential point.
     rows = ENTRIES + [("diagonal", 1.0, 0.001, 0.7)]
@@ -223,7 +223,7 @@ def test_entries_too_close_to_tell_apart_are_listed_and_warned_about(tmp_path):
 def test_sliver_summary_lists_the_worst_ten():
     import pandas as pd
 
-    from mocaplib.report.html import MAX_SLIVER_ROWS, _sliver_context
+    from mocaplib.report.space_sections import MAX_SLIVER_ROWS, _sliver_context
 
     quality = np.array([0.05, 2e-4, 0.09, 5e-3, 1e-12] + [0.02] * 20)
     slivers = pd.DataFrame({"entries": [["a", "b", "c", f"e{i}"] for i in range(25)],
@@ -529,7 +529,7 @@ def test_the_envelope_grid_samples_zero_turn_and_zero_side_step():
 def test_capture_next_finds_a_missing_straight_walk_as_one():
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.coverage import Envelope, coverage
-    from mocaplib.report.html import describe_command
+    from mocaplib.report.space_sections import describe_command
 
     # Turns, side-steps and their mixtures both ways, no straight walking: the gap is there.
     points = [(v, w, vl) for v in (0.0, 1.6) for w in (-1.0, 1.0) for vl in (-0.4, 0.4)]
@@ -569,7 +569,7 @@ def _loo_row(entry_id, cls, rms, neighbours=(), weights=()):
 def test_the_headline_blending_error_leaves_rest_out_and_flags_cross_mode_blends():
     import pandas as pd
 
-    from mocaplib.report.html import _loo_context
+    from mocaplib.report.space_sections import _loo_context
 
     df = pd.DataFrame([
         _loo_row("rest_a", "rest", 25.0, ["rest_b", "w1", "w2", "w3"], [1.0, 0, 0, 0]),
@@ -615,7 +615,7 @@ def test_entries_at_the_fourier_order_cap_are_flagged():
 
 def test_a_sidecar_of_another_build_is_not_used(tmp_path):
     from mocaplib.library.format import load_library
-    from mocaplib.report.html import read_diagnostics
+    from mocaplib.report.diagnostics import read_diagnostics
 
     lib_path = make_library(tmp_path)
     library = load_library(lib_path)
@@ -650,7 +650,8 @@ def test_the_capture_figure_draws_the_pattern_the_sidecar_stores():
 
 def test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one(tmp_path):
     from mocaplib.library.format import load_library
-    from mocaplib.report.html import _captures, read_diagnostics
+    from mocaplib.report.html import _captures
+    from mocaplib.report.diagnostics import read_diagnostics
 
     path = make_library(tmp_path)
     library = load_library(path)
