@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from markdown_results import add_markdown_option, markdown_page, shown  # noqa: E402
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.io import find_captures
 from mocaplib.build.settings import BuildSettings
 
@@ -45,7 +45,7 @@ def timed_build(inputs, settings: BuildSettings, jobs: int, repeat: int):
     best, result = float("inf"), None
     for _ in range(repeat):
         start = time.perf_counter()
-        result = build(inputs, settings, jobs=jobs, cache_dir=None, progress=False)
+        result = build_library(inputs, settings, jobs=jobs, cache_dir=None, progress=False)
         best = min(best, time.perf_counter() - start)
     return best, result
 

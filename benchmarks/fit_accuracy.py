@@ -61,7 +61,7 @@ from mocaplib.model.ik import fit, fit_quality  # noqa: E402
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES  # noqa: E402
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.synth.capture import write_capture
 from mocaplib.synth.plan import load_plan  # noqa: E402
@@ -248,7 +248,7 @@ def statures(plan_path: Path) -> None:
                 write_capture(planned.for_height(height).generate(), folder, planned.name)
             settings = BuildSettings(static=str(folder / "rest.c3d"), static_pose="neutral",
                                      forward_reference=str(folder / "walk_straight_normal.c3d"))
-            result = build([folder], settings, jobs=2, cache_dir=None, progress=False)
+            result = build_library([folder], settings, jobs=2, cache_dir=None, progress=False)
             result.write(folder / "library.json")
             velocities = {row["name"]: row for row in compare(folder / "library.json", folder)}
             static = read_c3d(folder / "rest.c3d")

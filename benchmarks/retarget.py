@@ -46,7 +46,7 @@ from mocaplib.gait.events import capture_events  # noqa: E402
 from mocaplib.gait.fourier import ROOT_X, ROOT_Y
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import cycle_shape  # noqa: E402
 from mocaplib.markersets.matching import match_trial
@@ -258,14 +258,14 @@ def main() -> int:
     synthetic = BuildSettings(static=str(args.samples / "rest.c3d"), static_pose="neutral",
                               all_cycles=True)
     samples = sorted(p for p in args.samples.glob("*.c3d") if p.stem != "rest")
-    library = build(samples, synthetic, jobs=args.jobs, progress=False).library
+    library = build_library(samples, synthetic, jobs=args.jobs, progress=False).library
     captured = captured_cycles(samples, synthetic)
     frames.append(measure(library, captured, real=False))
     weights = weights_rows(library, captured)
     real = [args.real / name for name in REAL_WALKS if (args.real / name).is_file()]
     if real:
         settings = BuildSettings(all_cycles=True)
-        library = build(real, settings, jobs=args.jobs, progress=False).library
+        library = build_library(real, settings, jobs=args.jobs, progress=False).library
         frames.append(measure(library, captured_cycles(real, settings), real=True))
     df = pd.concat(frames)
     walking = df[df.group.isin(["walk_straight", "walk_curve", "real walk"])]

@@ -11,24 +11,35 @@ import importlib
 __version__ = "0.1.0"
 
 _EXPORTS = {
+    # errors and the containers users load
     "MocapError": "mocaplib.errors",
     "C3DError": "mocaplib.errors",
     "Trial": "mocaplib.trial",
     "Event": "mocaplib.trial",
     "Skeleton": "mocaplib.skeleton",
     "Motion": "mocaplib.model.motion",
-    "calibrate": "mocaplib.model.calibration",
-    "SubjectModel": "mocaplib.model.calibration",
-    "fit": "mocaplib.model.ik",
-    "filter_trial": "mocaplib.model.filtering",
-    "detect_events": "mocaplib.gait.events",
+    "SubjectModel": "mocaplib.model.subject",
     "GaitEvent": "mocaplib.gait.foot_events",
-    "analyse_cycles": "mocaplib.gait.cycles",
     "Cycle": "mocaplib.gait.cycles",
+    "Library": "mocaplib.library.format",
+    "LibraryEntry": "mocaplib.library.entry",
+    "ControlSpace": "mocaplib.library.controlspace",
+    # one capture, as the commands run it
     "read_c3d": "mocaplib.io.c3d",
+    "fit": "mocaplib.model.fitting",
+    "fit_capture": "mocaplib.model.fitting",
+    "process": "mocaplib.build.capture",
+    "ProcessedCapture": "mocaplib.build.capture",
+    # the stages one by one
+    "filter_trial": "mocaplib.model.filtering",
+    "calibrate": "mocaplib.model.calibration",
+    "detect_events": "mocaplib.gait.events",
+    "analyse_cycles": "mocaplib.gait.cycles",
+    # a library: built, loaded, checked, reported
+    "build_library": "mocaplib.build.pipeline",
+    "BuildSettings": "mocaplib.build.settings",
     "load_library": "mocaplib.library.format",
     "validate_library": "mocaplib.library.format",
-    "ControlSpace": "mocaplib.library.controlspace",
     "write_report": "mocaplib.report",
 }
 

@@ -58,6 +58,7 @@ def sample_dir() -> Path:
 #: idle), by file and function name (every parametrisation of it): the fast tier
 #: (``-m "not slow"``, under 2 minutes there) leaves them to the full suite.
 SLOW = {
+    ("test_facade.py", "test_the_package_fit_is_the_fit_command_on_the_real_files"),
     ("test_forward_reference.py", "test_a_lab_walk_sets_its_static_within_the_tolerance"),
     ("test_report.py", "test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one"),
     ("test_report.py", "test_report_in_headless_chromium"),

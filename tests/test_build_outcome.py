@@ -11,7 +11,7 @@ from mocaplib.build import pipeline
 from mocaplib.cli import main
 from mocaplib.errors import LibraryError
 from mocaplib.library.format import load_library
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import process_capture
 from conftest import SAMPLES
@@ -46,7 +46,7 @@ def test_a_build_where_every_capture_fails_replaces_nothing(tmp_path, fake_build
 
 def test_an_empty_library_is_never_written_from_python_either(tmp_path):
     (tmp_path / "dropped.c3d").write_text(json.dumps({"fail": "truncated"}))
-    result = build([tmp_path / "dropped.c3d"], progress=False, process=fake_process)
+    result = build_library([tmp_path / "dropped.c3d"], progress=False, process=fake_process)
     with pytest.raises(LibraryError, match="nothing written: every capture failed"):
         result.write(tmp_path / "lib.json")
     result.captures[0].ok = True  # the capture worked but no cycle was kept

@@ -67,7 +67,7 @@ def sample_library(sample_dir, tmp_path_factory):
     from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS
     from mocaplib.library.mirror import mirror_entry
     from mocaplib.library.phase import start_later
-    from mocaplib.build.pipeline import build
+    from mocaplib.build.pipeline import build_library
     from mocaplib.build.settings import BuildSettings
 
     strict = {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 1e-4}
@@ -75,7 +75,7 @@ def sample_library(sample_dir, tmp_path_factory):
                              toe_off="lift", all_cycles=True, mirror=True, qc_policy="waive",
                              qc_thresholds=strict)
     captures = ("walk_curve_r2_left_normal", "side_left_normal", "turn_spot_left_normal", "rest")
-    result = build([sample_dir / f"{name}.c3d" for name in captures], settings, jobs=2,
+    result = build_library([sample_dir / f"{name}.c3d" for name in captures], settings, jobs=2,
                    progress=False)
     assert result.ok, result.summary_text()
     library = result.library

@@ -31,7 +31,7 @@ import pytest
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.library.format import load_library
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.report.diagnostics import read_diagnostics
 from mocaplib.build.workers import max_jobs
 
@@ -115,7 +115,7 @@ def build_script(captures: Path, out: Path, *, jobs: int = 1, kill_at_replace: i
         import os, signal, sys
         sys.path.insert(0, {str(TESTS)!r})
         from test_pipeline import fake_process
-        from mocaplib.build.pipeline import build
+        from mocaplib.build.pipeline import build_library
 
         renames, replace = [], os.replace
 
@@ -127,7 +127,7 @@ def build_script(captures: Path, out: Path, *, jobs: int = 1, kill_at_replace: i
 
         if __name__ == "__main__":
             os.replace = dying_replace
-            result = build([{str(captures)!r}], jobs={jobs}, progress=False,
+            result = build_library([{str(captures)!r}], jobs={jobs}, progress=False,
                            process=fake_process)
             result.write({str(out)!r})
         """)
@@ -141,9 +141,9 @@ def two_builds(tmp_path):
     write_captures(old_caps, TRIPLES)
     write_captures(new_caps, [(v + 0.1, w, vl) for v, w, vl in TRIPLES])
     out = tmp_path / "out" / "lib.json"
-    build([old_caps], progress=False, process=fake_process).write(out)
+    build_library([old_caps], progress=False, process=fake_process).write(out)
     new_out = tmp_path / "reference" / "lib.json"
-    build([new_caps], progress=False, process=fake_process).write(new_out)
+    build_library([new_caps], progress=False, process=fake_process).write(new_out)
     return new_caps, out, pair(out), pair(new_out)
 
 
@@ -161,7 +161,7 @@ def test_a_kill_at_each_rename_leaves_a_pair_readers_can_trust(two_builds, kill_
     assert (code == -signal.SIGKILL) == (kill_at < 3) and "Traceback" not in err
     assert assert_old_or_new(out, old, new) == expected
     # the next build clears the temporaries a killed one left, and writes a whole pair
-    build([new_caps], progress=False, process=fake_process).write(out)
+    build_library([new_caps], progress=False, process=fake_process).write(out)
     assert pair(out) == new and sorted(p.name for p in out.parent.iterdir()) == [
         "lib.diagnostics.json", "lib.json"]
 
@@ -240,7 +240,7 @@ def test_a_sidecar_of_another_build_with_the_same_entry_ids_is_refused(two_build
 def test_a_full_disk_while_writing_leaves_the_old_pair(two_builds, monkeypatch, failing,
                                                        call):
     new_caps, out, old, new = two_builds
-    result = build([new_caps], progress=False, process=fake_process)
+    result = build_library([new_caps], progress=False, process=fake_process)
     real, made = getattr(os, failing), []
 
     def full(*args):
@@ -261,7 +261,7 @@ def test_a_full_disk_while_writing_leaves_the_old_pair(two_builds, monkeypatch, 
 def test_a_failed_rename_of_the_sidecar_leaves_no_pair_a_reader_trusts(two_builds,
                                                                        monkeypatch):
     new_caps, out, old, new = two_builds
-    result = build([new_caps], progress=False, process=fake_process)
+    result = build_library([new_caps], progress=False, process=fake_process)
     real = os.replace
 
     def fail_second(source, target):
@@ -385,7 +385,7 @@ def test_hostile_names_and_links_in_an_input_folder(tmp_path):
 # --------------------------------------------------------------------------- oversized numbers
 def test_oversized_numbers_in_the_sidecar_cost_the_report_nothing(tmp_path, capsys):
     write_captures(tmp_path / "caps")
-    library, sidecar = build([tmp_path / "caps"], progress=False,
+    library, sidecar = build_library([tmp_path / "caps"], progress=False,
                              process=fake_process).write(tmp_path / "lib.json")
     text = sidecar.read_text()
     text = text.replace('"rate_hz": 100.0', '"rate_hz": 1' + "0" * 400, 1)
@@ -404,7 +404,7 @@ def test_the_report_says_when_a_library_was_changed_after_it_was_written(tmp_pat
     from test_library import one_coefficient_changed
 
     write_captures(tmp_path / "caps")
-    library, _ = build([tmp_path / "caps"], progress=False,
+    library, _ = build_library([tmp_path / "caps"], progress=False,
                        process=fake_process).write(tmp_path / "lib.json")
     one_coefficient_changed(library)
     html = write_report(library, tmp_path / "reports", renderer="matplotlib").read_text()
@@ -454,7 +454,7 @@ def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work
 
 def test_dash_and_missing_folders_elsewhere_are_usage_errors(tmp_path, capsys, monkeypatch):
     write_captures(tmp_path / "caps")
-    library, _ = build([tmp_path / "caps"], progress=False,
+    library, _ = build_library([tmp_path / "caps"], progress=False,
                        process=fake_process).write(tmp_path / "lib.json")
     monkeypatch.chdir(tmp_path)
     for command in (["query", str(library), "1", "0", "0", "--bvh", "-"],

@@ -22,7 +22,7 @@ from mocaplib.model.ik import fit
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
 from mocaplib.build.cache import cache_key
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.threads import pinned
 from mocaplib.build.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
@@ -214,7 +214,7 @@ def test_build_measures_the_offset_and_the_library_records_it(tmp_path, offset):
     settings = json.loads(out.read_text())["settings"]
     assert settings["forward_reference"] == "walk_straight_normal.c3d"
     assert settings["heading_offsets"] == [pytest.approx(offset, rel=1e-9)]  # 12 digits
-    result = build([WALK], neutral(forward_reference=str(WALK)), cache_dir=None, progress=False)
+    result = build_library([WALK], neutral(forward_reference=str(WALK)), cache_dir=None, progress=False)
     assert result.settings.heading_offsets == (offset,)
     assert f"rest.c3d {np.rad2deg(offset):+.3f}°" in result.summary_text()
 
@@ -225,12 +225,12 @@ def test_a_changed_reference_is_measured_again_and_the_cache_follows(tmp_path, o
     reference.write_bytes(WALK.read_bytes())
     settings = neutral(forward_reference=str(reference))
     run = SAMPLES / "run_3p5.c3d"
-    first = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    first = build_library([run], settings, cache_dir=tmp_path / "cache", progress=False)
     assert first.settings.heading_offsets == (offset,)
-    again = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    again = build_library([run], settings, cache_dir=tmp_path / "cache", progress=False)
     assert again.summary()["from_cache"] == 1
     reference.write_bytes((SAMPLES / "walk_straight_fast.c3d").read_bytes())
-    changed = build([run], settings, cache_dir=tmp_path / "cache", progress=False)
+    changed = build_library([run], settings, cache_dir=tmp_path / "cache", progress=False)
     assert changed.settings.heading_offsets != (offset,)
     assert changed.summary()["from_cache"] == 0
     assert changed.captures[0].entries[0].v_l != first.captures[0].entries[0].v_l

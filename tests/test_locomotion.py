@@ -9,7 +9,7 @@ import shutil
 import pytest
 from conftest import SAMPLES
 
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.gait.cycles import Cycle
 from mocaplib.gait.foot_events import GaitEvent
@@ -69,5 +69,5 @@ def test_a_capture_named_like_a_sample_gets_the_class_of_its_motion(tmp_path):
     capture = tmp_path / "walk_straight_normal.c3d"
     shutil.copyfile(SAMPLES / "side_left_normal.c3d", capture)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    result = build([capture], settings, cache_dir=None, progress=False)
+    result = build_library([capture], settings, cache_dir=None, progress=False)
     assert [e.locomotion_class for e in result.library.entries] == ["holonomic"]

@@ -23,13 +23,13 @@ SYMMETRIC = ("walk_straight_slow", "walk_straight_normal", "walk_straight_fast",
 @pytest.fixture(scope="module")
 def mirrored_samples(tmp_path_factory):
     """The quick start's library of the 68 samples, built with --mirror."""
-    from mocaplib.build.pipeline import build
+    from mocaplib.build.pipeline import build_library
     from mocaplib.build.settings import BuildSettings
 
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral",
                              forward_reference=str(SAMPLES / "walk_straight_normal.c3d"),
                              mirror=True)
-    result = build([SAMPLES], settings, jobs=2, progress=False)
+    result = build_library([SAMPLES], settings, jobs=2, progress=False)
     assert result.ok, result.summary_text()
     return result
 
@@ -181,12 +181,12 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
     series image of the chosen turn keeps its QC: ω̂ +0.21 rad/s."""
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.mirror import mirror_library
-    from mocaplib.build.pipeline import build
+    from mocaplib.build.pipeline import build_library
     from mocaplib.build.settings import BuildSettings
 
     static = real_c3d("biomechzoo/HC030A01.c3d")
     walks = [real_c3d("biomechzoo/HC030A05.c3d"), real_c3d("biomechzoo/HC030A22.c3d")]
-    result = build(walks, BuildSettings(static=str(static), mirror=True, qc_policy="waive"),
+    result = build_library(walks, BuildSettings(static=str(static), mirror=True, qc_policy="waive"),
                    progress=False)
     df = result.library.table
     chosen = df[df["chosen"]]

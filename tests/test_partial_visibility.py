@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import process_capture
 from mocaplib.library.command import Command
@@ -60,7 +60,7 @@ def test_a_short_run_at_250_hz_gives_an_entry_from_its_right_toe_off(short_run):
     from mocaplib.library.format import validate_library
 
     path, protocol, capture, full = short_run
-    result = build([path], BuildSettings(protocol=str(protocol)), progress=False)
+    result = build_library([path], BuildSettings(protocol=str(protocol)), progress=False)
     assert result.ok and len(result.library) == 1, result.summary_text()
     entry = result.library.entries[0]
     assert entry.cycle_start == "right_toe_off" and entry.right_toe_off_s == 0.0

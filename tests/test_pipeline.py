@@ -24,7 +24,7 @@ from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
 from mocaplib.library.format import load_library, validate_library
 from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS, qc_failures
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.io import find_captures
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import CaptureResult, file_sha256, process_capture
@@ -107,7 +107,7 @@ def build_bytes(result, folder: Path) -> tuple[bytes, bytes]:
 
 def test_serial_build_gives_a_valid_library_and_diagnostics(tmp_path):
     write_captures(tmp_path / "caps")
-    result = build([tmp_path / "caps"], progress=False, process=fake_process)
+    result = build_library([tmp_path / "caps"], progress=False, process=fake_process)
     assert result.ok and len(result.library) == 5
     library_path, sidecar = result.write(tmp_path / "out" / "lib.json")
     assert sidecar == tmp_path / "out" / "lib.diagnostics.json"
@@ -127,7 +127,7 @@ def test_a_failing_and_a_crashing_capture_do_not_stop_the_build(tmp_path):
     write_captures(folder)
     (folder / "walk90.c3d").write_text(json.dumps({"fail": "truncated file"}))
     (folder / "walk91.c3d").write_text(json.dumps({"crash": "boom"}))
-    result = build([folder], progress=False, process=fake_process)
+    result = build_library([folder], progress=False, process=fake_process)
     assert not result.ok and len(result.library) == 5
     failures = {Path(f["file"]).name: f for f in result.summary()["failures"]}
     assert failures["walk90.c3d"]["stage"] == "import"
@@ -141,23 +141,23 @@ def test_a_failing_and_a_crashing_capture_do_not_stop_the_build(tmp_path):
 def test_cache_processes_only_new_or_changed_captures(tmp_path):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:4])
-    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    first = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert sorted(calls(folder)) == [f"walk{i:02d}.c3d" for i in range(4)]
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 4, "nothing should be re-processed"
     assert all(c.from_cache for c in again.captures)
     assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
 
     write_captures(folder, TRIPLES)  # adds walk04 (walk00-03 rewritten with the same bytes)
-    grown = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    grown = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert calls(folder)[4:] == ["walk04.c3d"]
     assert len(grown.library) == 5 and grown.summary()["from_cache"] == 4
 
     (folder / "walk01.c3d").write_text(json.dumps({"v": 0.7, "omega": 0.5, "v_l": 0.0}))
-    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert calls(folder)[5:] == ["walk01.c3d"], "changed content must be re-processed"
 
-    build([folder], BuildSettings(all_cycles=True), cache_dir=cache, progress=False,
+    build_library([folder], BuildSettings(all_cycles=True), cache_dir=cache, progress=False,
           process=fake_process)
     assert len(calls(folder)) == 6 + 5, "other settings must re-process everything"
 
@@ -165,10 +165,10 @@ def test_cache_processes_only_new_or_changed_captures(tmp_path):
 def test_cache_made_by_other_code_is_not_reused(tmp_path, monkeypatch):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:2])
-    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     # Same version number, edited code (a development checkout): everything is re-processed.
     monkeypatch.setattr("mocaplib.build.cache.code_fingerprint", lambda: "edited")
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 4 and not any(c.from_cache for c in again.captures)
 
 
@@ -178,18 +178,18 @@ def test_failures_are_cached_but_crashes_are_not(tmp_path):
     (folder / "bad.c3d").write_text(json.dumps({"fail": "not a C3D"}))
     (folder / "bug.c3d").write_text(json.dumps({"crash": "bug"}))
     for _ in range(2):
-        build([folder], cache_dir=cache, progress=False, process=fake_process)
+        build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert sorted(calls(folder)) == ["bad.c3d", "bug.c3d", "bug.c3d"]
 
 
 def test_a_damaged_cache_file_is_recomputed_not_trusted(tmp_path):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:4])
-    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    first = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     damaged = ["[]", '{"ok": 1}', "7", '{"source": "x"}', "{", "[" * 100000]
     for path, text in zip(sorted(cache.glob("*.json")), damaged):
         path.write_text(text)
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert len(calls(folder)) == 8 and not any(c.from_cache for c in again.captures)
     assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
 
@@ -199,7 +199,7 @@ def test_a_folder_named_like_a_capture_is_skipped_and_a_broken_link_fails_alone(
     write_captures(folder, TRIPLES[:4])
     (folder / "takes.c3d").mkdir()                        # a folder, not a capture
     (folder / "gone.c3d").symlink_to(tmp_path / "moved.c3d")  # its target was moved away
-    result = build([folder], cache_dir=cache, progress=False)
+    result = build_library([folder], cache_dir=cache, progress=False)
     names = [c.file for c in result.captures]
     assert "takes.c3d" not in names
     gone = next(c for c in result.captures if c.file == "gone.c3d")
@@ -209,18 +209,18 @@ def test_a_folder_named_like_a_capture_is_skipped_and_a_broken_link_fails_alone(
 
 def test_two_jobs_give_the_same_bytes_as_one(tmp_path):
     write_captures(tmp_path / "caps")
-    one = build([tmp_path / "caps"], jobs=1, progress=False, process=fake_process)
-    two = build([tmp_path / "caps"], jobs=2, progress=False, process=fake_process)
+    one = build_library([tmp_path / "caps"], jobs=1, progress=False, process=fake_process)
+    two = build_library([tmp_path / "caps"], jobs=2, progress=False, process=fake_process)
     assert build_bytes(one, tmp_path / "one") == build_bytes(two, tmp_path / "two")
 
 
 def test_dask_local_cluster_gives_the_same_bytes(tmp_path):
     distributed = pytest.importorskip("distributed")
     write_captures(tmp_path / "caps")
-    serial = build([tmp_path / "caps"], progress=False, process=fake_process)
+    serial = build_library([tmp_path / "caps"], progress=False, process=fake_process)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
-        dask = build([tmp_path / "caps"], scheduler=cluster.scheduler_address, progress=False,
+        dask = build_library([tmp_path / "caps"], scheduler=cluster.scheduler_address, progress=False,
                      process=fake_process)
     assert build_bytes(serial, tmp_path / "s") == build_bytes(dask, tmp_path / "d")
 
@@ -229,7 +229,7 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setattr(pipeline, "SCHEDULER_TIMEOUT_S", 1)
     write_captures(tmp_path / "caps", TRIPLES[:1])
     with pytest.raises(MocapError, match="cannot connect to the Dask scheduler"):
-        build([tmp_path / "caps"], scheduler="tcp://127.0.0.1:1", progress=False,
+        build_library([tmp_path / "caps"], scheduler="tcp://127.0.0.1:1", progress=False,
               process=fake_process)
 
 
@@ -237,7 +237,7 @@ def test_same_file_name_in_two_folders_gets_unique_ids(tmp_path):
     write_captures(tmp_path / "day1", TRIPLES[:3])
     # day2/walk00 and walk01 are byte copies of day1/walk01 and walk02; day2/walk02 is new.
     write_captures(tmp_path / "day2", TRIPLES[1:4])
-    result = build([tmp_path / "day1", tmp_path / "day2"], progress=False, process=fake_process)
+    result = build_library([tmp_path / "day1", tmp_path / "day2"], progress=False, process=fake_process)
     ids = list(result.library.table.index)
     assert len(ids) == len(set(ids)) == 4, ids
     assert sorted(i.split("@")[0] for i in ids if "@" in i) == ["walk02_c0", "walk02_c0"]
@@ -255,12 +255,12 @@ def test_find_captures_recurses_sorts_and_dedupes(tmp_path):
     with pytest.raises(MocapError, match="no such file or folder"):
         find_captures([tmp_path / "missing"])
     with pytest.raises(MocapError, match="no C3D captures found"):
-        build([(tmp_path / "empty")], progress=False, process=fake_process)
+        build_library([(tmp_path / "empty")], progress=False, process=fake_process)
 
 
 def test_progress_bar_reports_captures_on_stderr(tmp_path, capsys):
     write_captures(tmp_path / "caps", TRIPLES[:2])
-    build([tmp_path / "caps"], progress=True, process=fake_process)
+    build_library([tmp_path / "caps"], progress=True, process=fake_process)
     assert "2/2" in capsys.readouterr().err
 
 
@@ -304,7 +304,7 @@ def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_pa
     taller, _ = plan_capture("walk_straight_normal", 1.85, tmp_path)
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
     workflow._neutral_model.cache_clear()
-    result = build([SAMPLES / "walk_straight_normal.c3d", SAMPLES / "turn_spot_left_normal.c3d",
+    result = build_library([SAMPLES / "walk_straight_normal.c3d", SAMPLES / "turn_spot_left_normal.c3d",
                     taller], settings, jobs=1, cache_dir=None, progress=False)
     assert workflow._neutral_model.cache_info().misses == 1          # calibrated once
     walk, turn, other = result.captures
@@ -313,7 +313,7 @@ def test_a_neutral_static_is_calibrated_once_but_every_capture_is_checked(tmp_pa
     assert other.ok and other.static is None and other.entries, other.error
     assert any(w.startswith("calibrated from the capture itself: no static shows its subject")
                and "rest.c3d" in w for w in other.warnings), other.warnings
-    required = build([taller], replace(settings, require_static=True), jobs=1, cache_dir=None,
+    required = build_library([taller], replace(settings, require_static=True), jobs=1, cache_dir=None,
                      progress=False).captures[0]
     assert not required.ok and required.stage == "calibrate" and required.static is None
     assert "walk_straight_normal_1.85.c3d" in required.error and "rest.c3d" in required.error
@@ -330,7 +330,7 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     shorter_walk, _ = plan_capture("walk_straight_normal", 1.55, tmp_path)
     settings = BuildSettings(static=[SAMPLES / "rest.c3d", taller_rest], static_pose="neutral")
     assert settings.statics == (str(SAMPLES / "rest.c3d"), str(taller_rest))
-    result = build([SAMPLES / "walk_straight_normal.c3d", taller_walk, shorter_walk], settings,
+    result = build_library([SAMPLES / "walk_straight_normal.c3d", taller_walk, shorter_walk], settings,
                    jobs=1, cache_dir=None, progress=False)
     walk, taller, shorter = result.captures
     assert walk.ok and walk.static == "rest.c3d", walk.error
@@ -343,7 +343,7 @@ def test_several_statics_each_capture_gets_its_subjects(tmp_path):
     assert result.library.settings["static"] == ["rest.c3d", "rest_1.85.c3d"]
     assert [c["static"] for c in result.diagnostics()["captures"]] == \
         ["rest.c3d", "rest_1.85.c3d", None]
-    required = build([shorter_walk], replace(settings, require_static=True), jobs=1,
+    required = build_library([shorter_walk], replace(settings, require_static=True), jobs=1,
                      cache_dir=None, progress=False)
     assert not required.ok and "none of the 2 static trials" in required.failures[0].error
     assert result.summary()["statics"] == {"rest.c3d": 1, "rest_1.85.c3d": 1}
@@ -405,7 +405,7 @@ def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
 
 def test_cli_validate_prints_problems(tmp_path, capsys):
     write_captures(tmp_path / "caps", TRIPLES[:2])
-    path, _ = build([tmp_path / "caps"], progress=False, process=fake_process).write(
+    path, _ = build_library([tmp_path / "caps"], progress=False, process=fake_process).write(
         tmp_path / "small")
     assert main(["validate", str(path)]) == 1
     assert "needs at least 4" in capsys.readouterr().out
@@ -602,7 +602,7 @@ def test_a_capture_missing_required_landmarks_fails_alone_naming_them(synthetic_
     renamed = {"LSHO": "LSHX", "LASI": "L_ASIS_X"}
     bad = write_c3d(tmp_path / "renamed.c3d", trial.markers,
                     [renamed.get(label, label) for label in trial.labels], trial.rate)
-    result = build([bad, synthetic_folder / "rest.c3d"], BuildSettings(), progress=False)
+    result = build_library([bad, synthetic_folder / "rest.c3d"], BuildSettings(), progress=False)
     failed, rest = result.captures
     assert not failed.ok and failed.stage == "protocol" and rest.ok and len(result.library) == 1
     assert failed.error.startswith(
@@ -668,7 +668,7 @@ def test_a_dead_worker_fails_its_capture_alone_after_one_more_try(tmp_path):
     write_captures(folder)
     (folder / "walk90.c3d").write_text(json.dumps({"die": "always"}))
     (folder / "walk91.c3d").write_text(json.dumps({"die": "once", "v": 0.9}))
-    result = build([folder], jobs=2, progress=False, process=fake_process)
+    result = build_library([folder], jobs=2, progress=False, process=fake_process)
     assert [c.file for c in result.failures] == ["walk90.c3d"]
     dead = result.failures[0]
     assert dead.stage == "worker" and "died, 2 times" in dead.error and "SIGKILL" in dead.error
@@ -688,7 +688,7 @@ def blas_threads(path: str, settings: BuildSettings) -> CaptureResult:
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_every_capture_runs_with_one_blas_thread_whatever_the_jobs(tmp_path, jobs):
     write_captures(tmp_path / "caps", TRIPLES[:2])
-    result = build([tmp_path / "caps"], jobs=jobs, progress=False, process=blas_threads)
+    result = build_library([tmp_path / "caps"], jobs=jobs, progress=False, process=blas_threads)
     assert [c.warnings for c in result.captures] == [["threads [1]"]] * 2
 
 
@@ -699,8 +699,8 @@ def test_one_and_two_jobs_give_the_same_bytes_on_sample_captures(tmp_path):
     samples = [SAMPLES / f"{name}.c3d" for name in
                ("walk_straight_normal", "walk_curve_r1_left_fast", "side_left_normal",
                 "turn_spot_right_slow")]
-    one = build(samples, jobs=1, progress=False)
-    two = build(samples, jobs=2, progress=False)
+    one = build_library(samples, jobs=1, progress=False)
+    two = build_library(samples, jobs=2, progress=False)
     assert one.ok and len(one.library) == 4
     assert build_bytes(one, tmp_path / "one") == build_bytes(two, tmp_path / "two")
 
@@ -717,27 +717,27 @@ def edit_cache_entry(cache: Path, edit) -> Path:
 def test_a_hand_edited_cache_entry_is_recomputed_with_a_note(tmp_path):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:1])
-    first = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    first = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
 
     def faster(data):  # still a result of the right shape, with another speed
         data["result"]["entries"][0]["v"] = 3.0
 
     edit_cache_entry(cache, faster)
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert calls(folder) == ["walk00.c3d"] * 2 and not again.captures[0].from_cache
     assert "does not match its hash" in again.notes[0] and "walk00.c3d" in again.notes[0]
     assert build_bytes(first, tmp_path / "a") == build_bytes(again, tmp_path / "b")
-    third = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    third = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert third.captures[0].from_cache and not third.notes  # the entry was written afresh
 
 
 def test_a_cache_entry_stored_under_another_key_is_not_trusted(tmp_path):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:2])
-    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     first, second = sorted(cache.glob("*.json"))
     second.write_bytes(first.read_bytes())  # a whole, self-consistent entry of the other file
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert sum(c.from_cache for c in again.captures) == 1
     assert any("stored for other inputs or code" in note for note in again.notes)
     assert [e.split("_")[0] for e in again.library.table.index] == ["walk00", "walk01"]
@@ -748,7 +748,7 @@ def test_a_cache_entry_stored_under_another_key_is_not_trusted(tmp_path):
 def test_a_cache_entry_that_is_no_regular_file_is_refused_unopened(tmp_path, kind):
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder, TRIPLES[:1])
-    build([folder], cache_dir=cache, progress=False, process=fake_process)
+    build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     [entry] = cache.glob("*.json")
     kept = entry.rename(tmp_path / "entry.json")
     if kind == "pipe":
@@ -757,7 +757,7 @@ def test_a_cache_entry_that_is_no_regular_file_is_refused_unopened(tmp_path, kin
         entry.symlink_to("/dev/zero")  # reading it would never end
     else:
         entry.symlink_to(kept)  # even a valid entry: the cache holds its own files only
-    again = build([folder], cache_dir=cache, progress=False, process=fake_process)
+    again = build_library([folder], cache_dir=cache, progress=False, process=fake_process)
     assert not again.captures[0].from_cache and len(calls(folder)) == 2
     assert "its cached result was not used" in again.notes[0]
     assert ("not a regular file" if kind == "pipe" else "symbolic link") in again.notes[0]
@@ -769,7 +769,7 @@ def test_a_capture_whose_name_is_not_utf8_is_built_and_stored_as_text(tmp_path):
     latin1 = os.path.join(os.fsencode(folder), b"gehen_\xe4.c3d")
     with open(latin1, "wb") as handle:
         handle.write(json.dumps({"v": 0.6, "omega": 0.5, "v_l": 0.0}).encode())
-    result = build([folder], progress=False, process=fake_process)
+    result = build_library([folder], progress=False, process=fake_process)
     library, sidecar = result.write(tmp_path / "lib.json")
     assert "gehen_ä_c0" in load_library(library).table.index
     assert "gehen_ä.c3d" in {c["source"] for c in json.loads(sidecar.read_text())["captures"]}

@@ -17,7 +17,7 @@ from mocaplib.cli import main
 from mocaplib.errors import CalibrationError, MocapError, NoCycleError
 from mocaplib.io.c3d import read_c3d
 from mocaplib.io.c3d_write import write_c3d
-from mocaplib.build.pipeline import build
+from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.sessions import SESSION_FILE, load_session, plan_captures
 
@@ -68,7 +68,7 @@ def test_a_single_frame_static_is_accepted(tmp_path):
     part, window = standing_part(one)
     assert part.n_frames == 1 and window == (0.0, 0.0)
     walk = _copy("walk_straight_normal", tmp_path)
-    result = build([walk, one.source], BuildSettings(static=one.source), jobs=1,
+    result = build_library([walk, one.source], BuildSettings(static=one.source), jobs=1,
                    cache_dir=None, progress=False)
     walked, static = result.captures
     assert walked.ok and walked.static == "one.c3d" and walked.entries, walked.error
@@ -96,7 +96,7 @@ def test_a_standing_file_among_the_inputs_is_a_static(tmp_path):
     rest = _copy("rest", tmp_path)
     pool, planned = plan_captures([walk, rest], BuildSettings())
     assert pool.statics == (str(rest),) and planned == [pool, pool]
-    result = build([tmp_path], BuildSettings(), jobs=1, cache_dir=None, progress=False)
+    result = build_library([tmp_path], BuildSettings(), jobs=1, cache_dir=None, progress=False)
     static, walked = result.captures                 # in name order
     assert walked.static == "rest.c3d" and static.static == "rest.c3d"
     assert static.entries[0].locomotion_class == "rest" and result.ok
@@ -113,7 +113,7 @@ def test_a_session_file_names_its_folders_static_pose_and_protocol(tmp_path):
     session = load_session(one / SESSION_FILE)
     assert session.statics == (str((one / "Static.c3d").absolute()),)
     assert (session.static_pose, session.protocol) == ("neutral", "fullbody38")
-    result = build([tmp_path], BuildSettings(), jobs=1, cache_dir=None, progress=False)
+    result = build_library([tmp_path], BuildSettings(), jobs=1, cache_dir=None, progress=False)
     by_name = {c.file: c for c in result.captures}
     assert by_name[walk_one.name].static == "Static.c3d" and by_name["Static.c3d"].ok
     # the other folder has no static of its own: the session's static is not its subject's
@@ -142,7 +142,7 @@ def test_a_capture_without_a_complete_cycle_gives_no_entry_and_says_why(tmp_path
     walk = read_c3d(_samples() / "walk_straight_normal.c3d")
     short = write_c3d(tmp_path / "short.c3d", walk.markers[:110], walk.labels, walk.rate)
     whole = _copy("walk_straight_normal", tmp_path)
-    result = build([short, whole], BuildSettings(), jobs=1, cache_dir=None,
+    result = build_library([short, whole], BuildSettings(), jobs=1, cache_dir=None,
                    progress=False)
     cut, kept = result.captures
     assert cut.ok and not cut.entries and kept.entries and result.ok
@@ -171,7 +171,7 @@ def test_static_options_are_checked_before_any_work(tmp_path, capsys):
     assert "captures 1  ok 1  failed 0" in printed
     assert "static static_step.c3d: calibrated on its stretch" in printed
     with pytest.raises(MocapError, match="requires a static"):
-        build([walk], replace(BuildSettings(), require_static=True), cache_dir=None,
+        build_library([walk], replace(BuildSettings(), require_static=True), cache_dir=None,
               progress=False)
 
 

@@ -1,6 +1,6 @@
 """The batch pipeline: from C3D captures to a motion library, in parallel, cached, resumable.
 
-:func:`build` runs :func:`mocaplib.build.workflow.process_capture` over many captures — serially, in
+:func:`build_library` runs :func:`mocaplib.build.workflow.process_capture` over many captures — serially, in
 worker processes (``jobs``, :mod:`mocaplib.build.workers`: a dead worker fails only its capture) or on
 a Dask cluster (``scheduler``) — caches each capture's result (:mod:`mocaplib.build.cache`), and
 assembles the :class:`~mocaplib.library.format.Library` and the per-capture diagnostics the HTML report
@@ -155,7 +155,7 @@ class BuildResult:
         return path, sidecar
 
 
-def build(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = None, *,
+def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = None, *,
           jobs: int = 1, scheduler: str | None = None, cache_dir: str | os.PathLike | None = None,
           progress: bool = True,
           process: Callable[[str, BuildSettings], CaptureResult] | None = None

@@ -22,7 +22,7 @@ class BuildSettings:
     static : a static calibration capture, several (one per subject or session: each capture
         is calibrated with the one showing its subject, :func:`mocaplib.model.calibration_checks.choose_static`;
         one that none shows is calibrated from itself, with a warning), or None to calibrate
-        from each motion capture. :func:`build` adds the standing files among its inputs and
+        from each motion capture. :func:`~mocaplib.build.pipeline.build_library` adds the standing files among its inputs and
         takes a folder's ``session.toml`` for the captures beside it (:mod:`mocaplib.build.sessions`).
     static_window : (start, end) seconds of each static to calibrate on, or None: the whole
         static when it stands still, else its quietest second
@@ -35,7 +35,7 @@ class BuildSettings:
         or curving, not side-stepping), or None: each turns the heading of the neutral static
         that shows its subject (see :func:`forward_offsets`).
     heading_offsets : per static, the heading correction (radians) the forward references
-        measured; None: not measured (:func:`build` measures it when references are given).
+        measured; None: not measured (:func:`~mocaplib.build.pipeline.build_library` measures it when references are given).
     cutoff : marker low-pass before calibration and fit (:mod:`mocaplib.model.filtering`): Hz,
         ``"auto"`` (Winter's residual analysis per capture) or None (unfiltered).
     toe_off : the toe-off definition that cuts the cycles, ``"foot_velocity"`` (feet that roll

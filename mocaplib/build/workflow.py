@@ -16,22 +16,30 @@ import warnings
 from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import MocapError, NoCycleError
-from ..gait.cycles import qc_and_choice
+from ..errors import C3DError, CalibrationError, MocapError, NoCycleError
+from ..gait.cycles import motion_cycles
 from ..gait.locomotion import locomotion_class
+from ..gait.patterns import cycle_times
+from ..gait.poulaine import cycle_poulaine
 from ..gait.qc import cycle_qc, inside_cycle, named_failures, qc_failures, qc_series
 from ..io import fs_text, open_regular
+from ..io.c3d import read_c3d
 from ..library.entry import EntryDrift, EntryFourier, EntryPattern, EntryPoulaine, LibraryEntry
 from ..library.format import to_json_data
-from ..model.fitting import StageClock, fit_capture
+from ..library.mirror import (MIRROR_TAG, REFLECTION, SYMMETRIC_DISTANCE, image_distance,
+                              mirror_events, mirror_motion)
+from ..markersets.matching import match_trial
+from ..model.calibration import calibrate
+from ..model.filtering import resample
+from ..model.fitting import StageClock
 from ..skeleton import DOF_NAMES
+from ..statics import static_names
+from .capture import ProcessedCapture, cut_cycles, fit_events
+from .settings import BuildSettings
 
-if TYPE_CHECKING:
-    from .settings import BuildSettings
 
 
 #: Long series in the diagnostics are downsampled to at most this many points.
@@ -196,10 +204,11 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
 def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
     """:func:`_cut_capture`, then the entries (and with ``settings.mirror`` those of the mirror
     image, :func:`mirror_entries`); fills ``result`` (raises MocapError for a bad capture)."""
-    trial, motion, cycles, events, ground = _cut_capture(path, settings, result, clock)
+    processed = _cut_capture(path, settings, result, clock)
+    trial, motion, cycles, qcs = processed.trial, processed.motion, processed.cycles, processed.qc
+    events, ground = processed.events, processed.ground
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
         kept = [c for c in cycles if c.chosen or settings.all_cycles]
     with clock.stage("poulaines"):
         shapes = {c.index: cycle_shape(motion, c) for c in kept}
@@ -224,76 +233,59 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                 DIAGNOSTICS_DIGITS)
 
 
-def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock):
-    """import -> protocol -> calibrate -> fit -> events -> cycles (patterns, velocities,
-    Fourier); returns the trial, its :class:`~mocaplib.model.motion.Motion`, its cycles, its gait
-    events and the ground's velocity (3,) m/s (:func:`mocaplib.gait.events.capture_events`), and puts
-    the warnings, the static used and the capture's diagnostic series in ``result``.
-
-    The stages are chained as ``mocaplib cycles`` chains them
-    (:func:`mocaplib.model.fitting.fit_capture`, timed by ``clock``, then
-    :func:`mocaplib.gait.events.capture_events` and :func:`mocaplib.gait.cycles.motion_cycles`), so both
-    give the same cycles; a build falls back to calibrating from the capture when none of its
+def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clock: StageClock
+                 ) -> ProcessedCapture:
+    """:func:`mocaplib.build.capture.process` with the build's settings: import -> protocol ->
+    calibrate -> fit -> events -> cycles (patterns, velocities, Fourier) -> QC and the chosen
+    cycle; puts the warnings, the static used and the capture's diagnostic series in
+    ``result`` (the series between :func:`~mocaplib.build.capture.fit_events` and
+    :func:`~mocaplib.build.capture.cut_cycles`, so a capture without a cycle keeps them). The statics are read once per process and a static in the neutral pose
+    calibrated once; a build falls back to calibrating from the capture when none of its
     statics shows the subject, unless ``settings.require_static``. Settings with a forward
-    reference must carry its measured ``heading_offsets`` (:func:`build` measures them).
+    reference must carry its measured ``heading_offsets`` (:func:`~mocaplib.build.pipeline.build_library` measures them).
     """
     if settings.forward_reference is not None and settings.heading_offsets is None:
         raise MocapError("the forward reference's heading offsets are not measured: build with "
-                         "pipeline.build, or set heading_offsets=forward_offsets(settings)")
-    from ..errors import CalibrationError
-    from ..gait.cycles import motion_cycles, shoulder_centres
-    from ..gait.events import capture_events
-    from ..io.c3d import read_c3d
-    from ..markersets.matching import match_trial, missing_landmarks_error
-    from ..statics import static_names
-
+                         "build_library, or set heading_offsets=forward_offsets(settings)")
     with clock.stage("import"):
         trial = read_c3d(path)
         statics = [(static, static_sha256(static)) for static in settings.statics]
         static_trials = [_read_static(*key) for key in statics]
     result.n_frames = trial.n_frames
     result.warnings.extend(trial.warnings)
-    with clock.stage("protocol"):
-        match = match_trial(trial, settings.protocol)
-        missing = missing_landmarks_error(match, path)
-        if missing is not None:
-            raise missing
     if not statics and settings.require_static:
         raise CalibrationError("no static trial given, and the build requires one "
                                "(require_static)", path=trial.source,
                                hint="give the subject's static with --static or a "
                                     "session.toml, or leave --require-static out")
 
+    with clock.stage("protocol"):
+        match = match_trial(trial, settings.protocol)
+
     def neutral_model(i: int):
         return _neutral_model(*statics[i], match.protocol, settings.heading_offset(i),
                               tuple(sorted(settings.measurements.items())),
                               settings.static_window)
 
-    fitted = fit_capture(trial, protocol=match, static=static_trials,
-                         static_pose=settings.static_pose, cutoff=settings.cutoff,
-                         measurements=settings.measurements, static_window=settings.static_window,
-                         fallback=not settings.require_static, neutral_model=neutral_model,
-                         clock=clock)
-    motion, cutoff = fitted.motion, fitted.cutoff
+    processed = fit_events(trial, protocol=match, static=static_trials,
+                           static_pose=settings.static_pose, cutoff=settings.cutoff,
+                           measurements=settings.measurements,
+                           static_window=settings.static_window, toe_off=settings.toe_off,
+                           max_gap_s=settings.max_gap_s, fallback=not settings.require_static,
+                           neutral_model=neutral_model, clock=clock)
+    fitted = processed.fitted
     if fitted.static is not None:
         result.static = static_names(settings.statics)[fitted.static]
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
-    with clock.stage("events"):
-        events, ground = capture_events(trial, match, motion=motion, toe_off=settings.toe_off,
-                                        max_gap_s=settings.max_gap_s)
-        shoulders = shoulder_centres(motion)
-        result.diagnostics.update(_series(trial, motion, shoulders, events, cutoff))
-    with clock.stage("cycles"):
-        cycles = motion_cycles(events, motion, ground=ground, shoulders=shoulders,
-                               fallback_starts=match.protocol.fallback_starts,
-                               max_gap_s=settings.max_gap_s, source=path)
-    return trial, motion, cycles, events, ground
+    result.diagnostics.update(_series(trial, processed.motion, processed.shoulders,
+                                      processed.events, fitted.cutoff))
+    return cut_cycles(processed, max_gap_s=settings.max_gap_s,
+                      qc_thresholds=settings.qc_thresholds, clock=clock)
 
 
 def static_sha256(path: str) -> str:
     """SHA-256 of a static trial's file; one that cannot be read is named (C3DError)."""
-    from ..errors import C3DError
 
     try:
         return file_sha256(path)
@@ -305,7 +297,6 @@ def static_sha256(path: str) -> str:
 @lru_cache(maxsize=None)
 def _read_static(path: str, sha256: str):
     """The static trial, read once per worker process for each content (``sha256``)."""
-    from ..io.c3d import read_c3d
     return read_c3d(path)
 
 
@@ -318,7 +309,6 @@ def _neutral_model(path: str, sha256: str, protocol, heading_offset: float,
     else, so each
     capture only checks that it shows the same subject
     (:func:`mocaplib.model.calibration_checks.check_static`)."""
-    from ..model.calibration import calibrate
     static = _read_static(path, sha256)
     return calibrate(static, protocol=protocol, static=static, static_pose="neutral",
                      heading_offset=heading_offset, measurements=dict(measurements),
@@ -344,8 +334,6 @@ def forward_offsets(settings: BuildSettings) -> tuple[float, ...]:
     processed, shows no walking cycle, or faces further than :data:`FORWARD_LIMIT_DEG` from
     its path, or the references when :data:`FORWARD_PASSES` turns do not settle it.
     """
-    from ..errors import CalibrationError
-    from ..statics import static_names
 
     offsets = tuple(0.0 for _ in settings.statics)
     for _ in range(FORWARD_PASSES):
@@ -371,8 +359,6 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     :data:`MIN_FORWARD_SPEED` fast and pass the build's QC of :data:`FORWARD_QC`. A reference
     is calibrated with the static that shows its subject, never from itself
     (``require_static``)."""
-    from ..errors import CalibrationError
-    from ..statics import static_names
 
     names = static_names(settings.statics)
     found: list[list[float]] = [[] for _ in names]
@@ -381,8 +367,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
     for reference in settings.forward_references:
         result = CaptureResult(source=reference)
         try:
-            _, motion, cycles, _, ground = _cut_capture(
-                Path(reference), replace(settings, require_static=True), result, StageClock())
+            processed = _cut_capture(Path(reference), replace(settings, require_static=True),
+                                     result, StageClock())
         except OSError as exc:
             raise CalibrationError(f"cannot read the forward reference: {exc.strerror or exc}",
                                    path=reference, hint="check the path") from None
@@ -393,8 +379,8 @@ def _facing_angles(settings: BuildSettings) -> tuple[float, ...]:
             raise CalibrationError(f"the forward reference cannot be processed: "
                                    f"{where}{exc.message}", path=reference,
                                    hint=own or hint) from None
-        qcs = qc_and_choice(cycles, motion, settings.qc_thresholds, ground=ground)
-        walking = [c for c in cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
+        qcs = processed.qc
+        walking = [c for c in processed.cycles if not c.rest and c.velocities.v >= MIN_FORWARD_SPEED]
         failures = {c.index: qc_failures({name: qcs[c.index][name] for name in FORWARD_QC},
                                          limits) for c in walking}
         moving = [c.velocities for c in walking if not failures[c.index]]
@@ -426,7 +412,6 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
     cut at (their order gives a cycle's gait, :func:`mocaplib.gait.locomotion.locomotion_class`);
     ``mirror_of``: for the cycles of a mirror
     image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
-    from ..library.mirror import MIRROR_TAG
 
     entries = []
     for cycle in cycles:
@@ -473,9 +458,6 @@ def cycle_shape(motion, cycle) -> dict:
     path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
     (:class:`mocaplib.gait.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
     models (:func:`mocaplib.gait.poulaine.cycle_poulaine`)."""
-    from ..gait.patterns import cycle_times
-    from ..gait.poulaine import cycle_poulaine
-    from ..model.filtering import resample
 
     times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
     q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
@@ -504,9 +486,6 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     source in the control space is left out (the cycle is its own mirror image: straight
     walks, runs, rest). What is left out is said in ``result.warnings``.
     """
-    from ..gait.cycles import motion_cycles
-    from ..library.mirror import (REFLECTION, SYMMETRIC_DISTANCE, image_distance, mirror_events,
-                                  mirror_motion)
 
     mirrored = mirror_motion(motion)
     image_events = mirror_events(events)

@@ -93,13 +93,13 @@ def _check_usage(args):
 
 
 def _run(args) -> int:
-    from ..build.pipeline import build
+    from ..build.pipeline import build_library
     from ..library.format import validate_library
 
     captures, settings = _check_usage(args)
     output = Path(args.output)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
-    result = build(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
+    result = build_library(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                    cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry

@@ -1,10 +1,9 @@
 """``mocaplib cycles FILE``: every cycle (left toe-off to left toe-off) with its pattern,
 velocities and Fourier order, and the one chosen for the library.
 
-Parses options and formats; the work is done by the stages: import, protocol, calibration, fit
-(:mod:`mocaplib.model.calibration`, :mod:`mocaplib.model.ik`), events (as ``mocaplib events``, with missing
-foot-marker samples taken from the fitted skeleton) and :func:`mocaplib.gait.cycles.analyse_cycles`
-on the fitted shoulder joint centres.
+Parses options and formats; the work is :func:`mocaplib.build.capture.process`, the same stages
+``mocaplib build`` runs: import, protocol, calibration, fit, events (missing foot-marker samples
+taken from the fitted skeleton), cycles on the fitted shoulder joint centres, QC and the choice.
 """
 
 from __future__ import annotations
@@ -36,31 +35,22 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..gait.cycles import LEFT_TOE_OFF, motion_cycles, qc_and_choice
-    from ..gait.events import capture_events
+    from ..build.capture import process
+    from ..gait.cycles import LEFT_TOE_OFF
     from ..gait.qc import DEFAULT_QC_THRESHOLDS, named_failures
-    from ..model.fitting import fit_capture
     from ._common import print_json
-    from .events import load
 
     statics = check_inputs([args.file], args.static, static_pose=args.static_pose,
                            references=args.forward_reference, static_window=args.static_window)
-    trial, match, missing = load(args)
-    if missing is not None:
-        raise missing
-    motion = fit_capture(trial, protocol=match, static=statics,
-                         static_pose=args.static_pose, cutoff=args.cutoff,
-                         static_window=args.static_window, measurements=measurements(args),
-                         heading_offsets=heading_offsets(args)).motion
-    events, ground = capture_events(trial, match, motion=motion, toe_off=args.toe_off,
-                                    max_gap_s=args.max_gap_s)
-    cycles = motion_cycles(events, motion, ground=ground, source=args.file,
-                           fallback_starts=match.protocol.fallback_starts,
-                           max_gap_s=args.max_gap_s)
-    qcs = qc_and_choice(cycles, motion, DEFAULT_QC_THRESHOLDS, ground=ground)
-    rows = [{**c.to_dict(), "qc_failures": named_failures(c, motion, qcs[c.index],
+    done = process(args.file, protocol=args.protocol, static=statics,
+                   static_pose=args.static_pose, cutoff=args.cutoff,
+                   static_window=args.static_window, measurements=measurements(args),
+                   heading_offsets=heading_offsets(args), toe_off=args.toe_off,
+                   max_gap_s=args.max_gap_s)
+    match, motion = done.match, done.motion
+    rows = [{**c.to_dict(), "qc_failures": named_failures(c, motion, done.qc[c.index],
                                                           DEFAULT_QC_THRESHOLDS)}
-            for c in cycles]
+            for c in done.cycles]
     if args.json:
         print_json({"file": args.file, "cycles": rows})
         return 0

@@ -165,3 +165,47 @@ def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
         notes.append(f"{quality['rejected_samples']} marker samples removed as outliers "
                      f"({', '.join(f'{k} {v}' for k, v in quality['rejected_per_marker'].items())})")
     return notes
+
+
+def fit(capture, /, *, protocol="auto", static=None, static_pose: str = "free",
+        cutoff: float | str | None = "auto", static_window: tuple[float, float] | None = None,
+        measurements: dict | None = None, heading_offsets=None) -> Motion:
+    """The joint angles ``mocaplib fit`` writes for a capture, with the same options.
+
+    Parameters
+    ----------
+    capture : str, os.PathLike or Trial
+        The capture: a C3D file (read with :func:`mocaplib.io.c3d.read_c3d`) or a trial.
+    protocol : ProtocolMatch, Protocol, str or "auto"
+        The marker set (``--protocol``): a shipped name, a TOML path, or detected.
+    static : path, Trial or a list of them, optional
+        The static trial(s) (``--static``); the one that shows the capture's subject is used.
+        None calibrates the subject from the capture itself.
+    static_pose : {"free", "neutral"}
+        The static's pose (``--static-pose``).
+    cutoff : float, "auto" or None
+        The markers' low-pass cutoff in Hz (``--cutoff``).
+    static_window : (start, end) seconds, optional
+        The stretch of the static to calibrate on (``--static-window``).
+    measurements : dict, optional
+        Subject measurements in metres and kilograms (``--subject``).
+    heading_offsets : sequence of float, optional
+        Per static, the heading correction in radians a forward reference measures
+        (:func:`mocaplib.build.workflow.forward_offsets`).
+
+    Returns
+    -------
+    Motion
+        The fitted motion: ``motion.q`` (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order,
+        radians (the pelvis translations in metres), ``motion.time`` (F,) seconds.
+    """
+    from ..io.c3d import read_c3d
+    from ..trial import Trial
+
+    trial = capture if isinstance(capture, Trial) else read_c3d(capture)
+    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
+        else [static]
+    statics = [s if isinstance(s, Trial) else read_c3d(s) for s in statics]
+    return fit_capture(trial, protocol=protocol, static=statics or None, static_pose=static_pose,
+                       cutoff=cutoff, static_window=static_window, measurements=measurements,
+                       heading_offsets=heading_offsets).motion
