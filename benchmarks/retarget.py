@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT))
 from mocaplib.gait.criteria import internal_power, segment_energies  # noqa: E402
 from mocaplib.gait.cycles import motion_cycles  # noqa: E402
 from mocaplib.gait.events import capture_events  # noqa: E402
-from mocaplib.gait.fourier import ROOT_X, ROOT_Y
+from mocaplib.skeleton import ROOT_X, ROOT_Y
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.build.pipeline import build_library

@@ -145,9 +145,20 @@ TRANSLATION = np.array([d.translation for d in DOFS])
 SHIFTS = np.flatnonzero(TRANSLATION)
 #: Index of the root's heading ``pelvis_rotation`` (radians about +Z; 0 faces +X).
 ROOT_HEADING = DOF_NAMES.index("pelvis_rotation")
+#: Indices of the root's translations ``pelvis_tx``, ``pelvis_ty``, ``pelvis_tz`` (metres).
+ROOT_X, ROOT_Y, ROOT_Z = (DOF_NAMES.index(f"pelvis_t{axis}") for axis in "xyz")
 #: The joint angles (D,) bool: the rotational DOFs except the root's heading, which the library
 #: stores relative to the path frame and QC and leave-one-out treat apart.
 JOINT_ANGLES = ~TRANSLATION & (np.arange(len(DOF_NAMES)) != ROOT_HEADING)
+
+
+def segment_dofs(*segments: str) -> tuple[int, ...]:
+    """Indices into :data:`DOF_NAMES` of the DOFs of ``segments`` (names of
+    :data:`SEGMENT_NAMES`), in skeleton order."""
+    unknown = set(segments) - set(SEGMENT_NAMES)
+    if unknown:
+        raise ValueError(f"no segment {', '.join(sorted(unknown))} in the skeleton")
+    return tuple(j for j, d in enumerate(DOFS) if d.segment in segments)
 
 
 def partner_name(name: str) -> str:

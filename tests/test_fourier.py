@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import FitError
-from mocaplib.gait.fourier import encode, encode_cycle, fit_series, root_drift, synthesize, ROOT_X, ROOT_Y
+from mocaplib.gait.fourier import encode, encode_cycle, fit_series, root_drift, synthesize
+from mocaplib.skeleton import ROOT_X, ROOT_Y
 from mocaplib.skeleton import ROOT_HEADING
 from mocaplib.skeleton import DOF_NAMES, TRANSLATION
 

@@ -124,7 +124,8 @@ def test_a_series_image_is_the_mirrored_motion_from_the_right_toe_off():
     """Put back in the world (library-format.md's root-drift formula), the image's motion is
     the source's from its right toe-off on, reflected, up to one rigid motion of the floor:
     joints equal, root pose a constant SE(2) transform away."""
-    from mocaplib.gait.fourier import RootDrift, synthesize, ROOT_X, ROOT_Y
+    from mocaplib.gait.fourier import RootDrift, synthesize
+    from mocaplib.skeleton import ROOT_X, ROOT_Y
     from mocaplib.library.mirror import mirror_entry
     from mocaplib.skeleton import ROOT_HEADING
 

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.gait.fourier import RootDrift, synthesize, ROOT_X, ROOT_Y
+from mocaplib.gait.fourier import RootDrift, synthesize
+from mocaplib.skeleton import ROOT_X, ROOT_Y
 from mocaplib.library.phase import from_left_toe_off, start_later
 from mocaplib.skeleton import DOF_NAMES, ROOT_HEADING
 

@@ -52,11 +52,11 @@ import numpy as np
 
 from ..errors import EventError, NoCycleError
 from ..model.filtering import resample
-from ..skeleton import TRANSLATION
+from ..skeleton import ROOT_X, ROOT_Y, TRANSLATION
 from ..trial import CYCLE_STARTS
 from .events import EventSettings
 from .foot_events import GaitEvent
-from .fourier import ANGLE_TOLERANCE, LENGTH_TOLERANCE, ROOT_X, ROOT_Y, CycleEncoding, encode_cycle
+from .fourier import ANGLE_TOLERANCE, LENGTH_TOLERANCE, CycleEncoding, encode_cycle
 from .patterns import (CycleVelocities, Pattern, cycle_samples, cycle_times, path_velocities,
                        sample_shoulders)
 from .qc import QC_LIMITS, cycle_qc, qc_failures, qc_series

@@ -39,11 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FitError
-from ..skeleton import DOF_NAMES, ROOT_HEADING, TRANSLATION
+from ..skeleton import DOF_NAMES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION
 
-#: Root channels re-expressed in the moving frame (indices into :data:`DOF_NAMES`), with
-#: :data:`~mocaplib.skeleton.ROOT_HEADING`.
-ROOT_X, ROOT_Y = DOF_NAMES.index("pelvis_tx"), DOF_NAMES.index("pelvis_ty")
 #: The encoder's defaults: the reconstruction tolerance of angles (rad) and of translations (m),
 #: and the highest order it may reach.
 ANGLE_TOLERANCE, LENGTH_TOLERANCE, MAX_ORDER = float(np.deg2rad(0.5)), 0.002, 20

@@ -58,8 +58,8 @@ import numpy as np
 
 from ..errors import MocapError
 from ..io.jsonvalues import float_or_nan
-from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, Skeleton
-from .fourier import ROOT_X, ROOT_Y, RootDrift
+from ..skeleton import ROOT_HEADING, ROOT_X, ROOT_Y, ROOT_Z, SEGMENT_NAMES, Skeleton
+from .fourier import RootDrift
 
 #: The characteristic points, in the paper's numbering (1 to 4).
 KINDS = ("highest", "foremost", "under_pelvis", "rearmost")
@@ -80,7 +80,6 @@ POINT_ITERATIONS, ALONG_WEIGHT = 3, 0.3
 #: Curve points per segment among which the closest to a sample is refined into its distance to
 #: the curve.
 DISTANCE_SAMPLES = 50
-_ROOT_Z = DOF_NAMES.index("pelvis_tz")
 
 
 def travel_angle(u_f: float, u_l: float) -> float:
@@ -96,7 +95,7 @@ def travel_coordinates(q_path: np.ndarray, travel: float, /) -> np.ndarray:
     the travel frame of a pelvis at the origin: ``pelvis_t*`` 0, heading minus ``travel``
     (rad)."""
     q = np.array(q_path, dtype=np.float64)
-    q[:, [ROOT_X, ROOT_Y, _ROOT_Z]] = 0.0
+    q[:, [ROOT_X, ROOT_Y, ROOT_Z]] = 0.0
     q[:, ROOT_HEADING] -= travel
     return q
 

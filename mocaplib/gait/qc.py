@@ -18,9 +18,8 @@ def qc_series(motion, ground: np.ndarray | None = None) -> dict:
     :data:`mocaplib.model.filtering.WALKING_CUTOFF` (None when the capture is too short to be
     filtered): derivatives of unfiltered angles would measure fit noise only."""
     from ..model.filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from ..skeleton import JOINT_ANGLES, TRANSLATION
+    from ..skeleton import JOINT_ANGLES, ROOT_X, ROOT_Y, TRANSLATION
     from .criteria import segment_energies, third_derivative
-    from .fourier import ROOT_X, ROOT_Y
 
     q = motion.q.copy()
     q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)

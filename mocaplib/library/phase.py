@@ -29,8 +29,8 @@ def shifted_series(entry, tau: float, /) -> tuple[np.ndarray, np.ndarray, float,
     """The entry's Fourier coefficients ``a``, ``b`` (D, N+1) from ``tau`` seconds into its
     cycle on, root channels re-anchored (module docstring), and the path frame's forward and
     lateral velocities (u_f, u_l) m/s carried with them."""
-    from ..gait.fourier import ROOT_X, ROOT_Y, synthesize
-    from ..skeleton import ROOT_HEADING
+    from ..gait.fourier import synthesize
+    from ..skeleton import ROOT_HEADING, ROOT_X, ROOT_Y
 
     period = float(entry.T)
     a, b = entry.fourier.a.copy(), entry.fourier.b.copy()

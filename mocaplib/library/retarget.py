@@ -55,14 +55,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
-from ..gait.fourier import ROOT_X, ROOT_Y, RootDrift
-from ..skeleton import DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, TRANSLATION, Skeleton
+from ..gait.fourier import RootDrift
+from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
+                        Skeleton, segment_dofs)
 
-#: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis.
-TASK_DOFS = tuple(DOF_NAMES.index(name) for name in (
-    "pelvis_rotation", "pelvis_list", "pelvis_tilt",
-    "hip_flexion_l", "hip_adduction_l", "hip_rotation_l", "knee_flexion_l",
-    "hip_flexion_r", "hip_adduction_r", "hip_rotation_r", "knee_flexion_r"))
+#: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis
+#: (the pelvis's rotations, the hips and the knees).
+TASK_DOFS = tuple(j for segments in (("pelvis",), ("femur_l", "tibia_l"), ("femur_r", "tibia_r"))
+                  for j in segment_dofs(*segments) if not TRANSLATION[j])
 #: Damping of the pseudo-inverse J⁺ = V diag(σ / (σ² + λ²)) Uᵀ, which bounds the step where a
 #: leg is stretched straight (σ → 0): λ² = DAMPING² (1 − (σ_min / SINGULAR)²) when the smallest
 #: singular value σ_min of J is below SINGULAR, else 0 (m/rad; Chiaverini's adaptive damping).
