@@ -265,6 +265,36 @@ def test_leave_one_out_is_exact_for_affine_coefficients():
     np.testing.assert_allclose(df.loc[df["inside"], "T_error_s"], 0.0, atol=1e-12)
 
 
+@pytest.mark.parametrize("kind", ["random", "grid"])
+def test_leave_one_out_locates_each_entry_as_the_others_triangulated_whole_do(kind):
+    # Each entry is located among its star's neighbours only; the definition triangulates all
+    # the others: the same tetrahedron and weights, for scattered points and for a grid with
+    # its cospherical ties, hull points on faces and a duplicated entry.
+    rng = np.random.default_rng(7)
+    if kind == "random":
+        pts = rng.uniform([0.0, -1.5, -0.5], [2.0, 1.5, 0.5], (60, 3))
+    else:
+        pts = np.array(list(itertools.product([0.3, 0.9, 1.5], [-0.6, 0.0, 0.6],
+                                              [-0.3, 0.0, 0.3])), float)
+        pts = np.vstack([pts, pts[13]])
+    n = len(pts)
+    cs = ControlSpace(pts, a=rng.normal(size=(n, D, 3)), b=rng.normal(size=(n, D, 3)),
+                      T=rng.uniform(0.9, 1.3, n))
+    rows = leave_one_out(cs)
+    for i, row in rows.iterrows():
+        keep = np.arange(n) != i
+        others = ControlSpace(pts[keep], ids=[cs.ids[j] for j in np.flatnonzero(keep)])
+        res = others.query(pts[i])
+        assert row["inside"] == bool(res.inside[0]), i
+        if row["inside"]:
+            expected = {others.ids[j]: w for j, w in zip(res.entries[0], res.weights[0])
+                        if w > 1e-12}
+            got = {k: w for k, w in zip(row["neighbours"], row["weights"]) if w > 1e-12}
+            assert got.keys() == expected.keys(), i
+            np.testing.assert_allclose([got[k] for k in expected], list(expected.values()),
+                                       rtol=0, atol=1e-9)
+
+
 def test_coverage_of_a_cube_library_against_a_bigger_box():
     pts = np.vstack([CUBE, [[0.5, 0.5, 0.5]]])
     classes = ["walk"] * 4 + ["turn"] * 4 + [None]

@@ -319,6 +319,10 @@ def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.Dat
 def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     """Blending error of the library: each entry inside the hull of the others, rebuilt from them.
 
+    Removing an entry changes the tetrahedra around it only (its star), which the tetrahedra of
+    its neighbours tile again (:func:`star_neighbours`): each entry is located among those,
+    so the cost grows with the entries, not their square.
+
     Both cycles are compared at ``n_phase`` equally spaced phases of their own period, channel by
     channel in the units they are stored in (the Fourier convention: root in the path frame,
     per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
@@ -336,8 +340,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     phase = np.arange(n_phase) / n_phase
     joint_names = np.asarray(DOF_NAMES)[JOINT_ANGLES]
     rows = []
-    for i in range(len(cs.points)):
-        keep = np.arange(len(cs.points)) != i
+    for i, keep in enumerate(star_neighbours(cs.tri.simplices, len(cs.points))):
         row = {"id": cs.ids[i], "class": cs.classes[i], "inside": False, "neighbours": [],
                "weights": [], "rms_deg": np.nan, "max_deg": np.nan, "worst_dof": None,
                "heading_rms_deg": np.nan, "root_rms_mm": np.nan, "stride_error_mm": np.nan,
@@ -345,7 +348,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
         try:
             others = ControlSpace(cs.points[keep], a=cs.a[keep], b=cs.b[keep], T=cs.T[keep],
                                   drift=None if cs.drift is None else cs.drift[keep],
-                                  ids=[cs.ids[j] for j in np.flatnonzero(keep)],
+                                  ids=[cs.ids[j] for j in keep],
                                   axes=cs.variant, scale=cs.scale, source=cs.source)
         except LibraryError:
             rows.append(row)
@@ -373,6 +376,29 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
                            turn_error_deg=float(np.degrees(turned_b - turned_i)))
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def star_neighbours(simplices: np.ndarray, n_points: int) -> list[np.ndarray]:
+    """Per point of a triangulation with ``simplices`` (S, 4), the row numbers (sorted) of the
+    points whose tetrahedra tile its neighbourhood once it is removed: the vertices of the
+    tetrahedra it belongs to, and the points of no tetrahedron (duplicates of a vertex, which
+    take its place when it is removed).
+
+    The lifted points' heights do not depend on which points are triangulated
+    (:func:`~mocaplib.library.triangulation.delaunay_tetrahedra`), so the tetrahedra of the
+    points without ``i`` inside the star of ``i`` are exactly those of these neighbours.
+    """
+    vertex = simplices.ravel()
+    owner = np.repeat(np.arange(len(simplices)), simplices.shape[1])
+    unused = np.setdiff1d(np.arange(n_points), vertex)
+    by_vertex = np.argsort(vertex, kind="stable")
+    starts = np.searchsorted(vertex[by_vertex], np.arange(n_points + 1))
+    out = []
+    for i in range(n_points):
+        star = simplices[owner[by_vertex[starts[i]:starts[i + 1]]]].ravel()
+        out.append(np.setdiff1d(np.union1d(star, unused), [i]) if len(star)
+                   else np.setdiff1d(np.arange(n_points), [i]))
+    return out
 
 
 def _cycle_displacement(drift: np.ndarray, T: float) -> tuple[float, float, float]:

@@ -16,8 +16,8 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..errors import LibraryError
 
-#: Height perturbation of the lifted points (relative to the lift's range) that breaks the ties
-#: of cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
+#: Height perturbation of the lifted points (normalised units squared) that breaks the ties of
+#: cospherical entries; far above Qhull's round-off (~1e-14), far below any real difference.
 LIFT_PERTURBATION = 1e-8
 
 
@@ -128,19 +128,18 @@ def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
 
     The lower hull of the points lifted onto ``|x|²`` + :data:`LIFT_PERTURBATION` × a per-point
     hash (see the module docstring): a conforming triangulation refining the Delaunay
-    subdivision, whose tetrahedra all have positive volume and tile the convex hull. Raises
+    subdivision, whose tetrahedra all have positive volume and tile the convex hull. A point's
+    height depends on its coordinates alone (normalised units, of order 1), never on the other
+    points, so removing a point changes the tetrahedra around it only. Raises
     LibraryError if Qhull fails or the tetrahedra do not tile the hull.
     """
     x = np.asarray(x, dtype=float)
-    c = x - x.mean(axis=0)
-    c = c / np.abs(c).max()  # well-conditioned lift whatever the units
-    lift = np.einsum("ij,ij->i", c, c)
-    lift = lift + LIFT_PERTURBATION * max(float(np.ptp(lift)), 1.0) * _lift_heights(x)
+    lift = np.einsum("ij,ij->i", x, x) + LIFT_PERTURBATION * _lift_heights(x)
     # One point high above the centroid (Qhull's "Qz") makes 4 entries enough; it is never on
     # the lower hull, so never in a tetrahedron.
-    above = np.append(np.zeros(3), 2.0 * lift.max() + 1.0)
+    above = np.append(x.mean(axis=0), 2.0 * np.abs(lift).max() + 1.0)
     try:
-        lifted = ConvexHull(np.vstack([np.column_stack([c, lift]), above]))
+        lifted = ConvexHull(np.vstack([np.column_stack([x, lift]), above]))
         hull_volume = ConvexHull(x).volume
     except QhullError as exc:
         raise LibraryError(f"Delaunay triangulation failed: {exc}", path=source) from exc
