@@ -7,6 +7,7 @@ from fk_data import fk_trial, true_model
 from mocaplib.export.opensim import osim_text, write_mot, write_osim, write_trc
 from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES
+from mocaplib.trial import Trial
 
 
 def test_opensim_places_markers_where_we_do(tmp_path, monkeypatch):
@@ -44,7 +45,7 @@ def test_osim_lists_every_dof_with_ranges_and_locks():
 def test_trc_in_millimetres_with_missing_samples(tmp_path):
     markers = np.array([[[0.1, 0.2, 0.3], [np.nan, np.nan, np.nan]],
                         [[0.4, 0.5, 0.6], [1.0, 2.0, 3.0]]])
-    path = write_trc(markers, ["A", "B"], 50.0, tmp_path / "m.trc")
+    path = write_trc(Trial(markers, ["A", "B"], 50.0), tmp_path / "m.trc")
     lines = path.read_text().splitlines()
     assert lines[2].split("\t")[:5] == ["50", "50", "2", "2", "mm"]
     assert lines[3].split("\t")[2] == "A" and lines[3].split("\t")[5] == "B"
@@ -85,5 +86,5 @@ def test_labels_opensim_refuses_are_written_as_names_it_accepts(tmp_path, monkey
     names = [markers.get(i).getName() for i in range(markers.getSize())]
     assert names == [label.replace(" ", "_").replace("/", "_").replace("*", "_")
                      .replace("+", "_") for label in labels]
-    trc = write_trc(cap.trial.markers, labels, 100.0, tmp_path / "spaced.trc")
+    trc = write_trc(Trial(cap.trial.markers, labels, 100.0), tmp_path / "spaced.trc")
     assert list(osim.TimeSeriesTableVec3(str(trc)).getColumnLabels()) == names
