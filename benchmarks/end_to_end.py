@@ -116,7 +116,8 @@ def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
            "weights": model.marker_weights.tolist(),
            "motion": str(folder / "motion.trc"), "motion_end": trial.duration,
            "mot": str(folder / "ik.mot")}
-    write_trc(model_markers(trial, model), model.labels, trial.rate, job["motion"])
+    write_trc(dataclasses.replace(trial, markers=model_markers(trial, model),
+                                  labels=model.labels), job["motion"])
     if static is None:
         job["model"] = str(write_osim(model, folder / "model.osim"))
         return job
@@ -131,8 +132,8 @@ def opensim_job(path: Path, static: Path | None, folder: Path) -> dict:
                  if np.linalg.norm(nominal[a] - nominal[b]) > MIN_PAIR]
         if found:
             pairs[name] = found
-    write_trc(model_markers(statics[0], model), model.labels, statics[0].rate,
-              folder / "static.trc")
+    write_trc(dataclasses.replace(statics[0], markers=model_markers(statics[0], model),
+                                  labels=model.labels), folder / "static.trc")
     job.update(generic=str(write_osim(generic, folder / "generic.osim")),
                static=str(folder / "static.trc"), static_end=statics[0].duration,
                pairs=pairs, segments=list(SEGMENT_NAMES), height=REFERENCE_HEIGHT)

@@ -59,7 +59,8 @@ from opensim_tools import inverse_kinematics, read_mot  # noqa: E402
 from mocaplib.model.calibration import calibrate  # noqa: E402
 from mocaplib.model.ik import fit, fit_filtered, model_markers  # noqa: E402
 from mocaplib.export.opensim import opensim_name, write_osim, write_trc  # noqa: E402
-from mocaplib.skeleton import DOF_NAMES, DOFS
+from mocaplib.skeleton import DOF_NAMES, DOFS  # noqa: E402
+from mocaplib.trial import Trial  # noqa: E402
 
 ROTATIONS = [j for j, d in enumerate(DOFS) if not d.translation]
 FLEXION = [DOF_NAMES.index(n) for n in DOF_NAMES
@@ -159,7 +160,7 @@ def compare(args) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
             write_osim(model, tmp / "model.osim")
-            write_trc(markers, model.labels, trial.rate, tmp / "markers.trc")
+            write_trc(Trial(markers, model.labels, trial.rate), tmp / "markers.trc")
             for _ in range(args.repeat):
                 seconds, q_osim = run_opensim(tmp / "model.osim", tmp / "markers.trc", model,
                                               trial.duration, tmp / "ik.mot")

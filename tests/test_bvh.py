@@ -8,6 +8,7 @@ from fk_data import neutral_q
 
 from mocaplib.errors import MocapError
 from mocaplib.export.bvh import bvh_text, write_bvh
+from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 
 
@@ -103,7 +104,7 @@ def random_pose():
 @pytest.mark.parametrize("units, scale", [("m", 1.0), ("cm", 100.0)])
 def test_bvh_joint_positions_equal_forward_kinematics(random_pose, units, scale):
     sk, q = random_pose
-    names, pos_file, frame_time = bvh_positions(bvh_text(q, sk, rate=120.0, units=units))
+    names, pos_file, frame_time = bvh_positions(bvh_text(Motion(q, sk, 120.0), units=units))
     assert names == list(SEGMENT_NAMES)
     np.testing.assert_allclose(frame_time, 1 / 120.0, rtol=1e-9)
     expected = sk.forward(q)[:, :, :3, 3]
@@ -113,7 +114,7 @@ def test_bvh_joint_positions_equal_forward_kinematics(random_pose, units, scale)
 
 def test_bvh_is_y_up_for_blender():
     sk = Skeleton.from_height(1.75)
-    names, pos_file, _ = bvh_positions(bvh_text(neutral_q(sk, 1), sk, rate=100.0))
+    names, pos_file, _ = bvh_positions(bvh_text(Motion(neutral_q(sk, 1), sk, 100.0)))
     head = pos_file[0, names.index("head")]
     foot = pos_file[0, names.index("foot_l")]
     # Standing upright: the head is high on file +Y, the left foot at file -Z (our +Y, left).
@@ -123,7 +124,7 @@ def test_bvh_is_y_up_for_blender():
 
 def test_bvh_three_rotation_channels_per_joint():
     sk = Skeleton.from_height(1.75)
-    joints, _, values = parse_bvh(bvh_text(neutral_q(sk, 2), sk, rate=100.0))
+    joints, _, values = parse_bvh(bvh_text(Motion(neutral_q(sk, 2), sk, 100.0)))
     real = [j for j in joints if j["name"] is not None]
     for j in real:
         rot = sorted(c[0] for c in j["channels"] if c.endswith("rotation"))
@@ -133,13 +134,11 @@ def test_bvh_three_rotation_channels_per_joint():
 
 def test_write_bvh_atomic_and_errors(tmp_path):
     sk = Skeleton.from_height(1.75)
-    out = write_bvh(tmp_path / "sub" / "walk.bvh", neutral_q(sk, 3), sk, rate=100.0)
+    out = write_bvh(Motion(neutral_q(sk, 3), sk, 100.0), tmp_path / "sub" / "walk.bvh")
     assert out.read_text().startswith("HIERARCHY\nROOT pelvis")
     q = neutral_q(sk, 3)
     q[1, 5] = np.nan
     with pytest.raises(MocapError, match="finite"):
-        bvh_text(q, sk, rate=100.0)
-    with pytest.raises(MocapError, match=r"shape \(F, 32\)"):
-        bvh_text(q[:, :5], sk, rate=100.0)
+        bvh_text(Motion(q, sk, 100.0))
     with pytest.raises(MocapError, match="units"):
-        bvh_text(neutral_q(sk, 1), sk, rate=100.0, units="inch")
+        bvh_text(Motion(neutral_q(sk, 1), sk, 100.0), units="inch")

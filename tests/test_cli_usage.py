@@ -64,7 +64,7 @@ def test_inspect_a_path_that_does_not_exist_is_a_usage_error(tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["{missing}", "1", "0", "0"], "missing.json: no such file or folder (check the path; "
                                    "`mocaplib build` writes a library)"),
-    (["{lib}", "1", "0", "0", "--cycles", "2"], "--cycles only apply to the BVH output"),
+    (["{lib}", "1", "0", "0", "--cycles", "2"], "--cycles only apply to the animation outputs"),
     (["{lib}", "1", "0", "0", "--cycles", "2", "--rate", "50"], "--cycles and --rate only"),
     (["{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--rate", "0.01"],
      "argument --rate: must be >= 10 Hz"),

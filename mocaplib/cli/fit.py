@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.anthropometry import DEFAULT_BODY_MASS
 from ._common import (add_cutoff_option, add_protocol_option, add_static_options, check_inputs,
                       check_outputs, heading_offsets, measurements)
 
@@ -28,7 +29,13 @@ def register(subparsers) -> None:
                         help="joint angles as CSV")
     parser.add_argument("--mot", metavar="OUT.mot", help="also write the angles as OpenSim .mot")
     parser.add_argument("--osim", metavar="OUT.osim",
-                        help="also write the calibrated model as OpenSim .osim")
+                        help="also write the calibrated model as OpenSim .osim, with de Leva's "
+                             "segment masses and inertias for the subject's body mass "
+                             "(--subject body_mass=KG, else the calibration file's, else "
+                             f"{DEFAULT_BODY_MASS:g} kg with a warning)")
+    parser.add_argument("--trc", metavar="OUT.trc",
+                        help="also write the markers the fit followed (low-passed, labelling "
+                             "repairs undone, outliers gapped) as OpenSim .trc, mm")
     parser.add_argument("--json", action="store_true",
                         help="print the fit as JSON: file, protocol, static, cutoff_hz and the "
                              "quality: marker_rms_mm, max_marker_error_mm, per_marker_rms_mm, "
@@ -39,7 +46,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..export.angles_csv import write_angles_csv
+    from ..export.formats import write
     from ..io.c3d import read_c3d
     from ..markersets.matching import match_trial, missing_landmarks_error
     from ..model.fitting import fit_capture
@@ -49,7 +56,8 @@ def _run(args) -> int:
 
     statics = check_inputs([args.input], args.static, static_pose=args.static_pose,
                            references=args.forward_reference, static_window=args.static_window)
-    check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim},
+    check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim,
+                   "--trc": args.trc},
                   [args.input, *(args.static or ()), *(args.forward_reference or ())])
     trial = read_c3d(args.input)
     for note in trial.warnings:         # said before the fit, which they may explain
@@ -68,14 +76,20 @@ def _run(args) -> int:
     static = None if fitted.static is None else \
         static_names([s.source for s in statics])[fitted.static]
     offset = None if offsets is None or fitted.static is None else offsets[fitted.static]
-    write_angles_csv(args.output, motion.time, motion.q)
-    if args.mot or args.osim:
-        from ..export.opensim import write_mot, write_osim  # and xml.etree: only when asked
-
-        if args.mot:
-            write_mot(motion, args.mot)
-        if args.osim:
-            write_osim(model, args.osim)
+    write(motion, args.output, suffix=".csv")
+    if args.mot:
+        write(motion, args.mot, suffix=".mot")
+    if args.osim:
+        source = trial if fitted.static is None else statics[fitted.static]
+        mass = {**source.measurements, **measurements(args)}.get("body_mass")
+        if mass is None:
+            mass = DEFAULT_BODY_MASS
+            warn(f"{args.osim}: no body mass given (--subject body_mass=KG) nor stored in "
+                 f"{source.source or 'the calibration file'}; the model's segment masses "
+                 f"assume {mass:g} kg")
+        write(model, args.osim, suffix=".osim", body_mass=mass)
+    if args.trc:
+        write(fitted.fitted_markers(trial), args.trc, suffix=".trc")
     quality = fit_quality(motion)
     for note in fitted.warnings:
         warn(f"{args.input}: {note}")

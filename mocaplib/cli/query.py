@@ -1,4 +1,5 @@
-"""``mocaplib query``: which entries and weights blend a velocity command; optional BVH cycle."""
+"""``mocaplib query``: which entries and weights blend a velocity command; optional BVH or glTF
+cycle."""
 
 from __future__ import annotations
 
@@ -10,14 +11,17 @@ from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outp
 #: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
 #: typing mistakes (and overflow in the geometry) are kept out.
 SPEED_LIMIT = 100.0
-#: BVH output limits: frames per second and cycles (a BVH is text: 100 cycles at 1 kHz is
+#: Animation output limits: frames per second and cycles (a BVH is text: 100 cycles at 1 kHz is
 #: already ~100 MB). Below MIN_RATE a gait cycle (about 1 s) would get fewer than 10 frames.
 MIN_RATE, MAX_RATE, MAX_CYCLES = 10.0, 1000.0, 100
 #: Defaults of --cycles and --rate (they are None when not given, to tell them apart).
-BVH_CYCLES, BVH_RATE = 1, 100.0
+ANIMATION_CYCLES, ANIMATION_RATE = 1, 100.0
+#: The animation outputs: option -> the format written (glTF binary for a --gltf name ending
+#: in .glb).
+ANIMATIONS = {"--bvh": ".bvh", "--gltf": ".gltf"}
 
 
-def _bvh_rate(text: str) -> float:
+def _animation_rate(text: str) -> float:
     """argparse ``type=`` of --rate: Hz in [MIN_RATE, MAX_RATE]; else exit 2."""
     rate = positive(float, unit=" Hz", most=MAX_RATE)(text)
     if rate < MIN_RATE:
@@ -28,7 +32,7 @@ def _bvh_rate(text: str) -> float:
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "query", help="blend weights of a velocity command (and its cycle as BVH)",
+        "query", help="blend weights of a velocity command (and its cycle as BVH or glTF)",
         description="Find the library tetrahedron enclosing (V, OMEGA, VL) and print its four "
                     "entries with their barycentric weights; outside the control space, print "
                     "the nearest point on its hull. Exit 0 when answered (inside or outside).")
@@ -45,12 +49,15 @@ def register(subparsers) -> None:
                         help="print {inside, entries, weights, point, nearest, distance, T_s}")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
+    parser.add_argument("--gltf", metavar="OUT.gltf",
+                        help="write the blended cycle as glTF 2.0 for game engines (Y up, +Z "
+                             "forward, metres; .glb for the binary file)")
     parser.add_argument("--cycles", type=positive(int, most=MAX_CYCLES),
-                        help=f"cycles written to the BVH (default {BVH_CYCLES}, at most "
-                             f"{MAX_CYCLES}; only with --bvh)")
-    parser.add_argument("--rate", type=_bvh_rate,
-                        help=f"BVH frame rate, Hz (default {BVH_RATE:g}, {MIN_RATE:g} to "
-                             f"{MAX_RATE:g}; only with --bvh)")
+                        help=f"cycles written to the animation (default {ANIMATION_CYCLES}, at "
+                             f"most {MAX_CYCLES}; only with --bvh or --gltf)")
+    parser.add_argument("--rate", type=_animation_rate,
+                        help=f"animation frame rate, Hz (default {ANIMATION_RATE:g}, "
+                             f"{MIN_RATE:g} to {MAX_RATE:g}; only with --bvh or --gltf)")
     parser.add_argument("--clamp", action="store_true",
                         help="outside the hull, blend at the nearest point on the hull instead")
     parser.set_defaults(run=_run)
@@ -58,17 +65,22 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..errors import MocapError
+    from ..export.formats import write
     from ..library.controlspace import ControlSpace
     from ..library.format import checksum_status, load_library
+    from ..model.motion import Motion
     from ._common import print_json, warn
 
+    outputs = {option: getattr(args, option[2:]) for option in ANIMATIONS
+               if getattr(args, option[2:])}
     ignored = [option for option, value in (("--cycles", args.cycles), ("--rate", args.rate))
                if value is not None]
-    if ignored and not args.bvh:
-        raise UsageError(f"{' and '.join(ignored)} only apply to the BVH output: add "
-                         f"--bvh OUT.bvh, or leave {'it' if len(ignored) == 1 else 'them'} out")
+    if ignored and not outputs:
+        raise UsageError(f"{' and '.join(ignored)} only apply to the animation outputs: add "
+                         f"--bvh OUT.bvh or --gltf OUT.gltf, or leave "
+                         f"{'it' if len(ignored) == 1 else 'them'} out")
     check_inputs([args.library], hint=LIBRARY_HINT)
-    check_outputs({"--bvh": args.bvh}, [args.library])
+    check_outputs(outputs, [args.library])
     library = load_library(args.library)
     if checksum_status(library) == "mismatch":
         warn(f"{args.library}: its content does not match its checksum: it was changed after "
@@ -89,17 +101,19 @@ def _run(args) -> int:
         answer["nearest"] = res.nearest[0].tolist()
         answer["distance"] = float(res.distance[0])
         answer["clamped"] = bool(args.clamp)
-    if args.bvh:
+    if outputs:
         if blend is None:
             raise MocapError(
-                "cannot write a BVH: the command is outside the control space",
-                path=args.library, hint=f"the nearest point on the hull is "
+                f"cannot write {' or '.join(outputs)}: the command is outside the control "
+                "space", path=args.library, hint=f"the nearest point on the hull is "
                 f"{_triple(res.nearest[0])}; query it, or add --clamp")
-        from ..export.bvh import write_bvh
-
-        rate = args.rate or BVH_RATE
-        _, q = blend.world(0, rate=rate, cycles=args.cycles or BVH_CYCLES)
-        answer["bvh"] = str(write_bvh(args.bvh, q, library.skeleton, rate=rate))
+        rate = args.rate or ANIMATION_RATE
+        _, q = blend.world(0, rate=rate, cycles=args.cycles or ANIMATION_CYCLES)
+        motion = Motion(q, library.skeleton, rate, source="blend")
+        for option, path in outputs.items():
+            binary = option == "--gltf" and path.lower().endswith(".glb")
+            answer[option[2:]] = str(write(motion, path,
+                                           suffix=".glb" if binary else ANIMATIONS[option]))
     if args.json:
         print_json(answer)
         return 0
@@ -117,8 +131,8 @@ def _run(args) -> int:
         for entry, weight in zip(answer["entries"], answer["weights"]):
             print(f"  {entry:<{width}}  {weight:.4f}")
         print(f"  blended period T_d = {answer['T_s']:.3f} s")
-    if args.bvh:
-        print(f"  BVH: {answer['bvh']}")
+    for option in outputs:
+        print(f"  {option[2:].upper()}: {answer[option[2:]]}")
     return 0
 
 

@@ -7,10 +7,6 @@ from pathlib import Path
 
 from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
 
-#: Output types: :data:`mocaplib.library.retarget.FORMATS`, not imported here so that the command line
-#: parses without loading numpy's stack; a test keeps the two equal.
-FORMATS = (".csv", ".mot", ".bvh")
-
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -51,13 +47,15 @@ def register(subparsers) -> None:
                                  f"{default:g})")
     parser.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
                         help="file to write, by its suffix: .csv (rad, m), .mot (OpenSim), "
-                             ".bvh; repeat for several")
+                             ".bvh, .gltf or .glb (glTF 2.0 for game engines); repeat for "
+                             "several")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
     from ..errors import MocapError
+    from ..export.formats import format_of
     from ..library.format import load_library
     from ..library.retarget import Weights, retarget
     from ._common import print_json
@@ -65,9 +63,10 @@ def _run(args) -> int:
     check_inputs([args.library] + ([args.segment_lengths] if args.segment_lengths else []),
                  hint=LIBRARY_HINT)
     for out in args.output:
-        if Path(out).suffix.lower() not in FORMATS:
-            raise UsageError(f"-o {out}: unknown output type; end the file name with "
-                             f"{', '.join(FORMATS)}")
+        try:
+            format_of(out, "motion")
+        except MocapError as exc:
+            raise UsageError(f"-o {out}: {exc.message}; {exc.hint}") from None
     check_outputs({f"-o {out}": out for out in args.output}, [args.library])
     skeleton = _skeleton(args)
     try:

@@ -10,24 +10,21 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import MocapError
 from ..io.atomic import atomic_write_text
 from ..skeleton import DOF_NAMES
 
+if TYPE_CHECKING:
+    from ..model.motion import Motion
 
-def write_angles_csv(path: str | os.PathLike, time: np.ndarray, q: np.ndarray, /, *,
-                     digits: int = 9) -> Path:
-    """Write joint coordinates ``q`` (F, D) at ``time`` (F,) seconds to ``path`` atomically,
+
+def write_angles_csv(motion: "Motion", path: str | os.PathLike, /, *, digits: int = 9) -> Path:
+    """Write ``motion``'s joint coordinates (F, D) at its times (F,) s to ``path`` atomically,
     numbers to ``digits`` significant digits; returns the path."""
-    q = np.asarray(q, dtype=np.float64)
-    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES) or np.shape(time) != (len(q),):
-        raise MocapError(f"joint coordinates of shape (F, {len(DOF_NAMES)}) and times (F,) "
-                         f"expected, got {q.shape} and {np.shape(time)}", path=path,
-                         hint="pass one row of q per time, one column per DOF")
-    table = np.column_stack([np.asarray(time, dtype=np.float64), q])
+    table = np.column_stack([motion.time, motion.q])
     number = f"%.{digits}g"
     row_format = ",".join([number] * table.shape[1])
     complete = ~np.isnan(table).any(axis=1)

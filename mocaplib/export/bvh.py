@@ -18,7 +18,7 @@ skeleton DOF turns about ±X, ±Y or ±Z of its segment; its axis maps through t
 coordinates above to ±one file axis (X→X, Y→-Z, Z→Y), so each DOF becomes exactly one channel
 whose value is ``sign · degrees(q)``. Joints with fewer than three DOFs get the remaining axes
 as zero-valued channels (three rotation channels per joint suit every importer). The root has
-``Xposition Yposition Zposition`` (pelvis_tx, pelvis_tz, -pelvis_ty) first. Joint names are
+``Xposition Yposition Zposition`` (the root's translation DOFs in file coordinates) first. Joint names are
 :data:`mocaplib.skeleton.SEGMENT_NAMES`; end sites mark the vertex, the finger tips and the toes
 (display only: the toe tip at :data:`~mocaplib.skeleton.TOE_AHEAD` of the foot length ahead of the
 ankle, on the sole).
@@ -28,12 +28,16 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TOE_AHEAD, Skeleton
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, SHIFTS, TOE_AHEAD, Skeleton
+
+if TYPE_CHECKING:
+    from ..model.motion import Motion
 
 #: Our coordinates to BVH file coordinates (Y up): file = TO_FILE @ ours.
 TO_FILE = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -79,19 +83,16 @@ def _channels() -> dict[str, list[tuple[str, int | None, float]]]:
     return out
 
 
-def bvh_text(q: np.ndarray, skeleton: Skeleton, *, rate: float, units: str = "m") -> str:
-    """The BVH text of joint coordinates ``q`` (F, D) in DOF_NAMES order sampled at ``rate`` Hz."""
-    q = np.asarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
-        raise MocapError(f"BVH export needs joint coordinates of shape (F, {len(DOF_NAMES)}), "
-                         f"got {q.shape}")
+def bvh_text(motion: "Motion", /, *, units: str = "m") -> str:
+    """The BVH text of ``motion``'s joint coordinates (F, D) on its skeleton at its rate."""
+    q, skeleton, rate = np.asarray(motion.q, dtype=float), motion.skeleton, motion.rate
     if not np.isfinite(q).all():
         raise MocapError("BVH export needs finite joint coordinates (no NaN)",
-                         hint="interpolate or drop the failed frames first")
+                         path=motion.source, hint="interpolate or drop the failed frames first")
     if units not in UNIT_SCALE:
         raise MocapError(f"unknown BVH units {units!r}; use 'm' or 'cm'")
     if not rate > 0:
-        raise MocapError(f"BVH frame rate must be > 0 Hz, got {rate}")
+        raise MocapError(f"BVH frame rate must be > 0 Hz, got {rate}", path=motion.source)
     scale = UNIT_SCALE[units]
     offsets = skeleton.joint_offsets()
     ends = end_sites(skeleton)
@@ -122,8 +123,7 @@ def bvh_text(q: np.ndarray, skeleton: Skeleton, *, rate: float, units: str = "m"
     # Motion values: root position in file coordinates, then every channel in hierarchy order
     # (SEGMENTS is depth-first, parents before children, the order emit() writes them).
     columns = []
-    root_pos = (q[:, [DOF_NAMES.index(n) for n in ("pelvis_tx", "pelvis_ty", "pelvis_tz")]]
-                @ TO_FILE.T * scale)
+    root_pos = q[:, SHIFTS] @ np.asarray([DOFS[j].axis for j in SHIFTS]) @ TO_FILE.T * scale
     for seg in SEGMENTS:
         for k, (name, j, sign) in enumerate(channels[seg.name]):
             if name.endswith("position"):
@@ -138,7 +138,6 @@ def bvh_text(q: np.ndarray, skeleton: Skeleton, *, rate: float, units: str = "m"
     return "\n".join(lines) + "\n"
 
 
-def write_bvh(path: str | os.PathLike, q: np.ndarray, skeleton: Skeleton, *, rate: float,
-              units: str = "m") -> Path:
-    """Write joint coordinates ``q`` (F, D) as a BVH file atomically; returns the path."""
-    return atomic_write_text(path, bvh_text(q, skeleton, rate=rate, units=units))
+def write_bvh(motion: "Motion", path: str | os.PathLike, /, *, units: str = "m") -> Path:
+    """Write ``motion`` as a BVH file atomically; returns the path."""
+    return atomic_write_text(path, bvh_text(motion, units=units))

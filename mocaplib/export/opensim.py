@@ -14,7 +14,11 @@ solves (without the robust loss and continuity term):
   with the characters OpenSim refuses in a name (spaces, tabs, ``\\ / * +``) written ``_``
   (:func:`opensim_name`; BTS labels such as ``l should``), in the .trc as in the .osim.
 
-World Z is up, so gravity is (0, 0, -g). Writing needs no OpenSim installation; files are
+Each body's mass, centre of mass and inertia about it (in the body frame, products of inertia
+included) are de Leva's for the subject's segment lengths and body mass
+(:func:`mocaplib.model.anthropometry.segment_inertias`; the trunk's lower part on the pelvis, the
+hand on the forearm), so the bodies add up to the subject's mass and the model serves inverse
+dynamics as well as inverse kinematics. World Z is up, so gravity is (0, 0, -g). Writing needs no OpenSim installation; files are
 written atomically. Units: the .osim and .mot in metres, the .trc in millimetres, the .mot
 angles in degrees (``inDegrees=yes``), as OpenSim expects.
 """
@@ -23,22 +27,24 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 from typing import TYPE_CHECKING
 from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from ..errors import MocapError
 from ..io.atomic import atomic_write_text
+from ..model.anthropometry import DEFAULT_BODY_MASS, segment_inertias
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, TRANSLATION
 
 if TYPE_CHECKING:
     from ..model.motion import Motion
     from ..model.subject import SubjectModel
+    from ..trial import Trial
 
 #: Rotation ranges without a finite bound (the heading) are written as ± this, radians.
 _OPEN_RANGE = 4 * np.pi
-#: Nominal body mass (kg) and inertia (kg m²): IK ignores them but OpenSim wants them.
-_MASS, _INERTIA = 1.0, 0.01
 
 
 #: Characters OpenSim refuses in a component's name.
@@ -61,9 +67,14 @@ def _sub(parent: ET.Element, tag: str, text: str | None = None, **attrib) -> ET.
     return element
 
 
-def osim_text(model: "SubjectModel", *, name: str = "mocaplib") -> str:
-    """The model as OpenSim 4 XML (see the module docstring)."""
+def osim_text(model: "SubjectModel", /, *, body_mass: float = DEFAULT_BODY_MASS,
+              name: str = "mocaplib") -> str:
+    """The model of a subject of ``body_mass`` kg as OpenSim 4 XML (module docstring)."""
+    if not (np.isfinite(body_mass) and body_mass > 0):
+        raise MocapError(f"the body mass must be > 0 kg, got {body_mass}",
+                         hint="give the subject's mass in kilograms")
     joints = model.skeleton.joint_offsets()
+    inertia = segment_inertias(model.skeleton)
     doc = ET.Element("OpenSimDocument", Version="40000")
     root = _sub(doc, "Model", name=name)
     _sub(root, "gravity", "0 0 -9.80665")
@@ -71,11 +82,13 @@ def osim_text(model: "SubjectModel", *, name: str = "mocaplib") -> str:
     _sub(root, "force_units", "N")
     _sub(_sub(root, "ground"), "Ground", name="ground")
     bodies = _sub(_sub(root, "BodySet", name="bodyset"), "objects")
-    for seg in SEGMENT_NAMES:
+    for s, seg in enumerate(SEGMENT_NAMES):
         body = _sub(bodies, "Body", name=seg)
-        _sub(body, "mass", repr(_MASS))
-        _sub(body, "mass_center", "0 0 0")
-        _sub(body, "inertia", f"{_INERTIA} {_INERTIA} {_INERTIA} 0 0 0")
+        tensor = body_mass * inertia.inertia[s]
+        _sub(body, "mass", repr(float(body_mass * inertia.mass[s])))
+        _sub(body, "mass_center", _fmt(inertia.com[s]))
+        _sub(body, "inertia", _fmt([tensor[0, 0], tensor[1, 1], tensor[2, 2],
+                                    tensor[0, 1], tensor[0, 2], tensor[1, 2]]))
     joint_set = _sub(_sub(root, "JointSet", name="jointset"), "objects")
     for s, seg in enumerate(SEGMENTS):
         _joint(joint_set, seg, joints[s], set(model.locked_dofs))
@@ -141,14 +154,17 @@ def _transform_axis(transform: ET.Element, name: str, coordinate: str | None, ax
         _sub(function, "value", "0")
 
 
-def write_osim(model: "SubjectModel", path: str | os.PathLike, *, name: str = "mocaplib"):
-    """Write the calibrated model as an OpenSim .osim file (atomically). Returns the path."""
-    return atomic_write_text(path, osim_text(model, name=name))
+def write_osim(model: "SubjectModel", path: str | os.PathLike, /, *,
+               body_mass: float = DEFAULT_BODY_MASS, name: str = "mocaplib") -> Path:
+    """Write the calibrated model of a subject of ``body_mass`` kg as an OpenSim .osim file
+    (atomically). Returns the path."""
+    return atomic_write_text(path, osim_text(model, body_mass=body_mass, name=name))
 
 
-def write_trc(markers: np.ndarray, labels: list[str], rate: float, path: str | os.PathLike):
-    """Write markers (F, M, 3) metres as an OpenSim .trc in millimetres; NaN stays NaN."""
-    markers = np.asarray(markers, dtype=np.float64)
+def write_trc(trial: "Trial", path: str | os.PathLike, /) -> Path:
+    """Write ``trial``'s markers (F, M, 3), metres, as an OpenSim .trc in millimetres, named by
+    its labels at its rate; NaN stays NaN."""
+    markers, labels, rate = np.asarray(trial.markers, dtype=np.float64), trial.labels, trial.rate
     n_frames, n_markers = markers.shape[:2]
     lines = [
         f"PathFileType\t4\t(X/Y/Z)\t{os.path.basename(os.fspath(path))}",
@@ -166,7 +182,7 @@ def write_trc(markers: np.ndarray, labels: list[str], rate: float, path: str | o
     return atomic_write_text(path, "\n".join(lines) + "\n")
 
 
-def write_mot(motion: "Motion", path: str | os.PathLike):
+def write_mot(motion: "Motion", path: str | os.PathLike, /) -> Path:
     """Write joint angles as an OpenSim .mot: time, then one column per DOF, angles in degrees."""
     q = motion.q.copy()
     q[:, ~TRANSLATION] = np.degrees(q[:, ~TRANSLATION])

@@ -42,8 +42,8 @@
    raised by the difference of the two bodies' ankle heights.
 
 The result carries the criteria C1-C3 of the entry (its Fourier series on its own skeleton)
-and of the result, computed alike (:func:`cycle_criteria`), and writes CSV, OpenSim ``.mot``
-or BVH.
+and of the result, computed alike (:func:`cycle_criteria`), and writes it in any motion format of
+:data:`mocaplib.export.formats.FORMATS` (CSV, OpenSim ``.mot``, BVH, glTF).
 """
 
 from __future__ import annotations
@@ -55,7 +55,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MocapError
+from ..export.formats import write
 from ..gait.fourier import RootDrift
+from ..model.motion import Motion
 from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
                         Skeleton, segment_dofs)
 
@@ -82,9 +84,6 @@ SIMILAR_TURN, SIMILAR_TRAVEL, SIMILAR_SUPPORT = 0.25, np.deg2rad(20.0), 0.04
 SUPPORT_HEIGHT = 0.01
 #: Default output rate, Hz.
 RATE = 100.0
-#: Output file types (suffix -> description).
-FORMATS = {".csv": "joint coordinates, time_s then one column per DOF (rad, m)",
-           ".mot": "OpenSim motion (degrees, m)", ".bvh": "BVH (Y up, metres)"}
 _ROOT_Z = DOF_NAMES.index("pelvis_tz")
 
 
@@ -175,24 +174,16 @@ class Retargeted:
         lower, upper = Skeleton.bounds()
         return int(np.sum((self.q < lower - 1e-9) | (self.q > upper + 1e-9)))
 
-    def write(self, path: str | os.PathLike) -> Path:
-        """Write the cycle (atomically) as CSV, ``.mot`` or BVH, chosen by the suffix
-        (:data:`FORMATS`); returns the path."""
-        from ..export.angles_csv import write_angles_csv
-        from ..export.bvh import write_bvh
-        from ..export.opensim import write_mot
-        from ..model.motion import Motion
+    def motion(self) -> Motion:
+        """The cycle as a :class:`~mocaplib.model.motion.Motion` (n + 1 frames at :attr:`rate`,
+        both ends included), named after its entry."""
+        return Motion(self.q, self.skeleton, self.rate, source=self.entry)
 
-        path = Path(path)
-        suffix = path.suffix.lower()
-        if suffix == ".bvh":
-            return write_bvh(path, self.q, self.skeleton, rate=self.rate)
-        if suffix == ".mot":
-            return write_mot(Motion(self.q, self.skeleton, self.rate), path)
-        if suffix == ".csv":
-            return write_angles_csv(path, self.time_s, self.q, digits=10)
-        raise MocapError(f"unknown output type {path.suffix or '(none)'!r}", path=path,
-                         hint=f"end the file name with {', '.join(FORMATS)}")
+    def write(self, path: str | os.PathLike) -> Path:
+        """Write the cycle (atomically) in the motion format of the suffix
+        (:data:`mocaplib.export.formats.FORMATS`); BVH and glTF, which players loop, leave out
+        the closing frame. Returns the path."""
+        return write(self.motion(), path, closed=True)
 
 
 def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: float | None = None,

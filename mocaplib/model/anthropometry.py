@@ -51,6 +51,9 @@ DE_LEVA = {
     "shank": (0.0433, 0.4395, (0.251, 0.246, 0.102)),         # knee -> ankle centre
     "foot": (0.0137, 0.4415, (0.257, 0.245, 0.124)),          # heel -> toe tip
 }
+#: Body mass (kg) an exported model assumes when neither the user nor the calibration file
+#: gives one (``mocaplib fit`` warns when it does).
+DEFAULT_BODY_MASS = 70.0
 #: de Leva's mean lengths (mm) of the trunk's parts, top down: where each part lies on the line
 #: from the neck joint down to the hip-centre midpoint.
 TRUNK_PARTS = {"upper_trunk": 170.7, "middle_trunk": 215.5, "lower_trunk": 145.7}
@@ -129,3 +132,40 @@ def bodies(skeleton: Skeleton) -> Bodies:
     names, segments, mass, com, inertia = zip(*rows)
     return Bodies(tuple(names), np.array(segments), np.array(mass), np.array(com),
                   np.array(inertia))
+
+
+@dataclass(frozen=True)
+class SegmentInertias:
+    """Mass properties of each skeleton segment, per kilogram of body mass: the :class:`Bodies`
+    riding on it taken as one rigid body.
+
+    Attributes
+    ----------
+    mass : ndarray, shape (S,)
+        kg per kg of body mass, :data:`~mocaplib.skeleton.SEGMENT_NAMES` order (sums to 1).
+    com : ndarray, shape (S, 3)
+        Centre of mass in the segment's frame, metres.
+    inertia : ndarray, shape (S, 3, 3)
+        Inertia tensor about the centre of mass in the segment's frame, m² (kg·m² per kg).
+    """
+
+    mass: np.ndarray
+    com: np.ndarray
+    inertia: np.ndarray
+
+
+def segment_inertias(skeleton: Skeleton) -> SegmentInertias:
+    """de Leva's bodies (:func:`bodies`) merged per skeleton segment: masses added, centres of
+    mass averaged by mass, inertias moved to the merged centre by the parallel-axis theorem."""
+    parts = bodies(skeleton)
+    n = len(SEGMENT_NAMES)
+    mass = np.bincount(parts.segments, weights=parts.mass, minlength=n)
+    com = np.stack([np.bincount(parts.segments, weights=parts.mass * parts.com[:, k],
+                                minlength=n) for k in range(3)], axis=1) / mass[:, None]
+    away = parts.com - com[parts.segments]
+    shifted = (np.eye(3) * np.sum(away ** 2, axis=1)[:, None, None]
+               - away[:, :, None] * away[:, None, :])
+    own = parts.inertia[:, :, None] * np.eye(3) + parts.mass[:, None, None] * shifted
+    inertia = np.zeros((n, 3, 3))
+    np.add.at(inertia, parts.segments, own)
+    return SegmentInertias(mass, com, inertia)

@@ -64,6 +64,24 @@ class FittedCapture:
     static: int | None
     warnings: list[str]
 
+    def fitted_markers(self, trial: Trial, /) -> Trial:
+        """The markers the fit followed, as a trial of the model's markers (labels in model
+        order, F frames of ``trial``, the capture this was fitted to): the labelling errors
+        the fit found undone, the samples it rejected gapped (NaN), low-passed at
+        :attr:`cutoff` (:func:`mocaplib.model.filtering.filter_trial`); what OpenSim's tools
+        are given to solve the same problem (``mocaplib fit --trc``)."""
+        from dataclasses import replace
+
+        from .filtering import filter_trial
+        from .ik import model_markers
+        from .motion import apply_repairs
+
+        labels = list(self.model.labels)
+        markers = apply_repairs(model_markers(trial, self.model), labels, self.motion.repairs)
+        markers[self.motion.rejected] = float("nan")
+        chosen = replace(trial, markers=markers, labels=labels, warnings=list(trial.warnings))
+        return chosen if self.cutoff is None else filter_trial(chosen, cutoff=self.cutoff)[0]
+
 
 def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
                 static_pose: str = "free", cutoff: float | str | None = "auto",

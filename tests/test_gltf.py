@@ -1,0 +1,213 @@
+"""glTF 2.0 export, read back with pygltflib (a reader mocaplib does not use to write): the
+structure follows the spec's rules, and joint positions rebuilt from the node hierarchy and
+the animation equal Skeleton.forward's at every keyframe."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fk_data import neutral_q
+from mocaplib.cli import main
+from mocaplib.errors import MocapError
+from mocaplib.export.gltf import write_glb, write_gltf
+from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.retarget import retarget
+from mocaplib.model.motion import Motion
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
+
+pygltflib = pytest.importorskip("pygltflib")
+
+#: glTF file axes from ours, as the spec states them (Y up, the asset's front facing +Z,
+#: right-handed, so +X is the subject's left): file X = our Y (left), file Y = our Z (up),
+#: file Z = our X (forward).
+OURS_FROM_FILE = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+#: Joint positions must agree within 0.1 mm: float32 keys give ~1e-7 relative (well below 1 µm
+#: over a few metres of travel).
+TOLERANCE_M = 1e-4
+_COMPONENTS = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+def read_gltf(path):
+    """The pygltflib document and a reader of its accessors: accessor index -> (count, n)
+    float array, decoded from the buffer as the spec lays it out (bufferView offset + accessor
+    offset, tightly packed little-endian float32)."""
+    gltf = pygltflib.GLTF2().load(str(path))
+    if gltf.buffers[0].uri:                          # .gltf: the buffer is a base64 data URI
+        gltf.convert_buffers(pygltflib.BufferFormat.BINARYBLOB)
+    blob = gltf.binary_blob()
+
+    def accessor(index: int) -> np.ndarray:
+        acc = gltf.accessors[index]
+        view = gltf.bufferViews[acc.bufferView]
+        assert acc.componentType == pygltflib.FLOAT and view.byteStride in (None, 0)
+        n = _COMPONENTS[acc.type]
+        start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+        return np.frombuffer(blob, "<f4", acc.count * n, start).reshape(acc.count, n)
+
+    return gltf, blob, accessor
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) in glTF's x, y, z, w order."""
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def animated_positions(path):
+    """Keyframe times (K,) and every node's world position (K, N, 3) in OUR axes, node names,
+    from the glTF's node hierarchy (rest TRS) and its animation's channels."""
+    gltf, _, accessor = read_gltf(path)
+    animation = gltf.animations[0]
+    times = accessor(animation.samplers[0].input)[:, 0]
+    n_nodes = len(gltf.nodes)
+    T = np.tile([n.translation or [0.0, 0.0, 0.0] for n in gltf.nodes], (len(times), 1, 1))
+    R = np.tile([n.rotation or [0.0, 0.0, 0.0, 1.0] for n in gltf.nodes], (len(times), 1, 1))
+    for channel in animation.channels:
+        sampler = animation.samplers[channel.sampler]
+        np.testing.assert_array_equal(accessor(sampler.input)[:, 0], times)
+        target = {"translation": T, "rotation": R}[channel.target.path]
+        target[:, channel.target.node] = accessor(sampler.output)
+    rotation = _quat_matrix(R.astype(np.float64))
+    world_R = np.zeros((len(times), n_nodes, 3, 3))
+    world_p = np.zeros((len(times), n_nodes, 3))
+    stack = [(root, np.eye(3), np.zeros(3)) for root in gltf.scenes[gltf.scene].nodes]
+    while stack:
+        node, parent_R, parent_p = stack.pop()
+        world_p[:, node] = parent_p + (parent_R @ T[:, node, :, None])[..., 0]
+        world_R[:, node] = parent_R @ rotation[:, node]
+        stack += [(c, world_R[:, node], world_p[:, node]) for c in gltf.nodes[node].children]
+    return times, world_p @ OURS_FROM_FILE.T, [n.name for n in gltf.nodes]
+
+
+def check_structure(path):
+    """The spec's rules that matter to a reader: buffer length, views and accessors inside it
+    and 4-byte aligned, min/max equal to the data, unit quaternions, LINEAR samplers whose
+    inputs rise; the skin's inverse bind matrices invert the rest pose."""
+    gltf, blob, accessor = read_gltf(path)
+    assert gltf.asset.version == "2.0"
+    assert gltf.buffers[0].byteLength <= len(blob) < gltf.buffers[0].byteLength + 4
+    for i, acc in enumerate(gltf.accessors):
+        view = gltf.bufferViews[acc.bufferView]
+        assert view.byteOffset % 4 == 0
+        assert view.byteLength == acc.count * _COMPONENTS[acc.type] * 4
+        assert view.byteOffset + view.byteLength <= gltf.buffers[0].byteLength
+        data = accessor(i)
+        np.testing.assert_array_equal(acc.min, data.min(axis=0))
+        np.testing.assert_array_equal(acc.max, data.max(axis=0))
+    animation = gltf.animations[0]
+    for sampler in animation.samplers:
+        assert sampler.interpolation == "LINEAR"
+        assert np.all(np.diff(accessor(sampler.input)[:, 0]) > 0)
+    for channel in animation.channels:
+        if channel.target.path == "rotation":
+            keys = accessor(animation.samplers[channel.sampler].output)
+            norms = np.linalg.norm(keys, axis=1)
+            np.testing.assert_allclose(norms, 1.0, atol=1e-6)   # float32 unit quaternions
+            assert np.all(np.sum(keys[1:] * keys[:-1], axis=1) >= 0)   # along the shorter arc
+    rotations = {c.target.node for c in animation.channels if c.target.path == "rotation"}
+    assert rotations == {i for i, node in enumerate(gltf.nodes) if node.name in SEGMENT_NAMES}
+    skin = gltf.skins[0]
+    rest = np.zeros((len(gltf.nodes), 3))
+    stack = [(skin.skeleton, np.zeros(3))]
+    while stack:
+        node, parent = stack.pop()
+        rest[node] = parent + gltf.nodes[node].translation
+        stack += [(c, rest[node]) for c in gltf.nodes[node].children]
+    bind = accessor(skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)  # columns
+    np.testing.assert_allclose(bind[:, :3, 3], -rest[skin.joints], atol=1e-6)
+    return gltf
+
+
+def _joints(positions: np.ndarray, names: list[str]) -> np.ndarray:
+    return positions[:, [names.index(name) for name in SEGMENT_NAMES]]
+
+
+@pytest.mark.parametrize("writer, name", [(write_gltf, "walk.gltf"), (write_glb, "walk.glb")])
+def test_random_poses_joint_positions_equal_forward_kinematics(tmp_path, writer, name):
+    sk = Skeleton.from_height(1.75)
+    rng = np.random.default_rng(5)
+    lo, hi = sk.bounds()
+    q = rng.uniform(np.maximum(lo, -np.pi), np.minimum(hi, np.pi), size=(9, len(DOF_NAMES)))
+    q[:, :3] = rng.uniform(-3, 3, size=(9, 3))            # root translation, metres
+    path = writer(Motion(q, sk, 30.0), tmp_path / name)
+    check_structure(path)
+    times, positions, names = animated_positions(path)
+    np.testing.assert_array_equal(times, (np.arange(9) / 30.0).astype(np.float32))
+    np.testing.assert_allclose(_joints(positions, names), sk.forward(q)[:, :, :3, 3],
+                               atol=TOLERANCE_M)
+
+
+def test_the_subject_stands_y_up_facing_z():
+    sk = Skeleton.from_height(1.75)
+    from mocaplib.export.gltf import gltf_document
+
+    document, _ = gltf_document(Motion(neutral_q(sk, 1), sk, 100.0))
+    names = [node["name"] for node in document["nodes"]]
+    # file +X is the subject's left, +Y up, +Z forward: the left hip lies along +X
+    np.testing.assert_allclose(document["nodes"][names.index("femur_l")]["translation"],
+                               [sk.lengths["hip_width"] / 2, 0.0, 0.0])
+    assert document["nodes"][names.index("head_end")]["translation"][1] > 0.2     # up
+    assert document["nodes"][names.index("foot_l_end")]["translation"][2] > 0.1   # toes ahead
+
+
+def test_nan_is_refused(tmp_path):
+    sk = Skeleton.from_height(1.75)
+    q = neutral_q(sk, 3)
+    q[1, 4] = np.nan
+    with pytest.raises(MocapError, match="finite"):
+        write_gltf(Motion(q, sk, 100.0, source="walk.c3d"), tmp_path / "walk.gltf")
+    assert not (tmp_path / "walk.gltf").exists()
+
+
+# ------------------------------------------------------------------ the library's motions
+@pytest.fixture(scope="module")
+def walks(tmp_path_factory):
+    from walking_library import synthetic_walks
+
+    library = synthetic_walks()[0]
+    path = tmp_path_factory.mktemp("lib") / "walks.json"
+    library.write(path)
+    return library, path
+
+
+@pytest.mark.parametrize("name", ["blend.gltf", "blend.glb"])
+def test_a_blended_query_as_gltf(walks, tmp_path, capsys, name):
+    library, path = walks
+    command = library.table[["v", "omega", "v_l"]].mean().to_numpy()   # inside: a centroid
+    out = tmp_path / name
+    assert main(["query", str(path), *map(str, command), "--gltf", str(out), "--rate", "60",
+                 "--cycles", "2", "--json"]) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["gltf"] == str(out) and answer["inside"]
+    check_structure(out)
+    times, positions, names = animated_positions(out)
+    space = ControlSpace.from_library(library)
+    _, q = space.blend(space.query([command])).world(0, rate=60.0, cycles=2)
+    # keys at exactly k / 60 s, two periods long, the first pose not repeated at the end
+    assert len(times) == len(q) == int(np.ceil(2 * answer["T_s"] * 60 - 1e-9))
+    np.testing.assert_array_equal(times, (np.arange(len(q)) / 60.0).astype(np.float32))
+    assert times[-1] < 2 * answer["T_s"]
+    np.testing.assert_allclose(_joints(positions, names),
+                               library.skeleton.forward(q)[:, :, :3, 3], atol=TOLERANCE_M)
+
+
+def test_a_retargeted_cycle_as_gltf_loops_without_its_closing_frame(walks, tmp_path):
+    library, path = walks
+    entry = next(e for e in library.table.index if e.startswith("walk_straight_normal_"))
+    result = retarget(library, entry, skeleton=Skeleton.from_height(1.6), rate=50.0)
+    out = result.write(tmp_path / "short.glb")
+    check_structure(out)
+    times, positions, names = animated_positions(out)
+    n = len(result.q) - 1                     # the cycle's samples, both ends included
+    assert len(times) == n
+    np.testing.assert_array_equal(times, (np.arange(n) / result.rate).astype(np.float32))
+    np.testing.assert_allclose(result.time_s[-1], n / result.rate)   # the loop closes at T
+    np.testing.assert_allclose(_joints(positions, names),
+                               result.skeleton.forward(result.q[:-1])[:, :, :3, 3],
+                               atol=TOLERANCE_M)
