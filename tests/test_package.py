@@ -24,7 +24,7 @@ def test_exports_resolve_to_their_objects_whatever_was_imported_first():
     code = ("import mocaplib.model.calibration, mocaplib.model.ik\n"
             "from mocaplib import calibrate, fit, SubjectModel\n"
             "assert callable(calibrate) and calibrate.__module__ == 'mocaplib.model.calibration'\n"
-            "assert fit.__module__ == 'mocaplib.model.ik' and isinstance(SubjectModel, type)\n")
+            "assert fit.__module__ == 'mocaplib.model.fitting' and isinstance(SubjectModel, type)\n")
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
                           text=True)
     assert done.returncode == 0, done.stderr
