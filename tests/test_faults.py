@@ -429,8 +429,14 @@ def counted_build(monkeypatch):
 @pytest.mark.parametrize("output, message", [
     ("{caps}/walk00.truth.json", "is an input of this command"),
     ("{caps}/walk00.c3d", "is an input of this command"),
-    ("/proc/mocaplib-test.json", "cannot write into /proc"),
-    ("/dev/null", "not a regular file"),
+    ("/proc/mocaplib-test.json", "will not write into the system folder /proc"),
+    ("/dev/null", "will not write into the system folder /dev"),
+    ("/dev/stdout", "will not write into the system folder /dev"),
+    ("{tmp}/pipe.json", "not a regular file (a device or a pipe)"),
+    ("{tmp}/loop.json", "its symbolic links form a loop"),
+    ("{tmp}/capture.c3d", "exists and is a C3D capture; mocaplib did not write it"),
+    ("{tmp}/notes.json", "exists and is not a file mocaplib writes"),
+    ("{tmp}/to-dev.json", "will not write into the system folder /dev (the link points to "),
     ("-", "'-' (standard input or output) is not supported"),
     ("{tmp}/missing/lib.json", "does not exist"),
 ])
@@ -441,6 +447,12 @@ def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work
     truth = caps / "walk00.truth.json"
     truth.write_text('{"class": "straight"}')
     before = {p.name: p.read_bytes() for p in caps.iterdir()}
+    os.mkfifo(tmp_path / "pipe.json")
+    (tmp_path / "loop.json").symlink_to(tmp_path / "loop.json")
+    (tmp_path / "to-dev.json").symlink_to("/dev/null")
+    shutil.copy(SAMPLES / "rest.c3d", tmp_path / "capture.c3d")
+    (tmp_path / "notes.json").write_text('{"mine": 1}')
+    others = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
     output = output.format(caps=caps, tmp=tmp_path)
     if output.startswith("/proc") and not Path("/proc").is_dir():
         pytest.skip("no /proc here")
@@ -448,8 +460,34 @@ def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work
     assert message in capsys.readouterr().err
     assert counted_build == [] and not Path("-").exists()
     assert {p.name: p.read_bytes() for p in caps.iterdir()} == before
-    assert Path("/dev/null").is_char_device()
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == others
+    assert Path("/dev/null").is_char_device() and Path("/dev/stdout").is_symlink()
+    assert not Path("/dev/stdout.diagnostics.json").exists()
     assert not (tmp_path / "missing").exists()
+
+
+def test_an_output_link_is_written_where_it_points_and_stays_a_link(tmp_path, counted_build,
+                                                                    capsys):
+    write_captures(tmp_path / "caps")
+    (tmp_path / "out").mkdir()
+    link = tmp_path / "lib.json"
+    link.symlink_to(tmp_path / "out" / "real.json")
+    assert main(["build", str(tmp_path / "caps"), "-o", str(link), "--no-cache", "-q"]) == 0
+    assert link.is_symlink() and load_library(tmp_path / "out" / "real.json").entries
+    assert load_library(link).file_sha256 == digest(tmp_path / "out" / "real.json")
+
+
+def test_force_overwrites_a_file_mocaplib_did_not_write(tmp_path, counted_build, capsys):
+    write_captures(tmp_path / "caps")
+    notes = tmp_path / "notes.json"
+    notes.write_text('{"mine": 1}')
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q"]) == 2
+    assert counted_build == [] and notes.read_text() == '{"mine": 1}'
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q",
+                 "--force"]) == 0
+    assert load_library(notes).entries
+    # a library mocaplib wrote is replaced without --force
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q"]) == 0
 
 
 def test_dash_and_missing_folders_elsewhere_are_usage_errors(tmp_path, capsys, monkeypatch):
@@ -474,3 +512,89 @@ def test_jobs_beyond_the_processors_is_a_usage_error(tmp_path, capsys, command):
     assert main([command, *arguments, "--jobs", "100000"]) == 2
     assert f"at most {max_jobs()}" in capsys.readouterr().err
     assert main([command, *arguments, "--jobs", str(max_jobs() + 1)]) == 2
+
+
+# --------------------------------------------------------------------------- what the cache keeps
+def _rewritten_once(path, settings):
+    """fake_process, but walk01's first processing reads it while it holds walk00's bytes
+    (another program rewriting it during the build), which are put back afterwards."""
+    path = Path(path)
+    if path.name == "walk01.c3d" and "walk01.c3d" not in calls(path.parent):
+        original = path.read_bytes()
+        path.write_bytes((path.parent / "walk00.c3d").read_bytes())
+        try:
+            return fake_process(path, settings)
+        finally:
+            path.write_bytes(original)
+    return fake_process(path, settings)
+
+
+def test_a_file_changed_during_a_build_is_processed_again_by_the_next(tmp_path):
+    """The result is cached under the content the worker read, so the file's own content is
+    not answered with the other content's result (which the next build would drop as 'same
+    content as walk00.c3d')."""
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder)
+    build([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    again = build([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    assert calls(folder).count("walk01.c3d") == 2
+    assert len(again.library) == len(TRIPLES) and not again.summary()["warnings"]
+
+
+def test_a_capture_changed_while_processed_fails_alone_and_is_not_cached(sample_dir, tmp_path,
+                                                                       monkeypatch):
+    from mocaplib.build import cache, workflow
+    from mocaplib.build.settings import BuildSettings
+    from mocaplib.io import c3d
+
+    capture = tmp_path / "walk.c3d"
+    shutil.copy(sample_dir / "walk_straight_normal.c3d", capture)
+    read = c3d.read_c3d
+
+    def read_then_touched(path):
+        trial = read(path)
+        if Path(path) == capture:
+            with open(capture, "ab") as handle:   # a writer appending while it is read
+                handle.write(b"\0" * 512)
+        return trial
+
+    monkeypatch.setattr(c3d, "read_c3d", read_then_touched)
+    result = workflow.process_capture(capture, BuildSettings())
+    assert (result.ok, result.stage) == (False, "read")
+    assert "the file changed while it was processed" in result.error
+    assert cache.internal_result(result)
+
+
+def test_an_internal_error_processing_a_static_is_not_cached(sample_dir, monkeypatch):
+    from mocaplib.build import cache, workflow
+    from mocaplib.build.settings import BuildSettings
+
+    def bug(*args, **kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(workflow, "fit_capture", bug)
+    static = sample_dir / "rest.c3d"
+    result = workflow.process_capture(static, BuildSettings(static=str(static)))
+    assert result.ok and "internal error" in result.no_entry
+    assert cache.internal_result(result)
+
+
+def test_mirror_never_passes_another_builds_sidecar_off_as_its_own(tmp_path):
+    from mocaplib.library.mirror import write_mirrored
+
+    write_captures(tmp_path / "a")
+    write_captures(tmp_path / "b", TRIPLES[:3])
+    library, sidecar = build([tmp_path / "a"], progress=False,
+                             process=fake_process).write(tmp_path / "lib.json")
+    _, other = build([tmp_path / "b"], progress=False,
+                     process=fake_process).write(tmp_path / "b" / "lib.json")
+    own = sidecar.read_bytes()
+    written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
+    assert note is None and read_diagnostics(tmp_path / "out.json",
+                                             load_library(tmp_path / "out.json"))[0]
+    assert json.loads(written.read_text())["captures"] == json.loads(own)["captures"]
+    shutil.copy(other, sidecar)          # another build's sidecar beside the library
+    (tmp_path / "out.diagnostics.json").unlink()
+    written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
+    assert written is None and "does not belong to lib.json" in note
+    assert not (tmp_path / "out.diagnostics.json").exists()

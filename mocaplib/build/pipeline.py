@@ -215,16 +215,15 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         planned = [replace(p, heading_offsets=offsets) if p is pool else p for p in planned]
         pool = replace(pool, heading_offsets=offsets)
     results: dict[int, CaptureResult] = {}
-    keys: dict[int, str] = {}
     notes: list[str] = []
     cache = None if cache_dir is None else Path(cache_dir)
     for i, path in enumerate(paths):
         if cache is not None:
             try:
-                keys[i] = cache_key(path, file_sha256(path), planned[i])
+                sha256 = file_sha256(path)
             except OSError:
                 continue  # unreadable: its processing fails and says why
-            cached, why = read_cache(cache, keys[i])
+            cached, why = read_cache(cache, cache_key(path, sha256, planned[i]), sha256)
             if cached is not None:
                 cached.source = os.fspath(path)
                 results[i] = cached
@@ -238,9 +237,10 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         for i, result in _run(process, [(i, paths[i], planned[i]) for i in todo], jobs,
                               scheduler):
             results[i] = result
-            if i in keys and not internal_result(result) and not cache_failed:
-                try:
-                    write_cache(cache, keys[i], result)
+            if cache is not None and result.sha256 and not internal_result(result) \
+                    and not cache_failed:
+                try:  # keyed by the content the worker read (a file changed meanwhile: its own)
+                    write_cache(cache, cache_key(paths[i], result.sha256, planned[i]), result)
                 except MocapError as exc:  # the build goes on, uncached
                     notes.append(f"results not cached: {exc}")
                     cache_failed = True

@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import (UsageError, add_cutoff_option, add_gap_option, add_protocol_option,
-                      add_static_options, add_toe_off_option, check_inputs, check_output_folder,
-                      check_outputs, jobs_count, measurements, warn)
+from ._common import (UsageError, add_cutoff_option, add_force_option, add_gap_option,
+                      add_protocol_option, add_static_options, add_toe_off_option, check_inputs,
+                      check_output_folder, check_outputs, jobs_count, measurements, warn)
 
 
 def register(subparsers) -> None:
@@ -54,6 +54,7 @@ def register(subparsers) -> None:
                             "library)")
     cache.add_argument("--no-cache", action="store_true", help="process every capture afresh")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -84,7 +85,7 @@ def _check_usage(args):
                              measurements=measurements(args))
     inputs = build_inputs(captures, settings)
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
-                   diagnostics_path(args.output)}, inputs)
+                   diagnostics_path(args.output)}, inputs, force=args.force)
     if args.report:
         from ..report import report_name
 

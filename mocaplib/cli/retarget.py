@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
+from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
+                      check_outputs, positive)
 
 #: Output types: :data:`mocaplib.library.retarget.FORMATS`, not imported here so that the command line
 #: parses without loading numpy's stack; a test keeps the two equal.
@@ -53,6 +54,7 @@ def register(subparsers) -> None:
                         help="file to write, by its suffix: .csv (rad, m), .mot (OpenSim), "
                              ".bvh; repeat for several")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -68,7 +70,8 @@ def _run(args) -> int:
         if Path(out).suffix.lower() not in FORMATS:
             raise UsageError(f"-o {out}: unknown output type; end the file name with "
                              f"{', '.join(FORMATS)}")
-    check_outputs({f"-o {out}": out for out in args.output}, [args.library])
+    check_outputs({f"-o {out}": out for out in args.output}, [args.library],
+                  force=args.force)
     skeleton = _skeleton(args)
     try:
         weights = Weights(joint_limits=args.weight_joint_limits, reference=args.weight_reference,
