@@ -598,3 +598,59 @@ def test_mirror_never_passes_another_builds_sidecar_off_as_its_own(tmp_path):
     written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
     assert written is None and "does not belong to lib.json" in note
     assert not (tmp_path / "out.diagnostics.json").exists()
+
+
+# --------------------------------------------------------------------------- one capture fails alone
+def _no_marker_points(path: Path) -> Path:
+    """A C3D file with 50 frames and no marker point, written by ezc3d."""
+    ezc3d = pytest.importorskip("ezc3d")
+    import numpy as np
+
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [100]
+    c3d["data"]["points"] = np.zeros((4, 0, 50))
+    c3d.write(str(path))
+    return path
+
+
+def test_a_capture_without_marker_points_fails_alone_in_a_build(tmp_path, capsys):
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal",))
+    _no_marker_points(folder / "empty.c3d")
+    code = main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "--no-cache", "-q"])
+    out, err = capsys.readouterr()
+    assert code == 1 and "Traceback" not in err
+    assert "empty.c3d [" in out, out
+    assert len(load_library(tmp_path / "lib.json")) == 1
+
+
+@pytest.mark.parametrize("command", [["inspect", "{file}"], ["events", "{file}"],
+                                     ["fit", "{file}", "-o", "{tmp}/a.csv"],
+                                     ["protocol", "draft", "{file}", "-o", "{tmp}/p.toml"]])
+def test_a_capture_without_marker_points_is_one_line_in_every_command(tmp_path, capsys,
+                                                                      command):
+    empty = _no_marker_points(tmp_path / "empty.c3d")
+    assert main([c.format(file=empty, tmp=tmp_path) for c in command]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "empty.c3d" in err and len(err.splitlines()) == 1, err
+
+
+def test_any_exception_reading_one_capture_fails_it_alone(tmp_path, capsys, monkeypatch):
+    """Whatever a reader raises, in the build's own process (the search for standing files)
+    or in the capture's processing, only that capture fails, with its name and stage."""
+    from mocaplib.io import c3d
+
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal",))
+    shutil.copy(folder / "walk_straight_normal.c3d", folder / "odd.c3d")
+    read = c3d.read_c3d
+
+    def odd_fails(path):
+        if Path(path).name == "odd.c3d":
+            raise IndexError("an odd file")
+        return read(path)
+
+    monkeypatch.setattr(c3d, "read_c3d", odd_fails)
+    code = main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "--no-cache", "-q"])
+    out, err = capsys.readouterr()
+    assert code == 1 and "Traceback" not in err
+    assert "odd.c3d [import]: internal error in stage import: IndexError: an odd file" in out
+    assert len(load_library(tmp_path / "lib.json")) == 1

@@ -24,6 +24,9 @@ from ..io import printable
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
             "query", "retarget", "report", "synth")
 
+#: The positional arguments that name a command's one input file (named in an internal error).
+INPUT_ARGUMENTS = ("input", "file", "library", "plan")
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -74,6 +77,14 @@ def _main(argv: list[str] | None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
         return 0
+    except Exception as exc:  # a bug, or an input no check foresaw: one line, no traceback
+        named = [os.fspath(getattr(args, name)) for name in INPUT_ARGUMENTS
+                 if isinstance(getattr(args, name, None), (str, os.PathLike))]
+        print(f"mocaplib {args.command}: error: internal error"
+              f"{' with ' + ', '.join(named) if named else ''}: {type(exc).__name__}: {exc} "
+              "(a bug in mocaplib: please report it with the command and its input files)",
+              file=sys.stderr)
+        return 1
 
 
 class _Printable:

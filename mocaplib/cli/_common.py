@@ -406,14 +406,23 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         try:
             trials.append(read_c3d(path))
             standing_part(trials[-1], window=static_window)
-        except MocapError as exc:
-            raise UsageError(f"--static: {exc}") from None
+        except Exception as exc:
+            raise UsageError(f"--static: {unreadable(path, exc)}") from None
     for path in unique_paths(references or ()):
         try:
             read_c3d(path)
-        except MocapError as exc:
-            raise UsageError(f"--forward-reference: {exc}") from None
+        except Exception as exc:
+            raise UsageError(f"--forward-reference: {unreadable(path, exc)}") from None
     return trials
+
+
+def unreadable(path: str | os.PathLike, error: Exception) -> str:
+    """Why the file ``path`` could not be used, as one line: a :class:`MocapError`'s own text,
+    any other exception as an internal error naming the file."""
+    if isinstance(error, MocapError):
+        return str(error)
+    return (f"{os.fspath(path)}: internal error: {type(error).__name__}: {error} (a bug in "
+            "mocaplib: please report it with this file)")
 
 
 def heading_offsets(args) -> tuple[float, ...] | None:
