@@ -654,3 +654,71 @@ def test_any_exception_reading_one_capture_fails_it_alone(tmp_path, capsys, monk
     assert code == 1 and "Traceback" not in err
     assert "odd.c3d [import]: internal error in stage import: IndexError: an odd file" in out
     assert len(load_library(tmp_path / "lib.json")) == 1
+
+
+# --------------------------------------------------------------------------- TOML files
+def _protocol_folder_with(tmp_path: Path, kind: str) -> Path:
+    folder = tmp_path / "mylab"
+    folder.mkdir()
+    if kind == "pipe":
+        os.mkfifo(folder / "pipe.toml")
+    else:
+        (folder / "loop.toml").symlink_to(folder / "loop.toml")
+    return folder
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize("kind, message", [("pipe", "pipe.toml: not a regular file"),
+                                           ("loop", "loop.toml: cannot read it: Too many")])
+def test_a_pipe_or_link_loop_in_a_protocol_folder_is_refused_not_read(tmp_path, kind, message):
+    """In a subprocess with a time limit: a pipe opened for reading blocks forever."""
+    write_captures(tmp_path / "caps", TRIPLES[:1])
+    folder = _protocol_folder_with(tmp_path, kind)
+    code, out, err = run_isolated(mocaplib_command(
+        "build", tmp_path / "caps", "-o", tmp_path / "lib.json", "--protocols", folder, "-q"),
+        kill_after=60)
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert not (tmp_path / "lib.json").exists()
+
+
+def _nested(depth: int) -> str:
+    return "a = " + "[" * depth + "]" * depth + "\n"
+
+
+def test_a_deeply_nested_session_file_is_named_not_a_traceback(tmp_path, counted_build,
+                                                               capsys):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    (tmp_path / "caps" / "session.toml").write_text(_nested(100_000))
+    code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--no-cache"])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err and counted_build == []
+    assert "session.toml: the session file nests arrays or tables too deep to read" in err
+
+
+@pytest.mark.parametrize("text, message", [
+    (_nested(100_000), "nests arrays or tables too deep to read"),
+    ("[markers]\n" + "".join(f'T{i} = {{ segment = "femur", side = "left" }}\n'
+                             for i in range(100_000)), "larger than 4194304 bytes"),
+    ('[markers]\nLASI = { landmark = "L_ASIS" }\nLASX = { landmark = "L_ASIS" }\n',
+     "markers 'LASI' and 'LASX' both label the landmark L_ASIS"),
+])
+def test_a_protocol_that_cannot_be_used_is_a_usage_error(tmp_path, counted_build, capsys,
+                                                         text, message):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    (tmp_path / "mine.toml").write_text(text)
+    code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--protocol", str(tmp_path / "mine.toml")])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert counted_build == []
+
+
+def test_a_protocol_named_like_a_plan_is_a_protocol(tmp_path, monkeypatch):
+    from mocaplib.markersets.protocols import capture_plans, list_protocols, load_protocol
+
+    (tmp_path / "planar_feet.toml").write_text('[markers]\nLHEE = { landmark = "L_HEEL" }\n')
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(tmp_path))
+    assert "planar_feet" in list_protocols()
+    assert load_protocol("planar_feet").marker("LHEE").landmark.name == "L_HEEL"
+    assert tmp_path / "planar_feet.toml" not in capture_plans()
