@@ -722,3 +722,26 @@ def test_a_protocol_named_like_a_plan_is_a_protocol(tmp_path, monkeypatch):
     assert "planar_feet" in list_protocols()
     assert load_protocol("planar_feet").marker("LHEE").landmark.name == "L_HEEL"
     assert tmp_path / "planar_feet.toml" not in capture_plans()
+
+
+# --------------------------------------------------------------------------- hung workers
+@needs_two
+@pytest.mark.parametrize("hang", [{"stop": "always"}, {"sleep": 60}])
+def test_a_hung_worker_fails_its_capture_alone_after_the_time_limit(tmp_path, hang):
+    folder = tmp_path / "caps"
+    write_captures(folder, TRIPLES[:3])
+    (folder / "hung.c3d").write_text(json.dumps(hang))
+    started = time.monotonic()
+    result = build([folder], jobs=2, progress=False, process=fake_process, capture_timeout=2)
+    assert time.monotonic() - started < 30
+    (failure,) = result.failures
+    assert (failure.file, failure.stage) == ("hung.c3d", "worker")
+    assert "longer than its time limit of 2 s" in failure.error
+    assert len(result.library) == 3
+
+
+def test_the_command_line_states_the_pipelines_capture_time_limit():
+    from mocaplib.build.pipeline import CAPTURE_TIMEOUT_S
+    from mocaplib.cli.build import CAPTURE_TIMEOUT_S as DEFAULT
+
+    assert DEFAULT == CAPTURE_TIMEOUT_S

@@ -41,6 +41,12 @@ DIAGNOSTICS_VERSION = 1
 SCHEDULER_TIMEOUT_S = 20
 
 
+#: Seconds one capture may take in a worker process before the worker is ended and the
+#: capture fails alone (``build_library(capture_timeout=...)``, ``--capture-timeout``): a lab walk
+#: takes 0.3-1 s, a take of minutes some tens of seconds.
+CAPTURE_TIMEOUT_S = 600.0
+
+
 # --------------------------------------------------------------------------- many captures
 @dataclass
 class BuildResult:
@@ -158,8 +164,8 @@ class BuildResult:
 def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = None, *,
           jobs: int = 1, scheduler: str | None = None, cache_dir: str | os.PathLike | None = None,
           progress: bool = True,
-          process: Callable[[str, BuildSettings], CaptureResult] | None = None
-          ) -> BuildResult:
+          process: Callable[[str, BuildSettings], CaptureResult] | None = None,
+          capture_timeout: float | None = CAPTURE_TIMEOUT_S) -> BuildResult:
     """Process every capture and assemble the library.
 
     Parameters
@@ -184,6 +190,10 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     process
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
+    capture_timeout
+        Seconds a capture may run in a worker process (``jobs`` > 1) before the worker is
+        ended and the capture fails alone (stage ``worker``); None: no limit. Captures run in
+        this process (``jobs=1``) or on a Dask cluster have no limit.
 
     Returns
     -------
@@ -235,7 +245,7 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i], planned[i]) for i in todo], jobs,
-                              scheduler):
+                              scheduler, capture_timeout):
             results[i] = result
             if cache is not None and result.sha256 and not internal_result(result) \
                     and not cache_failed:
@@ -262,17 +272,17 @@ def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings)
 
 
 def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
-         scheduler: str | None):
+         scheduler: str | None, timeout: float | None):
     """Yield ``(index, CaptureResult)`` as captures finish (in any order), each work item
-    ``(index, path, its settings)`` run by :func:`mocaplib.build.workers.run_tasks` or on a Dask
-    cluster."""
+    ``(index, path, its settings)`` run by :func:`mocaplib.build.workers.run_tasks` (at most
+    ``timeout`` s in a worker) or on a Dask cluster."""
     if not work:
         return
     if scheduler is not None:
         yield from _run_dask(process, work, scheduler)
         return
     tasks = [(os.fspath(path), settings) for _, path, settings in work]
-    for k, result, error in run_tasks(process, tasks, jobs=jobs):
+    for k, result, error in run_tasks(process, tasks, jobs=jobs, timeout=timeout):
         index, path, _ = work[k]
         yield index, result if error is None else _worker_failure(path, error)
 
