@@ -745,3 +745,19 @@ def test_the_command_line_states_the_pipelines_capture_time_limit():
     from mocaplib.cli.build import CAPTURE_TIMEOUT_S as DEFAULT
 
     assert DEFAULT == CAPTURE_TIMEOUT_S
+
+
+# --------------------------------------------------------------------------- Ctrl-C
+@pytest.mark.parametrize("delay", [0.05, 0.1, 0.15, 0.2, 0.3, 0.5])
+def test_ctrl_c_at_any_moment_of_the_start_is_quiet(tmp_path, delay):
+    """SIGINT while Python and mocaplib load: exit 130 and no traceback (or, before Python
+    handles signals at all, the default death by SIGINT, which prints nothing)."""
+    write_captures(tmp_path / "caps", TRIPLES[:1])
+    process = subprocess.Popen(mocaplib_command("build", tmp_path / "caps", "-o",
+                                                tmp_path / "lib.json", "-q"),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert process.returncode in (130, -signal.SIGINT, 1), (process.returncode, err)

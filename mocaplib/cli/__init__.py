@@ -41,15 +41,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code (also used by the console script)."""
-    one_thread_by_default()          # before the sub-commands load numpy
-    _tolerate_unencodable_output()
-    streams = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+    """Run the command line; returns the exit code (also used by the console script). Ctrl-C
+    at any moment, loading included, ends it with one line and exit code 130."""
     try:
-        return _main(argv)
-    finally:
-        sys.stdout, sys.stderr = streams
+        one_thread_by_default()          # before the sub-commands load numpy
+        _tolerate_unencodable_output()
+        streams = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+        try:
+            return _main(argv)
+        finally:
+            sys.stdout, sys.stderr = streams
+    except KeyboardInterrupt:
+        return interrupted()
+
+
+def interrupted() -> int:
+    """Say that the command was interrupted (Ctrl-C); its exit code, 130."""
+    print("mocaplib: interrupted", file=sys.stderr)
+    return 130
 
 
 def _main(argv: list[str] | None) -> int:
@@ -72,8 +82,7 @@ def _main(argv: list[str] | None) -> int:
         print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("mocaplib: interrupted", file=sys.stderr)
-        return 130
+        return interrupted()
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
         return 0
