@@ -761,3 +761,35 @@ def test_ctrl_c_at_any_moment_of_the_start_is_quiet(tmp_path, delay):
     out, err = process.communicate(timeout=60)
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert process.returncode in (130, -signal.SIGINT, 1), (process.returncode, err)
+
+
+# --------------------------------------------------------------------------- statics
+def _markers_replaced(source: Path, path: Path, value: float) -> Path:
+    """``source`` written again with every marker coordinate ``value`` (NaN: none seen)."""
+    import numpy as np
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(source)
+    write_c3d(path, np.full_like(trial.markers, value), trial.labels, trial.rate)
+    return path
+
+
+@pytest.mark.parametrize("value", [float("nan"), 1e30])
+def test_a_capture_without_finite_markers_is_never_a_static(sample_dir, tmp_path, capsys,
+                                                            value):
+    from mocaplib.build.sessions import standing_files
+
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal", "rest"))
+    blank = _markers_replaced(folder / "rest.c3d", folder / "blank.c3d", value)
+    (folder / "rest.c3d").unlink()
+    assert standing_files([blank]) == []
+    out = tmp_path / "lib.json"
+    assert main(["build", str(folder), "-o", str(out), "-q", "--static", str(blank)]) == 2
+    assert "blank.c3d: is not a standing static trial: 0 of its" in capsys.readouterr().err
+    assert main(["build", str(folder), "-o", str(out), "-q", "--require-static"]) == 1
+    assert "none is given or found among the captures" in capsys.readouterr().err
+    assert main(["build", str(folder), "-o", str(out), "-q", "--no-cache"]) == 1
+    printed = capsys.readouterr().out
+    assert "failed 1" in printed and "blank.c3d [" in printed
+    assert len(load_library(out)) == 1
