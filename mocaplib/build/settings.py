@@ -90,8 +90,8 @@ class BuildSettings:
         if self.toe_off not in TOE_OFF_DEFINITIONS:
             raise MocapError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
                              f"got {self.toe_off!r}")
-        if not (isinstance(self.max_gap_s, (int, float)) and self.max_gap_s >= 0):
-            raise MocapError(f"max_gap_s must be a number of seconds >= 0, got "
+        if not (isinstance(self.max_gap_s, (int, float)) and 0 <= self.max_gap_s <= 3600):
+            raise MocapError(f"max_gap_s must be a number of seconds from 0 to 3600, got "
                              f"{self.max_gap_s!r}")
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")

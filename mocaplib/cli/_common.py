@@ -211,11 +211,14 @@ def add_toe_off_option(parser) -> None:
 
 #: ``--max-gap`` default: :data:`mocaplib.gait.cycles.MAX_GAP_S` (a test keeps the two equal).
 MAX_GAP_DEFAULT = 0.25
+#: Largest ``--max-gap`` (s): an hour, longer than any capture.
+MAX_GAP_LIMIT = 3600.0
 
 
 def add_gap_option(parser) -> None:
     """``--max-gap``: the longest gap filled by interpolation (:mod:`mocaplib.gait.cycles`)."""
-    parser.add_argument("--max-gap", type=positive(float, unit=" s"), default=MAX_GAP_DEFAULT,
+    parser.add_argument("--max-gap", type=positive(float, unit=" s", most=MAX_GAP_LIMIT),
+                        default=MAX_GAP_DEFAULT,
                         metavar="S", dest="max_gap_s",
                         help="longest gap (s) filled by interpolation: in the foot markers the "
                              "gait events read, and in the frames the fit could not solve "
@@ -323,7 +326,7 @@ def time_window(text: str) -> tuple[float, float]:
 def measurement(text: str) -> tuple[str, float]:
     """One ``--subject NAME=VALUE``: a known measurement name (sided names without ``_l`` or
     ``_r`` mean both sides) and a number > 0, SI units."""
-    from ..model.anatomy import MEASUREMENTS
+    from ..model.anatomy import MEASUREMENT_LIMITS, MEASUREMENTS
 
     name, _, value = text.partition("=")
     name = name.strip()
@@ -335,8 +338,10 @@ def measurement(text: str) -> tuple[str, float]:
         number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
-    if not 0 < number < 1000:
-        raise argparse.ArgumentTypeError(f"{name}: {value} must be > 0 (metres, kilograms)")
+    most = MEASUREMENT_LIMITS[name.removesuffix("_l").removesuffix("_r")]
+    if not 0 < number <= most:
+        raise argparse.ArgumentTypeError(f"{name}: {value} must be > 0 and <= {most:g} "
+                                         f"({'kg' if name == 'body_mass' else 'metres'})")
     return name, number
 
 
