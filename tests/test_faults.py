@@ -535,8 +535,8 @@ def test_a_file_changed_during_a_build_is_processed_again_by_the_next(tmp_path):
     content as walk00.c3d')."""
     folder, cache = tmp_path / "caps", tmp_path / "cache"
     write_captures(folder)
-    build([folder], cache_dir=cache, progress=False, process=_rewritten_once)
-    again = build([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    build_library([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    again = build_library([folder], cache_dir=cache, progress=False, process=_rewritten_once)
     assert calls(folder).count("walk01.c3d") == 2
     assert len(again.library) == len(TRIPLES) and not again.summary()["warnings"]
 
@@ -559,6 +559,7 @@ def test_a_capture_changed_while_processed_fails_alone_and_is_not_cached(sample_
         return trial
 
     monkeypatch.setattr(c3d, "read_c3d", read_then_touched)
+    monkeypatch.setattr(workflow, "read_c3d", read_then_touched)
     result = workflow.process_capture(capture, BuildSettings())
     assert (result.ok, result.stage) == (False, "read")
     assert "the file changed while it was processed" in result.error
@@ -566,13 +567,13 @@ def test_a_capture_changed_while_processed_fails_alone_and_is_not_cached(sample_
 
 
 def test_an_internal_error_processing_a_static_is_not_cached(sample_dir, monkeypatch):
-    from mocaplib.build import cache, workflow
+    from mocaplib.build import cache, capture, workflow
     from mocaplib.build.settings import BuildSettings
 
     def bug(*args, **kwargs):
         raise RuntimeError("a bug")
 
-    monkeypatch.setattr(workflow, "fit_capture", bug)
+    monkeypatch.setattr(capture, "fit_capture", bug)
     static = sample_dir / "rest.c3d"
     result = workflow.process_capture(static, BuildSettings(static=str(static)))
     assert result.ok and "internal error" in result.no_entry
@@ -584,9 +585,9 @@ def test_mirror_never_passes_another_builds_sidecar_off_as_its_own(tmp_path):
 
     write_captures(tmp_path / "a")
     write_captures(tmp_path / "b", TRIPLES[:3])
-    library, sidecar = build([tmp_path / "a"], progress=False,
+    library, sidecar = build_library([tmp_path / "a"], progress=False,
                              process=fake_process).write(tmp_path / "lib.json")
-    _, other = build([tmp_path / "b"], progress=False,
+    _, other = build_library([tmp_path / "b"], progress=False,
                      process=fake_process).write(tmp_path / "b" / "lib.json")
     own = sidecar.read_bytes()
     written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
@@ -649,6 +650,7 @@ def test_any_exception_reading_one_capture_fails_it_alone(tmp_path, capsys, monk
         return read(path)
 
     monkeypatch.setattr(c3d, "read_c3d", odd_fails)
+    monkeypatch.setattr("mocaplib.build.workflow.read_c3d", odd_fails)
     code = main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "--no-cache", "-q"])
     out, err = capsys.readouterr()
     assert code == 1 and "Traceback" not in err
@@ -732,7 +734,7 @@ def test_a_hung_worker_fails_its_capture_alone_after_the_time_limit(tmp_path, ha
     write_captures(folder, TRIPLES[:3])
     (folder / "hung.c3d").write_text(json.dumps(hang))
     started = time.monotonic()
-    result = build([folder], jobs=2, progress=False, process=fake_process, capture_timeout=2)
+    result = build_library([folder], jobs=2, progress=False, process=fake_process, capture_timeout=2)
     assert time.monotonic() - started < 30
     (failure,) = result.failures
     assert (failure.file, failure.stage) == ("hung.c3d", "worker")
