@@ -211,7 +211,8 @@ def add_toe_off_option(parser) -> None:
 
 #: ``--max-gap`` default: :data:`mocaplib.gait.cycles.MAX_GAP_S` (a test keeps the two equal).
 MAX_GAP_DEFAULT = 0.25
-#: Largest ``--max-gap`` (s): an hour, longer than any capture.
+#: Largest ``--max-gap`` (s): :data:`mocaplib.build.settings.MAX_GAP_LIMIT_S` (a test keeps
+#: the two equal).
 MAX_GAP_LIMIT = 3600.0
 
 
