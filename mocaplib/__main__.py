@@ -1,7 +1,10 @@
-"""``python -m mocaplib`` runs the command line."""
+"""``python -m mocaplib`` runs the command line (Ctrl-C while it loads: exit 130, quietly)."""
 
 import sys
 
-from .cli import main
+try:
+    from .cli import main
+except KeyboardInterrupt:
+    sys.exit(130)
 
 sys.exit(main())

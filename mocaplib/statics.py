@@ -35,11 +35,19 @@ STANDING_EXTENT = 0.05
 STATIC_WINDOW_S = 1.0
 
 
+#: Fewest markers with a finite position, and least span of their median heights (m), of a
+#: trial that shows a standing person (:func:`check_person`): a pelvis and a foot marker
+#: already span 0.8 m on an adult.
+MIN_STATIC_MARKERS = 3
+MIN_STATIC_HEIGHT = 0.3
+
+
 def check_standing(static: Trial, *, moved: float | None = None) -> None:
-    """Raise :class:`CalibrationError` naming ``static`` when its markers move like a motion's
-    (median extent over the markers above :data:`STANDING_EXTENT`): a walk given as the static
-    calibrates a subject in mid-stride. ``moved``: :func:`moved_extent` of its markers, when
-    already computed."""
+    """Raise :class:`CalibrationError` naming ``static`` when it shows no person
+    (:func:`check_person`) or its markers move like a motion's (median extent over the markers
+    above :data:`STANDING_EXTENT`): a walk given as the static calibrates a subject in
+    mid-stride. ``moved``: :func:`moved_extent` of its markers, when already computed."""
+    check_person(static)
     moved = moved_extent(static.markers) if moved is None else moved
     if moved > STANDING_EXTENT:   # NaN, no marker seen: calibration refuses it with its reason
         raise CalibrationError(
@@ -47,6 +55,26 @@ def check_standing(static: Trial, *, moved: float | None = None) -> None:
             f"markers; a static moves less than {STANDING_EXTENT * 100:.0f} cm)",
             path=static.source, hint="give the static calibration trial (the subject standing "
                                      "still) as --static, and the motion as a capture")
+
+
+def check_person(static: Trial) -> None:
+    """Raise :class:`CalibrationError` naming ``static`` unless it shows a person: at least
+    :data:`MIN_STATIC_MARKERS` markers with finite positions, whose median heights span at
+    least :data:`MIN_STATIC_HEIGHT` (no marker seen, all NaN or all beyond the reader's range,
+    or every marker at one place, stands still but is no one to calibrate)."""
+    seen = np.isfinite(static.markers).all(axis=2).any(axis=0)
+    hint = "give the static calibration trial (the subject standing still, markers seen)"
+    if seen.sum() < MIN_STATIC_MARKERS:
+        raise CalibrationError(
+            f"is not a standing static trial: {seen.sum()} of its {static.n_markers} markers "
+            f"have a finite position in some frame (a person shows at least "
+            f"{MIN_STATIC_MARKERS})", path=static.source, hint=hint)
+    heights = nanmedian(static.markers[:, seen, 2], axis=0)
+    if not np.ptp(heights) >= MIN_STATIC_HEIGHT:
+        raise CalibrationError(
+            f"is not a standing static trial: its markers span {np.ptp(heights):.3g} m in "
+            f"height (a standing person at least {MIN_STATIC_HEIGHT:g} m: markers at one "
+            "place)", path=static.source, hint=hint)
 
 
 def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
@@ -86,6 +114,7 @@ def standing_part(static: Trial, /, *, window: tuple[float, float] | None = None
         return static, span
     part = replace(static, markers=static.markers[lo:hi], first_frame=static.first_frame + lo,
                    events=[], warnings=list(static.warnings))
+    check_person(part)
     moved = moved_extent(part.markers)
     if moved > STANDING_EXTENT:
         which = "the window" if window is not None else f"its quietest {STATIC_WINDOW_S:g} s"

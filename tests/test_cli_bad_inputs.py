@@ -82,6 +82,9 @@ def test_an_output_that_would_overwrite_an_input_is_a_usage_error(args, tmp_path
     ["query", "{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--rate", "inf"],
     ["query", "{lib}", "1", "0", "0", "--bvh", "{d}/a.bvh", "--cycles", "1000000000"],
     ["fit", "{w}", "-o", "{d}/a.csv", "--cutoff", "inf"],
+    ["fit", "{w}", "-o", "{d}/a.csv", "--subject", "knee_width=999"],
+    ["fit", "{w}", "-o", "{d}/a.csv", "--subject", "knee_width=0.5"],
+    ["build", "{w}", "-o", "{d}/a.json", "--max-gap", "1e308"],
 ])
 def test_numbers_no_command_can_use_are_usage_errors(args, tmp_path, library, capsys):
     walk = sample("walk_straight_normal", tmp_path)
@@ -468,3 +471,20 @@ def test_left_and_right_labels_exchanged_throughout_are_refused(tmp_path, capsys
     assert f"{path}: " in err and " left markers that have a right one lie on the subject's " \
         "right of it" in err
     assert "left and right labels are exchanged" in err and "Traceback" not in err
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_a_retarget_rate_that_cannot_be_delivered_is_a_usage_error(tmp_path, library, capsys):
+    assert main(["retarget", str(library), "walk_straight_normal_c1", "--height", "1.7",
+                 "--rate", "0.001", "-o", str(tmp_path / "a.csv")]) == 2
+    assert "fewer than 8 samples over the cycle" in capsys.readouterr().err
+    assert not (tmp_path / "a.csv").exists()
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_a_foot_spacing_the_body_cannot_reach_writes_nothing(tmp_path, library, capsys):
+    assert main(["retarget", str(library), "walk_straight_normal_c1", "--height", "1.7",
+                 "--foot-spacing", "5", "-o", str(tmp_path / "a.csv")]) == 1
+    err = capsys.readouterr().err
+    assert "the body cannot follow the request: its ankles stay up to" in err, err
+    assert not (tmp_path / "a.csv").exists()

@@ -414,14 +414,19 @@ def test_no_cycle_reaches_into_the_unsolved_frames_at_either_end():
 
 
 def test_one_gap_limit_for_the_events_the_cycles_the_build_and_the_cli():
-    from mocaplib.cli._common import MAX_GAP_DEFAULT
+    from mocaplib.cli._common import MAX_GAP_DEFAULT, MAX_GAP_LIMIT
     from mocaplib.gait.cycles import MAX_GAP_S
     from mocaplib.errors import MocapError
     from mocaplib.gait.events import EventSettings
-    from mocaplib.build.settings import BuildSettings
+    from mocaplib.build.settings import MAX_GAP_LIMIT_S, BuildSettings
 
     assert MAX_GAP_DEFAULT == MAX_GAP_S == EventSettings().max_gap_s == \
         BuildSettings().max_gap_s == 0.25
     assert BuildSettings(max_gap_s=0.5).to_dict()["max_gap_s"] == 0.5   # recorded
-    with pytest.raises(MocapError, match="max_gap_s must be a number of seconds >= 0, got -1"):
+    assert MAX_GAP_LIMIT == MAX_GAP_LIMIT_S
+    with pytest.raises(MocapError, match="max_gap_s must be a number of seconds from 0 to "
+                                         "3600, got 1e"):
+        BuildSettings(max_gap_s=1e308)
+    with pytest.raises(MocapError, match="max_gap_s must be a number of seconds from 0 to "
+                                         "3600, got -1"):
         BuildSettings(max_gap_s=-1)

@@ -429,8 +429,14 @@ def counted_build(monkeypatch):
 @pytest.mark.parametrize("output, message", [
     ("{caps}/walk00.truth.json", "is an input of this command"),
     ("{caps}/walk00.c3d", "is an input of this command"),
-    ("/proc/mocaplib-test.json", "cannot write into /proc"),
-    ("/dev/null", "not a regular file"),
+    ("/proc/mocaplib-test.json", "will not write into the system folder /proc"),
+    ("/dev/null", "will not write into the system folder /dev"),
+    ("/dev/stdout", "will not write into the system folder /dev"),
+    ("{tmp}/pipe.json", "not a regular file (a device or a pipe)"),
+    ("{tmp}/loop.json", "its symbolic links form a loop"),
+    ("{tmp}/capture.c3d", "exists and is a C3D capture; mocaplib did not write it"),
+    ("{tmp}/notes.json", "exists and is not a file mocaplib writes"),
+    ("{tmp}/to-dev.json", "will not write into the system folder /dev (the link points to "),
     ("-", "'-' (standard input or output) is not supported"),
     ("{tmp}/missing/lib.json", "does not exist"),
 ])
@@ -441,6 +447,12 @@ def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work
     truth = caps / "walk00.truth.json"
     truth.write_text('{"class": "straight"}')
     before = {p.name: p.read_bytes() for p in caps.iterdir()}
+    os.mkfifo(tmp_path / "pipe.json")
+    (tmp_path / "loop.json").symlink_to(tmp_path / "loop.json")
+    (tmp_path / "to-dev.json").symlink_to("/dev/null")
+    shutil.copy(SAMPLES / "rest.c3d", tmp_path / "capture.c3d")
+    (tmp_path / "notes.json").write_text('{"mine": 1}')
+    others = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
     output = output.format(caps=caps, tmp=tmp_path)
     if output.startswith("/proc") and not Path("/proc").is_dir():
         pytest.skip("no /proc here")
@@ -448,8 +460,34 @@ def test_an_output_that_cannot_or_must_not_be_written_is_refused_before_any_work
     assert message in capsys.readouterr().err
     assert counted_build == [] and not Path("-").exists()
     assert {p.name: p.read_bytes() for p in caps.iterdir()} == before
-    assert Path("/dev/null").is_char_device()
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == others
+    assert Path("/dev/null").is_char_device() and Path("/dev/stdout").is_symlink()
+    assert not Path("/dev/stdout.diagnostics.json").exists()
     assert not (tmp_path / "missing").exists()
+
+
+def test_an_output_link_is_written_where_it_points_and_stays_a_link(tmp_path, counted_build,
+                                                                    capsys):
+    write_captures(tmp_path / "caps")
+    (tmp_path / "out").mkdir()
+    link = tmp_path / "lib.json"
+    link.symlink_to(tmp_path / "out" / "real.json")
+    assert main(["build", str(tmp_path / "caps"), "-o", str(link), "--no-cache", "-q"]) == 0
+    assert link.is_symlink() and load_library(tmp_path / "out" / "real.json").entries
+    assert load_library(link).file_sha256 == digest(tmp_path / "out" / "real.json")
+
+
+def test_force_overwrites_a_file_mocaplib_did_not_write(tmp_path, counted_build, capsys):
+    write_captures(tmp_path / "caps")
+    notes = tmp_path / "notes.json"
+    notes.write_text('{"mine": 1}')
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q"]) == 2
+    assert counted_build == [] and notes.read_text() == '{"mine": 1}'
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q",
+                 "--force"]) == 0
+    assert load_library(notes).entries
+    # a library mocaplib wrote is replaced without --force
+    assert main(["build", str(tmp_path / "caps"), "-o", str(notes), "--no-cache", "-q"]) == 0
 
 
 def test_dash_and_missing_folders_elsewhere_are_usage_errors(tmp_path, capsys, monkeypatch):
@@ -474,3 +512,286 @@ def test_jobs_beyond_the_processors_is_a_usage_error(tmp_path, capsys, command):
     assert main([command, *arguments, "--jobs", "100000"]) == 2
     assert f"at most {max_jobs()}" in capsys.readouterr().err
     assert main([command, *arguments, "--jobs", str(max_jobs() + 1)]) == 2
+
+
+# --------------------------------------------------------------------------- what the cache keeps
+def _rewritten_once(path, settings):
+    """fake_process, but walk01's first processing reads it while it holds walk00's bytes
+    (another program rewriting it during the build), which are put back afterwards."""
+    path = Path(path)
+    if path.name == "walk01.c3d" and "walk01.c3d" not in calls(path.parent):
+        original = path.read_bytes()
+        path.write_bytes((path.parent / "walk00.c3d").read_bytes())
+        try:
+            return fake_process(path, settings)
+        finally:
+            path.write_bytes(original)
+    return fake_process(path, settings)
+
+
+def test_a_file_changed_during_a_build_is_processed_again_by_the_next(tmp_path):
+    """The result is cached under the content the worker read, so the file's own content is
+    not answered with the other content's result (which the next build would drop as 'same
+    content as walk00.c3d')."""
+    folder, cache = tmp_path / "caps", tmp_path / "cache"
+    write_captures(folder)
+    build_library([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    again = build_library([folder], cache_dir=cache, progress=False, process=_rewritten_once)
+    assert calls(folder).count("walk01.c3d") == 2
+    assert len(again.library) == len(TRIPLES) and not again.summary()["warnings"]
+
+
+def test_a_capture_changed_while_processed_fails_alone_and_is_not_cached(sample_dir, tmp_path,
+                                                                       monkeypatch):
+    from mocaplib.build import cache, workflow
+    from mocaplib.build.settings import BuildSettings
+    from mocaplib.io import c3d
+
+    capture = tmp_path / "walk.c3d"
+    shutil.copy(sample_dir / "walk_straight_normal.c3d", capture)
+    read = c3d.read_c3d
+
+    def read_then_touched(path):
+        trial = read(path)
+        if Path(path) == capture:
+            with open(capture, "ab") as handle:   # a writer appending while it is read
+                handle.write(b"\0" * 512)
+        return trial
+
+    monkeypatch.setattr(c3d, "read_c3d", read_then_touched)
+    monkeypatch.setattr(workflow, "read_c3d", read_then_touched)
+    result = workflow.process_capture(capture, BuildSettings())
+    assert (result.ok, result.stage) == (False, "read")
+    assert "the file changed while it was processed" in result.error
+    assert cache.internal_result(result)
+
+
+def test_an_internal_error_processing_a_static_is_not_cached(sample_dir, monkeypatch):
+    from mocaplib.build import cache, capture, workflow
+    from mocaplib.build.settings import BuildSettings
+
+    def bug(*args, **kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(capture, "fit_capture", bug)
+    static = sample_dir / "rest.c3d"
+    result = workflow.process_capture(static, BuildSettings(static=str(static)))
+    assert result.ok and "internal error" in result.no_entry
+    assert cache.internal_result(result)
+
+
+def test_mirror_never_passes_another_builds_sidecar_off_as_its_own(tmp_path):
+    from mocaplib.library.mirror import write_mirrored
+
+    write_captures(tmp_path / "a")
+    write_captures(tmp_path / "b", TRIPLES[:3])
+    library, sidecar = build_library([tmp_path / "a"], progress=False,
+                             process=fake_process).write(tmp_path / "lib.json")
+    _, other = build_library([tmp_path / "b"], progress=False,
+                     process=fake_process).write(tmp_path / "b" / "lib.json")
+    own = sidecar.read_bytes()
+    written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
+    assert note is None and read_diagnostics(tmp_path / "out.json",
+                                             load_library(tmp_path / "out.json"))[0]
+    assert json.loads(written.read_text())["captures"] == json.loads(own)["captures"]
+    shutil.copy(other, sidecar)          # another build's sidecar beside the library
+    (tmp_path / "out.diagnostics.json").unlink()
+    written, note = write_mirrored(load_library(library), library, tmp_path / "out.json")
+    assert written is None and "does not belong to lib.json" in note
+    assert not (tmp_path / "out.diagnostics.json").exists()
+
+
+# --------------------------------------------------------------------------- one capture fails alone
+def _no_marker_points(path: Path) -> Path:
+    """A C3D file with 50 frames and no marker point, written by ezc3d."""
+    ezc3d = pytest.importorskip("ezc3d")
+    import numpy as np
+
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [100]
+    c3d["data"]["points"] = np.zeros((4, 0, 50))
+    c3d.write(str(path))
+    return path
+
+
+def test_a_capture_without_marker_points_fails_alone_in_a_build(tmp_path, capsys):
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal",))
+    _no_marker_points(folder / "empty.c3d")
+    code = main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "--no-cache", "-q"])
+    out, err = capsys.readouterr()
+    assert code == 1 and "Traceback" not in err
+    assert "empty.c3d [" in out, out
+    assert len(load_library(tmp_path / "lib.json")) == 1
+
+
+@pytest.mark.parametrize("command", [["inspect", "{file}"], ["events", "{file}"],
+                                     ["fit", "{file}", "-o", "{tmp}/a.csv"],
+                                     ["protocol", "draft", "{file}", "-o", "{tmp}/p.toml"]])
+def test_a_capture_without_marker_points_is_one_line_in_every_command(tmp_path, capsys,
+                                                                      command):
+    empty = _no_marker_points(tmp_path / "empty.c3d")
+    assert main([c.format(file=empty, tmp=tmp_path) for c in command]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "empty.c3d" in err and len(err.splitlines()) == 1, err
+
+
+def test_any_exception_reading_one_capture_fails_it_alone(tmp_path, capsys, monkeypatch):
+    """Whatever a reader raises, in the build's own process (the search for standing files)
+    or in the capture's processing, only that capture fails, with its name and stage."""
+    from mocaplib.io import c3d
+
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal",))
+    shutil.copy(folder / "walk_straight_normal.c3d", folder / "odd.c3d")
+    read = c3d.read_c3d
+
+    def odd_fails(path):
+        if Path(path).name == "odd.c3d":
+            raise IndexError("an odd file")
+        return read(path)
+
+    monkeypatch.setattr(c3d, "read_c3d", odd_fails)
+    monkeypatch.setattr("mocaplib.build.workflow.read_c3d", odd_fails)
+    code = main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "--no-cache", "-q"])
+    out, err = capsys.readouterr()
+    assert code == 1 and "Traceback" not in err
+    assert "odd.c3d [import]: internal error in stage import: IndexError: an odd file" in out
+    assert len(load_library(tmp_path / "lib.json")) == 1
+
+
+# --------------------------------------------------------------------------- TOML files
+def _protocol_folder_with(tmp_path: Path, kind: str) -> Path:
+    folder = tmp_path / "mylab"
+    folder.mkdir()
+    if kind == "pipe":
+        os.mkfifo(folder / "pipe.toml")
+    else:
+        (folder / "loop.toml").symlink_to(folder / "loop.toml")
+    return folder
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize("kind, message", [("pipe", "pipe.toml: not a regular file"),
+                                           ("loop", "loop.toml: cannot read it: Too many")])
+def test_a_pipe_or_link_loop_in_a_protocol_folder_is_refused_not_read(tmp_path, kind, message):
+    """In a subprocess with a time limit: a pipe opened for reading blocks forever."""
+    write_captures(tmp_path / "caps", TRIPLES[:1])
+    folder = _protocol_folder_with(tmp_path, kind)
+    code, out, err = run_isolated(mocaplib_command(
+        "build", tmp_path / "caps", "-o", tmp_path / "lib.json", "--protocols", folder, "-q"),
+        kill_after=60)
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert not (tmp_path / "lib.json").exists()
+
+
+def _nested(depth: int) -> str:
+    return "a = " + "[" * depth + "]" * depth + "\n"
+
+
+def test_a_deeply_nested_session_file_is_named_not_a_traceback(tmp_path, counted_build,
+                                                               capsys):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    (tmp_path / "caps" / "session.toml").write_text(_nested(100_000))
+    code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--no-cache"])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err and counted_build == []
+    assert "session.toml: the session file nests arrays or tables too deep to read" in err
+
+
+@pytest.mark.parametrize("text, message", [
+    (_nested(100_000), "nests arrays or tables too deep to read"),
+    ("[markers]\n" + "".join(f'T{i} = {{ segment = "femur", side = "left" }}\n'
+                             for i in range(100_000)), "larger than 4194304 bytes"),
+    ('[markers]\nLASI = { landmark = "L_ASIS" }\nLASX = { landmark = "L_ASIS" }\n',
+     "markers 'LASI' and 'LASX' both label the landmark L_ASIS"),
+])
+def test_a_protocol_that_cannot_be_used_is_a_usage_error(tmp_path, counted_build, capsys,
+                                                         text, message):
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    (tmp_path / "mine.toml").write_text(text)
+    code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--protocol", str(tmp_path / "mine.toml")])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert counted_build == []
+
+
+def test_a_protocol_named_like_a_plan_is_a_protocol(tmp_path, monkeypatch):
+    from mocaplib.markersets.protocols import capture_plans, list_protocols, load_protocol
+
+    (tmp_path / "planar_feet.toml").write_text('[markers]\nLHEE = { landmark = "L_HEEL" }\n')
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(tmp_path))
+    assert "planar_feet" in list_protocols()
+    assert load_protocol("planar_feet").marker("LHEE").landmark.name == "L_HEEL"
+    assert tmp_path / "planar_feet.toml" not in capture_plans()
+
+
+# --------------------------------------------------------------------------- hung workers
+@needs_two
+@pytest.mark.parametrize("hang", [{"stop": "always"}, {"sleep": 60}])
+def test_a_hung_worker_fails_its_capture_alone_after_the_time_limit(tmp_path, hang):
+    folder = tmp_path / "caps"
+    write_captures(folder, TRIPLES[:3])
+    (folder / "hung.c3d").write_text(json.dumps(hang))
+    started = time.monotonic()
+    result = build_library([folder], jobs=2, progress=False, process=fake_process, capture_timeout=2)
+    assert time.monotonic() - started < 30
+    (failure,) = result.failures
+    assert (failure.file, failure.stage) == ("hung.c3d", "worker")
+    assert "longer than its time limit of 2 s" in failure.error
+    assert len(result.library) == 3
+
+
+def test_the_command_line_states_the_pipelines_capture_time_limit():
+    from mocaplib.build.pipeline import CAPTURE_TIMEOUT_S
+    from mocaplib.cli.build import CAPTURE_TIMEOUT_S as DEFAULT
+
+    assert DEFAULT == CAPTURE_TIMEOUT_S
+
+
+# --------------------------------------------------------------------------- Ctrl-C
+@pytest.mark.parametrize("delay", [0.05, 0.1, 0.15, 0.2, 0.3, 0.5])
+def test_ctrl_c_at_any_moment_of_the_start_is_quiet(tmp_path, delay):
+    """SIGINT while Python and mocaplib load: exit 130 and no traceback (or, before Python
+    handles signals at all, the default death by SIGINT, which prints nothing)."""
+    write_captures(tmp_path / "caps", TRIPLES[:1])
+    process = subprocess.Popen(mocaplib_command("build", tmp_path / "caps", "-o",
+                                                tmp_path / "lib.json", "-q"),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert process.returncode in (130, -signal.SIGINT, 1), (process.returncode, err)
+
+
+# --------------------------------------------------------------------------- statics
+def _markers_replaced(source: Path, path: Path, value: float) -> Path:
+    """``source`` written again with every marker coordinate ``value`` (NaN: none seen)."""
+    import numpy as np
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = read_c3d(source)
+    write_c3d(path, np.full_like(trial.markers, value), trial.labels, trial.rate)
+    return path
+
+
+@pytest.mark.parametrize("value", [float("nan"), 1e30])
+def test_a_capture_without_finite_markers_is_never_a_static(sample_dir, tmp_path, capsys,
+                                                            value):
+    from mocaplib.build.sessions import standing_files
+
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal", "rest"))
+    blank = _markers_replaced(folder / "rest.c3d", folder / "blank.c3d", value)
+    (folder / "rest.c3d").unlink()
+    assert standing_files([blank]) == []
+    out = tmp_path / "lib.json"
+    assert main(["build", str(folder), "-o", str(out), "-q", "--static", str(blank)]) == 2
+    assert "blank.c3d: is not a standing static trial: 0 of its" in capsys.readouterr().err
+    assert main(["build", str(folder), "-o", str(out), "-q", "--require-static"]) == 1
+    assert "none is given or found among the captures" in capsys.readouterr().err
+    assert main(["build", str(folder), "-o", str(out), "-q", "--no-cache"]) == 1
+    printed = capsys.readouterr().out
+    assert "failed 1" in printed and "blank.c3d [" in printed
+    assert len(load_library(out)) == 1

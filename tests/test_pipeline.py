@@ -44,7 +44,8 @@ def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
     was processed (also from worker processes). ``{"fail": ...}`` fails the capture like a
     stage would; ``{"crash": ...}`` raises like a bug would; ``{"die": ...}`` kills the process
     running it, as the out-of-memory killer would (a worker only!), every time or, with
-    ``"once"``, the first time; ``{"sleep": s}`` takes ``s`` seconds.
+    ``"once"``, the first time; ``{"sleep": s}`` takes ``s`` seconds; ``{"stop": ...}``
+    stops the process running it (SIGSTOP), as a hung worker (a worker only!).
     """
     path = Path(path)
     with open(path.parent / "calls.log", "a") as log:
@@ -57,6 +58,8 @@ def fake_process(path: str, settings: BuildSettings) -> CaptureResult:
     if data.get("die") == "always" or data.get("die") == "once" and calls(path.parent).count(
             fs_text(path.name)) == 1:
         os.kill(os.getpid(), signal.SIGKILL)
+    if "stop" in data:
+        os.kill(os.getpid(), signal.SIGSTOP)
     time.sleep(data.get("sleep", 0))
     if "fail" in data:
         result.ok, result.stage, result.error = False, "import", f"{path}: {data['fail']}"

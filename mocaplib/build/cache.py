@@ -19,7 +19,7 @@ from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import canonical_sha256, parse_json
 from ..library.format import json_text, to_json_data
 from .settings import BuildSettings
-from .workflow import CaptureResult, static_sha256
+from .workflow import CHANGED_WHILE_READ, CaptureResult, static_sha256
 
 
 @functools.lru_cache(maxsize=1)
@@ -56,8 +56,12 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
 
 
 def internal_result(result: CaptureResult) -> bool:
-    """An unexpected exception or a dead worker is not cached: it may be a fixed bug."""
-    return result.stage == "worker" or "internal error" in (result.error or "")
+    """An unexpected exception or a dead worker is not cached (it may be a fixed bug), also
+    when it stopped a static (which then gives no entry, saying why), nor a capture whose
+    file changed while it was processed (:data:`CHANGED_WHILE_READ`)."""
+    said = f"{result.error or ''} {result.no_entry or ''}"
+    return result.stage == "worker" or any(why in said for why in ("internal error",
+                                                                   CHANGED_WHILE_READ))
 
 
 #: ``format`` and ``version`` of a cache entry.
@@ -80,12 +84,13 @@ def write_cache(cache: Path, key: str, result: CaptureResult) -> None:
         "content_sha256": canonical_sha256(data), "result": data}))
 
 
-def read_cache(cache: Path, key: str) -> tuple[CaptureResult | None, str | None]:
-    """The cached result under ``key`` and None; ``(None, None)`` when there is none; and
-    ``(None, why)`` when the entry does not verify: not a regular file (a pipe, device or
-    link is refused before it is opened), too large, unreadable, not an entry as
-    :func:`write_cache` writes it, stored under another key, or with content that does not
-    match its hash (a truncated or hand-edited file)."""
+def read_cache(cache: Path, key: str, sha256: str) -> tuple[CaptureResult | None, str | None]:
+    """The cached result under ``key`` (:func:`cache_key` of a capture whose bytes have the
+    SHA-256 ``sha256``) and None; ``(None, None)`` when there is none; and ``(None, why)``
+    when the entry does not verify: not a regular file (a pipe, device or link is refused
+    before it is opened), too large, unreadable, not an entry as :func:`write_cache` writes
+    it, stored under another key, with content that does not match its hash (a truncated or
+    hand-edited file), or the result of other bytes than ``sha256``'s."""
     path = cache / f"{key}.json"
     try:
         entry = parse_json(read_regular(path, limit=MAX_CACHE_BYTES, follow_links=False)
@@ -113,5 +118,7 @@ def read_cache(cache: Path, key: str) -> tuple[CaptureResult | None, str | None]
         result = CaptureResult.from_dict(data)
     except LibraryError as exc:
         return None, f"{path.name}: not a capture's result ({exc.message})"
+    if result.sha256 != sha256:
+        return None, f"{path.name}: the result of other content than the file's"
     result.from_cache = True
     return result, None

@@ -41,6 +41,12 @@ DIAGNOSTICS_VERSION = 1
 SCHEDULER_TIMEOUT_S = 20
 
 
+#: Seconds one capture may take in a worker process before the worker is ended and the
+#: capture fails alone (``build_library(capture_timeout=...)``, ``--capture-timeout``): a lab walk
+#: takes 0.3-1 s, a take of minutes some tens of seconds.
+CAPTURE_TIMEOUT_S = 600.0
+
+
 # --------------------------------------------------------------------------- many captures
 @dataclass
 class BuildResult:
@@ -158,8 +164,8 @@ class BuildResult:
 def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings | None = None, *,
           jobs: int = 1, scheduler: str | None = None, cache_dir: str | os.PathLike | None = None,
           progress: bool = True,
-          process: Callable[[str, BuildSettings], CaptureResult] | None = None
-          ) -> BuildResult:
+          process: Callable[[str, BuildSettings], CaptureResult] | None = None,
+          capture_timeout: float | None = CAPTURE_TIMEOUT_S) -> BuildResult:
     """Process every capture and assemble the library.
 
     Parameters
@@ -184,6 +190,10 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     process
         The per-capture function, :func:`process_capture` by default (any pure, picklable
         function of ``(path, settings)`` returning a :class:`CaptureResult`).
+    capture_timeout
+        Seconds a capture may run in a worker process (``jobs`` > 1) before the worker is
+        ended and the capture fails alone (stage ``worker``); None: no limit. Captures run in
+        this process (``jobs=1``) or on a Dask cluster have no limit.
 
     Returns
     -------
@@ -215,16 +225,15 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         planned = [replace(p, heading_offsets=offsets) if p is pool else p for p in planned]
         pool = replace(pool, heading_offsets=offsets)
     results: dict[int, CaptureResult] = {}
-    keys: dict[int, str] = {}
     notes: list[str] = []
     cache = None if cache_dir is None else Path(cache_dir)
     for i, path in enumerate(paths):
         if cache is not None:
             try:
-                keys[i] = cache_key(path, file_sha256(path), planned[i])
+                sha256 = file_sha256(path)
             except OSError:
                 continue  # unreadable: its processing fails and says why
-            cached, why = read_cache(cache, keys[i])
+            cached, why = read_cache(cache, cache_key(path, sha256, planned[i]), sha256)
             if cached is not None:
                 cached.source = os.fspath(path)
                 results[i] = cached
@@ -236,11 +245,12 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i], planned[i]) for i in todo], jobs,
-                              scheduler):
+                              scheduler, capture_timeout):
             results[i] = result
-            if i in keys and not internal_result(result) and not cache_failed:
-                try:
-                    write_cache(cache, keys[i], result)
+            if cache is not None and result.sha256 and not internal_result(result) \
+                    and not cache_failed:
+                try:  # keyed by the content the worker read (a file changed meanwhile: its own)
+                    write_cache(cache, cache_key(paths[i], result.sha256, planned[i]), result)
                 except MocapError as exc:  # the build goes on, uncached
                     notes.append(f"results not cached: {exc}")
                     cache_failed = True
@@ -262,17 +272,17 @@ def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings)
 
 
 def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
-         scheduler: str | None):
+         scheduler: str | None, timeout: float | None):
     """Yield ``(index, CaptureResult)`` as captures finish (in any order), each work item
-    ``(index, path, its settings)`` run by :func:`mocaplib.build.workers.run_tasks` or on a Dask
-    cluster."""
+    ``(index, path, its settings)`` run by :func:`mocaplib.build.workers.run_tasks` (at most
+    ``timeout`` s in a worker) or on a Dask cluster."""
     if not work:
         return
     if scheduler is not None:
         yield from _run_dask(process, work, scheduler)
         return
     tasks = [(os.fspath(path), settings) for _, path, settings in work]
-    for k, result, error in run_tasks(process, tasks, jobs=jobs):
+    for k, result, error in run_tasks(process, tasks, jobs=jobs, timeout=timeout):
         index, path, _ = work[k]
         yield index, result if error is None else _worker_failure(path, error)
 

@@ -114,7 +114,8 @@ def sessions_of(captures: list[Path], /) -> dict[Path, Session]:
 def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) -> list[str]:
     """The captures (paths as given) whose markers stand still over the whole file
     (:func:`mocaplib.statics.check_standing`), except those whose real path is in
-    ``exclude``; a file that cannot be read is not one (its processing says why)."""
+    ``exclude``; a file that cannot be read, whatever the exception, is not one (its
+    processing fails alone and says why)."""
     from ..io.c3d import read_c3d
     from ..statics import check_standing
 
@@ -127,7 +128,7 @@ def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) 
             if trial.n_frames:
                 check_standing(trial)
                 found.append(os.fspath(capture))
-        except (MocapError, OSError):
+        except Exception:  # noqa: BLE001 - its own processing names the failure and stage
             continue
     return found
 

@@ -14,6 +14,11 @@ from ..io import unique_paths
 from ..library.format import to_json_data
 
 
+#: Largest ``max_gap_s`` (s): an hour, longer than any capture (beyond, the gap's frame count
+#: overflows).
+MAX_GAP_LIMIT_S = 3600.0
+
+
 @dataclass(frozen=True)
 class BuildSettings:
     """Everything besides the captures that decides a library's content.
@@ -90,9 +95,10 @@ class BuildSettings:
         if self.toe_off not in TOE_OFF_DEFINITIONS:
             raise MocapError(f"toe_off must be one of {', '.join(TOE_OFF_DEFINITIONS)}, "
                              f"got {self.toe_off!r}")
-        if not (isinstance(self.max_gap_s, (int, float)) and self.max_gap_s >= 0):
-            raise MocapError(f"max_gap_s must be a number of seconds >= 0, got "
-                             f"{self.max_gap_s!r}")
+        if not (isinstance(self.max_gap_s, (int, float))
+                and 0 <= self.max_gap_s <= MAX_GAP_LIMIT_S):
+            raise MocapError(f"max_gap_s must be a number of seconds from 0 to "
+                             f"{MAX_GAP_LIMIT_S:g}, got {self.max_gap_s!r}")
         if self.qc_policy not in ("drop", "waive"):
             raise MocapError(f"qc_policy must be 'drop' or 'waive', got {self.qc_policy!r}")
 

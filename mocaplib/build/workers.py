@@ -10,6 +10,9 @@ What it guarantees
       the one it was running: that task is given to a new worker once more
       (:data:`MAX_ATTEMPTS`), and fails with :class:`WorkerDied` if that worker dies too. The
       other tasks go on.
+    * A task that runs longer than ``timeout`` seconds in a worker (a hang, a worker stopped
+      with SIGSTOP) fails alone with :class:`TaskTimedOut`: its worker is killed and the
+      other tasks go on. Tasks run in this process (``jobs=1``) have no time limit.
     * No worker outlives the pool: they are stopped when the pool ends, also on an error or
       Ctrl-C (workers ignore SIGINT and, on POSIX, run in their own process group; the parent
       stops them), and a worker whose parent dies (``kill -9``) ends too: on Linux the kernel
@@ -49,6 +52,10 @@ class WorkerDied(Exception):
     """The worker process running a task died, twice (see :data:`MAX_ATTEMPTS`)."""
 
 
+class TaskTimedOut(Exception):
+    """A task ran longer than its time limit; its worker process was killed."""
+
+
 def max_jobs() -> int:
     """The processors this process may run on: more workers would only compete for them."""
     try:
@@ -57,15 +64,17 @@ def max_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def run_tasks(function: Callable, tasks: list[tuple], *, jobs: int = 1
+def run_tasks(function: Callable, tasks: list[tuple], *, jobs: int = 1,
+              timeout: float | None = None
               ) -> Iterator[tuple[int, object, BaseException | None]]:
     """Run ``function(*tasks[i])`` for every task; yield ``(i, value, error)`` as each
     finishes (in any order): ``error`` is None, or the exception the task raised (``value``
-    None), or :class:`WorkerDied`.
+    None), :class:`WorkerDied` or :class:`TaskTimedOut`.
 
     ``jobs``: worker processes (at most :func:`max_jobs` and one per task); 1 runs the tasks
     here, one after the other. ``function`` and the arguments must be picklable (a module-level
-    function) when ``jobs`` > 1.
+    function) when ``jobs`` > 1. ``timeout``: seconds a task may run in a worker before the
+    worker is killed and the task fails (None: no limit; not applied with one job).
     """
     jobs = max(1, min(jobs, max_jobs(), len(tasks)))
     if jobs == 1:
@@ -75,7 +84,7 @@ def run_tasks(function: Callable, tasks: list[tuple], *, jobs: int = 1
             except Exception as exc:
                 yield index, None, exc
         return
-    yield from _Pool(jobs).run(function, tasks)
+    yield from _Pool(jobs, timeout).run(function, tasks)
 
 
 #: What a worker process runs (POSIX): the parent's import path, then :func:`_serve` on the
@@ -121,6 +130,7 @@ class _Worker:
             self.process.start()
             child.close()
         self.task: int | None = None
+        self.started = 0.0      # time.monotonic() when it was given its task
 
     def send(self, message) -> None:
         self.connection.send(message)
@@ -172,8 +182,9 @@ class _Pool:
     """Workers started on demand, up to ``jobs``. New processes rather than forks of this one:
     the parent may hold threads (progress bar, BLAS) that a fork would copy mid-operation."""
 
-    def __init__(self, jobs: int):
+    def __init__(self, jobs: int, timeout: float | None = None):
         self.jobs = jobs
+        self.timeout = timeout
         self.workers: list[_Worker] = []
 
     def run(self, function, tasks):
@@ -189,9 +200,11 @@ class _Pool:
                     busy = [w for w in self.workers if w.task is not None]
                     # a worker's connection is ready with its reply, or at its end (EOF) when
                     # it died: only the worker holds the other end
-                    ready = set(wait([w.connection for w in busy]))
+                    ready = set(wait([w.connection for w in busy], self._time_left(busy)))
                     for worker in busy:
                         if worker.connection not in ready:
+                            if self._overdue(worker):
+                                yield self._end_overdue(worker)
                             continue
                         index, reply = worker.task, worker.receive()
                         worker.task = None
@@ -213,6 +226,26 @@ class _Pool:
         finally:
             self._stop(graceful=finished)
 
+    def _time_left(self, busy: list[_Worker]) -> float | None:
+        """Seconds until the first of the ``busy`` workers' tasks runs out of time (None: no
+        limit)."""
+        if self.timeout is None:
+            return None
+        return max(0.0, min(w.started for w in busy) + self.timeout - time.monotonic())
+
+    def _overdue(self, worker: _Worker) -> bool:
+        return self.timeout is not None and time.monotonic() - worker.started >= self.timeout
+
+    def _end_overdue(self, worker: _Worker) -> tuple[int, None, TaskTimedOut]:
+        """Kill the worker whose task ran out of time; the task's outcome."""
+        index, worker.task = worker.task, None
+        self.workers.remove(worker)
+        worker.process.kill()
+        worker.bury()
+        return index, None, TaskTimedOut(
+            f"it ran longer than its time limit of {self.timeout:g} s (a hang, or a worker "
+            "stopped); its worker process was ended and the other tasks went on")
+
     def _hand_out(self, pending: deque, function, tasks, attempts: Counter) -> None:
         """Give pending tasks to idle workers, starting workers up to ``jobs``."""
         while pending:
@@ -231,7 +264,7 @@ class _Pool:
                 return
             index = pending.popleft()
             attempts[index] += 1
-            idle.task = index
+            idle.task, idle.started = index, time.monotonic()
             try:
                 idle.send((index, pickle.dumps((function, tasks[index]))))
             except (BrokenPipeError, ConnectionError, EOFError):

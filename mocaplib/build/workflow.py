@@ -160,6 +160,20 @@ def file_sha256(path: str | os.PathLike) -> str:
     return digest.hexdigest()
 
 
+#: The reason of a capture whose file changed while it was processed (never cached).
+CHANGED_WHILE_READ = "the file changed while it was processed"
+
+
+def _file_state(path) -> tuple[int, int, int] | None:
+    """What tells that a file's content changed: its inode, size and modification time (ns);
+    None when it cannot be seen."""
+    try:
+        found = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return found.st_ino, found.st_size, found.st_mtime_ns
+
+
 def process_capture(path: str | os.PathLike, settings: BuildSettings) -> CaptureResult:
     """Take one capture through every stage; never raises for a bad capture.
 
@@ -176,6 +190,7 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
                                f"{result.file!r} (the bytes read as Latin-1)")
     clock = StageClock()
     is_static = os.path.realpath(path) in {os.path.realpath(s) for s in settings.statics}
+    state = _file_state(path)
     try:
         with clock.stage("read"):
             result.sha256 = file_sha256(path)
@@ -189,6 +204,10 @@ def process_capture(path: str | os.PathLike, settings: BuildSettings) -> Capture
     except Exception as exc:  # a bug on an odd capture must not stop a whole build
         _fail(result, clock.current, f"{path}: internal error in stage {clock.current}: "
                                      f"{type(exc).__name__}: {exc}")
+    if state is not None and _file_state(path) != state:
+        result.no_entry = None
+        _fail(result, "read", f"{path}: {CHANGED_WHILE_READ} (its result would mix two "
+                              "contents): build again once the file is complete")
     if is_static and not result.ok:
         why = (result.error or "").removeprefix(f"{path}: ")
         result.ok, result.error, result.no_entry = True, None, \

@@ -24,6 +24,9 @@ from ..io import printable
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
             "query", "retarget", "report", "synth")
 
+#: The positional arguments that name a command's one input file (named in an internal error).
+INPUT_ARGUMENTS = ("input", "file", "library", "plan")
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -38,15 +41,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code (also used by the console script)."""
-    one_thread_by_default()          # before the sub-commands load numpy
-    _tolerate_unencodable_output()
-    streams = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+    """Run the command line; returns the exit code (also used by the console script). Ctrl-C
+    at any moment, loading included, ends it with one line and exit code 130."""
     try:
-        return _main(argv)
-    finally:
-        sys.stdout, sys.stderr = streams
+        one_thread_by_default()          # before the sub-commands load numpy
+        _tolerate_unencodable_output()
+        streams = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+        try:
+            return _main(argv)
+        finally:
+            sys.stdout, sys.stderr = streams
+    except KeyboardInterrupt:
+        return interrupted()
+
+
+def interrupted() -> int:
+    """Say that the command was interrupted (Ctrl-C); its exit code, 130."""
+    print("mocaplib: interrupted", file=sys.stderr)
+    return 130
 
 
 def _main(argv: list[str] | None) -> int:
@@ -69,11 +82,18 @@ def _main(argv: list[str] | None) -> int:
         print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("mocaplib: interrupted", file=sys.stderr)
-        return 130
+        return interrupted()
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
         return 0
+    except Exception as exc:  # a bug, or an input no check foresaw: one line, no traceback
+        named = [os.fspath(getattr(args, name)) for name in INPUT_ARGUMENTS
+                 if isinstance(getattr(args, name, None), (str, os.PathLike))]
+        print(f"mocaplib {args.command}: error: internal error"
+              f"{' with ' + ', '.join(named) if named else ''}: {type(exc).__name__}: {exc} "
+              "(a bug in mocaplib: please report it with the command and its input files)",
+              file=sys.stderr)
+        return 1
 
 
 class _Printable:

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from ..errors import MocapError
+from ..io import open_regular
 from ..io.jsonvalues import json_values
 
 
@@ -23,24 +24,29 @@ DASH = ("'-' (standard input or output) is not supported here: give a file name 
 
 
 def check_outputs(outputs: dict[str, str | os.PathLike | None],
-                  inputs: list[str | os.PathLike], *, create_folders: bool = False) -> None:
+                  inputs: list[str | os.PathLike], *, create_folders: bool = False,
+                  force: bool = False) -> None:
     """Raise :class:`UsageError` before anything is written when an output file (``{option:
-    path}``, None = not asked for) is ``-``, would overwrite an input or another output, is a
-    folder or not a regular file (a device, a pipe: it would be replaced by a file), or lies
-    where nothing can be written: its folder does not exist (unless ``create_folders``: then
-    its nearest existing folder), is a file, or refuses a new file (tried: a temporary file
-    is created and removed, which also catches read-only and virtual file systems)."""
+    path}``, None = not asked for) is ``-``, would overwrite an input or another output, lies
+    in a system folder or is not a regular file (a device, a pipe, a folder, a link loop:
+    :func:`mocaplib.io.atomic.destination`; a link is followed and its file checked), would
+    overwrite a file mocaplib did not write (a C3D capture above all, :func:`foreign_file`)
+    unless ``force``, or lies where nothing can be written: its folder does not exist (unless
+    ``create_folders``: then its nearest existing folder), is a file, or refuses a new file
+    (tried: a temporary file is created and removed, which also catches read-only and virtual
+    file systems)."""
+    from ..io.atomic import destination
+
     given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
     existing = [Path(path) for path in inputs if Path(path).is_file()]
     for n, (option, path) in enumerate(given):
         if os.fspath(path) == "-":
             raise UsageError(f"{option}: {DASH}")
-        if path.is_dir():
-            raise UsageError(f"{option} {path} is a folder; give a file name")
-        if os.path.lexists(path) and not (path.is_file() or path.is_symlink()):
-            raise UsageError(f"{option} {path} is not a regular file (a device or a pipe); "
-                             "give a file name")
-        parent = path.absolute().parent
+        try:
+            target = destination(path)
+        except MocapError as exc:
+            raise UsageError(f"{option} {path}: {exc.message} ({exc.hint})") from None
+        parent = target.absolute().parent
         folder = next(p for p in (parent, *parent.parents) if p.exists())
         if not folder.is_dir():
             raise UsageError(f"{option} {path}: cannot write into {folder}: it is a file, not "
@@ -49,12 +55,61 @@ def check_outputs(outputs: dict[str, str | os.PathLike | None],
             raise UsageError(f"{option} {path}: the folder {parent} does not exist (create it, "
                              "or choose a path in an existing folder)")
         _check_writable(option, path, folder)
-        if path.exists() and any(os.path.samefile(path, source) for source in existing):
+        if target.exists() and any(os.path.samefile(target, source) for source in existing):
             raise UsageError(f"{option} {path} is an input of this command; writing it "
                              "would overwrite the input: give another file name")
+        why = None if force else foreign_file(target)
+        if why is not None:
+            raise UsageError(f"{option} {path} exists and is {why}; mocaplib did not write "
+                             "it: give another file name, or --force to overwrite it")
         for other, earlier in given[:n]:
             if os.path.abspath(path) == os.path.abspath(earlier):
                 raise UsageError(f"{option} and {other} name the same file {path}")
+
+
+#: The start of each kind of file mocaplib writes (bytes), other than the JSON it marks with
+#: ``"format": "mocaplib-..."`` and glTF: angles CSV, BVH, OpenSim .osim, HTML report.
+OWN_STARTS = (b"time_s,", b"HIERARCHY", b"<?xml", b"<OpenSimDocument", b"<!DOCTYPE html",
+              b"<!doctype html")
+
+
+def foreign_file(path: Path) -> str | None:
+    """Why the existing file ``path`` must not be overwritten without ``--force``, or None
+    (absent, empty, or of a kind mocaplib writes): "a C3D capture" (named ``*.c3d`` or holding
+    a C3D header: its second byte is 0x50), or "not a file mocaplib writes" when it begins
+    with none of :data:`OWN_STARTS` and is neither a JSON object naming a ``mocaplib-*``
+    ``format`` (at most :data:`MAX_OWN_JSON_BYTES`) nor glTF (.mot files start with their
+    own name and are recognised by their ``endheader`` line)."""
+    from ..io import read_regular
+    from ..io.jsonvalues import parse_json
+
+    try:
+        with open_regular(path) as handle:
+            start = handle.read(4096)
+    except FileNotFoundError:
+        return None
+    except OSError:
+        return "not a file mocaplib can read"
+    if path.suffix.lower() == ".c3d" or start[1:2] == b"\x50" and len(start) >= 512:
+        return "a C3D capture"
+    text = start.lstrip()
+    if not text or text.startswith(OWN_STARTS) or b"\nendheader\n" in start:
+        return None
+    if text.startswith(b"glTF"):
+        return None
+    if text.startswith(b"{"):
+        try:
+            document = parse_json(read_regular(path, limit=MAX_OWN_JSON_BYTES).decode("utf-8"))
+        except (OSError, ValueError):
+            document = None
+        if isinstance(document, dict) and (
+                str(document.get("format", "")).startswith("mocaplib-") or "asset" in document):
+            return None
+    return "not a file mocaplib writes"
+
+
+#: The largest JSON output read to tell whether mocaplib wrote it (bytes).
+MAX_OWN_JSON_BYTES = 512 << 20
 
 
 def _check_writable(option: str, path: Path, folder: Path) -> None:
@@ -69,6 +124,14 @@ def _check_writable(option: str, path: Path, folder: Path) -> None:
                          f"{exc.strerror or exc} (choose a folder you can write to)") from None
     os.close(fd)
     os.unlink(probe)
+
+
+def add_force_option(parser) -> None:
+    """``--force``: overwrite an existing output mocaplib did not write (:func:`foreign_file`)."""
+    parser.add_argument("--force", action="store_true",
+                        help="overwrite an existing output file that mocaplib did not write "
+                             "(a C3D capture, another program's file); without it such a "
+                             "file is refused before any work")
 
 
 def check_output_folder(option: str, folder: str | os.PathLike, file_name: str,
@@ -148,11 +211,15 @@ def add_toe_off_option(parser) -> None:
 
 #: ``--max-gap`` default: :data:`mocaplib.gait.cycles.MAX_GAP_S` (a test keeps the two equal).
 MAX_GAP_DEFAULT = 0.25
+#: Largest ``--max-gap`` (s): :data:`mocaplib.build.settings.MAX_GAP_LIMIT_S` (a test keeps
+#: the two equal).
+MAX_GAP_LIMIT = 3600.0
 
 
 def add_gap_option(parser) -> None:
     """``--max-gap``: the longest gap filled by interpolation (:mod:`mocaplib.gait.cycles`)."""
-    parser.add_argument("--max-gap", type=positive(float, unit=" s"), default=MAX_GAP_DEFAULT,
+    parser.add_argument("--max-gap", type=positive(float, unit=" s", most=MAX_GAP_LIMIT),
+                        default=MAX_GAP_DEFAULT,
                         metavar="S", dest="max_gap_s",
                         help="longest gap (s) filled by interpolation: in the foot markers the "
                              "gait events read, and in the frames the fit could not solve "
@@ -260,7 +327,7 @@ def time_window(text: str) -> tuple[float, float]:
 def measurement(text: str) -> tuple[str, float]:
     """One ``--subject NAME=VALUE``: a known measurement name (sided names without ``_l`` or
     ``_r`` mean both sides) and a number > 0, SI units."""
-    from ..model.anatomy import MEASUREMENTS
+    from ..model.anatomy import MEASUREMENT_LIMITS, MEASUREMENTS
 
     name, _, value = text.partition("=")
     name = name.strip()
@@ -272,8 +339,10 @@ def measurement(text: str) -> tuple[str, float]:
         number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
-    if not 0 < number < 1000:
-        raise argparse.ArgumentTypeError(f"{name}: {value} must be > 0 (metres, kilograms)")
+    most = MEASUREMENT_LIMITS[name.removesuffix("_l").removesuffix("_r")]
+    if not 0 < number <= most:
+        raise argparse.ArgumentTypeError(f"{name}: {value} must be > 0 and <= {most:g} "
+                                         f"({'kg' if name == 'body_mass' else 'metres'})")
     return name, number
 
 
@@ -343,14 +412,23 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
         try:
             trials.append(read_c3d(path))
             standing_part(trials[-1], window=static_window)
-        except MocapError as exc:
-            raise UsageError(f"--static: {exc}") from None
+        except Exception as exc:
+            raise UsageError(f"--static: {unreadable(path, exc)}") from None
     for path in unique_paths(references or ()):
         try:
             read_c3d(path)
-        except MocapError as exc:
-            raise UsageError(f"--forward-reference: {exc}") from None
+        except Exception as exc:
+            raise UsageError(f"--forward-reference: {unreadable(path, exc)}") from None
     return trials
+
+
+def unreadable(path: str | os.PathLike, error: Exception) -> str:
+    """Why the file ``path`` could not be used, as one line: a :class:`MocapError`'s own text,
+    any other exception as an internal error naming the file."""
+    if isinstance(error, MocapError):
+        return str(error)
+    return (f"{os.fspath(path)}: internal error: {type(error).__name__}: {error} (a bug in "
+            "mocaplib: please report it with this file)")
 
 
 def heading_offsets(args) -> tuple[float, ...] | None:

@@ -5,9 +5,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import (UsageError, add_cutoff_option, add_gap_option, add_protocol_option,
-                      add_static_options, add_toe_off_option, check_inputs, check_output_folder,
-                      check_outputs, jobs_count, measurements, warn)
+from ._common import (UsageError, add_cutoff_option, add_force_option, add_gap_option,
+                      add_protocol_option, add_static_options, add_toe_off_option, check_inputs,
+                      check_output_folder, check_outputs, jobs_count, measurements, positive,
+                      warn)
+
+#: ``--capture-timeout`` default: :data:`mocaplib.build.pipeline.CAPTURE_TIMEOUT_S`, not
+#: imported here so that the command line parses without loading the build (a test keeps the
+#: two equal).
+CAPTURE_TIMEOUT_S = 600.0
 
 
 def register(subparsers) -> None:
@@ -37,6 +43,12 @@ def register(subparsers) -> None:
     parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
                         help="worker processes, for the captures and the report's figures "
                              "(default 1; at most the number of processors)")
+    parser.add_argument("--capture-timeout", type=positive(float, unit=" s"),
+                        default=CAPTURE_TIMEOUT_S, metavar="SECONDS",
+                        help="seconds one capture may take in a worker process (--jobs 2 or "
+                             "more): a worker still running it then (hung, or stopped) is "
+                             "ended and the capture fails alone "
+                             f"(default {CAPTURE_TIMEOUT_S:g})")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
@@ -54,6 +66,7 @@ def register(subparsers) -> None:
                             "library)")
     cache.add_argument("--no-cache", action="store_true", help="process every capture afresh")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -84,7 +97,7 @@ def _check_usage(args):
                              measurements=measurements(args))
     inputs = build_inputs(captures, settings)
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
-                   diagnostics_path(args.output)}, inputs)
+                   diagnostics_path(args.output)}, inputs, force=args.force)
     if args.report:
         from ..report import report_name
 
@@ -100,7 +113,8 @@ def _run(args) -> int:
     output = Path(args.output)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build_library(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
-                   cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty())
+                           cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty(),
+                           capture_timeout=args.capture_timeout)
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry
     print(f"wrote {library_path} ({len(result.library)} entries) and {sidecar}")

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.anthropometry import DEFAULT_BODY_MASS
-from ._common import (add_cutoff_option, add_protocol_option, add_static_options, check_inputs,
-                      check_outputs, heading_offsets, measurements)
+from ._common import (add_cutoff_option, add_force_option, add_protocol_option, add_static_options,
+                      check_inputs, check_outputs, heading_offsets, measurements)
 
 
 def register(subparsers) -> None:
@@ -42,6 +42,7 @@ def register(subparsers) -> None:
                              "locked_dofs, held_dofs, at_limit, failed_frames, rejected_samples, "
                              "repairs (exchanged labels undone, markers left out: marker, "
                              "frames, evidence), rejected_per_marker")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -58,7 +59,8 @@ def _run(args) -> int:
                            references=args.forward_reference, static_window=args.static_window)
     check_outputs({"-o": args.output, "--mot": args.mot, "--osim": args.osim,
                    "--trc": args.trc},
-                  [args.input, *(args.static or ()), *(args.forward_reference or ())])
+                  [args.input, *(args.static or ()), *(args.forward_reference or ())],
+                  force=args.force)
     trial = read_c3d(args.input)
     for note in trial.warnings:         # said before the fit, which they may explain
         warn(f"{args.input}: {note}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ._common import add_force_option
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -17,6 +19,7 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="OUT.json",
                         help="library file to write (with its diagnostics sidecar when the "
                              "input has one)")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -30,12 +33,14 @@ def _run(args) -> int:
     check_inputs([args.library], hint=LIBRARY_HINT)
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":
                    diagnostics_path(args.output)},
-                  [args.library, diagnostics_path(args.library)])
+                  [args.library, diagnostics_path(args.library)], force=args.force)
     library = load_library(args.library)
     mirrored, notes = mirror_library(library)
     for note in notes:
         print(f"note: {note}")
-    sidecar = write_mirrored(mirrored, args.library, args.output)
+    sidecar, note = write_mirrored(mirrored, args.library, args.output)
+    if note:
+        warn(note)
     added = len(mirrored) - len(library)
     print(f"wrote {args.output} ({len(mirrored)} entries, {added} mirror images added)"
           + (f" and {sidecar}" if sidecar else ""))

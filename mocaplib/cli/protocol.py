@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._common import add_protocol_folders_option, check_inputs, check_outputs
+from ._common import (add_force_option, add_protocol_folders_option, check_inputs,
+                      check_outputs)
 
 
 def register(subparsers) -> None:
@@ -34,6 +35,7 @@ def register(subparsers) -> None:
                        help="the protocol file to write")
     draft.add_argument("--name", help="the protocol's name (default: the output file's stem)")
     add_protocol_folders_option(draft)
+    add_force_option(draft)
     draft.set_defaults(run=_run)
 
 
@@ -43,7 +45,8 @@ def _run(args) -> int:
     from ..markersets.draft import draft_protocol
 
     check_inputs([args.input] + ([args.static] if args.static else []))
-    check_outputs({"-o": args.output}, [args.input] + ([args.static] if args.static else []))
+    check_outputs({"-o": args.output}, [args.input] + ([args.static] if args.static else []),
+                  force=args.force)
     trial = read_c3d(args.input)
     static = read_c3d(args.static) if args.static else None
     draft = draft_protocol(trial, static=static, name=args.name or Path(args.output).stem)

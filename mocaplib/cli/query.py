@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
+from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
+                      check_outputs, positive)
 
 #: Largest |V|, |OMEGA|, |VL| accepted (m/s, rad/s): far beyond any locomotion, so only
 #: typing mistakes (and overflow in the geometry) are kept out.
@@ -60,6 +61,7 @@ def register(subparsers) -> None:
                              f"{MIN_RATE:g} to {MAX_RATE:g}; only with --bvh or --gltf)")
     parser.add_argument("--clamp", action="store_true",
                         help="outside the hull, blend at the nearest point on the hull instead")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -80,7 +82,7 @@ def _run(args) -> int:
                          f"--bvh OUT.bvh or --gltf OUT.gltf, or leave "
                          f"{'it' if len(ignored) == 1 else 'them'} out")
     check_inputs([args.library], hint=LIBRARY_HINT)
-    check_outputs(outputs, [args.library])
+    check_outputs(outputs, [args.library], force=args.force)
     library = load_library(args.library)
     if checksum_status(library) == "mismatch":
         warn(f"{args.library}: its content does not match its checksum: it was changed after "

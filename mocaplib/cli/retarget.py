@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ._common import LIBRARY_HINT, UsageError, bounded, check_inputs, check_outputs, positive
+from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
+                      check_outputs, positive)
 
 
 def register(subparsers) -> None:
@@ -50,6 +51,7 @@ def register(subparsers) -> None:
                              ".bvh, .gltf or .glb (glTF 2.0 for game engines); repeat for "
                              "several")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_force_option(parser)
     parser.set_defaults(run=_run)
 
 
@@ -57,7 +59,7 @@ def _run(args) -> int:
     from ..errors import MocapError
     from ..export.formats import format_of
     from ..library.format import load_library
-    from ..library.retarget import Weights, retarget
+    from ..library.retarget import ANKLE_TOLERANCE_M, MIN_STEPS, Weights, lowest_rate, retarget
     from ._common import print_json
 
     check_inputs([args.library] + ([args.segment_lengths] if args.segment_lengths else []),
@@ -67,7 +69,8 @@ def _run(args) -> int:
             format_of(out, "motion")
         except MocapError as exc:
             raise UsageError(f"-o {out}: {exc.message}; {exc.hint}") from None
-    check_outputs({f"-o {out}": out for out in args.output}, [args.library])
+    check_outputs({f"-o {out}": out for out in args.output}, [args.library],
+                  force=args.force)
     skeleton = _skeleton(args)
     try:
         weights = Weights(joint_limits=args.weight_joint_limits, reference=args.weight_reference,
@@ -78,9 +81,21 @@ def _run(args) -> int:
     if args.entry not in {e.id for e in library.entries}:
         raise UsageError(f"no entry {args.entry!r} in {args.library}"
                          f"{_closest(args.entry, library)}")
+    period = float(library.entry(args.entry).T)
+    if round(period * args.rate) < MIN_STEPS:
+        raise UsageError(f"--rate {args.rate:g}: fewer than {MIN_STEPS} samples over the "
+                         f"cycle of {args.entry} ({period:.3g} s): give at least "
+                         f"{lowest_rate(period):.3g} Hz")
     result = retarget(library, args.entry, skeleton=skeleton, step_length=args.step_length,
                       foot_spacing=args.foot_spacing, stance=args.stance, weights=weights,
                       rate=args.rate)
+    if not result.ankle_error_m <= ANKLE_TOLERANCE_M:
+        raise MocapError(f"the body cannot follow the request: its ankles stay up to "
+                         f"{result.ankle_error_m:.3f} m from the requested paths (step length, "
+                         f"foot spacing, stance {', '.join(f'{v:.3f}' for v in result.requested)}"
+                         f" m; limit {ANKLE_TOLERANCE_M:g} m); nothing written",
+                         hint="ask for a step, foot spacing and stance this body can reach, "
+                              "or leave them to the entry's, scaled to the body")
     written = [str(result.write(out)) for out in args.output]
     summary = result.summary() | {"outputs": written}
     if args.json:

@@ -44,7 +44,7 @@ def _run(args) -> int:
         chosen = plan.select(args.only)
         check_targets(chosen, output, overwrite=args.overwrite)
         check_outputs({"-o": output / f"{chosen[0].name}.c3d"}, [args.plan],
-                      create_folders=True)
+                      create_folders=True, force=True)  # check_targets: --overwrite
     except SynthError as exc:
         raise UsageError(str(exc)) from None
     protocol = None if args.protocol == "auto" else args.protocol

@@ -8,6 +8,11 @@ error leaves every old file as it was; only a kill between the renames (which ne
 can leave some files new and the rest old, and the last file renamed is the one that tells a
 reader the set is complete (the library's diagnostics sidecar names the library's hash).
 
+Where a file is written (:func:`destination`): a symbolic link is followed and the file it
+points to is replaced, never the link; a path in a system folder (:data:`SYSTEM_FOLDERS`:
+``/dev``, ``/proc``, ``/sys`` ...), or that is or points to something other than a regular file
+(a device, a pipe, a folder, a link loop), is refused before anything is written.
+
 Temporaries are named ``.<name>.<pid>.<random>.tmp``; one left behind by a process that no
 longer runs (killed in the middle of a write) is removed by the next write of the same file.
 """
@@ -21,6 +26,47 @@ from pathlib import Path
 
 from ..errors import MocapError
 
+#: Folders of the operating system that no output of mocaplib may be written into (nor a link
+#: pointing into them followed): devices, kernel interfaces, programs and their settings.
+SYSTEM_FOLDERS = ("/dev", "/proc", "/sys", "/run", "/boot", "/etc", "/bin", "/sbin", "/lib",
+                  "/lib32", "/lib64", "/usr/bin", "/usr/lib", "/usr/sbin", "/usr/share")
+
+
+def system_folder(path: str | os.PathLike) -> str | None:
+    """The :data:`SYSTEM_FOLDERS` entry ``path`` (made absolute, not resolved) lies in, or
+    None; always None outside POSIX systems."""
+    if os.name != "posix":
+        return None
+    absolute = os.path.normpath(os.path.abspath(path))
+    return next((folder for folder in SYSTEM_FOLDERS
+                 if absolute == folder or absolute.startswith(folder + "/")), None)
+
+
+def destination(path: str | os.PathLike) -> Path:
+    """Where writing ``path`` puts the file: ``path`` itself, or for a symbolic link the file
+    it points to (followed to the end), so that the link stays a link.
+
+    Raises :class:`MocapError` naming ``path`` when it lies, or its link points, in a
+    :data:`SYSTEM_FOLDERS` folder, when the links loop, or when what is there is not a
+    regular file (a folder, a device, a pipe, a socket): it would be replaced by a file.
+    """
+    hint = "choose a file name in one of your folders"
+    path = Path(path)
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    for where in dict.fromkeys((path, target)):
+        if (folder := system_folder(where)) is not None:
+            raise MocapError(f"will not write into the system folder {folder}"
+                             + ("" if where == path else f" (the link points to {target})"),
+                             path=path, hint=hint)
+    if target.is_symlink():
+        raise MocapError("its symbolic links form a loop", path=path, hint=hint)
+    if os.path.lexists(target) and not target.is_file():
+        what = "a folder" if target.is_dir() else "not a regular file (a device or a pipe)"
+        raise MocapError(f"is {what}" + ("" if target == path else f" (the link points to "
+                                          f"{target})") + ": it would be replaced by a file",
+                         path=path, hint=hint)
+    return target
+
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (parent folders are created). Returns the path."""
@@ -29,15 +75,17 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
 
 def atomic_write_files(files: list[tuple[str | os.PathLike, bytes]]) -> list[Path]:
     """Write each ``(path, data)`` atomically, all temporaries first, then rename them in the
-    order given (parent folders are created). Returns the paths.
+    order given (parent folders are created; a link's file is written, :func:`destination`).
+    Returns the paths as given.
 
-    Raises :class:`MocapError` naming the file when a temporary cannot be written: then no
-    file was replaced and no temporary is left.
+    Raises :class:`MocapError` naming the file when a path is refused (:func:`destination`)
+    or a temporary cannot be written: then no file was replaced and no temporary is left.
     """
+    targets = [(destination(path), data) for path, data in files]
     written: list[tuple[Path, str]] = []
     try:
-        for path, data in files:
-            written.append((Path(path), _temporary(Path(path), data)))
+        for path, data in targets:
+            written.append((path, _temporary(path, data)))
         for path, tmp in written:
             try:
                 os.replace(tmp, path)
@@ -48,7 +96,7 @@ def atomic_write_files(files: list[tuple[str | os.PathLike, bytes]]) -> list[Pat
     finally:
         for _, tmp in written:
             Path(tmp).unlink(missing_ok=True)
-    return [path for path, _ in written]
+    return [Path(path) for path, _ in files]
 
 
 def _temporary(path: Path, data: bytes) -> str:

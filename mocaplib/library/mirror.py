@@ -40,6 +40,7 @@ entry: the source from its left toe-off).
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import replace
 
@@ -278,34 +279,47 @@ def mirror_library(library, /):
     return Library(to_json_data(document)), notes
 
 
-def write_mirrored(library, library_path, out_path, /):
+def write_mirrored(library, library_path, out_path, /) -> tuple:
     """Write the mirrored ``library`` to ``out_path`` with a copy of ``library_path``'s
-    diagnostics sidecar (when there is one) beside it, as one unit (as ``build`` writes a
-    library and its sidecar: temporaries first, the sidecar renamed last, naming the new
-    library's name and SHA-256). Returns the sidecar's path, or None. The series images
-    :func:`mirror_library` adds have no capture record: the report knows them by their
-    ``mirror_method``."""
+    diagnostics sidecar beside it, as one unit (as ``build`` writes a library and its
+    sidecar: temporaries first, the sidecar renamed last, naming the new library's name and
+    SHA-256). The sidecar is copied only when it belongs to ``library_path``: it names the
+    SHA-256 of that file's bytes (``library_sha256``); one that names another library, or
+    none, was written by another build and is left behind, never passed off as the mirrored
+    library's. Returns ``(sidecar path or None, note or None)``, the note saying why a sidecar
+    there was not copied. The series images :func:`mirror_library` adds have no capture
+    record: the report knows them by their ``mirror_method``."""
     import hashlib
-    import json
     from pathlib import Path
 
+    from ..io import read_regular
     from ..io.atomic import atomic_write_files
+    from ..io.jsonvalues import parse_json
     from .format import diagnostics_path, json_text
 
     text = library.to_json().encode("utf-8")
     files = [(Path(out_path), text)]
     source = diagnostics_path(library_path)
-    if source.is_file():
+    note = None
+    if os.path.lexists(source):
         try:
-            data = json.loads(source.read_text(encoding="utf-8"))
+            data = parse_json(read_regular(source).decode("utf-8"))
+            own = hashlib.sha256(read_regular(library_path)).hexdigest()
         except (OSError, ValueError) as exc:
             raise MocapError(f"cannot read the diagnostics sidecar: {exc}", path=source,
                              hint="move it away to mirror the library without it") from None
         if not isinstance(data, dict):
             raise MocapError("not a diagnostics sidecar", path=source,
                              hint="move it away to mirror the library without it")
-        data.update(library=Path(out_path).name,
-                    library_sha256=hashlib.sha256(text).hexdigest())
-        files.append((diagnostics_path(out_path), json_text(data).encode("utf-8")))
+        if data.get("library_sha256") != own:
+            named = str(data.get("library_sha256"))[:12]
+            note = (f"{source.name} was not copied: it does not belong to "
+                    f"{Path(library_path).name} (it names the library whose SHA-256 is "
+                    f"{named}…, this file's is {own[:12]}…); the mirrored library has no "
+                    "sidecar")
+        else:
+            data.update(library=Path(out_path).name,
+                        library_sha256=hashlib.sha256(text).hexdigest())
+            files.append((diagnostics_path(out_path), json_text(data).encode("utf-8")))
     atomic_write_files(files)
-    return files[1][0] if len(files) > 1 else None
+    return (files[1][0] if len(files) > 1 else None), note

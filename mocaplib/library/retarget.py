@@ -82,6 +82,12 @@ SIMILAR_TURN, SIMILAR_TRAVEL, SIMILAR_SUPPORT = 0.25, np.deg2rad(20.0), 0.04
 #: A foot is in support where its ankle centre is within this (m) of its lowest
 #: (:func:`foot_skate`; the gait events' contact rule takes 1 cm above the floor too).
 SUPPORT_HEIGHT = 0.01
+#: Fewest samples over the cycle :func:`retarget` solves (a lower rate is refused).
+MIN_STEPS = 8
+#: Largest distance (m) between the result's ankles and the requested poulaine that
+#: ``mocaplib retarget`` writes: beyond it the body cannot follow the request (measured on the
+#: real walks at x0.85: 25.6 mm at worst, docs/results/retarget.md).
+ANKLE_TOLERANCE_M = 0.05
 #: Default output rate, Hz.
 RATE = 100.0
 _ROOT_Z = DOF_NAMES.index("pelvis_tz")
@@ -205,14 +211,16 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
                else "the library was written before poulaines were stored")
         raise MocapError(f"entry {entry_id!r} has no poulaine to retarget ({why})",
                          hint="choose a walking entry, or rebuild the library with this mocaplib")
-    if not (np.isfinite(rate) and rate > 0):
-        raise MocapError(f"the output rate must be > 0 Hz, got {rate}")
+    period = float(entry.T)
+    if not (np.isfinite(rate) and round(period * rate) >= MIN_STEPS):
+        raise MocapError(f"an output rate of {rate:g} Hz gives fewer than {MIN_STEPS} samples "
+                         f"over the cycle of {entry_id!r} ({period:.3g} s)",
+                         hint=f"ask for at least {lowest_rate(period):.3g} Hz")
     source = library.entry_skeleton(entry_id)
     requested = _requested(own.parameters, source, skeleton, step_length, foot_spacing, stance)
     path = blend(_candidates(library, entry, own), step_length=requested[0],
                  foot_spacing=requested[1], stance=requested[2], prefer=entry_id)
-    period = float(entry.T)
-    steps = max(8, int(round(period * rate)))
+    steps = int(round(period * rate))
     phase = np.arange(steps + 1) / steps
     times = phase * period
     reference = library.angles(entry_id, times)                  # path frame
@@ -234,6 +242,12 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
                 "output": cycle_criteria(skeleton, out, moved, period)}
     return Retargeted(entry_id, skeleton, times, moved.restore(out, times), requested,
                       path.names, float(error.max()), clamped, criteria, moved, weights)
+
+
+def lowest_rate(period: float) -> float:
+    """The lowest output rate (Hz) :func:`retarget` delivers for a cycle of ``period`` s:
+    :data:`MIN_STEPS` samples over it."""
+    return (MIN_STEPS - 0.5) / period
 
 
 def foot_skate(skeleton: Skeleton, q: np.ndarray, time_s: np.ndarray, /) -> float:

@@ -28,14 +28,19 @@ _EMPTY_LISTS = ("labels", "missing_landmarks", "missing_labels", "markers", "ign
 
 def inspect_c3d(path: str | os.PathLike, /, *, protocol: Protocol | str = "auto") -> dict:
     """Summary of one C3D file; ``protocol`` is ``"auto"``, a shipped name, a path or a
-    :class:`Protocol`. Never raises for a bad file: ``ok`` is False and ``error`` says why."""
+    :class:`Protocol`. Never raises for a bad file, whatever the exception: ``ok`` is False
+    and ``error`` says why."""
     from ..io.c3d import read_c3d
 
     try:
         trial = read_c3d(path)
+        return inspect_trial(trial, protocol=protocol)
     except (MocapError, OSError) as exc:
         return failed_summary(path, exc)
-    return inspect_trial(trial, protocol=protocol)
+    except Exception as exc:  # a file no check foresaw must not stop the other files
+        return failed_summary(path, f"{os.fspath(path)}: internal error: "
+                                    f"{type(exc).__name__}: {exc} (a bug in mocaplib: please "
+                                    "report it with this file)")
 
 
 def failed_summary(path: str | os.PathLike, error: BaseException | str) -> dict:

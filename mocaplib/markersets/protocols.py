@@ -47,6 +47,8 @@ that left-labelled shoulder and pelvis markers lie on the subject's left
 from __future__ import annotations
 
 import os
+import stat
+from collections import Counter
 from dataclasses import dataclass, replace
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -54,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ProtocolError
+from ..io import read_regular
 from ..io.tomlfile import read_toml
 from ..skeleton import SEGMENT_NAMES
 from ..trial import Trial, normalise_label
@@ -96,8 +99,27 @@ def use_protocol_folders(folders, /) -> None:
             raise ProtocolError("protocol folder not found", path=folder,
                                 hint="give a folder holding your protocols (*.toml) and, if "
                                      "you add landmarks, a landmarks.toml")
+        toml_files(Path(folder))
     added = [os.path.abspath(f) for f in folders]
     os.environ[FOLDERS_VARIABLE] = os.pathsep.join(dict.fromkeys(_env_folders() + added))
+
+
+def toml_files(folder: Path, /) -> list[Path]:
+    """The ``*.toml`` entries of ``folder``, sorted; :class:`ProtocolError` naming the first
+    that is not a regular file (a pipe, a device, a folder, a dangling link or a link loop),
+    before any is opened: a pipe would block its reader forever."""
+    files = sorted(folder.glob("*.toml"))
+    for path in files:
+        try:
+            mode = path.stat().st_mode
+        except OSError as exc:
+            raise ProtocolError(f"cannot read it: {exc.strerror or exc}", path=path,
+                                hint="remove it from the protocol folder or repair it") from None
+        if not stat.S_ISREG(mode):
+            raise ProtocolError("not a regular file (a folder, a pipe or a device)", path=path,
+                                hint="protocols, landmarks and plans are TOML files: move it "
+                                     "out of the protocol folder")
+    return files
 
 
 def _definitions(kind: str) -> tuple[dict[str, Path], list[str]]:
@@ -107,10 +129,10 @@ def _definitions(kind: str) -> tuple[dict[str, Path], list[str]]:
     found: dict[str, Path] = {}
     notes = []
     for folder in protocol_folders():
-        for path in sorted(folder.glob("*.toml")):
-            is_plan = "plan" in path.stem
-            if kind == "plans" and not is_plan or kind == "protocols" and (
-                    is_plan or "markers" not in read_protocol_toml(os.fspath(path))):
+        for path in toml_files(folder):
+            data = read_protocol_toml(os.fspath(path))
+            if kind != ("protocols" if "markers" in data else
+                        "plans" if "capture" in data else None):
                 continue
             if path.stem in found:
                 notes.append(f"protocol {path.stem!r} of {path} replaces the one of "
@@ -132,8 +154,8 @@ def user_fingerprint() -> str:
     digest = hashlib.sha256()
     folders = protocol_folders()[1:]
     for folder in folders:
-        for path in sorted(folder.glob("*.toml")):
-            digest.update(os.fspath(path.resolve()).encode() + b"\0" + path.read_bytes())
+        for path in toml_files(folder):
+            digest.update(os.fspath(path.resolve()).encode() + b"\0" + read_regular(path))
     return digest.hexdigest() if folders else ""
 
 
@@ -305,9 +327,10 @@ def list_protocols() -> list[str]:
 
 
 def capture_plans() -> list[Path]:
-    """The capture plans (``*plan*.toml``) of :func:`protocol_folders`, a user folder's first,
-    each folder's sorted by name: the build's locomotion classes and the report's default
-    target envelope come from them."""
+    """The capture plans (TOML files with ``[[capture]]`` tables and no ``[markers]``,
+    whatever their name) of :func:`protocol_folders`, a user folder's first, each folder's
+    sorted by name: the build's locomotion classes and the report's default target envelope
+    come from them."""
     plans = _definitions("plans")[0].values()
     return sorted(plans, key=lambda p: (p.parent == SHIPPED_PROTOCOLS, p.name))
 
@@ -366,17 +389,32 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
         groups = dict(parent.any_of)
         fallback = parent.fallback_starts
     landmarks = load_landmarks()
+    labelled = {m.landmark.name: m.label for m in markers.values() if not m.tracking}
+    own: set[str] = set()               # the labels this file gave so far
     for label, spec in table.items():
         marker = _protocol_marker(label, spec, landmarks, path)
-        # a child's entry on a landmark the parent already labels replaces the parent's entry
-        replaced = [m for m in markers.values() if m.label != label and not m.tracking
-                    and m.landmark.name == marker.landmark.name] if not marker.tracking else []
-        for old in replaced:
-            del markers[old.label]
-            groups = {g: tuple(label if x == old.label else x for x in labels)
+        own.add(label)
+        if marker.tracking:
+            markers[label] = marker
+            continue
+        other = labelled.get(marker.landmark.name)
+        if other == label or other not in markers or markers[other].tracking \
+                or markers[other].landmark.name != marker.landmark.name:
+            other = None                 # none, or a label this file moved elsewhere
+        if other in own:
+            raise ProtocolError(f"markers {other!r} and {label!r} both label the landmark "
+                                f"{marker.landmark.name}: a landmark has one marker",
+                                path=path, hint=f"list one as the other's alias: {other} = "
+                                                f"{{ landmark = \"{marker.landmark.name}\", "
+                                                f"aliases = [\"{label}\"] }}")
+        if other is not None:
+            # a child's entry on a landmark the parent already labels replaces the parent's
+            old = markers.pop(other)
+            groups = {g: tuple(label if x == other else x for x in labels)
                       for g, labels in groups.items()}
             if not (isinstance(spec, dict) and "required" in spec):
                 marker = replace(marker, required=old.required)
+        labelled[marker.landmark.name] = label
         markers[label] = marker
     for group, labels in _table(data, "any_of", path).items():
         if (not isinstance(labels, list) or not labels
@@ -384,8 +422,8 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
             raise ProtocolError(f"[any_of] {group!r} must list labels of this protocol's markers",
                                 path=path, hint=f"got {labels!r}")
         groups[group] = tuple(labels)
-    keys = [k for m in markers.values() for k in m.keys]
-    clashes = sorted({k for k in keys if keys.count(k) > 1})
+    clashes = sorted(k for k, n in Counter(k for m in markers.values() for k in m.keys).items()
+                     if n > 1)
     if clashes:
         raise ProtocolError(f"labels or aliases used twice: {', '.join(clashes)}", path=path)
     return Protocol(str(data.get("name", path.stem)), str(data.get("description", "")),

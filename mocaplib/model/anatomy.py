@@ -73,6 +73,12 @@ MEASUREMENTS = ("knee_width_l", "knee_width_r", "ankle_width_l", "ankle_width_r"
                 "elbow_width_l", "elbow_width_r", "shoulder_offset_l", "shoulder_offset_r",
                 "marker_diameter", "body_mass", "height", "leg_length_l", "leg_length_r",
                 "inter_asis_distance", "asis_trochanter_l", "asis_trochanter_r")
+#: The largest value of each measurement (without its side) a person can have, metres or
+#: kilograms: well beyond any adult, so that only a slip of units or a typing error is refused.
+MEASUREMENT_LIMITS = {"knee_width": 0.3, "ankle_width": 0.2, "elbow_width": 0.2,
+                      "shoulder_offset": 0.2, "marker_diameter": 0.05, "body_mass": 500.0,
+                      "height": 3.0, "leg_length": 1.6, "inter_asis_distance": 0.6,
+                      "asis_trochanter": 0.3}
 
 #: Landmarks defining the knee and ankle: (lateral, medial, joint's child segment).
 HINGES = {"knee": ("KNEE_LAT", "KNEE_MED", "tibia"), "ankle": ("ANKLE_LAT", "ANKLE_MED", "foot")}
