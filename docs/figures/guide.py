@@ -50,7 +50,7 @@ _FRONT_VIEW_DOFS = (("shoulder_abduction_l", "shoulder abduction"),
 
 def _standing():
     """A skeleton of the samples' subject and its neutral standing pose (D,)."""
-    from mocaplib.model.skeleton import DOF_NAMES, Skeleton
+    from mocaplib.skeleton import DOF_NAMES, Skeleton
 
     skeleton = Skeleton.from_height(1.75)
     q = np.zeros(len(DOF_NAMES))
@@ -61,7 +61,7 @@ def _standing():
 def _sticks(skeleton, q) -> list[np.ndarray]:
     """The skeleton's bones at pose ``q`` as (2, 3) world segments, metres."""
     from mocaplib.export.bvh import end_sites
-    from mocaplib.model.skeleton import SEGMENT_NAMES, SEGMENTS
+    from mocaplib.skeleton import SEGMENT_NAMES, SEGMENTS
 
     T = skeleton.forward(q)[0]
     origin = T[:, :3, 3]
@@ -78,7 +78,7 @@ def _sticks(skeleton, q) -> list[np.ndarray]:
 def _moved_point(skeleton, q, dof: str, angle: float) -> np.ndarray:
     """Where the distal end of ``dof``'s segment goes when ``dof`` turns by ``angle`` rad."""
     from mocaplib.export.bvh import end_sites
-    from mocaplib.model.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
+    from mocaplib.skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
 
     segment = DOFS[DOF_NAMES.index(dof)].segment
     i = SEGMENT_NAMES.index(segment)
@@ -96,7 +96,7 @@ def _moved_point(skeleton, q, dof: str, angle: float) -> np.ndarray:
 def skeleton_axes() -> bytes:
     """The 32-DOF skeleton standing in the neutral pose, side and front views, with the
     positive direction of each sagittal and frontal DOF as the path its segment takes."""
-    from mocaplib.model.skeleton import DOF_NAMES
+    from mocaplib.skeleton import DOF_NAMES
 
     skeleton, q = _standing()
     fig = _figure(9.5, 6.6)
@@ -287,7 +287,7 @@ def fourier() -> bytes:
     from mocaplib.gait.fourier import fit_series
     from mocaplib.gait.patterns import cycle_times
     from mocaplib.model.filtering import resample
-    from mocaplib.model.skeleton import DOF_NAMES
+    from mocaplib.skeleton import DOF_NAMES
 
     name, dof = "walk_straight_normal", "knee_flexion_l"
     trial, fitted, _, cycles = data.capture(name)
@@ -357,7 +357,8 @@ def control_space() -> bytes:
 
 def coverage_map() -> bytes:
     """The report's coverage map of the same library against the default envelope."""
-    from mocaplib.library.controlspace import ControlSpace, coverage
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.coverage import coverage
     from mocaplib.report.figures import projections
     from mocaplib.report.plan import default_envelope
 
