@@ -27,7 +27,7 @@ import pytest
 
 from mocaplib.io.c3d import read_c3d
 from mocaplib.model.fitting import fit_capture
-from mocaplib.model.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
