@@ -47,11 +47,12 @@ def capture(name: str):
 def library():
     """The :class:`~mocaplib.library.format.Library` of :data:`LIBRARY_CAPTURES`, built in
     this process as ``mocaplib build`` builds it."""
-    from mocaplib.build.pipeline import BuildSettings, build
+    from mocaplib.build.pipeline import build_library
+    from mocaplib.build.settings import BuildSettings
 
     settings = BuildSettings(static=str(SAMPLES / "rest.c3d"), static_pose="neutral")
-    return build([SAMPLES / f"{name}.c3d" for name in LIBRARY_CAPTURES], settings,
-                 progress=False).library
+    return build_library([SAMPLES / f"{name}.c3d" for name in LIBRARY_CAPTURES], settings,
+                         progress=False).library
 
 
 @lru_cache(maxsize=None)
