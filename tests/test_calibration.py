@@ -268,12 +268,18 @@ def test_neutral_static_absorbs_marker_placement():
                               protocol="fullbody38") for pose in ("neutral", "free")}
     neutral, free = (_rms_deg(fit(walk.trial, models[pose]), walk.q) for pose in models)
     other = [j for j in OTHER if DOF_NAMES[j] not in models["neutral"].unobservable]
-    # measured: neutral 0.61 / 2.68 deg (flexion / other worst), free 2.14 / 4.56 deg: the
+    # measured: neutral 0.61 / 2.69 deg (flexion / other worst), free 2.09 / 4.52 deg: the
     # placement error of the markers turns into constant angle offsets (anatomical frames
     # from misplaced landmarks) unless the static's known pose reveals it
     assert free[FLEXION].max() > 1.5 and free[other].max() > 4.0
-    assert neutral[FLEXION].max() < 1.0 and neutral[other].max() < 3.0
-    assert neutral[other].mean() < 0.5 * free[other].mean()
+    assert neutral[FLEXION].max() < 1.0 and neutral[other].mean() < 0.5 * free[other].mean()
+    # every other DOF within 2 deg (measured 1.59 at most, the right shoulder's rotation) but
+    # the ankles' inversion, 1.60 and 2.69 deg: the foot's heel, toe and ankle markers lie
+    # nearly on one line, so 4 mm of placement error turns the foot about it by degrees
+    inversion = [j for j in other if DOF_NAMES[j].startswith("ankle_inversion")]
+    rest = [j for j in other if j not in inversion]
+    assert neutral[rest].max() < 2.0, neutral[rest].max()
+    assert neutral[inversion].max() < 3.0, neutral[inversion].max()
 
 
 def test_unknown_static_pose_is_an_error(walk):

@@ -86,6 +86,11 @@ def test_tracking_offsets_are_measured_on_the_static():
         assert 0.05 < sign * centre[1] < 0.15 and -0.30 < centre[2] < -0.15, centre
 
 
+#: The cluster set's overall RMS on the free-pose straight walk, and its excess over the
+#: anatomical set's (degrees), measured: the strict xfail's figures, bounded below.
+FREE_STRAIGHT_MEASURED = (3.90, 2.51)
+
+
 @pytest.mark.parametrize("pose, kind", [
     pytest.param(pose, kind, marks=pytest.mark.xfail(strict=True, reason=(
         "measured RMS over the DOFs 3.90° (cluster) vs 2.51° (anatomical set): the cluster "
@@ -93,50 +98,111 @@ def test_tracking_offsets_are_measured_on_the_static():
         "on the static only)")) if (pose, kind) == ("free", "straight") else ())
     for pose in ("neutral", "free") for kind in MOTIONS])
 def test_a_cluster_capture_fits_as_well_as_the_anatomical_set(fits, kind, pose):
-    rms_cluster, angles_cluster = fits[kind, pose, "cluster_fullbody"]
-    rms_anatomical, angles_anatomical = fits[kind, pose, "fullbody38"]
-    assert rms_cluster <= 10.0, rms_cluster                      # the issue's target
-    overall = {name: np.sqrt(np.mean(np.square(list(errors.values()))))
-               for name, errors in (("cluster", angles_cluster),
-                                    ("anatomical", angles_anatomical))}
+    rms_cluster, _ = fits[kind, pose, "cluster_fullbody"]
+    overall = _overall_rms(fits, kind, pose)
+    assert rms_cluster <= 10.0, rms_cluster                      # marker RMS target, mm
     # within 1 degree RMS of the anatomical set's angles on the same motion
     assert overall["cluster"] <= overall["anatomical"] + 1.0, overall
 
 
+def test_the_free_pose_cluster_walk_is_no_worse_than_measured(fits):
+    overall = _overall_rms(fits, "straight", "free")
+    cluster, anatomical = FREE_STRAIGHT_MEASURED
+    assert overall["cluster"] <= cluster + 0.2, overall
+    assert overall["cluster"] - overall["anatomical"] <= cluster - anatomical + 0.2, overall
+
+
+def _overall_rms(fits, kind, pose) -> dict[str, float]:
+    """RMS over the DOFs of the angle errors (degrees) of the cluster and anatomical sets."""
+    return {name: float(np.sqrt(np.mean(np.square(list(fits[kind, pose, protocol][1].values())))))
+            for name, protocol in (("cluster", "cluster_fullbody"), ("anatomical", "fullbody38"))}
+
+
+def _worse_dofs(fits) -> dict[tuple[str, str, str], float]:
+    """(motion, pose, DOF) -> how much worse (degrees) the cluster set fits that DOF than the
+    anatomical set, for those more than 1 degree worse."""
+    return {(kind, pose, dof): round(err - fits[kind, pose, "fullbody38"][1][dof], 2)
+            for (kind, pose, protocol), (_, errors) in fits.items()
+            if protocol == "cluster_fullbody" for dof, err in errors.items()
+            if dof in fits[kind, pose, "fullbody38"][1]
+            and err > fits[kind, pose, "fullbody38"][1][dof] + 1.0}
+
+
+#: Measured: how many DOF fits of the cluster set (3 motions x 2 static poses) are more than
+#: 1 degree worse than the anatomical set's, and the largest excess (degrees).
+WORSE_COUNT, WORSE_MAX = 27, 8.93
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    f"measured {WORSE_COUNT} DOF fits more than 1° worse, by {WORSE_MAX}° at most (the "
+    "side-step's right elbow flexion, free pose): the arms' and ankles' frames rest on "
+    "static-only landmarks"))
 def test_every_dof_of_a_cluster_capture_within_1_degree_of_the_anatomical_set(fits):
-    worse = {(kind, pose, dof): round(err - fits[kind, pose, "fullbody38"][1][dof], 2)
-             for (kind, pose, protocol), (_, errors) in fits.items()
-             if protocol == "cluster_fullbody" for dof, err in errors.items()
-             if dof in fits[kind, pose, "fullbody38"][1]
-             and err > fits[kind, pose, "fullbody38"][1][dof] + 1.0}
-    if worse:
-        pytest.xfail(f"measured: {len(worse)} DOF fits more than 1° worse, e.g. "
-                     f"{dict(list(worse.items())[:4])}")
+    worse = _worse_dofs(fits)
+    assert not worse, f"{len(worse)} DOF fits more than 1° worse: {worse}"
+
+
+def test_the_cluster_dofs_worse_than_the_anatomical_set_are_no_more_than_measured(fits):
+    worse = _worse_dofs(fits)
+    assert len(worse) <= WORSE_COUNT, worse
+    assert max(worse.values(), default=0.0) <= WORSE_MAX + 0.3, worse
+
+
+#: RMS over the DOFs (degrees), cluster vs anatomical set, of the captures fitted without a
+#: static: measured, the strict xfail's figures, bounded below.
+WITHOUT_STATIC_MEASURED = {"straight": (12.1, 3.1), "curve": (13.4, 3.1),
+                           "sidestep": (17.0, 5.0)}
+
+
+@pytest.fixture(scope="module")
+def fits_without_static():
+    """Per motion and protocol: (marker RMS mm, RMS over the DOFs of the angle errors, deg,
+    the calibrated model), calibrated on the motion itself."""
+    out = {}
+    for kind in MOTIONS:
+        for protocol in ("fullbody38", "cluster_fullbody"):
+            motion, _ = _capture(protocol, kind)
+            model = calibrate(motion.trial)
+            fitted = fit(motion.trial, model)
+            errors = _angle_errors(motion, model, fitted)
+            out[kind, protocol] = (fit_quality(fitted)["marker_rms_mm"],
+                                   float(np.sqrt(np.mean(np.square(list(errors.values()))))),
+                                   model)
+    return out
 
 
 @pytest.mark.parametrize("kind", [
     pytest.param(kind, marks=pytest.mark.xfail(strict=True, reason=(
-        f"measured RMS over the DOFs {measured} (cluster vs anatomical set) against the "
-        "generator's independent body. The errors are offsets, nearly constant through the "
-        "capture: elbow flexion +33 to +46 deg (the elbow turns 5-13 deg, under the "
-        "functional centre's 15 deg, so the forearm gets no anatomical frame), shoulder "
+        f"measured RMS over the DOFs {cluster}° vs {anatomical}° (cluster vs anatomical set) "
+        "against the generator's independent body. The errors are offsets, nearly constant "
+        "through the capture: elbow flexion +33 to +46 deg (the elbow turns 5-13 deg, under "
+        "the functional centre's 15 deg, so the forearm gets no anatomical frame), shoulder "
         "flexion -13 to -22, ankle dorsiflexion +10 to +26, knee flexion +5 to +20: without "
         "anatomical landmarks nothing measures the segments' zero pose")))
-    for kind, measured in (("straight", "12.1° vs 3.1°"), ("curve", "13.4° vs 3.1°"),
-                           ("sidestep", "17.0° vs 5.0°"))])
-def test_a_cluster_capture_without_static_fits_as_well_as_the_anatomical_set(kind):
+    for kind, (cluster, anatomical) in WITHOUT_STATIC_MEASURED.items()])
+def test_a_cluster_capture_without_static_fits_as_well_as_the_anatomical_set(
+        fits_without_static, kind):
     # the knee and ankle centres are functional ones (SCoRE) from the clusters and the foot
-    results = {}
     for protocol in ("fullbody38", "cluster_fullbody"):
-        motion, _ = _capture(protocol, kind)
-        model = calibrate(motion.trial)
-        fitted = fit(motion.trial, model)
-        errors = _angle_errors(motion, model, fitted)
-        results[protocol] = np.sqrt(np.mean(np.square(list(errors.values()))))
-        assert fit_quality(fitted)["marker_rms_mm"] <= 10.0
+        marker_rms, _, model = fits_without_static[kind, protocol]
+        assert marker_rms <= 10.0
         if protocol == "cluster_fullbody":
             assert model.centre_methods["knee_l"].startswith("functional (SCoRE)")
-    assert results["cluster_fullbody"] <= results["fullbody38"] + 1.0, results
+    cluster, anatomical = (fits_without_static[kind, p][1]
+                           for p in ("cluster_fullbody", "fullbody38"))
+    assert cluster <= anatomical + 1.0, (cluster, anatomical)
+
+
+@pytest.mark.parametrize("kind", sorted(WITHOUT_STATIC_MEASURED))
+def test_a_cluster_capture_without_static_is_no_worse_than_measured(fits_without_static, kind):
+    for protocol in ("fullbody38", "cluster_fullbody"):
+        marker_rms, _, model = fits_without_static[kind, protocol]
+        assert marker_rms <= 10.0, (protocol, marker_rms)
+    cluster, anatomical = (fits_without_static[kind, p][1]
+                           for p in ("cluster_fullbody", "fullbody38"))
+    measured_cluster, measured_anatomical = WITHOUT_STATIC_MEASURED[kind]
+    assert cluster <= measured_cluster + 0.5, cluster
+    assert anatomical <= measured_anatomical + 0.3, anatomical
 
 
 #: A small session of cluster captures: four distinct velocities (the least a control space

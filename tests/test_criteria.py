@@ -163,3 +163,20 @@ def test_internal_power_of_natural_real_walks_is_in_the_published_range():
     power = _natural(real_walks()[0])
     lo, hi = NATURAL_WALKING
     assert power.between(lo, hi).all(), power.round(2).to_dict()
+
+
+def test_internal_power_of_natural_synthetic_walks_is_no_lower_than_measured():
+    from walking_library import synthetic_walks
+
+    # measured 2.41-3.37 W/kg: a power further below the published range fails
+    power = _natural(synthetic_walks()[0])
+    assert power.min() >= 2.41 - 0.1, power.round(2).to_dict()
+
+
+@pytest.mark.real
+def test_internal_power_of_natural_real_walks_is_no_lower_than_measured():
+    from walking_library import real_walks
+
+    # measured 0.90-3.69 W/kg: a power further below the published range fails
+    power = _natural(real_walks()[0])
+    assert power.min() >= 0.90 - 0.1, power.round(2).to_dict()

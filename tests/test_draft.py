@@ -15,7 +15,7 @@ from mocaplib.synth.capture import synthesize_capture
 from mocaplib.library.command import Command
 from mocaplib.trial import normalise_label
 
-#: Files whose draft misses the 90 % target, with what was measured and why.
+#: Files whose draft misses the 90 % target, with what was measured and why (strict xfails).
 BELOW_TARGET = {
     "ezc3d_testfiles/BTS.c3d": "73 %: its shank clusters (SCL1/2, SCR1/2, 'bar 2') are drafted "
                                "as tracking markers on the tibia; the shipped protocol maps them "
@@ -94,16 +94,34 @@ def _shared_names():
     return [p.relative_to(SHARED_C3D).as_posix() for p in real_files()]
 
 
-@pytest.mark.parametrize("name", _shared_names() or ["(no shared files)"])
-def test_the_draft_of_each_real_file_agrees_with_its_shipped_protocol(real_c3d, name):
-    trial = read_c3d(real_c3d(name))
+#: The agreement measured on the files of BELOW_TARGET: a draft that agrees less fails.
+MEASURED_BELOW_TARGET = {"ezc3d_testfiles/BTS.c3d": 0.727, "ezc3d_testfiles/FP_Type1.c3d": 0.727,
+                         "ezc3d_testfiles/Qualisys.c3d": 0.873}
+
+
+def _agreement(path) -> float:
+    """The share of the shipped protocol's landmarks (by trial label) the draft names alike."""
+    trial = read_c3d(path)
     match = detect_protocol(trial)
     shipped = {}
     for marker, i in zip(match.protocol.markers, match.indices):
         if i >= 0:
             shipped.setdefault(trial.names[i], marker.landmark.name)
     drafted = draft_protocol(trial).landmarks
-    agree = sum(drafted.get(normalise_label(k)) == v for k, v in shipped.items()) / len(shipped)
-    if name in BELOW_TARGET and agree < 0.9:
-        pytest.xfail(f"measured {BELOW_TARGET[name]}")
+    return sum(drafted.get(normalise_label(k)) == v for k, v in shipped.items()) / len(shipped)
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.xfail(strict=True,
+                                               reason=f"measured {BELOW_TARGET[name]}"))
+    if name in BELOW_TARGET else name for name in _shared_names() or ["(no shared files)"]])
+def test_the_draft_of_each_real_file_agrees_with_its_shipped_protocol(real_c3d, name):
+    agree = _agreement(real_c3d(name))
     assert agree >= 0.9, (name, agree)
+
+
+@pytest.mark.parametrize("name", sorted(MEASURED_BELOW_TARGET))
+def test_the_drafts_below_target_agree_no_less_than_measured(real_c3d, name):
+    # 8 of 11 and 48 of 55 landmarks: a draft that names one landmark fewer fails
+    agree = _agreement(real_c3d(name))
+    assert agree >= MEASURED_BELOW_TARGET[name] - 0.01, (name, agree)

@@ -39,15 +39,16 @@ def errors(events, truth, kind):
 def test_events_within_one_frame_of_truth(gait):
     heel, toe, offs, strikes = foot(TIME, noise=0.0007, **GAITS[gait])
     events = foot_events(heel, toe, RATE, side="left")
-    # The model's foot is rigid: it leaves the floor in one step, which `lift` finds: the
-    # issue's target, |error| <= 1 frame, with 0.7 mm marker noise.
+    # The model's foot is rigid: it leaves the floor in one step, which `lift` finds within
+    # the target, |error| <= 1 frame, with 0.7 mm marker noise.
     lift = foot_events(heel, toe, RATE, side="left", toe_off="lift")
     assert np.all(np.abs(errors(lift, offs, "toe_off")) <= 1 / RATE), gait
-    # The default marks where a rolling foot's toes leave, a velocity peak and the end of a
-    # roll that a rigid foot reaches after it lifts (measured 2.7-4.2 frames late on every
-    # gait here)
+    # The default marks where a rolling foot's toes leave: the mean of a velocity peak and the
+    # end of a roll, which a rigid foot reaches after it lifts. Measured 2.7-3.9 frames late on
+    # the walks and 3.8-4.15 on the run (its raised belt lengthens the roll); 4.3 frames bounds
+    # the run with 0.15 frame to spare
     late = errors(events, offs, "toe_off") * RATE
-    assert np.all((late >= 1.5) & (late <= 4.5)), (gait, late)
+    assert np.all((late >= 1.5) & (late <= 4.3)), (gait, late)
     # heel-strikes: 1 frame; 3 where the flat landing foot rocks its markers as it touches
     # (the median of three kinks trades these for better real and synthetic heel-strikes)
     limit = 3 if gait in ("on the spot", "side-step left", "side-step right") else 1

@@ -70,6 +70,14 @@ def walks():
     return synthetic_walks()[0]
 
 
+def test_retargeting_to_a_taller_body_is_no_worse_than_measured(walks):
+    # the 1.15 factor misses the 5 mm target (its strict xfail): measured 5.6 mm
+    body = walks.entry_skeleton("walk_straight_normal_c1").scaled(1.15)
+    result = retarget(walks, "walk_straight_normal_c1", skeleton=body)
+    assert result.limit_violations() == 0
+    assert result.ankle_error_m < 0.0056 + 0.0003, result.ankle_error_m
+
+
 @pytest.mark.parametrize("factor", [0.85, pytest.param(1.15, marks=pytest.mark.xfail(
     strict=True, reason="measured ankle error 5.6 mm (target 5 mm) on the samples"))])
 def test_retargeting_to_a_shorter_or_taller_body(walks, factor):
@@ -81,7 +89,7 @@ def test_retargeting_to_a_shorter_or_taller_body(walks, factor):
     # the defaults: the entry's step length and stance times the leg ratio, spacing the hips'
     np.testing.assert_allclose(result.requested, np.multiply(source.parameters, factor))
     assert result.limit_violations() == 0
-    assert result.ankle_error_m < 0.005
+    assert result.ankle_error_m < 0.005, result.ankle_error_m
     # the feet slide at most 2.5 times as fast in support as the entry's (measured 1.3 and 2.0:
     # the blend mixes poulaines of other walks, the Fourier series of the entry's own)
     t = result.time_s

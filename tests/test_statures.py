@@ -55,6 +55,20 @@ def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, 
     assert rms[other].max() <= 4.0, rms[other].max()
 
 
+#: Measured RMS errors (degrees) of the worst flexion and the worst other DOF per height, the
+#: strict xfails' figures: a fit that gets worse fails.
+STATURE_MEASURED = {1.55: (3.26, 3.15), 1.95: (2.85, 3.11)}
+
+
+@pytest.mark.parametrize("height", sorted(STATURE_MEASURED))
+def test_a_shorter_and_a_taller_subject_are_fitted_no_worse_than_measured(tmp_path, height):
+    model, rms, _ = _stature_fit(tmp_path, height)
+    other = [j for j in OTHER if DOF_NAMES[j] not in model.unobservable]
+    flexion, others = STATURE_MEASURED[height]
+    assert rms[FLEXION].max() <= flexion + 0.2, rms[FLEXION].max()
+    assert rms[other].max() <= others + 0.2, rms[other].max()
+
+
 @pytest.mark.parametrize("height", [1.55, 1.95])
 def test_a_shorter_and_a_taller_subject_get_their_velocities(tmp_path, height):
     static, _ = plan_capture("rest", height, tmp_path)

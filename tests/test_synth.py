@@ -128,13 +128,13 @@ def test_stance_foot_does_not_slip_or_sink(name):
     cap = capture(name)
     for col, side in enumerate("lr"):
         soles = sole_points(cap, side)
-        # sole points never below the floor (1e-6 m: the legs' solve reaches the planned foot
-        # to 1e-11 m, and the standing sway to 1e-5 m)
-        assert soles[..., 2].min() > -1e-5
+        # sole points never below the floor (1e-6 m: measured 1e-15 m, round-off, on every
+        # capture type and the standing trial)
+        assert soles[..., 2].min() > -1e-6
         for start, stop in valid_runs(cap.motion.contact[:, col] == FLAT):
             drift = np.linalg.norm(soles[start:stop] - soles[start], axis=-1).max()
             assert drift <= 0.005, f"{name}: {side} foot slips {drift * 1000:.1f} mm"
-            assert np.abs(soles[start:stop, :, 2]).max() < 1e-5, "a flat foot lies on the floor"
+            assert np.abs(soles[start:stop, :, 2]).max() < 1e-6, "a flat foot lies on the floor"
 
 
 @pytest.mark.parametrize("name", ["straight_normal", "curve_left_r1", "spot_left", "side_left",

@@ -11,6 +11,7 @@ import pytest
 from conftest import REPO, SAMPLES
 from mocaplib.cli import main
 from mocaplib.errors import SynthError
+from mocaplib.io.c3d import read_c3d
 from mocaplib.skeleton import DOF_NAMES
 from mocaplib.synth.plan import generate_plan, load_plan
 from mocaplib.synth.capture import min_duration
@@ -61,9 +62,8 @@ def test_regenerated_samples_are_byte_identical(tmp_path):
 @pytest.mark.parametrize("name", REGENERATED)
 def test_sample_reads_the_same_in_ezc3d_and_mocaplib(name):
     ezc3d = pytest.importorskip("ezc3d")
-    io = pytest.importorskip("mocaplib.io.c3d")
     path = SAMPLES / f"{name}.c3d"
-    trial = io.read_c3d(path)
+    trial = read_c3d(path)
     ref = ezc3d.c3d(str(path))
     points = ref["data"]["points"][:3].transpose(2, 1, 0) / 1000.0
     # same file, same numbers: only float round-off between the two readers
@@ -177,21 +177,21 @@ def test_synth_draws_no_progress_bar_into_a_pipe(tmp_path, capsys):
     assert out == f"wrote 1 captures to {tmp_path}\n" and err == ""
 
 
-#: The issue's joint-angle targets against the independent body's truth, every capture (RMS,
+#: The joint-angle targets against the independent body's truth, every capture (RMS,
 #: degrees): a DOF named for a flexion (hip, knee, ankle, trunk, neck, shoulder, elbow) 2°,
 #: any other rotation 4°. DOFs that miss them, with the worst capture's figure measured on the
 #: shipped samples (static-calibrated, markers low-passed: the quick start's settings) and the
 #: modelling difference behind it (docs/results/fit_accuracy.md, "Against the targets").
 MISSED_DOFS = {
-    "elbow_flexion_r": "2.52° (run_3p0)", "elbow_flexion_l": "2.03° (run_3p5)",
-    "hip_flexion_l": "2.10° (run_3p5)",
-    "knee_flexion_r": "4.11° (run_3p5)", "knee_flexion_l": "4.22° (diag_right_150_fast)",
-    "ankle_dorsiflexion_r": "2.50° (diag_left_60_fast)",
-    "ankle_dorsiflexion_l": "3.01° (diag_right_60_fast)",
-    "hip_rotation_r": "6.63° (side_right_curve_left_r1)",
-    "hip_rotation_l": "6.27° (side_right_curve_right_r1)",
-    "ankle_inversion_r": "4.67° (diag_left_150_fast)",
-    "ankle_inversion_l": "4.60° (diag_right_150_fast)",
+    "elbow_flexion_r": (2.52, "run_3p0"), "elbow_flexion_l": (2.03, "run_3p5"),
+    "hip_flexion_l": (2.10, "run_3p5"),
+    "knee_flexion_r": (4.11, "run_3p5"), "knee_flexion_l": (4.22, "diag_right_150_fast"),
+    "ankle_dorsiflexion_r": (2.50, "diag_left_60_fast"),
+    "ankle_dorsiflexion_l": (3.01, "diag_right_60_fast"),
+    "hip_rotation_r": (6.63, "side_right_curve_left_r1"),
+    "hip_rotation_l": (6.27, "side_right_curve_right_r1"),
+    "ankle_inversion_r": (4.67, "diag_left_150_fast"),
+    "ankle_inversion_l": (4.60, "diag_right_150_fast"),
 }
 
 
@@ -202,7 +202,6 @@ def sample_angle_errors():
     from mocaplib.model.calibration import calibrate
     from mocaplib.model.filtering import filter_trial
     from mocaplib.model.ik import fit
-    from mocaplib.io.c3d import read_c3d
 
     static = read_c3d(SAMPLES / "rest.c3d")
     out = {}
@@ -218,10 +217,21 @@ def sample_angle_errors():
 @pytest.mark.usefixtures("sample_dir")
 @pytest.mark.parametrize("dof", [
     pytest.param(name, marks=pytest.mark.xfail(
-        strict=True, reason=f"measured {MISSED_DOFS[name]}") if name in MISSED_DOFS else ())
+        strict=True, reason="measured {:.2f}° ({})".format(*MISSED_DOFS[name]))
+        if name in MISSED_DOFS else ())
     for name in DOF_NAMES if not name.startswith("pelvis_t")])
 def test_fitted_angles_meet_the_targets_against_the_independent_body(sample_angle_errors, dof):
     j = DOF_NAMES.index(dof)
     target = 2.0 if "flexion" in dof else 4.0
     worst = max(sample_angle_errors, key=lambda name: sample_angle_errors[name][j])
     assert sample_angle_errors[worst][j] <= target, (worst, sample_angle_errors[worst][j])
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_fitted_angles_that_miss_the_targets_are_no_worse_than_measured(sample_angle_errors):
+    # each DOF of MISSED_DOFS at most 0.2 degrees above its measured worst sample
+    for dof, (measured, _) in MISSED_DOFS.items():
+        j = DOF_NAMES.index(dof)
+        worst = max(sample_angle_errors, key=lambda name: sample_angle_errors[name][j])
+        assert sample_angle_errors[worst][j] <= measured + 0.2, (dof, worst,
+                                                                 sample_angle_errors[worst][j])

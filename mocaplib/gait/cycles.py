@@ -256,6 +256,13 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     point_radius, min_arc_angle
         Pattern choice, see :func:`mocaplib.gait.patterns.fit_pattern`.
 
+    Returns
+    -------
+    list of Cycle
+        The cycles in time order, each with its velocities, unsteadiness, event quality and
+        (with ``q``) Fourier encoding; one is ``chosen``. A capture without events gives one
+        rest entry.
+
     Raises
     ------
     EventError

@@ -143,6 +143,11 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
         The capture's file, named in errors.
     settings
         Fields of :class:`EventSettings` to change, e.g. ``toe_off="lift"``.
+
+    Returns
+    -------
+    list of GaitEvent
+        Every toe-off and heel strike found, sorted by time (seconds from the first frame).
     """
     config = EventSettings(**settings)
     return _events(_prepared_feet(feet, rate, config, source), measured, rate, config, source)

@@ -76,8 +76,23 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
 
     Only the header, the parameter section and the POINT words are read; the frames are read
     :data:`CHUNK_BYTES` at a time (their analog samples skipped), so memory holds little more
-    than the marker array, whatever the file's size. Raises :class:`C3DError` (naming the file
-    and the problem) when the file cannot be read.
+    than the marker array, whatever the file's size.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The C3D file (any processor type: Intel, DEC, SGI/MIPS).
+
+    Returns
+    -------
+    Trial
+        Markers (F, M, 3) in metres, Z up, NaN where missing; labels, rate (Hz), events and
+        the reader's notes (``warnings``).
+
+    Raises
+    ------
+    C3DError
+        The file cannot be read; the message names the file and the problem.
     """
     path = Path(path)
     try:

@@ -240,7 +240,24 @@ class ControlSpace:
         return self.tri.convex_hull
 
     def query(self, points) -> QueryResult:
-        """Enclosing tetrahedra and barycentric weights (equation (4)) of points (Q, 3), SI."""
+        """Enclosing tetrahedra and barycentric weights (equation (4)) of query points.
+
+        Parameters
+        ----------
+        points : array_like, shape (Q, 3) or (3,)
+            Velocities on :attr:`axes`, SI units (m/s, rad/s, m/s).
+
+        Returns
+        -------
+        QueryResult
+            Per point: inside the hull or not, the four entries (rows of :attr:`ids`) and
+            their weights, and the nearest point on the hull with its normalised distance.
+
+        Raises
+        ------
+        MocapError
+            Points of another shape.
+        """
         p = np.atleast_2d(np.asarray(points, dtype=float))
         if p.ndim != 2 or p.shape[1] != 3:
             raise MocapError(f"query points must have shape (Q, 3), got {np.shape(points)}")
@@ -281,7 +298,25 @@ class ControlSpace:
 
     # ----------------------------------------------------------------- blending
     def blend(self, result: QueryResult) -> Blend:
-        """Weighted coefficients and periods (equation (5)) of every inside query."""
+        """Weighted coefficients and periods (equation (5)) of every query point.
+
+        Parameters
+        ----------
+        result : QueryResult
+            The answer of :meth:`query`; every point must be inside the hull.
+
+        Returns
+        -------
+        Blend
+            Fourier coefficients (Q, D, N+1), periods (Q,) s and, when the entries have one,
+            root drift velocities (Q, 3); :meth:`Blend.synthesize` samples them.
+
+        Raises
+        ------
+        MocapError
+            A point outside the hull (the message gives the nearest point on it), or a
+            control space without Fourier coefficients.
+        """
         if self.a is None or self.T is None:
             raise MocapError("this control space has no Fourier coefficients to blend",
                              path=self.source)

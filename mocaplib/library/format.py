@@ -309,11 +309,28 @@ class Library:
                                           for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
-        """The entry's joint coordinates at times ``t`` (s from the cycle start), shape (len(t), D).
+        """The entry's joint coordinates at times ``t``.
 
         Evaluates the library's Fourier formula plus the entry's ``fourier.ramp`` (when stored)
-        times the phase t/T, the captured cycle (:class:`mocaplib.gait.fourier.CycleEncoding`);
-        ``t`` beyond ``T`` repeats the cycle.
+        times the phase t/T, the captured cycle (:class:`mocaplib.gait.fourier.CycleEncoding`).
+
+        Parameters
+        ----------
+        entry_id : str
+            The entry's id.
+        t : ndarray, shape (n,)
+            Seconds from the cycle's start; ``t`` beyond ``T`` repeats the cycle.
+
+        Returns
+        -------
+        ndarray, shape (n, D)
+            Joint coordinates in :attr:`dof_names` order: radians, the root's translations in
+            metres, the root in the cycle's path frame (see :meth:`root_drift`).
+
+        Raises
+        ------
+        LibraryError
+            No entry ``entry_id``.
         """
         from ..gait.fourier import synthesize
 
@@ -332,7 +349,19 @@ class Library:
         return _dump(data) + "\n"
 
     def write(self, path: str | os.PathLike) -> Path:
-        """Write the library atomically; returns the path."""
+        """Write the library atomically (:meth:`to_json`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write; a file already there is replaced only once the new one is
+            complete.
+
+        Returns
+        -------
+        Path
+            The path written.
+        """
         return atomic_write_text(path, self.to_json())
 
 
@@ -348,13 +377,28 @@ def diagnostics_path(library_path: str | os.PathLike) -> Path:
 
 # --------------------------------------------------------------------------- reading
 def load_library(path: str | os.PathLike) -> Library:
-    """Read a library file. Raises :class:`LibraryError` when it is not a valid library.
+    """Read a library file.
 
     The file is checked for numbers JSON cannot hold (NaN, Infinity), against the schema and
     for what would make its numbers unusable (coefficient shapes, non-finite or implausible
-    values, periods), so a table built from it can be trusted; a QC metric over its threshold,
-    fields that disagree with each other or a degenerate control space do not prevent loading
-    — run :func:`validate_library` for those.
+    values, periods), so a table built from it can be trusted. A QC metric over its threshold,
+    fields that disagree with each other or a degenerate control space do not prevent loading:
+    run :func:`validate_library` for those.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The library JSON file.
+
+    Returns
+    -------
+    Library
+        The entries, skeleton, settings and control-space scale of the file.
+
+    Raises
+    ------
+    LibraryError
+        The file is not a valid library; the message names the file and each problem.
     """
     document, sha256 = _read_document(path)
     problems = _structure_problems(document) or _named(document, _skeleton_problems(document)
@@ -426,7 +470,17 @@ def validate_library(library) -> list[Problem]:
     profiles rising and parameters those of its characteristic points; the chosen entries' normalised
     (v, omega, v_l) points not degenerate (:func:`mocaplib.library.triangulation.degeneracy`: the rule
     the control space uses); every QC metric within ``qc_thresholds`` or listed in the
-    entry's ``qc_waived`` with a reason. Returns an empty list for a valid library.
+    entry's ``qc_waived`` with a reason.
+
+    Parameters
+    ----------
+    library : str, os.PathLike, dict or Library
+        A library file, its parsed JSON document, or a loaded :class:`Library`.
+
+    Returns
+    -------
+    list of Problem
+        Every problem found, each with the JSON path it is at; empty for a valid library.
     """
     if isinstance(library, Library):
         document = library.document

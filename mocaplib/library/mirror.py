@@ -230,14 +230,29 @@ def image_distance(source, image, /, *, scale=None) -> float:
 
 
 def mirror_library(library, /):
-    """The library with the mirror image (:func:`mirror_entry`) of every entry added, and
-    notes on what was not added: ``(Library, list[str])``.
+    """The library with the mirror image (:func:`mirror_entry`) of every entry added.
 
     Left out: entries that are mirror images, or have one in the library; entries whose image
     would lie within :data:`SYMMETRIC_DISTANCE` of them in the control space (reflected
     velocities: straight walks, runs, rest). The header (settings, skeleton, scales) is kept.
-    Raises :class:`MocapError` naming the entries without ``right_toe_off_s`` (nothing is
-    added then), or an image whose id another entry has.
+
+    Parameters
+    ----------
+    library : Library
+        The library to mirror (not modified).
+
+    Returns
+    -------
+    library : Library
+        The entries and their added images.
+    notes : list of str
+        What was not added, and why, one sentence each.
+
+    Raises
+    ------
+    MocapError
+        Entries without ``right_toe_off_s`` (named; nothing is added then), or an image whose
+        id another entry has.
     """
     from .format import Library, to_json_data
 

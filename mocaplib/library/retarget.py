@@ -195,12 +195,35 @@ class Retargeted:
 def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: float | None = None,
              foot_spacing: float | None = None, stance: float | None = None,
              weights: Weights = Weights(), rate: float = RATE) -> Retargeted:
-    """Retarget the cycle of ``library``'s entry ``entry_id`` (a
-    :class:`~mocaplib.library.format.Library`) to ``skeleton`` (module docstring); step length, foot
-    spacing and stance in metres (None: the entry's, scaled to the target), ``rate`` in Hz.
+    """Retarget the cycle of one library entry to another body (module docstring).
 
-    Raises :class:`MocapError` for an entry without a poulaine (rest, or a library written
-    before poulaines were stored) or requested values that are not lengths.
+    Parameters
+    ----------
+    library : Library
+        The library (:func:`mocaplib.library.format.load_library`).
+    entry_id : str
+        The entry whose cycle is retargeted; it needs a poulaine.
+    skeleton : Skeleton
+        The target body.
+    step_length, foot_spacing, stance : float or None
+        The requested poulaine parameters, metres; None: the entry's, scaled to the target's
+        leg length.
+    weights : Weights
+        Weights of the secondary tasks in the ankles' null space.
+    rate : float
+        Output sampling rate, Hz.
+
+    Returns
+    -------
+    Retargeted
+        The output joint coordinates over one cycle, the requested and reached parameters,
+        the ankle error and the criteria C1-C3 of the entry and the output.
+
+    Raises
+    ------
+    MocapError
+        An entry without a poulaine (rest, or a library written before poulaines were stored),
+        requested values that are not lengths, or a rate that is not > 0.
     """
     from ..gait.poulaine import ankle_centres, blend, travel_coordinates
 

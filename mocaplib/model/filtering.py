@@ -307,16 +307,33 @@ def filter_trial(trial: Trial, /, *, cutoff: float | str | None = "auto",
                  keep: np.ndarray | None = None) -> tuple[Trial, float | None]:
     """The trial with low-pass filtered markers, and the cutoff used (Hz; None: unfiltered).
 
-    ``cutoff``: Hz, ``"auto"`` (:func:`residual_cutoff` of the markers kept) or None /
-    ``"none"`` (the trial itself is returned). Spikes are gapped first (:func:`remove_spikes`).
-    The cutoff is returned only when some run of valid samples was long enough to be filtered
-    (:func:`shortest_run`); otherwise the trial itself and None. ``keep``: the marker columns
-    (int, (K,)) the returned trial holds, in that order (default all): only those are judged
-    and filtered (a file's other points, a model's virtual points or another subject's markers,
-    neither sway the cutoff nor cost anything).
-    The input trial is not modified. Raises :class:`FitError` for a frame rate no gait capture
-    has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff that is not in (0, rate / 2), or a cutoff
-    in Hz whose period is longer than the whole capture.
+    Spikes are gapped first (:func:`remove_spikes`). The input trial is not modified.
+
+    Parameters
+    ----------
+    trial : Trial
+        The capture.
+    cutoff : float, "auto", "none" or None
+        Hz; ``"auto"``: :func:`residual_cutoff` of the markers kept; None or ``"none"``: no
+        filtering (the trial itself is returned).
+    keep : ndarray of int, shape (K,), optional
+        The marker columns the returned trial holds, in that order (default all). Only those
+        are judged and filtered: a file's other points, a model's virtual points or another
+        subject's markers neither sway the cutoff nor cost anything.
+
+    Returns
+    -------
+    trial : Trial
+        The filtered trial (the kept markers only).
+    cutoff : float or None
+        The cutoff used, Hz; None when nothing was filtered, also when no run of valid
+        samples was long enough to be filtered (:func:`shortest_run`).
+
+    Raises
+    ------
+    FitError
+        A frame rate no gait capture has (:data:`mocaplib.trial.GAIT_RATES`), a cutoff not in
+        (0, rate / 2), or a cutoff in Hz whose period is longer than the whole capture.
     """
     check_gait_rate(trial.rate, trial.source, FitError)
     kept = trial if keep is None else dataclasses.replace(

@@ -95,21 +95,54 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     (:func:`mocaplib.model.calibration.calibrate`) on the static that shows the capture's subject or
     on the capture itself, then :func:`mocaplib.model.ik.fit_filtered`.
 
-    ``protocol``: a :class:`~mocaplib.markersets.matching.ProtocolMatch` of this trial, or what
-    :func:`mocaplib.markersets.matching.match_trial` takes (a Protocol, shipped name, TOML path or
-    "auto"; resolved on the capture whatever the static's labels). ``static``: a static trial or
-    a list of them, one per subject or session (the one that shows this capture's subject is
-    used, :func:`mocaplib.model.calibration_checks.choose_static`), in ``static_pose``. When none shows the
-    subject, :class:`~mocaplib.errors.CalibrationError` unless ``fallback``, which calibrates
-    from the capture itself and says so. ``heading_offsets``: per static, the heading correction
-    of a forward reference, radians (:func:`mocaplib.build.workflow.forward_offsets`; the static in
-    the neutral pose). ``measurements``: subject measurements overriding the calibration file's;
-    ``static_window``: the (start, end) seconds of the static to calibrate on
-    (:func:`mocaplib.statics.standing_part`). ``neutral_model(i)``: the model of static
-    ``i`` in the neutral pose when the caller keeps them (it depends on the static alone:
-    a build calibrates each once per process); None calibrates it here. ``clock`` times the
-    stages ("protocol", "filter", "calibrate", "fit"). ``knee_turns``: as
-    :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
+    Parameters
+    ----------
+    trial : Trial
+        The capture (not modified).
+    protocol : ProtocolMatch, Protocol, str or os.PathLike
+        A :class:`~mocaplib.markersets.matching.ProtocolMatch` of this trial, or what
+        :func:`mocaplib.markersets.matching.match_trial` takes (a Protocol, shipped name, TOML
+        path or "auto"; resolved on the capture whatever the static's labels).
+    static : Trial, list of Trial or None
+        A static trial or one per subject or session; the one that shows this capture's
+        subject is used (:func:`mocaplib.model.calibration_checks.choose_static`). None: calibrate
+        from the capture itself.
+    static_pose : {"free", "neutral"}
+        The pose of the static trials.
+    cutoff : float, "auto", "none" or None
+        Marker low-pass cutoff, Hz (:func:`mocaplib.model.filtering.filter_trial`).
+    heading_offsets : sequence of float, optional
+        Per static, the heading correction of a forward reference, radians
+        (:func:`mocaplib.build.workflow.forward_offsets`; the static in the neutral pose).
+    measurements : dict, optional
+        Subject measurements (metres) overriding the calibration file's.
+    static_window : (float, float), optional
+        The (start, end) seconds of the static to calibrate on
+        (:func:`mocaplib.statics.standing_part`).
+    fallback : bool
+        When no static shows the subject: calibrate from the capture itself and say so
+        (True), or raise (False).
+    neutral_model : callable, optional
+        ``neutral_model(i)``: the model of static ``i`` in the neutral pose, when the caller
+        keeps them (a build calibrates each once per process); None calibrates it here.
+    clock : StageClock, optional
+        Times the stages "protocol", "filter", "calibrate" and "fit".
+    knee_turns : dict, optional
+        As :func:`mocaplib.model.calibration.calibrate` takes it (None: functional knee axes).
+
+    Returns
+    -------
+    FittedCapture
+        The protocol match, the cutoff used, the subject model, the fitted motion, the index of
+        the static used and the warnings.
+
+    Raises
+    ------
+    CalibrationError
+        No static shows the capture's subject and ``fallback`` is False, or the calibration
+        fails (the message names the file and what to do).
+    FitError
+        The markers cannot be filtered or fitted.
     """
     from ..errors import CalibrationError
     from ..markersets.matching import ProtocolMatch, match_trial

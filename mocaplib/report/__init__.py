@@ -13,8 +13,30 @@ __all__ = ["report_name", "write_report"]
 
 def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto",
                  jobs: int = 1):
-    """Write ``<out_dir>/<library stem>-report.html``; see
-    :func:`mocaplib.report.html.write_report`."""
+    """Write the self-contained HTML report of a library file.
+
+    Parameters
+    ----------
+    library_path : str or os.PathLike
+        The library file. Its diagnostics sidecar (``<stem>.diagnostics.json``) is read when
+        it exists beside it and belongs to it.
+    out_dir : str or os.PathLike
+        The folder to write into (created when missing).
+    envelope : Envelope, str, os.PathLike or None
+        The velocities to cover: an :class:`~mocaplib.library.controlspace.Envelope`, a TOML
+        file (an ``[envelope]`` table, or a capture plan), or None for the capture plan
+        shipped with mocaplib (:func:`mocaplib.report.plan.default_envelope`).
+    renderer : {"auto", "matplotlib"}
+        The 3-D control-space view: pyvista, falling back to matplotlib without OpenGL, or
+        matplotlib.
+    jobs : int
+        Processes drawing the per-capture figures (the report's slowest part).
+
+    Returns
+    -------
+    Path
+        ``<out_dir>/<library stem>-report.html``.
+    """
     from .html import write_report as _write
 
     return _write(library_path, out_dir, envelope=envelope, renderer=renderer, jobs=jobs)
