@@ -18,6 +18,7 @@ from ..io import read_regular
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import canonical_sha256, parse_json
 from ..library.format import json_text, to_json_data
+from ..markersets.protocols import user_fingerprint
 from .settings import BuildSettings
 from .workflow import CHANGED_WHILE_READ, CaptureResult, static_sha256
 
@@ -45,7 +46,6 @@ def cache_key(path: Path, sha256: str, settings: BuildSettings) -> str:
     (:func:`mocaplib.markersets.protocols.user_fingerprint`) are part of the key, so editing any of them
     invalidates the cache.
     """
-    from ..markersets.protocols import user_fingerprint
 
     parts = {"file": path.name, "sha256": sha256, "settings": settings.to_dict(),
              "tool": __version__, "code": code_fingerprint(), "protocols": user_fingerprint()}

@@ -26,6 +26,7 @@ from ..io import find_captures, fs_text
 from ..io.atomic import atomic_write_files
 from ..library.format import (DIAGNOSTICS_FORMAT, Library, assemble_library, diagnostics_path,
                               json_text, to_json_data)
+from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
 from .sessions import plan_captures
 from .settings import BuildSettings
@@ -93,7 +94,6 @@ class BuildResult:
         lines = [f"captures {s['captures']}  ok {s['succeeded']}  failed {s['failed']}  "
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
                  f"({s['seconds']:.1f} s)"]
-        from ..statics import static_names
 
         names = static_names(self.settings.statics)
         if len(names) > 1:

@@ -12,7 +12,7 @@ from ..gait.events import TOE_OFF_DEFINITIONS, EventSettings
 from ..gait.qc import DEFAULT_QC_THRESHOLDS
 from ..io import unique_paths
 from ..library.format import to_json_data
-
+from ..statics import static_names
 
 #: Largest ``max_gap_s`` (s): an hour, longer than any capture (beyond, the gap's frame count
 #: overflows).
@@ -121,7 +121,6 @@ class BuildSettings:
         """The settings as JSON data, as stored in the library (static files and forward
         references by name only: one name, a list of names when several were given, or None)."""
         data = asdict(self)
-        from ..statics import static_names
 
         for key, paths in (("static", self.statics),
                            ("forward_reference", self.forward_references)):

@@ -40,8 +40,6 @@ from ..statics import static_names
 from .capture import ProcessedCapture, cut_cycles, fit_events
 from .settings import BuildSettings
 
-
-
 #: Long series in the diagnostics are downsampled to at most this many points.
 MAX_SERIES_POINTS = 300
 

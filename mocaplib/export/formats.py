@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Callable
 from ..errors import MocapError
 
 if TYPE_CHECKING:
-    from ..model.subject import SubjectModel
     from ..model.motion import Motion
+    from ..model.subject import SubjectModel
     from ..trial import Trial
 
 

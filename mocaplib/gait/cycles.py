@@ -51,8 +51,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EventError, NoCycleError
-from ..model.filtering import resample
-from ..skeleton import ROOT_X, ROOT_Y, TRANSLATION
+from ..model.filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
+from ..skeleton import DOF_NAMES, ROOT_X, ROOT_Y, SEGMENT_NAMES, TRANSLATION
+from ..statics import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 from ..trial import CYCLE_STARTS
 from .events import EventSettings
 from .foot_events import GaitEvent
@@ -159,7 +160,6 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
     twice as close to the truth as the acromion markers (whose placement error yaws the
     shoulder line), see docs/results/velocity_accuracy.md.
     """
-    from ..skeleton import SEGMENT_NAMES
 
     frames = motion.segment_transforms()
     return (frames[:, SEGMENT_NAMES.index("humerus_l"), :3, 3],
@@ -350,7 +350,6 @@ def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float,
     shoulders stand still (:data:`mocaplib.statics.STANDING_EXTENT`) for a second or more,
     half of it at least, is a static with a step; otherwise it holds too few strides, or a
     wrong rate."""
-    from ..statics import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 
     mid = 0.5 * (np.asarray(left, dtype=float) + np.asarray(right, dtype=float))[:, None]
     seen = np.ones(len(mid), dtype=bool) if filled is None else ~np.asarray(filled, dtype=bool)
@@ -456,7 +455,6 @@ def _smoothed(q: np.ndarray, rate: float) -> np.ndarray | None:
     """The coordinates (F, D) low-passed at :data:`mocaplib.model.filtering.WALKING_CUTOFF`, from
     which each cycle's noise floor is measured (:mod:`mocaplib.gait.fourier`); None when the capture
     is too short or too slowly sampled to be filtered there."""
-    from ..model.filtering import WALKING_CUTOFF, lowpass, shortest_run
 
     if len(q) < shortest_run(rate, WALKING_CUTOFF) or rate <= 2 * WALKING_CUTOFF:
         return None
@@ -465,7 +463,6 @@ def _smoothed(q: np.ndarray, rate: float) -> np.ndarray | None:
 
 def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> np.ndarray:
     """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
-    from ..skeleton import DOF_NAMES
 
     never = ~np.isfinite(q).any(axis=0)
     if never.any():

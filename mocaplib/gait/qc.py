@@ -8,6 +8,10 @@ import math
 
 import numpy as np
 
+from ..model.filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
+from ..skeleton import JOINT_ANGLES, ROOT_X, ROOT_Y, TRANSLATION
+from .criteria import closure, internal_power, jerk_rms, segment_energies, third_derivative
+
 
 def qc_series(motion, ground: np.ndarray | None = None) -> dict:
     """The capture-wide series the QC of its cycles reads: ``q`` the coordinates (F, D),
@@ -17,9 +21,6 @@ def qc_series(motion, ground: np.ndarray | None = None) -> dict:
     ``ground`` m/s), both from the coordinates low-passed at
     :data:`mocaplib.model.filtering.WALKING_CUTOFF` (None when the capture is too short to be
     filtered): derivatives of unfiltered angles would measure fit noise only."""
-    from ..model.filtering import WALKING_CUTOFF, lowpass, shortest_run
-    from ..skeleton import JOINT_ANGLES, ROOT_X, ROOT_Y, TRANSLATION
-    from .criteria import segment_energies, third_derivative
 
     q = motion.q.copy()
     q[:, ~TRANSLATION] = np.unwrap(q[:, ~TRANSLATION], axis=0)
@@ -76,9 +77,6 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     capture is too short to be filtered. ``series``: the capture's :func:`qc_series`, when
     already computed.
     """
-    from ..model.filtering import resample
-    from ..skeleton import TRANSLATION
-    from .criteria import closure, internal_power, jerk_rms
 
     series = qc_series(motion) if series is None else series
     inside = inside_cycle(cycle, motion)

@@ -60,6 +60,7 @@ from ..errors import LibraryError, MocapError
 from ..gait.fourier import RootDrift, synthesize
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
+from .phase import from_left_toe_off
 from .triangulation import (DEGENERACY_HINT, Triangulation, closest_on_triangles, degeneracy,
                             delaunay_tetrahedra, locate, stack_padded, tetra_quality)
 
@@ -190,7 +191,6 @@ class ControlSpace:
         left toe-off: an entry whose cycle starts at another event (``cycle_start``) is
         expressed from its left toe-off (:func:`mocaplib.library.phase.from_left_toe_off`).
         """
-        from .phase import from_left_toe_off
 
         entries = [from_left_toe_off(e) for e in library.entries]
         # (E, 4): the axes' velocities and the period, NaN where null

@@ -22,6 +22,8 @@ from dataclasses import MISSING, dataclass, field, fields
 import numpy as np
 
 from ..errors import LibraryError
+from ..gait.fourier import RootDrift
+from ..gait.poulaine import Poulaine
 from ..gait.qc import QC_NAMES
 from ..io.jsonvalues import float_or_nan, json_values
 from ..trial import CYCLE_STARTS
@@ -212,7 +214,6 @@ def drift_displacement(drift: dict, T: float) -> dict:
     """``dx_m``, ``dy_m`` (m, forward and left in the frame at the cycle start) and
     ``dheading_rad`` of the path frame moving for ``T`` s with an entry's root-drift velocities
     (:data:`DRIFT_VELOCITIES`; see :class:`mocaplib.gait.fourier.RootDrift`)."""
-    from ..gait.fourier import RootDrift
 
     velocities = (float_or_nan(drift[key]) for key in DRIFT_VELOCITIES)
     x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(float_or_nan(T))
@@ -292,7 +293,6 @@ class EntryPoulaine(_Record):
 
     def model(self):
         """The :class:`mocaplib.gait.poulaine.Poulaine` this record stores."""
-        from ..gait.poulaine import Poulaine
 
         return Poulaine.from_dict(self.to_json())
 

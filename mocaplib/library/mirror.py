@@ -47,8 +47,14 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import MocapError
+from ..io import read_regular
+from ..io.atomic import atomic_write_files
+from ..io.jsonvalues import parse_json
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
 from .controlspace import CLOSE_DISTANCE
+from .entry import EntryDrift, EntryFourier
+from .format import CHECKSUM_KEY, Library, control_scale, diagnostics_path, json_text, to_json_data
+from .phase import from_left_toe_off, shifted_poulaine, shifted_series
 
 #: The reflection of the mirror: y -> -y (3, 3).
 REFLECTION = np.diag([1.0, -1.0, 1.0])
@@ -184,8 +190,6 @@ def mirror_entry(entry, /):
     before entries recorded it, or a cycle whose right toe-off was not detected): there is no
     start for its mirror image.
     """
-    from .entry import EntryDrift, EntryFourier
-    from .phase import from_left_toe_off, shifted_poulaine, shifted_series
 
     entry = from_left_toe_off(entry)
     if entry.right_toe_off_s is None:
@@ -222,7 +226,6 @@ def image_distance(source, image, /, *, scale=None) -> float:
     """Normalised control-space distance between a library entry's velocities (v, ω, v_l)
     and its mirror image's (each (3,), e.g. :attr:`mocaplib.library.entry.LibraryEntry.velocity`);
     ``scale``: the control space's (3,), :func:`mocaplib.library.format.control_scale` by default."""
-    from .format import control_scale
 
     difference = np.asarray(source, dtype=np.float64) - np.asarray(image, dtype=np.float64)
     return float(np.linalg.norm(difference / np.asarray(control_scale() if scale is None
@@ -254,7 +257,6 @@ def mirror_library(library, /):
         Entries without ``right_toe_off_s`` (named; nothing is added then), or an image whose
         id another entry has.
     """
-    from .format import Library, to_json_data
 
     if library.dof_names != list(DOF_NAMES):
         raise MocapError("the library's DOFs are not this mocaplib's skeleton's: its entries "
@@ -286,7 +288,6 @@ def mirror_library(library, /):
     if taken:
         raise MocapError(f"the mirror image of an entry would take the id {taken[0]}, which "
                          "another entry has", hint="rename that entry's capture")
-    from .format import CHECKSUM_KEY
 
     # new content: the source's checksum goes (writing the library computes its own)
     document = {**{k: v for k, v in library.document.items() if k != CHECKSUM_KEY},
@@ -307,10 +308,6 @@ def write_mirrored(library, library_path, out_path, /) -> tuple:
     import hashlib
     from pathlib import Path
 
-    from ..io import read_regular
-    from ..io.atomic import atomic_write_files
-    from ..io.jsonvalues import parse_json
-    from .format import diagnostics_path, json_text
 
     text = library.to_json().encode("utf-8")
     files = [(Path(out_path), text)]

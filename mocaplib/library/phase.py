@@ -24,13 +24,16 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..gait.fourier import synthesize
+from ..gait.poulaine import AnklePath, Poulaine
+from ..skeleton import ROOT_HEADING, ROOT_X, ROOT_Y
+from .entry import EntryDrift, EntryFourier, EntryPoulaine
+
 
 def shifted_series(entry, tau: float, /) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The entry's Fourier coefficients ``a``, ``b`` (D, N+1) from ``tau`` seconds into its
     cycle on, root channels re-anchored (module docstring), and the path frame's forward and
     lateral velocities (u_f, u_l) m/s carried with them."""
-    from ..gait.fourier import synthesize
-    from ..skeleton import ROOT_HEADING, ROOT_X, ROOT_Y
 
     period = float(entry.T)
     a, b = entry.fourier.a.copy(), entry.fourier.b.copy()
@@ -57,8 +60,6 @@ def shifted_poulaine(poulaine, start: float, /, *, reflect: bool = False):
     order); with ``reflect`` also seen in the mirror (y → −y): the left ankle's path becomes
     the right one's with y negated (points and tangents), the travel direction negated. The fit
     errors and the step parameters are unchanged."""
-    from ..gait.poulaine import AnklePath, Poulaine
-    from .entry import EntryPoulaine
 
     flip = np.array([1.0, -1.0 if reflect else 1.0, 1.0])
 
@@ -81,7 +82,6 @@ def start_later(entry, tau: float, /, *, cycle_start: str | None, left_toe_off_s
     ``left_toe_off_s`` then None, else the left toe-off's time from the new start): series,
     root drift, window, right toe-off and poulaine re-expressed (module docstring); the QC
     metrics, pattern and velocities are the entry's."""
-    from .entry import EntryDrift, EntryFourier
 
     period = float(entry.T)
     a, b, u_f, u_l = shifted_series(entry, tau)

@@ -56,7 +56,11 @@ import numpy as np
 
 from ..errors import MocapError
 from ..export.formats import write
-from ..gait.fourier import RootDrift
+from ..gait.criteria import closure, internal_power, jerk_rms, segment_energies, third_derivative
+from ..gait.fourier import RootDrift, fit_series
+from ..gait.poulaine import FEET, MIN_TRAVEL_SPEED, ankle_centres, blend, travel_coordinates
+from ..model.anthropometry import bodies
+from ..model.filtering import WALKING_CUTOFF
 from ..model.motion import Motion
 from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
                         Skeleton, segment_dofs)
@@ -225,7 +229,6 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
         An entry without a poulaine (rest, or a library written before poulaines were stored),
         requested values that are not lengths, or a rate that is not > 0.
     """
-    from ..gait.poulaine import ankle_centres, blend, travel_coordinates
 
     entry = library.entry(entry_id)
     own = library.poulaine(entry_id)
@@ -277,7 +280,6 @@ def foot_skate(skeleton: Skeleton, q: np.ndarray, time_s: np.ndarray, /) -> floa
     """How fast the feet slide in support, m/s: per foot, the median speed of its ankle centre
     over the frames where it is within :data:`SUPPORT_HEIGHT` of its lowest over ``q`` (n, D)
     at ``time_s`` (n,) (world frame); the larger of the two feet's."""
-    from ..gait.poulaine import ankle_centres
 
     ankles = ankle_centres(skeleton, q)
     speed = np.linalg.norm(np.gradient(ankles, time_s, axis=0), axis=-1)
@@ -322,7 +324,6 @@ def _candidates(library, entry, own) -> dict:
     :data:`SIMILAR_TURN` of its ω̂, travelling within :data:`SIMILAR_TRAVEL` of its direction
     relative to the pelvis and in support within :data:`SIMILAR_SUPPORT` of its share of the
     cycle (``own``: its poulaine; :attr:`~mocaplib.gait.poulaine.Poulaine.duty_factor`)."""
-    from ..gait.poulaine import MIN_TRAVEL_SPEED
 
     moving = entry.v >= MIN_TRAVEL_SPEED
     same = [e.id for e in library.entries if e.poulaine is not None
@@ -363,8 +364,6 @@ def periodic_lowpass(values: np.ndarray, period: float, /, *, cutoff: float | No
     :data:`mocaplib.model.filtering.WALKING_CUTOFF`): the least-squares Fourier series of order
     floor(cutoff·T) (:func:`mocaplib.gait.fourier.fit_series`), a
     :class:`~mocaplib.gait.fourier.FourierSeries` to evaluate at any time."""
-    from ..gait.fourier import fit_series
-    from ..model.filtering import WALKING_CUTOFF
 
     values = np.asarray(values, dtype=np.float64)
     times = np.arange(len(values)) * period / len(values)
@@ -381,8 +380,6 @@ def cycle_criteria(skeleton: Skeleton, q_path: np.ndarray, drift: RootDrift,
     first and last sample; C3 from the world motion (the path frame's drift put back), its
     velocities by centred differences with one more sample each side, taken periodically in
     the path frame."""
-    from ..gait.criteria import (closure, internal_power, jerk_rms, segment_energies,
-                                 third_derivative)
 
     steps = len(q_path) - 1
     rate = steps / period
@@ -407,8 +404,6 @@ def solve(skeleton: Skeleton, targets: np.ndarray, reference: np.ndarray, /, *,
     kept); ``step``: seconds between frames. Returns the joint coordinates (m, D), each frame's
     largest ankle error (m,) m and the number of steps a joint limit stopped.
     """
-    from ..gait.poulaine import FEET
-    from ..model.anthropometry import bodies
 
     task = np.array(TASK_DOFS)
     lower, upper = (bound[task] for bound in Skeleton.bounds())

@@ -37,6 +37,6 @@ def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"
     Path
         ``<out_dir>/<library stem>-report.html``.
     """
-    from .html import write_report as _write
+    from .html import write_report as _write   # jinja2 and the figures: only for a report
 
     return _write(library_path, out_dir, envelope=envelope, renderer=renderer, jobs=jobs)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..io import read_regular
 from ..io.jsonvalues import parse_json
-from ..library.format import DIAGNOSTICS_FORMAT
+from ..library.format import DIAGNOSTICS_FORMAT, diagnostics_path
 
 
 # --------------------------------------------------------------------------- sidecar
@@ -29,7 +29,6 @@ def read_diagnostics(library_path: Path, library) -> tuple[dict | None, list[str
     Capture records are checked once here, so the rest of the report can rely on their shape:
     a record that is not an object, or whose ``cycles`` or ``warnings`` are malformed, is left
     out with a warning naming it (:func:`_record_problem`)."""
-    from ..library.format import diagnostics_path
 
     path = diagnostics_path(library_path)
     if not os.path.lexists(path):

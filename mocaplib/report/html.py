@@ -17,13 +17,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..build.workers import run_tasks
 from ..errors import MocapError
 from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io.atomic import atomic_write_text
 from ..library.controlspace import AXIS_UNITS, ControlSpace
 from ..library.format import NO_CHECKSUM_NOTE, checksum_status, load_library, validate_library
+from ..skeleton import DOF_NAMES
 from . import figures
 from .diagnostics import read_diagnostics
+from .figureview import viewer_data
 from .files import data_uri, report_name
 from .plan import planned_status
 from .space_sections import AXIS_NAMES, add_control_space, css_colours, resolve_envelope
@@ -246,8 +249,6 @@ def _entry_rows(entries, label) -> list[dict]:
 def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
     """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
     warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
-    from ..skeleton import DOF_NAMES
-    from .figureview import viewer_data
 
     if not len(library):
         warnings.append("motion viewer left out: the library has no entry")
@@ -311,7 +312,6 @@ def _in_processes(function, arguments: list[tuple], jobs: int) -> list:
     """``[function(*a) for a in arguments]`` by ``jobs`` worker processes
     (:func:`mocaplib.build.workers.run_tasks`, as the build's); ``function`` returns ``(value,
     error)``, and a call that raised or whose worker died gives ``(None, reason)``."""
-    from ..build.workers import run_tasks
 
     results: list = [None] * len(arguments)
     for i, value, error in run_tasks(function, arguments, jobs=jobs):

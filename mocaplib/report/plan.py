@@ -26,6 +26,7 @@ from ..errors import MocapError
 from ..io.tomlfile import read_toml
 from ..library.command import plan_command
 from ..library.coverage import Envelope
+from ..markersets.protocols import capture_plans
 
 #: (v, ω, v_l) corners used when no capture plan exists: rest, on-the-spot turns at 60°/s,
 #: fast straight walking, 1 m curves at 1.2 m/s, 2 m curves at 1.8 m/s, side-steps at
@@ -40,7 +41,6 @@ FALLBACK_ENVELOPE = np.array([
 def find_plan() -> Path | None:
     """The first capture plan shipped with mocaplib (:func:`mocaplib.markersets.protocols.capture_plans`,
     the same plans the build takes locomotion classes from), or None."""
-    from ..markersets.protocols import capture_plans
 
     plans = capture_plans()
     return plans[0] if plans else None
