@@ -6,6 +6,11 @@ as one line without a traceback. Exit codes: 0 success, 1 failure (some input ba
 Output that the console's encoding cannot show (ω, ° on an ASCII or cp1252 stdout) is
 written with ``?`` in its place rather than stopping the command, and control characters in
 what is printed (file names, labels) are escaped.
+
+Every sub-command is registered at start-up, so each imports the stages it runs inside its
+``_run``: ``mocaplib --help`` loads no stage and a command loads only its own (``mocaplib fit``
+neither the library's modules nor scipy; the start-up each costs is measured in
+docs/results/end_to_end.md and held by tests/test_package.py).
 """
 
 from __future__ import annotations
