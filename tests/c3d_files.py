@@ -7,7 +7,9 @@ mocaplib's writer. :func:`parameter_record` finds a parameter's record in a file
 
 from __future__ import annotations
 
+import io
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -61,3 +63,97 @@ def read_c3d_bytes(data: bytes, folder: Path) -> Trial:
     path = folder / "original.c3d"
     path.write_bytes(data)
     return read_c3d(path)
+
+
+# ----------------------------------------------------------------------------- any layout
+def capture_bytes(markers, labels, rate: float = 100.0, *, analog: tuple[int, int] = (0, 1),
+                  scale: float = -1.0, point_params: dict[str, list[str]] | None = None,
+                  screen: tuple[str, str] | None = None) -> bytes:
+    """A C3D file (Intel) written by the ``c3d`` package: ``markers`` (F, M, 3) metres (NaN =
+    missing: residual -1) stored in mm, float storage (``scale`` < 0) or int16 x ``scale``
+    mm; ``analog`` = (channels, samples per frame) of made-up samples, ANALOG:RATE = rate x
+    samples per frame; ``point_params`` adds POINT string parameters (``{"ANGLES":
+    ["LHipAngles"]}``); ``screen`` sets POINT:X_SCREEN and Y_SCREEN (``("+X", "+Z")``)."""
+    import c3d
+
+    markers = np.asarray(markers, dtype=np.float64)
+    channels, per_frame = analog
+    writer = c3d.Writer(point_rate=rate, analog_rate=rate * per_frame, point_scale=scale)
+    if len(labels):
+        writer.set_point_labels(list(labels))
+    if channels:
+        writer.set_analog_labels([f"CH{i}" for i in range(channels)])
+    for name, texts in (point_params or {}).items():
+        width = max(1, max(len(text) for text in texts))
+        writer.point_group.add_str(name, name, "".join(t.ljust(width) for t in texts),
+                                   width, len(texts))
+    if screen:
+        writer.set_screen_axis(*screen)
+    samples = 1.0 + np.arange(channels * per_frame, dtype=np.float32).reshape(channels,
+                                                                            per_frame)
+    frames = np.empty((len(markers), 2), dtype=object)  # (points, analog) pairs, any shapes
+    for pair, frame in zip(frames, markers):
+        seen = np.isfinite(frame).all(axis=1)
+        points = np.zeros((len(frame), 5))
+        points[seen, :3] = frame[seen] * 1000.0
+        points[:, 3] = np.where(seen, 0.0, -1.0)
+        pair[0], pair[1] = points, samples
+    writer.add_frames(frames)
+    buffer = io.BytesIO()
+    with warnings.catch_warnings():      # "No analog data found in file."
+        warnings.simplefilter("ignore")
+        writer.write(buffer)
+    return buffer.getvalue()
+
+
+def data_start(data: bytes) -> int:
+    """Byte offset of the first frame (header word 9: the data block)."""
+    return (struct.unpack_from("<H", data, 16)[0] - 1) * 512
+
+
+def with_header_word(data: bytes, word: int, value: int) -> bytes:
+    """``data`` with the header's 16-bit word number ``word`` (1-based, as the C3D standard
+    counts: 2 points, 3 analog words per frame, 4 first frame, 5 last frame) set to ``value``."""
+    out = bytearray(data)
+    struct.pack_into("<H", out, 2 * (word - 1), value)
+    return bytes(out)
+
+
+def _record(data: bytes, key: str):
+    group, name = key.split(":")
+    return parameter_record(data, group, name)
+
+
+def with_parameter(data: bytes, key: str, *values) -> bytes:
+    """``data`` with the numbers of parameter ``GROUP:NAME`` overwritten in place by
+    ``values``, in the parameter's own type (16-bit integers or floats)."""
+    record, out = _record(data, key), bytearray(data)
+    kind = {2: "<H", 4: "<f"}[data[record.link_at + 2]]
+    at = record.link_at + 4 + data[record.link_at + 3]         # after type and dimensions
+    for i, value in enumerate(values):
+        struct.pack_into(kind, out, at + i * struct.calcsize(kind), value)
+    return bytes(out)
+
+
+def with_text(data: bytes, key: str, text: str) -> bytes:
+    """``data`` with the text parameter ``GROUP:NAME`` overwritten in place by ``text``,
+    padded with spaces to the stored width (it must fit)."""
+    record, out = _record(data, key), bytearray(data)
+    width = data[record.link_at + 4]                           # the first dimension
+    assert len(text) <= width, f"{text!r} is longer than {key}'s {width} characters"
+    at = record.link_at + 4 + data[record.link_at + 3]
+    out[at:at + width] = text.ljust(width).encode()
+    return bytes(out)
+
+
+def without(data: bytes, key: str) -> bytes:
+    """``data`` with parameter ``GROUP:NAME`` renamed ``X...`` in place: a reader looking for
+    it finds nothing (as in files whose writer leaves it out)."""
+    record, out = _record(data, key), bytearray(data)
+    out[record.position + 2] = ord("X")
+    return bytes(out)
+
+
+def cut_after(data: bytes, frames: int, frame_bytes: int) -> bytes:
+    """``data`` cut right after its ``frames``-th frame of ``frame_bytes`` bytes: no padding."""
+    return data[:data_start(data) + frames * frame_bytes]

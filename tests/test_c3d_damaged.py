@@ -18,8 +18,8 @@ from mocaplib.io.c3d_params import parameter_records
 from mocaplib.io.c3d_write import c3d_bytes, write_c3d
 from mocaplib.trial import Trial
 
-from c3d_files import (SMALL, SMALL_DATA_END, read_c3d_bytes, standing_person,
-                       with_scale)
+from c3d_files import (SMALL, SMALL_DATA_END, read_c3d_bytes, standing_person, with_header_word,
+                       with_parameter, with_scale)
 from conftest import SHARED_C3D
 
 
@@ -73,13 +73,25 @@ def test_cut_in_the_final_padding_still_reads(tmp_path):
 
 
 def test_sizes_that_would_need_gigabytes(tmp_path):
-    """Header frame numbers claiming 65535 frames: refused from the file size, nothing allocated."""
-    data = bytearray(SMALL)
-    struct.pack_into("<H", data, 8, 65535)    # header word 5: last frame
+    """Every frame count claiming 65535 frames (header, POINT:FRAMES, TRIAL): refused from the
+    file size, nothing allocated."""
+    data = with_header_word(SMALL, 5, 65535)
+    data = with_parameter(with_parameter(data, "POINT:FRAMES", 65535),
+                          "TRIAL:ACTUAL_END_FIELD", 65535, 0)
     path = tmp_path / "huge.c3d"
-    path.write_bytes(bytes(data))
+    path.write_bytes(data)
     with pytest.raises(C3DError, match="truncated: 65535 frames"):
         read_c3d(path)
+
+
+def test_a_header_alone_claiming_65535_frames_is_outvoted(tmp_path):
+    """The header's last frame at 65535 while POINT:FRAMES, TRIAL and the data section say 12:
+    12 frames are read, with a note naming both counts."""
+    path = tmp_path / "header.c3d"
+    path.write_bytes(with_header_word(SMALL, 5, 65535))
+    trial = read_c3d(path)
+    np.testing.assert_array_equal(trial.markers, read_c3d_bytes(SMALL, tmp_path).markers)
+    assert any("frames: 12 (" in w and "65535 (the header)" in w for w in trial.warnings)
 
 
 def test_wrong_processor_byte(tmp_path):

@@ -38,13 +38,12 @@ from ..trial import Event, Trial, subject_prefixes
 from . import open_regular
 from .c3d_axis import detect_vertical_axis, screen_up_axis, y_up_to_z_up
 from .c3d_layout import frames_past_16_bits, point_layout
-from .c3d_params import number, parse_parameters, read_metadata, strings
+from .c3d_params import label_keys, number, parse_parameters, read_metadata, strings
 from .c3d_points import CHUNK_BYTES, read_points
 
 UNITS_TO_METRES = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0}
 #: POINT parameters listing the labels of model outputs (not marker positions).
 MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "REACTIONS")
-_LABEL_PARAMS = 100          # LABELS, LABELS2 ... LABELS99: far beyond any real file
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
@@ -89,7 +88,8 @@ def _read_trial(handle, path: Path) -> Trial:
     metadata = read_metadata(handle, size, path)
     notes: list[str] = []
     reader = parse_parameters(metadata, path, notes)
-    layout = frames_past_16_bits(handle, point_layout(reader, size, path, notes), size, notes)
+    layout = frames_past_16_bits(handle, point_layout(reader, handle, size, path, notes),
+                                 size, notes)
 
     labels = _point_labels(reader, layout.count, path, notes)
     units, to_metres = _point_units(reader, path, notes)
@@ -127,12 +127,10 @@ def _read_trial(handle, path: Path) -> Trial:
 # ----------------------------------------------------------------------------- labels, units
 def _point_labels(reader, count: int, path: Path, notes: list[str]) -> list[str]:
     labels: list[str] = []
-    for index in range(1, _LABEL_PARAMS):
-        key = "POINT:LABELS" if index == 1 else f"POINT:LABELS{index}"
-        param = reader.get(key)
-        if param is None or len(labels) >= count:
+    for key in label_keys(reader):
+        if len(labels) >= count:
             break
-        labels.extend(strings(param, path, key))
+        labels.extend(strings(reader.get(key), path, key))
     if len(labels) < count:
         notes.append(f"{count - len(labels)} points have no label; named POINT{len(labels) + 1}...")
         labels.extend(f"POINT{i + 1}" for i in range(len(labels), count))

@@ -25,6 +25,7 @@ from ..errors import C3DError
 from . import printable
 
 PROCESSORS = {84: "INTEL", 85: "DEC", 86: "MIPS"}
+_LABEL_PARAMS = 100          # LABELS, LABELS2 ... LABELS99: far beyond any real file
 
 
 # ----------------------------------------------------------------------------- file and header
@@ -195,8 +196,8 @@ class Parameter:
 class Parameters:
     """The header and the parameter section of a C3D file: :meth:`get` ``"GROUP:NAME"`` (a
     parameter, the first definition of a name in its group) or ``"GROUP"``; the header's
-    words as attributes; :attr:`first_frame` and :attr:`last_frame` from the parameters
-    that extend the header's 16-bit frame numbers."""
+    words as attributes; :attr:`first_frame` from the parameters that extend the header's
+    16-bit frame numbers."""
 
     def __init__(self, data: bytes, notes: list[str]):
         records, endian = parameter_records(data)
@@ -259,25 +260,17 @@ class Parameters:
             return int(words[0]) + int(words[1]) * 65536
         return int(self.header_first_frame)
 
-    @property
-    def last_frame(self) -> int:
-        """The last frame, from the first of TRIAL:ACTUAL_END_FIELD (two 16-bit words),
-        POINT:LONG_FRAMES and POINT:FRAMES (float or 16-bit) that is not below the header's
-        (16-bit) last frame; else the header's."""
-        header = int(self.header_last_frame)
-        param = self.get("TRIAL:ACTUAL_END_FIELD")
-        if param is not None:
-            words = param.uint16_array
-            if header <= int(words[0]) + int(words[1]) * 65536:
-                return int(words[0]) + int(words[1]) * 65536
-        for key in ("POINT:LONG_FRAMES", "POINT:FRAMES"):
-            param = self.get(key)
-            if param is not None:
-                end = int(param.float_value) if param.bytes_per_element >= 4 \
-                    else param.uint16_value
-                if header <= end:
-                    return end
-        return header
+
+def label_keys(reader) -> list[str]:
+    """The label parameters of a file, in order: POINT:LABELS, POINT:LABELS2... (files with
+    more than 255 points) up to the first missing one."""
+    keys = []
+    for index in range(1, _LABEL_PARAMS):
+        key = "POINT:LABELS" if index == 1 else f"POINT:LABELS{index}"
+        if reader.get(key) is None:
+            break
+        keys.append(key)
+    return keys
 
 
 def strings(param, path: Path, key: str) -> list[str]:
