@@ -93,6 +93,11 @@ class Trial:
     measurements : dict[str, float]
         Subject measurements the file stores (metres, kilograms), keys of
         :data:`mocaplib.model.anatomy.MEASUREMENTS` (``knee_width_l``, ``marker_diameter``...).
+    analog_channels : int
+        Analog channels the file stores beside the markers (force plates, EMG; not read).
+
+    A trial may hold no markers (M = 0: a file of analog channels only); every stage after
+    import refuses it (:func:`require_markers`).
     """
 
     markers: np.ndarray
@@ -105,6 +110,7 @@ class Trial:
     source: str | None = None
     warnings: list[str] = field(default_factory=list)
     measurements: dict[str, float] = field(default_factory=dict)
+    analog_channels: int = 0
 
     def __post_init__(self):
         where = self.source
@@ -126,6 +132,10 @@ class Trial:
         self.markers = markers
         self.rate = float(self.rate)
         self.first_frame = int(self.first_frame)
+        self.analog_channels = int(self.analog_channels)
+        if self.analog_channels < 0:
+            raise MocapError(f"analog_channels must be >= 0, got {self.analog_channels}",
+                             path=where)
         self.events = sorted(self.events, key=lambda e: e.time_s)
         if self.source is not None:
             self.source = os.fspath(self.source)
@@ -190,3 +200,16 @@ class Trial:
 #: Events a cycle may start at besides a left toe-off (``cycle_start``): the other events of
 #: one stride, :data:`mocaplib.gait.cycles.STRIDE_EVENTS`.
 CYCLE_STARTS = ("left_heel_strike", "right_toe_off", "right_heel_strike")
+
+
+def require_markers(trial: Trial, /) -> None:
+    """Raise :class:`MocapError` naming the trial's file when it holds no marker points
+    (M = 0): protocols, calibration, fitting, events and drafts all need markers."""
+    if trial.n_markers:
+        return
+    holds = (f"{trial.analog_channels} analog channels and no marker trajectories: this "
+             "looks like an analog-only/force-plate file" if trial.analog_channels else
+             "no marker trajectories and no analog channels")
+    raise MocapError(f"no marker points: the file holds {holds}", path=trial.source,
+                     hint="give the capture's marker file, the C3D holding its POINT data; "
+                          "`mocaplib inspect FILE` shows what a file holds")

@@ -114,8 +114,8 @@ def sessions_of(captures: list[Path], /) -> dict[Path, Session]:
 def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) -> list[str]:
     """The captures (paths as given) whose markers stand still over the whole file
     (:func:`mocaplib.statics.check_standing`), except those whose real path is in
-    ``exclude``; a file that cannot be read, whatever the exception, is not one (its
-    processing fails alone and says why)."""
+    ``exclude``; a file that cannot be read (whatever the exception) or holds no markers is
+    not one (its processing fails alone and says why)."""
     from ..io.c3d import read_c3d
     from ..statics import check_standing
 
@@ -125,7 +125,7 @@ def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) 
             continue
         try:
             trial = read_c3d(capture)
-            if trial.n_frames:
+            if trial.n_frames and trial.n_markers:   # no markers: nothing stands
                 check_standing(trial)
                 found.append(os.fspath(capture))
         except Exception:  # noqa: BLE001 - its own processing names the failure and stage

@@ -390,6 +390,7 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
                          "--forward-reference out")
     from ..io import unique_paths
     from ..io.c3d import read_c3d
+    from ..trial import require_markers
 
     calibration = [("--static", path) for path in statics or ()] + [
         ("--forward-reference", path) for path in references or ()]
@@ -411,12 +412,13 @@ def check_inputs(inputs: list[str], statics: list[str] | None = None, *,
 
         try:
             trials.append(read_c3d(path))
+            require_markers(trials[-1])
             standing_part(trials[-1], window=static_window)
         except Exception as exc:
             raise UsageError(f"--static: {unreadable(path, exc)}") from None
     for path in unique_paths(references or ()):
         try:
-            read_c3d(path)
+            require_markers(read_c3d(path))
         except Exception as exc:
             raise UsageError(f"--forward-reference: {unreadable(path, exc)}") from None
     return trials

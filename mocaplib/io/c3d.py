@@ -92,13 +92,17 @@ def _read_trial(handle, path: Path) -> Trial:
                                  size, notes)
 
     labels = _point_labels(reader, layout.count, path, notes)
-    units, to_metres = _point_units(reader, path, notes)
     declared = _model_outputs(reader, path)
     keep = [i for i, label in enumerate(labels) if label.rpartition(":")[2] not in declared]
     if len(keep) < len(labels):
         notes.append(f"dropped {len(labels) - len(keep)} model outputs stored as points "
                      f"(POINT:{', '.join(MODEL_OUTPUT_PARAMETERS)})")
         labels = [labels[i] for i in keep]
+    if keep:
+        units, to_metres = _point_units(reader, path, notes)
+    else:                          # no marker points: the units convert nothing, unchecked
+        found = strings(reader.get("POINT:UNITS"), path, "POINT:UNITS")
+        units, to_metres = (found[0] if found and found[0] else "mm"), 1.0
     markers = read_points(handle, layout, keep, to_metres, path)
 
     duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
@@ -114,14 +118,17 @@ def _read_trial(handle, path: Path) -> Trial:
     axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen_up_axis(reader),
                                             subjects=subjects)
     notes.extend(axis_notes)
-    if axis == "Y":
+    if axis == "Y" and markers.size:
         for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
             chunk[:] = y_up_to_z_up(chunk)          # in place, a chunk at a time
         notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
 
+    analog = layout.words - 4 * layout.count
+    channels = (number(reader, "ANALOG:USED", "uint16") or analog) if analog else 0
     return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
                  vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
-                 warnings=notes, measurements=subject_measurements(reader))
+                 warnings=notes, measurements=subject_measurements(reader),
+                 analog_channels=channels)
 
 
 # ----------------------------------------------------------------------------- labels, units

@@ -50,13 +50,15 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
             counts, 1)[:, None]                            # each frame's mean seen marker
         seen_own &= (counts >= 3)[:, None]
         offsets.append((own - mean[:, None])[seen_own])
-    offsets = np.concatenate(offsets)
+    offsets = np.concatenate(offsets) if offsets else np.empty((0, 3))
+    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
+    if markers.shape[1] == 0:
+        return fallback, notes                  # no markers: only the file's word
     spread = np.zeros(3)
     if len(offsets) >= 10:
         low, high = percentile(offsets.T, [10, 90], axis=1)
         spread = high - low
     order = np.argsort(spread)[::-1]
-    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
         notes.append(f"vertical axis unclear from the markers; {fallback} assumed"
                      + (" (POINT:Y_SCREEN)" if screen_axis in ("Y", "Z") else ""))

@@ -77,10 +77,12 @@ def read_points(handle, layout: PointLayout, points: list[int], factor: float,
                  path: Path) -> np.ndarray:
     """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
     ``factor`` its units to metres, coordinates beyond :data:`MAX_COORDINATE_M` missing; read
-    :data:`CHUNK_BYTES` of frames at a time."""
+    :data:`CHUNK_BYTES` of frames at a time; nothing is read when ``points`` is empty."""
+    out = np.empty((layout.frames, len(points), 3))
+    if not points:
+        return out
     frame_bytes = layout.frame_bytes
     step = max(1, CHUNK_BYTES // frame_bytes)
-    out = np.empty((layout.frames, len(points), 3))
     buffer = bytearray(min(step, layout.frames) * frame_bytes)
     handle.seek(layout.start)
     for first in range(0, layout.frames, step):

@@ -44,7 +44,7 @@ from ..errors import ProtocolError
 from ..numeric import nanmedian
 from ..skeleton import SEGMENT_NAMES, Skeleton
 from ..statics import STANDING_EXTENT
-from ..trial import Trial, normalise_label
+from ..trial import Trial, normalise_label, require_markers
 from .matching import computed_points, is_model_output, numbered_candidates
 from .protocols import REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml
 from .sides import forward_direction
@@ -318,8 +318,12 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
                    use_names: bool = True) -> Draft:
     """Draft a protocol for ``trial``'s labels (and those of ``static``, a standing trial of
     the same session, whose positions are then used), as the module describes.
-    ``use_names=False`` matches by place and rigid groups alone."""
+    ``use_names=False`` matches by place and rigid groups alone. A trial (or static) without
+    markers is refused (:func:`~mocaplib.trial.require_markers`)."""
     from scipy.optimize import linear_sum_assignment
+
+    for given in (trial, static) if static is not None else (trial,):
+        require_markers(given)
 
     labels = _marker_labels(trial)
     static_labels = []

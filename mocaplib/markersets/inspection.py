@@ -11,16 +11,16 @@ from __future__ import annotations
 import os
 
 from ..errors import MocapError, ProtocolError
-from ..trial import Trial, check_gait_rate
+from ..trial import Trial, check_gait_rate, require_markers
 from .matching import match_trial
 from .protocols import Protocol, overrides
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
-                "units", "vertical_axis", "labels", "protocol", "markers_found",
-                "protocol_markers", "missing_landmarks", "missing_labels", "closest_protocol",
-                "markers", "ignored_points", "unknown_labels", "duplicates", "swaps", "events",
-                "warnings")
+                "units", "vertical_axis", "analog_channels", "labels", "protocol",
+                "markers_found", "protocol_markers", "missing_landmarks", "missing_labels",
+                "closest_protocol", "markers", "ignored_points", "unknown_labels", "duplicates",
+                "swaps", "events", "warnings")
 
 _EMPTY_LISTS = ("labels", "missing_landmarks", "missing_labels", "markers", "ignored_points",
                 "unknown_labels", "duplicates", "swaps", "events", "warnings")
@@ -64,12 +64,16 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
     ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
     column is that candidate's. A protocol or landmark that a user folder redefines is noted in
-    ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`).
+    ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
+    analog-only file) fails: ``ok`` is False, ``error`` says it holds no marker points (and
+    how many analog channels), and the summary keeps what it does hold (frames, rate,
+    ``analog_channels``, events, warnings).
     """
     out = failed_summary(trial.source or "", "")
     out.update(ok=True, error=None, frames=trial.n_frames, rate_hz=trial.rate,
                duration_s=trial.duration, first_frame=trial.first_frame, units=trial.units,
-               vertical_axis=trial.vertical_axis, labels=list(trial.labels),
+               vertical_axis=trial.vertical_axis, analog_channels=trial.analog_channels,
+               labels=list(trial.labels),
                events=[{"context": e.context, "label": e.label, "time_s": e.time_s}
                        for e in trial.events])
     warnings = list(trial.warnings) + [f"note: {n}" for n in overrides()]
@@ -77,6 +81,11 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
         check_gait_rate(trial.rate, None)
     except MocapError as exc:  # shown, so the file can still be looked at
         warnings.append(f"{exc.message}; fit, events and build refuse it ({exc.hint})")
+    try:
+        require_markers(trial)
+    except MocapError as exc:        # no protocol to match: what the file holds, and why not
+        out.update(ok=False, error=str(exc), warnings=warnings)
+        return out
     try:
         match = match_trial(trial, protocol)
     except ProtocolError as exc:

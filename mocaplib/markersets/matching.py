@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import ProtocolError
 from ..numeric import distinct, median
-from ..trial import Trial, normalise_label, subject_prefixes
+from ..trial import Trial, normalise_label, require_markers, subject_prefixes
 from .protocols import Protocol, list_protocols, load_protocol, protocols_dir, read_protocol_toml
 from .sides import forward_direction
 
@@ -348,7 +348,9 @@ def detect_protocol(trial: Trial, /, *, protocols: list[Protocol] | None = None
 def match_trial(trial: Trial, protocol: Protocol | str | os.PathLike = "auto", /
                 ) -> ProtocolMatch:
     """The match of ``trial`` with ``protocol``: a :class:`Protocol`, a shipped name, a TOML
-    path, or ``"auto"`` (:func:`detect_protocol` among the shipped ones)."""
+    path, or ``"auto"`` (:func:`detect_protocol` among the shipped ones). A trial without
+    markers is refused (:func:`~mocaplib.trial.require_markers`)."""
+    require_markers(trial)
     if isinstance(protocol, Protocol):
         return match_protocol(trial, protocol)
     if protocol == "auto":

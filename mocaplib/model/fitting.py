@@ -147,6 +147,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     from ..errors import CalibrationError
     from ..markersets.matching import ProtocolMatch, match_trial
     from ..statics import static_names
+    from ..trial import require_markers
     from .calibration import calibrate
     from .calibration_checks import check_static, choose_static
     from .filtering import filter_trial
@@ -155,6 +156,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     clock = clock or StageClock()
     statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
         else [static]
+    for given in statics:
+        require_markers(given)
     warnings: list[str] = []
     with clock.stage("protocol"):
         match = protocol if isinstance(protocol, ProtocolMatch) else match_trial(trial, protocol)
