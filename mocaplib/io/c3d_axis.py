@@ -1,42 +1,91 @@
-"""The vertical axis of a C3D file's markers (:func:`detect_vertical_axis`) and the rotation
-of a Y-up file to Z up (:func:`y_up_to_z_up`)."""
+"""The vertical axis of a C3D file's markers (:func:`detect_vertical_axis`), the one its
+screen axes name (:func:`screen_up_axis`), and the rotation of a Y-up file to Z up
+(:func:`y_up_to_z_up`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..numeric import distinct, percentile
+from ..numeric import distinct, median, percentile
 from .c3d_params import clean
 
 _AXIS_SAMPLE_FRAMES = 60     # frames looked at to detect the vertical axis
 _AXIS_MIN_RATIO = 1.25       # the vertical spread must exceed the next one by this factor
+#: Metres: markers of one body are chained by steps shorter than this (the widest gap of a
+#: sparse marker set, pelvis to thigh, is about 0.45 m); a point farther from all of them is
+#: not on the body.
+BODY_LINK_M = 0.75
 
 
 def screen_up_axis(reader) -> str | None:
-    """The axis POINT:Y_SCREEN shows upwards ('X', 'Y' or 'Z'), when the file says."""
-    param = reader.get("POINT:Y_SCREEN")
-    if param is None or param.bytes_per_element != -1:
-        return None
-    text = clean(param.bytes[:8]).upper()
-    return text[-1] if text[-1:] in ("X", "Y", "Z") else None
+    """The axis ('X', 'Y' or 'Z') the file's screen shows upwards: POINT:Y_SCREEN's (``'+Z'``
+    gives Z); without it, the axis neither POINT:X_SCREEN (the screen's right) nor
+    POINT:Z_SCREEN (towards the viewer) names; None when the file does not say."""
+    named = {}
+    for key in ("X_SCREEN", "Y_SCREEN", "Z_SCREEN"):
+        param = reader.get(f"POINT:{key}")
+        if param is not None and param.bytes_per_element == -1:
+            text = clean(param.bytes[:8]).upper()
+            if text[-1:] in ("X", "Y", "Z"):
+                named[key] = text[-1]
+    if "Y_SCREEN" in named:
+        return named["Y_SCREEN"]
+    across = {named.get("X_SCREEN"), named.get("Z_SCREEN")}
+    return ({"X", "Y", "Z"} - across).pop() if across <= {"X", "Y", "Z"} and \
+        len(across) == 2 else None
+
+
+def far_from_body(points: np.ndarray, /) -> np.ndarray:
+    """Which of one subject's ``points`` (M, 3), metres, NaN = missing, of one frame lie
+    outside the body's main cluster: bool (M,), False where missing.
+
+    The main cluster holds the point nearest the median point and every point reached from
+    it by steps shorter than :data:`BODY_LINK_M`; points far from the body (unlabelled
+    strays, floor or equipment markers) fall outside it. When it holds fewer than half the
+    points seen, or fewer than 3 (a file whose units are wrong spreads a body kilometres
+    wide), no point is called far.
+    """
+    far = np.zeros(len(points), dtype=bool)
+    seen = np.isfinite(points).all(axis=1)
+    place = points[seen]
+    if len(place) < 3:
+        return far
+    distance = np.linalg.norm(place - median(place, axis=0), axis=1)
+    square = (place * place).sum(axis=1)
+    near = square[:, None] + square[None] - 2.0 * place @ place.T <= BODY_LINK_M ** 2
+    reach = np.arange(len(place)) == np.argmin(distance)
+    frontier = reach
+    while frontier.any():                   # breadth first: each point's row looked at once
+        frontier = near[frontier].any(axis=0) & ~reach
+        reach = reach | frontier
+    if reach.sum() >= max(3, 0.5 * len(place)):
+        far[seen] = ~reach
+    return far
 
 
 def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None,
                          subjects: list[str] | None = None) -> tuple[str, list[str]]:
-    """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)``; and notes.
+    """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)`` (metres); and
+    notes.
 
-    Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames each
-    marker is taken relative to the mean of its subject's markers in the frame (``subjects``,
-    length M, :func:`subject_prefixes`: the people of a file with several stand apart on the
-    floor, which would otherwise look like one wide body; default: one subject), where 3 or
-    more of them are seen; the axis with the widest spread of those offsets (10th to 90th
-    percentile) is the body's long axis, i.e. vertical. It must beat the next axis by 25 %;
-    otherwise (too few markers, a lying subject) POINT:Y_SCREEN decides, and Z without it. When
-    POINT:Y_SCREEN names another axis than the data, the data win and a note says so. Only Y
-    and Z are supported as vertical axes.
+    Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames,
+    each subject's markers apart (``subjects``, length M, :func:`subject_prefixes`: the people
+    of a file with several stand apart on the floor, which would otherwise look like one wide
+    body; default: one subject), but those far from the body's main cluster in the frame
+    seeing the most of them (:func:`far_from_body`: strays never decide), each marker is taken
+    relative to the mean of its subject's markers in the frame, where 3 or more are seen; the
+    axis with the widest spread of those offsets (10th to 90th percentile) is the body's long
+    axis, i.e. vertical. It must beat the next axis by 25 %; otherwise (too few markers, a
+    lying subject) ``screen_axis`` (:func:`screen_up_axis`) decides, and Z without it. When
+    the screen axes name another axis than the markers, the markers win and a note says so.
+    Only Y and Z are supported as vertical axes; without markers (M = 0) ``screen_axis``
+    (else Z) is returned without a note.
     """
     notes: list[str] = []
+    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
     frames = markers.shape[0]
+    if markers.shape[1] == 0 or frames == 0:
+        return fallback, notes
     sample = markers[distinct(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
                               .astype(int))]
     seen = np.isfinite(sample[..., 0]) & np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
@@ -45,15 +94,14 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     offsets = []
     for mine in [slice(None)] if len(groups) == 1 else [subjects == s for s in groups]:
         own, seen_own = sample[:, mine], seen[:, mine]
+        fullest = own[np.argmax(seen_own.sum(axis=1))]         # the frame seeing the most
+        seen_own = seen_own & ~far_from_body(fullest)[None]
         counts = seen_own.sum(axis=1)
         mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
             counts, 1)[:, None]                            # each frame's mean seen marker
         seen_own &= (counts >= 3)[:, None]
         offsets.append((own - mean[:, None])[seen_own])
-    offsets = np.concatenate(offsets) if offsets else np.empty((0, 3))
-    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
-    if markers.shape[1] == 0:
-        return fallback, notes                  # no markers: only the file's word
+    offsets = np.concatenate(offsets)
     spread = np.zeros(3)
     if len(offsets) >= 10:
         low, high = percentile(offsets.T, [10, 90], axis=1)
@@ -61,7 +109,7 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     order = np.argsort(spread)[::-1]
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
         notes.append(f"vertical axis unclear from the markers; {fallback} assumed"
-                     + (" (POINT:Y_SCREEN)" if screen_axis in ("Y", "Z") else ""))
+                     + (" (the file's screen axes)" if screen_axis in ("Y", "Z") else ""))
         return fallback, notes
     axis = "XYZ"[order[0]]
     if axis == "X":
@@ -69,8 +117,8 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
                      f"{fallback} assumed")
         return fallback, notes
     if screen_axis in ("X", "Y", "Z") and screen_axis != axis:
-        notes.append(f"POINT:Y_SCREEN shows {screen_axis} up but the markers are vertical "
-                     f"along {axis}; {axis} used")
+        notes.append(f"the file's screen axes (POINT:X_SCREEN, Y_SCREEN) show {screen_axis} "
+                     f"up but the markers are vertical along {axis}; {axis} used")
     return axis, notes
 
 

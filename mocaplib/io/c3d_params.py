@@ -94,7 +94,8 @@ class _Record:
     name: bytes         # upper case
     link_at: int        # byte offset of the int16 link to the next record
     link: int           # the link as stored
-    length: int | None  # the link the record's own content gives (None: cannot be measured)
+    length: int | None  # the link the record's own content gives (None: cannot be measured,
+                        # or not needed: measured only where ``link`` <= 0)
 
 
 def parameter_records(data: bytes) -> tuple[list[_Record], str]:
@@ -119,7 +120,8 @@ def parameter_records(data: bytes) -> tuple[list[_Record], str]:
             break
         link, = struct.unpack_from(endian + "h", data, link_at)
         record = _Record(position, group, bytes(data[position + 2:link_at]).upper(), link_at,
-                         link, _content_length(data, link_at + 2, group, end))
+                         link, None if link > 0 else _content_length(data, link_at + 2, group,
+                                                                     end))
         records.append(record)
         if link > 0:
             position = link_at + link
