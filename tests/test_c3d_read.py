@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import C3DError
-from mocaplib.io.c3d import MODEL_OUTPUT_PARAMETERS, read_c3d
+from mocaplib.io.c3d import MODEL_OUTPUT_PARAMETERS, read_c3d, unit_of
 from mocaplib.io.c3d_axis import y_up_to_z_up
 from mocaplib.io.c3d_layout import PointLayout
 from mocaplib.io.c3d_params import dec_to_ieee
 from mocaplib.io.c3d_points import decode_points
 from mocaplib.io.c3d_write import write_c3d
 
-from c3d_files import SMALL
+from c3d_files import SMALL, capture_bytes, standing_person, with_text
 from conftest import SHARED_C3D, real_files
 
 Y_UP = {"motonms_unipd/Static1.c3d", "motonms_unipd/Walking1.c3d", "motonms_unipd/Walking3.c3d",
@@ -129,16 +129,47 @@ def test_model_outputs_are_dropped_whatever_the_subject_prefix(real_c3d, tmp_pat
     np.testing.assert_array_equal(trial.markers, original.markers)
 
 
-def test_units_spelled_out_are_refused_saying_what_to_do(real_c3d, tmp_path):
+def test_units_spelled_out_are_read_and_unknown_ones_refused_saying_what_to_do(real_c3d,
+                                                                               tmp_path):
     ezc3d = pytest.importorskip("ezc3d")
-    c3d = ezc3d.c3d(str(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")))
-    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["millimeters"]
-    path = tmp_path / "spelled.c3d"
-    c3d.write(str(path))
-    with pytest.raises(C3DError, match=r"spelled.c3d: unknown POINT:UNITS 'millimeters' "
-                                       r"\(mocaplib knows mm, cm, dm, m: set POINT:UNITS to the "
-                                       r"one the coordinates are in, or re-export the file\)"):
-        read_c3d(path)
+    source = real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d")
+    c3d = ezc3d.c3d(str(source))
+    for units in ("millimeters", "inches"):
+        c3d["parameters"]["POINT"]["UNITS"]["value"] = [units]
+        c3d.write(str(tmp_path / f"{units}.c3d"))
+    trial = read_c3d(tmp_path / "millimeters.c3d")
+    np.testing.assert_array_equal(trial.markers, read_c3d(source).markers)
+    assert "POINT:UNITS 'millimeters' read as mm" in trial.warnings
+    with pytest.raises(C3DError, match=r"inches.c3d: unknown POINT:UNITS 'inches' \(mocaplib "
+                                       r"knows mm, cm, dm, m in any case, and their names "
+                                       r"spelled out or cut short"):
+        read_c3d(tmp_path / "inches.c3d")
+
+
+@pytest.mark.parametrize("text, per_metre, unit", [
+    ("mete", 1.0, "m"), ("Mete", 1.0, "m"), ("m", 1.0, "m"), ("MM", 1e3, "mm"),
+    ("mill", 1e3, "mm"), ("cm", 1e2, "cm"), ("cent", 1e2, "cm")])
+def test_units_cut_short_or_in_another_case_are_read(tmp_path, text, per_metre, unit):
+    """POINT:UNITS of 4 characters holding 'mete' (metres cut to the width a writer kept),
+    'mill', 'cent', or a symbol in upper case: coordinates stored in that unit read back in
+    metres, with a note naming the text read."""
+    markers = standing_person(frames=10)
+    data = capture_bytes(markers * per_metre / 1000.0, [f"M{i}" for i in range(20)])
+    path = tmp_path / "units.c3d"
+    path.write_bytes(with_text(data, "POINT:UNITS", text))
+    trial = read_c3d(path)
+    assert trial.units == text
+    # float32 of the stored unit: 1e-6 m
+    np.testing.assert_allclose(trial.markers, markers, atol=1e-6, rtol=0)
+    assert trial.warnings == ([] if text == unit else [f"POINT:UNITS {text!r} read as {unit}"])
+
+
+@pytest.mark.parametrize("text, unit", [
+    ("metres", "m"), ("meter", "m"), ("me", "m"), ("MILLIMETRES", "mm"), ("milli", "mm"),
+    ("centimeter", "cm"), ("centi", "cm"), ("deci", "dm"), ("dm", "dm"), ("mi", None),
+    ("inch", None), ("mile", None), ("", None)])
+def test_unit_of_reads_symbols_and_names_cut_short(text, unit):
+    assert unit_of(text) == unit
 
 
 def test_dec_file_with_nul_padded_units(real_c3d):

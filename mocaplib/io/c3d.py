@@ -12,7 +12,9 @@ What :func:`read_c3d` does
     * Points the file itself declares as model outputs (labels listed in POINT:ANGLES, FORCES,
       MOMENTS, POWERS, SCALARS, REACTIONS, subject prefixes aside) are dropped, with one
       warning giving the count.
-    * Units from POINT:UNITS (``mm``, ``cm``, ``m``; missing = mm with a warning) to metres.
+    * Units from POINT:UNITS to metres: ``mm``, ``cm``, ``dm``, ``m`` in any case, or their
+      names spelled out or cut short (:func:`unit_of`: ``mete``, ``mill``); missing = mm,
+      with a warning.
     * Vertical axis: :func:`~mocaplib.io.c3d_axis.detect_vertical_axis` (each subject's
       markers apart); Y-up files are rotated +90 degrees about X (x, y, z) -> (x, -z, y), a
       proper rotation, so the Trial is Z up and right-handed.
@@ -42,6 +44,10 @@ from .c3d_params import label_keys, number, parse_parameters, read_metadata, str
 from .c3d_points import CHUNK_BYTES, read_points
 
 UNITS_TO_METRES = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0}
+#: Units spelled out, each the longest form of its name (:func:`unit_of` takes their starts).
+_UNIT_NAMES = {f"{prefix}{spelling}": symbol for prefix, symbol in
+               (("milli", "mm"), ("centi", "cm"), ("deci", "dm"), ("", "m"))
+               for spelling in ("metres", "meters")}
 #: POINT parameters listing the labels of model outputs (not marker positions).
 MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "REACTIONS")
 
@@ -145,17 +151,36 @@ def _point_labels(reader, count: int, path: Path, notes: list[str]) -> list[str]
 
 
 def _point_units(reader, path: Path, notes: list[str]) -> tuple[str, float]:
+    """POINT:UNITS as found and its factor to metres (:func:`unit_of`); missing: mm, noted."""
     found = strings(reader.get("POINT:UNITS"), path, "POINT:UNITS")
     units = found[0] if found else ""
     if not units:
         notes.append("POINT:UNITS missing: assumed mm")
         return "mm", UNITS_TO_METRES["mm"]
-    factor = UNITS_TO_METRES.get(units.lower())
-    if factor is None:
+    unit = unit_of(units)
+    if unit is None:
         raise C3DError(f"unknown POINT:UNITS {units!r}", path=path,
-                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)}: set POINT:UNITS to "
-                            "the one the coordinates are in, or re-export the file")
-    return units, factor
+                       hint=f"mocaplib knows {', '.join(UNITS_TO_METRES)} in any case, and their "
+                            "names spelled out or cut short (millimetres, mill, metres, mete...): "
+                            "set POINT:UNITS to the one the coordinates are in, or re-export "
+                            "the file")
+    if unit != units:
+        notes.append(f"POINT:UNITS {units!r} read as {unit}")
+    return units, UNITS_TO_METRES[unit]
+
+
+def unit_of(text: str, /) -> str | None:
+    """The unit (a key of :data:`UNITS_TO_METRES`) a POINT:UNITS ``text`` names: its symbol in
+    any case (``'MM'``), or the start of its name spelled out, British or American, singular or
+    plural, at least 3 letters (2 for metres): writers cut the text to its stored width
+    (``'mete'``, ``'mill'``, ``'centi'``, ``'Meters'``). None for anything else."""
+    key = text.strip().lower()
+    if key in UNITS_TO_METRES:
+        return key
+    for name, unit in _UNIT_NAMES.items():
+        if name.startswith(key) and len(key) >= (2 if unit == "m" else 3):
+            return unit
+    return None
 
 
 def _model_outputs(reader, path: Path) -> set[str]:
