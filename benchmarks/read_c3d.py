@@ -4,7 +4,8 @@ Writes a 6,000-frame, 40-marker capture (a person-like cloud walking along X, wi
 analog channels: every reader decodes the same words) in float and in integer storage with
 mocaplib's writer into a temporary folder, then times reading each file completely into
 memory (median of --repeats runs) and checks mocaplib's coordinates against ezc3d's. When the
-real files are present (the folder ``shared/data/c3d`` beside the repository), also times them
+real files are present (the folder ``shared/data/c3d`` beside the repository, or
+``$MOCAPLIB_SHARED_C3D`` as for the tests), also times them
 (mocaplib vs ezc3d), twice for ezc3d: as its Python package reads (points, analogs, residuals
 and rotations as numpy arrays) and like for like, the points alone (``ezc3d.ezc3d.c3d(path)
 .get_points()``: its C++ reader cannot skip decoding the analog samples, but nothing else
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -40,7 +42,8 @@ from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.io.c3d_write import write_c3d  # noqa: E402
 
-REAL_FILES = Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"
+REAL_FILES = Path(os.environ.get("MOCAPLIB_SHARED_C3D",
+                                 Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"))
 
 
 def walking_cloud(frames: int, markers: int, rate: float) -> np.ndarray:

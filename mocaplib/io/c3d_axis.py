@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..numeric import distinct, median, percentile
+from ..numeric import distinct, median
 from .c3d_params import clean
 
 _AXIS_SAMPLE_FRAMES = 60     # frames looked at to detect the vertical axis
@@ -74,8 +74,8 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     body; default: one subject), but those far from the body's main cluster in the frame
     seeing the most of them (:func:`far_from_body`: strays never decide), each marker is taken
     relative to the mean of its subject's markers in the frame, where 3 or more are seen; the
-    axis with the widest spread of those offsets (10th to 90th percentile) is the body's long
-    axis, i.e. vertical. It must beat the next axis by 25 %; otherwise (too few markers, a
+    axis with the widest spread of those offsets (10th to 90th percentile, nearest rank) is
+    the body's long axis, i.e. vertical. It must beat the next axis by 25 %; otherwise (too few markers, a
     lying subject) ``screen_axis`` (:func:`screen_up_axis`) decides, and Z without it. When
     the screen axes name another axis than the markers, the markers win and a note says so.
     Only Y and Z are supported as vertical axes; without markers (M = 0) ``screen_axis``
@@ -89,23 +89,26 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     sample = markers[distinct(np.linspace(0, frames - 1, min(frames, _AXIS_SAMPLE_FRAMES))
                               .astype(int))]
     seen = np.isfinite(sample[..., 0]) & np.isfinite(sample[..., 1]) & np.isfinite(sample[..., 2])
-    subjects = np.array([""] * markers.shape[1] if subjects is None else subjects)
+    subjects = [""] * markers.shape[1] if subjects is None else list(subjects)
     groups = sorted(set(subjects))
     offsets = []
-    for mine in [slice(None)] if len(groups) == 1 else [subjects == s for s in groups]:
+    for mine in [slice(None)] if len(groups) == 1 else [
+            np.array([s == group for s in subjects]) for group in groups]:
         own, seen_own = sample[:, mine], seen[:, mine]
         fullest = own[np.argmax(seen_own.sum(axis=1))]         # the frame seeing the most
         seen_own = seen_own & ~far_from_body(fullest)[None]
         counts = seen_own.sum(axis=1)
-        mean = np.where(seen_own[..., None], own, 0.0).sum(axis=1) / np.maximum(
-            counts, 1)[:, None]                            # each frame's mean seen marker
-        seen_own &= (counts >= 3)[:, None]
-        offsets.append((own - mean[:, None])[seen_own])
-    offsets = np.concatenate(offsets)
+        used = counts >= 3
+        picked = np.take(own.reshape(-1, 3), np.flatnonzero(seen_own & used[:, None]), axis=0)
+        counts = counts[used]
+        mean = np.add.reduceat(picked, np.cumsum(counts) - counts) / counts[:, None] \
+            if len(picked) else np.empty((0, 3))        # each frame's mean seen marker
+        offsets.append(picked - np.repeat(mean, counts, axis=0))
+    offsets = np.sort(np.concatenate(offsets).T, axis=1)      # (3, N), each axis sorted
     spread = np.zeros(3)
-    if len(offsets) >= 10:
-        low, high = percentile(offsets.T, [10, 90], axis=1)
-        spread = high - low
+    if offsets.shape[1] >= 10:        # 10th to 90th percentile (nearest rank)
+        last = offsets.shape[1] - 1
+        spread = offsets[:, round(0.9 * last)] - offsets[:, round(0.1 * last)]
     order = np.argsort(spread)[::-1]
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
         notes.append(f"vertical axis unclear from the markers; {fallback} assumed"

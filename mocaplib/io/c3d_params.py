@@ -188,11 +188,15 @@ class Parameter:
 
     @property
     def float_value(self) -> float:
-        return float(self.float_array[0])
+        """The first value as a float (its bytes must hold one)."""
+        if self.processor == "DEC":
+            return float(self.float_array[0])
+        return struct.unpack_from(">f" if self.processor == "MIPS" else "<f", self.bytes)[0]
 
     @property
     def uint16_value(self) -> int:
-        return int(self.uint16_array[0])
+        """The first value as a 16-bit unsigned integer (its bytes must hold one)."""
+        return struct.unpack_from(">H" if self.processor == "MIPS" else "<H", self.bytes)[0]
 
 
 class Parameters:
@@ -221,6 +225,7 @@ class Parameters:
         self._section_end = min(len(data),
                                 (data[0] - 1) * 512 + 512 * data[(data[0] - 1) * 512 + 2])
         self._records: dict[str, _Record] = {}          # read when asked for (:meth:`get`)
+        self._decoded: dict[str, Parameter | None] = {}
         for record in records:
             if record.group > 0 and record.group in groups:
                 key = f"{groups[record.group]}:{record.name.decode('latin-1')}"
@@ -235,9 +240,15 @@ class Parameters:
 
     def get(self, key: str) -> Parameter | str | None:
         """The parameter ``"GROUP:NAME"`` (None when absent or its record is cut short), the
-        group's name for ``"GROUP"``, or None."""
+        group's name for ``"GROUP"``, or None. A parameter is decoded once, when first asked
+        for."""
         if ":" not in key:
             return key if key in self._groups else None
+        if key not in self._decoded:
+            self._decoded[key] = self._parameter(key)
+        return self._decoded[key]
+
+    def _parameter(self, key: str) -> Parameter | None:
         record = self._records.get(key)
         if record is None:
             return None

@@ -61,15 +61,16 @@ def _decoded(block: np.ndarray, layout: PointLayout, factor: float,
         block = dec_to_ieee(block)
     with np.errstate(invalid="ignore", over="ignore"):  # corrupt words: NaN/inf, masked below
         markers = np.empty(block.shape[:2] + (3,)) if out is None else out
-        markers[...] = block[..., :3]                  # exact: float32 and int16 fit float64
-        markers *= factor if is_float else factor * layout.scale
+        # in float64, into place in one pass: float32 and int16 words convert exactly
+        np.multiply(block[..., :3], factor if is_float else factor * layout.scale, out=markers,
+                    dtype=np.float64)
         x, y, z = markers[..., 0], markers[..., 1], markers[..., 2]
         valid = (block[..., 3] >= 0) & np.isfinite(x + y + z) & ((x != 0) | (y != 0) | (z != 0))
         bounded = not is_float and 32768 * abs(factor * layout.scale) <= bound   # int16 words
         if not (bounded or markers.min(initial=0.0) >= -bound
                 and markers.max(initial=0.0) <= bound):
             valid &= (np.abs(x) <= bound) & (np.abs(y) <= bound) & (np.abs(z) <= bound)
-    np.copyto(markers, np.nan, where=~valid[..., None])
+    markers[~valid] = np.nan
     return markers
 
 
