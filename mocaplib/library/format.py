@@ -39,7 +39,8 @@ from ..errors import LibraryError
 from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES, qc_failures
 from ..io import read_regular
 from ..io.atomic import atomic_write_text
-from ..io.jsonvalues import OutOfRange, canonical_sha256, float_or_nan, json_values, parse_json
+from ..io.jsonvalues import (OutOfRange, canonical_sha256, float_or_nan, jcs_sha256, json_values,
+                             parse_json)
 from ..skeleton import DOFS
 from .entry import DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, LibraryEntry, drift_displacement
 
@@ -49,8 +50,11 @@ if TYPE_CHECKING:
 FORMAT = "mocaplib-library"
 #: The version this mocaplib writes; it reads :data:`READ_VERSIONS` (docs/library-format.md,
 #: *Versions*).
-FORMAT_VERSION = 2
-READ_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+READ_VERSIONS = (1, 2, 3)
+#: Versions whose ``content_sha256`` is :func:`mocaplib.io.jsonvalues.canonical_sha256` (numbers
+#: as Python prints them); later versions carry :func:`mocaplib.io.jsonvalues.jcs_sha256`.
+PYTHON_CHECKSUM_VERSIONS = (1, 2)
 #: The ``format`` of a build's diagnostics sidecar (``<stem>.diagnostics.json``), not a library.
 DIAGNOSTICS_FORMAT = "mocaplib-diagnostics"
 CONTROL_AXES = ("v", "omega", "v_l")
@@ -501,10 +505,17 @@ def validate_library(library) -> list[Problem]:
 
 
 def content_sha256(document: dict) -> str:
-    """The library's content checksum: :func:`mocaplib.io.jsonvalues.canonical_sha256` of the
-    document without ``content_sha256``. Reformatting a file keeps it; changing a value, a key
-    or an entry changes it."""
-    return canonical_sha256({k: v for k, v in document.items() if k != CHECKSUM_KEY})
+    """The library's content checksum, the one its ``format_version`` carries: SHA-256 of the
+    RFC 8785 (JCS) form of the document without ``content_sha256``
+    (:func:`mocaplib.io.jsonvalues.jcs_sha256`), or for versions
+    :data:`PYTHON_CHECKSUM_VERSIONS` of its Python-printed canonical JSON
+    (:func:`mocaplib.io.jsonvalues.canonical_sha256`). Reformatting a file keeps it; changing
+    a value, a key or an entry changes it. Raises ValueError for content JCS cannot hold
+    (NaN, ±inf)."""
+    content = {k: v for k, v in document.items() if k != CHECKSUM_KEY}
+    if document.get("format_version") in PYTHON_CHECKSUM_VERSIONS:
+        return canonical_sha256(content)
+    return jcs_sha256(content)
 
 
 def checksum_status(library) -> str | None:
@@ -521,7 +532,11 @@ def checksum_status(library) -> str | None:
     stored = document.get(CHECKSUM_KEY)
     if stored is None:
         return "absent"
-    return "verified" if stored == content_sha256(document) else "mismatch"
+    try:
+        computed = content_sha256(document)
+    except ValueError:              # NaN or infinity: never in a file mocaplib wrote
+        return "mismatch"
+    return "verified" if stored == computed else "mismatch"
 
 
 #: What a library without a checksum is told (``mocaplib validate``, the report).
