@@ -583,8 +583,20 @@ def _schema_problems(document) -> list[Problem]:
     from jsonschema import Draft202012Validator
 
     validator = Draft202012Validator(schema())
-    errors = sorted(validator.iter_errors(document), key=lambda e: list(map(str, e.path)))
-    return [Problem(_json_path(error.path), f"schema: {error.message[:300]}") for error in errors]
+    errors = sorted((_specific(error) for error in validator.iter_errors(document)),
+                    key=lambda e: list(map(str, e.absolute_path)))
+    return [Problem(_json_path(error.absolute_path), f"schema: {error.message[:300]}")
+            for error in errors]
+
+
+def _specific(error):
+    """The error of an ``anyOf`` branch the value's type matches ("2.0 is greater than the
+    maximum of 1" rather than "2.0 is not valid under any of the given schemas"): the schema
+    writes a nullable number as anyOf number or null; ``error`` itself when there is none."""
+    from jsonschema.exceptions import best_match
+
+    specific = [e for e in error.context or () if e.relative_path or e.validator != "type"]
+    return _specific(best_match(specific)) if specific else error
 
 
 def _json_path(parts) -> str:
