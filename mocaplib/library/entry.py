@@ -119,8 +119,9 @@ class EntryPattern(_Record):
 @dataclass(frozen=True, eq=False)
 class EntryFourier(_Record):
     """The cycle's Fourier series (``entries[i].fourier``): ``q_d(t) = a[d, 0] + Σ_k a[d, k]
-    cos(2πkt/T) + b[d, k] sin(2πkt/T)``, t in s from the cycle start, in the DOF's unit (rad,
-    m for ``pelvis_t*``), plus ``ramp[d]·t/T`` when ``ramp`` is stored.
+    cos(2πkτ/T) + b[d, k] sin(2πkτ/T) + ramp[d]·τ/T``, τ = t mod T with t in s from the cycle
+    start, in the DOF's unit (rad, m for ``pelvis_t*``); ``ramp`` 0 when not stored
+    (:meth:`mocaplib.library.format.Library.angles`).
 
     Attributes
     ----------

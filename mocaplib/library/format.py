@@ -6,13 +6,16 @@ Fourier coefficients of every degree of freedom of the fixed skeleton
 The format is specified in ``docs/library-format.md`` and by the JSON Schema shipped as
 ``mocaplib/schema/library.schema.json``.
 
-Fourier convention (fixed team-wide), ``t`` in seconds from the cycle start, period ``T`` s::
+An entry's coordinates (:meth:`Library.angles`), ``t`` in seconds from the cycle start, period
+``T`` s, ``tau = t mod T`` in [0, T)::
 
-    q_d(t) = a[d, 0] + sum_{k=1..N} ( a[d, k] cos(2 pi k t / T) + b[d, k] sin(2 pi k t / T) )
+    q_d(t) = a[d, 0] + sum_{k=1..N} ( a[d, k] cos(2 pi k tau / T) + b[d, k] sin(2 pi k tau / T) )
+             + ramp[d] tau / T
 
-``a`` and ``b`` have shape ``(D, N + 1)``, ``b[:, 0] = 0``. Units are those of the DOF: radians,
-metres for ``pelvis_t*``. Root channels are stored in the frame moving along the cycle's path;
-the per-cycle displacement of that frame is stored apart (``root_drift``).
+``a`` and ``b`` have shape ``(D, N + 1)``, ``b[:, 0] = 0``; ``ramp`` (D,) is 0 when the entry
+stores none. Units are those of the DOF: radians, metres for ``pelvis_t*``. Root channels are
+stored in the frame moving along the cycle's path; the per-cycle displacement of that frame is
+stored apart (``root_drift``).
 
 Files are deterministic: keys sorted, floats written with 10 significant digits, no time stamps,
 so the same inputs and settings give byte-identical files. Files are written atomically and
@@ -313,21 +316,30 @@ class Library:
                                           for key in DRIFT_VELOCITIES))
 
     def angles(self, entry_id: str, t: np.ndarray) -> np.ndarray:
-        """The entry's joint coordinates at times ``t``.
+        """The entry's coordinates at times ``t``: the captured cycle
+        (:class:`mocaplib.gait.fourier.CycleEncoding`), periodic with period T.
 
-        Evaluates the library's Fourier formula plus the entry's ``fourier.ramp`` (when stored)
-        times the phase t/T, the captured cycle (:class:`mocaplib.gait.fourier.CycleEncoding`).
+        With ``tau = t mod T`` in [0, T) (``t`` outside [0, T) repeats the cycle)::
+
+            q_d(t) = a[d, 0] + sum_{k=1..N} (a[d, k] cos(2 pi k tau / T)
+                                             + b[d, k] sin(2 pi k tau / T)) + ramp[d] tau / T
+
+        ``ramp`` (``fourier.ramp``, the DOF's change from the cycle's start to its end) is 0
+        when not stored. Over several cycles the ramp restarts with each: the value steps by
+        ``-ramp[d]`` at every t = kT (just before T it is ``q_d(0) + ramp[d]``, at T
+        ``q_d(0)``). The series alone (ramp left out) is the closed cycle blending uses; the
+        captured trend over K cycles (a stair's rise) adds ``k·ramp[d]`` in cycle k.
 
         Parameters
         ----------
         entry_id : str
             The entry's id.
-        t : ndarray, shape (n,)
-            Seconds from the cycle's start; ``t`` beyond ``T`` repeats the cycle.
+        t : ndarray, any shape
+            Seconds from the cycle's start.
 
         Returns
         -------
-        ndarray, shape (n, D)
+        ndarray, shape (*t.shape, D)
             Joint coordinates in :attr:`dof_names` order: radians, the root's translations in
             metres, the root in the cycle's path frame (see :meth:`root_drift`).
 
@@ -339,10 +351,11 @@ class Library:
         from ..gait.fourier import synthesize
 
         entry = self.entry(entry_id)
-        fourier, period, t = entry.fourier, float_or_nan(entry.T), np.asarray(t, dtype=float)
-        return synthesize(fourier.a, fourier.b, period, t) + (
-            0.0 if fourier.ramp is None else np.multiply.outer(np.mod(t, period) / period,
-                                                               fourier.ramp))
+        fourier, period = entry.fourier, float_or_nan(entry.T)
+        tau = np.mod(np.asarray(t, dtype=float), period)
+        tau = np.where(tau < period, tau, 0.0)  # mod rounds a tiny negative t up to T
+        return synthesize(fourier.a, fourier.b, period, tau) + (
+            0.0 if fourier.ramp is None else np.multiply.outer(tau / period, fourier.ramp))
 
     # ------------------------------------------------------------------ output
     def to_json(self) -> str:
