@@ -16,7 +16,9 @@ import mocaplib
 import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.library.format import CHECKSUM_KEY, Library, assemble_library, checksum_status, schema, validate_library
+from mocaplib.library.document import CHECKSUM_KEY, checksum_status, schema
+from mocaplib.library.format import Library, assemble_library
+from mocaplib.library.validation import validate_library
 from mocaplib.gait.qc import QC_NAMES
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
@@ -621,7 +623,7 @@ def test_validate_catches_a_broken_poulaine(mutate, expected):
 
 
 def test_version_3_is_written_and_version_1_files_still_read(tmp_path):
-    from mocaplib.library.format import FORMAT_VERSION
+    from mocaplib.library.document import FORMAT_VERSION
 
     path = library().write(tmp_path / "lib.json")
     document = json.loads(path.read_text())

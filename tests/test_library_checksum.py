@@ -9,7 +9,9 @@ import json
 import pytest
 import rfc8785
 
-from mocaplib.library.format import CHECKSUM_KEY, checksum_status, load_library, validate_library
+from mocaplib.library.document import CHECKSUM_KEY, checksum_status
+from mocaplib.library.format import load_library
+from mocaplib.library.validation import validate_library
 
 from test_library import library
 

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import LibraryError
-from mocaplib.library.format import Library, load_library, schema, validate_library
+from mocaplib.library.document import schema
+from mocaplib.library.format import load_library, Library
+from mocaplib.library.validation import validate_library
 
 from test_library import with_poulaines
 
