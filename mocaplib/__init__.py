@@ -39,7 +39,7 @@ _EXPORTS = {
     "build_library": "mocaplib.build.pipeline",
     "BuildSettings": "mocaplib.build.settings",
     "load_library": "mocaplib.library.format",
-    "validate_library": "mocaplib.library.format",
+    "validate_library": "mocaplib.library.validation",
     "write_report": "mocaplib.report",
 }
 

@@ -14,8 +14,9 @@ import pytest
 from mocaplib.library.entry import (EntryAnkle, EntryDrift, EntryFourier, EntryPattern, EntryPoulaine,
                             LibraryEntry)
 from mocaplib.errors import LibraryError
-from mocaplib.library.format import (CHECKSUM_KEY, assemble_library, load_library, schema,
-                              validate_library)
+from mocaplib.library.document import CHECKSUM_KEY, schema
+from mocaplib.library.format import assemble_library, load_library
+from mocaplib.library.validation import validate_library
 
 #: What each record stores, in the schema (a path of keys from its root).
 RECORDS = [

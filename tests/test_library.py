@@ -16,7 +16,9 @@ import mocaplib
 import mocaplib.cli
 from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
-from mocaplib.library.format import CHECKSUM_KEY, Library, assemble_library, checksum_status, schema, validate_library
+from mocaplib.library.document import CHECKSUM_KEY, checksum_status, schema
+from mocaplib.library.format import Library, assemble_library
+from mocaplib.library.validation import validate_library
 from mocaplib.gait.qc import QC_NAMES
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
@@ -152,17 +154,52 @@ def test_load_library_gives_a_dataframe_and_coefficient_arrays(tmp_path):
     assert table.loc["capture00_c0", "fourier_n"] == 2
 
 
-def test_angles_follow_the_documented_fourier_formula():
-    lib = library()
+def documented_formula(a, b, ramp, T, t):
+    """q_d(t) of docs/library-format.md, term by term: tau = t mod T in [0, T), the series at
+    tau plus ramp_d·tau/T."""
+    tau = t % T
+    return np.stack([a[:, 0] + sum(a[:, k] * math.cos(2 * math.pi * k * ti / T)
+                                   + b[:, k] * math.sin(2 * math.pi * k * ti / T)
+                                   for k in range(1, a.shape[1])) + ramp * ti / T
+                     for ti in tau])
+
+
+def with_ramps() -> Library:
+    ramp = np.linspace(-0.02, 0.03, D)                 # rad (m for pelvis_tz), 1.7° at most
+    ramp[[0, 1, 3]] = 0.0                              # the root's horizontal pose: the drift's
+    return assemble_library([entry(i, ramp=ramp) for i in range(5)], settings={})
+
+
+def test_angles_follow_the_documented_fourier_formula_with_the_ramp():
+    lib = with_ramps()
     a, b = lib.coefficients("capture01_c0")
+    ramp = lib.entry("capture01_c0").fourier.ramp
+    assert np.abs(ramp).max() > 0.02
     T = 1.1
-    t = np.array([0.0, 0.3, 0.77])
-    expected = np.stack([a[:, 0] + sum(a[:, k] * math.cos(2 * math.pi * k * ti / T)
-                                       + b[:, k] * math.sin(2 * math.pi * k * ti / T)
-                                       for k in range(1, a.shape[1])) for ti in t])
-    # Same formula evaluated two ways in float64: agreement to rounding error.
-    np.testing.assert_allclose(lib.angles("capture01_c0", t), expected, atol=1e-12)
-    np.testing.assert_allclose(lib.angles("capture01_c0", t + T), expected, atol=1e-12)
+    t = np.array([0.0, 0.3, 0.77, 1.0999, 1.1 + 0.3, -0.8, 5 * 1.1 + 0.77])
+    # the same formula evaluated two ways in float64: agreement to rounding error
+    np.testing.assert_allclose(lib.angles("capture01_c0", t),
+                               documented_formula(a, b, ramp, T, t), atol=1e-12)
+    # without the ramp the formula is another one (what the page's sketch gave)
+    assert np.abs(lib.angles("capture01_c0", t)
+                  - documented_formula(a, b, 0 * ramp, T, t)).max() > 0.02
+
+
+def test_angles_are_periodic_on_0_to_T_and_the_ramp_restarts_each_cycle():
+    lib = with_ramps()
+    ramp = lib.entry("capture01_c0").fourier.ramp
+    T = 1.1
+    t = np.linspace(0.0, T, 50, endpoint=False)
+    one = lib.angles("capture01_c0", t)
+    for k in (1, 2, -1, 7):
+        np.testing.assert_allclose(lib.angles("capture01_c0", t + k * T), one, atol=1e-12)
+    # at T the next cycle starts: q(0); just before, q(0) + ramp (the captured end)
+    q0, end, at_T = lib.angles("capture01_c0", np.array([0.0, T - 1e-9, T]))
+    np.testing.assert_allclose(at_T, q0, rtol=0, atol=1e-15)   # tau = 0 both: BLAS rounding
+    np.testing.assert_allclose(end, q0 + ramp, atol=1e-7)   # the series' slope × 1e-9 s
+    # a t rounding to T under mod stays in [0, T): the start, not the captured end
+    np.testing.assert_allclose(lib.angles("capture01_c0", np.array([-1e-300]))[0], q0,
+                               rtol=0, atol=1e-15)
 
 
 def test_load_library_rejects_non_libraries(tmp_path):
@@ -585,18 +622,18 @@ def test_validate_catches_a_broken_poulaine(mutate, expected):
     assert all("capture01_c0" in p for p in problems)
 
 
-def test_version_2_is_written_and_version_1_files_still_read(tmp_path):
-    from mocaplib.library.format import FORMAT_VERSION
+def test_version_3_is_written_and_version_1_files_still_read(tmp_path):
+    from mocaplib.library.document import FORMAT_VERSION
 
     path = library().write(tmp_path / "lib.json")
     document = json.loads(path.read_text())
-    assert document["format_version"] == FORMAT_VERSION == 2
+    assert document["format_version"] == FORMAT_VERSION == 3
     # a version-1 file: no joint shifts (nor any field version 2 added), its own checksum gone
     document["format_version"] = 1
     del document[CHECKSUM_KEY]
     old = tmp_path / "old.json"
     old.write_text(json.dumps(document))
     assert validate_library(old) == [] and len(load_library(old)) == 5
-    document["format_version"] = 3
+    document["format_version"] = 4
     old.write_text(json.dumps(document))
     assert any("format_version" in p.where for p in validate_library(old))

@@ -80,7 +80,7 @@ def test_a_mirrored_library_of_the_samples_covers_the_default_envelope(mirrored_
     images). Measured: 99.16 % with the images, 99.13 % without."""
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.coverage import coverage
-    from mocaplib.library.format import validate_library
+    from mocaplib.library.validation import validate_library
     from mocaplib.report.plan import default_envelope
 
     library = mirrored_samples.library

@@ -57,7 +57,7 @@ def short_run(request, tmp_path_factory):
 
 @pytest.mark.slow
 def test_a_short_run_at_250_hz_gives_an_entry_from_its_right_toe_off(short_run):
-    from mocaplib.library.format import validate_library
+    from mocaplib.library.validation import validate_library
 
     path, protocol, capture, full = short_run
     result = build_library([path], BuildSettings(protocol=str(protocol)), progress=False)

@@ -22,7 +22,8 @@ from mocaplib.build import pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
-from mocaplib.library.format import load_library, validate_library
+from mocaplib.library.format import load_library
+from mocaplib.library.validation import validate_library
 from mocaplib.gait.qc import DEFAULT_QC_THRESHOLDS, qc_failures
 from mocaplib.build.pipeline import build_library
 from mocaplib.io import find_captures

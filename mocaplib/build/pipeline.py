@@ -24,8 +24,8 @@ import numpy as np
 from ..errors import LibraryError, MocapError
 from ..io import find_captures, fs_text
 from ..io.atomic import atomic_write_files
-from ..library.format import (DIAGNOSTICS_FORMAT, Library, assemble_library, diagnostics_path,
-                              json_text, to_json_data)
+from ..library.document import DIAGNOSTICS_FORMAT
+from ..library.format import Library, assemble_library, diagnostics_path, json_text, to_json_data
 from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
 from .sessions import plan_captures

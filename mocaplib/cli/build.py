@@ -107,7 +107,7 @@ def _check_usage(args):
 
 def _run(args) -> int:
     from ..build.pipeline import build_library
-    from ..library.format import validate_library
+    from ..library.validation import validate_library
 
     captures, settings = _check_usage(args)
     output = Path(args.output)

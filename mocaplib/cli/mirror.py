@@ -26,7 +26,8 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     import sys
 
-    from ..library.format import diagnostics_path, load_library, validate_library
+    from ..library.format import diagnostics_path, load_library
+    from ..library.validation import validate_library
     from ..library.mirror import mirror_library, write_mirrored
     from ._common import LIBRARY_HINT, check_inputs, check_outputs, warn
 

@@ -69,7 +69,8 @@ def _run(args) -> int:
     from ..errors import MocapError
     from ..export.formats import write
     from ..library.controlspace import ControlSpace
-    from ..library.format import checksum_status, load_library
+    from ..library.document import checksum_status
+    from ..library.format import load_library
     from ..model.motion import Motion
     from ._common import print_json, warn
 

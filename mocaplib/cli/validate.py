@@ -18,7 +18,8 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..library.format import NO_CHECKSUM_NOTE, checksum_status, validate_library
+    from ..library.document import NO_CHECKSUM_NOTE, checksum_status
+    from ..library.validation import validate_library
     from ._common import LIBRARY_HINT, check_inputs, print_json
 
     check_inputs([args.library], hint=LIBRARY_HINT)

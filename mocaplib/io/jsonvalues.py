@@ -12,6 +12,7 @@ import json
 import math
 
 import numpy as np
+import rfc8785
 
 from . import fs_text
 
@@ -91,9 +92,25 @@ def json_values(obj, /, *, decimals: int | None = None, significant: int | None 
 def canonical_sha256(data, /) -> str:
     """SHA-256 (hex) of the canonical JSON text of ``data``: keys sorted, no whitespace
     (separators ``,`` and ``:``), text as it is (not ASCII-escaped), numbers as Python writes
-    them (the shortest text that reads back as the same double), encoded as UTF-8. The same
-    data read back from any formatting of the same JSON gives the same hash."""
+    them (the shortest text that reads back as the same double, ``1.0`` for one), encoded as
+    UTF-8. The same data read back from any formatting of the same JSON gives the same hash.
+    Python's number text makes it a Python-only checksum (the build's cache); files other
+    languages verify use :func:`jcs_sha256`."""
     import hashlib      # here, where hashes are taken: OpenSSL's start-up is 3 ms
 
     text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+def jcs_sha256(data, /) -> str:
+    """SHA-256 (hex) of the RFC 8785 JSON Canonicalization Scheme (JCS) form of ``data``:
+    keys sorted by their UTF-16 code units, no whitespace, numbers as ECMAScript prints them
+    (``1`` for one, ``1e-7``, ``1e+21``), encoded as UTF-8 — the same bytes in any language
+    with a JCS library (JavaScript: ``canonicalize``). Raises ValueError for data JCS cannot
+    hold (NaN, ±inf, integers beyond ±2**53)."""
+    import hashlib      # here, where hashes are taken: OpenSSL's start-up is 3 ms
+
+    try:
+        return hashlib.sha256(rfc8785.dumps(data)).hexdigest()
+    except rfc8785.CanonicalizationError as exc:
+        raise ValueError(f"no RFC 8785 form: {exc}") from None

@@ -338,6 +338,27 @@ class ControlSpace:
         return tetra_quality(self.tri.points[self.tri.simplices])
 
 
+#: The ``format`` of :func:`tetrahedra_document`.
+TETRAHEDRA_FORMAT = "mocaplib-tetrahedra"
+
+
+def tetrahedra_document(library) -> dict:
+    """The tetrahedra ``mocaplib query`` locates a command in, as JSON data for readers in other
+    languages (``js/mocaplib-library.js``), which rebuild the rest from the library file.
+
+    Keys: ``format`` (:data:`TETRAHEDRA_FORMAT`), ``library_content_sha256`` (the library's
+    ``content_sha256``, naming the library they belong to), ``axes`` (tangential), ``ids``
+    (the control space's entries: chosen, with finite velocities and period, in the file's
+    order) and ``tetrahedra`` (S, 4) row numbers of ``ids``. A point's normalised coordinates
+    are its (v, omega, v_l) / ``control_space.scale``.
+    """
+    cs = ControlSpace.from_library(library)
+    return {"format": TETRAHEDRA_FORMAT,
+            "library_content_sha256": library.document.get("content_sha256"),
+            "axes": list(cs.axes), "ids": list(cs.ids),
+            "tetrahedra": cs.tri.simplices.tolist()}
+
+
 def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:
     """Pairs of entries closer than ``within`` (normalised distance): columns ``a``, ``b`` (ids)
     and ``distance``, nearest first. E.g. 60° and 120° diagonal walks have the same v̂ and v̂_l,

@@ -10,8 +10,10 @@ Units and meanings are those of ``docs/library-format.md``: SI units (m, s, rad,
 ``to_json`` gives plain JSON values at full precision (the library file rounds them to 10
 significant digits when it is written) and leaves out what the file leaves out: optional keys
 that are None or empty, ``mirrored`` unless the entry is a mirror image. ``from_json`` reads
-format versions 1 and 2 (version 1 lacks the optional keys, and may lack ``chosen``: read as
-True). Numbers are kept as read (an integer stays an integer), lists become tuples, and the
+format versions 1 to 3 (version 1 lacks the optional keys, and may lack ``chosen``: read as
+True) and ignores the keys it does not know in the objects the format leaves open (an entry,
+its ``pattern`` and ``poulaine``: ``open_object``); an unknown key of a closed one is an
+error. Numbers are kept as read (an integer stays an integer), lists become tuples, and the
 Fourier coefficients numpy arrays.
 """
 
@@ -56,9 +58,10 @@ def _array(values, what: str) -> np.ndarray:
 
 def _keys(data: dict, cls, where: str) -> dict:
     """``data``'s values for ``cls``'s fields; LibraryError naming ``where`` for a required
-    key missing or a key the format does not have."""
+    key missing or, when ``cls.open_object`` is False, a key the format does not have (an open
+    object's unknown keys, a later version's additions, are left out)."""
     names = {f.name: f for f in fields(cls)}
-    unknown = sorted(set(data) - set(names))
+    unknown = [] if cls.open_object else sorted(set(data) - set(names))
     required = [name for name, f in names.items()
                 if f.default is MISSING and f.default_factory is MISSING]
     missing = [name for name in required if name not in data]
@@ -72,6 +75,10 @@ def _keys(data: dict, cls, where: str) -> dict:
 
 class _Record:
     """A record whose fields are its JSON keys: ``to_json`` and ``from_json`` as they are."""
+
+    #: Whether later format versions may add keys to the object (docs/library-format.md,
+    #: *Unknown keys*): read ignoring them; a closed object's unknown key is refused.
+    open_object = False
 
     def to_json(self) -> dict:
         return json_values({f.name: getattr(self, f.name) for f in fields(self)})
@@ -101,6 +108,8 @@ class EntryPattern(_Record):
         Signed angle turned along the pattern, rad (0 for line and point; None: not computed).
     """
 
+    open_object = True
+
     type: str
     parameters: dict
     residual_m: float | None
@@ -110,8 +119,9 @@ class EntryPattern(_Record):
 @dataclass(frozen=True, eq=False)
 class EntryFourier(_Record):
     """The cycle's Fourier series (``entries[i].fourier``): ``q_d(t) = a[d, 0] + Σ_k a[d, k]
-    cos(2πkt/T) + b[d, k] sin(2πkt/T)``, t in s from the cycle start, in the DOF's unit (rad,
-    m for ``pelvis_t*``), plus ``ramp[d]·t/T`` when ``ramp`` is stored.
+    cos(2πkτ/T) + b[d, k] sin(2πkτ/T) + ramp[d]·τ/T``, τ = t mod T with t in s from the cycle
+    start, in the DOF's unit (rad, m for ``pelvis_t*``); ``ramp`` 0 when not stored
+    (:meth:`mocaplib.library.format.Library.angles`).
 
     Attributes
     ----------
@@ -279,6 +289,8 @@ class EntryPoulaine(_Record):
         Each ankle's model.
     """
 
+    open_object = True
+
     travel_rad: float
     step_length_m: float
     foot_spacing_m: float
@@ -392,6 +404,9 @@ class LibraryEntry:
         DOF -> share of the cycle's frames it spends at a joint limit.
     """
 
+    #: Later format versions may add keys to an entry: they are read ignoring them.
+    open_object = True
+
     id: str
     locomotion_class: str | None
     source_file: str
@@ -467,8 +482,10 @@ class LibraryEntry:
 
     @classmethod
     def from_json(cls, data: dict) -> "LibraryEntry":
-        """The entry of ``entries[i]`` of a library file (format version 1 or 2); raises
-        :class:`~mocaplib.errors.LibraryError` naming the entry for a key missing or unknown."""
+        """The entry of ``entries[i]`` of a library file (format versions 1 to 3), ignoring
+        keys of a later version in the open objects; raises
+        :class:`~mocaplib.errors.LibraryError` naming the entry for a key missing, or unknown
+        in a closed object (``fourier``, ``root_drift``, an ankle's path)."""
         where = f"entry {data.get('id', '(no id)')}"
         data = dict(data)
         mirrored = data.pop("mirrored", False)

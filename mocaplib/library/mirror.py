@@ -53,7 +53,8 @@ from ..io.jsonvalues import parse_json
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
 from .controlspace import CLOSE_DISTANCE
 from .entry import EntryDrift, EntryFourier
-from .format import CHECKSUM_KEY, Library, control_scale, diagnostics_path, json_text, to_json_data
+from .document import CHECKSUM_KEY
+from .format import Library, control_scale, diagnostics_path, json_text, to_json_data
 from .phase import from_left_toe_off, shifted_poulaine, shifted_series
 
 #: The reflection of the mirror: y -> -y (3, 3).

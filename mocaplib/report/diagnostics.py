@@ -11,7 +11,8 @@ from pathlib import Path
 
 from ..io import read_regular
 from ..io.jsonvalues import parse_json
-from ..library.format import DIAGNOSTICS_FORMAT, diagnostics_path
+from ..library.document import DIAGNOSTICS_FORMAT
+from ..library.format import diagnostics_path
 
 
 # --------------------------------------------------------------------------- sidecar

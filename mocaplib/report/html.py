@@ -22,7 +22,9 @@ from ..errors import MocapError
 from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io.atomic import atomic_write_text
 from ..library.controlspace import AXIS_UNITS, ControlSpace
-from ..library.format import NO_CHECKSUM_NOTE, checksum_status, load_library, validate_library
+from ..library.document import NO_CHECKSUM_NOTE, checksum_status
+from ..library.format import load_library
+from ..library.validation import validate_library
 from ..skeleton import DOF_NAMES
 from . import figures
 from .diagnostics import read_diagnostics

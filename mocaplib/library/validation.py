@@ -1,0 +1,428 @@
+"""Validation of library files (``mocaplib validate``, :func:`validate_library`): the numbers,
+the shipped JSON Schema, the content checksum, and the rules the schema cannot state
+(``docs/library-format.md``, *Validation*). :func:`reading_problems` is the part
+:func:`mocaplib.library.format.load_library` applies: what would make a file's numbers
+unusable.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LibraryError
+from ..gait.qc import qc_failures
+from ..io.jsonvalues import OutOfRange, float_or_nan
+from .document import CHECKSUM_KEY, CONTROL_AXES, checksum_status, read_document, schema
+from .entry import DRIFT_DISPLACEMENT, drift_displacement
+
+#: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
+#: may have: far beyond any human locomotion, so only corrupt files are refused (and the control
+#: space's geometry never overflows).
+PLAUSIBLE_SPEED, PLAUSIBLE_COEFFICIENT = 100.0, 1000.0
+#: Largest difference between a stored root-drift displacement and the one its velocities and T
+#: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
+#: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
+DRIFT_TOLERANCE = 1e-6
+#: An entry poulaine's parameters (m), read on its characteristic points; stored values must
+#: agree with the points to this (m): stored with 10 significant digits they agree to 1e-10.
+POULAINE_PARAMETERS = ("step_length_m", "foot_spacing_m", "stance_m")
+POULAINE_TOLERANCE = 1e-6
+#: Turn rates (rad/s) above which an entry's ω̂ and its root drift's ω must share a sign. ω̂
+#: follows the shoulder line, the drift the pelvis: on those files they differ by up to 0.11
+#: rad/s (running.c3d), and opposite signs occur only where the smaller is at most 0.039 rad/s
+#: (BTS.c3d with --all-cycles), 5 times below this.
+TURN_SIGN_RATE = 0.2
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One reason a library is invalid: ``where`` (a JSON path such as ``entries[3].T``) and why."""
+
+    where: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.where}: {self.message}"
+
+
+def _control_points(entries: list[dict]) -> np.ndarray:
+    return np.array([[float_or_nan(e[axis]) for axis in CONTROL_AXES] for e in entries],
+                    dtype=np.float64).reshape(-1, 3)
+
+
+def _matrix(rows) -> np.ndarray:
+    return np.array([[float_or_nan(x) for x in row] for row in rows], dtype=np.float64)
+
+
+#: Parameters of each pattern type (``entries[i].pattern.parameters``).
+PATTERN_PARAMETERS = {"line": ("direction", "length", "point"),
+                      "arc": ("centre", "length", "radius", "turn"),
+                      "point": ("length", "point")}
+#: How far (rad) an angle DOF's mean ``a[d][0]`` may lie outside its ``dof_ranges``: rounding
+#: only. The fitted angles stay within the ranges, so does their mean: the closest measured is
+#: 0.88 deg inside (17 real files), so a mean outside is a unit slip (degrees stored as rad).
+RANGE_TOLERANCE = 1e-6
+
+
+def validate_library(library) -> list[Problem]:
+    """Schema and semantic problems of a library (path, JSON dict or
+    :class:`~mocaplib.library.format.Library`).
+
+    Checks, after the numbers (no NaN or Infinity: JSON has none) and the schema: DOF names
+    unique, units/ranges one per DOF, ranges lo <= hi; every entry's coefficients of shape
+    (D, N+1) with N the header's, finite, ``b[:, 0] = 0``, zero beyond the entry's ``n``, each
+    angle DOF's mean ``a[d][0]`` within its range; ``T > 0`` and ``end_s - start_s = T``
+    (1 ms); velocities finite; ids unique and ``cycle_index`` the id's ``_c<k>``; the pattern's
+    parameters those of its type; the root drift's displacement the one its velocities give
+    over T, its turn rate of the entry's ω̂'s sign; a poulaine's phases in order, speed
+    profiles rising and parameters those of its characteristic points; the chosen entries' normalised
+    (v, omega, v_l) points not degenerate (:func:`mocaplib.library.triangulation.degeneracy`: the rule
+    the control space uses); every QC metric within ``qc_thresholds`` or listed in the
+    entry's ``qc_waived`` with a reason.
+
+    Parameters
+    ----------
+    library : str, os.PathLike, dict or Library
+        A library file, its parsed JSON document, or a loaded :class:`Library`.
+
+    Returns
+    -------
+    list of Problem
+        Every problem found, each with the JSON path it is at; empty for a valid library.
+    """
+    if isinstance(library, dict):
+        document = library
+    elif not isinstance(library, (str, os.PathLike)):
+        document = library.document
+    else:
+        try:
+            document, _ = read_document(library)
+        except LibraryError as exc:
+            return [Problem("file", exc.message if not exc.hint else
+                            f"{exc.message} ({exc.hint})")]
+    problems = _structure_problems(document)
+    if problems:
+        return problems
+    return _named(document, _checksum_problems(document) + _skeleton_problems(document)
+                  + _entry_problems(document) + _consistency_problems(document)
+                  + _control_space_problems(document))
+
+
+def _checksum_problems(document: dict) -> list[Problem]:
+    if checksum_status(document) != "mismatch":
+        return []
+    return [Problem(CHECKSUM_KEY, "the content does not match the checksum the file was "
+                                  "written with: it was changed after `mocaplib build` wrote "
+                                  "it (by hand or by another tool), so its values cannot be "
+                                  "trusted; build it again")]
+
+
+def reading_problems(document) -> list[Problem]:
+    """What makes a library document unusable (:func:`mocaplib.library.format.load_library`
+    refuses it): numbers JSON cannot hold, the schema, the skeleton's lists, and each entry's
+    coefficient shapes, finite values, period and velocities (QC thresholds not applied)."""
+    return _structure_problems(document) or _named(document, _skeleton_problems(document)
+                                                   + _entry_problems(document, qc=False))
+
+
+def _structure_problems(document) -> list[Problem]:
+    """Numbers JSON cannot hold, then the schema's problems."""
+    return _named(document, _non_finite_problems(document) + _schema_problems(document))
+
+
+def _non_finite_problems(document) -> list[Problem]:
+    """Every NaN or ±Infinity (read from the non-standard JSON tokens), in document order."""
+    problems, stack = [], [((), document)]
+    while stack:
+        parts, value = stack.pop()
+        if isinstance(value, dict):
+            stack += [((*parts, key), item) for key, item in reversed(value.items())]
+        elif isinstance(value, list):
+            stack += [((*parts, i), item) for i, item in reversed(list(enumerate(value)))]
+        elif isinstance(value, OutOfRange):
+            problems.append(Problem(_json_path(parts), "a number beyond the range of a double "
+                                    "(±1.8e308): no reader can hold it"))
+        elif isinstance(value, float) and not math.isfinite(value):
+            token = "NaN" if value != value else "Infinity" if value > 0 else "-Infinity"
+            problems.append(Problem(_json_path(parts), f"{token} is not a JSON number (JSON "
+                                    "readers such as nlohmann::json and System.Text.Json "
+                                    "refuse the file): write null for a number that could "
+                                    "not be computed"))
+    return problems
+
+
+def _schema_problems(document) -> list[Problem]:
+    from jsonschema import Draft202012Validator
+
+    validator = Draft202012Validator(schema())
+    errors = sorted((_specific(error) for error in validator.iter_errors(document)),
+                    key=lambda e: list(map(str, e.absolute_path)))
+    return [Problem(_json_path(error.absolute_path), f"schema: {error.message[:300]}")
+            for error in errors]
+
+
+def _specific(error):
+    """The error of an ``anyOf`` branch the value's type matches ("2.0 is greater than the
+    maximum of 1" rather than "2.0 is not valid under any of the given schemas"): the schema
+    writes a nullable number as anyOf number or null; ``error`` itself when there is none."""
+    from jsonschema.exceptions import best_match
+
+    specific = [e for e in error.context or () if e.relative_path or e.validator != "type"]
+    return _specific(best_match(specific)) if specific else error
+
+
+def _json_path(parts) -> str:
+    text = ""
+    for part in parts:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text or "(document)"
+
+
+def _named(document, problems: list[Problem]) -> list[Problem]:
+    """``problems`` with the entry's id before the message of those about an entry."""
+    entries = document.get("entries") if isinstance(document, dict) else None
+    named = []
+    for problem in problems:
+        found = re.match(r"entries\[(\d+)\]", problem.where)
+        i = int(found.group(1)) if found else -1
+        if (isinstance(entries, list) and 0 <= i < len(entries)
+                and isinstance(entries[i], dict) and isinstance(entries[i].get("id"), str)):
+            problem = Problem(problem.where, f"entry {entries[i]['id']!r}: {problem.message}")
+        named.append(problem)
+    return named
+
+
+def _skeleton_problems(doc: dict) -> list[Problem]:
+    skel = doc["skeleton"]
+    names = skel["dof_names"]
+    problems = []
+    if len(set(names)) != len(names):
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        problems.append(Problem("skeleton.dof_names", f"duplicate DOF names: {dupes}"))
+    for key in ("dof_units", "dof_ranges"):
+        if len(skel[key]) != len(names):
+            problems.append(Problem(f"skeleton.{key}",
+                                    f"{len(skel[key])} items for {len(names)} DOFs"))
+    return problems
+
+
+def _entry_problems(doc: dict, *, qc: bool = True) -> list[Problem]:
+    """Problems of the entries: ids, coefficients, periods, velocities and (``qc``) QC."""
+    n_dof = len(doc["skeleton"]["dof_names"])
+    n_harm = doc["fourier"]["n_harmonics"]
+    thresholds = doc["qc_thresholds"]
+    problems = []
+    seen: set[str] = set()
+    for i, e in enumerate(doc["entries"]):
+        where = f"entries[{i}]"
+        if e["id"] in seen:
+            problems.append(Problem(f"{where}.id", f"duplicate id {e['id']!r}"))
+        seen.add(e["id"])
+        problems += _fourier_problems(e["fourier"], f"{where}.fourier", n_dof, n_harm)
+        period = float_or_nan(e["T"])
+        if not (math.isfinite(period) and period > 0):
+            problems.append(Problem(f"{where}.T", f"period must be finite and > 0, got {period}"))
+        elif abs((e["end_s"] - e["start_s"]) - period) > 1e-3:
+            problems.append(Problem(f"{where}.T", f"T = {period} s but end_s - start_s = "
+                                                  f"{e['end_s'] - e['start_s']} s"))
+        for key in ("v", "omega", "v_l", "v_f"):
+            if not math.isfinite(float_or_nan(e[key])):
+                problems.append(Problem(f"{where}.{key}", "velocity is missing or not finite"))
+            elif abs(float_or_nan(e[key])) > PLAUSIBLE_SPEED:
+                problems.append(Problem(f"{where}.{key}", f"velocity {e[key]} is not a "
+                                                          f"locomotion's (|value| > "
+                                                          f"{PLAUSIBLE_SPEED:g})"))
+        for failure in qc_failures(e["qc"], thresholds, e["qc_waived"]) if qc else ():
+            problems.append(Problem(f"{where}.qc", f"{failure} (fix the capture, or waive it "
+                                                   f"with a reason in qc_waived)"))
+    return problems
+
+
+def _fourier_problems(fourier: dict, where: str, n_dof: int, n_harm: int) -> list[Problem]:
+    problems = []
+    a, b = fourier["a"], fourier["b"]
+    for key, rows in (("a", a), ("b", b)):
+        if len(rows) != n_dof or any(len(row) != n_harm + 1 for row in rows):
+            shape = (len(rows), sorted({len(row) for row in rows}))
+            problems.append(Problem(f"{where}.{key}", f"coefficients must be {n_dof} rows of "
+                                                      f"{n_harm + 1}, got {shape}"))
+            return problems
+        values = _matrix(rows)
+        if not np.isfinite(values).all():
+            problems.append(Problem(f"{where}.{key}", "coefficients contain null or non-finite "
+                                                      "values"))
+        elif np.abs(values).max(initial=0.0) > PLAUSIBLE_COEFFICIENT:
+            problems.append(Problem(f"{where}.{key}", f"coefficients beyond "
+                                                      f"±{PLAUSIBLE_COEFFICIENT:g} (rad or m) "
+                                                      "are not a joint's"))
+        elif np.any(values[:, int(fourier["n"]) + 1:]):
+            problems.append(Problem(f"{where}.{key}", f"harmonics beyond the fitted order n = "
+                                                      f"{fourier['n']} must be 0 (padding)"))
+    ramp = fourier.get("ramp")
+    if ramp is not None and (len(ramp) != n_dof or not np.isfinite(_matrix([ramp])).all()):
+        problems.append(Problem(f"{where}.ramp", f"must be {n_dof} finite numbers (one per "
+                                                 f"DOF), got {len(ramp)}"))
+    if any(row[0] not in (0, 0.0) for row in b):
+        problems.append(Problem(f"{where}.b", "b[:, 0] must be 0 (there is no sin(0) term)"))
+    if fourier["n"] > n_harm:
+        problems.append(Problem(f"{where}.n", f"fitted order {fourier['n']} exceeds the "
+                                              f"library's n_harmonics {n_harm}"))
+    return problems
+
+
+def _consistency_problems(doc: dict) -> list[Problem]:
+    """Fields that must agree with each other or lie in their documented ranges: what a hand
+    edit or a unit slip breaks while the schema still holds."""
+    skel = doc["skeleton"]
+    ranges = [[-math.inf if lo is None else lo, math.inf if hi is None else hi]
+              for lo, hi in skel["dof_ranges"]]
+    problems = [Problem(f"skeleton.dof_ranges[{d}]", f"{name}: lower limit {lo} > upper {hi}")
+                for d, (name, (lo, hi)) in enumerate(zip(skel["dof_names"], ranges)) if lo > hi]
+    angles = [(d, name, lo, hi) for d, (name, unit, (lo, hi))
+              in enumerate(zip(skel["dof_names"], skel["dof_units"], ranges)) if unit == "rad"]
+    ids = [e["id"] for e in doc["entries"]]
+    if ids != sorted(ids):
+        first = next(i for i in range(1, len(ids)) if ids[i] < ids[i - 1])
+        problems.append(Problem(f"entries[{first}].id", f"entries must be sorted by id: "
+                                                        f"{ids[first]!r} follows "
+                                                        f"{ids[first - 1]!r}"))
+    for i, e in enumerate(doc["entries"]):
+        where = f"entries[{i}]"
+        found = re.search(r"_c(\d+)(@[0-9a-f]+)?$", e["id"])
+        if found and int(found.group(1)) != e["cycle_index"]:
+            problems.append(Problem(f"{where}.cycle_index", f"{e['cycle_index']}, but the id "
+                                                            f"names cycle {found.group(1)}"))
+        if re.search(r"[/\\]", e["source_file"]):
+            problems.append(Problem(f"{where}.source_file", "must be a file name, without "
+                                                            "its folder"))
+        if e.get("mirror_of") == e["id"]:
+            problems.append(Problem(f"{where}.mirror_of", "an entry cannot be its own mirror "
+                                                          "image"))
+        for key in ("right_toe_off_s", "left_toe_off_s"):
+            toe_off = e.get(key)
+            if toe_off is not None and math.isfinite(float_or_nan(e["T"])) \
+                    and not toe_off < e["T"]:
+                problems.append(Problem(f"{where}.{key}", f"{toe_off} s is not inside the "
+                                                          f"cycle of T = {e['T']} s"))
+        problems += _pattern_problems(e["pattern"], f"{where}.pattern")
+        problems += _drift_problems(e, f"{where}.root_drift")
+        if e.get("poulaine") is not None:
+            problems += _poulaine_problems(e["poulaine"], f"{where}.poulaine")
+        rows = e["fourier"]["a"]
+        for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
+            mean = float_or_nan(rows[d][0]) if rows[d] else math.nan
+            if not lo - RANGE_TOLERANCE <= mean <= hi + RANGE_TOLERANCE and math.isfinite(mean):
+                problems.append(Problem(f"{where}.fourier.a[{d}][0]", f"mean {name} {mean:.6g} "
+                                        f"rad lies outside its range [{lo:.4g}, {hi:.4g}] rad "
+                                        "(degrees stored as radians?)"))
+    return problems
+
+
+def _pattern_problems(pattern: dict, where: str) -> list[Problem]:
+    """The parameters of the pattern's type (:data:`PATTERN_PARAMETERS`) and their values."""
+    kind, params = pattern["type"], pattern["parameters"]
+    if sorted(params) != list(PATTERN_PARAMETERS[kind]):
+        return [Problem(f"{where}.parameters", f"the parameters of {kind} patterns are "
+                                               f"{', '.join(PATTERN_PARAMETERS[kind])}; got "
+                                               f"{', '.join(sorted(params)) or 'none'}")]
+    problems = []
+    for key in sorted(set(params) & {"centre", "direction", "point"}):
+        xy = params[key]
+        if not (isinstance(xy, list) and len(xy) == 2 and all(map(_is_number, xy))):
+            problems.append(Problem(f"{where}.parameters.{key}", f"must be [x, y], got {xy!r}"))
+        elif key == "direction" and abs(math.hypot(*xy) - 1.0) > 1e-6:
+            # stored to 10 digits, the unit vectors of the files at hand are within 7e-11 of 1
+            problems.append(Problem(f"{where}.parameters.direction", f"must be a unit vector, "
+                                                                     f"its length is "
+                                                                     f"{math.hypot(*xy):.6g}"))
+    if not (_is_number(params["length"]) and params["length"] >= 0):
+        problems.append(Problem(f"{where}.parameters.length", f"must be a number of metres "
+                                                              f">= 0, got {params['length']!r}"))
+    if "radius" in params and not (_is_number(params["radius"]) and params["radius"] > 0):
+        problems.append(Problem(f"{where}.parameters.radius", f"must be a number of metres "
+                                                              f"> 0, got {params['radius']!r}"))
+    if kind == "arc" and not (_is_number(params["turn"]) and params["turn"] in (1, -1)):
+        problems.append(Problem(f"{where}.parameters.turn", f"must be 1 (counter-clockwise) "
+                                                            f"or -1, got {params['turn']!r}"))
+    return problems
+
+
+def _drift_problems(e: dict, where: str) -> list[Problem]:
+    """The root drift's displacement against its velocities over T, and its turn's sign."""
+    drift, period = e["root_drift"], float_or_nan(e["T"])
+    problems = []
+    if math.isfinite(period):
+        expected = drift_displacement(drift, period)
+        wrong = [key for key in DRIFT_DISPLACEMENT if not abs(drift[key] - expected[key])
+                 <= DRIFT_TOLERANCE * max(1.0, abs(expected[key]))]
+        if wrong:
+            problems.append(Problem(where, "the displacement does not follow from u_f_m_s, "
+                                           f"u_l_m_s, omega_rad_s over T = {period} s: " +
+                                           ", ".join(f"{k} {drift[k]:.6g}, expected "
+                                                     f"{expected[k]:.6g}" for k in wrong)))
+    omega, turn = float_or_nan(e["omega"]), drift["omega_rad_s"]
+    if min(abs(omega), abs(turn)) > TURN_SIGN_RATE and omega * turn < 0:
+        problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
+                                                        f"from the entry's omega {omega:.4g} "
+                                                        "rad/s (a sign flipped?)"))
+    return problems
+
+
+def _poulaine_problems(poulaine: dict, where: str) -> list[Problem]:
+    """Phases in order, speed profiles rising, rows of one length, and the stored parameters
+    those of the characteristic points."""
+    from ..gait.poulaine import Poulaine
+
+    problems = []
+    for side in ("left", "right"):
+        path = poulaine[side]
+        if any(b < a for a, b in zip(path["phases"], path["phases"][1:])):
+            problems.append(Problem(f"{where}.{side}.phases", "must increase: the points are "
+                                                              "stored in the order they occur"))
+        if len({len(row) for row in path["timing"]}) > 1 or any(
+                b < a for row in path["timing"] for a, b in zip(row, row[1:])):
+            problems.append(Problem(f"{where}.{side}.timing", "every segment's speed profile "
+                                                              "must rise from 0 to 1, with as "
+                                                              "many knots as the others'"))
+    if problems:
+        return problems
+    computed = dict(zip(POULAINE_PARAMETERS, Poulaine.from_dict(poulaine).parameters))
+    wrong = [key for key in POULAINE_PARAMETERS
+             if not abs(poulaine[key] - computed[key]) <= POULAINE_TOLERANCE]
+    if wrong:
+        problems.append(Problem(where, "parameters that are not those of its characteristic "
+                                       "points: " + ", ".join(f"{k} {poulaine[k]:.6g}, the "
+                                                              f"points give {computed[k]:.6g}"
+                                                              for k in wrong)))
+    return problems
+
+
+def _is_number(value) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+def _control_space_problems(doc: dict) -> list[Problem]:
+    """The chosen entries' control space, as :class:`mocaplib.library.controlspace.ControlSpace`
+    builds it for queries: degenerate (:func:`~mocaplib.library.triangulation.degeneracy`), or failing
+    to triangulate."""
+    from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
+
+    points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
+    points = points[np.isfinite(points).all(axis=1)]
+    x = points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
+    what = f"the control space of the {len(x)} chosen entries with finite velocities"
+    reason = degeneracy(x)
+    if reason:
+        return [Problem("control_space", f"{what} is degenerate: it {reason}; "
+                                         f"{DEGENERACY_HINT}")]
+    try:
+        delaunay_tetrahedra(x)
+    except LibraryError as exc:
+        return [Problem("control_space", f"{what}: {exc.message}")]
+    return []
