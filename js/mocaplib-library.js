@@ -5,14 +5,13 @@
 //                              content checksum (RFC 8785 / JCS + SHA-256)
 // entryAngles(entry, t)        an entry's coordinates at t seconds (the documented formula,
 //                              ramp included; periodic on [0, T))
-// blend(library, tetrahedra, command)
-//                              the entries and barycentric weights of a velocity command
+// blend(library, command)      the entries and barycentric weights of a velocity command
 //                              (v m/s, omega rad/s, v_l m/s) and the blended series, as
-//                              `mocaplib query` computes them; the tetrahedra come from
-//                              mocaplib.library.controlspace.tetrahedra_document (Python)
+//                              `mocaplib query` computes them, in the tetrahedra the file
+//                              stores (control_space.tetrahedra)
 //
-// Run as a script: node mocaplib-library.js LIBRARY.json [--tetrahedra T.json]
-//   [--phases N] [--query V OMEGA VL]...   prints a JSON report (used by the Python tests).
+// Run as a script: node mocaplib-library.js LIBRARY.json [--phases N] [--query V OMEGA VL]...
+//   prints a JSON report (used by the Python tests).
 //
 // Python's validation (mocaplib validate) checks more than the schema (coefficient shapes,
 // periods, sorted ids, the control space's geometry); this reader checks what a file needs
@@ -33,7 +32,6 @@ export const FORMAT = "mocaplib-library";
 export const KNOWN_VERSIONS = [1, 2, 3];
 /** Versions whose checksum is Python-printed JSON, which only Python reproduces. */
 export const PYTHON_CHECKSUM_VERSIONS = [1, 2];
-export const TETRAHEDRA_FORMAT = "mocaplib-tetrahedra";
 /** Root channels (pelvis_tx, pelvis_ty, pelvis_rotation) by name, for re-anchoring. */
 const ROOT_NAMES = ["pelvis_tx", "pelvis_ty", "pelvis_rotation"];
 /** A query within this of a face (normalised units) counts inside, as in Python's locate. */
@@ -224,12 +222,11 @@ export function barycentric(p, x) {
  * 0 and summing to 1; coefficients, period and drift velocities blended with them. Returns
  * {inside: false} outside the control space.
  */
-export function blend(document, tetrahedra, command) {
-  if (tetrahedra.format !== TETRAHEDRA_FORMAT) {
-    throw new LibraryReadError(`not a tetrahedra file (format is not "${TETRAHEDRA_FORMAT}")`);
-  }
-  if (tetrahedra.library_content_sha256 !== document.content_sha256) {
-    throw new LibraryReadError("the tetrahedra belong to another library (content_sha256)");
+export function blend(document, command) {
+  const tetrahedra = document.control_space.tetrahedra;
+  if (tetrahedra === undefined) {
+    throw new LibraryReadError("the library stores no tetrahedra: its entries span no 3-D " +
+                               "control space (or it was written before format_version 3)");
   }
   if (command.length !== 3 || !command.every(Number.isFinite)) {
     throw new LibraryReadError(`a command is three finite numbers, got ${JSON.stringify(command)}`);
@@ -239,7 +236,7 @@ export function blend(document, tetrahedra, command) {
   const point = (e) => [e.v / scale[0], e.omega / scale[1], e.v_l / scale[2]];
   const x = command.map((value, i) => value / scale[i]);
   let best = null;
-  for (const simplex of tetrahedra.tetrahedra) {
+  for (const simplex of tetrahedra.simplices) {
     const w = barycentric(simplex.map((i) => point(entries[i])), x);
     const worst = Math.min(...w);
     if (best === null || worst > best.worst) best = { simplex, w, worst };
@@ -275,16 +272,15 @@ export function numbers(value, out = []) {
 function main(argv) {
   const args = { queries: [], phases: 8 };
   for (let i = 0; i < argv.length; i++) {
-    if (argv[i] === "--tetrahedra") args.tetrahedra = argv[++i];
-    else if (argv[i] === "--phases") args.phases = Number(argv[++i]);
+    if (argv[i] === "--phases") args.phases = Number(argv[++i]);
     else if (argv[i] === "--query") {
       args.queries.push(argv.slice(i + 1, i + 4).map(Number));
       i += 3;
     } else args.library = argv[i];
   }
   if (!args.library) {
-    process.stderr.write("usage: node mocaplib-library.js LIBRARY.json [--tetrahedra T.json] " +
-                         "[--phases N] [--query V OMEGA VL]...\n");
+    process.stderr.write("usage: node mocaplib-library.js LIBRARY.json [--phases N] " +
+                         "[--query V OMEGA VL]...\n");
     return 2;
   }
   try {
@@ -294,8 +290,7 @@ function main(argv) {
       angles[entry.id] = Array.from({ length: args.phases },
                                     (_, j) => entryAngles(entry, (entry.T * j) / args.phases));
     }
-    const tetrahedra = args.tetrahedra && JSON.parse(readFileSync(args.tetrahedra, "utf8"));
-    const blends = args.queries.map((command) => blend(document, tetrahedra, command));
+    const blends = args.queries.map((command) => blend(document, command));
     process.stdout.write(JSON.stringify({ checksum, angles, blends }) + "\n");
     return 0;
   } catch (error) {

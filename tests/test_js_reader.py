@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.library.controlspace import ControlSpace, tetrahedra_document
-from mocaplib.library.format import assemble_library, json_text, load_library
+from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.format import assemble_library, load_library
 from mocaplib.library.phase import start_later
 
 from test_library import D, entry
@@ -52,21 +52,18 @@ def library_with_ramps_and_a_late_start(tmp_path):
     entries[2] = start_later(entries[2], 0.4, cycle_start="right_toe_off",
                              left_toe_off_s=1.1 - 0.4)
     path = assemble_library(entries, settings={}).write(tmp_path / "library.json")
-    library = load_library(path)
-    tetrahedra = tmp_path / "tetrahedra.json"
-    tetrahedra.write_text(json_text(tetrahedra_document(library)))
-    return library, path, tetrahedra
+    return load_library(path), path
 
 
 def test_the_js_reader_reads_angles_and_blends_as_mocaplib_does(tmp_path, node_modules):
-    library, path, tetrahedra = library_with_ramps_and_a_late_start(tmp_path)
+    library, path = library_with_ramps_and_a_late_start(tmp_path)
     cs = ControlSpace.from_library(library)
     # each tetrahedron's centroid and a point near a vertex, and one command outside
     commands = [cs.points[s].mean(axis=0) for s in cs.tri.simplices]
     commands += [0.9 * cs.points[0] + 0.1 * cs.points.mean(axis=0), np.array([5.0, 0.0, 0.0])]
     phases = 16
     queries = [arg for c in commands for arg in ("--query", *(repr(float(x)) for x in c))]
-    report = run_reader(path, "--tetrahedra", tetrahedra, "--phases", phases, *queries)
+    report = run_reader(path, "--phases", phases, *queries)
     assert report["checksum"] == "verified"
     for e in library.entries:
         t = e.T * np.arange(phases) / phases
@@ -89,7 +86,7 @@ def test_the_js_reader_reads_angles_and_blends_as_mocaplib_does(tmp_path, node_m
 
 def test_node_reads_every_number_as_python_does(tmp_path, node_modules):
     # JSON.parse in Node, printed back as ECMAScript does (JCS's number text): the same doubles
-    _, path, _ = library_with_ramps_and_a_late_start(tmp_path)
+    _, path = library_with_ramps_and_a_late_start(tmp_path)
     script = ("import { numbers } from './mocaplib-library.js';"
               "import { readFileSync } from 'node:fs';"
               f"console.log(JSON.stringify(numbers(JSON.parse(readFileSync({json.dumps(str(path))},"
@@ -103,7 +100,7 @@ def test_node_reads_every_number_as_python_does(tmp_path, node_modules):
 
 
 def test_the_js_reader_refuses_what_mocaplib_refuses(tmp_path, node_modules):
-    _, path, _ = library_with_ramps_and_a_late_start(tmp_path)
+    _, path = library_with_ramps_and_a_late_start(tmp_path)
     document = json.loads(path.read_text())
     document["format_version"] = 4
     path.write_text(json.dumps(document))

@@ -338,25 +338,21 @@ class ControlSpace:
         return tetra_quality(self.tri.points[self.tri.simplices])
 
 
-#: The ``format`` of :func:`tetrahedra_document`.
-TETRAHEDRA_FORMAT = "mocaplib-tetrahedra"
+def stored_tetrahedra(library) -> dict | None:
+    """The tetrahedra ``mocaplib query`` locates a command in, as the library file stores them
+    (``control_space.tetrahedra``) for readers in other languages, or None when the entries
+    span no 3-D control space.
 
-
-def tetrahedra_document(library) -> dict:
-    """The tetrahedra ``mocaplib query`` locates a command in, as JSON data for readers in other
-    languages (``js/mocaplib-library.js``), which rebuild the rest from the library file.
-
-    Keys: ``format`` (:data:`TETRAHEDRA_FORMAT`), ``library_content_sha256`` (the library's
-    ``content_sha256``, naming the library they belong to), ``axes`` (tangential), ``ids``
-    (the control space's entries: chosen, with finite velocities and period, in the file's
-    order) and ``tetrahedra`` (S, 4) row numbers of ``ids``. A point's normalised coordinates
-    are its (v, omega, v_l) / ``control_space.scale``.
+    Keys: ``ids`` (the control space's entries: chosen, with finite velocities and period, in
+    the file's order) and ``simplices`` (S, 4) row numbers of ``ids``; a point's normalised
+    coordinates are its (v, omega, v_l) / ``control_space.scale``
+    (:meth:`ControlSpace.from_library`, tangential axes).
     """
-    cs = ControlSpace.from_library(library)
-    return {"format": TETRAHEDRA_FORMAT,
-            "library_content_sha256": library.document.get("content_sha256"),
-            "axes": list(cs.axes), "ids": list(cs.ids),
-            "tetrahedra": cs.tri.simplices.tolist()}
+    try:
+        cs = ControlSpace.from_library(library)
+    except LibraryError:
+        return None
+    return {"ids": list(cs.ids), "simplices": cs.tri.simplices.tolist()}
 
 
 def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:

@@ -44,6 +44,7 @@ from ..io.jsonvalues import float_or_nan, json_values
 from ..skeleton import DOFS
 from .document import (CHECKSUM_KEY, CONTROL_AXES, CONTROL_UNITS, FORMAT, FORMAT_VERSION,
                        content_sha256, read_document)
+from .controlspace import DEFAULT_SCALE, stored_tetrahedra
 from .entry import DRIFT_VELOCITIES, LibraryEntry
 from .validation import POULAINE_PARAMETERS, reading_problems
 
@@ -67,7 +68,9 @@ def assemble_library(entries: list[LibraryEntry], *, settings: dict,
     1.75 m skeleton's when no entry carries lengths), its joint shifts the per-segment median
     over the entries that carry them; the Fourier order N is the largest
     entry order and smaller orders are zero-padded (exact); control-space scales are
-    :func:`control_scale`.
+    :func:`control_scale`; the control space's tetrahedra are stored with them
+    (:func:`mocaplib.library.controlspace.stored_tetrahedra`) unless the entries span no
+    3-D control space.
     """
     from ..skeleton import Skeleton
 
@@ -105,6 +108,9 @@ def assemble_library(entries: list[LibraryEntry], *, settings: dict,
         "entries": [e.to_json() for e in entries],
     }
     doc = to_json_data(doc)
+    tetrahedra = stored_tetrahedra(Library(doc))
+    if tetrahedra is not None:
+        doc["control_space"]["tetrahedra"] = tetrahedra
     doc[CHECKSUM_KEY] = content_sha256(doc)
     return Library(doc)
 
@@ -115,8 +121,6 @@ def control_scale() -> list[float]:
     Fixed, not derived from the entries, so adding a capture does not re-shape the
     triangulation of the others.
     """
-    from .controlspace import DEFAULT_SCALE
-
     return [float(DEFAULT_SCALE[axis]) for axis in CONTROL_AXES]
 
 # --------------------------------------------------------------------------- the Library

@@ -425,4 +425,25 @@ def _control_space_problems(doc: dict) -> list[Problem]:
         delaunay_tetrahedra(x)
     except LibraryError as exc:
         return [Problem("control_space", f"{what}: {exc.message}")]
+    stored = doc["control_space"].get("tetrahedra")
+    return [] if stored is None else _tetrahedra_problems(doc, stored)
+
+
+def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
+    """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
+    in the file's order (with finite velocities and period) and the same tetrahedra."""
+    from .triangulation import delaunay_tetrahedra
+
+    where = "control_space.tetrahedra"
+    hint = "write the library again (mocaplib build, or mocaplib mirror)"
+    entries = [e for e in doc["entries"] if e.get("chosen", True)
+               and all(_is_number(e.get(k)) for k in ("v", "omega", "v_l", "T"))]
+    if stored["ids"] != [e["id"] for e in entries]:
+        return [Problem(where, f"ids are not the control space's entries (chosen, with finite "
+                               f"velocities and period, in the file's order); {hint}")]
+    x = _control_points(entries) / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
+    simplices = delaunay_tetrahedra(x).simplices.tolist()
+    if sorted(map(sorted, stored["simplices"])) != sorted(map(sorted, simplices)):
+        return [Problem(where, f"simplices are not the Delaunay tetrahedra of these entries; "
+                               f"{hint}")]
     return []
