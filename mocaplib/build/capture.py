@@ -138,10 +138,7 @@ def fit_events(capture, /, *, protocol="auto", static=None, static_pose: str = "
         missing = missing_landmarks_error(match, trial.source)
         if missing is not None:
             raise missing
-    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
-        else [static]
-    statics = [s if isinstance(s, Trial) else read_c3d(s) for s in statics]
-    fitted = fit_capture(trial, protocol=match, static=statics, static_pose=static_pose,
+    fitted = fit_capture(trial, protocol=match, static=static, static_pose=static_pose,
                          cutoff=cutoff, static_window=static_window, measurements=measurements,
                          heading_offsets=heading_offsets, fallback=fallback,
                          neutral_model=neutral_model, clock=clock)

@@ -8,15 +8,19 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
+from ..errors import CalibrationError
+from ..io.c3d import read_c3d
+from ..markersets.matching import ProtocolMatch, match_trial
 from ..skeleton import SEGMENTS
-
-if TYPE_CHECKING:
-    from ..markersets.matching import ProtocolMatch
-    from ..trial import Trial
-    from .motion import Motion
-    from .subject import SubjectModel
+from ..statics import static_names
+from ..trial import Trial, require_markers
+from .calibration import calibrate
+from .calibration_checks import check_static, choose_static
+from .filtering import filter_trial
+from .ik import fit_filtered, fit_quality, model_markers
+from .motion import Motion, apply_repairs
+from .subject import SubjectModel
 
 
 class StageClock:
@@ -72,9 +76,6 @@ class FittedCapture:
         are given to solve the same problem (``mocaplib fit --trc``)."""
         from dataclasses import replace
 
-        from .filtering import filter_trial
-        from .ik import model_markers
-        from .motion import apply_repairs
 
         labels = list(self.model.labels)
         markers = apply_repairs(model_markers(trial, self.model), labels, self.motion.repairs)
@@ -144,18 +145,9 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
     FitError
         The markers cannot be filtered or fitted.
     """
-    from ..errors import CalibrationError
-    from ..markersets.matching import ProtocolMatch, match_trial
-    from ..statics import static_names
-    from ..trial import require_markers
-    from .calibration import calibrate
-    from .calibration_checks import check_static, choose_static
-    from .filtering import filter_trial
-    from .ik import fit_filtered
 
     clock = clock or StageClock()
-    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
-        else [static]
+    statics = static_trials(static)
     for given in statics:
         require_markers(given)
     warnings: list[str] = []
@@ -201,7 +193,6 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
 def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:
     """What a user should know about a fit: the labelling repairs, DOFs held at 0 and why,
     DOFs at a joint limit, frames not fitted, samples removed."""
-    from .ik import fit_quality
 
     quality = fit_quality(motion)
     notes = motion.repair_warnings()
@@ -253,13 +244,15 @@ def fit(capture, /, *, protocol="auto", static=None, static_pose: str = "free",
         The fitted motion: ``motion.q`` (F, D) in :data:`mocaplib.skeleton.DOF_NAMES` order,
         radians (the pelvis translations in metres), ``motion.time`` (F,) seconds.
     """
-    from ..io.c3d import read_c3d
-    from ..trial import Trial
-
     trial = capture if isinstance(capture, Trial) else read_c3d(capture)
-    statics = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
-        else [static]
-    statics = [s if isinstance(s, Trial) else read_c3d(s) for s in statics]
-    return fit_capture(trial, protocol=protocol, static=statics or None, static_pose=static_pose,
+    return fit_capture(trial, protocol=protocol, static=static, static_pose=static_pose,
                        cutoff=cutoff, static_window=static_window, measurements=measurements,
                        heading_offsets=heading_offsets).motion
+
+
+def static_trials(static) -> list[Trial]:
+    """The static trials ``static`` gives: None, one, or a list of them, each a :class:`Trial`
+    or a C3D file (read with :func:`mocaplib.io.c3d.read_c3d`)."""
+    given = [] if static is None else list(static) if isinstance(static, (list, tuple)) \
+        else [static]
+    return [s if isinstance(s, Trial) else read_c3d(s) for s in given]
