@@ -694,7 +694,7 @@ def test_a_deeply_nested_session_file_is_named_not_a_traceback(tmp_path, counted
     code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
                  "--no-cache"])
     err = capsys.readouterr().err
-    assert code == 1 and "Traceback" not in err and counted_build == []
+    assert code == 2 and "Traceback" not in err and counted_build == []
     assert "session.toml: the session file nests arrays or tables too deep to read" in err
 
 
@@ -798,3 +798,23 @@ def test_a_capture_without_finite_markers_is_never_a_static(sample_dir, tmp_path
     printed = capsys.readouterr().out
     assert "failed 1" in printed and "blank.c3d [" in printed
     assert len(load_library(out)) == 1
+
+
+def test_a_walk_named_as_a_sessions_static_is_refused_as_with_static(sample_dir, tmp_path,
+                                                                      capsys):
+    from mocaplib.build.sessions import load_session
+
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal", "walk_straight_slow"))
+    (folder / "session.toml").write_text('static = "walk_straight_slow.c3d"\n')
+    walk = folder / "walk_straight_slow.c3d"
+    out = tmp_path / "lib.json"
+    refusal = "walk_straight_slow.c3d: is not a standing static trial: even its quietest 1 s"
+    assert main(["build", str(folder), "-o", str(out), "-q", "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert f"session.toml: its static {walk.absolute()}" in err and refusal in err, err
+    assert not out.exists()
+    with pytest.raises(MocapError, match="session.toml: its static .*" + refusal):
+        build_library([folder], progress=False)
+    (folder / "session.toml").unlink()
+    assert main(["build", str(folder), "-o", str(out), "-q", "--static", str(walk)]) == 2
+    assert refusal in capsys.readouterr().err

@@ -135,7 +135,7 @@ def test_a_bad_session_file_is_named_with_what_to_do(tmp_path, text, message):
     with pytest.raises(MocapError, match=f"{SESSION_FILE}: .*{message}"):
         load_session(tmp_path / SESSION_FILE)
     walk = _copy("walk_straight_normal", tmp_path)
-    assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--no-cache", "-q"]) == 1
+    assert main(["build", str(walk), "-o", str(tmp_path / "l.json"), "--no-cache", "-q"]) == 2
 
 
 def test_a_capture_without_a_complete_cycle_gives_no_entry_and_says_why(tmp_path, capsys):

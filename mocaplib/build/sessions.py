@@ -6,7 +6,8 @@ settings it is processed with:
 
 1. **A ``session.toml`` beside captures** (:data:`SESSION_FILE`, :func:`load_session`) names
    their session's static(s), and optionally its static pose, the stretch of the static to
-   use and the marker-set protocol. Those captures are calibrated with it.
+   use and the marker-set protocol. Those captures are calibrated with it. Its statics pass
+   the check ``--static`` passes (:func:`check_session_static`).
 2. **Other captures** are calibrated with the ``--static`` trials and the *standing* files
    found among the inputs (:func:`mocaplib.statics.check_standing` over the whole file):
    each with the one that shows its subject (:func:`mocaplib.model.calibration_checks.choose_static`).
@@ -35,6 +36,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import MocapError
+from ..io.c3d import read_c3d
+from ..statics import STATIC_POSES, check_standing, standing_part
 
 #: The name of a session's description, beside its captures.
 SESSION_FILE = "session.toml"
@@ -58,7 +61,6 @@ def load_session(path: str | os.PathLike, /) -> Session:
     """Read and check a ``session.toml`` (module docstring); :class:`MocapError` naming the
     file and the key for a file that cannot be read or holds a wrong value."""
     from ..io.tomlfile import read_toml
-    from ..statics import STATIC_POSES
 
     path = Path(path)
     hint = f"see docs/guide/build.md (Capture sessions) for the keys of {SESSION_FILE}"
@@ -93,6 +95,8 @@ def load_session(path: str | os.PathLike, /) -> Session:
             raise MocapError(f"static_window must be [start, end] seconds with 0 <= start <= "
                              f"end, got {window!r}", path=path, hint=hint)
         window = (float(window[0]), float(window[1]))
+    for static in statics:
+        check_session_static(path, static, window)
     protocol = data.get("protocol")
     if protocol is not None:
         if not isinstance(protocol, str) or not protocol:
@@ -101,6 +105,20 @@ def load_session(path: str | os.PathLike, /) -> Session:
         relative = path.parent / protocol
         protocol = os.fspath(relative.absolute()) if relative.suffix == ".toml" else protocol
     return Session(path, statics, pose, window, protocol)
+
+
+def check_session_static(session: Path, static: str, window: tuple[float, float] | None,
+                         /) -> None:
+    """Raise :class:`MocapError` naming the session file ``session`` and its ``static`` when
+    the static cannot be read or does not stand still in ``window`` (start, end) s or its
+    quietest second: the check ``--static`` passes (:func:`mocaplib.statics.standing_part`)."""
+    try:
+        standing_part(read_c3d(static), window=window)
+    except MocapError as exc:
+        raise MocapError(f"its static {static}: {exc.message}", path=session,
+                         hint="name the static calibration trial (the subject standing still) "
+                              "with static, or the stretch where the subject stands with "
+                              "static_window = [start, end]") from None
 
 
 def sessions_of(captures: list[Path], /) -> dict[Path, Session]:
@@ -116,9 +134,6 @@ def standing_files(captures: list[Path], /, *, exclude: set[str] = frozenset()) 
     (:func:`mocaplib.statics.check_standing`), except those whose real path is in
     ``exclude``; a file that cannot be read (whatever the exception) or holds no markers is
     not one (its processing fails alone and says why)."""
-    from ..io.c3d import read_c3d
-    from ..statics import check_standing
-
     found = []
     for capture in captures:
         if os.path.realpath(capture) in exclude:

@@ -74,10 +74,13 @@ def _check_usage(args):
     """The captures the inputs name (C3D files, and those found in folders) and the build's
     settings; raise :class:`UsageError` for what would fail or do harm before any capture is
     processed: a missing input, a --static that is missing, cannot be read or is not standing
-    (every capture would fail on it), an output that would overwrite a file the build reads
+    (every capture would fail on it), a session file beside the captures that cannot be used
+    (:func:`mocaplib.build.sessions.sessions_of`: its static is checked as --static), an output that would overwrite a file the build reads
     (:func:`mocaplib.build.pipeline.build_inputs`) or cannot be written, a --report folder that
     cannot take the report."""
     from ..build.pipeline import build_inputs
+    from ..build.sessions import sessions_of
+    from ..errors import MocapError
     from ..io import find_captures
     from ..build.settings import BuildSettings
     from ..library.format import diagnostics_path
@@ -87,6 +90,10 @@ def _check_usage(args):
     captures = find_captures(args.inputs)
     if not captures:
         raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
+    try:
+        sessions_of(captures)
+    except MocapError as exc:
+        raise UsageError(str(exc)) from None
     settings = BuildSettings(protocol=args.protocol, static=args.static,
                              static_pose=args.static_pose, static_window=args.static_window,
                              require_static=args.require_static,
