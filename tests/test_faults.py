@@ -17,6 +17,7 @@ import hashlib
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -714,6 +715,30 @@ def test_a_protocol_that_cannot_be_used_is_a_usage_error(tmp_path, counted_build
     err = capsys.readouterr().err
     assert code == 2 and message in err and "Traceback" not in err, err
     assert counted_build == []
+
+
+@pytest.mark.parametrize("position", ["[nan, 0.0, 0.44]", "[0.0, -inf, 0.44]",
+                                      "[-80.0, 0.0, 440.0]", '["nan", 0.0, 0.44]', "[0.1, 0.0]"])
+def test_a_landmark_catalogue_position_no_body_has_is_refused(tmp_path, counted_build, capsys,
+                                                              position):
+    """NaN, infinite, millimetre or text positions in a protocol folder's landmarks.toml are
+    refused by file and landmark before any work, not fitted."""
+    from mocaplib.errors import ProtocolError
+    from mocaplib.markersets.protocols import load_landmarks
+
+    write_captures(tmp_path / "caps", TRIPLES[:2])
+    folder = tmp_path / "mylab"
+    folder.mkdir()
+    (folder / "landmarks.toml").write_text(f'[C7]\nsegment = "torso"\nposition = {position}\n')
+    message = ("landmarks.toml: landmark 'C7': position must be [x, y, z], three finite numbers "
+               "in metres within 1 m of the segment's origin")
+    with pytest.raises(ProtocolError, match=re.escape(message)):
+        load_landmarks(folder / "landmarks.toml")
+    code = main(["build", str(tmp_path / "caps"), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--protocols", str(folder)])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert counted_build == [] and not (tmp_path / "lib.json").exists()
 
 
 def test_a_protocol_named_like_a_plan_is_a_protocol(tmp_path, monkeypatch):

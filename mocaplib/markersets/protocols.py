@@ -64,6 +64,11 @@ from ..trial import Trial, normalise_label
 #: Height of the subject the catalogue's nominal positions are written for, metres.
 REFERENCE_HEIGHT = 1.75
 
+#: Farthest (m) a catalogue landmark's coordinate may lie from its segment's origin: the
+#: shipped catalogue's farthest is 0.44 m (C7 above the torso's), a segment of a tall adult is
+#: under 1 m, and a position in millimetres (440) is refused.
+MAX_LANDMARK_OFFSET = 1.0
+
 
 #: The shipped protocols: mocaplib/data/protocols links to the repository's protocols/; wheels
 #: hold a copy.
@@ -93,13 +98,15 @@ def _env_folders() -> list[str]:
 def use_protocol_folders(folders, /) -> None:
     """Add users' protocol folders (``--protocols DIR``) to the shipped one, for this process
     and the worker processes it starts (they are written into ``$MOCAPLIB_PROTOCOLS``, which
-    workers inherit). Raises :class:`ProtocolError` naming a folder that does not exist."""
+    workers inherit). Raises :class:`ProtocolError` naming a folder that does not exist, a
+    TOML entry that is not a regular file, or a ``landmarks.toml`` that cannot be used."""
     for folder in folders:
         if not Path(folder).is_dir():
             raise ProtocolError("protocol folder not found", path=folder,
                                 hint="give a folder holding your protocols (*.toml) and, if "
                                      "you add landmarks, a landmarks.toml")
-        toml_files(Path(folder))
+        if Path(folder) / "landmarks.toml" in toml_files(Path(folder)):
+            _catalogue_file(os.path.join(folder, "landmarks.toml"))
     added = [os.path.abspath(f) for f in folders]
     os.environ[FOLDERS_VARIABLE] = os.pathsep.join(dict.fromkeys(_env_folders() + added))
 
@@ -299,14 +306,12 @@ def _catalogue_file(path: str) -> dict[str, Landmark]:
     out: dict[str, Landmark] = {}
     for key, spec in read_protocol_toml(path).items():
         try:
-            segment, position = spec["segment"], tuple(float(v) for v in spec["position"])
+            segment, position = spec["segment"], _position(spec["position"], key, path)
             sided, description = bool(spec.get("sided", False)), str(spec.get("description", ""))
             weight = _weight(spec.get("weight", 1.0), f"landmark {key!r}", path)
         except (KeyError, TypeError, ValueError) as exc:
             raise ProtocolError(f"landmark {key!r} needs segment, position [x, y, z] ({exc})",
                                 path=path) from None
-        if len(position) != 3:
-            raise ProtocolError(f"landmark {key!r}: position must have 3 numbers", path=path)
         variants = ([("L_", "_l", 1.0), ("R_", "_r", -1.0)] if sided else [("", "", 1.0)])
         for prefix, suffix, mirror in variants:
             seg = segment if segment in SEGMENT_NAMES else segment + suffix
@@ -506,6 +511,20 @@ def _tracking_segment(label: str, spec: dict, path: Path) -> str:
             hint=f"segments are {', '.join(SEGMENT_NAMES)}; a limb's bare name (femur) needs "
                  "side = \"left\" or \"right\"")
     return name
+
+
+def _position(value, key: str, path) -> tuple[float, float, float]:
+    """A catalogue landmark's nominal position (x, y, z) m from a TOML file: three finite
+    numbers within :data:`MAX_LANDMARK_OFFSET` of the segment's origin."""
+    if not (isinstance(value, list) and len(value) == 3 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool)
+            and abs(v) <= MAX_LANDMARK_OFFSET for v in value)):   # NaN fails the comparison
+        raise ProtocolError(
+            f"landmark {key!r}: position must be [x, y, z], three finite numbers in metres "
+            f"within {MAX_LANDMARK_OFFSET:g} m of the segment's origin, got {value!r}",
+            path=path, hint="write the landmark's place on its segment in metres for a "
+                            f"{REFERENCE_HEIGHT:g} m subject, as protocols/landmarks.toml does")
+    return tuple(float(v) for v in value)
 
 
 def _weight(value, what: str, path) -> float:
