@@ -78,3 +78,13 @@ class SynthError(MocapError):
 #: Hint of an error about coordinates that are not in the units the file states.
 UNITS_HINT = ("check POINT:UNITS: millimetres stored as 'm' make every length 1000 times too "
               "large, metres stored as 'mm' 1000 times too small; re-export the file")
+
+#: Distance (m) under which two markers count as at one place. Metres stored as 'mm' still
+#: leave markers on a segment at least 0.05 mm apart, 50 times more.
+MIN_MARKER_SPREAD = 1e-6
+
+#: Hint of an error about markers that do not spread (every marker at one place): no units
+#: fix that, the file holds no body.
+SPREAD_HINT = ("markers on a body lie centimetres apart; markers at one place come from an "
+               "export or labelling fault, not from the units: re-export the capture's "
+               "labelled marker trajectories from the capture software")

@@ -843,3 +843,33 @@ def test_a_walk_named_as_a_sessions_static_is_refused_as_with_static(sample_dir,
     (folder / "session.toml").unlink()
     assert main(["build", str(folder), "-o", str(out), "-q", "--static", str(walk)]) == 2
     assert refusal in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("layout", ["one place", "one track"])
+def test_markers_that_do_not_spread_are_no_body_not_wrong_units(sample_dir, tmp_path, capsys,
+                                                                 layout):
+    """Every marker at one fixed place, or every marker following one marker's track: the
+    commands say the markers do not spread (no body), never that the units are wrong."""
+    import numpy as np
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    walk = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    markers = (np.full_like(walk.markers, 0.5) if layout == "one place" else
+               np.repeat(walk.markers[:, :1], walk.n_markers, axis=1))
+    path = write_c3d(tmp_path / "flat.c3d", markers, walk.labels, walk.rate)
+    for command, said in [(["events", str(path)], "the left heel and toe markers lie at one "
+                                                  "place (0 m apart)"),
+                          (["fit", str(path), "-o", str(tmp_path / "a.csv")],
+                           "the markers on each segment lie at one place (0 m apart)")]:
+        assert main(command) == 1
+        err = capsys.readouterr().err
+        assert said in err and "re-export the capture's labelled marker" in err, err
+        assert "POINT:UNITS" not in err and "units the file states" not in err, err
+    folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal",))
+    shutil.copy(path, folder)
+    assert main(["build", str(folder), "-o", str(tmp_path / "lib.json"), "-q",
+                 "--no-cache"]) == 1
+    assert "flat.c3d [calibrate]: the markers on each segment lie at one place" in \
+        capsys.readouterr().out
+

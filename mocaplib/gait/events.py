@@ -73,7 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import UNITS_HINT, EventError
+from ..errors import MIN_MARKER_SPREAD, SPREAD_HINT, UNITS_HINT, EventError
 from ..model.filtering import lowpass, remove_spikes
 from ..runs import valid_runs
 from ..trial import check_gait_rate
@@ -344,6 +344,10 @@ def _checked_points(heel, toe, rate, side, source):
     both = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
     if both.any():
         spacing = float(np.median(np.linalg.norm(heel[both] - toe[both], axis=1)))
+        if spacing < MIN_MARKER_SPREAD:
+            raise EventError(
+                f"the {side} heel and toe markers lie at one place ({spacing:.2g} m apart): "
+                "they do not spread like markers on a foot", path=source, hint=SPREAD_HINT)
         if not PLAUSIBLE_FOOT[0] <= spacing <= PLAUSIBLE_FOOT[1]:
             raise EventError(
                 f"the {side} heel and toe markers are {spacing:.3g} m apart: the coordinates "

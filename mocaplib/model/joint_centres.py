@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import UNITS_HINT, CalibrationError
+from ..errors import MIN_MARKER_SPREAD, SPREAD_HINT, UNITS_HINT, CalibrationError
 from ..markersets import protocols as _protocols
 from ..numeric import distinct, median, nanmedian
 from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
@@ -218,11 +218,17 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
 
     X (F, M, 3) markers; segments (M,); nominal (M, 3) catalogue positions for 1.75 m. Falls
     back to 1.75 m when no segment carries two markers seen together. Raises
-    :class:`CalibrationError` naming ``source`` when the distances suggest a height outside
-    :data:`PLAUSIBLE_HEIGHT` (the file's units are wrong).
+    :class:`CalibrationError` naming ``source`` when the markers lie at one place (no pair
+    :data:`mocaplib.errors.MIN_MARKER_SPREAD` apart: no body) or the distances suggest a
+    height outside :data:`PLAUSIBLE_HEIGHT` (the file's units are wrong).
     """
     ratios = []
     distances, pairs = segment_distances(X, segments)
+    seen = distances[np.isfinite(distances)]
+    if seen.size and seen.max() < MIN_MARKER_SPREAD:
+        raise CalibrationError(
+            f"the markers on each segment lie at one place ({seen.max():.2g} m apart): they "
+            "do not spread like markers on a body", path=source, hint=SPREAD_HINT)
     for (a, b), d in zip(pairs, distances):
         ref = np.linalg.norm(nominal[a] - nominal[b])
         if ref > 0.05 and np.isfinite(d):
