@@ -383,6 +383,33 @@ def test_hostile_names_and_links_in_an_input_folder(tmp_path):
     assert "Too many levels of symbolic links" in err and "not a regular file" in err
 
 
+def test_line_feeds_in_labels_and_file_names_print_no_fake_rows(tmp_path, capsys):
+    """A label or a file name holding a line feed (or a tab) prints as one escaped row: no
+    line of ``inspect``'s table or of the build summary starts with what followed it."""
+    import numpy as np
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    fake = "FAKE    L_FAKE   100.0  -"
+    walk = read_c3d(SAMPLES / "walk_straight_normal.c3d")
+    labels = [f"{walk.labels[0]}\n{fake}", f"{walk.labels[1]}\t{fake}", *walk.labels[2:]]
+    caps = tmp_path / "caps"
+    caps.mkdir()
+    labelled = write_c3d(caps / "labels.c3d", walk.markers, labels, walk.rate)
+    assert read_c3d(labelled).labels[:2] == [f"{walk.labels[0]}\\x0a{fake}",
+                                             f"{walk.labels[1]}\\x09{fake}"]
+    (caps / f"broken\n{fake}.c3d").write_bytes(b"not a capture")   # fails, named in the summary
+    for command in (["inspect", str(caps)],
+                    ["build", str(caps), "-o", str(tmp_path / "lib.json"), "-q", "--no-cache"]):
+        assert main(command) == 1
+        out, err = capsys.readouterr()
+        rows = (out + err).splitlines()
+        assert not [row for row in rows if row.startswith("FAKE")], out + err
+        assert f"broken\\x0a{fake}.c3d" in out + err, out + err
+    assert main(["inspect", str(labelled)]) == 0
+    assert f"  {walk.labels[0]}\\x0a{fake}  (not in protocol)" in capsys.readouterr().out
+
+
 # --------------------------------------------------------------------------- oversized numbers
 def test_oversized_numbers_in_the_sidecar_cost_the_report_nothing(tmp_path, capsys):
     write_captures(tmp_path / "caps")

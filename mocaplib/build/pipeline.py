@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LibraryError, MocapError
-from ..io import find_captures, fs_text
+from ..io import find_captures, fs_text, printable
 from ..io.atomic import atomic_write_files
 from ..library.document import DIAGNOSTICS_FORMAT
 from ..library.format import Library, assemble_library, diagnostics_path, json_text, to_json_data
@@ -89,7 +89,8 @@ class BuildResult:
         }
 
     def summary_text(self) -> str:
-        """The summary as a short table for people."""
+        """The summary as a short table for people, a line per record (file names and
+        messages with their control characters, line feeds included, escaped)."""
         s = self.summary()
         lines = [f"captures {s['captures']}  ok {s['succeeded']}  failed {s['failed']}  "
                  f"cached {s['from_cache']}  cycles {s['cycles']}  entries {s['entries']}  "
@@ -115,7 +116,7 @@ class BuildResult:
         if s["warnings"]:
             lines.append(f"warnings ({len(s['warnings'])}):")
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
-        return "\n".join(lines)
+        return "\n".join(printable(line, keep="") for line in lines)
 
     def diagnostics(self, library_name: str = "library.json", *,
                     library_sha256: str | None = None) -> dict:

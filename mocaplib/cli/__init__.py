@@ -2,7 +2,7 @@
 
 No algorithm lives here. Each sub-command is a module in this package with a
 ``register(subparsers)`` function; errors a user can cause (:class:`MocapError`) are printed
-as one line without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
+as one line (line feeds in it escaped) without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
 Output that the console's encoding cannot show (ω, ° on an ASCII or cp1252 stdout) is
 written with ``?`` in its place rather than stopping the command, and control characters in
 what is printed (file names, labels) are escaped.
@@ -81,10 +81,12 @@ def _main(argv: list[str] | None) -> int:
         apply_protocol_options(args)
         return int(args.run(args) or 0)
     except UsageError as exc:
-        print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
+        print(f"mocaplib {args.command}: error: {printable(str(exc), keep='')}",
+              file=sys.stderr)
         return 2
     except MocapError as exc:
-        print(f"mocaplib {args.command}: error: {exc}", file=sys.stderr)
+        print(f"mocaplib {args.command}: error: {printable(str(exc), keep='')}",
+              file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return interrupted()
@@ -95,8 +97,9 @@ def _main(argv: list[str] | None) -> int:
         named = [os.fspath(getattr(args, name)) for name in INPUT_ARGUMENTS
                  if isinstance(getattr(args, name, None), (str, os.PathLike))]
         print(f"mocaplib {args.command}: error: internal error"
-              f"{' with ' + ', '.join(named) if named else ''}: {type(exc).__name__}: {exc} "
-              "(a bug in mocaplib: please report it with the command and its input files)",
+              + printable(f"{' with ' + ', '.join(named) if named else ''}: "
+                          f"{type(exc).__name__}: {exc} ", keep="")
+              + "(a bug in mocaplib: please report it with the command and its input files)",
               file=sys.stderr)
         return 1
 

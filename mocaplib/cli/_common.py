@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from ..errors import MocapError
-from ..io import open_regular
+from ..io import open_regular, printable
 from ..io.jsonvalues import json_values
 
 
@@ -154,7 +154,9 @@ def print_json(obj) -> None:
 
 
 def warn(message: str) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+    """Print ``message`` as one warning line (control characters, line feeds included,
+    escaped: :func:`mocaplib.io.printable`)."""
+    print(f"warning: {printable(message, keep='')}", file=sys.stderr)
 
 
 def add_protocol_option(parser, *, default: str = "the best shipped protocol") -> None:

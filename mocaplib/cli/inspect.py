@@ -27,7 +27,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..io import find_captures
+    from ..io import find_captures, printable
     from ..markersets.inspection import failed_summary, format_summary, inspect_c3d
     from ..markersets.protocols import load_protocol
     from ._common import check_inputs, print_json
@@ -48,5 +48,5 @@ def _run(args) -> int:
         print("\n\n".join(format_summary(s) for s in summaries))
     failed = [s for s in summaries if not s["ok"]]
     for s in failed:
-        print(f"mocaplib inspect: {s['error']}", file=sys.stderr)
+        print(f"mocaplib inspect: {printable(s['error'], keep='')}", file=sys.stderr)
     return 1 if failed else 0

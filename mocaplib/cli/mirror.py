@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..io import printable
 from ._common import add_force_option
 
 
@@ -38,7 +39,7 @@ def _run(args) -> int:
     library = load_library(args.library)
     mirrored, notes = mirror_library(library)
     for note in notes:
-        print(f"note: {note}")
+        print(f"note: {printable(note, keep='')}")
     sidecar, note = write_mirrored(mirrored, args.library, args.output)
     if note:
         warn(note)

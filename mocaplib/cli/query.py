@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..io import printable
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
                       check_outputs, positive)
 
@@ -129,9 +130,10 @@ def _run(args) -> int:
         if args.clamp:
             print("  blending at that point (--clamp)")
     if answer["entries"]:
-        width = max(len(e) for e in answer["entries"])
+        entries = [printable(e, keep="") for e in answer["entries"]]  # ids from file names
+        width = max(len(e) for e in entries)
         print(f"  {'entry':<{width}}  weight")
-        for entry, weight in zip(answer["entries"], answer["weights"]):
+        for entry, weight in zip(entries, answer["weights"]):
             print(f"  {entry:<{width}}  {weight:.4f}")
         print(f"  blended period T_d = {answer['T_s']:.3f} s")
     for option in outputs:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..io import printable
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -33,7 +35,7 @@ def _run(args) -> int:
     if problems:
         print(f"{args.library}: {len(problems)} problem(s)")
         for problem in problems:
-            print(f"  {problem}")
+            print(f"  {printable(str(problem), keep='')}")   # entry ids come from file names
     else:
         print(f"{args.library}: valid" + (" (content checksum verified)"
                                           if checksum == "verified" else ""))

@@ -90,13 +90,14 @@ def fs_text(text: str, /) -> str:
     return _LONE_SURROGATES.sub("\ufffd", text)
 
 
-_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
 
 
 def printable(text: str, /, *, keep: str = "\n\t") -> str:
     """``text`` with control characters (C0 but those in ``keep``, DEL, C1) written as
     ``\\xNN``: text from files (C3D labels, file names) cannot then move the cursor, change
-    colours or retitle the terminal it is printed on."""
+    colours or retitle the terminal it is printed on; with ``keep=""`` a line feed is escaped
+    too, so one record (a label, a file name, a message) prints as one line."""
     return _CONTROL.sub(lambda found: found.group() if found.group() in keep
                         else f"\\x{ord(found.group()):02x}", text)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 
 from ..errors import MocapError, ProtocolError
+from ..io import printable
 from ..trial import Trial, check_gait_rate, require_markers
 from .matching import match_trial
 from .protocols import Protocol, overrides
@@ -120,10 +121,12 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
 
 
 def format_summary(summary: dict) -> str:
-    """A summary as the readable text block ``mocaplib inspect`` prints (degrees-free, SI)."""
+    """A summary as the readable text block ``mocaplib inspect`` prints (degrees-free, SI),
+    a line per row (file name, labels and messages with control characters escaped)."""
     lines = [summary["file"]]
     if not summary["ok"]:
-        return "\n".join(lines + [f"  FAILED: {summary['error']}"])
+        return "\n".join(printable(line, keep="")
+                         for line in lines + [f"  FAILED: {summary['error']}"])
     rotated = "" if summary["vertical_axis"] == "Z" else " (rotated to Z up)"
     lines.append(f"  {summary['frames']} frames at {summary['rate_hz']:g} Hz "
                  f"({summary['duration_s']:.2f} s), units {summary['units']}, vertical axis "
@@ -156,4 +159,4 @@ def format_summary(summary: dict) -> str:
     if summary["warnings"]:
         lines.append("  warnings:")
         lines.extend(f"    - {w}" for w in summary["warnings"])
-    return "\n".join(lines)
+    return "\n".join(printable(line, keep="") for line in lines)
