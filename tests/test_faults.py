@@ -410,6 +410,45 @@ def test_line_feeds_in_labels_and_file_names_print_no_fake_rows(tmp_path, capsys
     assert f"  {walk.labels[0]}\\x0a{fake}  (not in protocol)" in capsys.readouterr().out
 
 
+@pytest.fixture
+def locked_folder(tmp_path, monkeypatch):
+    """A capture folder whose subfolder ``locked`` (holding a capture) cannot be listed:
+    listing it raises PermissionError, as without read permission (tests run as root, whom
+    permissions do not stop)."""
+    caps = sample_folder(tmp_path / "caps", names=SAMPLE_NAMES[:4])
+    (caps / "locked").mkdir()
+    shutil.copy(SAMPLES / f"{SAMPLE_NAMES[4]}.c3d", caps / "locked")
+    scandir = os.scandir
+
+    def refusing(path="."):
+        if Path(path).name == "locked":
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(path))
+        return scandir(path)
+
+    monkeypatch.setattr(os, "scandir", refusing)
+    return caps
+
+
+def test_a_folder_that_cannot_be_listed_is_named_and_the_build_goes_on(locked_folder,
+                                                                       tmp_path, capsys):
+    said = (f"{locked_folder / 'locked'}: cannot list this folder (Permission denied): the "
+            "captures in it are left out")
+    out = tmp_path / "lib.json"
+    assert main(["build", str(locked_folder), "-o", str(out), "-q", "--no-cache"]) == 1
+    printed = capsys.readouterr().out
+    assert "captures 4  ok 4  failed 0" in printed
+    assert f"folders not searched (1):\n  {said}" in printed, printed
+    assert len(load_library(out)) == 4
+    result = build_library([locked_folder], progress=False, process=fake_process)
+    assert not result.ok and result.unlisted == [said + " (give the folder read and execute "
+                                                 "permission (chmod u+rx), or leave it out of "
+                                                 "the inputs)"]
+    assert main(["inspect", str(locked_folder)]) == 1
+    printed, err = capsys.readouterr()
+    assert f"{locked_folder / 'locked'}\n  FAILED: {said}" in printed and said in err
+    assert printed.count("frames at 100 Hz") == 4
+
+
 # --------------------------------------------------------------------------- oversized numbers
 def test_oversized_numbers_in_the_sidecar_cost_the_report_nothing(tmp_path, capsys):
     write_captures(tmp_path / "caps")

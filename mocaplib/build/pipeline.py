@@ -52,13 +52,16 @@ CAPTURE_TIMEOUT_S = 600.0
 @dataclass
 class BuildResult:
     """A finished build: the library, every capture's result (input order) and a summary;
-    ``notes`` are the build's own warnings (e.g. a cache it could not write)."""
+    ``notes`` are the build's own warnings (e.g. a cache it could not write), ``unlisted``
+    the input folders it could not list (:func:`mocaplib.io.unlisted_folder`): their captures
+    are missing, so the build is not :attr:`ok`."""
 
     library: Library
     captures: list[CaptureResult]
     settings: BuildSettings
     seconds: float = 0.0
     notes: list = field(default_factory=list)
+    unlisted: list = field(default_factory=list)
 
     @property
     def failures(self) -> list[CaptureResult]:
@@ -66,7 +69,7 @@ class BuildResult:
 
     @property
     def ok(self) -> bool:
-        return not self.failures
+        return not self.failures and not self.unlisted
 
     def summary(self) -> dict:
         """Counts, failures (file, stage, reason) and warnings, as JSON data."""
@@ -86,6 +89,7 @@ class BuildResult:
                          for w in c.warnings],
             "statics": dict(Counter(c.static for c in self.captures if c.static)),
             "notes": list(self.notes),
+            "unlisted": list(self.unlisted),
         }
 
     def summary_text(self) -> str:
@@ -113,6 +117,9 @@ class BuildResult:
             lines.append("no entry:")
             lines += [f"  {Path(n['file']).name}: {n['reason']}" for n in s["no_entry"]]
         lines += [f"note: {note}" for note in s["notes"]]
+        if s["unlisted"]:
+            lines.append(f"folders not searched ({len(s['unlisted'])}):")
+            lines += [f"  {folder}" for folder in s["unlisted"]]
         if s["warnings"]:
             lines.append(f"warnings ({len(s['warnings'])}):")
             lines += [f"  {Path(w['file']).name}: {w['warning']}" for w in s["warnings"]]
@@ -199,7 +206,8 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     Returns
     -------
     BuildResult
-        Captures that failed are in it, not raised. A capture whose worker process dies is
+        Captures that failed are in it, not raised, and so are the folders that could not be
+        listed (``unlisted``; the others are searched). A capture whose worker process dies is
         run once more in a new worker, then fails alone (stage ``worker``); no worker outlives
         the build (:mod:`mocaplib.build.workers`). At most :func:`mocaplib.build.workers.max_jobs` worker
         processes are started.
@@ -211,9 +219,11 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     if jobs < 1:
         raise MocapError(f"jobs must be >= 1, got {jobs}")
     started = time.perf_counter()
-    paths = find_captures(inputs)
+    unlisted: list[MocapError] = []
+    paths = find_captures(inputs, unlisted=unlisted)
     if not paths:
-        raise MocapError("no C3D captures found in the inputs",
+        raise MocapError("no C3D captures found in the inputs" + "".join(
+                         f"; {folder}" for folder in unlisted),
                          hint="give .c3d files or folders that contain some")
     pool, planned = plan_captures(paths, settings)
     if settings.require_static and not any(p.statics for p in planned):
@@ -260,7 +270,8 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     _unique_entry_ids(captures)
     library = assemble_library([e for c in captures for e in c.entries],
                                settings=pool.to_dict(), qc_thresholds=pool.qc_thresholds)
-    return BuildResult(library, captures, pool, time.perf_counter() - started, notes)
+    return BuildResult(library, captures, pool, time.perf_counter() - started, notes,
+                       [str(folder) for folder in unlisted])
 
 
 def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings) -> list[Path]:

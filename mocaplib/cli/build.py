@@ -71,8 +71,8 @@ def register(subparsers) -> None:
 
 
 def _check_usage(args):
-    """The captures the inputs name (C3D files, and those found in folders) and the build's
-    settings; raise :class:`UsageError` for what would fail or do harm before any capture is
+    """The captures the inputs name (C3D files, and those found in folders), the build's
+    settings and the folders that could not be listed; raise :class:`UsageError` for what would fail or do harm before any capture is
     processed: a missing input, a --static that is missing, cannot be read or is not standing
     (every capture would fail on it), a session file beside the captures that cannot be used
     (:func:`mocaplib.build.sessions.sessions_of`: its static is checked as --static), an output that would overwrite a file the build reads
@@ -87,9 +87,11 @@ def _check_usage(args):
 
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference, static_window=args.static_window)
-    captures = find_captures(args.inputs)
+    unlisted: list[MocapError] = []    # said by the build's summary when there are captures
+    captures = find_captures(args.inputs, unlisted=unlisted)
     if not captures:
-        raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}")
+        raise UsageError(f"no C3D captures (*.c3d) in {', '.join(args.inputs)}"
+                         + "".join(f"; {folder}" for folder in unlisted))
     try:
         sessions_of(captures)
     except MocapError as exc:
@@ -109,19 +111,20 @@ def _check_usage(args):
         from ..report import report_name
 
         check_output_folder("--report", args.report, report_name(args.output), inputs)
-    return captures, settings
+    return captures, settings, unlisted
 
 
 def _run(args) -> int:
     from ..build.pipeline import build_library
     from ..library.validation import validate_library
 
-    captures, settings = _check_usage(args)
+    captures, settings, unlisted = _check_usage(args)
     output = Path(args.output)
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build_library(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                            cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty(),
                            capture_timeout=args.capture_timeout)
+    result.unlisted += [str(folder) for folder in unlisted]   # the build got the files found
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry
     print(f"wrote {library_path} ({len(result.library)} entries) and {sidecar}")

@@ -36,8 +36,10 @@ def _run(args) -> int:
     protocol = args.protocol if args.protocol == "auto" else load_protocol(args.protocol)
     summaries = []
     for item in args.inputs:
-        files = find_captures([item])
-        if not files:
+        unlisted: list = []
+        files = find_captures([item], unlisted=unlisted)
+        summaries.extend(failed_summary(folder.path, folder) for folder in unlisted)
+        if not files and not unlisted:
             summaries.append(failed_summary(
                 item, f"{item}: no *.c3d files in this folder or its subfolders (give C3D "
                       "files, or the folder that holds them)"))

@@ -102,20 +102,24 @@ def printable(text: str, /, *, keep: str = "\n\t") -> str:
                         else f"\\x{ord(found.group()):02x}", text)
 
 
-def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+def find_captures(inputs: Iterable[str | os.PathLike], /, *,
+                  unlisted: list[MocapError] | None = None) -> list[Path]:
     """C3D files named directly, plus the ``*.c3d`` entries found recursively (sorted) in
     folders.
 
     In a folder, every entry named ``*.c3d`` that is not a folder is a capture: a pipe, a
     device, a dangling link or a link loop too, which then fails alone, saying why, when it is
     read. Links to folders are not followed (a link loop cannot trap the search). The same file
-    named twice is processed once. Raises :class:`MocapError` for a path that does not exist.
+    named twice is processed once. A folder that cannot be listed (no read permission, an I/O
+    error) is skipped and the search goes on; ``unlisted``: a list each such folder is appended
+    to, as an error naming it and why (:func:`unlisted_folder`). Raises :class:`MocapError`
+    for a path that does not exist.
     """
     found: dict[str, Path] = {}
     for item in inputs:
         path = Path(item)
         if path.is_dir():  # a folder or pipe named like a capture is not one
-            candidates = _c3d_entries(path)
+            candidates = _c3d_entries(path, [] if unlisted is None else unlisted)
         elif os.path.lexists(path):  # reading a pipe or a broken link fails and says why
             candidates = [path]
         else:
@@ -126,10 +130,21 @@ def find_captures(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return list(found.values())
 
 
-def _c3d_entries(folder: Path) -> list[Path]:
+def unlisted_folder(error: OSError, /) -> MocapError:
+    """What a user is told of a folder the capture search could not list (``error``, from
+    listing it): its path, why, and what to do."""
+    return MocapError(
+        f"cannot list this folder ({error.strerror or error}): the captures in it are left out",
+        path=fs_text(os.fspath(error.filename)),
+        hint="give the folder read and execute permission (chmod u+rx), or leave it out of "
+             "the inputs")
+
+
+def _c3d_entries(folder: Path, unlisted: list[MocapError]) -> list[Path]:
     """Entries named ``*.c3d`` (any case) in ``folder`` and its subfolders that are not
-    folders, sorted; links to folders are neither taken nor followed."""
+    folders, sorted; links to folders are neither taken nor followed. Each folder that cannot
+    be listed is appended to ``unlisted`` (:func:`unlisted_folder`)."""
     entries = []
-    for root, _, names in os.walk(folder):
+    for root, _, names in os.walk(folder, onerror=lambda e: unlisted.append(unlisted_folder(e))):
         entries += [Path(root, name) for name in names if Path(name).suffix.lower() == ".c3d"]
     return sorted(entries)
