@@ -254,6 +254,14 @@ def broken(mutate) -> dict:
     (lambda d: d["entries"][0]["qc"].update(event_quality=0.3), "event_quality 0.3 < 0.5"),
     (lambda d: d["skeleton"]["dof_names"].__setitem__(1, "pelvis_tx"), "duplicate DOF names"),
     (lambda d: d["skeleton"]["dof_units"].pop(), "31 items for 32 DOFs"),
+    (lambda d: d["skeleton"]["segment_lengths_m"].update(thigh=1e30),
+     r"skeleton\.segment_lengths_m\.thigh: segment length 1e\+30 m is no person's \(a "
+     r"segment is 1 mm to 2 m long\)"),
+    (lambda d: d["entries"][0].update(segment_lengths_m={**d["skeleton"]["segment_lengths_m"],
+                                                         "shank": 1e-4}),
+     r"entries\[0\]\.segment_lengths_m\.shank: entry '.*': segment length 0\.0001 m"),
+    (lambda d: d["skeleton"].update(joint_shifts_m={"femur_l": [0.0, 0.0, 1e30]}),
+     r"skeleton\.joint_shifts_m\.femur_l: joint shift \[0\.0, 0\.0, 1e\+30\] m is no person's"),
     (lambda d: d["entries"][0].update(source_sha256="xyz"), "schema: 'xyz' does not match"),
     (lambda d: d.pop("fourier"), "schema: 'fourier' is a required property"),
     (lambda d: d["entries"][0]["pattern"].update(type="spiral"), "schema: 'spiral' is not one"),
@@ -507,6 +515,22 @@ def test_a_library_edited_by_hand_fails_validation_on_its_checksum(tmp_path, cap
     assert "content_sha256: the content does not match" in capsys.readouterr().out
     assert mocaplib.cli.main(["validate", str(path), "--json"]) == 1
     assert json.loads(capsys.readouterr().out)["checksum"] == "mismatch"
+
+
+def test_a_skeleton_no_person_has_is_refused_even_with_a_matching_checksum(tmp_path, capsys):
+    from mocaplib.library.document import content_sha256
+
+    path = library().write(tmp_path / "lib.json")
+    document = json.loads(path.read_text())
+    document["skeleton"]["segment_lengths_m"] = {
+        name: 1e30 for name in document["skeleton"]["segment_lengths_m"]}
+    document[CHECKSUM_KEY] = content_sha256(document)
+    path.write_text(json.dumps(document))
+    assert mocaplib.cli.main(["validate", str(path)]) == 1
+    printed = capsys.readouterr().out
+    assert "14 problem(s)" in printed and "segment length 1e+30 m is no person's" in printed
+    with pytest.raises(LibraryError, match="segment length 1e\\+30 m is no person's"):
+        load_library(path)
 
 
 def test_a_library_without_a_checksum_is_read_with_a_note(tmp_path, capsys):

@@ -24,6 +24,11 @@ from .entry import DRIFT_DISPLACEMENT, drift_displacement
 #: may have: far beyond any human locomotion, so only corrupt files are refused (and the control
 #: space's geometry never overflows).
 PLAUSIBLE_SPEED, PLAUSIBLE_COEFFICIENT = 100.0, 1000.0
+#: Range (m) of a segment length, and largest |coordinate| (m) of a joint shift, in a library's
+#: skeleton: the shortest segment (shoulder_drop) of a 0.8 m subject is 26 mm, the longest
+#: (hip_height) of a 2.3 m one 1.2 m; a skeleton beyond them is no person's (a unit slip, a
+#: corrupt file).
+PLAUSIBLE_SEGMENT_M, PLAUSIBLE_SHIFT_M = (0.001, 2.0), 0.5
 #: Largest difference between a stored root-drift displacement and the one its velocities and T
 #: give (m, rad). Files store 10 significant digits: on the 68 samples and the 17 real files
 #: (with and without --all-cycles) the two agree to 1.1e-9, so 1e-6 flags only edits.
@@ -208,6 +213,26 @@ def _skeleton_problems(doc: dict) -> list[Problem]:
         if len(skel[key]) != len(names):
             problems.append(Problem(f"skeleton.{key}",
                                     f"{len(skel[key])} items for {len(names)} DOFs"))
+    problems += _body_problems(skel, "skeleton")
+    for i, entry in enumerate(doc["entries"]):
+        problems += _body_problems(entry, f"entries[{i}]")
+    return problems
+
+
+def _body_problems(holder: dict, where: str) -> list[Problem]:
+    """Segment lengths outside :data:`PLAUSIBLE_SEGMENT_M` and joint shifts beyond
+    :data:`PLAUSIBLE_SHIFT_M` in ``holder``'s ``segment_lengths_m`` and ``joint_shifts_m``."""
+    lo, hi = PLAUSIBLE_SEGMENT_M
+    problems = [Problem(f"{where}.segment_lengths_m.{name}",
+                        f"segment length {value} m is no person's (a segment is {lo * 1000:g} "
+                        f"mm to {hi:g} m long)")
+                for name, value in (holder.get("segment_lengths_m") or {}).items()
+                if not lo <= float_or_nan(value) <= hi]
+    problems += [Problem(f"{where}.joint_shifts_m.{name}",
+                         f"joint shift {value} m is no person's (each coordinate within "
+                         f"±{PLAUSIBLE_SHIFT_M:g} m)")
+                 for name, value in (holder.get("joint_shifts_m") or {}).items()
+                 if not all(abs(float_or_nan(x)) <= PLAUSIBLE_SHIFT_M for x in value)]
     return problems
 
 
