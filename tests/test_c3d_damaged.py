@@ -182,22 +182,28 @@ def test_integer_data_whose_scale_says_floats_is_refused_saying_why(tmp_path):
         read_c3d(path)
 
 
-@pytest.mark.parametrize("link", [-4, -200, 0])
-def test_a_parameter_link_pointing_backwards_loses_no_group(tmp_path, link):
-    # a record whose link to the next points backwards (or ends the chain early): the c3d
-    # package would take the rest of the file for its value and silently drop every group
-    # after it (EVENT, POINT:SCALE, POINT:RATE)
+@pytest.mark.parametrize("record, link, where", [
+    (1, -4, "ANALOG:GEN_SCALE points backwards (-4 bytes)"),
+    (1, -200, "ANALOG:GEN_SCALE points backwards (-200 bytes)"),
+    (1, 0, "ANALOG:GEN_SCALE ends the chain early (+0 bytes)"),
+    (1, 0x7FFF, "ANALOG:GEN_SCALE points past the end of the section (+32767 bytes)"),
+    (0, 0x7FFF, "ANALOG points past the end of the section (+32767 bytes)"),
+    (7, 4000, "POINT points past the end of the section (+4000 bytes)")])
+def test_a_broken_parameter_link_loses_no_group_and_is_named(tmp_path, record, link, where):
+    # a record whose link to the next points backwards, ends the chain early or past the end
+    # of the section: the c3d package would take the rest of the file for its value, or stop,
+    # and silently drop every group after it (EVENT, POINT:SCALE, POINT:RATE)
     records, _ = parameter_records(SMALL)
     damaged = bytearray(SMALL)
-    struct.pack_into("<h", damaged, records[1].link_at, link)
+    struct.pack_into("<h", damaged, records[record].link_at, link)
     path = tmp_path / "backwards.c3d"
     path.write_bytes(bytes(damaged))
     trial, original = read_c3d(path), read_c3d_bytes(SMALL, tmp_path)
     assert trial.events == original.events and len(trial.events) == 1
     assert trial.rate == original.rate and trial.labels == original.labels
     np.testing.assert_array_equal(trial.markers, original.markers)
-    assert any(f"the link after {records[1].name.decode()}" in w and "re-export" in w
-               for w in trial.warnings)
+    assert any(f"parameter section: the link after {where}" in w and "re-export" in w
+               for w in trial.warnings), trial.warnings
 
 
 def test_control_characters_in_labels_are_escaped(tmp_path):

@@ -5,7 +5,8 @@ first bytes count) and checks what the ``c3d`` package would fail on with an unh
 exception; :class:`Parameters` parses them. A parameter is decoded only when asked for
 (:meth:`Parameters.get`). Valid real-world files the ``c3d`` package refuses are read: a
 parameter defined twice in one group (the first definition is kept); a parameter chain whose
-link points backwards or ends early is followed record by record, with a note.
+link points backwards, ends early or points past the end of the section (0x7fff) is followed
+record by record, with a note naming the record.
 
 Processor formats: Intel (little-endian IEEE), DEC (VAX F-float, :func:`dec_to_ieee`) and
 SGI/MIPS (big-endian IEEE). Errors are :class:`~mocaplib.errors.C3DError` naming the file.
@@ -95,7 +96,8 @@ class _Record:
     link_at: int        # byte offset of the int16 link to the next record
     link: int           # the link as stored
     length: int | None  # the link the record's own content gives (None: cannot be measured,
-                        # or not needed: measured only where ``link`` <= 0)
+                        # or not needed: measured only where ``link`` <= 0 or leaves the
+                        # section)
 
 
 def parameter_records(data: bytes) -> tuple[list[_Record], str]:
@@ -104,8 +106,9 @@ def parameter_records(data: bytes) -> tuple[list[_Record], str]:
 
     C3D records are ``[name length: int8][group id: int8][name][link to next: int16]
     [content]``, the link counted from its own first byte; 0 ends the chain. A record whose
-    link is 0 or negative while a well-formed record follows its content is taken as a broken
-    link (the walk goes on at the end of its content), so the groups after it are not lost.
+    link is 0, negative or points past the end of the section (0x7fff) while a well-formed
+    record follows its content is taken as a broken link (the walk goes on at the end of its
+    content), so the groups after it are not lost.
     """
     start = (data[0] - 1) * 512 + 4
     end = min(len(data), start - 4 + 512 * data[start - 2])
@@ -119,11 +122,12 @@ def parameter_records(data: bytes) -> tuple[list[_Record], str]:
         if length == 0 or group == 0 or link_at + 2 > end:
             break
         link, = struct.unpack_from(endian + "h", data, link_at)
+        inside = 0 < link and link_at + link + 4 <= end
         record = _Record(position, group, bytes(data[position + 2:link_at]).upper(), link_at,
-                         link, None if link > 0 else _content_length(data, link_at + 2, group,
-                                                                     end))
+                         link, None if inside else _content_length(data, link_at + 2, group,
+                                                                   end))
         records.append(record)
-        if link > 0:
+        if inside:
             position = link_at + link
         elif record.length is not None and _record_starts(data, link_at + record.length, end):
             position = link_at + record.length
@@ -209,17 +213,20 @@ class Parameters:
         records, endian = parameter_records(data)
         self.processor = PROCESSORS[data[(data[0] - 1) * 512 + 3]]
         self._header(data, endian)
-        for record in records[:-1]:
-            if record.link <= 0:
-                where = "points backwards" if record.link < 0 else "ends the chain early"
-                notes.append(f"parameter section: the link after "
-                             f"{record.name.decode('latin-1')} {where} ({record.link:+d} "
-                             "bytes); the records that follow it in the file were read in "
-                             "order (the file is damaged: re-export it)")
         groups: dict[int, str] = {}
         for record in records:
             if record.group < 0:
                 groups.setdefault(-record.group, record.name.decode("latin-1"))
+        for record, following in zip(records, records[1:]):
+            if following.position != record.link_at + record.link:   # a broken link
+                where = ("points backwards" if record.link < 0 else "ends the chain early"
+                         if record.link == 0 else "points past the end of the section")
+                name = record.name.decode("latin-1")
+                if record.group > 0:
+                    name = f"{groups.get(record.group, f'group {record.group}')}:{name}"
+                notes.append(f"parameter section: the link after {name} {where} "
+                             f"({record.link:+d} bytes); the records that follow it in the "
+                             "file were read in order (the file is damaged: re-export it)")
         self._groups = set(groups.values())
         self._data = data
         self._section_end = min(len(data),
