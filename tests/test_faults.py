@@ -386,7 +386,6 @@ def test_hostile_names_and_links_in_an_input_folder(tmp_path):
 def test_line_feeds_in_labels_and_file_names_print_no_fake_rows(tmp_path, capsys):
     """A label or a file name holding a line feed (or a tab) prints as one escaped row: no
     line of ``inspect``'s table or of the build summary starts with what followed it."""
-    import numpy as np
     from mocaplib.io.c3d import read_c3d
     from mocaplib.io.c3d_write import write_c3d
 
@@ -893,7 +892,6 @@ def test_a_capture_without_finite_markers_is_never_a_static(sample_dir, tmp_path
 
 def test_a_walk_named_as_a_sessions_static_is_refused_as_with_static(sample_dir, tmp_path,
                                                                       capsys):
-    from mocaplib.build.sessions import load_session
 
     folder = sample_folder(tmp_path / "caps", names=("walk_straight_normal", "walk_straight_slow"))
     (folder / "session.toml").write_text('static = "walk_straight_slow.c3d"\n')
