@@ -134,15 +134,48 @@ def test_leg_frames_are_the_legs_of_segment_frames_to_the_bit():
         where[f"{side.upper()}_HEEL"] = np.array([-0.05, y, 0.04]) + wobble()
         where[f"{side.upper()}_TOE"] = np.array([0.15, y, 0.03]) + wobble()
     turns = {"l": 0.2, "r": -0.1}
-    for level_feet in (False, True):
-        whole = segment_frames(where, centres, level_feet=level_feet, knee_turns=turns)
+    flat = rng.random(n) < 0.5
+    for flat_feet in (None, {"l": flat, "r": ~flat}):
+        whole = segment_frames(where, centres, flat_feet=flat_feet, knee_turns=turns)
         for side, turn in turns.items():
-            legs = leg_frames(where, centres, side, level_feet=level_feet, knee_turn=turn)
+            legs = leg_frames(where, centres, side, flat=(flat_feet or {}).get(side),
+                              knee_turn=turn)
             assert sorted(legs) == [f"femur_{side}", f"foot_{side}", f"tibia_{side}"]
             for name, (R, origin) in legs.items():
                 assert R.tobytes() == whole[name][0].tobytes()
                 assert origin.tobytes() == whole[name][1].tobytes()
             # the turn turns the femur's frame about its long axis (Z)
-            plain = leg_frames(where, centres, side, level_feet=level_feet)[f"femur_{side}"][0]
+            plain = leg_frames(where, centres, side)[f"femur_{side}"][0]
             assert np.allclose(plain[..., 2], legs[f"femur_{side}"][0][..., 2])
             assert not np.allclose(plain[..., 1], legs[f"femur_{side}"][0][..., 1])
+
+
+def test_the_foot_lies_along_the_sole_it_stands_flat_on():
+    # a heel marker 25 mm above the sole and a toe marker 10 mm above it: their line rises
+    # -4.3° over the sole; in the frames the foot stands flat the foot frame must be level,
+    # and pitched by the ankle's own turn elsewhere, whatever the markers' heights
+    from mocaplib.model.anatomy import leg_frames
+
+    n = 40
+    pitch = np.where(np.arange(n) < 20, 0.0, np.radians(np.linspace(-20, 25, n)))   # sole's
+    ankle = np.array([0.0, 0.1, 0.08])
+    forward = np.stack([np.cos(pitch), np.zeros(n), np.sin(pitch)], axis=1)
+    up = np.stack([-np.sin(pitch), np.zeros(n), np.cos(pitch)], axis=1)
+    sole_at_ankle = ankle - 0.08 * up                           # the sole under the ankle
+    where = {"L_HEEL": sole_at_ankle - 0.06 * forward + 0.025 * up,
+             "L_TOE": sole_at_ankle + 0.14 * forward + 0.010 * up,
+             "L_KNEE_LAT": np.tile([0.0, 0.15, 0.5], (n, 1))}
+    centres = {("femur_l", 0.0): np.tile([0.0, 0.1, 0.9], (n, 1)),
+               ("tibia_l", 0.0): np.tile([0.0, 0.1, 0.5], (n, 1)),
+               ("foot_l", 0.0): np.tile(ankle, (n, 1))}
+    flat = np.arange(n) < 20
+    along_sole = leg_frames(where, centres, "l", flat=flat)["foot_l"][0]
+    along_line = leg_frames(where, centres, "l")["foot_l"][0]
+    rise = np.degrees(np.arcsin(along_sole[:, 2, 0]))
+    line_rise = np.degrees(np.arcsin(along_line[:, 2, 0]))
+    np.testing.assert_allclose(rise, np.degrees(pitch), atol=1e-9)   # exact geometry
+    line = np.degrees(np.arctan2(0.010 - 0.025, 0.20))
+    np.testing.assert_allclose(line_rise, np.degrees(pitch) + line, atol=1e-9)
+    # no flat frame: the marker line, as before a foot-flat phase is seen
+    same = leg_frames(where, centres, "l", flat=np.zeros(n, dtype=bool))["foot_l"][0]
+    assert same.tobytes() == along_line.tobytes()

@@ -75,10 +75,10 @@ import numpy as np
 
 from ..errors import MIN_MARKER_SPREAD, SPREAD_HINT, UNITS_HINT, EventError
 from ..model.filtering import lowpass, remove_spikes
+from ..model.floor import floor_height
 from ..runs import valid_runs
 from ..trial import check_gait_rate
 from .feet import feet_of
-from .floor import floor_height
 from .foot_events import (FootTrack, GaitEvent, arrival_time, gait_event, lift_time, median_kink,
                           peak_time, swing_spans, toe_off_time)
 

@@ -34,12 +34,14 @@ the subject stands in the anatomical position, as :mod:`mocaplib.skeleton` requi
     * **tibia**: Y the femur's (the knee is a hinge about it), Z from the ankle centre to the
       knee centre made perpendicular to Y; origin at the knee centre. Knee flexion is 0 when
       the hip, knee and ankle centres are aligned in the knee's sagittal plane.
-    * **foot**: Y the tibia's, X along the line from the heel to the toe (or forefoot) marker
-      made perpendicular to Y (on a static trial: that direction made horizontal, the sole
-      being flat on the floor); origin at the ankle centre. Ankle dorsiflexion is 0 when the
-      foot's X is perpendicular to the tibia's long axis; the foot's turn about the tibia's long
-      axis (toe-out) is a fixed part of the marker offsets, as Plug-in Gait's static
-      rotation offset.
+    * **foot**: Y the tibia's, X along the sole: the line from the heel to the toe (or
+      forefoot) marker made perpendicular to Y, turned about Y by that line's pitch over the
+      sole, measured where the sole lies flat on the floor (:func:`flat_soles`: a static's
+      frames, as Plug-in Gait's flat-foot option, or the foot-flat frames of a capture's
+      stances); without such frames, along the line. Origin at the ankle centre. Ankle
+      dorsiflexion is 0 when the foot's X is perpendicular to the tibia's long axis; the foot's
+      turn about the tibia's long axis (toe-out) is a fixed part of the marker offsets, as
+      Plug-in Gait's static rotation offset.
 
     * **humerus**: as the femur, from the shoulder, elbow and lateral elbow landmark: Z from
       the elbow centre to the shoulder centre, Y along the elbow's flexion axis (epicondyles;
@@ -63,9 +65,12 @@ The torso and head keep frames turned onto the landmark catalogue's layout
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..numeric import nanmedian
+from .floor import foot_flat_frames
 
 #: Subject measurements mocaplib can use (metres, kilograms), as :attr:`Trial.measurements`
 #: keys: sided ones end in ``_l``/``_r``.
@@ -169,7 +174,8 @@ def frame(primary: np.ndarray, secondary: np.ndarray, *, order: str) -> np.ndarr
 
 
 def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
-                   *, level_feet: bool = False, knee_turns: dict[str, float] | None = None
+                   *, flat_feet: Mapping[str, np.ndarray] | None = None,
+                   knee_turns: dict[str, float] | None = None
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The anatomical frames of the pelvis, legs and arms that the landmarks define.
 
@@ -178,9 +184,10 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
     :func:`mocaplib.model.joint_centres.joint_centres` returns them. Returns, for each segment whose
     frame can be built, its rotation (F, 3, 3) and origin (F, 3), as the module describes;
     a segment whose landmarks are missing is left out (and so are the segments below it).
-    ``level_feet``: the frames are a static trial's, the soles flat on level ground, so each
-    foot's long axis is the heel-to-toe direction made horizontal (Plug-in Gait's flat-foot
-    static) rather than the line between the markers, whose heights above the sole differ.
+    ``flat_feet``: per side ("l", "r"), the frames (F,) bool in which that foot's sole lies
+    flat on level ground (:func:`flat_soles`): the foot's long axis is along the sole they
+    show; a side left out keeps the line between the markers, whose heights above the sole
+    differ.
     ``knee_turns``: per side ("l", "r"), radians in the sense of ``hip_rotation`` (internal
     positive): the femur's frame is turned about its long axis by it, and with it the knee's
     flexion axis and the tibia's and foot's frames built on that axis (a functional knee axis,
@@ -194,7 +201,7 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
         out["pelvis"] = (pelvis_axes(where["L_ASIS"], where["R_ASIS"], back),
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        out.update(leg_frames(where, centres, side, level_feet=level_feet,
+        out.update(leg_frames(where, centres, side, flat=(flat_feet or {}).get(side),
                               knee_turn=(knee_turns or {}).get(side, 0.0)))
         wrist = next((point for (segment, z), point in centres.items()
                       if segment == f"forearm_{side}" and z != 0.0), None)
@@ -204,20 +211,74 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
 
 
 def leg_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
-               side: str, *, level_feet: bool = False, knee_turn: float = 0.0
+               side: str, *, flat: np.ndarray | None = None, knee_turn: float = 0.0
                ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The frames (rotations (F, 3, 3), origins (F, 3)) of the femur, tibia and foot of
-    ``side`` ("l", "r") that :func:`segment_frames` builds from the same ``where``,
-    ``centres`` and ``level_feet``, the knee's axis turned by ``knee_turn`` (radians,
-    internal rotation positive); those it cannot build left out."""
+    ``side`` ("l", "r") that :func:`segment_frames` builds from the same ``where`` and
+    ``centres``, the foot along the sole it lies flat on in the ``flat`` frames ((F,) bool;
+    None or none of them: along the marker line) and the knee's axis turned by ``knee_turn``
+    (radians, internal rotation positive); those it cannot build left out.
+
+    The sole is level in the ``flat`` frames: the foot's X is the marker line's (made
+    perpendicular to Y) turned about Y by the median over them of the angle that makes it
+    horizontal, as Plug-in Gait's flat-foot option levels it on a static."""
     out = _limb_frames(where, centres, side, 1.0 if side == "l" else -1.0, ("femur", "tibia"),
                        "KNEE", centres.get((f"foot_{side}", 0.0)), turn=knee_turn)
     heel, toe = _foot_line(where, side.upper())
     if f"tibia_{side}" in out and heel is not None:
-        along = (toe - heel) * ((1.0, 1.0, 0.0) if level_feet else 1.0)
-        out[f"foot_{side}"] = (frame(out[f"tibia_{side}"][0][..., 1], along, order="yx"),
-                               centres[(f"foot_{side}", 0.0)])
+        axis = out[f"tibia_{side}"][0][..., 1]
+        foot = frame(axis, toe - heel, order="yx")
+        # the turn about Y from the marker line to the heel-to-toe direction made horizontal
+        sole = frame(axis, (toe - heel) * (1.0, 1.0, 0.0), order="yx")[..., 0]
+        pitch = np.arctan2(-(sole * foot[..., 2]).sum(axis=-1), (sole * foot[..., 0]).sum(axis=-1))
+        level = np.zeros(len(pitch), dtype=bool) if flat is None else flat & np.isfinite(pitch)
+        if level.any():
+            c, s = np.cos(np.median(pitch[level])), np.sin(np.median(pitch[level]))
+            foot = foot @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        out[f"foot_{side}"] = (foot, centres[(f"foot_{side}", 0.0)])
     return out
+
+
+#: Fewest calibration frames in which a foot stands flat for :func:`flat_soles` to take its
+#: sole from a capture's stances.
+MIN_FLAT_FRAMES = 5
+
+
+def flat_soles(where: dict[str, np.ndarray], *, rate: float | None = None,
+              frames: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """The frames (bool) in which each foot's sole lies flat on level ground, per side ("l",
+    "r"), for :func:`segment_frames`, and a sentence per side saying so (``sole_l``...).
+
+    ``where`` maps landmark names to positions (F, 3). ``rate`` None: a static, every frame
+    (the subject stands, feet flat, as Plug-in Gait's flat-foot option takes it). Else a
+    capture at ``rate`` Hz: the frames in which the foot stands flat on its floor
+    (:func:`mocaplib.model.floor.foot_flat_frames`: the middle of each stance, heel and
+    forefoot both still and down), taken at ``frames`` (indices, the calibration's; default
+    all). The markers sit at different heights above the sole (the Oxford Foot Model's toe
+    marker 4-5° up the line from its heel marker), and a foot along their line carries that as
+    an ankle angle. A side with fewer than :data:`MIN_FLAT_FRAMES` such frames (a treadmill,
+    stairs all the way, a toe walker) is left out: its foot keeps the marker line.
+    """
+    masks, methods = {}, {}
+    for side in ("l", "r"):
+        heel, toe = _foot_line(where, side.upper())
+        if heel is None:
+            continue
+        if rate is None:
+            masks[side] = np.ones(len(heel), dtype=bool)
+            methods[f"sole_{side}"] = "flat on the floor in the static"
+            continue
+        flat = foot_flat_frames(heel, toe, rate)
+        flat = flat if frames is None else flat[frames]
+        if flat.sum() < MIN_FLAT_FRAMES:
+            methods[f"sole_{side}"] = (
+                f"the heel-to-toe marker line: the foot stands flat in {int(flat.sum())} of the "
+                f"calibration frames, the sole needs {MIN_FLAT_FRAMES}")
+        else:
+            masks[side] = flat
+            methods[f"sole_{side}"] = (f"flat on the floor in {int(flat.sum())} of the "
+                                       f"calibration frames (the capture's stances)")
+    return masks, methods
 
 
 def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],

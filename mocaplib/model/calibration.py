@@ -98,7 +98,7 @@ from ..skeleton import (DOF_NAMES, DOFS, HEIGHT_PROPORTIONS, SEGMENT_NAMES, SEGM
                         Skeleton, partner_name)
 from ..statics import STATIC_POSES, standing_part
 from ..trial import Trial
-from .anatomy import leg_frames, offsets_in_frames
+from .anatomy import flat_soles, leg_frames, offsets_in_frames
 from .calibration_checks import (MIN_PRESENCE, check_sides, check_static_markers, check_upright,
                                  refuse_unmarked_pelvis)
 from .joint_centres import (ANATOMICAL_LENGTHS, anatomical_frames, estimate_height,
@@ -230,7 +230,8 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         X_motion = check_static_markers(X_all[:, used], trial, proto, used, segments, labels, static)
     locked, left_out = locked_dofs(segments)
     free = np.array([name not in locked for name in DOF_NAMES])
-    X = X_all[_calibration_frames(X_all[:, used], n_frames)][:, used]
+    calibration_frames = _calibration_frames(X_all[:, used], n_frames)
+    X = X_all[calibration_frames][:, used]
     landmarks = [m.landmark.name for m in markers]
     check_upright(X, segments, cal)
     check_sides(X, landmarks, cal)
@@ -283,10 +284,16 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     # (4 m/s: -0.029 to -0.034, truth 0) (docs/guide/fitting.md)
     drops = shoulder_drops(measurements)
     X_cal, poses_cal, unshifted = X, poses, skeleton
-    frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
-                                   level_feet=static is not None)
-    in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
     where_cal = {name: X_cal[:, i] for i, name in enumerate(landmarks)}
+    # the feet along their soles: flat on the static, or in the capture's calibration frames
+    # that show each foot standing flat on its floor
+    soles, sole_methods = (flat_soles(where_cal) if static is not None else flat_soles(
+        {name: X_all[:, j] for name, j in zip(landmarks, used)}, rate=cal.rate,
+        frames=calibration_frames))
+    methods.update(sole_methods)
+    frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
+                                   flat_feet=soles)
+    in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
 
     def anatomical_model(knee_turns=None):
         """Offsets (M, 3), the markers kept by the refinement (M,) and the skeleton with its
@@ -294,7 +301,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         ``knee_turns``: only the legs' frames built again)."""
         frames, in_frames = dict(frames_cal), in_frames_cal.copy()
         for side, turn in (knee_turns or {}).items():
-            legs = leg_frames(where_cal, centres, side, level_feet=static is not None,
+            legs = leg_frames(where_cal, centres, side, flat=soles.get(side),
                               knee_turn=turn)
             frames.update(legs)
             on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in legs])

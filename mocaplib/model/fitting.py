@@ -184,10 +184,22 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
             warnings.append(f"static {name}: calibrated on its stretch {window[0]:.2f}-"
                             f"{window[1]:.2f} s (of {statics[chosen].duration:.2f} s)")
         warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
+    else:
+        warnings.append(_foot_zero_warning(model))
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=used)
     warnings.extend(_fit_warnings(model, motion))
     return FittedCapture(match, used, model, motion, chosen, warnings)
+
+
+def _foot_zero_warning(model: SubjectModel) -> str:
+    """Where a model calibrated without a static takes each foot's zero (ankle dorsiflexion
+    0) from, one sentence (:func:`mocaplib.model.anatomy.flat_soles`)."""
+    sides = [f"{name} {model.centre_methods[f'sole_{side}']}"
+             for side, name in (("l", "left"), ("r", "right"))
+             if f"sole_{side}" in model.centre_methods]
+    return ("no static: each foot's zero (ankle dorsiflexion 0) is the foot along its sole, "
+            + ("; ".join(sides) if sides else "no foot markers"))
 
 
 def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:

@@ -156,18 +156,20 @@ def _mirrored_mean(shifts: dict[str, tuple[float, float, float]]
 
 def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
                       centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
-                      *, level_feet: bool = False) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                      *, flat_feet: dict[str, np.ndarray] | None = None
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """:func:`mocaplib.model.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
     (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
     from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
     of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
-    acromion."""
+    acromion; the feet along the soles they lie flat on in the ``flat_feet`` frames
+    (:func:`mocaplib.model.anatomy.flat_soles`)."""
     T = skeleton.forward(q)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
                  for name in ("humerus_l", "humerus_r")
                  if (name, 0.0) in centres and name[-1] not in drops}
     return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                          {**centres, **shoulders}, level_feet=level_feet)
+                          {**centres, **shoulders}, flat_feet=flat_feet)
 
 
 def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:

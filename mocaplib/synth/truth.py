@@ -39,7 +39,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..model.anatomy import harrington_hips, segment_frames
+from ..model.anatomy import flat_soles, harrington_hips, segment_frames
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS
 from .bones import SIDES, Body, BodyPose, turn_vector
 
@@ -69,10 +69,11 @@ def _bone_name(segment: str) -> str:
     return BONE_OF_SEGMENT[bare] + (f"_{side}" if side else "")
 
 
-def anatomical_frames(body: Body, pose: BodyPose, *, level_feet: bool = False
+def anatomical_frames(body: Body, pose: BodyPose, *, flat_feet: bool = False
                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The pelvis, femur, tibia and foot frames (rotation (F, 3, 3), origin (F, 3)) the fit's
-    definitions give on the true landmarks of ``pose`` (module docstring, step 1)."""
+    definitions give on the true landmarks of ``pose`` (module docstring, step 1); with
+    ``flat_feet`` the feet along their soles, flat in ``pose`` as on a static."""
     names = list(_PELVIS) + [f"{s.upper()}_{n}" for s in SIDES for n in _LEG]
     points = body.landmark_points(pose, names)
     where = {name: points[:, i] for i, name in enumerate(names)}
@@ -84,7 +85,7 @@ def anatomical_frames(body: Body, pose: BodyPose, *, level_feet: bool = False
         centres[(f"femur_{side}", 0.0)] = hip
         centres[(f"tibia_{side}", 0.0)] = 0.5 * (where[f"{S}_KNEE_LAT"] + where[f"{S}_KNEE_MED"])
         centres[(f"foot_{side}", 0.0)] = 0.5 * (where[f"{S}_ANKLE_LAT"] + where[f"{S}_ANKLE_MED"])
-    return segment_frames(where, centres, level_feet=level_feet)
+    return segment_frames(where, centres, flat_feet=flat_soles(where)[0] if flat_feet else None)
 
 
 def _neutral_residuals(body: Body, pose: BodyPose) -> np.ndarray:
@@ -143,7 +144,7 @@ def neutral_pose(body: Body, n: int = 1) -> BodyPose:
 def convention(body: Body) -> Convention:
     """The fit's anatomical frames fixed in ``body``'s bones (module docstring, step 1)."""
     pose = _neutral(body)
-    frames = anatomical_frames(body, pose, level_feet=True)
+    frames = anatomical_frames(body, pose, flat_feet=True)
     R, t = body.forward(pose)
     pelvis = frames["pelvis"][0][0]
     bones, turns = [], []

@@ -1,5 +1,7 @@
-"""The floor under the feet: its height from the feet's low samples, and the ground's velocity
-on a treadmill (the belt's, shared by both feet in stance).
+"""The floor under the feet: its height from the feet's low samples, the ground's velocity on a
+treadmill (the belt's, shared by both feet in stance), and the frames a foot stands flat on it.
+The gait events (:mod:`mocaplib.gait.events`) and the foot's zero in calibration
+(:func:`mocaplib.model.anatomy.flat_soles`) read them.
 
 Foot points are ``(F, 3)`` arrays in metres, Z up; velocities m/s.
 """
@@ -60,6 +62,29 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float
         keep = new_keep
     floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
     return z - floor, ground
+
+
+#: A foot stands flat on the floor where its heel and toe (or forefoot) points are both within
+#: this height of the floor (m)...
+FLAT_CLEARANCE = 0.01
+#: ...and both move slower than this relative to the ground (m/s).
+FLAT_SPEED = 0.1
+
+
+def foot_flat_frames(heel: np.ndarray, toe: np.ndarray, rate: float) -> np.ndarray:
+    """The frames (F,) bool in which a foot stands flat on the floor: its ``heel`` and ``toe``
+    (or forefoot) points (F, 3), metres, both within :data:`FLAT_CLEARANCE` of the floor
+    (:func:`floor_height`) and both slower than :data:`FLAT_SPEED` relative to the ground;
+    ``rate`` Hz. In walking, the middle of each stance: the heel is not yet rising and the
+    forefoot has come down. False where a point is missing."""
+    if len(heel) < 2:
+        return np.zeros(len(heel), dtype=bool)
+    points = np.stack([heel, toe])
+    velocity = np.gradient(points, axis=1) * rate
+    heights, ground = floor_height(points, velocity)
+    with np.errstate(invalid="ignore"):
+        return ((heights < FLAT_CLEARANCE).all(axis=0)
+                & (np.linalg.norm(velocity - ground, axis=2) < FLAT_SPEED).all(axis=0))
 
 
 def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
