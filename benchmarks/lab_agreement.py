@@ -8,8 +8,8 @@ Plug-in Gait (Vicon's conventional gait model) writes its angles into the C3D as
 z rotation) and its pelvis frame as the points ``PELO``, ``PELA``, ``PELL``, ``PELP`` (origin
 and 100 mm along each axis). They are read with ezc3d, a reader mocaplib does not use. Each
 capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.model.fitting.fit_capture`, with its
-static when it has one) and every angle both report is compared over the frames Plug-in Gait
-wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
+static when it has one, and again without it, calibrated from itself: :data:`RUNS`) and every
+angle both report is compared over the frames Plug-in Gait wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
 motion of each. The arms are compared too: Plug-in Gait's elbow flexion is the angle between
 its shoulder–elbow and elbow–wrist centre lines, its shoulder flexion the upper arm's line
 against its thorax frame (:func:`mocaplib.model.anatomy.segment_frames` builds mocaplib's arm frames
@@ -27,8 +27,9 @@ slope of Plug-in Gait's knee varus on its knee flexion (a knee flexion axis turn
 true one shows in Plug-in Gait's three-DOF knee as varus that follows flexion, and in
 mocaplib's hinge knee as hip rotation that follows it), with each knee's functional axis and,
 refitted, with its anatomical one. ``--knee-turns`` refits instead with both knees' axes turned
-by fixed angles. Prints Markdown; exit code 1 when a target of
-:data:`TARGETS` is missed.
+by fixed angles. Prints Markdown, the tables of the captures with their statics, then of every
+capture calibrated from itself; exit code 1 when a target of :data:`TARGETS` is missed in
+either.
 """
 
 from __future__ import annotations
@@ -59,6 +60,12 @@ CAPTURES = (("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A01.c3d"),
 SIDED = (("HipAngles", 0, "hip_flexion"), ("KneeAngles", 0, "knee_flexion"),
          ("AnkleAngles", 0, "ankle_dorsiflexion"), ("HipAngles", 1, "hip_adduction"),
          ("HipAngles", 2, "hip_rotation"))
+#: What the page compares: each capture with its static as :data:`CAPTURES` gives it, then
+#: every capture calibrated from itself (its name marked when it has a static): (motion,
+#: static or None, name).
+NO_STATIC = " (no static)"
+RUNS = tuple((motion, static, Path(motion).stem) for motion, static in CAPTURES) + tuple(
+    (motion, None, Path(motion).stem + NO_STATIC) for motion, static in CAPTURES if static)
 FLEXIONS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 #: The arms' flexions (Plug-in Gait point, component, mocaplib DOF), compared per side.
 ARMS = (("ElbowAngles", 0, "elbow_flexion"), ("ShoulderAngles", 0, "shoulder_flexion"))
@@ -361,9 +368,14 @@ def main(argv=None) -> int:
         print_turned_knees(args.shared, args.knee_turns)
         return 0
     with markdown_page(args.markdown, __file__, argv):
-        results = [agreement(args.shared / motion, static and args.shared / static,
-                             Path(motion).stem) for motion, static in CAPTURES]
-        met = print_tables(results)
+        results = [agreement(args.shared / motion, static and args.shared / static, name)
+                   for motion, static, name in RUNS]
+        with_statics = [r for r in results if not r.capture.endswith(NO_STATIC)]
+        from_themselves = [r for r, (_, static, _) in zip(results, RUNS) if static is None]
+        print("### With the captures' statics\n")
+        met = print_tables(with_statics)
+        print("\n### Every capture calibrated from itself\n")
+        met = print_tables(from_themselves) and met
     return 0 if met else 1
 
 

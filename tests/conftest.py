@@ -63,6 +63,7 @@ SLOW = {
     ("test_report.py", "test_capture_figures_drawn_by_two_processes_are_those_drawn_by_one"),
     ("test_report.py", "test_report_in_headless_chromium"),
     ("test_lab_agreement.py", "test_leg_flexion_offsets_agree_with_plug_in_gait"),
+    ("test_lab_agreement.py", "test_leg_flexion_offsets_agree_with_plug_in_gait_without_a_static"),
     ("test_filtering.py", "test_automatic_cutoffs_of_the_real_files_are_those_of_the_filter_applied"),
     ("test_filtering.py", "test_automatic_cutoffs_of_the_samples_are_those_of_the_filter_applied"),
     ("test_sessions.py", "test_the_shared_files_with_two_statics_build_without_failure"),
