@@ -528,7 +528,9 @@ def test_cli_events_json(capsys):
     assert main(["events", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {"file", "events"}
-    assert all(set(e) == {"side", "kind", "time_s", "frame"} for e in out["events"])
+    assert all(set(e) == {"side", "kind", "time_s", "frame", "placed", "window_s"}
+               for e in out["events"])
+    assert all(e["placed"] and e["window_s"] is None for e in out["events"])
     truth = json.loads(path.with_suffix(".truth.json").read_text())
     offs = [e["time_s"] for e in out["events"] if e["side"] == "left" and e["kind"] == "toe_off"]
     true = [e["time_s"] for e in truth["events"] if e["side"] == "left" and e["kind"] == "toe_off"]

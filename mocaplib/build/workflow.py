@@ -295,6 +295,7 @@ def _cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, clo
         result.static = static_names(settings.statics)[fitted.static]
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
+    result.warnings.extend(e.warning for e in processed.events if not e.placed)
     result.diagnostics.update(_series(trial, processed.motion, processed.shoulders,
                                       processed.events, fitted.cutoff))
     return cut_cycles(processed, max_gap_s=settings.max_gap_s,

@@ -68,5 +68,7 @@ def _run(args) -> int:
                   f"protocol's fallback); its left toe-off is {r['left_toe_off_s']:.3f} s in")
         if r["qc_failures"]:
             print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
+        for sentence in r["unplaced_events"]:
+            print(f"  cycle {r['index']}: {sentence}")
     print("  (* = chosen for the library: the steadiest cycle that passes QC, if any does)")
     return 0

@@ -61,11 +61,16 @@ def _run(args) -> int:
     if args.json:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
-                                "frame": e.frame} for e in events]})
+                                "frame": e.frame, "placed": e.placed,
+                                "window_s": None if e.placed else list(e.window)}
+                               for e in events]})
         return 0
     print(f"{args.file}: {len(events)} events ({match.protocol.name}, {trial.rate:g} Hz)"
           + ("; none: standing still (rest)" if not events else ""))
     for e in events:
         print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"
-              f"  quality {e.quality:.2f}")
+              f"  quality {e.quality:.2f}" + ("" if e.placed else "  (not placed)"))
+    for e in events:
+        if not e.placed:
+            warn(f"{args.file}: {e.warning}")
     return 0

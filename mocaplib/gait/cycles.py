@@ -117,6 +117,9 @@ class Cycle:
     left_toe_off : float or None
         For a cycle starting at another event, the left toe-off inside it, seconds from its
         start; None for a cycle that starts at a left toe-off.
+    unplaced : tuple[str, ...]
+        One sentence per event the detector could not place (:attr:`GaitEvent.warning`) among
+        its bounds or inside it: a bound not placed gives the cycle ``event_quality`` 0.
     """
 
     index: int
@@ -131,6 +134,7 @@ class Cycle:
     right_toe_off: float | None = None
     start_event: str = LEFT_TOE_OFF
     left_toe_off: float | None = None
+    unplaced: tuple[str, ...] = ()
 
     @property
     def period(self) -> float:
@@ -146,7 +150,8 @@ class Cycle:
                "fourier_n": None, "fourier_rms_deg": None, "fourier_worst_dof": None,
                "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
                "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off,
-               "start_event": self.start_event, "left_toe_off_s": self.left_toe_off}
+               "start_event": self.start_event, "left_toe_off_s": self.left_toe_off,
+               "unplaced_events": list(self.unplaced)}
         if self.encoding is not None:
             out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
                        fourier_worst_dof=self.encoding.worst_dof)
@@ -302,7 +307,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                             else _first_inside(events, "right", start, end),
                             start_event=start_event,
                             left_toe_off=None if start_event == LEFT_TOE_OFF
-                            else _first_inside(events, "left", start, end)))
+                            else _first_inside(events, "left", start, end),
+                            unplaced=tuple(e.warning for e in events
+                                           if not e.placed and start <= e.time_s <= end)))
     choose_cycle(cycles)
     return cycles
 

@@ -80,7 +80,7 @@ from ..runs import valid_runs
 from ..trial import check_gait_rate
 from .feet import feet_of
 from .foot_events import (FootTrack, GaitEvent, arrival_time, gait_event, lift_time, median_kink,
-                          peak_time, swing_spans, toe_off_time)
+                          peak_time, swing_spans, toe_off_time, unplaced_event)
 
 SIDES = ("left", "right")
 #: Toe-off definitions, see the module docstring.
@@ -206,7 +206,8 @@ def _prepared_feet(feet, rate, config: EventSettings, source) -> list[FootTrack]
         heel, toe = remove_spikes(np.stack([heel, toe], axis=1), rate).transpose(1, 0, 2)
         given = np.isfinite(heel).all(axis=1) & np.isfinite(toe).all(axis=1)
         raw, points, velocity = _prepared(heel, toe, rate, config.cutoff_hz, config.max_gap_s)
-        prepared.append(FootTrack(side, given, raw, points, velocity, *floor_height(points, velocity)))
+        prepared.append(FootTrack(side, given, raw, points, velocity,
+                                  *floor_height(points, velocity, rate)))
     return prepared
 
 
@@ -223,6 +224,7 @@ def _events(feet: list[FootTrack], measured, rate: float, config: EventSettings,
     """Every foot's events, sorted by time; ``measured`` as for :func:`detect_events`."""
     events: list[GaitEvent] = []
     runs = _running(feet, rate, config)
+    airborne = {}
     for foot in feet:
         seen = foot.given
         if measured is not None:
@@ -231,8 +233,34 @@ def _events(feet: list[FootTrack], measured, rate: float, config: EventSettings,
                 raise EventError(f"{foot.side} measured mask has shape {mask.shape}, the foot "
                                  f"{seen.shape}", path=source)
             seen = seen & mask
-        events += _foot_events(foot, seen, rate, config, lift=runs or config.toe_off == "lift")
+        found, airborne[foot.side] = _foot_events(foot, seen, rate, config,
+                                                  lift=runs or config.toe_off == "lift")
+        events += found
+    events += _lost_stances(airborne, rate, len(feet[0].given) if feet else 0)
     return sorted(events, key=lambda e: (e.time_s, e.side))
+
+
+def _lost_stances(airborne: dict[str, list[tuple[int, int]]], rate: float, n_frames: int
+                  ) -> list[GaitEvent]:
+    """The heel-strike and toe-off of a stance the detector did not see, not placed: a span
+    a foot seems in the air ([start, end) frames, per side: a swing, or swings a gap in its
+    markers separates) that holds a whole swing of the other foot. Whether walking or running,
+    a foot comes down while the other is in the air, so such a span holds a stance that was
+    missed: hidden in the gap, or on a floor other than the one the foot stood on before (a
+    raised tread of a stair)."""
+    out = []
+    for side, other in ((a, b) for a in airborne for b in airborne if a != b):
+        for start, end in airborne[side]:
+            for inner_start, inner_end in airborne[other]:
+                if start < inner_start and inner_end < end:
+                    reason = (f"the foot seems in the air from {start / rate:.2f} to "
+                              f"{end / rate:.2f} s while the {other} foot swings (a stance "
+                              "hidden by missing markers or on another floor)")
+                    out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
+                                           n_frames, reason),
+                            unplaced_event(side, "toe_off", (inner_end, end), rate,
+                                           n_frames, reason)]
+    return out
 
 
 #: Shortest flight phase (s, both feet off the floor) that makes a capture a run.
@@ -270,9 +298,13 @@ def running(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *
 
 
 def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: EventSettings, *,
-                 lift: bool) -> list[GaitEvent]:
-    """Steps 3-5 of the module docstring on one prepared foot; ``measured`` (F,) bool;
-    ``lift``: toe-offs by the lift definition, else the default's (module docstring)."""
+                 lift: bool) -> tuple[list[GaitEvent], list[tuple[int, int]]]:
+    """Steps 3-5 of the module docstring on one prepared foot, and when it is in the air
+    ([start, end) frames: its swings, those a gap in its markers separates joined);
+    ``measured`` (F,) bool; ``lift``: toe-offs by the lift definition, else the
+    default's (module docstring). An event a swing shows but that cannot be placed (no clear
+    mark, the markers missing where it lies, or hidden in a gap longer than ``max_gap_s``
+    between a contact and the swing) is returned not placed (:attr:`GaitEvent.window`)."""
     raw, velocity, heights = foot.raw, foot.velocity, foot.heights
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
@@ -284,28 +316,53 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
     swings = swing_spans(contact, clearance, max(1, round(config.min_swing_s * rate)))
     window = max(3, round(0.15 * rate))
     half = max(3, round(config.refine_s * rate))
+    n_frames = len(clearance)
+    seen = np.flatnonzero(np.isfinite(clearance))
+
+    def not_placed(kind, lo, hi, reason):
+        events.append(unplaced_event(foot.side, kind, (lo, hi), rate, n_frames, reason))
+
     for n, (start, end) in enumerate(swings):
         before = swings[n - 1][1] if n else 0
-        after = swings[n + 1][0] if n + 1 < len(swings) else len(clearance)
+        after = swings[n + 1][0] if n + 1 < len(swings) else n_frames
         top = start + int(np.nanargmax(clearance[start:end]))
         if start > 0 and np.isfinite(clearance[start - 1]):
             last = int(np.argmin(heights[:, start]))  # the point that left last
-            lo = max(before, start - window)
+            lo, hi = max(before, start - window), top + 1
             if lift:
-                t = peak_time(centre_velocity[:, 2], lo, top + 1)
+                t = peak_time(centre_velocity[:, 2], lo, hi)
                 t = None if t is None else lift_time(velocity[last, :, 2], t, rate)
             else:
-                t = toe_off_time(foot, last, lo, top + 1, rate)
-            if t is not None:
-                if _supported(supported, t):
-                    events.append(gait_event(foot.side, "toe_off", t / rate, measured, rate))
-        if end < len(clearance) and np.isfinite(clearance[end]):
+                t = toe_off_time(foot, last, lo, hi, rate)
+            if t is not None and _supported(supported, t):
+                events.append(gait_event(foot.side, "toe_off", t / rate, measured, rate))
+            else:
+                not_placed("toe_off", lo, hi, "the foot's release shows no clear mark" if t is None
+                           else "the foot markers are missing where it lies")
+        elif start > 0:                           # a gap too long to fill before the swing
+            gap = seen[seen < start]
+            if gap.size and contact[gap[-1]]:      # down before it: it left in the gap
+                not_placed("toe_off", gap[-1], start, "the foot markers are missing then")
+        if end < n_frames and np.isfinite(clearance[end]):
             first = int(np.argmin(heights[:, end]))  # the point that touched first
             t = arrival_time(speeds[first], top, end, min(after, end + window), window)
             t = median_kink(raw, first, float(end) if t is None else t, half)
             if _supported(supported, t):
                 events.append(gait_event(foot.side, "heel_strike", t / rate, measured, rate))
-    return events
+            else:
+                not_placed("heel_strike", top, min(after, end + window),
+                           "the foot markers are missing where it lies")
+        elif end < n_frames:                      # a gap too long to fill after the swing
+            gap = seen[seen >= end]
+            if gap.size and contact[gap[0]]:       # down after it: it landed in the gap
+                not_placed("heel_strike", end - 1, gap[0], "the foot markers are missing then")
+    airborne = []                     # swings, joined across the gaps that separate them
+    for start, end in swings:
+        if airborne and not np.isfinite(clearance[airborne[-1][1]:start]).any():
+            airborne[-1] = (airborne[-1][0], end)
+        else:
+            airborne.append((start, end))
+    return events, airborne
 
 
 def _supported(supported: np.ndarray, t: float) -> bool:

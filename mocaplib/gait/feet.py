@@ -25,7 +25,8 @@ def event_differences(detected, reference, /, *, kind: str, start_time: float = 
     ``detected`` are :class:`GaitEvent` (seconds from the first frame), ``reference`` the
     trial's lab events (:class:`mocaplib.trial.Event`, on the lab clock whose first frame is at
     ``start_time``). Each reference event is paired with the nearest detected event of the
-    same side and kind; NaN where there is none within ``max_s`` (e.g. at the capture's edges).
+    same side and kind (placed: :attr:`GaitEvent.placed`); NaN where there is none within
+    ``max_s`` (e.g. at the capture's edges).
     """
     out = []
     for lab in reference:
@@ -37,7 +38,7 @@ def event_differences(detected, reference, /, *, kind: str, start_time: float = 
             continue
         side = "left" if letter == "L" else "right"
         found = [e.time_s + start_time - lab.time_s for e in detected
-                 if e.side == side and e.kind == kind]
+                 if e.side == side and e.kind == kind and e.placed]
         nearest = min(found, key=abs, default=np.inf)
         out.append(nearest if abs(nearest) <= max_s else np.nan)
     return np.array(out, dtype=np.float64)

@@ -171,6 +171,16 @@ def gait_event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: 
     return GaitEvent(side, kind, float(time_s), frame, quality)
 
 
+def unplaced_event(side: str, kind: str, window: tuple[float, float], rate: float, n_frames: int,
+                   reason: str) -> GaitEvent:
+    """An event the foot shows happened within ``window`` (frames: start, end) but that cannot
+    be placed there with confidence, for ``reason``: at the window's middle, quality 0."""
+    start, end = (float(np.clip(w, 0, n_frames - 1)) / rate for w in window)
+    middle = 0.5 * (start + end)
+    return GaitEvent(side, kind, middle, int(np.clip(round(middle * rate), 0, n_frames - 1)),
+                     0.0, window=(start, end), reason=reason)
+
+
 #: Where the default toe-off's velocity-peak point lies between a foot's two markers: this
 #: share of the way from the one that left the floor first to the one that left last.
 TOE_OFF_WEIGHT = 0.6
@@ -195,7 +205,15 @@ class GaitEvent:
         Nearest frame index (0-based).
     quality : float
         Fraction (0..1) of the frames within 50 ms of the event where the capture measured both
-        the heel and the toe (not filled in, linearly or from a fitted model).
+        the heel and the toe (not filled in, linearly or from a fitted model); 0 for an event
+        not placed.
+    window : (float, float) or None
+        None for an event placed at ``time_s``. Else the event is known to have happened
+        within these seconds (the foot left the floor, or came down, between them) but could
+        not be placed with confidence, for ``reason``; ``time_s`` is the window's middle, so
+        the cycle it bounds is still cut there, and carries the quality 0.
+    reason : str
+        Why an event was not placed ("" for a placed one).
     """
 
     side: str
@@ -203,6 +221,21 @@ class GaitEvent:
     time_s: float
     frame: int
     quality: float
+    window: tuple[float, float] | None = None
+    reason: str = ""
+
+    @property
+    def placed(self) -> bool:
+        """Whether the detector placed the event (else only its ``window`` is known)."""
+        return self.window is None
+
+    @property
+    def warning(self) -> str:
+        """One sentence for the user about an event not placed ("" for a placed one)."""
+        if self.placed:
+            return ""
+        return (f"{self.side} {self.kind.replace('_', '-')} not placed: it happened between "
+                f"{self.window[0]:.2f} and {self.window[1]:.2f} s, but {self.reason}")
 
 
 @dataclass(frozen=True)

@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..runs import valid_runs
 
-def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float = 0.2,
-           min_extent: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+
+def floor_height(points: np.ndarray, velocity: np.ndarray, rate: float, *,
+                 still_speed: float = 0.2, min_extent: float = 0.5
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Heights (2, F) of heel and toe above the floor they stand on (m), and the floor's
-    horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill).
+    horizontal velocity (3,) (m/s: zero overground, the belt's on a treadmill); ``points``
+    and their ``velocity`` (2, F, 3), ``rate`` Hz.
 
     The ground velocity is the horizontal velocity most of the frames where the foot's
     lowest point is within 3 cm of its lowest height share (:func:`_shared_velocity`, within
@@ -26,6 +30,10 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float
     raised (0.24 m in the running file); a percentile of the raw height would take either for
     swing. The slope is fitted only along horizontal directions the standing samples span by
     ``min_extent`` or more (none when standing or turning on the spot, one on a straight walk).
+    A foot that stands still further than :data:`FLOOR_STEP` off that plane in some stance,
+    or a plane steeper than :data:`MAX_RAMP_DEG`, shows other floors (a stair's treads, a
+    curb): the heights are then taken above the level tread of the stance nearest in time
+    (:func:`_treads`).
     """
     z = points[:, :, 2]
     rough = z - np.nanpercentile(z, 5, axis=1)[:, None]
@@ -61,7 +69,19 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float
             break
         keep = new_keep
     floor = coef[:len(points), None] + (points[:, :, :2] - centre) @ axes.T @ coef[len(points):]
-    return z - floor, ground
+    heights = z - floor
+    speeds = np.linalg.norm(velocity - ground, axis=2)
+    if (np.abs(_treads(heights, speeds, rate)).max() > FLOOR_STEP
+            or np.linalg.norm(coef[len(points):]) > np.tan(np.radians(MAX_RAMP_DEG))):
+        # stances on other floors (a stair): their treads are level, whatever slope the
+        # plane took through them, so the heights are taken above each stance's tread, each
+        # point moved onto the first's scale by their difference where both stand still
+        with np.errstate(invalid="ignore"):
+            flat = (speeds < FLAT_SPEED).all(axis=0) & np.isfinite(z).all(axis=0)
+        level = z - (np.median(z[:, flat] - z[0, flat], axis=1) if flat.any()
+                     else coef[:len(points)] - coef[0])[:, None]
+        heights = level - _treads(level, speeds, rate)[None]
+    return heights, ground
 
 
 #: A foot stands flat on the floor where its heel and toe (or forefoot) points are both within
@@ -69,6 +89,41 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, *, still_speed: float
 FLAT_CLEARANCE = 0.01
 #: ...and both move slower than this relative to the ground (m/s).
 FLAT_SPEED = 0.1
+
+
+#: A foot stands on another floor than the plane through its other stances when it stands
+#: still this far above or below the plane (m): a stair's tread or a curb (15-20 cm, 10 cm),
+#: not a floor's unevenness nor a tilt the plane follows.
+FLOOR_STEP = 0.03
+#: Steepest floor (degrees) taken for one plane: a ramp for walking is 5° at most (1:12); a
+#: steeper plane through the stances is a stair's (a uniform stair lies on one: 30° or so).
+MAX_RAMP_DEG = 8.0
+#: Shortest time (s) a foot stands still (heel and toe slower than :data:`FLAT_SPEED`) to
+#: show a floor: longer than the pause at the top of a step in place (the foot's speed passes
+#: through zero there for some 40 ms).
+MIN_STANCE_S = 0.15
+
+
+def _treads(heights: np.ndarray, speeds: np.ndarray, rate: float) -> np.ndarray:
+    """The floor under a foot (F,), m, on the scale of its heel and toe ``heights`` (2, F),
+    from those and their ``speeds`` (2, F) m/s relative to the ground: each run of at least
+    :data:`MIN_STANCE_S` in which the heel or the toe stands still (slower than
+    :data:`FLAT_SPEED`; 3 frames within that time of the capture's start or end, which cut the
+    stance) shows the level of the floor under the foot (the median height of the points
+    standing still there), and each frame takes the level of the stance nearest in time: it
+    changes halfway between two stances, in the swing from one tread to the next, where the
+    foot is above both. Zeros for a foot never standing still."""
+    n = heights.shape[1]
+    with np.errstate(invalid="ignore"):
+        still = (speeds < FLAT_SPEED) & np.isfinite(heights)
+    shortest = MIN_STANCE_S * rate
+    runs = [(a, b) for a, b in valid_runs(still.any(axis=0)).tolist()
+            if b - a >= shortest or (b - a >= 3 and (a < shortest or b > n - shortest))]
+    if not runs:
+        return np.zeros(n)
+    levels = np.array([np.median(heights[:, a:b][still[:, a:b]]) for a, b in runs])
+    middles = [0.5 * (b0 - 1 + a1) for (_, b0), (a1, _) in zip(runs, runs[1:])]
+    return levels[np.searchsorted(middles, np.arange(n))]
 
 
 def foot_flat_frames(heel: np.ndarray, toe: np.ndarray, rate: float) -> np.ndarray:
@@ -81,7 +136,7 @@ def foot_flat_frames(heel: np.ndarray, toe: np.ndarray, rate: float) -> np.ndarr
         return np.zeros(len(heel), dtype=bool)
     points = np.stack([heel, toe])
     velocity = np.gradient(points, axis=1) * rate
-    heights, ground = floor_height(points, velocity)
+    heights, ground = floor_height(points, velocity, rate)
     with np.errstate(invalid="ignore"):
         return ((heights < FLAT_CLEARANCE).all(axis=0)
                 & (np.linalg.norm(velocity - ground, axis=2) < FLAT_SPEED).all(axis=0))

@@ -1,0 +1,140 @@
+"""Events on floors that are not one plane, and events the detector cannot place: a stair
+made from a sample walk (each stance a tread lower than the one before), and the real walks
+whose foot markers miss a whole stance; an event never goes missing without a word."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from mocaplib.gait.cycles import motion_cycles
+from mocaplib.gait.events import capture_events
+from mocaplib.io.c3d import read_c3d
+from mocaplib.markersets.matching import match_trial
+
+SIDES = {"left": "L", "right": "R"}
+#: A stair's riser (m): each stance stands this much lower than the one before.
+RISER = 0.17
+
+
+def _smoothstep(u):
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def stairs(trial, truth, riser):
+    """``trial`` (a sample walk) on a stair: every stance, of either foot, ``riser`` m lower
+    (higher for a negative riser) than the one before it. A foot's markers step from one tread
+    to the next in the middle half of each swing, so that it leaves and lands as on the level
+    (the kinematic marks of its release and landing stay where they were: what changes is
+    the floor); the rest of the body follows the mean of the feet."""
+    rate, n = trial.rate, trial.n_frames
+    frames = np.arange(n)
+    events = sorted((e["time_s"] * rate, e["side"], e["kind"]) for e in truth["events"])
+    offs = {side: [t for t, s, k in events if s == side and k == "toe_off"] for side in SIDES}
+    # the stances after a swing, in time order: the k-th stands on the k-th tread down
+    steps = [(t, side) for t, side, kind in events
+             if kind == "heel_strike" and any(off < t for off in offs[side])]
+    level = {side: np.zeros(n) for side in SIDES}
+    for tread, (strike, side) in enumerate(steps, start=1):
+        off = max(t for t in offs[side] if t < strike)
+        previous = level[side][int(off)]
+        swing = (frames - off) / (strike - off)
+        level[side] = np.where(frames > off, previous + (-riser * tread - previous)
+                               * _smoothstep((swing - 0.25) / 0.5), level[side])
+    markers = trial.markers.copy()
+    body = 0.5 * (level["left"] + level["right"])
+    for i, label in enumerate(trial.labels):
+        side = next((s for s, letter in SIDES.items() if label[:1] == letter and label[1:]
+                     in ("HEE", "TOE", "MT5", "ANK")), None)
+        markers[:, i, 2] += level[side] if side else body
+    return dataclasses.replace(trial, markers=markers)
+
+
+NAMES = ["walk_straight_slow", "walk_straight_normal", "walk_curve_r2_left_normal"]
+
+
+def _on_stairs(sample_dir, name, riser):
+    """The events of the sample walk ``name`` on the level and on a stair of ``riser``."""
+    trial = read_c3d(sample_dir / f"{name}.c3d")
+    truth = json.loads((sample_dir / f"{name}.truth.json").read_text())
+    level, _ = capture_events(trial, match_trial(trial, "auto"))
+    stair = stairs(trial, truth, riser)
+    feet = np.concatenate([stair.marker(f"{s}HEE")[:, 2] for s in SIDES.values()])
+    assert np.ptp(feet) > 3 * RISER                        # three treads at least
+    found, _ = capture_events(stair, match_trial(stair, "auto"))
+    # on one plane, the treads above it were swings and those below it stances: events lost
+    assert all(e.placed for e in found), [e.warning for e in found if not e.placed]
+    assert [(e.side, e.kind) for e in found] == [(e.side, e.kind) for e in level]
+    return found, level, trial.rate
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_events_down_a_stair_are_those_on_the_level(sample_dir, name):
+    found, level, rate = _on_stairs(sample_dir, name, RISER)
+    # the stair moves only the middle of each swing: the events are the level walk's
+    shift = np.abs([ours.time_s - flat.time_s for ours, flat in zip(found, level)])
+    assert shift.max() * rate < 0.5, np.round(1000 * shift, 1)
+
+
+def _climbing_shifts(sample_dir, name, kind):
+    found, level, _ = _on_stairs(sample_dir, name, -RISER)
+    return np.array([ours.time_s - flat.time_s for ours, flat in zip(found, level)
+                     if flat.kind == kind])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_no_event_is_lost_up_a_stair(sample_dir, name):
+    assert np.abs(_climbing_shifts(sample_dir, name, "heel_strike")).max() < 0.005
+    # the toe-offs are late (next test); this bound fails if they get later still
+    assert np.abs(_climbing_shifts(sample_dir, name, "toe_off")).max() <= 0.14
+
+
+@pytest.mark.xfail(strict=True, reason="measured 105-132 ms late on the three walks: a foot "
+                   "stepping up a tread in mid-swing rises faster than it left the floor, and "
+                   "the toe-off's upward-velocity peak takes that rise")
+@pytest.mark.parametrize("name", NAMES)
+def test_toe_offs_up_a_stair_are_those_on_the_level(sample_dir, name):
+    assert np.abs(_climbing_shifts(sample_dir, name, "toe_off")).max() < 0.005
+
+
+@pytest.fixture(scope="module")
+def walking1(real_c3d):
+    return read_c3d(real_c3d("motonms_unipd/Walking1.c3d"))
+
+
+def test_a_stance_hidden_in_a_gap_is_reported_with_its_window(walking1):
+    # the right foot's markers are missing from 2.23 to 3.32 s, over the lab's right Foot
+    # Strike (2.433 s) and Foot Off (3.100 s): they are not placed, but reported where they lie
+    events, _ = capture_events(walking1, match_trial(walking1, "auto"))
+    missing = [e for e in events if not e.placed]
+    assert [(e.side, e.kind) for e in missing] == [("right", "heel_strike"),
+                                                   ("right", "toe_off")]
+    labs = {e.label: e.time_s - walking1.start_time for e in walking1.events}
+    for event, lab in zip(missing, (labs["Foot Strike"], labs["Foot Off"])):
+        assert event.window[0] <= lab <= event.window[1], (event, lab)
+        assert event.window[1] - event.window[0] < 0.65, event.window
+        assert event.quality == 0.0
+        assert f"{event.window[0]:.2f} and {event.window[1]:.2f} s" in event.warning
+        assert event.warning.startswith(f"right {event.kind.replace('_', '-')} not placed")
+
+
+def test_a_cycle_bounded_by_an_event_not_placed_says_so(walking1):
+    from mocaplib.model.fitting import fit_capture
+
+    match = match_trial(walking1, "auto")
+    motion = fit_capture(walking1, protocol=match).motion
+    events, ground = capture_events(walking1, match)         # the markers alone
+    left = [e for e in events if e.side == "left" and e.kind == "toe_off"]
+    hidden = dataclasses.replace(left[0], window=(left[0].time_s - 0.1, left[0].time_s + 0.1),
+                                 quality=0.0, reason="a test hides it")
+    events = [hidden if e is left[0] else e for e in events]
+    cycles = motion_cycles(events, motion, ground=ground)
+    bounded = [c for c in cycles if c.start_s == hidden.time_s]
+    assert bounded and bounded[0].event_quality == 0.0
+    assert hidden.warning in bounded[0].unplaced
+    assert bounded[0].to_dict()["unplaced_events"] == list(bounded[0].unplaced)
+    assert not bounded[0].chosen or len(cycles) == 1
