@@ -9,8 +9,8 @@ z rotation) and its pelvis frame as the points ``PELO``, ``PELA``, ``PELL``, ``P
 and 100 mm along each axis). They are read with ezc3d, a reader mocaplib does not use. Each
 capture is fitted as ``mocaplib fit`` fits it (:func:`mocaplib.model.fitting.fit_capture`, with its
 static when it has one, and again without it, calibrated from itself: :data:`RUNS`) and every
-angle both report is compared over the frames Plug-in Gait wrote: Pearson r, mean offset (ours − Plug-in Gait), RMS after removing the offset, range of
-motion of each. The arms are compared too: Plug-in Gait's elbow flexion is the angle between
+angle both report is compared over the frames Plug-in Gait wrote: Pearson r, mean offset
+(ours − Plug-in Gait), RMS after removing the offset, range of motion of each. The arms are compared too: Plug-in Gait's elbow flexion is the angle between
 its shoulder–elbow and elbow–wrist centre lines, its shoulder flexion the upper arm's line
 against its thorax frame (:func:`mocaplib.model.anatomy.segment_frames` builds mocaplib's arm frames
 the same way). Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
