@@ -5,8 +5,8 @@
 
 Runs :func:`mocaplib.gait.events.capture_events` on every synthetic capture of ``--samples`` (their
 EVENT group holds the true Foot Off / Foot Strike) and on the four real files with lab-recorded
-events under ``--real`` (default ``../shared/data/c3d``; skipped when absent), for each toe-off
-definition, and prints:
+events under ``--real`` (default ``$MOCAPLIB_SHARED_C3D``, else ``../shared/data/c3d``; skipped
+when absent), for each toe-off definition, and prints:
 
 * synthetic, per locomotion type (the name without speed and size): toe-offs, % within 1 frame
   (the issue's target: >= 95 % for every type), % within 2 frames, worst |error| in frames;
@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -287,7 +288,8 @@ def regenerate(folder: Path, noise_sd: float) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
-    parser.add_argument("--real", type=Path, default=ROOT.parent / "shared" / "data" / "c3d")
+    parser.add_argument("--real", type=Path, default=Path(os.environ.get(
+        "MOCAPLIB_SHARED_C3D", ROOT.parent / "shared" / "data" / "c3d")))
     parser.add_argument("--noise-sd", type=float, default=None, metavar="SD",
                         help="regenerate the sample plan with this marker noise (m) instead")
     add_markdown_option(parser)

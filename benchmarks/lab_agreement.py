@@ -35,6 +35,7 @@ either.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from dataclasses import dataclass
@@ -51,7 +52,8 @@ from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton  # noqa: E402
 
-SHARED = ROOT.parent / "shared" / "data" / "c3d"
+#: The shared real captures: ``$MOCAPLIB_SHARED_C3D``, else beside the repository (as the tests).
+SHARED = Path(os.environ.get("MOCAPLIB_SHARED_C3D", ROOT.parent / "shared" / "data" / "c3d"))
 #: The shared captures that carry Plug-in Gait angles, with their static (or None).
 CAPTURES = (("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A01.c3d"),
             ("biomechzoo/HC030A22.c3d", "biomechzoo/HC030A01.c3d"),
