@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from mocaplib.numeric import distinct, median, nanmedian, percentile
+from mocaplib.numeric import distinct, median, nanmedian, nanpercentile, percentile
 
 
 SHAPES = [(7,), (8,), (1, 5), (60, 3), (59, 4, 3), (700, 3)]
@@ -52,6 +52,20 @@ def test_percentile_is_numpys_to_the_bit(shape):
                 with np.errstate(invalid="ignore"):                  # inf - inf, in both
                     assert _same(percentile(values, q, axis=axis),
                                  np.percentile(values, q, axis=axis)), (axis, q)
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_nanpercentile_is_numpys_to_the_bit(shape):
+    # the floor under the feet (model.floor) takes its heights' low percentiles, on the fit's
+    # path, where np.nanpercentile would import numpy.ma
+    for missing in (0.3, 0.0):
+        values = _values(shape, missing=missing)
+        for axis in range(values.ndim):
+            for q in ([10, 90], [0.0, 33.3, 50.0, 99.9, 100.0], 5):
+                with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+                    warnings.simplefilter("ignore", RuntimeWarning)  # numpy's all-NaN slices
+                    assert _same(nanpercentile(values, q, axis=axis),
+                                 np.nanpercentile(values, q, axis=axis)), (axis, q)
 
 
 def test_distinct_is_numpys_unique():

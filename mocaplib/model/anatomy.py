@@ -69,7 +69,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..numeric import nanmedian
+from ..numeric import median, nanmedian
 from .floor import foot_flat_frames
 
 #: Subject measurements mocaplib can use (metres, kilograms), as :attr:`Trial.measurements`
@@ -233,7 +233,7 @@ def leg_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np
         pitch = np.arctan2(-(sole * foot[..., 2]).sum(axis=-1), (sole * foot[..., 0]).sum(axis=-1))
         level = np.zeros(len(pitch), dtype=bool) if flat is None else flat & np.isfinite(pitch)
         if level.any():
-            c, s = np.cos(np.median(pitch[level])), np.sin(np.median(pitch[level]))
+            c, s = np.cos(median(pitch[level])), np.sin(median(pitch[level]))
             foot = foot @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
         out[f"foot_{side}"] = (foot, centres[(f"foot_{side}", 0.0)])
     return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..numeric import median, nanpercentile
 from ..runs import valid_runs
 
 
@@ -36,7 +37,7 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, rate: float, *,
     (:func:`_treads`).
     """
     z = points[:, :, 2]
-    rough = z - np.nanpercentile(z, 5, axis=1)[:, None]
+    rough = z - nanpercentile(z, 5, axis=1)[:, None]
     centre_velocity = velocity.mean(axis=0)
     with np.errstate(invalid="ignore"):
         near = (rough.min(axis=0) < 0.03) & np.isfinite(centre_velocity[:, 0])
@@ -50,7 +51,7 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, rate: float, *,
     still &= np.isfinite(z)
     if still.sum() < 10:  # never still (odd data): the lowest tenth of each point's samples
         with np.errstate(invalid="ignore"):
-            still = rough < np.nanpercentile(rough, 10, axis=1)[:, None]
+            still = rough < nanpercentile(rough, 10, axis=1)[:, None]
     owner, frame = np.nonzero(still)
     if len(owner) <= len(points):  # too few samples for a floor: heights above the lowest
         return rough, ground
@@ -78,7 +79,7 @@ def floor_height(points: np.ndarray, velocity: np.ndarray, rate: float, *,
         # point moved onto the first's scale by their difference where both stand still
         with np.errstate(invalid="ignore"):
             flat = (speeds < FLAT_SPEED).all(axis=0) & np.isfinite(z).all(axis=0)
-        level = z - (np.median(z[:, flat] - z[0, flat], axis=1) if flat.any()
+        level = z - (median(z[:, flat] - z[0, flat], axis=1) if flat.any()
                      else coef[:len(points)] - coef[0])[:, None]
         heights = level - _treads(level, speeds, rate)[None]
     return heights, ground
@@ -121,7 +122,7 @@ def _treads(heights: np.ndarray, speeds: np.ndarray, rate: float) -> np.ndarray:
             if b - a >= shortest or (b - a >= 3 and (a < shortest or b > n - shortest))]
     if not runs:
         return np.zeros(n)
-    levels = np.array([np.median(heights[:, a:b][still[:, a:b]]) for a, b in runs])
+    levels = np.array([median(heights[:, a:b][still[:, a:b]]) for a, b in runs])
     middles = [0.5 * (b0 - 1 + a1) for (_, b0), (a1, _) in zip(runs, runs[1:])]
     return levels[np.searchsorted(middles, np.arange(n))]
 
@@ -157,7 +158,7 @@ def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
     close = np.linalg.norm(sample[None] - picks[:, None], axis=2) < radius / 2     # (256, 4096)
     shared = picks[np.argmax(close.sum(axis=1))]
     for _ in range(2):
-        shared = np.median(velocity[np.linalg.norm(velocity - shared, axis=1) < radius], axis=0)
+        shared = median(velocity[np.linalg.norm(velocity - shared, axis=1) < radius], axis=0)
     return shared
 
 
