@@ -107,12 +107,23 @@ def assemble_library(entries: list[LibraryEntry], *, settings: dict,
         "qc_thresholds": dict(DEFAULT_QC_THRESHOLDS if qc_thresholds is None else qc_thresholds),
         "entries": [e.to_json() for e in entries],
     }
-    doc = to_json_data(doc)
-    tetrahedra = stored_tetrahedra(Library(doc))
-    if tetrahedra is not None:
-        doc["control_space"]["tetrahedra"] = tetrahedra
+    doc = with_tetrahedra(to_json_data(doc))
     doc[CHECKSUM_KEY] = content_sha256(doc)
     return Library(doc)
+
+
+def with_tetrahedra(document: dict) -> dict:
+    """``document`` (a library's JSON data, without its checksum) with the tetrahedra of its
+    entries' control space stored in ``control_space`` as :func:`stored_tetrahedra` gives them
+    (none when the entries span no 3-D control space); a file of an earlier version is left as
+    it was written."""
+    if document.get("format_version") != FORMAT_VERSION:
+        return document
+    control_space = {k: v for k, v in document["control_space"].items() if k != "tetrahedra"}
+    tetrahedra = stored_tetrahedra(Library({**document, "control_space": control_space}))
+    if tetrahedra is not None:
+        control_space["tetrahedra"] = tetrahedra
+    return {**document, "control_space": control_space}
 
 
 def control_scale() -> list[float]:

@@ -54,7 +54,8 @@ from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton, partn
 from .controlspace import CLOSE_DISTANCE
 from .entry import EntryDrift, EntryFourier
 from .document import CHECKSUM_KEY
-from .format import Library, control_scale, diagnostics_path, json_text, to_json_data
+from .format import (Library, control_scale, diagnostics_path, json_text, to_json_data,
+                     with_tetrahedra)
 from .phase import from_left_toe_off, shifted_poulaine, shifted_series
 
 #: The reflection of the mirror: y -> -y (3, 3).
@@ -293,7 +294,7 @@ def mirror_library(library, /):
     # new content: the source's checksum goes (writing the library computes its own)
     document = {**{k: v for k, v in library.document.items() if k != CHECKSUM_KEY},
                 "entries": [e.to_json() for e in sorted(entries + images, key=lambda e: e.id)]}
-    return Library(to_json_data(document)), notes
+    return Library(with_tetrahedra(to_json_data(document))), notes
 
 
 def write_mirrored(library, library_path, out_path, /) -> tuple:
