@@ -437,3 +437,22 @@ def test_a_point_rigid_over_the_trial_stays_computed_when_it_jumps_on_the_screen
     spread = np.linalg.norm(X[:, 1] - X[:, 0], axis=1)
     assert np.std(spread) < RIGID_SD < np.std(spread[screened])
     assert computed_points(trial, range(6)) == _computed_by_definition(trial) == {0, 1, 2, 3, 4}
+
+
+def test_the_landmarks_the_code_reads_come_from_the_catalogues_roles(tmp_path, monkeypatch):
+    from mocaplib.gait.feet import foot_landmarks
+    from mocaplib.markersets.protocols import load_landmarks, role_landmarks
+
+    assert foot_landmarks()["left"] == ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2"))
+    assert role_landmarks("pelvis_back") == ("L_PSIS", "R_PSIS", "SACRUM")
+    # a lab's catalogue that names the hallux a forefoot point: the events read it, after TOE2
+    shipped = (REPO / "protocols" / "landmarks.toml").read_text(encoding="utf-8")
+    (tmp_path / "landmarks.toml").write_text(
+        shipped.replace('[HALLUX]\n', '[HALLUX]\nrole = "forefoot"\n'), encoding="utf-8")
+    monkeypatch.setenv("MOCAPLIB_PROTOCOLS", str(tmp_path))
+    assert foot_landmarks()["right"][1] == ("R_TOE", "R_MT1", "R_MT5", "R_HALLUX", "R_TOE2")
+    # a role the code does not read is refused, naming it
+    (tmp_path / "bad.toml").write_text('[TOE]\nsegment = "foot"\nposition = [0.1, 0.0, 0.0]\n'
+                                       'role = "toe"\n', encoding="utf-8")
+    with pytest.raises(ProtocolError, match="TOE.*unknown role 'toe'"):
+        load_landmarks(tmp_path / "bad.toml")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import EventError
+from ..markersets.protocols import role_landmarks
 
 #: Labels of lab-recorded events (C3D EVENT group: Vicon, Qualisys, our synthetic captures) and
 #: the event kind each marks; the side is the context's first letter (Left/Right), else the
@@ -44,9 +45,12 @@ def event_differences(detected, reference, /, *, kind: str, start_time: float = 
     return np.array(out, dtype=np.float64)
 
 
-#: Landmarks used as each foot's heel and toe point, the toe by preference order.
-FOOT_LANDMARKS = {"left": ("L_HEEL", ("L_TOE", "L_MT1", "L_MT5", "L_TOE2")),
-                  "right": ("R_HEEL", ("R_TOE", "R_MT1", "R_MT5", "R_TOE2"))}
+def foot_landmarks() -> dict[str, tuple[str, tuple[str, ...]]]:
+    """Each foot's heel landmark and its toe landmarks by preference order, ``{"left":
+    ("L_HEEL", ("L_TOE", ...)), "right": ...}``: the catalogue's ``heel`` and ``forefoot``
+    roles (:func:`mocaplib.markersets.protocols.role_landmarks`)."""
+    return {side: (role_landmarks("heel", side=side)[0],
+                   role_landmarks("forefoot", side=side)) for side in ("left", "right")}
 
 
 def feet_of(trial, match, /, *, motion=None
@@ -56,7 +60,7 @@ def feet_of(trial, match, /, *, motion=None
     Returns ``{"left": (heel, toe), "right": ...}`` (F, 3) m and ``{"left": (F,) bool, ...}``,
     the frames where the capture measured both (pass it as :func:`detect_events`'s
     ``measured``). ``match`` is a :class:`mocaplib.markersets.matching.ProtocolMatch`; the toe is the
-    first present of :data:`FOOT_LANDMARKS`. With a fitted ``motion``
+    first present of :func:`foot_landmarks`. With a fitted ``motion``
     (:class:`mocaplib.Motion`), samples where a marker is missing are taken from the fitted
     skeleton's position of that marker, except in frames the fit flagged as failed and before
     the marker's first measured sample or after its last (they stay missing: nothing measured
@@ -88,7 +92,7 @@ def feet_of(trial, match, /, *, motion=None
         return points, np.isfinite(measured).all(axis=1)
 
     feet, measured = {}, {}
-    for side, (heel, toes) in FOOT_LANDMARKS.items():
+    for side, (heel, toes) in foot_landmarks().items():
         toe = next((name for name in toes if name in present), None)
         if heel not in present:
             _no_foot_marker(trial, match, f"{side} heel", (heel,))

@@ -46,7 +46,8 @@ from ..skeleton import SEGMENT_NAMES, Skeleton
 from ..statics import STANDING_EXTENT
 from ..trial import Trial, normalise_label, require_markers
 from .matching import computed_points, is_model_output, numbered_candidates
-from .protocols import REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml
+from .protocols import (REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml,
+                        role_landmarks)
 from .sides import forward_direction
 
 #: Cost (m) a name that points to a landmark takes off the distance to it...
@@ -72,10 +73,10 @@ CLUSTER_SIZE = 3
 AXIS_WEIGHTS = np.array([0.7, 1.2, 1.0])
 #: Landmarks the pipeline needs, required when found: both acromions, both ASIS, each heel.
 REQUIRED = ("ACROMION", "ASIS", "HEEL")
-#: ``[any_of]`` groups written when one of their landmarks is found.
-ANY_OF = {"pelvis_back": ("L_PSIS", "R_PSIS", "SACRUM"),
-          "left_forefoot": ("L_TOE", "L_MT1", "L_MT5", "L_TOE2"),
-          "right_forefoot": ("R_TOE", "R_MT1", "R_MT5", "R_TOE2")}
+#: ``[any_of]`` groups written when one of their landmarks is found: group -> (catalogue role,
+#: side) (:func:`mocaplib.markersets.protocols.role_landmarks`).
+ANY_OF = {"pelvis_back": ("pelvis_back", None), "left_forefoot": ("forefoot", "left"),
+          "right_forefoot": ("forefoot", "right")}
 
 
 @dataclass
@@ -133,8 +134,9 @@ class Draft:
             lines.append(f"# {_confidence_word(e.confidence)} ({e.confidence:.0%}): "
                          f"{'; '.join(e.evidence)}")
             lines.append(f"{key} = {{ {spec}{flags} }}")
-        groups = {g: [e.label for e in self.entries if e.landmark in names]
-                  for g, names in ANY_OF.items()}
+        groups = {g: [e.label for e in self.entries
+                      if e.landmark in role_landmarks(role, side=side)]
+                  for g, (role, side) in ANY_OF.items()}
         groups = {g: labels for g, labels in groups.items() if labels}
         if groups:
             lines += ["", "[any_of]"]

@@ -170,10 +170,18 @@ def _folder_key() -> tuple[str, ...]:
     return tuple(os.fspath(f) for f in protocol_folders())
 
 
+#: What the code reads a landmark for (``role`` in the catalogue): the front and back cues of
+#: the subject's forward direction (:mod:`mocaplib.markersets.sides`), and the heel and
+#: forefoot points of the gait events (:func:`mocaplib.gait.feet.foot_landmarks`).
+LANDMARK_ROLES = ("pelvis_front", "pelvis_back", "chest_front", "spine", "head_front",
+                  "head_back", "heel", "forefoot")
+
+
 @dataclass(frozen=True)
 class Landmark:
-    """One anatomical landmark: sided name (``L_ASIS``), segment, nominal position (3,) m, and
-    the weight a marker on it gets in the fit by default (:attr:`ProtocolMarker.weight`).
+    """One anatomical landmark: sided name (``L_ASIS``), segment, nominal position (3,) m, the
+    weight a marker on it gets in the fit by default (:attr:`ProtocolMarker.weight`), and the
+    role the code reads it for, if any (:data:`LANDMARK_ROLES`).
 
     A tracking marker's "landmark" (:func:`tracking_landmark`) has no position (None): it is
     named ``<segment>:<label>`` and its offset is measured, never looked up.
@@ -184,6 +192,7 @@ class Landmark:
     position: tuple[float, float, float] | None
     description: str
     weight: float = 1.0
+    role: str | None = None
 
     @property
     def tracking(self) -> bool:
@@ -309,9 +318,13 @@ def _catalogue_file(path: str) -> dict[str, Landmark]:
             segment, position = spec["segment"], _position(spec["position"], key, path)
             sided, description = bool(spec.get("sided", False)), str(spec.get("description", ""))
             weight = _weight(spec.get("weight", 1.0), f"landmark {key!r}", path)
+            role = spec.get("role")
         except (KeyError, TypeError, ValueError) as exc:
             raise ProtocolError(f"landmark {key!r} needs segment, position [x, y, z] ({exc})",
                                 path=path) from None
+        if role is not None and role not in LANDMARK_ROLES:
+            raise ProtocolError(f"landmark {key!r}: unknown role {role!r}", path=path,
+                                hint=f"roles are {', '.join(LANDMARK_ROLES)}")
         variants = ([("L_", "_l", 1.0), ("R_", "_r", -1.0)] if sided else [("", "", 1.0)])
         for prefix, suffix, mirror in variants:
             seg = segment if segment in SEGMENT_NAMES else segment + suffix
@@ -322,8 +335,17 @@ def _catalogue_file(path: str) -> dict[str, Landmark]:
                          "bare name (femur)")
             x, y, z = position
             out[prefix + key] = Landmark(prefix + key, seg, (x, mirror * y, z), description,
-                                         weight)
+                                         weight, role)
     return out
+
+
+def role_landmarks(role: str, /, *, side: str | None = None) -> tuple[str, ...]:
+    """The catalogue's landmarks with ``role`` (:data:`LANDMARK_ROLES`), in its order (a sided
+    one as ``L_`` then ``R_``); with ``side`` ("left" or "right") that side's and the central
+    ones only."""
+    drop = {"left": "R_", "right": "L_", None: None}[side]
+    return tuple(name for name, landmark in load_landmarks().items()
+                 if landmark.role == role and not (drop and name.startswith(drop)))
 
 
 def list_protocols() -> list[str]:

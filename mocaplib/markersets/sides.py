@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Anterior and posterior landmarks giving the subject's forward direction, in order of trust.
-#: A side is usable in a frame when its central landmark or both sided ones are present.
-_FORWARD_CUES = (
-    (("L_ASIS", "R_ASIS"), ("L_PSIS", "R_PSIS", "SACRUM")),
-    (("CLAV", "STRN"), ("C7", "T2", "T6", "T8", "T10", "T12")),
-    (("L_FRONT_HEAD", "R_FRONT_HEAD"), ("L_BACK_HEAD", "R_BACK_HEAD")),
-)
+from .protocols import role_landmarks
+
+#: The catalogue's roles (:func:`mocaplib.markersets.protocols.role_landmarks`) of the front
+#: and back landmarks giving the subject's forward direction, in order of trust. A side is
+#: usable in a frame when its central landmark or both sided ones are present.
+FORWARD_CUE_ROLES = (("pelvis_front", "pelvis_back"), ("chest_front", "spine"),
+                     ("head_front", "head_back"))
 
 
 def forward_direction(by_landmark: dict[str, np.ndarray], n_frames: int) -> np.ndarray:
@@ -34,8 +34,9 @@ def forward_cues(by_landmark: dict[str, np.ndarray], n_frames: int) -> list[np.n
     against PSIS or sacrum, sternum against spine, front against back of the head (each the
     mean of a pair, so an exchange of left and right leaves it)."""
     out = []
-    for anterior, posterior in _FORWARD_CUES:
-        front, back = _side_mean(by_landmark, anterior), _side_mean(by_landmark, posterior)
+    for anterior, posterior in FORWARD_CUE_ROLES:
+        front = _side_mean(by_landmark, role_landmarks(anterior))
+        back = _side_mean(by_landmark, role_landmarks(posterior))
         if front is None or back is None:
             continue
         cue = (front - back)[:, :2]
