@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from pathlib import Path
 
 import pytest
 import rfc8785
@@ -89,3 +90,24 @@ def test_content_jcs_cannot_hold_is_a_mismatch_not_a_crash():
     document = library().document
     document["settings"] = {"cutoff": float("nan")}
     assert checksum_status(document) == "mismatch"
+
+
+#: A library written by the code before format version 3 (mocaplib at commit 940f32f: format
+#: version 2, its checksum over Python's json.dumps), from ``[entry(i, n=1) for i in range(5)]``
+#: of tests/test_library.py: a file as users hold them, not one rebuilt by this version.
+VERSION_2_FILE = Path(__file__).parent / "data" / "library_v2.json"
+
+
+def test_a_library_written_before_version_3_loads_validates_and_verifies(tmp_path):
+    document = json.loads(VERSION_2_FILE.read_text(encoding="utf-8"))
+    assert document["format_version"] == 2
+    assert document[CHECKSUM_KEY] == old_checksum(document) != independent_jcs_sha256(document)
+    assert checksum_status(VERSION_2_FILE) == "verified"
+    assert validate_library(VERSION_2_FILE) == []
+    lib = load_library(VERSION_2_FILE)
+    assert len(lib) == 5 and lib.angles(lib.entries[0].id, [0.0, 0.5]).shape == (2, 32)
+    # a value changed in it is found by the checksum its version carries
+    edited = tmp_path / "edited.json"
+    text = VERSION_2_FILE.read_text(encoding="utf-8")
+    edited.write_text(text.replace('"T": 1.1', '"T": 1.1000001', 1), encoding="utf-8")
+    assert checksum_status(edited) == "mismatch"

@@ -7,9 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.library.mirror import REFLECTION, mirror_dofs, mirror_id, MIRROR_INDEX, MIRROR_SIGN
+from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.format import assemble_library
+from mocaplib.library.mirror import (REFLECTION, mirror_dofs, mirror_id, mirror_library,
+                                     MIRROR_INDEX, MIRROR_SIGN)
+from mocaplib.library.validation import validate_library
 from mocaplib.skeleton import partner_name
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, TRANSLATION, Skeleton
+
+from test_library import entry as library_entry
 
 
 def test_mirrored_poses_put_every_segment_at_the_mirror_image_of_its_partner():
@@ -200,3 +206,15 @@ def test_the_mirror_command_refuses_what_it_cannot_mirror(tmp_path, capsys):
     assert main(["mirror", str(path), "-o", str(path)]) == 2
     assert "is an input of this command" in capsys.readouterr().err
     assert main(["mirror", str(tmp_path / "none.json"), "-o", str(out)]) == 2
+
+
+def test_a_mirrored_library_stores_the_tetrahedra_of_its_images_too():
+    # the source's tetrahedra would leave the images out of every blend (and fail validation)
+    source = assemble_library([library_entry(i, right_toe_off_s=0.5) for i in range(5)],
+                              settings={"protocol": "auto"})
+    mirrored, _ = mirror_library(source)
+    assert len(mirrored) > len(source) and validate_library(mirrored) == []
+    stored = mirrored.document["control_space"]["tetrahedra"]
+    cs = ControlSpace.from_library(mirrored)
+    assert stored == {"ids": cs.ids, "simplices": cs.tri.simplices.tolist()}
+    assert any(e.mirrored for e in mirrored.entries if e.id in stored["ids"])
