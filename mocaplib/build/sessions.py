@@ -37,6 +37,7 @@ from pathlib import Path
 
 from ..errors import MocapError
 from ..io.c3d import read_c3d
+from ..io.tomlfile import read_toml
 from ..statics import STATIC_POSES, check_standing, standing_part
 
 #: The name of a session's description, beside its captures.
@@ -60,7 +61,6 @@ class Session:
 def load_session(path: str | os.PathLike, /) -> Session:
     """Read and check a ``session.toml`` (module docstring); :class:`MocapError` naming the
     file and the key for a file that cannot be read or holds a wrong value."""
-    from ..io.tomlfile import read_toml
 
     path = Path(path)
     hint = f"see docs/guide/build.md (Capture sessions) for the keys of {SESSION_FILE}"

@@ -38,13 +38,14 @@ import numpy as np
 
 from .. import __version__
 from ..errors import LibraryError
+from ..gait.fourier import RootDrift, synthesize
 from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import float_or_nan, json_values
-from ..skeleton import DOFS
+from ..skeleton import DOFS, Skeleton
+from .controlspace import DEFAULT_SCALE, stored_tetrahedra
 from .document import (CHECKSUM_KEY, CONTROL_AXES, CONTROL_UNITS, FORMAT, FORMAT_VERSION,
                        content_sha256, read_document)
-from .controlspace import DEFAULT_SCALE, stored_tetrahedra
 from .entry import DRIFT_VELOCITIES, LibraryEntry
 from .validation import POULAINE_PARAMETERS, reading_problems
 
@@ -72,7 +73,6 @@ def assemble_library(entries: list[LibraryEntry], *, settings: dict,
     (:func:`mocaplib.library.controlspace.stored_tetrahedra`) unless the entries span no
     3-D control space.
     """
-    from ..skeleton import Skeleton
 
     entries = sorted((LibraryEntry.from_json(to_json_data(e.to_json())) for e in entries),
                      key=lambda e: e.id)
@@ -165,7 +165,6 @@ class Library:
     def skeleton(self):
         """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
         joint shifts."""
-        from ..skeleton import Skeleton
 
         header = self.document["skeleton"]
         return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
@@ -173,7 +172,6 @@ class Library:
     def entry_skeleton(self, entry_id: str):
         """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
         own segment lengths and joint shifts when it records them, the header's otherwise."""
-        from ..skeleton import Skeleton
 
         entry, header = self.entry(entry_id), self.document["skeleton"]
         return Skeleton(entry.segment_lengths_m or header["segment_lengths_m"],
@@ -273,7 +271,6 @@ class Library:
         """The entry's path frame as a :class:`mocaplib.gait.fourier.RootDrift` starting at the
         origin facing +X: ``root_drift(e).restore(angles(e, t), t)`` puts the cycle in that
         world frame."""
-        from ..gait.fourier import RootDrift
 
         drift = self.entry(entry_id).root_drift
         return RootDrift(0.0, 0.0, 0.0, *(float_or_nan(getattr(drift, key))
@@ -312,7 +309,6 @@ class Library:
         LibraryError
             No entry ``entry_id``.
         """
-        from ..gait.fourier import synthesize
 
         entry = self.entry(entry_id)
         fourier, period = entry.fourier, float_or_nan(entry.T)

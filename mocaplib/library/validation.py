@@ -15,10 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LibraryError
+from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import CHECKSUM_KEY, CONTROL_AXES, checksum_status, read_document, schema
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
+from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
 #: may have: far beyond any human locomotion, so only corrupt files are refused (and the control
@@ -401,7 +403,6 @@ def _drift_problems(e: dict, where: str) -> list[Problem]:
 def _poulaine_problems(poulaine: dict, where: str) -> list[Problem]:
     """Phases in order, speed profiles rising, rows of one length, and the stored parameters
     those of the characteristic points."""
-    from ..gait.poulaine import Poulaine
 
     problems = []
     for side in ("left", "right"):
@@ -436,7 +437,6 @@ def _control_space_problems(doc: dict) -> list[Problem]:
     """The chosen entries' control space, as :class:`mocaplib.library.controlspace.ControlSpace`
     builds it for queries: degenerate (:func:`~mocaplib.library.triangulation.degeneracy`), or failing
     to triangulate."""
-    from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
     points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
     points = points[np.isfinite(points).all(axis=1)]
@@ -457,7 +457,6 @@ def _control_space_problems(doc: dict) -> list[Problem]:
 def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
     """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
     in the file's order (with finite velocities and period) and the same tetrahedra."""
-    from .triangulation import delaunay_tetrahedra
 
     where = "control_space.tetrahedra"
     hint = "write the library again (mocaplib build, or mocaplib mirror)"

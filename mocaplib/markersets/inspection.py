@@ -12,6 +12,7 @@ import os
 
 from ..errors import MocapError, ProtocolError
 from ..io import printable
+from ..io.c3d import read_c3d
 from ..trial import Trial, check_gait_rate, require_markers
 from .matching import match_trial
 from .protocols import Protocol, overrides
@@ -31,7 +32,6 @@ def inspect_c3d(path: str | os.PathLike, /, *, protocol: Protocol | str = "auto"
     """Summary of one C3D file; ``protocol`` is ``"auto"``, a shipped name, a path or a
     :class:`Protocol`. Never raises for a bad file, whatever the exception: ``ok`` is False
     and ``error`` says why."""
-    from ..io.c3d import read_c3d
 
     try:
         trial = read_c3d(path)

@@ -59,7 +59,7 @@ from ..errors import ProtocolError
 from ..io import read_regular
 from ..io.tomlfile import read_toml
 from ..skeleton import SEGMENT_NAMES
-from ..trial import Trial, normalise_label
+from ..trial import CYCLE_STARTS, Trial, normalise_label
 
 #: Height of the subject the catalogue's nominal positions are written for, metres.
 REFERENCE_HEIGHT = 1.75
@@ -468,7 +468,6 @@ def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tup
     starts = table.get("fallback_starts", list(inherited))
     if starts == []:            # no [cycles]: the library's modules need not be loaded
         return ()
-    from ..trial import CYCLE_STARTS
 
     if (not isinstance(starts, list) or any(s not in CYCLE_STARTS for s in starts)
             or len(set(starts)) != len(starts)):

@@ -44,6 +44,7 @@ from ..errors import FitError
 from ..markersets.matching import label_match
 from ..numeric import distinct
 from ..skeleton import DOF_NAMES, MOVES, twist_jacobian, twists
+from .filtering import filter_trial, lowpass
 from .motion import Motion, Repair, apply_repairs
 from .repairs import reject_outliers, restart_outliers, undo_labelling_errors
 from .solver import (ANCESTOR, LOWER, ROBUST_SCALE, ROOT_SEGMENT, SMOOTHING, UPPER, bracket_keys,
@@ -308,7 +309,6 @@ def fit_filtered(trial: "Trial", model: "SubjectModel", /, *, cutoff: float | st
     ``rejected`` holds the samples removed by either fit, its ``repairs`` those of both. Returns
     the motion and the cutoff used (None: unfiltered, one fit). ``options`` go to :func:`fit`.
     """
-    from .filtering import filter_trial, lowpass
 
     if cutoff is None or cutoff == "none":
         return fit(trial, model, **options), None

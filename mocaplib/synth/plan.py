@@ -32,6 +32,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..errors import MocapError, SynthError
+from ..io.c3d import read_c3d
 from ..io.tomlfile import read_toml
 from ..library.command import Command, plan_command
 from ..markersets.protocols import load_protocol
@@ -220,7 +221,6 @@ def _listed(paths: list[Path], most: int = 3) -> str:
 
 def _earlier_output(c3d: Path, truth_path: Path) -> bool:
     """Whether ``c3d`` (may be absent) and ``truth_path`` are a synth output of their name."""
-    from ..io.c3d import read_c3d
 
     name = truth_path.name[:-len(".truth.json")]
     try:
