@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from importlib import resources
 
 from ..errors import LibraryError
 from ..io import read_regular
@@ -75,7 +76,6 @@ def library_document(library):
 
 def schema() -> dict:
     """The JSON Schema (draft 2020-12) of library files, as shipped in the package."""
-    from importlib import resources  # here: only validation reads the schema
 
     text = resources.files("mocaplib").joinpath("schema/library.schema.json").read_text("utf-8")
     return json.loads(text)

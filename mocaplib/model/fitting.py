@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import CalibrationError
 from ..io.c3d import read_c3d
@@ -74,7 +74,6 @@ class FittedCapture:
         the fit found undone, the samples it rejected gapped (NaN), low-passed at
         :attr:`cutoff` (:func:`mocaplib.model.filtering.filter_trial`); what OpenSim's tools
         are given to solve the same problem (``mocaplib fit --trc``)."""
-        from dataclasses import replace
 
 
         labels = list(self.model.labels)

@@ -12,6 +12,7 @@ axes have comparable lengths; the axes are labelled in SI units (ω in °/s) thr
 
 from __future__ import annotations
 
+import io
 import os
 import subprocess
 import sys
@@ -101,7 +102,6 @@ def _run_renderer(scene: Path, out: Path) -> str | None:
 
 def _blank(png: bytes) -> bool:
     """True when an image has (almost) a single colour."""
-    import io
 
     from matplotlib.image import imread
 
