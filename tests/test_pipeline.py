@@ -448,7 +448,7 @@ def test_cli_build_runs_every_stage_and_matches_the_truth(synthetic_folder, tmp_
         truth = json.loads((synthetic_folder / row["source_file"]).with_suffix(".truth.json")
                            .read_text())
         command = truth["command"]
-        # Issue 5's accuracy targets on synthetic captures: v within 2 % (0.02 m/s near 0),
+        # The velocity targets on synthetic captures: v within 2 % (0.02 m/s near 0),
         # omega within 0.02 rad/s, v_l within 0.02 m/s; rest is exactly zero.
         speed = float(np.hypot(command["v_f"], command["v_l"]))
         assert abs(row["v"] - speed) <= max(0.02 * speed, 0.02), entry_id
