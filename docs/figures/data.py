@@ -29,18 +29,11 @@ def static():
 @lru_cache(maxsize=None)
 def capture(name: str):
     """One sample capture read, fitted, its events and cycles: ``(trial, fitted, events,
-    cycles)`` as ``mocaplib cycles`` computes them."""
-    from mocaplib import read_c3d
-    from mocaplib.gait.cycles import motion_cycles
-    from mocaplib.gait.events import capture_events
-    from mocaplib.model.fitting import fit_capture
+    cycles)`` as ``mocaplib cycles`` computes them (:func:`mocaplib.process`)."""
+    from mocaplib import process
 
-    trial = read_c3d(SAMPLES / f"{name}.c3d")
-    fitted = fit_capture(trial, static=static(), static_pose="neutral")
-    events, ground = capture_events(trial, fitted.match, motion=fitted.motion)
-    cycles = motion_cycles(events, fitted.motion, ground=ground,
-                           fallback_starts=fitted.match.protocol.fallback_starts)
-    return trial, fitted, events, cycles
+    done = process(SAMPLES / f"{name}.c3d", static=static(), static_pose="neutral")
+    return done.trial, done.fitted, done.events, done.cycles
 
 
 @lru_cache(maxsize=None)

@@ -372,8 +372,96 @@ def coverage_map() -> bytes:
                        suggestions=cover.capture_next[list(cs.axes)].to_numpy())
 
 
+# ------------------------------------------------------------------------------ pipeline
+#: The stages of one capture and of a library, left to right, top to bottom: (name, what it
+#: makes).
+_STAGES = (("import", "markers\n(F, M, 3) m\nZ up"), ("protocol", "which label\nis which\nlandmark"),
+           ("calibrate", "the subject's\nskeleton"), ("fit", "joint angles\n(F, 32)"),
+           ("events", "toe-offs,\nheel strikes"), ("cycles", "left toe-off\nto left\ntoe-off"),
+           ("pattern", "line or arc;\nv̂, ω̂, v̂_l"), ("Fourier", "coefficients\nper DOF"),
+           ("library", "entries,\nvalidated\nJSON"), ("control\nspace", "Delaunay of\n(v̂, ω̂, v̂_l)"),
+           ("report", "coverage,\nQC, HTML"), ("query", "blend a\ncommand;\nBVH, glTF"))
+#: Commands and the stages they run (first, last index into :data:`_STAGES`).
+_COMMANDS = (("inspect", 0, 1), ("fit", 0, 3), ("events", 0, 4), ("cycles", 0, 7),
+             ("build", 0, 10), ("report", 9, 10), ("query · retarget", 9, 11))
+
+
+def pipeline() -> bytes:
+    """The stages a capture goes through, what each makes, and the stretch each command runs."""
+    from matplotlib.patches import FancyBboxPatch
+
+    fig = _figure(12.0, 4.8)
+    ax = fig.subplots()
+    width, gap = 1.25, 0.3
+    x = np.arange(len(_STAGES)) * (width + gap)
+    for k, (name, made) in enumerate(_STAGES):
+        library_side = k >= 8
+        ax.add_patch(FancyBboxPatch((x[k], 0.0), width, 1.0, boxstyle="round,pad=0.03",
+                                    facecolor="#dbe9f6" if not library_side else "#e5f3e0",
+                                    edgecolor="0.35"))
+        ax.text(x[k] + width / 2, 0.78, name, ha="center", va="center", fontsize=8.5,
+                weight="bold", linespacing=0.9)
+        ax.text(x[k] + width / 2, 0.32, made, ha="center", va="center", fontsize=7.2)
+        if k + 1 < len(_STAGES):
+            ax.annotate("", (x[k + 1] - 0.02, 0.5), (x[k] + width + 0.02, 0.5),
+                        arrowprops={"arrowstyle": "->", "color": "0.3"})
+    for row, (command, first, last) in enumerate(_COMMANDS):
+        y = -0.35 - 0.32 * row
+        ax.plot([x[first] + 0.05, x[last] + width - 0.05], [y, y], lw=5, color="tab:orange",
+                solid_capstyle="round")
+        ax.text(x[first] - 0.1, y, f"mocaplib {command}", ha="right", va="center", fontsize=8)
+    ax.text(x[0], 1.25, "one capture (python: mocaplib.process)", fontsize=9, color="0.3")
+    ax.text(x[8], 1.25, "a library", fontsize=9, color="0.3")
+    ax.set_xlim(-2.6, x[-1] + width + 0.1)
+    ax.set_ylim(-0.35 - 0.32 * len(_COMMANDS), 1.45)
+    ax.axis("off")
+    fig.suptitle("From C3D captures to a motion library: the stages, and what each command runs",
+                 fontsize=11)
+    return _png(fig)
+
+
+# ------------------------------------------------------------------------------- capture
+def capture_heights() -> bytes:
+    """A sample capture as the reader gives it: each marker's height over time, grouped by
+    where it sits, and the frames where a marker is missing."""
+    trial = data.capture("walk_curve_r2_left_normal")[0]
+    fig = _figure(9.5, 4.2)
+    ax = fig.subplots()
+    z = trial.markers[:, :, 2]
+    groups = (("head and trunk", lambda l: l[1:] in ("FHD", "BHD") or l in ("C7", "T10", "CLAV",
+                                                                              "STRN", "RBAK")),
+              ("pelvis", lambda l: l[1:] in ("ASI", "PSI")),
+              ("arms", lambda l: l[1:] in ("SHO", "UPA", "ELB", "FRA", "WRA", "WRB", "FIN")),
+              ("legs", lambda l: l[1:] in ("THI", "KNE", "TIB", "ANK")),
+              ("feet", lambda l: l[1:] in ("HEE", "TOE")))
+    colours = ("tab:purple", "tab:green", "tab:red", "tab:blue", "tab:orange")
+    drawn = set()
+    for (name, member), colour in zip(groups, colours):
+        for k, label in enumerate(trial.labels):
+            if member(label) and k not in drawn:
+                drawn.add(k)
+                ax.plot(trial.time, z[:, k], color=colour, lw=0.9,
+                        label=name if label == next(l for l in trial.labels if member(l))
+                        else None)
+    for n, k in enumerate(sorted(set(range(len(trial.labels))) - drawn)):
+        ax.plot(trial.time, z[:, k], color="0.6", lw=0.8, label=None if n else "other markers")
+    missing = ~np.isfinite(z).all(axis=1)
+    if missing.any():
+        ax.fill_between(trial.time, 0, 1.9, where=missing, color="0.85", step="mid",
+                        label="a marker missing (NaN)")
+    ax.set_xlabel("time from the first frame (s)")
+    ax.set_ylabel("Z, up (m)")
+    ax.set_ylim(0, 1.9)
+    ax.legend(loc="upper right", fontsize=8, ncols=3)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"sample_c3d/walk_curve_r2_left_normal.c3d as read: {trial.n_markers} markers, "
+                 f"{trial.n_frames} frames at {trial.rate:g} Hz, metres, Z up", fontsize=10)
+    return _png(fig)
+
+
 #: Site file name (under ``img/``) -> the function that draws it.
 FIGURES = {"skeleton-axes.png": skeleton_axes, "marker-set.png": marker_set,
            "events-cycles.png": events_cycles, "patterns.png": patterns,
            "fourier.png": fourier, "control-space.png": control_space,
-           "coverage-map.png": coverage_map}
+           "coverage-map.png": coverage_map, "pipeline.png": pipeline,
+           "capture-heights.png": capture_heights}
