@@ -190,8 +190,29 @@ class ControlSpace:
         the frontal variant the same scales, v̂_f taking v̂'s). Blending takes phase 0 as the
         left toe-off: an entry whose cycle starts at another event (``cycle_start``) is
         expressed from its left toe-off (:func:`mocaplib.library.phase.from_left_toe_off`).
-        """
 
+        Parameters
+        ----------
+        library : Library
+            A loaded library.
+        axes : {"tangential", "frontal"}
+            (v̂, ω̂, v̂_l), or (v̂_f, ω̂, v̂_l), which tells walking backwards from forwards.
+        chosen_only : bool
+            Only the entries marked ``chosen`` (one per capture).
+        mirrored : bool
+            With the mirror images.
+        source : str, optional
+            The library's file, for error messages.
+
+        Returns
+        -------
+        ControlSpace
+
+        Raises
+        ------
+        LibraryError
+            The entries span no 3-D control space, or one lacks a finite root drift.
+        """
         entries = [from_left_toe_off(e) for e in library.entries]
         # (E, 4): the axes' velocities and the period, NaN where null
         values = np.array([[getattr(e, key) for key in (*AXES[axes], "T")] for e in entries],

@@ -165,28 +165,40 @@ class Library:
     def skeleton(self):
         """The header's :class:`~mocaplib.skeleton.Skeleton`: the entries' median lengths and
         joint shifts."""
-
         header = self.document["skeleton"]
         return Skeleton(header["segment_lengths_m"], header.get("joint_shifts_m", {}))
 
     def entry_skeleton(self, entry_id: str):
-        """The :class:`~mocaplib.skeleton.Skeleton` of the subject of entry ``entry_id``: its
-        own segment lengths and joint shifts when it records them, the header's otherwise."""
+        """The skeleton of the subject of one entry.
 
+        Parameters
+        ----------
+        entry_id : str
+            An entry's id.
+
+        Returns
+        -------
+        Skeleton
+            Its own segment lengths and joint shifts when it records them, the header's
+            otherwise.
+        """
         entry, header = self.entry(entry_id), self.document["skeleton"]
         return Skeleton(entry.segment_lengths_m or header["segment_lengths_m"],
                         entry.joint_shifts_m or header.get("joint_shifts_m", {}))
 
     @property
     def dof_names(self) -> list[str]:
+        """The D coordinate names, in the order of every (…, D) array of the library."""
         return list(self.document["skeleton"]["dof_names"])
 
     @property
     def n_harmonics(self) -> int:
+        """N, the highest harmonic of every entry's series (coefficients (D, N+1))."""
         return int(self.document["fourier"]["n_harmonics"])
 
     @property
     def settings(self) -> dict:
+        """The build's settings, as recorded in the file."""
         return self.document["settings"]
 
     @property
@@ -196,6 +208,7 @@ class Library:
 
     @cached_property
     def entries(self) -> list[LibraryEntry]:
+        """The entries, in the file's order (sorted by id)."""
         return [LibraryEntry.from_json(e) for e in self.document["entries"]]
 
     @cached_property
@@ -204,6 +217,8 @@ class Library:
 
     @cached_property
     def table(self) -> pd.DataFrame:
+        """One row per entry, index ``id``: its class, source, cycle, period, pattern,
+        velocities (SI), Fourier order, QC metrics (``qc_<name>``) and poulaine parameters."""
         import pandas as pd  # here: reading and writing a library need no pandas
 
         rows = []
@@ -241,7 +256,22 @@ class Library:
                 f"N={self.n_harmonics}, mocaplib {self.document['tool_version']}>")
 
     def entry(self, entry_id: str) -> LibraryEntry:
-        """The entry ``entry_id``; LibraryError naming the ids when there is none."""
+        """One entry by its id.
+
+        Parameters
+        ----------
+        entry_id : str
+            The entry's id.
+
+        Returns
+        -------
+        LibraryEntry
+
+        Raises
+        ------
+        LibraryError
+            Naming the library's ids when there is no such entry.
+        """
         try:
             return self._by_id[entry_id]
         except KeyError:
@@ -249,12 +279,29 @@ class Library:
                                hint=f"ids are: {', '.join(list(self._by_id)[:20])}") from None
 
     def coefficients(self, entry_id: str) -> tuple[np.ndarray, np.ndarray]:
-        """Fourier ``a`` and ``b`` of one entry, each shape (D, N+1), DOF units (copies)."""
+        """One entry's Fourier coefficients.
+
+        Parameters
+        ----------
+        entry_id : str
+            The entry's id.
+
+        Returns
+        -------
+        a, b : ndarray, each (D, N+1)
+            Copies, in each DOF's unit (rad, or m for the root's translations).
+        """
         fourier = self.entry(entry_id).fourier
         return fourier.a.copy(), fourier.b.copy()
 
     def coefficient_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """Stacked ``a`` and ``b`` of every entry in ``entries`` order, each (E, D, N+1)."""
+        """Every entry's Fourier coefficients.
+
+        Returns
+        -------
+        a, b : ndarray, each (E, D, N+1)
+            In :attr:`entries` order, zero-padded to :attr:`n_harmonics`.
+        """
         shape = (len(self), len(self.dof_names), self.n_harmonics + 1)
         if not len(self):
             return np.zeros(shape), np.zeros(shape)
