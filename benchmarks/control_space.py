@@ -41,8 +41,9 @@ MEDIANS = (("rms_deg", "joint RMS (deg)", "{:.2f}"), ("max_deg", "joint max (deg
            ("T_error_s", "period (ms)", "{:.1f}"))
 
 
-def _gait(entry_id: str) -> str:
-    return "run" if entry_id.startswith("run") else "walk"
+def _gait(locomotion_class: str | None) -> str:
+    """The gait of an entry's class (mocaplib.gait.locomotion: from its motion)."""
+    return "run" if locomotion_class == "running" else "walk"
 
 
 def tables(library_path: Path) -> None:
@@ -58,10 +59,11 @@ def tables(library_path: Path) -> None:
         moving["T_error_s"] = 1000 * moving["T_error_s"].abs()
         for column in ("heading_rms_deg", "turn_error_deg"):
             moving[column] = moving[column].abs()
+        gait = {i: _gait(c) for i, c in zip(cs.ids, cs.classes)}
         other_mode = [
             row.id for row in moving.itertuples()
             if sum(w for n, w in zip(row.neighbours, row.weights)
-                   if _gait(n) != _gait(row.id)) > 0.5]
+                   if gait[n] != gait[row.id]) > 0.5]
         worst = moving.loc[moving["stride_error_mm"].idxmax()]
         print(f"| {axes} | {len(rows)} | {len(moving)} | " + " | ".join(
             fmt.format(np.nanmedian(moving[column])) for column, _, fmt in MEDIANS)
