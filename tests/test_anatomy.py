@@ -90,7 +90,7 @@ def test_the_pelvis_frame_is_level_when_the_asis_and_psis_are():
 
 
 def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
-    from mocaplib.model.anatomy import functional_centre, marker_frames
+    from mocaplib.model.functional import functional_joint, marker_frames
 
     rng = np.random.default_rng(0)
     n = 200
@@ -107,11 +107,11 @@ def test_functional_centre_of_a_hinge_is_found_nearest_the_proximal_centre():
     frames = [marker_frames(np.broadcast_to(thigh, (n, 3, 3)) + rng.normal(0, noise, (n, 3, 3))),
               marker_frames(shank + rng.normal(0, noise, shank.shape))]
     # a hinge: the centre slides along its axis (Y) unless the hip says where
-    found = functional_centre(*frames, hint=np.broadcast_to(hip, (n, 3)))
+    found = functional_joint(*frames, hint=np.broadcast_to(hip, (n, 3))).centre
     # 0.5 mm of marker noise leaves the centre within a few millimetres
     np.testing.assert_allclose(np.median(found, axis=0), knee, atol=0.004)
     still = [marker_frames(np.broadcast_to(x, (n, 3, 3)).copy()) for x in (thigh, shank_local)]
-    assert functional_centre(*still) is None                 # no turn: nothing to find
+    assert functional_joint(*still).range_deg == 0.0         # no turn: nothing to find
 
 
 def test_leg_frames_are_the_legs_of_segment_frames_to_the_bit():

@@ -20,7 +20,7 @@ Joint centres
       marker; else its other markers), on the medial side (:func:`chord_centre`).
     * **Knee, ankle and elbow without landmarks** (a cluster set without a static): the
       *functional* centre, the point that moves with both segments (SCoRE, Ehrig et al. 2006,
-      J Biomech 39:2798; :func:`functional_centre`), from the rigid frames of three markers on
+      J Biomech 39:2798; :mod:`mocaplib.model.functional`), from the rigid frames of three markers on
       each segment over a motion that flexes the joint.
 
 Segment frames (rotation matrices, columns = the segment's X forward, Y left, Z up axes when
@@ -175,7 +175,8 @@ def frame(primary: np.ndarray, secondary: np.ndarray, *, order: str) -> np.ndarr
 
 def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
                    *, flat_feet: Mapping[str, np.ndarray] | None = None,
-                   knee_turns: dict[str, float] | None = None
+                   knee_turns: dict[str, float] | None = None,
+                   axes: Mapping[str, np.ndarray] | None = None
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The anatomical frames of the pelvis, legs and arms that the landmarks define.
 
@@ -192,7 +193,12 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
     positive): the femur's frame is turned about its long axis by it, and with it the knee's
     flexion axis and the tibia's and foot's frames built on that axis (a functional knee axis,
     :func:`mocaplib.model.joint_centres.functional_knee_turns`).
+    ``axes``: per upper segment ("femur_l", "humerus_r"...), the functional flexion axis of
+    the joint below it (F, 3), unit vectors pointing laterally
+    (:func:`mocaplib.model.joint_centres.joint_centres`): it stands for the lateral landmark
+    a cluster set lacks.
     """
+    axes = axes or {}
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     hips = centres.get(("femur_l", 0.0)), centres.get(("femur_r", 0.0))
     back = (0.5 * (where["L_PSIS"] + where["R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= set(where)
@@ -202,28 +208,31 @@ def segment_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float]
                          0.5 * (hips[0] + hips[1]))
     for side, sign in (("l", 1.0), ("r", -1.0)):
         out.update(leg_frames(where, centres, side, flat=(flat_feet or {}).get(side),
-                              knee_turn=(knee_turns or {}).get(side, 0.0)))
+                              knee_turn=(knee_turns or {}).get(side, 0.0),
+                              axis=axes.get(f"femur_{side}")))
         wrist = next((point for (segment, z), point in centres.items()
                       if segment == f"forearm_{side}" and z != 0.0), None)
         out.update(_limb_frames(where, centres, side, sign, ("humerus", "forearm"), "ELBOW",
-                                wrist))
+                                wrist, axis=axes.get(f"humerus_{side}")))
     return out
 
 
 def leg_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
-               side: str, *, flat: np.ndarray | None = None, knee_turn: float = 0.0
-               ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+               side: str, *, flat: np.ndarray | None = None, knee_turn: float = 0.0,
+               axis: np.ndarray | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The frames (rotations (F, 3, 3), origins (F, 3)) of the femur, tibia and foot of
     ``side`` ("l", "r") that :func:`segment_frames` builds from the same ``where`` and
     ``centres``, the foot along the sole it lies flat on in the ``flat`` frames ((F,) bool;
     None or none of them: along the marker line) and the knee's axis turned by ``knee_turn``
-    (radians, internal rotation positive); those it cannot build left out.
+    (radians, internal rotation positive); ``axis`` (F, 3) the knee's functional flexion
+    axis pointing laterally, used without a lateral knee landmark; those it cannot build
+    left out.
 
     The sole is level in the ``flat`` frames: the foot's X is the marker line's (made
     perpendicular to Y) turned about Y by the median over them of the angle that makes it
     horizontal, as Plug-in Gait's flat-foot option levels it on a static."""
     out = _limb_frames(where, centres, side, 1.0 if side == "l" else -1.0, ("femur", "tibia"),
-                       "KNEE", centres.get((f"foot_{side}", 0.0)), turn=knee_turn)
+                       "KNEE", centres.get((f"foot_{side}", 0.0)), turn=knee_turn, axis=axis)
     heel, toe = _foot_line(where, side.upper())
     if f"tibia_{side}" in out and heel is not None:
         axis = out[f"tibia_{side}"][0][..., 1]
@@ -283,23 +292,25 @@ def flat_soles(where: dict[str, np.ndarray], *, rate: float | None = None,
 
 def _limb_frames(where: dict[str, np.ndarray], centres: dict[tuple[str, float], np.ndarray],
                  side: str, sign: float, segments: tuple[str, str], joint: str,
-                 distal: np.ndarray | None, *, turn: float = 0.0
-                 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+                 distal: np.ndarray | None, *, turn: float = 0.0,
+                 axis: np.ndarray | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The frames of one limb's two segments (femur and tibia, or humerus and forearm) of
     ``side`` ("l", "r"; ``sign`` +1 left, −1 right), as :func:`segment_frames` describes:
     the upper one from its joint centre, the middle joint's centre and its ``joint``'s
     lateral (and medial) landmark (an elbow with the lateral one alone: the arm's plane, the
     module docstring says when), then turned about its long axis by ``turn`` (radians,
     internal rotation positive); the lower one from the middle joint and the ``distal``
-    point (ankle or wrist centre, (F, 3); without it, only the upper frame)."""
+    point (ankle or wrist centre, (F, 3); without it, only the upper frame). Without the
+    lateral landmark, the middle joint's functional ``axis`` (F, 3, pointing laterally) is
+    its flexion axis."""
     upper, lower = segments
     top, middle = centres.get((f"{upper}_{side}", 0.0)), centres.get((f"{lower}_{side}", 0.0))
     lateral = where.get(f"{side.upper()}_{joint}_LAT")
-    if top is None or middle is None or lateral is None:
+    if top is None or middle is None or (lateral is None and axis is None):
         return {}
     medial = where.get(f"{side.upper()}_{joint}_MED")
-    across = lateral - (middle if medial is None else medial)
-    if joint == "ELBOW" and medial is None and distal is not None:
+    across = axis if lateral is None else lateral - (middle if medial is None else medial)
+    if joint == "ELBOW" and lateral is not None and medial is None and distal is not None:
         normal = np.cross(distal - middle, top - middle)
         flexion = 180.0 - np.degrees(np.arctan2(np.linalg.norm(normal, axis=-1), (
             (distal - middle) * (top - middle)).sum(axis=-1)))
@@ -372,59 +383,3 @@ def davis_hip(lasi, rasi, back, *, side: str, leg_length: float, marker_radius: 
     az = -C * np.cos(theta) * np.cos(beta) - d * np.sin(beta)
     x, y, z = R[..., 0], R[..., 1], R[..., 2]
     return origin + ax * x + (ay if side == "l" else -ay) * y + az * z
-
-
-#: Smallest range of the joint's turn (degrees) over the frames for a functional centre: below
-#: it the centre is ill-determined along the axis of turn.
-FUNCTIONAL_RANGE = 15.0
-
-
-def marker_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rigid frames (F, 3, 3) and origins (F, 3) of three markers ``points`` (F, 3, 3): origin
-    the first, X towards the second, Z normal to the three; NaN where one is missing."""
-    x = unit(points[:, 1] - points[:, 0])
-    z = unit(np.cross(x, points[:, 2] - points[:, 0]))
-    return np.stack([x, np.cross(z, x), z], axis=-1), points[:, 0]
-
-
-def functional_centre(parent: tuple[np.ndarray, np.ndarray],
-                      child: tuple[np.ndarray, np.ndarray], *,
-                      hint: np.ndarray | None = None) -> np.ndarray | None:
-    """The joint centre (F, 3) that moves with both segments, by least squares (SCoRE):
-    ``R_p c_p + t_p = R_c c_c + t_c`` over the frames where both rigid frames ``parent`` and
-    ``child`` ((F, 3, 3) rotations, (F, 3) origins; :func:`marker_frames`) are known, the
-    centre being the mean of the two sides. A hinge (the knee, the ankle) leaves the centre
-    free along its axis (the least singular value of the system under :data:`HINGE_RATIO` of
-    the largest): it is then taken where the axis passes nearest ``hint`` (F, 3), the proximal
-    joint's centre. None when fewer than 10 frames know both or the joint turns by less than
-    :data:`FUNCTIONAL_RANGE` over them."""
-    (Rp, tp), (Rc, tc) = parent, child
-    known = np.isfinite(Rp).all(axis=(1, 2)) & np.isfinite(Rc).all(axis=(1, 2))
-    if known.sum() < 10:
-        return None
-    relative = np.einsum("fji,fjk->fik", Rp[known], Rc[known])            # Rp^T Rc
-    turn = np.arccos(np.clip((np.trace(relative @ relative[0].T, axis1=1, axis2=2) - 1) / 2,
-                             -1.0, 1.0))
-    if np.degrees(turn.max()) < FUNCTIONAL_RANGE:
-        return None
-    A = np.concatenate([Rp[known], -Rc[known]], axis=2).reshape(-1, 6)
-    b = (tc[known] - tp[known]).reshape(-1)
-    solution = np.linalg.lstsq(A, b, rcond=None)[0]
-
-    def world(c):
-        return 0.5 * (np.einsum("fij,j->fi", Rp, c[:3]) + tp + np.einsum("fij,j->fi", Rc, c[3:])
-                      + tc)
-
-    _, values, vt = np.linalg.svd(A, full_matrices=False)
-    if hint is not None and values[-1] < HINGE_RATIO * values[0]:
-        along = world(vt[-1]) - world(np.zeros(6))              # the axis's direction (F, 3)
-        off = hint - world(solution)
-        usable = np.isfinite(along).all(axis=1) & np.isfinite(off).all(axis=1)
-        solution = solution + vt[-1] * (np.sum(along[usable] * off[usable])
-                                        / np.sum(along[usable] ** 2))
-    return world(solution)
-
-
-#: A least singular value under this share of the largest marks a hinge: the centre slides
-#: along its axis.
-HINGE_RATIO = 0.1

@@ -253,7 +253,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         known = landmark_markers(X, offsets)[0]
         first = solve_poses(skeleton, known, segments, known_offsets, free=free)
     neutral = static is not None and static_pose == "neutral"
-    centres, methods = joint_centres(
+    centres, methods, axes = joint_centres(
         X, landmarks, segments, skeleton, first.q, scale=scale, measurements=measurements,
         neutral=neutral)
     anatomical = lengths_from_centres(skeleton, centres)
@@ -292,7 +292,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         frames=calibration_frames))
     methods.update(sole_methods)
     frames_cal = anatomical_frames(unshifted, poses_cal, X_cal, landmarks, centres, drops,
-                                   flat_feet=soles)
+                                   flat_feet=soles, axes=axes)
     in_frames_cal = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, frames_cal)
 
     def anatomical_model(knee_turns=None):
@@ -302,7 +302,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         frames, in_frames = dict(frames_cal), in_frames_cal.copy()
         for side, turn in (knee_turns or {}).items():
             legs = leg_frames(where_cal, centres, side, flat=soles.get(side),
-                              knee_turn=turn)
+                              knee_turn=turn, axis=axes.get(f"femur_{side}"))
             frames.update(legs)
             on = np.isin(segments, [SEGMENT_NAMES.index(name) for name in legs])
             in_frames[on] = offsets_in_frames(X_cal, segments, SEGMENT_NAMES, legs)[on]
@@ -346,7 +346,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
         arms = {name: value for name, value in anatomical_frames(
             skeleton, q_both, X_both, landmarks, joint_centres(
                 X_both, landmarks, segments, skeleton, q_both, scale=scale,
-                measurements=measurements)[0], drops).items()
+                measurements=measurements)[0], drops, axes=axes).items()
                 if name in PLACED_ON_STATIC_AND_MOTION}
         in_arms = offsets_in_frames(X_both, segments, SEGMENT_NAMES, arms)
         placed = np.isfinite(in_arms).all(axis=1)

@@ -16,8 +16,9 @@ from ..errors import MIN_MARKER_SPREAD, SPREAD_HINT, UNITS_HINT, CalibrationErro
 from ..markersets import protocols as _protocols
 from ..numeric import distinct, median, nanmedian
 from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
-from .anatomy import (WANDS, chord_centre, davis_hip, functional_centre, harrington_hips,
-                      marker_frames, segment_frames)
+from .anatomy import (HEEL_LANDMARKS, WANDS, chord_centre, davis_hip, harrington_hips,
+                      segment_frames)
+from .functional import FUNCTIONAL_RANGE, functional_joint, marker_frames
 from .solver import initial_pose, solve_poses
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
@@ -85,6 +86,9 @@ ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibia
 
 #: Joints whose centre a lateral marker and a segment wand give by the chord.
 _CHORD_JOINTS = ("tibia", "foot", "forearm")
+#: Hinges (by child segment) whose functional flexion axis builds the limb's frames when no
+#: lateral landmark gives it: the knee and the elbow.
+_FUNCTIONAL_AXES = ("tibia", "forearm")
 
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
@@ -156,20 +160,22 @@ def _mirrored_mean(shifts: dict[str, tuple[float, float, float]]
 
 def anatomical_frames(skeleton: Skeleton, q: np.ndarray, X: np.ndarray, landmarks: list[str],
                       centres: dict[tuple[str, float], np.ndarray], drops: dict[str, float],
-                      *, flat_feet: dict[str, np.ndarray] | None = None
+                      *, flat_feet: dict[str, np.ndarray] | None = None,
+                      axes: dict[str, np.ndarray] | None = None
                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """:func:`mocaplib.model.anatomy.segment_frames` of the markers ``X`` (F, M, 3) (``landmarks``
     (M,) their landmarks) and joint ``centres`` (:func:`joint_centres`), the arms hanging
     from the shoulder centres where the torso's layout puts them at the poses ``q`` (F, D)
     of ``skeleton``, except on the sides ``drops`` (:func:`shoulder_drops`) places below the
     acromion; the feet along the soles they lie flat on in the ``flat_feet`` frames
-    (:func:`mocaplib.model.anatomy.flat_soles`)."""
+    (:func:`mocaplib.model.anatomy.flat_soles`); the knees and elbows without a lateral landmark
+    hinged on their functional ``axes`` (:func:`joint_centres`)."""
     T = skeleton.forward(q)
     shoulders = {(name, 0.0): T[:, SEGMENT_NAMES.index(name), :3, 3]
                  for name in ("humerus_l", "humerus_r")
                  if (name, 0.0) in centres and name[-1] not in drops}
     return segment_frames({name: X[:, i] for i, name in enumerate(landmarks)},
-                          {**centres, **shoulders}, flat_feet=flat_feet)
+                          {**centres, **shoulders}, flat_feet=flat_feet, axes=axes)
 
 
 def shoulder_drops(measurements: dict[str, float]) -> dict[str, float]:
@@ -249,8 +255,10 @@ def estimate_height(X: np.ndarray, segments: np.ndarray, nominal: np.ndarray, *,
 def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                   skeleton: Skeleton, q: np.ndarray, *, scale: float,
                   measurements: dict[str, float] | None = None, neutral: bool = False
-                  ) -> tuple[dict[tuple[str, float], np.ndarray], dict[str, str]]:
-    """Anatomical joint centres per frame, world (F, 3) metres, and how each was found.
+                  ) -> tuple[dict[tuple[str, float], np.ndarray], dict[str, str],
+                             dict[str, np.ndarray]]:
+    """Anatomical joint centres per frame, world (F, 3) metres, how each was found, and the
+    functional flexion axes of the knees and elbows no landmark gives.
 
     Keys are ``(segment, z)``: the point ``(0, 0, z)`` of that segment's frame (z = 0: its
     joint; the wrist is the forearm's end). Hip: :func:`mocaplib.model.anatomy.harrington_hips`.
@@ -267,10 +275,13 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     by the pelvis's orientation (every segment's in that pose) and the elbow is not placed by
     the chord (:data:`NEUTRAL_CHORD_JOINTS`). A knee, ankle or elbow none of these place is
     the functional centre of three markers of each of its segments
-    (:func:`mocaplib.model.anatomy.functional_centre`, the proximal centre as the hinge's hint),
-    when the joint turns enough over the frames. ``scale`` = height / 1.75 scales catalogue offsets. The
-    methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the measurements"}``)
-    are returned beside the centres.
+    (:func:`mocaplib.model.functional.functional_joint`, SCoRE, the proximal centre as the
+    hinge's hint), when the joint turns by :data:`mocaplib.model.functional.FUNCTIONAL_RANGE`
+    or more over the frames; such a knee's or elbow's flexion axis (SARA) is returned, per
+    upper segment (``"femur_l"``...), as unit vectors (F, 3) pointing laterally, for
+    :func:`mocaplib.model.anatomy.segment_frames`. ``scale`` = height / 1.75 scales catalogue
+    offsets. The methods (str per joint, e.g. ``{"knee_l": "chord, knee width from the
+    measurements"}``) are returned beside the centres.
     """
     where = {name: X[:, i] for i, name in enumerate(landmarks)}
     catalogue = _protocols.load_landmarks()
@@ -280,6 +291,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
     joints = skeleton.joint_offsets()
     out: dict[tuple[str, float], np.ndarray] = {}
     methods: dict[str, str] = {}
+    axes: dict[str, np.ndarray] = {}
     back = _mean_of(where, ["L_PSIS", "R_PSIS"]) if {"L_PSIS", "R_PSIS"} <= set(where) \
         else where.get("SACRUM")
     if {"L_ASIS", "R_ASIS"} <= set(where) and back is not None:
@@ -296,6 +308,8 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
             out[(f"femur_{side}", 0.0)] = centre
             methods[f"hip_{side}"] = ("Davis (conventional gait model), leg length from the "
                                       "measurements" if leg else "Harrington regression")
+    left = (out[("femur_l", 0.0)] - out[("femur_r", 0.0)]
+            if ("femur_l", 0.0) in out and ("femur_r", 0.0) in out else None)
 
     def from_catalogue(lat, child):
         mark = catalogue[lat]
@@ -352,19 +366,42 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
         for child, parent in (("tibia", "femur"), ("foot", "tibia"), ("forearm", "humerus")):
             if (child + suffix, 0.0) in out:
                 continue
+            heel = next((f"{side}_{name}" for name in HEEL_LANDMARKS if f"{side}_{name}" in where),
+                        None)
+            if child == "foot" and heel is not None:
+                # on the synthetic cluster captures (walk, run, curve) SCoRE's ankle lies 27-66
+                # mm from the malleoli's midpoint (the foot turns about several joints), the
+                # heel moved by its catalogue offset 11-12 mm
+                out[(child + suffix, 0.0)] = where[heel] - T[:, SEGMENT_NAMES.index(
+                    child + suffix), :3, :3] @ (np.asarray(catalogue[heel].position) * scale)
+                methods["ankle" + suffix] = ("the heel marker and its catalogue offset, turned "
+                                             "by the foot's nominal fit: no malleolus marks it")
+                continue
             frames = [_three_markers(X, segments, name + suffix) for name in (parent, child)]
-            centre = None if None in frames else functional_centre(
+            found = None if None in frames else functional_joint(
                 *frames, hint=out.get((parent + suffix, 0.0)))
-            if centre is not None:
-                out[(child + suffix, 0.0)] = centre
-                methods[_JOINT_NAMES[child] + suffix] = \
-                    f"functional (SCoRE) from the {parent}'s and {child}'s markers"
+            joint = _JOINT_NAMES[child] + suffix
+            if found is None:
+                continue
+            if found.range_deg < FUNCTIONAL_RANGE:
+                methods[joint] = (f"not found: the {parent} and {child} turn "
+                                  f"{found.range_deg:.0f}° relative to each other, a functional "
+                                  f"centre needs {FUNCTIONAL_RANGE:.0f}°")
+                continue
+            out[(child + suffix, 0.0)] = found.centre
+            methods[joint] = (f"functional (SCoRE) from the {parent}'s and {child}'s markers "
+                              f"over {found.range_deg:.0f}° of motion")
+            if found.axis is not None and child in _FUNCTIONAL_AXES and left is not None:
+                lateral = 1.0 if side == "L" else -1.0
+                axes[parent + suffix] = found.axis * lateral * np.sign(
+                    nanmedian((found.axis * left).sum(axis=-1)))
+                methods[joint] += ", its flexion axis functional (SARA)"
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
             out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
                 0.5 * (where[rad] + where[uln]))
             methods["wrist" + suffix] = "midpoint of the styloids"
-    return out, methods
+    return out, methods, axes
 
 
 def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):

@@ -1,0 +1,127 @@
+"""Functional joint centres and axes from the relative motion of two rigid marker clusters.
+
+Where no landmark places a joint (a cluster set without a static), the motion does: a joint
+centre is the point that moves with both segments, a hinge's axis the line that does.
+
+* **SCoRE** (symmetrical centre of rotation estimation; Ehrig et al. 2006, J Biomech
+  39:2798): with each segment's rigid frame ``(R_p, t_p)``, ``(R_c, t_c)`` per frame, the
+  centre has fixed coordinates ``c_p`` in the parent and ``c_c`` in the child, so
+  ``R_p c_p + t_p = R_c c_c + t_c`` in every frame: a linear least-squares system ``A x = b``
+  (3F × 6) in ``x = (c_p, c_c)``; the centre is the mean of the two sides.
+* **SARA** (symmetrical axis of rotation approach; Ehrig et al. 2007, J Biomech 40:2150): for
+  a hinge every point of the axis solves that system, so ``A`` has a near null vector
+  ``(n_p, n_c)``: its right singular vector of least singular value. The axis's direction in
+  the world is ``R_p n_p`` (= ``R_c n_c``), the centre is then free along it and is taken where
+  the axis passes nearest a hint (the proximal joint's centre).
+
+Both need the joint to turn: the range of the relative rotation over the frames (degrees,
+:func:`relative_range`) below :data:`FUNCTIONAL_RANGE` leaves them to the anatomical
+estimate. Every array is world coordinates, metres, one row per frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .anatomy import unit
+
+#: Smallest range of the joint's turn (degrees) over the frames for a functional centre or
+#: axis: below it they are ill-determined along the axis of turn.
+FUNCTIONAL_RANGE = 15.0
+#: A least singular value under this share of the largest marks a hinge: the centre slides
+#: along its axis.
+HINGE_RATIO = 0.1
+#: Fewest frames in which both clusters are seen for a functional estimate.
+MIN_FRAMES = 10
+
+
+@dataclass(frozen=True)
+class FunctionalJoint:
+    """A joint found from the motion of its two segments.
+
+    centre : ndarray (F, 3). The SCoRE centre in the world, metres (on a hinge, the point of
+        its axis nearest the hint).
+    axis : ndarray (F, 3) or None. The SARA axis in the world (unit vectors, sign arbitrary)
+        when the joint is a hinge (:data:`HINGE_RATIO`), else None.
+    range_deg : float. Range of the relative rotation over the frames, degrees.
+    """
+
+    centre: np.ndarray
+    axis: np.ndarray | None
+    range_deg: float
+
+
+def marker_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid frames (F, 3, 3) and origins (F, 3) of three markers ``points`` (F, 3, 3): origin
+    the first, X towards the second, Z normal to the three; NaN where one is missing."""
+    x = unit(points[:, 1] - points[:, 0])
+    z = unit(np.cross(x, points[:, 2] - points[:, 0]))
+    return np.stack([x, np.cross(z, x), z], axis=-1), points[:, 0]
+
+
+def relative_range(parent_rotations: np.ndarray, child_rotations: np.ndarray) -> float:
+    """Range (degrees) of the child's rotation relative to the parent over the frames where
+    both rotations (F, 3, 3) are known: the largest angle between two frames' relative
+    rotations (from the frame farthest from the first; exact for a hinge). 0 without frames."""
+    known = np.isfinite(parent_rotations).all(axis=(1, 2)) \
+        & np.isfinite(child_rotations).all(axis=(1, 2))
+    if not known.any():
+        return 0.0
+    relative = np.einsum("fji,fjk->fik", parent_rotations[known], child_rotations[known])
+    far = relative[np.argmax(_angles_from(relative, relative[0]))]
+    return float(np.degrees(_angles_from(relative, far).max()))
+
+
+def functional_joint(parent: tuple[np.ndarray, np.ndarray],
+                     child: tuple[np.ndarray, np.ndarray], *,
+                     hint: np.ndarray | None = None) -> FunctionalJoint | None:
+    """The joint between two rigid frames by SCoRE and, for a hinge, its axis by SARA.
+
+    Parameters
+    ----------
+    parent, child : (rotations (F, 3, 3), origins (F, 3))
+        Each segment's rigid frame per frame (:func:`marker_frames`), NaN where unseen.
+    hint : ndarray (F, 3), optional
+        A point the hinge's centre is taken nearest to (the proximal joint's centre); without
+        it a hinge's centre is the least-norm solution.
+
+    Returns
+    -------
+    FunctionalJoint or None
+        None when fewer than :data:`MIN_FRAMES` frames know both segments. The caller judges
+        ``range_deg`` against :data:`FUNCTIONAL_RANGE`.
+    """
+    (Rp, tp), (Rc, tc) = parent, child
+    known = np.isfinite(Rp).all(axis=(1, 2)) & np.isfinite(Rc).all(axis=(1, 2)) \
+        & np.isfinite(tp).all(axis=1) & np.isfinite(tc).all(axis=1)
+    if known.sum() < MIN_FRAMES:
+        return None
+    A = np.concatenate([Rp[known], -Rc[known]], axis=2).reshape(-1, 6)
+    b = (tc[known] - tp[known]).reshape(-1)
+    solution = np.linalg.lstsq(A, b, rcond=None)[0]
+    _, values, vt = np.linalg.svd(A, full_matrices=False)
+
+    def world(c):
+        return 0.5 * (np.einsum("fij,j->fi", Rp, c[:3]) + tp
+                      + np.einsum("fij,j->fi", Rc, c[3:]) + tc)
+
+    axis = None
+    if values[-1] < HINGE_RATIO * values[0]:
+        null = vt[-1]
+        axis = unit(np.einsum("fij,j->fi", Rp, null[:3]) + np.einsum("fij,j->fi", Rc, null[3:]))
+        if hint is not None:
+            along = world(null) - world(np.zeros(6))              # the axis's direction (F, 3)
+            off = hint - world(solution)
+            usable = np.isfinite(along).all(axis=1) & np.isfinite(off).all(axis=1)
+            solution = solution + null * (np.sum(along[usable] * off[usable])
+                                          / np.sum(along[usable] ** 2))
+    return FunctionalJoint(world(solution), axis, relative_range(Rp, Rc))
+
+
+def _angles_from(rotations: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Angle (radians) of each rotation (F, 3, 3) from ``reference`` (3, 3)."""
+    cosine = (np.trace(rotations @ reference.T, axis1=1, axis2=2) - 1.0) / 2.0
+    return np.arccos(np.clip(cosine, -1.0, 1.0))
+
