@@ -150,8 +150,8 @@ def test_the_cluster_dofs_worse_than_the_anatomical_set_are_no_more_than_measure
 
 #: RMS over the DOFs (degrees), cluster vs anatomical set, of the captures fitted without a
 #: static: measured, the strict xfail's figures, bounded below.
-WITHOUT_STATIC_MEASURED = {"straight": (12.1, 3.1), "curve": (13.4, 3.1),
-                           "sidestep": (17.0, 5.0)}
+WITHOUT_STATIC_MEASURED = {"straight": (7.3, 3.1), "curve": (7.0, 3.1),
+                           "sidestep": (13.7, 5.0)}
 
 
 @pytest.fixture(scope="module")
@@ -174,15 +174,15 @@ def fits_without_static():
 @pytest.mark.parametrize("kind", [
     pytest.param(kind, marks=pytest.mark.xfail(strict=True, reason=(
         f"measured RMS over the DOFs {cluster}° vs {anatomical}° (cluster vs anatomical set) "
-        "against the generator's independent body. The errors are offsets, nearly constant "
-        "through the capture: elbow flexion +33 to +46 deg (the elbow turns 5-13 deg, under "
-        "the functional centre's 15 deg, so the forearm gets no anatomical frame), shoulder "
-        "flexion -13 to -22, ankle dorsiflexion +10 to +26, knee flexion +5 to +20: without "
-        "anatomical landmarks nothing measures the segments' zero pose")))
+        "against the generator's independent body. The legs' flexion is within 3.1° on the "
+        "walk and curve (tests/test_cluster_without_static.py); the arms are not: elbow flexion "
+        "9-47° (the elbow turns 14-28°, its SCoRE centre 14-38 mm and SARA axis 15-20° off "
+        "the epicondyles' on the walk, run and curve; under 15° no centre at all) and "
+        "shoulder flexion and abduction up to 23°")))
     for kind, (cluster, anatomical) in WITHOUT_STATIC_MEASURED.items()])
 def test_a_cluster_capture_without_static_fits_as_well_as_the_anatomical_set(
         fits_without_static, kind):
-    # the knee and ankle centres are functional ones (SCoRE) from the clusters and the foot
+    # the knee centres are functional ones (SCoRE) from the thigh and shank clusters
     for protocol in ("fullbody38", "cluster_fullbody"):
         marker_rms, _, model = fits_without_static[kind, protocol]
         assert marker_rms <= 10.0

@@ -237,6 +237,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
                 + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds))
                 for c in kept)
+        if any(qc_failures(qcs[c.index], settings.qc_thresholds) for c in kept):
+            result.warnings.extend(processed.fitted.qc_causes)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:

@@ -68,6 +68,13 @@ class FittedCapture:
     static: int | None
     warnings: list[str]
 
+    @property
+    def qc_causes(self) -> list[str]:
+        """The likely causes of a QC failure of this capture's cycles and what to do, one
+        sentence each (empty when none is known)."""
+        return [CLUSTER_WITHOUT_STATIC_CAUSE] if self.static is None and _is_cluster_set(
+            self.model) else []
+
     def fitted_markers(self, trial: Trial, /) -> Trial:
         """The markers the fit followed, as a trial of the model's markers (labels in model
         order, F frames of ``trial``, the capture this was fitted to): the labelling errors
@@ -185,6 +192,8 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
         warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
     else:
         warnings.append(_foot_zero_warning(model))
+        if _is_cluster_set(model):
+            warnings.append(_cluster_warning(model))
     with clock.stage("fit"):
         motion, _ = fit_filtered(trial, model, cutoff=used)
     warnings.extend(_fit_warnings(model, motion))
@@ -199,6 +208,34 @@ def _foot_zero_warning(model: SubjectModel) -> str:
              if f"sole_{side}" in model.centre_methods]
     return ("no static: each foot's zero (ankle dorsiflexion 0) is the foot along its sole, "
             + ("; ".join(sides) if sides else "no foot markers"))
+
+
+#: The likely cause of a QC failure of a cluster set fitted without a static, and what to do.
+CLUSTER_WITHOUT_STATIC_CAUSE = (
+    "likely cause: a cluster set without a static: the joint centres, the flexion axes and "
+    "the segments' zero poses no landmark gives are assumed from the capture's motion (the "
+    "calibration warning names each); record a static standing trial with the knee, ankle and "
+    "elbow markers on and pass it with --static, or check the angles and keep the cycle with "
+    "--qc waive")
+
+
+def _is_cluster_set(model: SubjectModel) -> bool:
+    """Whether the model follows tracking markers (clusters) on a limb."""
+    tracking = {m.label for m in model.protocol.markers if m.tracking}
+    return any(label in tracking for label in model.labels)
+
+
+def _cluster_warning(model: SubjectModel) -> str:
+    """What a cluster set calibrated without a static assumes, one sentence: how each knee,
+    ankle and elbow was placed (:func:`mocaplib.model.joint_centres.joint_centres`) and where
+    the limbs' zero poses come from."""
+    joints = [f"{joint} {side}: {model.centre_methods[f'{joint}_{side[0]}']}"
+              for joint in ("knee", "ankle", "elbow") for side in ("left", "right")
+              if f"{joint}_{side[0]}" in model.centre_methods]
+    return ("cluster set without a static: segment zero poses are assumed from the joint "
+            "centres (knee flexion 0 with the hip, knee and ankle centres in line, elbow flexion "
+            "0 with the shoulder, elbow and wrist centres in line, hip rotation 0 with the "
+            "knee's flexion axis along the pelvis's); " + "; ".join(joints))
 
 
 def _fit_warnings(model: SubjectModel, motion: Motion) -> list[str]:

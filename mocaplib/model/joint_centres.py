@@ -386,7 +386,8 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
             if found.range_deg < FUNCTIONAL_RANGE:
                 methods[joint] = (f"not found: the {parent} and {child} turn "
                                   f"{found.range_deg:.0f}° relative to each other, a functional "
-                                  f"centre needs {FUNCTIONAL_RANGE:.0f}°")
+                                  f"centre needs {FUNCTIONAL_RANGE:.0f}°, so the limb's "
+                                  "zero pose is its markers' nominal layout")
                 continue
             out[(child + suffix, 0.0)] = found.centre
             methods[joint] = (f"functional (SCoRE) from the {parent}'s and {child}'s markers "
