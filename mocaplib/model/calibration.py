@@ -29,9 +29,9 @@ Steps (all in metres, world Z up):
 3. **Anatomical joint centres.** Hip: Harrington et al. (2007, J Biomech 40:595) regression
    from pelvis width PW (ASIS–ASIS) and depth PD (mid-ASIS to mid-PSIS, or sacrum), in the
    ASIS pelvis frame: x = −0.24 PD − 9.9 mm, y = ±(0.33 PW + 7.3 mm), z = −0.30 PW − 10.9 mm.
-   Knee, ankle, elbow without landmarks in the trial (a cluster set calibrated from its
-   motion): the functional centre of the two segments' markers
-   (:func:`mocaplib.model.anatomy.functional_centre`). Knee, ankle, elbow: the midpoint of lateral
+   Knee and elbow without landmarks in the trial (a cluster set calibrated from its
+   motion): the functional centre and flexion axis of the two segments' markers (SCoRE and
+   SARA, :mod:`mocaplib.model.functional`); the ankle: the heel's catalogue offset. Knee, ankle, elbow: the midpoint of lateral
    and medial landmarks when both exist, otherwise
    the lateral landmark moved by its documented offset from the joint in the catalogue (knee
    50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by
