@@ -16,9 +16,8 @@ from ..errors import MIN_MARKER_SPREAD, SPREAD_HINT, UNITS_HINT, CalibrationErro
 from ..markersets import protocols as _protocols
 from ..numeric import distinct, median, nanmedian
 from ..skeleton import DOF_NAMES, ROOT_HEADING, SEGMENT_NAMES, SEGMENTS, Skeleton, partner_name
-from .anatomy import (HEEL_LANDMARKS, WANDS, chord_centre, davis_hip, harrington_hips,
-                      segment_frames)
-from .functional import FUNCTIONAL_RANGE, functional_joint, marker_frames
+from .anatomy import WANDS, chord_centre, davis_hip, harrington_hips, segment_frames
+from .functional import functional_limb_joints
 from .solver import initial_pose, solve_poses
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
@@ -86,9 +85,6 @@ ANATOMICAL_LENGTHS = {"hip_width": ("femur", "femur"), "thigh": ("femur", "tibia
 
 #: Joints whose centre a lateral marker and a segment wand give by the chord.
 _CHORD_JOINTS = ("tibia", "foot", "forearm")
-#: Hinges (by child segment) whose functional flexion axis builds the limb's frames when no
-#: lateral landmark gives it: the knee and the elbow.
-_FUNCTIONAL_AXES = ("tibia", "forearm")
 
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
@@ -363,56 +359,19 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                 else:
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
-        for child, parent in (("tibia", "femur"), ("foot", "tibia"), ("forearm", "humerus")):
-            if (child + suffix, 0.0) in out:
-                continue
-            heel = next((f"{side}_{name}" for name in HEEL_LANDMARKS if f"{side}_{name}" in where),
-                        None)
-            if child == "foot" and heel is not None:
-                # on the synthetic cluster captures (walk, run, curve) SCoRE's ankle lies 27-66
-                # mm from the malleoli's midpoint (the foot turns about several joints), the
-                # heel moved by its catalogue offset 11-12 mm
-                out[(child + suffix, 0.0)] = where[heel] - T[:, SEGMENT_NAMES.index(
-                    child + suffix), :3, :3] @ (np.asarray(catalogue[heel].position) * scale)
-                methods["ankle" + suffix] = ("the heel marker and its catalogue offset, turned "
-                                             "by the foot's nominal fit: no malleolus marks it")
-                continue
-            frames = [_three_markers(X, segments, name + suffix) for name in (parent, child)]
-            found = None if None in frames else functional_joint(
-                *frames, hint=out.get((parent + suffix, 0.0)))
-            joint = _JOINT_NAMES[child] + suffix
-            if found is None:
-                continue
-            if found.range_deg < FUNCTIONAL_RANGE:
-                methods[joint] = (f"not found: the {parent} and {child} turn "
-                                  f"{found.range_deg:.0f}° relative to each other, a functional "
-                                  f"centre needs {FUNCTIONAL_RANGE:.0f}°, so the limb's "
-                                  "zero pose is its markers' nominal layout")
-                continue
-            out[(child + suffix, 0.0)] = found.centre
-            methods[joint] = (f"functional (SCoRE) from the {parent}'s and {child}'s markers "
-                              f"over {found.range_deg:.0f}° of motion")
-            if found.axis is not None and child in _FUNCTIONAL_AXES and left is not None:
-                lateral = 1.0 if side == "L" else -1.0
-                axes[parent + suffix] = found.axis * lateral * np.sign(
-                    nanmedian((found.axis * left).sum(axis=-1)))
-                methods[joint] += ", its flexion axis functional (SARA)"
+        placed, found_methods, found_axes = functional_limb_joints(
+            X, segments, where, out, side, left=left,
+            heel_centre=lambda heel, foot: where[heel] - T[:, SEGMENT_NAMES.index(foot), :3, :3]
+            @ (np.asarray(catalogue[heel].position) * scale))
+        out.update(placed)
+        methods.update(found_methods)
+        axes.update(found_axes)
         rad, uln = f"{side}_WRIST_RAD", f"{side}_WRIST_ULN"
         if rad in where and uln in where:
             out[("forearm" + suffix, -skeleton.lengths["forearm"])] = (
                 0.5 * (where[rad] + where[uln]))
             methods["wrist" + suffix] = "midpoint of the styloids"
     return out, methods, axes
-
-
-def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):
-    """The rigid frames (:func:`mocaplib.model.anatomy.marker_frames`) of the three markers of
-    ``segment`` seen in the most frames of X (F, M, 3), or None when it carries fewer."""
-    on = np.flatnonzero(segments == SEGMENT_NAMES.index(segment))
-    if len(on) < 3:
-        return None
-    seen = np.isfinite(X[:, on, 0]).sum(axis=0)
-    return marker_frames(X[:, on[np.argsort(-seen, kind="stable")[:3]]])
 
 
 def _elbow_axis(where: dict[str, np.ndarray], side: str, shoulder: np.ndarray,
