@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.library.controlspace import ControlSpace, leave_one_out
+from mocaplib.gait.locomotion import class_gait  # noqa: E402
+from mocaplib.library.controlspace import ControlSpace, leave_one_out  # noqa: E402
 from mocaplib.library.coverage import coverage
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.report.plan import default_envelope  # noqa: E402
@@ -39,11 +40,6 @@ MEDIANS = (("rms_deg", "joint RMS (deg)", "{:.2f}"), ("max_deg", "joint max (deg
            ("stride_error_mm", "stride (mm)", "{:.0f}"), ("turn_error_deg", "turn (deg)",
                                                           "{:.2f}"),
            ("T_error_s", "period (ms)", "{:.1f}"))
-
-
-def _gait(locomotion_class: str | None) -> str:
-    """The gait of an entry's class (mocaplib.gait.locomotion: from its motion)."""
-    return "run" if locomotion_class == "running" else "walk"
 
 
 def tables(library_path: Path) -> None:
@@ -59,7 +55,7 @@ def tables(library_path: Path) -> None:
         moving["T_error_s"] = 1000 * moving["T_error_s"].abs()
         for column in ("heading_rms_deg", "turn_error_deg"):
             moving[column] = moving[column].abs()
-        gait = {i: _gait(c) for i, c in zip(cs.ids, cs.classes)}
+        gait = {i: class_gait(c) for i, c in zip(cs.ids, cs.classes)}
         other_mode = [
             row.id for row in moving.itertuples()
             if sum(w for n, w in zip(row.neighbours, row.weights)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..gait.locomotion import BLEND_GAITS
 from ..io import printable
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
                       check_outputs, positive)
@@ -35,9 +36,11 @@ def _animation_rate(text: str) -> float:
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "query", help="blend weights of a velocity command (and its cycle as BVH or glTF)",
-        description="Find the library tetrahedron enclosing (V, OMEGA, VL) and print its four "
-                    "entries with their barycentric weights; outside the control space, print "
-                    "the nearest point on its hull. Exit 0 when answered (inside or outside).")
+        description="Find the tetrahedron of one gait's cell enclosing (V, OMEGA, VL) and print "
+                    "its four entries with their barycentric weights, the gait, and whether the "
+                    "command was clamped onto the cell (between the walks and the runs); "
+                    "outside the control space, print how far, the nearest point and entries, "
+                    "and the options that serve it. Exit 0 when answered (inside or outside).")
     parser.add_argument("library", help="library JSON file")
     parser.add_argument("v", type=bounded(SPEED_LIMIT), metavar="V",
                         help="tangential speed v̂, m/s (v̂_f with --axes frontal)")
@@ -47,8 +50,12 @@ def register(subparsers) -> None:
                         help="lateral speed v̂_l, m/s (> 0 moves left)")
     parser.add_argument("--axes", choices=("tangential", "frontal"), default="tangential",
                         help="control space (v, ω, v_l) or (v_f, ω, v_l) (default tangential)")
+    parser.add_argument("--gait", choices=BLEND_GAITS,
+                        help="blend this gait's entries only (default: the cell holding the "
+                             "command, else the nearest)")
     parser.add_argument("--json", action="store_true",
-                        help="print {inside, entries, weights, point, nearest, distance, T_s}")
+                        help="print {inside, gait, clamped, entries, weights, point, nearest, "
+                             "distance, nearest_entries, T_s}")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
     parser.add_argument("--gltf", metavar="OUT.gltf",
@@ -90,27 +97,29 @@ def _run(args) -> int:
         warn(f"{args.library}: its content does not match its checksum: it was changed after "
              "it was written (`mocaplib validate` says more)")
     cs = ControlSpace.from_library(library, axes=args.axes, source=args.library)
-    res = cs.query([[args.v, args.omega, args.v_l]])
+    res = cs.query([[args.v, args.omega, args.v_l]], gait=args.gait)
     blended = res
     if not res.inside[0] and args.clamp:
-        blended = cs.query(res.nearest)
+        blended = cs.query(res.nearest, gait=res.gait[0])
+    clamped = bool(res.clamped[0] or (args.clamp and not res.inside[0]))
     answer = {"inside": bool(res.inside[0]), "point": res.points[0].tolist(),
-              "axes": list(cs.axes), "entries": [], "weights": []}
+              "axes": list(cs.axes), "gait": res.gait[0], "clamped": clamped,
+              "entries": [], "weights": []}
     blend = cs.blend(blended) if blended.inside[0] else None
     if blend is not None:
         answer["entries"] = [cs.ids[k] for k in blended.entries[0]]
         answer["weights"] = blended.weights[0].tolist()
         answer["T_s"] = float(blend.T[0])
-    if not res.inside[0]:
+    if clamped or not res.inside[0]:
         answer["nearest"] = res.nearest[0].tolist()
         answer["distance"] = float(res.distance[0])
-        answer["clamped"] = bool(args.clamp)
+    if not res.inside[0]:
+        answer["nearest_entries"] = cs.nearest_ids(res.points[0])
+    if outputs and blend is None:
+        raise MocapError(f"cannot write {' or '.join(outputs)}: "
+                         + cs.outside_text(res), path=args.library,
+                         hint=_serving_options(cs, args))
     if outputs:
-        if blend is None:
-            raise MocapError(
-                f"cannot write {' or '.join(outputs)}: the command is outside the control "
-                "space", path=args.library, hint=f"the nearest point on the hull is "
-                f"{_triple(res.nearest[0])}; query it, or add --clamp")
         rate = args.rate or ANIMATION_RATE
         _, q = blend.world(0, rate=rate, cycles=args.cycles or ANIMATION_CYCLES)
         motion = Motion(q, library.skeleton, rate, source="blend")
@@ -125,10 +134,18 @@ def _run(args) -> int:
     where = "inside" if res.inside[0] else "OUTSIDE"
     print(f"({names}) = {_triple(res.points[0])}: {where} the control space")
     if not res.inside[0]:
-        print(f"  nearest point on the hull: {_triple(res.nearest[0])} "
-              f"(normalised distance {res.distance[0]:.3f})")
+        print(f"  outside by {res.distance[0]:.3g} (normalised); nearest point of the "
+              f"{res.gait[0]} cell: {_triple(res.nearest[0])}")
+        print(f"  nearest entries: {', '.join(answer['nearest_entries'])}")
         if args.clamp:
             print("  blending at that point (--clamp)")
+        else:
+            print(f"  {_serving_options(cs, args)}")
+    elif res.clamped[0]:
+        print(f"  between the gaits' cells: blended at the nearest point of the {res.gait[0]} "
+              f"cell, {_triple(res.nearest[0])} (normalised distance {res.distance[0]:.3g}; "
+              f"--gait chooses the gait)")
+    print(f"  gait: {res.gait[0]}" + (" (asked with --gait)" if args.gait else ""))
     if answer["entries"]:
         entries = [printable(e, keep="") for e in answer["entries"]]  # ids from file names
         width = max(len(e) for e in entries)
@@ -139,6 +156,16 @@ def _run(args) -> int:
     for option in outputs:
         print(f"  {option[2:].upper()}: {answer[option[2:]]}")
     return 0
+
+
+def _serving_options(cs, args) -> str:
+    """The options that serve a command outside the control space ``cs``."""
+    options = ["--clamp blends at the nearest point"]
+    if cs.variant == "tangential":
+        options.append("--axes frontal (v_f, omega, v_l) holds the entries that walk backwards")
+    options += [f"--gait {g} blends the {g} cell" for g in cs.cells if g != args.gait
+                and args.gait is not None]
+    return "options: " + "; ".join(options)
 
 
 def _triple(p) -> str:

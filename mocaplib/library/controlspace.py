@@ -34,7 +34,10 @@ cone |v̂_l| = v̂ with spot turns on its edge, and 60°/120° diagonal walks th
 
 Blending (Truong et al. 2010, equations (4)-(6))
 ------------------------------------------------
-A query point inside the hull lies in one tetrahedron; its barycentric weights ``w`` (four,
+A command is blended in the tetrahedra of one gait (:mod:`mocaplib.library.cells`: one cell
+per gait, the side-step cone a facet of the walk cell, the boundary within a stated tolerance,
+a command between the walks and the runs served by the nearest cell). A query point inside a
+cell lies in one tetrahedron; its barycentric weights ``w`` (four,
 summing to 1, reproducing the point) blend the four entries' Fourier coefficients and periods:
 ``a_d = Σ w_i a_i``, ``b_d = Σ w_i b_i``, ``T_d = Σ w_i T_i`` (entries with fewer harmonics are
 padded with zeros), and the joint angles are synthesised with the team's convention
@@ -58,11 +61,13 @@ from scipy.spatial import cKDTree
 
 from ..errors import LibraryError, MocapError
 from ..gait.fourier import RootDrift, synthesize
+from ..gait.locomotion import class_gait
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
+from .cells import build_cells, onto_cone, serve, union
 from .phase import from_left_toe_off
-from .triangulation import (DEGENERACY_HINT, Triangulation, closest_on_triangles, degeneracy,
-                            delaunay_tetrahedra, locate, stack_padded, tetra_quality)
+from .triangulation import (DEGENERACY_HINT, Triangulation, degeneracy, delaunay_tetrahedra,
+                            locate, stack_padded, tetra_quality)
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
@@ -86,12 +91,16 @@ class QueryResult:
     Attributes
     ----------
     points : (Q, 3) the query points, SI units.
-    inside : (Q,) bool, True when the point is inside the hull of the entries.
+    inside : (Q,) bool, True when the point is served: inside a gait's cell (within
+        :data:`~mocaplib.library.cells.HULL_TOLERANCE`), or between cells (``clamped``).
     entries : (Q, 4) int, row numbers (in :attr:`ControlSpace.ids`) of the enclosing
         tetrahedron's entries; -1 when outside.
-    weights : (Q, 4) barycentric weights (sum 1, reproduce the point); NaN when outside.
-    nearest : (Q, 3) nearest point on the hull, SI units (the point itself when inside).
-    distance : (Q,) normalised distance from the point to the hull (0 inside).
+    weights : (Q, 4) barycentric weights (sum 1, reproduce the point blended); NaN when outside.
+    nearest : (Q, 3) SI units: the point blended when ``clamped``, the nearest point of the
+        nearest cell when outside, else the query point itself.
+    distance : (Q,) normalised distance from the point to ``nearest`` (0 inside a cell).
+    gait : (Q,) the gait of the cell that serves the point (or, outside, of the nearest cell).
+    clamped : (Q,) bool, served at ``nearest`` on its gait's cell, not at the point itself.
     """
 
     points: np.ndarray
@@ -100,6 +109,8 @@ class QueryResult:
     weights: np.ndarray
     nearest: np.ndarray
     distance: np.ndarray
+    gait: np.ndarray
+    clamped: np.ndarray
 
 
 @dataclass
@@ -146,7 +157,10 @@ class ControlSpace:
     a, b : E Fourier coefficient arrays (D, N_i+1) (zero-padded to the largest N), or None.
     T : (E,) periods, s, or None.
     drift : (E, 3) root drift velocities (:data:`~mocaplib.library.entry.DRIFT_VELOCITIES`), or None.
-    ids : E entry ids; classes : E locomotion classes (None when unknown).
+    ids : E entry ids; classes : E locomotion classes (None when unknown), which give each
+        entry's gait (:func:`mocaplib.gait.locomotion.class_gait`).
+    v_f : (E,) frontal speeds, m/s, or None: on the tangential axes, entries moving backwards
+        stay out of the cells (:mod:`mocaplib.library.cells`).
     axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
     scale : (3,) normalisation scales, default :data:`DEFAULT_SCALE` for those axes.
     source : the library file, for error messages.
@@ -158,7 +172,7 @@ class ControlSpace:
     """
 
     def __init__(self, points, *, a=None, b=None, T=None, drift=None, ids=None, classes=None,
-                 axes: str = "tangential", scale=None, source=None):
+                 v_f=None, axes: str = "tangential", scale=None, source=None):
         if axes not in AXES:
             raise MocapError(f"unknown control-space axes {axes!r}; use one of {', '.join(AXES)}")
         self.variant = axes
@@ -168,12 +182,16 @@ class ControlSpace:
         n = len(self.points)
         self.ids = [str(i) for i in (ids if ids is not None else range(n))]
         self.classes = list(classes) if classes is not None else [None] * n
+        self.v_f = None if v_f is None else np.asarray(v_f, dtype=float)
         self.scale = (np.array([DEFAULT_SCALE[k] for k in self.axes]) if scale is None
                       else np.asarray(scale, dtype=float))
         if not np.all(np.isfinite(self.points)):
             raise LibraryError("control-space points must be finite", path=source,
                                hint="drop entries without velocities before building")
         self.tri = self._triangulate()
+        self.cells, self.cell_problems = build_cells(
+            self.points, self.scale, classes=self.classes, v_f=v_f,
+            tangential=axes == "tangential", source=source)
         self.a = None if a is None else stack_padded(a)
         self.b = None if b is None else stack_padded(b)
         self.T = None if T is None else np.asarray(T, dtype=float)
@@ -238,7 +256,8 @@ class ControlSpace:
                                hint="build the library again with mocaplib build (run "
                                     "`mocaplib validate` on it for every problem)")
         return cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
-                   drift=drift, ids=ids, classes=[e.locomotion_class for e in kept], axes=axes,
+                   drift=drift, ids=ids, classes=[e.locomotion_class for e in kept],
+                   v_f=np.array([e.v_f for e in kept], dtype=np.float64), axes=axes,
                    scale=library.control_scale, source=source)
 
     def normalise(self, x) -> np.ndarray:
@@ -260,58 +279,73 @@ class ControlSpace:
         """Triangles of the hull, (H, 3) row numbers of entries."""
         return self.tri.convex_hull
 
-    def query(self, points) -> QueryResult:
-        """Enclosing tetrahedra and barycentric weights (equation (4)) of query points.
+    def query(self, points, *, gait: str | None = None) -> QueryResult:
+        """Enclosing tetrahedra and barycentric weights (equation (4)) of query points, in the
+        cells of one gait (:mod:`mocaplib.library.cells`).
 
         Parameters
         ----------
         points : array_like, shape (Q, 3) or (3,)
             Velocities on :attr:`axes`, SI units (m/s, rad/s, m/s).
+        gait : {"walk", "run"}, optional
+            Blend in this gait's cell only (a point outside it but inside the hull of all the
+            entries is clamped onto it); default: the cell holding the point, else the nearest.
 
         Returns
         -------
         QueryResult
-            Per point: inside the hull or not, the four entries (rows of :attr:`ids`) and
-            their weights, and the nearest point on the hull with its normalised distance.
+            Per point: served or not, the gait, the four entries (rows of :attr:`ids`) and
+            their weights, and the point blended with its normalised distance.
 
         Raises
         ------
         MocapError
-            Points of another shape.
+            Points of another shape, or a gait without a cell.
         """
         p = np.atleast_2d(np.asarray(points, dtype=float))
         if p.ndim != 2 or p.shape[1] != 3:
             raise MocapError(f"query points must have shape (Q, 3), got {np.shape(points)}")
+        cells = self._cells(gait)
         x = self.normalise(p)
-        simplex, w = locate(self.tri, x)
-        inside = simplex >= 0
-        entries = np.full((len(p), 4), -1)
+        on_cone = self.normalise(onto_cone(p)) if self.variant == "tangential" else x
+        served = serve(cells, on_cone, locate(self.tri, x)[0] >= 0)
+        inside = served.simplex[:, 0] >= 0
         weights = np.full((len(p), 4), np.nan)
-        if inside.any():
-            w = np.clip(w[inside], 0.0, None)
-            weights[inside] = w / w.sum(axis=1, keepdims=True)
-            entries[inside] = self.tri.simplices[simplex[inside]]
-        nearest = p.copy()
-        distance = np.zeros(len(p))
-        if (~inside).any():
-            near_x, dist = self._nearest_on_hull(x[~inside])
-            nearest[~inside] = near_x * self.scale
-            distance[~inside] = dist
-        return QueryResult(p, inside, entries, weights, nearest, distance)
+        w = np.clip(served.weights[inside], 0.0, None)
+        weights[inside] = w / w.sum(axis=1, keepdims=True)
+        moved = served.clamped | ~inside
+        nearest = np.where(moved[:, None], served.point * self.scale, p)
+        return QueryResult(p, inside, served.simplex, weights, nearest,
+                           np.where(moved, served.distance, 0.0), served.gait,
+                           served.clamped)
 
-    def _nearest_on_hull(self, x: np.ndarray, chunk: int = 1024):
-        """Exact projection of normalised points (Q, 3) onto the hull's facets."""
-        pts = self.tri.points
-        A, B, C = (pts[self.hull_facets[:, i]] for i in range(3))
-        near = np.empty_like(x)
-        dist = np.empty(len(x))
-        for lo in range(0, len(x), chunk):
-            c, d = closest_on_triangles(x[lo:lo + chunk], A, B, C)
-            j = np.argmin(d, axis=1)
-            rows = np.arange(len(j))
-            near[lo:lo + chunk] = c[rows, j]
-            dist[lo:lo + chunk] = np.sqrt(d[rows, j])
-        return near, dist
+    def _cells(self, gait: str | None) -> dict:
+        """The cells a query may use: all of them, or the one of ``gait``; raises MocapError
+        naming the gaits there are when there is none."""
+        have = ", ".join(self.cells) or "none"
+        if gait is None and self.cells:
+            return self.cells
+        if gait in self.cells:
+            return {gait: self.cells[gait]}
+        why = self.cell_problems.get(gait) or self.cell_problems.get("walk")
+        raise MocapError(f"the control space has no {gait or 'gait'} cell to blend in "
+                         f"(cells: {have})" + (f": its entries {why}" if why else ""),
+                         path=self.source, hint=DEGENERACY_HINT)
+
+    def nearest_ids(self, point, *, k: int = 3) -> list[str]:
+        """Ids of the ``k`` entries of the cells nearest to an SI point (3,), in normalised
+        distance."""
+        rows = np.unique(np.concatenate([c.rows for c in self.cells.values()]))
+        d = np.linalg.norm(self.normalise(self.points[rows]) - self.normalise(point), axis=1)
+        return [self.ids[rows[i]] for i in np.argsort(d, kind="stable")[:k]]
+
+    def outside_text(self, result: QueryResult, i: int = 0) -> str:
+        """What a person needs about query ``i`` of ``result`` that no cell serves: how far it
+        is (normalised), the nearest point and gait, and the nearest entries."""
+        return (f"{tuple(np.round(result.points[i], 4))} is outside the control space by "
+                f"{result.distance[i]:.3g} (normalised); the nearest point of the "
+                f"{result.gait[i]} cell is {tuple(np.round(result.nearest[i], 4))}, the "
+                f"nearest entries {', '.join(self.nearest_ids(result.points[i]))}")
 
     def contains(self, points) -> np.ndarray:
         """(Q,) bool: SI points (Q, 3) inside the hull."""
@@ -343,11 +377,9 @@ class ControlSpace:
                              path=self.source)
         if not result.inside.all():
             bad = np.flatnonzero(~result.inside)
-            raise MocapError(
-                f"{len(bad)} query point(s) are outside the control space, first "
-                f"{tuple(np.round(result.points[bad[0]], 4))}", path=self.source,
-                hint=f"the nearest point on the hull is "
-                     f"{tuple(np.round(result.nearest[bad[0]], 4))}")
+            raise MocapError(f"{len(bad)} query point(s) are outside: "
+                             + self.outside_text(result, int(bad[0])), path=self.source,
+                             hint="query the nearest point instead")
         e, w = result.entries, result.weights
         return Blend(np.einsum("qk,qkdn->qdn", w, self.a[e]),
                      np.einsum("qk,qkdn->qdn", w, self.b[e]),
@@ -362,18 +394,21 @@ class ControlSpace:
 def stored_tetrahedra(library) -> dict | None:
     """The tetrahedra ``mocaplib query`` locates a command in, as the library file stores them
     (``control_space.tetrahedra``) for readers in other languages, or None when the entries
-    span no 3-D control space.
+    span no 3-D control space (or no gait has a cell).
 
     Keys: ``ids`` (the control space's entries: chosen, with finite velocities and period, in
-    the file's order) and ``simplices`` (S, 4) row numbers of ``ids``; a point's normalised
-    coordinates are its (v, omega, v_l) / ``control_space.scale``
+    the file's order) and ``simplices`` (S, 4) row numbers of ``ids``: the tetrahedra of each
+    gait's cell (:mod:`mocaplib.library.cells`), walks first; a point's normalised coordinates
+    are its (v, omega, v_l), side-steps put on the cone, / ``control_space.scale``
     (:meth:`ControlSpace.from_library`, tangential axes).
     """
     try:
         cs = ControlSpace.from_library(library)
     except LibraryError:
         return None
-    return {"ids": list(cs.ids), "simplices": cs.tri.simplices.tolist()}
+    if not cs.cells:
+        return None
+    return {"ids": list(cs.ids), "simplices": union(cs.cells.values()).simplices.tolist()}
 
 
 def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:
@@ -390,7 +425,8 @@ def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.Dat
 
 # --------------------------------------------------------------------------- leave-one-out
 def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
-    """Blending error of the library: each entry inside the hull of the others, rebuilt from them.
+    """Blending error of the library: each entry inside the cell of the others of its gait,
+    rebuilt from them.
 
     Removing an entry changes the tetrahedra around it only (its star), which the tetrahedra of
     its neighbours tile again (:func:`star_neighbours`): each entry is located among those,
@@ -399,7 +435,7 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     Both cycles are compared at ``n_phase`` equally spaced phases of their own period, channel by
     channel in the units they are stored in (the Fourier convention: root in the path frame,
     per-cycle drift apart). Columns: ``id``, ``class``, ``inside`` (False when the entry is on
-    the hull of the others, or the others are degenerate), ``neighbours`` (ids), ``weights``;
+    the hull of the others of its gait, or they have no cell), ``neighbours`` (ids), ``weights``;
     joint angles (:data:`mocaplib.skeleton.JOINT_ANGLES`, 28 DOFs): ``rms_deg`` (RMS over DOFs
     and phases), ``max_deg``, ``worst_dof``; root: ``heading_rms_deg`` (``pelvis_rotation``
     relative to the path frame), ``root_rms_mm`` (``pelvis_tx/ty/tz`` in the path frame, RMS
@@ -422,12 +458,18 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
             others = ControlSpace(cs.points[keep], a=cs.a[keep], b=cs.b[keep], T=cs.T[keep],
                                   drift=None if cs.drift is None else cs.drift[keep],
                                   ids=[cs.ids[j] for j in keep],
+                                  classes=[cs.classes[j] for j in keep],
+                                  v_f=None if cs.v_f is None else cs.v_f[keep],
                                   axes=cs.variant, scale=cs.scale, source=cs.source)
         except LibraryError:
             rows.append(row)
             continue
-        res = others.query(cs.points[i])
-        if res.inside[0]:
+        gait = class_gait(cs.classes[i])
+        if gait not in others.cells:
+            rows.append(row)
+            continue
+        res = others.query(cs.points[i], gait=gait)
+        if res.inside[0] and not res.clamped[0]:
             bl = others.blend(res)
             err = (synthesize(bl.a[0], bl.b[0], 1.0, phase)
                    - synthesize(cs.a[i], cs.b[i], 1.0, phase))          # (n_phase, D) rad, m
