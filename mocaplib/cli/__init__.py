@@ -27,7 +27,7 @@ from ..io import printable
 
 #: Sub-command modules, in the order ``mocaplib --help`` lists them.
 COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror", "validate",
-            "query", "retarget", "report", "synth")
+            "query", "animate", "retarget", "report", "synth")
 
 #: The positional arguments that name a command's one input file (named in an internal error).
 INPUT_ARGUMENTS = ("input", "file", "library", "plan")

