@@ -1,5 +1,5 @@
 """A cluster set fitted without a static: functional knee and elbow joints (SCoRE/SARA), the
-ankle from the heel, on synthetic cluster captures (walk, run, curve) measured against the
+ankle from the foot's markers fitted to their catalogue layout, on synthetic cluster captures (walk, run, curve) measured against the
 generator's truth; the assumptions stated once; a QC failure names its likely cause."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ LEG_FLEXION = [f"{joint}_{side}" for joint in ("hip_flexion", "knee_flexion",
 #: Target RMS error (degrees) of each leg flexion DOF against the truth, without a static.
 LEG_TARGET = 3.0
 #: Measured: the largest leg flexion RMS error per capture (degrees) and its DOF.
-LEG_MEASURED = {"walk": 1.5, "run": 7.1, "curve": 3.1}
+LEG_MEASURED = {"walk": 2.9, "run": 4.6, "curve": 2.3}
 
 
 @pytest.fixture(scope="module")
@@ -55,18 +55,18 @@ def test_a_cluster_capture_without_static_is_plausible(fitted, name):
     # no DOF pushed against a joint limit (the knee at 149° of a 150° limit, before)
     shares = done.motion.limit_shares()
     assert max(shares.values(), default=0.0) <= LIMIT_WARNING_SHARE, shares
-    # the knees are hinged on their functional axes, the ankles placed from the heels
+    # the knees are hinged on their functional axes, the ankles placed by the foot's markers
     for side in ("l", "r"):
         assert "SARA" in done.model.centre_methods[f"knee_{side}"]
-        assert done.model.centre_methods[f"ankle_{side}"].startswith("the heel marker")
+        assert done.model.centre_methods[f"ankle_{side}"].startswith("the foot's markers")
 
 
 @pytest.mark.parametrize("name", [
     pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=(
         f"measured largest leg flexion RMS error {LEG_MEASURED[name]}° (target {LEG_TARGET}°): "
-        + ("the run's right ankle dorsiflexion 7.1° and knees 4.6-5.9°, the ankle centre "
-           "from the heel's catalogue offset" if name == "run" else
-           "the curve's knees 3.0-3.1°"))) if LEG_MEASURED[name] > LEG_TARGET else ())
+        + "the run's left ankle dorsiflexion, 4.3° too little throughout (knees 1.0-1.8°): "
+          "its SCoRE knee centre lies 16 mm behind the epicondyles' midpoint, tilting the "
+          "shank's axis")) if LEG_MEASURED[name] > LEG_TARGET else ())
     for name in sorted(CAPTURES)])
 def test_leg_flexion_without_static_within_target(fitted, name):
     errors = _leg_errors(*fitted[name])
@@ -76,7 +76,8 @@ def test_leg_flexion_without_static_within_target(fitted, name):
 @pytest.mark.parametrize("name", sorted(CAPTURES))
 def test_leg_flexion_without_static_no_worse_than_measured(fitted, name):
     errors = _leg_errors(*fitted[name])
-    # before the functional axes and the heel's ankle: knee 10.2°, ankle 15.9° on the walk
+    # the heel's offset turned by the foot's nominal fit places the run's ankles 39 mm off:
+    # 7.1° on the run; without the functional axes: knee 10.2°, ankle 15.9° on the walk
     assert max(errors.values()) <= LEG_MEASURED[name] + 0.5, errors
 
 

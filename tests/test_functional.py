@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocaplib.model.functional import (FUNCTIONAL_RANGE, functional_joint, marker_frames,
-                                       relative_range)
+from mocaplib.markersets.protocols import load_landmarks
+from mocaplib.model.functional import (FUNCTIONAL_RANGE, catalogue_origin, functional_joint,
+                                       marker_frames, relative_range)
 
 
 def _rotation(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -83,3 +84,23 @@ def test_the_range_of_a_joint_that_hardly_turns_is_measured_below_the_limit():
     child_seen = (child[0].copy(), child[1].copy())
     child_seen[0][5:] = np.nan
     assert functional_joint(parent, child_seen) is None
+
+
+def test_a_segment_origin_from_its_landmarks_fitted_to_the_catalogue():
+    catalogue = load_landmarks()
+    names = ["L_HEEL", "L_TOE", "L_MT5"]
+    local = np.array([catalogue[name].position for name in names]) * 1.1       # scale 1.1
+    turn = _rotation(np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93]),
+                     np.radians(np.linspace(-40.0, 60.0, 50)))
+    origin = np.array([0.4, -0.1, 0.09]) + np.linspace(0, 1, 50)[:, None] * (1.0, 0.2, 0.0)
+    where = {name: np.einsum("fij,j->fi", turn, p) + origin for name, p in zip(names, local)}
+    where["L_TOE"][7] = np.nan                                  # a frame with two markers seen
+    where["L_ASIS"] = np.zeros((50, 3))                        # on another segment: not used
+    found, used = catalogue_origin(where, "foot_l", catalogue, 1.1)
+    assert used == names
+    # exact markers: the origin to rounding; unknown where fewer than three are seen
+    np.testing.assert_allclose(np.delete(found, 7, axis=0), np.delete(origin, 7, axis=0),
+                               atol=1e-9)
+    assert np.isnan(found[7]).all()
+    del where["L_MT5"]
+    assert catalogue_origin(where, "foot_l", catalogue, 1.1) is None

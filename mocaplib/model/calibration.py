@@ -31,7 +31,8 @@ Steps (all in metres, world Z up):
    ASIS pelvis frame: x = −0.24 PD − 9.9 mm, y = ±(0.33 PW + 7.3 mm), z = −0.30 PW − 10.9 mm.
    Knee and elbow without landmarks in the trial (a cluster set calibrated from its
    motion): the functional centre and flexion axis of the two segments' markers (SCoRE and
-   SARA, :mod:`mocaplib.model.functional`); the ankle: the heel's catalogue offset. Knee, ankle, elbow: the midpoint of lateral
+   SARA, :mod:`mocaplib.model.functional`); the ankle: the foot's markers fitted rigidly to
+   their catalogue layout. Knee, ankle, elbow: the midpoint of lateral
    and medial landmarks when both exist, otherwise
    the lateral landmark moved by its documented offset from the joint in the catalogue (knee
    50 mm, ankle 35 mm, elbow 35 mm medial for a 1.75 m subject, scaled by height), turned by

@@ -25,9 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..markersets.protocols import Landmark
 from ..numeric import nanmedian
 from ..skeleton import SEGMENT_NAMES
 from .anatomy import HEEL_LANDMARKS, unit
+from .solver import rigid_fits
 
 #: Smallest range of the joint's turn (degrees) over the frames for a functional centre or
 #: axis: below it they are ill-determined along the axis of turn.
@@ -139,17 +141,21 @@ _FUNCTIONAL_AXES = ("tibia", "forearm")
 
 def functional_limb_joints(X: np.ndarray, segments: np.ndarray, where: dict[str, np.ndarray],
                            centres: dict[tuple[str, float], np.ndarray], side: str, *,
-                           left: np.ndarray | None, heel_centre
+                           left: np.ndarray | None, catalogue: dict[str, Landmark],
+                           scale: float, heel_centre
                            ) -> tuple[dict, dict[str, str], dict[str, np.ndarray]]:
     """The knee, ankle and elbow centres of ``side`` ("L", "R") no landmark placed, from the
     motion: (centres by ``(segment, 0.0)``, methods by joint, flexion axes by upper segment).
 
     ``X`` (F, M, 3) markers on ``segments`` (M,) indices, ``where`` landmark positions,
     ``centres`` those already placed (the proximal centres are the hinges' hints). The ankle:
-    ``heel_centre(heel_landmark, "foot_l")`` (F, 3), the heel moved by its catalogue offset,
-    when a heel landmark is seen; on the synthetic cluster captures (walk, run, curve) SCoRE's
-    ankle lies 27-66 mm from the malleoli's midpoint (the foot turns about several joints),
-    the heel's 11-12 mm. The knee and elbow: SCoRE over the frames (:func:`functional_joint`)
+    the foot's origin where the rigid fit of its seen landmarks onto their ``catalogue``
+    positions (scaled by ``scale``) puts it (:func:`catalogue_origin`), with three or more;
+    else ``heel_centre(heel_landmark, "foot_l")`` (F, 3), the heel moved by its catalogue
+    offset turned by the foot's nominal fit. On the synthetic cluster captures (walk, run,
+    curve) SCoRE's ankle lies 27-66 mm from the malleoli's midpoint (the foot turns about
+    several joints), the nominal fit's heel offset 5-39 mm (39 on the run), the rigid fit
+    5-11 mm. The knee and elbow: SCoRE over the frames (:func:`functional_joint`)
     when they turn by :data:`FUNCTIONAL_RANGE` or more, and their SARA axes oriented
     laterally with ``left`` (F, 3), the right hip centre to the left one.
     """
@@ -161,9 +167,15 @@ def functional_limb_joints(X: np.ndarray, segments: np.ndarray, where: dict[str,
         name = joint + suffix
         heel = next((f"{side}_{n}" for n in HEEL_LANDMARKS if f"{side}_{n}" in where), None)
         if child == "foot" and heel is not None:
-            out[(child + suffix, 0.0)] = heel_centre(heel, child + suffix)
-            methods[name] = ("the heel marker and its catalogue offset, turned by the foot's "
-                             "nominal fit: no malleolus marks it")
+            registered = catalogue_origin(where, child + suffix, catalogue, scale)
+            if registered is not None:
+                out[(child + suffix, 0.0)], on = registered
+                methods[name] = (f"the foot's markers ({', '.join(on)}) fitted rigidly to "
+                                 "their catalogue layout: no malleolus marks it")
+            else:
+                out[(child + suffix, 0.0)] = heel_centre(heel, child + suffix)
+                methods[name] = ("the heel marker and its catalogue offset, turned by the "
+                                 "foot's nominal fit: no malleolus marks it")
             continue
         frames = [_three_markers(X, segments, segment + suffix) for segment in (parent, child)]
         found = None if None in frames else functional_joint(
@@ -185,6 +197,20 @@ def functional_limb_joints(X: np.ndarray, segments: np.ndarray, where: dict[str,
                 nanmedian((found.axis * left).sum(axis=-1)))
             methods[name] += ", its flexion axis functional (SARA)"
     return out, methods, axes
+
+
+def catalogue_origin(where: dict[str, np.ndarray], segment: str, catalogue: dict[str, Landmark],
+                     scale: float) -> tuple[np.ndarray, list[str]] | None:
+    """Where ``segment``'s origin (its proximal joint) lies per frame (F, 3), metres: the
+    rigid fit (:func:`mocaplib.model.solver.rigid_fits`) of the segment's landmarks in
+    ``where`` (name -> (F, 3)) onto their ``catalogue`` positions times ``scale``, and the
+    landmarks used; None with fewer than three (NaN in frames that see fewer)."""
+    on = [name for name in where if name in catalogue and catalogue[name].segment == segment]
+    if len(on) < 3:
+        return None
+    local = np.array([catalogue[name].position for name in on]) * scale
+    _, origin, ok = rigid_fits(local, np.stack([where[name] for name in on], axis=1))
+    return np.where(ok[:, None], origin, np.nan), on
 
 
 def _three_markers(X: np.ndarray, segments: np.ndarray, segment: str):

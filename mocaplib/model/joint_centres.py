@@ -360,7 +360,7 @@ def joint_centres(X: np.ndarray, landmarks: list[str], segments: np.ndarray,
                     methods[joint] = "lateral landmark and its catalogue offset"
                 out[(child + suffix, 0.0)] = centre
         placed, found_methods, found_axes = functional_limb_joints(
-            X, segments, where, out, side, left=left,
+            X, segments, where, out, side, left=left, catalogue=catalogue, scale=scale,
             heel_centre=lambda heel, foot: where[heel] - T[:, SEGMENT_NAMES.index(foot), :3, :3]
             @ (np.asarray(catalogue[heel].position) * scale))
         out.update(placed)

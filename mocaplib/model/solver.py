@@ -437,14 +437,14 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
         world = unseen[:, index]                                          # (F, k, N, 3)
         if parents is None:
             R_parent = np.broadcast_to(np.eye(3), (n_frames, len(segs), 3, 3))
-            R, t, ok = _kabsch(local, world)
+            R, t, ok = rigid_fits(local, world)
             rel = R
             q[:, SHIFTS] = t[:, 0]
         else:
             R_parent = rot[:, parents]
             centre = (R_parent @ joint[segs, :, None])[..., 0] + pos[:, parents]
             world[:, :, -1] = centre                          # its local position: zero
-            R, _, ok = _kabsch(local, world)
+            R, _, ok = rigid_fits(local, world)
             rel = np.swapaxes(R_parent, -1, -2) @ R
         q[:, spins] = _joint_angles(rel, *euler)
         for row in np.flatnonzero(~ok.all(axis=0)):
@@ -462,7 +462,7 @@ def initial_pose(skeleton: Skeleton, markers: np.ndarray, segments: np.ndarray,
     return np.clip(q, LOWER, UPPER)
 
 
-def _kabsch(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rigid_fits(local: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rigid fits ``world ≈ R @ local + t`` per frame (and per set) over the finite points.
 
     local (..., N, 3); world (F, ..., N, 3) with NaN where missing. Returns R (F, ..., 3, 3),
