@@ -8,7 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._common import (add_force_option, add_protocol_folders_option, check_inputs,
-                      check_outputs)
+                      check_outputs, warn)
+
+#: The documentation page listing every landmark, its segment, place and aliases.
+LANDMARK_CATALOGUE_PAGE = "docs/guide/landmarks.md"
 
 
 def register(subparsers) -> None:
@@ -51,10 +54,14 @@ def _run(args) -> int:
     static = read_c3d(args.static) if args.static else None
     draft = draft_protocol(trial, static=static, name=args.name or Path(args.output).stem)
     atomic_write_text(args.output, draft.to_toml())
+    for line in draft.warnings():
+        warn(line)
     matched = sum(e.landmark is not None for e in draft.entries)
     tracking = sum(e.segment is not None for e in draft.entries)
     unknown = len(draft.entries) - matched - tracking
     print(f"{args.output}: {len(draft.entries)} labels, {matched} matched to landmarks, "
-          f"{tracking} tracking markers, {unknown} unmatched; check it, then run `mocaplib "
-          f"inspect --protocol {args.output} {args.input}`")
+          f"{tracking} tracking markers, {unknown} unmatched, {len(draft.warnings())} of low "
+          f"confidence; check it, then run `mocaplib "
+          f"inspect --protocol {args.output} {args.input}`; the landmark names are listed in "
+          f"{LANDMARK_CATALOGUE_PAGE}")
     return 0

@@ -42,9 +42,9 @@ import numpy as np
 
 from ..errors import ProtocolError
 from ..numeric import nanmedian
-from ..skeleton import SEGMENT_NAMES, Skeleton
 from ..statics import STANDING_EXTENT
 from ..trial import Trial, normalise_label, require_markers
+from .draft_checks import catalogue_places, check_draft
 from .matching import computed_points, is_model_output, numbered_candidates
 from .protocols import (REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml,
                         role_landmarks)
@@ -71,6 +71,8 @@ CLUSTER_SIZE = 3
 #: Weights of the forward, lateral and vertical distances in the cost: the side is the surest
 #: cue, the forward place the least sure (limbs swing).
 AXIS_WEIGHTS = np.array([0.7, 1.2, 1.0])
+#: A guess under this confidence (0-1) is called low: written so in the draft and warned of.
+LOW_CONFIDENCE = 0.45
 #: Landmarks the pipeline needs, required when found: both acromions, both ASIS, each heel.
 REQUIRED = ("ACROMION", "ASIS", "HEEL")
 #: ``[any_of]`` groups written when one of their landmarks is found: group -> (catalogue role,
@@ -83,7 +85,10 @@ ANY_OF = {"pelvis_back": ("pelvis_back", None), "left_forefoot": ("forefoot", "l
 class DraftEntry:
     """One label of the draft: its landmark (None for a tracking marker or an unknown label),
     the segment a tracking marker rides on, ``static_only``, ``required``, the confidence
-    (0-1), the evidence in words and whether the label's name points to its landmark."""
+    (0-1), the evidence in words, whether the label's name points to its landmark, where the
+    marker sits (``place``: (3,) m in the body frame of the 1.75 m catalogue body, forward,
+    left, up; NaN unseen) and how far (m, weighted as :data:`AXIS_WEIGHTS`) from its
+    landmark's catalogue place."""
 
     label: str
     landmark: str | None
@@ -93,6 +98,8 @@ class DraftEntry:
     confidence: float = 0.0
     evidence: list[str] = field(default_factory=list)
     by_name: bool = False
+    place: np.ndarray | None = None
+    distance: float | None = None
 
 
 @dataclass
@@ -104,6 +111,14 @@ class Draft:
     sources: list[str]
     entries: list[DraftEntry]
     frame: str = ""
+
+    def warnings(self) -> list[str]:
+        """One sentence per guess of low confidence (under :data:`LOW_CONFIDENCE`), with its
+        evidence: what to check before the draft is used."""
+        return [f"{e.label}: low confidence ({e.confidence:.0%}) in "
+                f"{e.landmark or e.segment}: {'; '.join(e.evidence)}"
+                for e in self.entries if (e.landmark or e.segment)
+                and e.confidence < LOW_CONFIDENCE]
 
     @property
     def landmarks(self) -> dict[str, str]:
@@ -118,6 +133,9 @@ class Draft:
                  "run `mocaplib inspect --protocol THIS_FILE CAPTURE.c3d`.",
                  f"# Body frame: {self.frame}.",
                  f"name = {_toml_string(self.name)}",
+                 "# Delete the next line once you have checked every entry: builds then report "
+                 "the protocol as yours.",
+                 "drafted = true",
                  "description = " + _toml_string(
                      f"Drafted from {os.path.basename(self.sources[0])}"),
                  "",
@@ -158,7 +176,7 @@ def _segment_spec(segment: str) -> str:
 
 
 def _confidence_word(value: float) -> str:
-    return "high" if value >= 0.75 else "medium" if value >= 0.45 else "low"
+    return "high" if value >= 0.75 else "medium" if value >= LOW_CONFIDENCE else "low"
 
 
 def _toml_string(text: str) -> str:
@@ -233,25 +251,6 @@ def name_landmarks(label: str) -> tuple[str | None, tuple[str, ...]]:
 
 
 # ----------------------------------------------------------------------------- places
-def _catalogue_places() -> tuple[list[str], np.ndarray, list[str]]:
-    """Every catalogue landmark, its place (L, 3) on the standing 1.75 m skeleton in the body
-    frame (origin mid-hips at floor level, X forward, Y left, Z up) and its segment."""
-    catalogue = load_landmarks()
-    skeleton = Skeleton.from_height(REFERENCE_HEIGHT)
-    origins = skeleton.forward(np.zeros((1, len(skeleton.bounds()[0]))))[0, :, :3, 3]
-    floor = origins[SEGMENT_NAMES.index("foot_l"), 2] + min(
-        lm.position[2] for lm in catalogue.values() if lm.segment.startswith("foot")) - 0.01
-    names_, places, segments = [], [], []
-    for name, lm in catalogue.items():
-        place = origins[SEGMENT_NAMES.index(lm.segment)] + np.asarray(lm.position)
-        place[:2] -= origins[0, :2]
-        place[2] -= floor
-        names_.append(name)
-        places.append(place)
-        segments.append(lm.segment)
-    return names_, np.array(places), segments
-
-
 def body_positions(X: np.ndarray, cues: dict[str, np.ndarray]) -> tuple[np.ndarray, str]:
     """Each marker's median position (M, 3) in the body frame over the frames of X (F, M, 3),
     metres, and how the forward direction was found. The origin is the median of the markers
@@ -322,15 +321,13 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     the same session, whose positions are then used), as the module describes.
     ``use_names=False`` matches by place and rigid groups alone. A trial (or static) without
     markers is refused (:func:`~mocaplib.trial.require_markers`)."""
-    from scipy.optimize import linear_sum_assignment
-
     for given in (trial, static) if static is not None else (trial,):
         require_markers(given)
 
-    labels = _marker_labels(trial)
+    labels = marker_labels(trial)
     static_labels = []
     if static is not None:
-        static_labels = [x for x in _marker_labels(static)
+        static_labels = [x for x in marker_labels(static)
                          if normalise_label(x) not in {normalise_label(y) for y in labels}]
     every = labels + static_labels
     told = [name_landmarks(x) if use_names else (label_stem(x)[0], ()) for x in every]
@@ -338,7 +335,7 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     if static is not None:                      # the static shows the standing body
         standing, how = _places(static, every, told)
         raw = np.where(np.isfinite(standing), standing, raw)
-    lm_names, lm_places, lm_segments = _catalogue_places()
+    lm_names, lm_places, lm_segments = catalogue_places()
     catalogue = load_landmarks()
     named = np.array([[_names_it(side, keys, lm) for lm in lm_names] for side, keys in told],
                      dtype=bool).reshape(len(every), len(lm_names))
@@ -348,31 +345,19 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     none = np.where(has_name, NONE_COST + NAME_BONUS + NAMED_SLACK, NONE_COST)
     mismatch = NAME_MISMATCH * has_name[:, None]
     heads = any(k in ("FRONT_HEAD", "BACK_HEAD") for _, keys in told for k in keys)
-    height = np.nanmax(raw[:, 2]) / (0.95 if heads else 0.83)   # the head, else C7/shoulders
-    for _ in range(3):                          # the height from the markers matched
-        used = height
-        place = raw * (REFERENCE_HEIGHT / height)
-        delta = (place[:, None] - lm_places[None]) * AXIS_WEIGHTS
-        distance = np.where(np.isfinite(delta).all(axis=2), np.linalg.norm(delta, axis=2), 1.0)
-        cost = np.where(named, np.minimum(distance, NAMED_CAP) - NAME_BONUS,
-                        distance + mismatch) + penalty
-        padded = np.hstack([cost, np.where(np.eye(len(every), dtype=bool), none[:, None],
-                                           np.inf)])
-        rows, cols = linear_sum_assignment(padded)
-        chosen = dict(zip(rows, cols))
-        pairs = [(k, j) for k, j in chosen.items() if j < len(lm_names)
-                 and lm_places[j, 2] > 0.3 and np.isfinite(raw[k, 2])]
-        if len(pairs) < 3:
-            break
-        height = REFERENCE_HEIGHT * float(np.median([raw[k, 2] / lm_places[j, 2]
-                                                     for k, j in pairs]))
+    # the top marker is the head's (or, without a head marker named, C7's or the shoulders'):
+    # without names both are tried, and the assignment of least cost is kept
+    tops = (0.95,) if heads else (0.83,) if use_names else (0.95, 0.83)
+    trials = [_assign(raw, np.nanmax(raw[:, 2]) / top, lm_places, named, mismatch, penalty,
+                      none) for top in tops]
+    chosen, place, delta, used, _ = min(trials, key=lambda t: t[-1])
     moving = _motion_markers(trial, every)
     motion_groups = rigid_groups(moving) if _moves(moving) else []
     in_group = {k: g for g in motion_groups for k in g}
     entries = []
     for k, label in enumerate(every):
         j = chosen.get(k, len(lm_names))
-        e = DraftEntry(label, None, static_only=label in static_labels)
+        e = DraftEntry(label, None, static_only=label in static_labels, place=place[k])
         side, keys = told[k]
         if use_names:
             e.evidence.append(f"name {label_stem(label)[1]!r}"
@@ -382,12 +367,12 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
         if j < len(lm_names):
             lm = lm_names[j]
             distance = float(np.linalg.norm(delta[k, j]))
-            e.landmark = lm
+            e.landmark, e.distance = lm, distance
             e.evidence.append(f"{distance * 100:.0f} cm from where {lm} sits on the standing "
                               f"catalogue body ({catalogue[lm].description})")
             e.by_name = bool(named[k, j])
-            e.confidence = float(np.clip(1.0 - distance / 0.15, 0.05, 1.0)
-                                 * (1.0 if named[k, j] else 0.7))
+            closeness = float(np.clip(1.0 - distance / 0.15, 0.05, 1.0))
+            e.confidence = 0.6 + 0.4 * closeness if named[k, j] else 0.7 * closeness
         group = in_group.get(k)
         if group is not None:
             mates = [every[i] for i in group if i != k]
@@ -395,12 +380,43 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
                               + (" ..." if len(mates) > 4 else ""))
         entries.append(e)
     _clusters(entries, motion_groups, told, place, lm_places, lm_segments)
+    check_draft(entries, [label_stem(x) for x in every], AXIS_WEIGHTS)
     for e in entries:
         bare = e.landmark[2:] if e.landmark and e.landmark[:2] in ("L_", "R_") else e.landmark
         e.required = bool(bare in REQUIRED and not e.static_only)
     sources = [trial.source or "capture"] + ([static.source or "static"] if static else [])
     return Draft(name, sources, entries, f"forward from {how}; the subject about "
                                          f"{used:.2f} m tall")
+
+
+def _assign(raw: np.ndarray, height: float, lm_places: np.ndarray, named: np.ndarray,
+            mismatch: np.ndarray, penalty: np.ndarray, none: np.ndarray):
+    """Pair the markers at ``raw`` (M, 3) m with the landmarks at ``lm_places`` (L, 3) by one
+    least-cost assignment (module docstring), starting from a subject ``height`` tall (m) and
+    taking the height again from the markers matched, three times. Returns ``{marker:
+    column}`` (a column past the landmarks: unmatched), the places (M, 3) scaled to the 1.75 m
+    body, the weighted differences (M, L, 3), the height used and the total cost."""
+    from scipy.optimize import linear_sum_assignment
+
+    n_landmarks = len(lm_places)
+    for _ in range(3):                          # the height from the markers matched
+        used = height
+        place = raw * (REFERENCE_HEIGHT / height)
+        delta = (place[:, None] - lm_places[None]) * AXIS_WEIGHTS
+        distance = np.where(np.isfinite(delta).all(axis=2), np.linalg.norm(delta, axis=2), 1.0)
+        cost = np.where(named, np.minimum(distance, NAMED_CAP) - NAME_BONUS,
+                        distance + mismatch) + penalty
+        padded = np.hstack([cost, np.where(np.eye(len(raw), dtype=bool), none[:, None],
+                                           np.inf)])
+        rows, cols = linear_sum_assignment(padded)
+        chosen = dict(zip(rows, cols))
+        pairs = [(k, j) for k, j in chosen.items() if j < n_landmarks
+                 and lm_places[j, 2] > 0.3 and np.isfinite(raw[k, 2])]
+        if len(pairs) < 3:
+            break
+        height = REFERENCE_HEIGHT * float(np.median([raw[k, 2] / lm_places[j, 2]
+                                                     for k, j in pairs]))
+    return chosen, place, delta, used, float(padded[rows, cols].sum())
 
 
 def _names_it(side: str | None, keys: tuple[str, ...], landmark: str) -> bool:
@@ -439,7 +455,7 @@ def _clusters(entries: list[DraftEntry], groups: list[list[int]], told, place: n
         votes = [_named_segment(told[k], catalogue) for k in family] or \
             [catalogue[entries[k].landmark].segment for k in group if entries[k].by_name] or \
             [catalogue[entries[k].landmark].segment for k in group
-             if entries[k].landmark and entries[k].confidence >= 0.45]
+             if entries[k].landmark and entries[k].confidence >= LOW_CONFIDENCE]
         votes = [v for v in votes if v]
         centre = np.nanmean(place[group], axis=0)
         segment = max(set(votes), key=votes.count) if votes else \
@@ -447,12 +463,12 @@ def _clusters(entries: list[DraftEntry], groups: list[list[int]], told, place: n
         for k in group:
             e = entries[k]
             if k not in family and e.landmark and (e.by_name or (
-                    e.confidence >= 0.45 and catalogue[e.landmark].segment == segment)):
+                    e.confidence >= LOW_CONFIDENCE and catalogue[e.landmark].segment == segment)):
                 continue
             if e.landmark:
                 e.evidence.append(f"not {e.landmark}: " + (
                     "one of a numbered family" if k in family else "too far from it"
-                    if e.confidence < 0.45 else f"its rigid group rides on {segment}"))
+                    if e.confidence < LOW_CONFIDENCE else f"its rigid group rides on {segment}"))
             e.landmark, e.segment, e.confidence, e.by_name = None, segment, 0.5, False
             e.evidence.append(f"a tracking marker of a {len(group)}-marker rigid group on "
                               f"{segment}")
@@ -476,7 +492,7 @@ def _where(place: np.ndarray) -> str:
             f"{abs(x) * 100:.0f} cm {'forward' if x > 0 else 'back'} (1.75 m body)")
 
 
-def _marker_labels(trial: Trial) -> list[str]:
+def marker_labels(trial: Trial) -> list[str]:
     """The labels of ``trial`` that are markers (not model outputs, not computed points, not
     unlabelled, seen in 10 % of the frames), without their subject prefix."""
     computed = computed_points(trial, numbered_candidates(trial))

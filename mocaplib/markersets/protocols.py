@@ -238,6 +238,8 @@ class Protocol:
     present for a trial to be usable, on top of the ``required`` markers. ``fallback_starts``
     (``[cycles] fallback_starts``): the events a cycle may start at, in order, when a capture
     shows fewer than two left toe-offs (:mod:`mocaplib.gait.cycles`); empty: none.
+    ``drafted``: the file says ``drafted = true`` (``mocaplib protocol draft`` and the build
+    write it; a technician who has checked the entries deletes the line).
     """
 
     name: str
@@ -246,6 +248,15 @@ class Protocol:
     path: str
     any_of: tuple[tuple[str, tuple[str, ...]], ...] = ()
     fallback_starts: tuple[str, ...] = ()
+    drafted: bool = False
+
+    @property
+    def origin(self) -> str:
+        """Where the protocol comes from: ``"drafted"`` (:attr:`drafted`), ``"shipped"`` (the
+        package's folder) or ``"user"`` (a user's folder or path)."""
+        if self.drafted:
+            return "drafted"
+        return "shipped" if Path(self.path).parent == SHIPPED_PROTOCOLS else "user"
 
     @property
     def labels(self) -> list[str]:
@@ -453,9 +464,12 @@ def _load_protocol(path: Path, parents: tuple[str, ...]) -> Protocol:
                      if n > 1)
     if clashes:
         raise ProtocolError(f"labels or aliases used twice: {', '.join(clashes)}", path=path)
+    drafted = data.get("drafted", False)
+    if not isinstance(drafted, bool):
+        raise ProtocolError(f"drafted must be true or false, got {drafted!r}", path=path)
     return Protocol(str(data.get("name", path.stem)), str(data.get("description", "")),
                     tuple(markers.values()), os.fspath(path), tuple(groups.items()),
-                    _fallback_starts(_table(data, "cycles", path), path, fallback))
+                    _fallback_starts(_table(data, "cycles", path), path, fallback), drafted)
 
 
 def _fallback_starts(table: dict, path: Path, inherited: tuple[str, ...]) -> tuple[str, ...]:
