@@ -28,6 +28,7 @@ from ..library.document import DIAGNOSTICS_FORMAT
 from ..library.format import Library, assemble_library, diagnostics_path, json_text, to_json_data
 from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
+from .drafting import draft_missing_protocols
 from .sessions import plan_captures
 from .settings import BuildSettings
 from .threads import pinned
@@ -173,7 +174,8 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
           jobs: int = 1, scheduler: str | None = None, cache_dir: str | os.PathLike | None = None,
           progress: bool = True,
           process: Callable[[str, BuildSettings], CaptureResult] | None = None,
-          capture_timeout: float | None = CAPTURE_TIMEOUT_S) -> BuildResult:
+          capture_timeout: float | None = CAPTURE_TIMEOUT_S,
+          drafts_dir: str | os.PathLike | None = None) -> BuildResult:
     """Process every capture and assemble the library.
 
     Parameters
@@ -202,6 +204,10 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         Seconds a capture may run in a worker process (``jobs`` > 1) before the worker is
         ended and the capture fails alone (stage ``worker``); None: no limit. Captures run in
         this process (``jobs=1``) or on a Dask cluster have no limit.
+    drafts_dir
+        Folder to draft protocols into for the captures no protocol serves
+        (:mod:`mocaplib.build.drafting`; the library's settings list them as
+        ``drafted_protocols``); None: such captures fail at their protocol.
 
     Returns
     -------
@@ -235,8 +241,11 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         offsets = pinned(forward_offsets, pool)
         planned = [replace(p, heading_offsets=offsets) if p is pool else p for p in planned]
         pool = replace(pool, heading_offsets=offsets)
-    results: dict[int, CaptureResult] = {}
     notes: list[str] = []
+    drafted: dict[str, str] = {}
+    if drafts_dir is not None:
+        planned, notes, drafted = draft_missing_protocols(paths, planned, drafts_dir)
+    results: dict[int, CaptureResult] = {}
     cache = None if cache_dir is None else Path(cache_dir)
     for i, path in enumerate(paths):
         if cache is not None:
@@ -269,7 +278,9 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     captures = [results[i] for i in range(len(paths))]
     _unique_entry_ids(captures)
     library = assemble_library([e for c in captures for e in c.entries],
-                               settings=pool.to_dict(), qc_thresholds=pool.qc_thresholds)
+                               settings={**pool.to_dict(), **(
+                                   {"drafted_protocols": drafted} if drafted else {})},
+                               qc_thresholds=pool.qc_thresholds)
     return BuildResult(library, captures, pool, time.perf_counter() - started, notes,
                        [str(folder) for folder in unlisted])
 

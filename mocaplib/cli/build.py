@@ -123,7 +123,8 @@ def _run(args) -> int:
     cache_dir = None if args.no_cache else Path(args.cache_dir or output.parent / ".mocaplib-cache")
     result = build_library(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                            cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty(),
-                           capture_timeout=args.capture_timeout)
+                           capture_timeout=args.capture_timeout,
+                           drafts_dir=output.parent / DRAFTS_FOLDER)
     result.unlisted += [str(folder) for folder in unlisted]   # the build got the files found
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry
