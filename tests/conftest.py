@@ -115,6 +115,9 @@ SLOW = {
     ("test_mirror_build.py", "test_the_right_turns_of_a_real_session_gain_left_turns"),
     ("test_clusters.py", "test_a_cluster_capture_has_rigid_plates_and_no_static_only_markers"),
     ("test_cli_fit.py", "test_fit_takes_the_static_that_shows_the_subject"),
+    ("test_zero_config.py", "test_a_drafted_protocol_gives_the_shipped_protocols_entry"),
+    ("test_zero_config.py", "test_the_drafted_protocols_are_written_beside_the_library_and_recorded"),
+    ("test_zero_config.py", "test_a_cluster_set_without_static_builds_with_its_drafted_protocol"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

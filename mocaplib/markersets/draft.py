@@ -458,8 +458,13 @@ def _clusters(entries: list[DraftEntry], groups: list[list[int]], told, place: n
              if entries[k].landmark and entries[k].confidence >= LOW_CONFIDENCE]
         votes = [v for v in votes if v]
         centre = np.nanmean(place[group], axis=0)
-        segment = max(set(votes), key=votes.count) if votes else \
-            lm_segments[int(np.argmin(np.linalg.norm(lm_places - centre, axis=1)))]
+        gap = np.linalg.norm(lm_places - centre, axis=1)           # (L,) to each landmark
+
+        def nearness(segment):          # ties of votes go to the segment nearest the group
+            return -min(g for g, s in zip(gap, lm_segments) if s == segment)
+
+        segment = max(sorted(set(votes)), key=lambda v: (votes.count(v), nearness(v))) \
+            if votes else lm_segments[int(np.argmin(gap))]
         for k in group:
             e = entries[k]
             if k not in family and e.landmark and (e.by_name or (

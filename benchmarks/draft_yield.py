@@ -1,0 +1,110 @@
+"""Benchmark: how right ``mocaplib protocol draft`` is on the real files, and what a build
+without any protocol written by hand yields.
+
+For each real file (``shared/data/c3d`` beside the repository, or ``$MOCAPLIB_SHARED_C3D``),
+drafts a protocol from the file alone and compares it, label by label, with the shipped
+protocol the file matches (:func:`mocaplib.markersets.draft_checks.draft_agreement`): the same
+landmark, the same segment, a wrong segment (and of those, on the other side), no guess. Twice:
+with the labels' names as evidence, and by place and motion alone (``use_names=False``).
+
+Then builds the folder twice, with the shipped protocols and with them hidden from detection
+(the build drafts a protocol per marker set, :mod:`mocaplib.build.drafting`), and compares the
+entries: per capture, whether each build gives one, and the largest velocity difference.
+Prints Markdown (``--markdown PATH`` writes it into a results page, :mod:`markdown_results`).
+
+    python benchmarks/draft_yield.py [--markdown docs/results/draft_yield.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+import mocaplib.markersets.matching as matching  # noqa: E402
+from mocaplib.build.drafting import DRAFTS_FOLDER  # noqa: E402
+from mocaplib.build.pipeline import build_library  # noqa: E402
+from mocaplib.build.settings import BuildSettings  # noqa: E402
+from mocaplib.io.c3d import read_c3d  # noqa: E402
+from mocaplib.markersets.draft import draft_protocol  # noqa: E402
+from mocaplib.markersets.draft_checks import draft_agreement  # noqa: E402
+from mocaplib.markersets.protocols import FOLDERS_VARIABLE, list_protocols, load_protocol  # noqa: E402
+
+REAL_FILES = Path(os.environ.get("MOCAPLIB_SHARED_C3D",
+                                 Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"))
+
+
+def agreement_table(files: list[Path]) -> None:
+    print("| file | protocol | labels | by name and place: landmark / segment / wrong "
+          "(other side) / none | by place and motion alone |")
+    print("|---|---|---:|---|---|")
+    totals = {True: [0] * 5, False: [0] * 5}
+    for path in files:
+        trial = read_c3d(path)
+        match = matching.detect_protocol(trial)
+        cells = []
+        for use_names in (True, False):
+            a = draft_agreement(draft_protocol(trial, use_names=use_names).entries, trial, match)
+            row = (a.landmark, a.segment, a.wrong, a.other_side, a.unassigned)
+            totals[use_names] = [t + x for t, x in zip(totals[use_names], row)]
+            cells.append(f"{a.landmark} / {a.segment} / {a.wrong} ({a.other_side}) / "
+                         f"{a.unassigned}")
+        print(f"| {path.relative_to(REAL_FILES).as_posix()} | {match.protocol.name} | "
+              f"{a.total} | {cells[0]} | {cells[1]} |")
+    cells = [f"{t[0]} / {t[1]} / {t[2]} ({t[3]}) / {t[4]}" for t in (totals[True],
+                                                                       totals[False])]
+    print(f"| all | | {sum(totals[True]) - totals[True][3]} | {cells[0]} | {cells[1]} |")
+
+
+def _user_protocols():
+    return [name for name in list_protocols() if load_protocol(name).origin != "shipped"]
+
+
+def build_table() -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        shipped = build_library([REAL_FILES], BuildSettings(), progress=False)
+        real_list = matching.list_protocols
+        os.environ[FOLDERS_VARIABLE] = ""
+        matching.list_protocols = _user_protocols
+        try:
+            drafted = build_library([REAL_FILES], BuildSettings(), progress=False,
+                                    drafts_dir=Path(folder) / DRAFTS_FOLDER)
+        finally:
+            matching.list_protocols = real_list
+        n_drafts = len(list((Path(folder) / DRAFTS_FOLDER).glob("*.toml")))
+    ours = {c.file: c for c in drafted.captures}
+    print(f"\n{n_drafts} protocols drafted (one per label set). Entries per capture, with the "
+          "shipped protocols and with them hidden (drafted), and the largest difference of "
+          "v̂ (m/s), ω̂ (rad/s), v̂_l (m/s) between the two:\n")
+    print("| capture | shipped | drafted | largest velocity difference |")
+    print("|---|---:|---:|---:|")
+    for c in shipped.captures:
+        d = ours[c.file]
+        diff = max((abs(getattr(a, k) - getattr(b, k)) for a, b in zip(c.entries, d.entries)
+                    for k in ("v", "omega", "v_l")), default=None)
+        print(f"| {Path(c.file).name} | {len(c.entries)} | {len(d.entries)} | "
+              f"{'' if diff is None else f'{diff:.4f}'} |")
+    print(f"| all | {len(shipped.library)} | {len(drafted.library)} | |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_markdown_option(parser)
+    args = parser.parse_args()
+    files = sorted(REAL_FILES.rglob("*.c3d"))
+    if not files:
+        sys.exit(f"no real files at {REAL_FILES}")
+    warnings.simplefilter("ignore")
+    with markdown_page(args.markdown, __file__):
+        agreement_table(files)
+        build_table()
+
+
+if __name__ == "__main__":
+    main()
