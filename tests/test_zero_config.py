@@ -23,14 +23,6 @@ from mocaplib.markersets.protocols import FOLDERS_VARIABLE, list_protocols, load
 #: put a shoulder or pelvis marker on another landmark moves them by centimetres per second.
 VELOCITY_TOLERANCE = 0.01
 
-#: Captures whose drafted build misses the shipped build's entry, with what was measured.
-NO_DRAFTED_ENTRY = {
-    "ezc3d_testfiles/BTS.c3d": "its only cycle fails QC with the drafted protocol: marker_max_m "
-                               "0.0419 > 0.04 ('l met'); its shank clusters are tracking markers "
-                               "there, catalogue entries in the shipped protocol",
-}
-
-
 def _user_protocols():
     return [name for name in list_protocols() if load_protocol(name).origin != "shipped"]
 
@@ -73,9 +65,7 @@ def _shared_names():
     return [p.relative_to(SHARED_C3D).as_posix() for p in real_files()]
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=NO_DRAFTED_ENTRY[name]))
-    if name in NO_DRAFTED_ENTRY else name for name in _shared_names() or ["(no shared files)"]])
+@pytest.mark.parametrize("name", _shared_names() or ["(no shared files)"])
 def test_a_drafted_protocol_gives_the_shipped_protocols_entry(shared_builds, shared_c3d, name):
     out, shipped, drafted = shared_builds
     file = (shared_c3d / name).name
@@ -118,12 +108,6 @@ def test_a_shipped_protocol_that_serves_is_not_redrafted(real_c3d):
     assert not needs_draft(match) and needs_draft(None)
 
 
-#: The synthetic cluster-set walks without a static: measured with the drafted protocol and
-#: with the shipped cluster_fullbody one alike.
-CLUSTER_NO_ENTRY = {"side_left": "its one complete cycle fails QC, marker_max_m 0.066 > 0.04 "
-                                 "(RHEE), with the shipped cluster_fullbody protocol too"}
-
-
 @pytest.fixture(scope="module")
 def cluster_build(tmp_path_factory):
     """The synthetic cluster-set captures built with no static and no protocol given, the
@@ -143,10 +127,7 @@ def cluster_build(tmp_path_factory):
     return folder, result
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=CLUSTER_NO_ENTRY[name]))
-    if name in CLUSTER_NO_ENTRY else name
-    for name in ("walk", "curve_left", "curve_right", "side_left")])
+@pytest.mark.parametrize("name", ["walk", "curve_left", "curve_right", "side_left"])
 def test_a_cluster_set_without_static_builds_with_its_drafted_protocol(cluster_build, name):
     folder, result = cluster_build
     assert len(result.settings.statics) == 0
