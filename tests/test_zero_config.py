@@ -103,6 +103,19 @@ def test_a_kept_draft_is_matched_again_not_redrafted(tmp_path, real_c3d, hidden_
     assert matching.match_trial(read_c3d(walk)).protocol.path == str(kept)
 
 
+def test_the_build_command_drafts_writes_and_says_so(tmp_path, real_c3d, hidden_shipped,
+                                                     capsys):
+    walk = real_c3d("motonms_unipd/Walking1.c3d")
+    out = tmp_path / "lib.json"
+    # one entry: the library is written, and exit 1 says it is too small to blend
+    assert main(["build", str(walk), "-o", str(out), "--no-cache", "-q", "--qc", "waive"]) == 1
+    printed = capsys.readouterr().out
+    (drafted,) = (out.parent / DRAFTS_FOLDER).glob("drafted_*.toml")
+    assert f"drafted protocol {drafted.stem}" in printed and str(drafted) in printed
+    assert json.loads(out.read_text())["settings"]["drafted_protocols"] == {
+        drafted.stem: str(drafted)}
+
+
 def test_a_shipped_protocol_that_serves_is_not_redrafted(real_c3d):
     match = matching.detect_protocol(read_c3d(real_c3d("motonms_unipd/Walking1.c3d")))
     assert not needs_draft(match) and needs_draft(None)

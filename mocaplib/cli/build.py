@@ -115,6 +115,7 @@ def _check_usage(args):
 
 
 def _run(args) -> int:
+    from ..build.drafting import DRAFTS_FOLDER
     from ..build.pipeline import build_library
     from ..library.validation import validate_library
 

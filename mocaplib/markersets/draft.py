@@ -330,6 +330,10 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
         static_labels = [x for x in marker_labels(static)
                          if normalise_label(x) not in {normalise_label(y) for y in labels}]
     every = labels + static_labels
+    if not every:
+        raise ProtocolError("no marker is seen in 10 % of the frames: nothing to draft from",
+                            path=trial.source, hint="draft from a capture whose markers were "
+                                                    "tracked (`mocaplib inspect` shows the gaps)")
     told = [name_landmarks(x) if use_names else (label_stem(x)[0], ()) for x in every]
     raw, how = _places(trial, every, told)
     if static is not None:                      # the static shows the standing body
