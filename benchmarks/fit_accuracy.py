@@ -354,12 +354,12 @@ def ankle_pivot(plan_path: Path) -> None:
     (midway between the malleoli) on the static, the RMS errors (deg) and, on ``run_3p0``, the
     inversion error's mean in swing and in stance and its correlation with the foot's true
     rotation about the shank (which the fit's ankle has no DOF for)."""
-    from mocaplib.model import calibration
+    from mocaplib.model import calibration, joint_centres
     from mocaplib.synth.truth import extra_angles
 
     inversion, knee = DOF_NAMES.index("ankle_inversion_l"), DOF_NAMES.index("knee_flexion_l")
     foot = SEGMENT_NAMES.index("foot_l")
-    neutral_shifts = calibration.neutral_shifts
+    neutral_shifts = joint_centres.neutral_shifts
     print("| generator's ankle | hips | fitted ankle above the true centre (mm) "
           "| knee_flexion_l walk / run | ankle_inversion_l walk / run "
           "| run: inversion error in swing / stance (mean) | run: correlation with the foot's "
@@ -374,15 +374,16 @@ def ankle_pivot(plan_path: Path) -> None:
             turn = extra_angles(run.body, run.motion.pose)["ankle_rotation_l"]
             for hips_label, hips in ANKLE_HIPS:
                 for raise_ in ANKLE_RAISES:
-                    def raised(skeleton, q, centres, raise_=raise_):
-                        out = neutral_shifts(skeleton, q, centres)
+                    def raised(skeleton, q, centres, joints, raise_=raise_):
+                        out = neutral_shifts(skeleton, q, centres, joints)
                         for name in ("foot_l", "foot_r"):
                             x, y, z = out.get(name, (0.0, 0.0, 0.0))
                             out[name] = (x, y, z + raise_)
                         return out
-                    with mock.patch.object(calibration, "NEUTRAL_CENTRES",
-                                           calibration.NEUTRAL_CENTRES + hips), \
-                            mock.patch.object(calibration, "neutral_shifts", raised):
+                    with mock.patch.object(calibration, "neutral_joints",
+                                           lambda *_, hips=hips:
+                                           joint_centres.NEUTRAL_CENTRES + hips), \
+                            mock.patch.object(joint_centres, "neutral_shifts", raised):
                         model = calibrate(rest.trial, static=rest.trial, static_pose="neutral")
                         errors = {name: np.degrees(
                             fit(captures[name].trial, model).q

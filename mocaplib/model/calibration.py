@@ -66,7 +66,9 @@ Steps (all in metres, world Z up):
    joint angle 0 (:func:`neutral_offsets`). Only
    the root pose is fitted to the static frames; the shoulders and elbows are moved onto
    their anatomical centres of step 3 (:func:`neutral_shifts`; the elbow's from its lateral
-   landmark, :data:`NEUTRAL_CHORD_JOINTS`); and each marker's offset is then measured
+   landmark, :data:`NEUTRAL_CHORD_JOINTS`), and the hips, knees and ankles too when the
+   motion follows the legs by clusters alone (:func:`neutral_joints`); and each marker's
+   offset is then measured
    directly in its segment frame (the mean of ``R_s^T (x − t_s)``, no turning onto the
    catalogue), so a marker placed off its landmark keeps its true offset and the placement
    error does not become a joint-angle offset. Step 5 is then skipped: the model is the
@@ -102,10 +104,10 @@ from ..trial import Trial
 from .anatomy import flat_soles, leg_frames, offsets_in_frames
 from .calibration_checks import (MIN_PRESENCE, check_sides, check_static_markers, check_upright,
                                  refuse_unmarked_pelvis)
-from .joint_centres import (ANATOMICAL_LENGTHS, anatomical_frames, estimate_height,
-                            functional_knee_turns, joint_centres, joint_shifts, landmark_markers,
-                            lengths_from_centres, neutral_offsets, register_offsets, shoulder_drops,
-                            shoulder_shifts)
+from .joint_centres import (ANATOMICAL_LENGTHS, NEUTRAL_CENTRES, anatomical_frames,
+                            estimate_height, functional_knee_turns, joint_centres, joint_shifts,
+                            landmark_markers, lengths_from_centres, neutral_offsets,
+                            register_offsets, shoulder_drops, shoulder_shifts)
 from .motion import apply_repairs
 from .repairs import find_repairs
 from .solver import solve_poses
@@ -149,6 +151,15 @@ FOLLOWING_IN_REFINEMENT = ("forearm_l", "forearm_r")
 #: motion alone within 1.1°, but the right shoulders 5.2-6.3° more; from both, elbows 1.6-4.3°
 #: and shoulders within 4.3° (docs/guide/fitting.md, The arms).
 PLACED_ON_STATIC_AND_MOTION = ("humerus_l", "humerus_r", "forearm_l", "forearm_r")
+#: The leg joints a static in the neutral pose also moves to their anatomical centres (hips
+#: Harrington's, knees and ankles the epicondyles' and malleoli's midpoints) when the motion
+#: follows the thighs and shanks by tracking markers alone (:func:`neutral_joints`): nothing
+#: but the model's centres then ties the clusters' motion to the joints. At the nominal layout
+#: the synthetic cluster set's knees and ankles sit 24-27 mm above their landmarks and its run
+#: reads ankle flexion 9.0° RMS off (walk 4.3°), placed 1.6° (0.9°)
+#: (``python benchmarks/cluster_accuracy.py``). A set whose knee and ankle markers stay on
+#: for the motion keeps the legs' nominal layout (:data:`NEUTRAL_CENTRES`).
+NEUTRAL_LEG_CENTRES = ("femur_r", "femur_l", "tibia_r", "tibia_l", "foot_r", "foot_l")
 
 
 def choose_protocol(trial: Trial, protocol: Protocol | str | None = None) -> Protocol:
@@ -264,7 +275,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
                         "flexion axis" for side in ("l", "r") if (f"tibia_{side}", 0.0) in centres})
         offsets, rms, poses, skeleton = neutral_offsets(
             skeleton, X, segments, nominal=nominal_scaled, heading_offset=heading_offset,
-            centres=centres)
+            centres=centres, joints=neutral_joints(markers, segments, X_motion))
         model = SubjectModel(skeleton, proto, labels, segments, offsets, locked, left_out, rms,
                              [rms], cal.source, swapped, methods, static_window_s=window)
         _check_measured(model, cal)
@@ -381,6 +392,20 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     best.history = history
     _check_measured(best, cal)
     return _hold_unobservable(best, best_poses)
+
+
+def neutral_joints(markers: list, segments: np.ndarray, X_motion: np.ndarray
+                   ) -> tuple[str, ...]:
+    """The joints a static in the neutral pose moves to their anatomical centres (segment
+    names): the arms' (:data:`NEUTRAL_CENTRES`), and the legs' (:data:`NEUTRAL_LEG_CENTRES`)
+    when the motion ``X_motion`` (F, M, 3) of the static's ``markers`` (M,, on ``segments``)
+    shows tracking markers on the thighs or shanks and no landmark marker there."""
+    legs = np.flatnonzero(np.isin(segments, [SEGMENT_NAMES.index(f"{name}_{side}")
+                                             for name in ("femur", "tibia") for side in "lr"]))
+    seen = np.isfinite(X_motion[:, legs, 0]).mean(axis=0) >= MIN_PRESENCE
+    tracking = np.array([markers[i].tracking for i in legs], dtype=bool)
+    clusters = bool((seen & tracking).any() and not (seen & ~tracking).any())
+    return NEUTRAL_CENTRES + (NEUTRAL_LEG_CENTRES if clusters else ())
 
 
 def unobservable_dofs(model: SubjectModel, q: np.ndarray) -> dict[str, float]:

@@ -22,7 +22,9 @@ from .solver import initial_pose, solve_poses
 
 #: Joints a static in the neutral pose moves to their anatomical centres (:func:`neutral_shifts`):
 #: the shoulders (from the acromion) and the elbows. The hips, knees and ankles keep the
-#: nominal layout. Moved to Harrington's centres, the hips lower the knee's flexion error
+#: nominal layout while the motion's markers mark the knees and ankles (else
+#: :data:`mocaplib.model.calibration.NEUTRAL_LEG_CENTRES`). Moved to Harrington's centres, the
+#: hips lower the knee's flexion error
 #: (exact markers of ``run_3p0``: 3.6° to 2.4° RMS) but take the leg down with them, the ankle
 #: from 18 mm above its true centre to 7 mm below, and ankle inversion's error grows as that
 #: pivot nears the foot markers (2.5° to 6.9°): the fit's ankle has no DOF for the foot's turn
@@ -89,7 +91,8 @@ _CHORD_JOINTS = ("tibia", "foot", "forearm")
 
 def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
                     nominal: np.ndarray, heading_offset: float = 0.0,
-                    centres: dict[tuple[str, float], np.ndarray] | None = None
+                    centres: dict[tuple[str, float], np.ndarray] | None = None,
+                    joints: tuple[str, ...] = NEUTRAL_CENTRES
                     ) -> tuple[np.ndarray, float, np.ndarray, Skeleton]:
     """Marker offsets (M, 3) measured on a static trial in the anatomical neutral pose.
 
@@ -100,7 +103,7 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     (radians, counter-clockwise), then each offset is the mean of ``R_s^T (x − t_s)`` over the
     frames where its marker is seen (not turned onto the catalogue: the pose, not the layout,
     defines the segment frames). With the anatomical joint ``centres`` (:func:`joint_centres`)
-    the skeleton's shoulders and elbows are first moved onto them (:func:`neutral_shifts`).
+    the skeleton's ``joints`` (segment names) are first moved onto them (:func:`neutral_shifts`).
     Returns the offsets, the RMS (m) of the static markers about the neutral model with them,
     the poses (F, D) and the skeleton.
     """
@@ -110,7 +113,7 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
     q = solve_poses(skeleton, X_known, segments, known, q0=q0, free=root, smoothing=0.0).q
     q[:, ROOT_HEADING] += heading_offset
     if centres:
-        skeleton = Skeleton(skeleton.lengths, neutral_shifts(skeleton, q, centres))
+        skeleton = Skeleton(skeleton.lengths, neutral_shifts(skeleton, q, centres, joints))
     T = skeleton.forward(q)
     offsets = register_offsets(skeleton, q, X, segments, nominal=nominal, align=(), transforms=T)
     residual = np.linalg.norm(skeleton.points(q, segments, offsets, transforms=T) - X, axis=2)
@@ -118,10 +121,11 @@ def neutral_offsets(skeleton: Skeleton, X: np.ndarray, segments: np.ndarray, *,
 
 
 def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
-                   centres: dict[tuple[str, float], np.ndarray]
+                   centres: dict[tuple[str, float], np.ndarray],
+                   joints: tuple[str, ...] = NEUTRAL_CENTRES
                    ) -> dict[str, tuple[float, float, float]]:
-    """:attr:`Skeleton.shifts` (metres) that put the shoulders and elbows
-    (:data:`NEUTRAL_CENTRES`) at their anatomical centres on a static in the neutral pose.
+    """:attr:`Skeleton.shifts` (metres) that put the ``joints`` (segment names, each after its
+    parent) at their anatomical centres on a static in the neutral pose.
 
     ``q`` (F, D) the static's poses (every joint angle 0, so every segment's frame is the
     root's), ``centres`` the anatomical joint centres (:func:`joint_centres`, world, (F, 3)).
@@ -133,7 +137,7 @@ def neutral_shifts(skeleton: Skeleton, q: np.ndarray,
     """
     T = skeleton.forward(q)
     frames = {}
-    for name in NEUTRAL_CENTRES:
+    for name in joints:
         if (name, 0.0) in centres:
             parent = SEGMENT_NAMES.index(SEGMENTS[SEGMENT_NAMES.index(name)].parent)
             frames.setdefault(SEGMENT_NAMES[parent], (T[:, parent, :3, :3], T[:, parent, :3, 3]))
