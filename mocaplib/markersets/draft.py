@@ -18,7 +18,9 @@ By place
 Which markers move together
     Markers whose distances stay constant over the motion (standard deviation under
     :data:`RIGID_SD`) ride on one rigid body: a group of three or more that no landmark fits
-    is a cluster, its markers tracking markers on the segment nearest to it.
+    is a cluster, its markers tracking markers on the segment nearest to it. The motion also
+    finds the head (:mod:`mocaplib.markersets.draft_motion`): a compact rigid cluster above
+    every other one, whose markers are then kept off the trunk's landmarks.
 
 The labels and landmarks are paired by one assignment (Hungarian, ``scipy``) of least total
 cost: the distance between the marker and the landmark, less :data:`NAME_BONUS` when the name
@@ -45,6 +47,7 @@ from ..numeric import nanmedian
 from ..statics import STANDING_EXTENT
 from ..trial import Trial, normalise_label, require_markers
 from .draft_checks import catalogue_places, check_draft
+from .draft_motion import head_cluster, motion_cost, rigid_clusters
 from .matching import computed_points, is_model_output, numbered_candidates
 from .protocols import (REFERENCE_HEIGHT, load_landmarks, protocol_folders, read_protocol_toml,
                         role_landmarks)
@@ -349,14 +352,21 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     none = np.where(has_name, NONE_COST + NAME_BONUS + NAMED_SLACK, NONE_COST)
     mismatch = NAME_MISMATCH * has_name[:, None]
     heads = any(k in ("FRONT_HEAD", "BACK_HEAD") for _, keys in told for k in keys)
-    # the top marker is the head's (or, without a head marker named, C7's or the shoulders'):
-    # without names both are tried, and the assignment of least cost is kept
-    tops = (0.95,) if heads else (0.83,) if use_names else (0.95, 0.83)
-    trials = [_assign(raw, np.nanmax(raw[:, 2]) / top, lm_places, named, mismatch, penalty,
-                      none) for top in tops]
-    chosen, place, delta, used, _ = min(trials, key=lambda t: t[-1])
+    # the top marker is the head's when a head marker is named or the motion finds the head
+    # (else C7's or the shoulders'): without either both are tried, the least cost is kept
     moving = _motion_markers(trial, every)
     motion_groups = rigid_groups(moving) if _moves(moving) else []
+    clusters, weights = rigid_clusters(moving) if motion_groups else ([], None)
+    head = head_cluster(moving, clusters)
+    tops = (0.95,) if heads or head is not None else (0.83,) if use_names else (0.95, 0.83)
+    extra = 0.0
+    if head is not None:
+        segments = [None] * len(clusters)
+        segments[head] = "head"
+        extra = motion_cost(weights, clusters, segments, lm_segments)
+    trials = [_assign(raw, np.nanmax(raw[:, 2]) / top, lm_places, named, mismatch,
+                      penalty + extra, none) for top in tops]
+    chosen, place, delta, used, _ = min(trials, key=lambda t: t[-1])
     in_group = {k: g for g in motion_groups for k in g}
     entries = []
     for k, label in enumerate(every):
