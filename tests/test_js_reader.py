@@ -13,14 +13,17 @@ import numpy as np
 import pytest
 
 from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.document import FORMAT_VERSION
 from mocaplib.library.format import assemble_library, load_library
+from mocaplib.library.validation import validate_library
 from mocaplib.library.phase import start_later
 
 from test_library import D, entry
 
 JS = Path(__file__).resolve().parents[1] / "js"
+FIXTURES = JS / "test" / "fixtures"
 NODE = shutil.which("node")
-pytestmark = pytest.mark.skipif(NODE is None, reason="node is not installed")
+needs_node = pytest.mark.skipif(NODE is None, reason="node is not installed")
 #: Both evaluate the same double-precision formulas; only the order of additions differs.
 TOLERANCE = 1e-9
 
@@ -55,6 +58,7 @@ def library_with_ramps_and_a_late_start(tmp_path):
     return load_library(path), path
 
 
+@needs_node
 def test_the_js_reader_reads_angles_and_blends_as_mocaplib_does(tmp_path, node_modules):
     library, path = library_with_ramps_and_a_late_start(tmp_path)
     cs = ControlSpace.from_library(library)
@@ -84,6 +88,7 @@ def test_the_js_reader_reads_angles_and_blends_as_mocaplib_does(tmp_path, node_m
     assert any("capture02_c0" in b["entries"] for b in report["blends"][:-1])
 
 
+@needs_node
 def test_node_reads_every_number_as_python_does(tmp_path, node_modules):
     # JSON.parse in Node, printed back as ECMAScript does (JCS's number text): the same doubles
     _, path = library_with_ramps_and_a_late_start(tmp_path)
@@ -99,11 +104,34 @@ def test_node_reads_every_number_as_python_does(tmp_path, node_modules):
     assert json.loads(done.stdout) == python and len(python) > 1000
 
 
+@needs_node
 def test_the_js_reader_refuses_what_mocaplib_refuses(tmp_path, node_modules):
     _, path = library_with_ramps_and_a_late_start(tmp_path)
     document = json.loads(path.read_text())
-    document["format_version"] = 4
+    document["format_version"] = 5
     path.write_text(json.dumps(document))
     done = subprocess.run([NODE, str(JS / "mocaplib-library.js"), str(path)],
                           capture_output=True, text=True, timeout=60)
-    assert done.returncode == 1 and "format_version 4" in done.stderr
+    assert done.returncode == 1 and "format_version 5" in done.stderr
+
+
+def test_the_js_fixture_holds_what_mocaplib_answers_on_it():
+    # js/test/reader.test.js compares the reader with queries.json: it must be this mocaplib's
+    # answers on library.json, a valid library of this version (js/test/fixtures/make_fixtures.py)
+    library = load_library(FIXTURES / "library.json")
+    assert library.document["format_version"] == FORMAT_VERSION
+    assert validate_library(library) == []
+    cs = ControlSpace.from_library(library)
+    stored = json.loads((FIXTURES / "queries.json").read_text(encoding="utf-8"))
+    for q in stored:
+        res = cs.query(q["command"], gait=q["gait_asked"])
+        what = f"{q['command']} gait {q['gait_asked']}"
+        assert (bool(res.inside[0]), res.gait[0], bool(res.clamped[0])) == (
+            q["inside"], q["gait"], q["clamped"]), what
+        np.testing.assert_allclose(res.nearest[0], q["nearest"], rtol=0, atol=1e-12,
+                                   err_msg=what)
+        if q["inside"]:
+            assert [cs.ids[k] for k in res.entries[0]] == q["entries"], what
+            np.testing.assert_allclose(res.weights[0], q["weights"], rtol=0, atol=1e-12,
+                                       err_msg=what)
+    assert {q["gait"] for q in stored if q["inside"]} == {"walk", "run"}

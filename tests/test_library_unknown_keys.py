@@ -80,7 +80,7 @@ def test_pattern_parameters_stay_those_of_the_type(tmp_path):
 
 def test_an_unknown_format_version_is_refused(tmp_path):
     document = copy.deepcopy(with_poulaines().document)
-    document["format_version"] = 4
+    document["format_version"] = 5
     path = written(document, tmp_path)
     assert [p.where for p in validate_library(path)] == ["format_version"]
     with pytest.raises(LibraryError, match="format_version"):

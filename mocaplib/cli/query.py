@@ -137,6 +137,9 @@ def _run(args) -> int:
         print(f"  outside by {res.distance[0]:.3g} (normalised); nearest point of the "
               f"{res.gait[0]} cell: {_triple(res.nearest[0])}")
         print(f"  nearest entries: {', '.join(answer['nearest_entries'])}")
+        why = cs.impossible_text(res.points[0])
+        if why:
+            print(f"  {why}")
         if args.clamp:
             print("  blending at that point (--clamp)")
         else:

@@ -20,17 +20,20 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..library.document import NO_CHECKSUM_NOTE, checksum_status
+    from ..library.document import (NO_CHECKSUM_NOTE, checksum_status, read_document,
+                                    version_note)
     from ..library.validation import validate_library
     from ._common import LIBRARY_HINT, check_inputs, print_json
 
     check_inputs([args.library], hint=LIBRARY_HINT)
     problems = validate_library(args.library)
-    checksum = None if any(p.where == "file" for p in problems) else checksum_status(
-        args.library)
+    readable = not any(p.where == "file" for p in problems)
+    checksum = checksum_status(args.library) if readable else None
+    note = version_note(read_document(args.library)[0]) if readable else None
     if args.json:
         print_json({"file": args.library, "valid": not problems, "checksum": checksum,
-                    "problems": [{"where": p.where, "message": p.message} for p in problems]})
+                    "problems": [{"where": p.where, "message": p.message} for p in problems],
+                    **({"note": note} if note else {})})
         return 1 if problems else 0
     if problems:
         print(f"{args.library}: {len(problems)} problem(s)")
@@ -41,4 +44,6 @@ def _run(args) -> int:
                                           if checksum == "verified" else ""))
     if checksum == "absent":
         print(f"note: {NO_CHECKSUM_NOTE}")
+    if note:
+        print(f"note: {note}")
     return 1 if problems else 0

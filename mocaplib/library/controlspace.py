@@ -64,10 +64,10 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.locomotion import class_gait
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
-from .cells import build_cells, onto_cone, serve, union
+from .cells import HULL_TOLERANCE, build_cells, onto_cone, serve, union
 from .phase import from_left_toe_off
 from .triangulation import (DEGENERACY_HINT, Triangulation, degeneracy, delaunay_tetrahedra,
-                            locate, stack_padded, tetra_quality)
+                            outside_planes, stack_padded, tetra_quality)
 
 #: Axis names of the two control-space variants.
 AXES = {"tangential": ("v", "omega", "v_l"), "frontal": ("v_f", "omega", "v_l")}
@@ -308,7 +308,7 @@ class ControlSpace:
         cells = self._cells(gait)
         x = self.normalise(p)
         on_cone = self.normalise(onto_cone(p)) if self.variant == "tangential" else x
-        served = serve(cells, on_cone, locate(self.tri, x)[0] >= 0)
+        served = serve(cells, on_cone, outside_planes(self.tri, x) <= HULL_TOLERANCE)
         inside = served.simplex[:, 0] >= 0
         weights = np.full((len(p), 4), np.nan)
         w = np.clip(served.weights[inside], 0.0, None)
@@ -341,15 +341,32 @@ class ControlSpace:
 
     def outside_text(self, result: QueryResult, i: int = 0) -> str:
         """What a person needs about query ``i`` of ``result`` that no cell serves: how far it
-        is (normalised), the nearest point and gait, and the nearest entries."""
-        return (f"{tuple(np.round(result.points[i], 4))} is outside the control space by "
+        is (normalised), the nearest point and gait, the nearest entries and, when there is
+        one, :meth:`impossible_text`."""
+        text = (f"{tuple(np.round(result.points[i], 4))} is outside the control space by "
                 f"{result.distance[i]:.3g} (normalised); the nearest point of the "
                 f"{result.gait[i]} cell is {tuple(np.round(result.nearest[i], 4))}, the "
                 f"nearest entries {', '.join(self.nearest_ids(result.points[i]))}")
+        why = self.impossible_text(result.points[i])
+        return text + (f"; {why}" if why else "")
+
+    def impossible_text(self, point) -> str | None:
+        """Why no motion does the SI command ``point`` (3,) on the tangential axes when it
+        moves faster sideways than its speed (``|v̂_l| > v̂``), and where such commands are
+        asked; None for any other command."""
+        v, _, v_l = (float(x) for x in point)
+        if self.variant != "tangential" or abs(v_l) <= v * (1 + 1e-9):
+            return None
+        return (f"no motion moves faster sideways than its speed: v̂ is the speed along the "
+                f"path and v̂_l its lateral part, so |v̂_l| <= v̂ (here |{v_l:.4g}| > {v:.4g} "
+                f"m/s); to ask a forward and a sideways speed, use the frontal axes "
+                f"(v̂_f, ω̂, v̂_l): --axes frontal")
 
     def contains(self, points) -> np.ndarray:
-        """(Q,) bool: SI points (Q, 3) inside the hull."""
-        return locate(self.tri, self.normalise(np.atleast_2d(points)))[0] >= 0
+        """(Q,) bool: SI points (Q, 3) blended at themselves by :meth:`query`: inside a gait's
+        cell, not clamped onto one."""
+        res = self.query(np.atleast_2d(points))
+        return res.inside & ~res.clamped
 
     # ----------------------------------------------------------------- blending
     def blend(self, result: QueryResult) -> Blend:
@@ -397,10 +414,13 @@ def stored_tetrahedra(library) -> dict | None:
     span no 3-D control space (or no gait has a cell).
 
     Keys: ``ids`` (the control space's entries: chosen, with finite velocities and period, in
-    the file's order) and ``simplices`` (S, 4) row numbers of ``ids``: the tetrahedra of each
-    gait's cell (:mod:`mocaplib.library.cells`), walks first; a point's normalised coordinates
-    are its (v, omega, v_l), side-steps put on the cone, / ``control_space.scale``
-    (:meth:`ControlSpace.from_library`, tangential axes).
+    the file's order), ``simplices`` (S, 4) row numbers of ``ids``: the tetrahedra of each
+    gait's cell (:mod:`mocaplib.library.cells`), walks first, ``gaits`` (S,) the gait of each
+    tetrahedron's cell, and ``hull`` (H, 3) row numbers of ``ids``: the boundary triangles of
+    all the entries' points, which tell a command between the cells from one outside. A
+    point's normalised coordinates are its (v, omega, v_l) / ``control_space.scale``, in the
+    cells with the side-steps put on the cone (:meth:`ControlSpace.from_library`, tangential
+    axes).
     """
     try:
         cs = ControlSpace.from_library(library)
@@ -408,7 +428,9 @@ def stored_tetrahedra(library) -> dict | None:
         return None
     if not cs.cells:
         return None
-    return {"ids": list(cs.ids), "simplices": union(cs.cells.values()).simplices.tolist()}
+    return {"ids": list(cs.ids), "simplices": union(cs.cells.values()).simplices.tolist(),
+            "gaits": [c.gait for c in cs.cells.values() for _ in c.tri.simplices],
+            "hull": cs.tri.convex_hull.tolist()}
 
 
 def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:

@@ -184,6 +184,19 @@ def locate(tri: Triangulation, x: np.ndarray, *, tol: float = 1e-9, chunk: int =
     return simplex, weights
 
 
+def outside_planes(tri: Triangulation, x: np.ndarray) -> np.ndarray:
+    """Largest signed distance (Q,) of points x (Q, 3) beyond the planes of the boundary
+    triangles of ``tri`` (each oriented away from the centroid of its points); <= 0 inside the
+    convex hull, the distance beyond the farthest facet plane outside it."""
+    A, B, C = (tri.points[tri.convex_hull[:, i]] for i in range(3))
+    n = np.cross(B - A, C - A)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    inward = np.einsum("hi,hi->h", n, tri.points.mean(axis=0) - A)
+    n *= np.where(inward > 0, -1.0, 1.0)[:, None]
+    return np.einsum("hi,qhi->qh", n, np.asarray(x, dtype=float)[:, None, :] - A[None]).max(
+        axis=1)
+
+
 def tetra_quality(vertices: np.ndarray) -> np.ndarray:
     """Radius ratio ``3 r_in / R_circ`` of tetrahedra (T, 4, 3): 1 regular, 0 degenerate."""
     p0, p1, p2, p3 = (vertices[:, i] for i in range(4))

@@ -18,9 +18,10 @@ from ..errors import LibraryError
 from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
 from ..io.jsonvalues import OutOfRange, float_or_nan
-from .document import CHECKSUM_KEY, CONTROL_AXES, checksum_status, read_document, schema
+from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, checksum_status,
+                       read_document, schema)
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
-from .cells import build_cells, union
+from .cells import build_cells
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
@@ -457,7 +458,9 @@ def _control_space_problems(doc: dict) -> list[Problem]:
 
 def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
     """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
-    in the file's order (with finite velocities and period) and the same tetrahedra."""
+    in the file's order (with finite velocities and period); from
+    :data:`~mocaplib.library.document.GAIT_CELLS_VERSION` the tetrahedra of their gait cells
+    with each one's gait and the hull of all of them, before it the tetrahedra of all of them."""
 
     where = "control_space.tetrahedra"
     hint = "write the library again (mocaplib build, or mocaplib mirror)"
@@ -466,11 +469,30 @@ def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
     if stored["ids"] != [e["id"] for e in entries]:
         return [Problem(where, f"ids are not the control space's entries (chosen, with finite "
                                f"velocities and period, in the file's order); {hint}")]
-    cells, _ = build_cells(_control_points(entries), doc["control_space"]["scale"],
-                           classes=[e.get("locomotion_class") for e in entries],
+    points, scale = _control_points(entries), doc["control_space"]["scale"]
+    every = delaunay_tetrahedra(points / np.asarray(scale, dtype=np.float64))
+    if doc["format_version"] < GAIT_CELLS_VERSION:
+        if _unordered(stored["simplices"]) != _unordered(every.simplices.tolist()):
+            return [Problem(where, f"simplices are not the tetrahedra of these entries "
+                                   f"(format_version {doc['format_version']}: of all of "
+                                   f"them); {hint}")]
+        return []
+    cells, _ = build_cells(points, scale, classes=[e.get("locomotion_class") for e in entries],
                            v_f=[float_or_nan(e.get("v_f")) for e in entries])
-    simplices = union(cells.values()).simplices.tolist() if cells else []
-    if sorted(map(sorted, stored["simplices"])) != sorted(map(sorted, simplices)):
-        return [Problem(where, f"simplices are not the tetrahedra of these entries' gait "
-                               f"cells; {hint}")]
+    expected = [[*simplex, cell.gait] for cell in cells.values()
+                for simplex in cell.tri.simplices.tolist()]
+    if len(stored["gaits"]) != len(stored["simplices"]) or _unordered(
+            [[*s, g] for s, g in zip(stored["simplices"], stored["gaits"])]) != _unordered(
+            expected):
+        return [Problem(where, f"simplices and gaits are not the tetrahedra of these entries' "
+                               f"gait cells; {hint}")]
+    if _unordered(stored["hull"]) != _unordered(every.convex_hull.tolist()):
+        return [Problem(where, f"hull is not the boundary of these entries' points; {hint}")]
     return []
+
+
+def _unordered(rows: list[list]) -> list[tuple]:
+    """Rows of vertex numbers (and a trailing gait name) as sorted tuples, sorted: what two
+    lists of simplices or triangles share whatever their order."""
+    return sorted((*sorted(int(v) for v in row if not isinstance(v, str)),
+                   *(v for v in row if isinstance(v, str))) for row in rows)

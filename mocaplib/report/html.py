@@ -22,7 +22,7 @@ from ..errors import MocapError
 from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io.atomic import atomic_write_text
 from ..library.controlspace import AXIS_UNITS, ControlSpace
-from ..library.document import NO_CHECKSUM_NOTE, checksum_status
+from ..library.document import NO_CHECKSUM_NOTE, checksum_status, version_note
 from ..library.format import load_library
 from ..library.validation import validate_library
 from ..skeleton import DOF_NAMES
@@ -95,6 +95,8 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     warnings = [f"library check: {p}" for p in validate_library(library)]
     if checksum_status(library.document) == "absent":
         warnings.append(f"library check: {NO_CHECKSUM_NOTE}")
+    if version_note(library.document):
+        warnings.append(f"library check: {version_note(library.document)}")
     env, env_note = resolve_envelope(envelope)
     label = _class_labeller(library, env_note["plan"])
     classes_all = [label(e.id) for e in entries]
