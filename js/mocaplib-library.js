@@ -5,13 +5,14 @@
 //                              content checksum (RFC 8785 / JCS + SHA-256)
 // entryAngles(entry, t)        an entry's coordinates at t seconds (the documented formula,
 //                              ramp included; periodic on [0, T))
-// blend(library, command)      the entries and barycentric weights of a velocity command
-//                              (v m/s, omega rad/s, v_l m/s) and the blended series, as
-//                              `mocaplib query` computes them, in the tetrahedra the file
-//                              stores (control_space.tetrahedra)
+// query(library, command, gait) where a velocity command (v m/s, omega rad/s, v_l m/s) is
+//                              blended, as `mocaplib query` answers it: the gait cell, its
+//                              four entries and weights, clamped between the cells, or
+//                              outside, in the cells the file stores (control_space.tetrahedra)
+// blend(library, command, gait) that answer with the blended series, period and drift
 //
-// Run as a script: node mocaplib-library.js LIBRARY.json [--phases N] [--query V OMEGA VL]...
-//   prints a JSON report (used by the Python tests).
+// Run as a script: node mocaplib-library.js LIBRARY.json [--phases N] [--gait GAIT]
+//   [--query V OMEGA VL]...   prints a JSON report (used by the Python tests).
 //
 // Python's validation (mocaplib validate) checks more than the schema (coefficient shapes,
 // periods, sorted ids, the control space's geometry); this reader checks what a file needs
@@ -29,13 +30,21 @@ const HERE = path.dirname(fileURLToPath(import.meta.url));
 export const SCHEMA_PATH = path.join(HERE, "..", "mocaplib", "schema", "library.schema.json");
 export const FORMAT = "mocaplib-library";
 /** The versions this reader knows (docs/library-format.md, Versions). */
-export const KNOWN_VERSIONS = [1, 2, 3];
+export const KNOWN_VERSIONS = [1, 2, 3, 4];
+/** The first version whose stored tetrahedra are the gait cells (with gaits and hull). */
+export const GAIT_CELLS_VERSION = 4;
 /** Versions whose checksum is Python-printed JSON, which only Python reproduces. */
 export const PYTHON_CHECKSUM_VERSIONS = [1, 2];
 /** Root channels (pelvis_tx, pelvis_ty, pelvis_rotation) by name, for re-anchoring. */
 const ROOT_NAMES = ["pelvis_tx", "pelvis_ty", "pelvis_rotation"];
-/** A query within this of a face (normalised units) counts inside, as in Python's locate. */
-const INSIDE_TOLERANCE = 1e-9;
+/** Largest angle (rad) from ±90° of a pure side-step: its point is put on the cone. */
+export const SIDEWAYS_TOLERANCE = 2 * (Math.PI / 180);
+/** A command within this normalised distance of a cell (or of the hull) is inside it. */
+export const HULL_TOLERANCE = 1e-6;
+/** Barycentric tolerance of locating a command in the tetrahedra. */
+export const WEIGHT_TOLERANCE = 1e-9;
+/** Barycentric tolerance of locating a command's nearest point on a cell in its tetrahedra. */
+const BOUNDARY_WEIGHT_TOLERANCE = 1e-7;
 
 export class LibraryReadError extends Error {}
 
@@ -202,6 +211,8 @@ function blendable(entry, dofNames) {
 }
 
 function sub(p, q) { return [p[0] - q[0], p[1] - q[1], p[2] - q[2]]; }
+function add(p, q) { return [p[0] + q[0], p[1] + q[1], p[2] + q[2]]; }
+function times(s, p) { return [s * p[0], s * p[1], s * p[2]]; }
 function dot(p, q) { return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]; }
 function cross(p, q) {
   return [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
@@ -212,47 +223,189 @@ export function barycentric(p, x) {
   const [a, b, c] = [0, 1, 2].map((i) => sub(p[i], p[3]));
   const rows = [cross(b, c), cross(c, a), cross(a, b)];
   const det = dot(a, rows[0]);
-  const w3 = rows.map((row) => dot(row, sub(x, p[3])) / det);
+  const w3 = rows.map((row) => dot(times(1 / det, row), sub(x, p[3])));
   return [...w3, 1 - (w3[0] + w3[1] + w3[2])];
 }
 
 /**
- * Blend a velocity command [v, omega, v_l] (SI): the tetrahedron holding its normalised point
- * (value / control_space.scale), the one whose smallest weight is largest; weights clipped at
- * 0 and summing to 1; coefficients, period and drift velocities blended with them. Returns
- * {inside: false} outside the control space.
+ * A command [v, omega, v_l] with a pure side-step put on the cone |v_l| = v: v_l = ±v when
+ * v > 0 and cos(2°) v <= |v_l| <= v (1 + 1e-9); any other command unchanged.
  */
-export function blend(document, command) {
-  const tetrahedra = document.control_space.tetrahedra;
-  if (tetrahedra === undefined) {
-    throw new LibraryReadError("the library stores no tetrahedra: its entries span no 3-D " +
-                               "control space (or it was written before format_version 3)");
-  }
-  if (command.length !== 3 || !command.every(Number.isFinite)) {
-    throw new LibraryReadError(`a command is three finite numbers, got ${JSON.stringify(command)}`);
-  }
-  const scale = document.control_space.scale;
-  const entries = tetrahedra.ids.map((id) => entryById(document, id));
-  const point = (e) => [e.v / scale[0], e.omega / scale[1], e.v_l / scale[2]];
-  const x = command.map((value, i) => value / scale[i]);
+export function ontoCone([v, omega, vl]) {
+  const lateral = Math.abs(vl);
+  const side = v > 0 && lateral >= Math.cos(SIDEWAYS_TOLERANCE) * v && lateral <= v * (1 + 1e-9);
+  return side ? [v, omega, Math.sign(vl) * v] : [v, omega, vl];
+}
+
+/**
+ * Of tetrahedra (rows of 4 indices into points), the one holding x whose smallest weight is
+ * largest (the first of equals), when that weight is >= -tol: {simplex, weights}, else null.
+ */
+function locate(simplices, points, x, tol) {
   let best = null;
-  for (const simplex of tetrahedra.simplices) {
-    const w = barycentric(simplex.map((i) => point(entries[i])), x);
+  for (const simplex of simplices) {
+    const w = barycentric(simplex.map((i) => points[i]), x);
     const worst = Math.min(...w);
     if (best === null || worst > best.worst) best = { simplex, w, worst };
   }
-  if (best === null || best.worst < -INSIDE_TOLERANCE) return { inside: false };
-  const clipped = best.w.map((w) => Math.max(w, 0));
-  const total = clipped.reduce((s, w) => s + w, 0);
-  const weights = clipped.map((w) => w / total);
+  return best !== null && best.worst >= -tol ? { simplex: best.simplex, weights: best.w } : null;
+}
+
+/** The triangles (sorted index triples, sorted) that only one of the tetrahedra has. */
+function boundary(simplices) {
+  const count = new Map();
+  for (const s of simplices) {
+    for (const drop of [0, 1, 2, 3]) {
+      const face = s.filter((_, k) => k !== drop).sort((i, j) => i - j);
+      const key = face.join(",");
+      count.set(key, (count.get(key) ?? 0) + 1);
+    }
+  }
+  return [...count].filter(([, n]) => n === 1).map(([key]) => key.split(",").map(Number))
+    .sort((f, g) => f[0] - g[0] || f[1] - g[1] || f[2] - g[2]);
+}
+
+/**
+ * The closest point of triangle (A, B, C) to p and its squared distance: the projection onto
+ * the triangle's plane when it falls inside the triangle, else the closest point of its edges.
+ */
+export function closestOnTriangle(p, [A, B, C]) {
+  const n = cross(sub(B, A), sub(C, A));
+  const proj = sub(p, times(dot(sub(p, A), n) / dot(n, n), n));
+  const edges = [[A, B], [B, C], [C, A]];
+  if (edges.every(([U, V]) => dot(cross(sub(V, U), sub(proj, U)), n) >= 0)) {
+    return { point: proj, d2: dot(sub(p, proj), sub(p, proj)) };
+  }
+  let best = { point: null, d2: Infinity };
+  for (const [U, V] of edges) {
+    const e = sub(V, U);
+    const s = Math.min(Math.max(dot(sub(p, U), e) / dot(e, e), 0), 1);
+    const c = add(U, times(s, e));
+    const d2 = dot(sub(p, c), sub(p, c));
+    if (d2 < best.d2) best = { point: c, d2 };
+  }
+  return best;
+}
+
+/** Largest signed distance of x beyond the hull triangles' planes (oriented outwards). */
+function outsidePlanes(points, hull, x) {
+  const centroid = times(1 / points.length, points.reduce(add, [0, 0, 0]));
+  let most = -Infinity;
+  for (const [i, j, k] of hull) {
+    const [A, B, C] = [points[i], points[j], points[k]];
+    let n = cross(sub(B, A), sub(C, A));
+    n = times(1 / Math.sqrt(dot(n, n)), n);
+    if (dot(n, sub(centroid, A)) > 0) n = times(-1, n);
+    most = Math.max(most, dot(n, sub(x, A)));
+  }
+  return most;
+}
+
+/**
+ * The stored control space of a document: entries (by row of tetrahedra.ids), their
+ * normalised points as stored (raw) and with side-steps on the cone (cone), the gait cells
+ * ({gait, simplices, boundary}, walks first) and the hull of all the entries.
+ */
+export function storedCells(document) {
+  const stored = document.control_space.tetrahedra;
+  if (stored === undefined) {
+    throw new LibraryReadError("the library stores no tetrahedra: its entries span no 3-D " +
+                               "control space (mocaplib validate says why)");
+  }
+  if (document.format_version < GAIT_CELLS_VERSION) {
+    throw new LibraryReadError(
+      `a format_version ${document.format_version} library stores the tetrahedra of all its ` +
+        `entries, walks and runs together, not its gait cells: build it again with mocaplib ` +
+        `build (format_version ${GAIT_CELLS_VERSION})`);
+  }
+  const scale = document.control_space.scale;
+  const entries = stored.ids.map((id) => entryById(document, id));
+  const normalised = (p) => p.map((value, i) => value / scale[i]);
+  const raw = entries.map((e) => normalised([e.v, e.omega, e.v_l]));
+  const cone = entries.map((e) => normalised(ontoCone([e.v, e.omega, e.v_l])));
+  const cells = [];
+  stored.simplices.forEach((simplex, s) => {
+    const gait = stored.gaits[s];
+    let cell = cells.find((c) => c.gait === gait);
+    if (!cell) cells.push((cell = { gait, simplices: [] }));
+    cell.simplices.push(simplex);
+  });
+  for (const cell of cells) cell.boundary = boundary(cell.simplices);
+  return { scale, entries, raw, cone, cells, hull: stored.hull };
+}
+
+/**
+ * Where a command [v, omega, v_l] (SI) is blended, as `mocaplib query` answers it: its point
+ * (side-steps on the cone, / scale) in the tetrahedron of the cells (of `gait` only, when
+ * given) whose smallest weight is largest (inside when >= -1e-9); else the nearest point of
+ * the nearest cell, served there when within 1e-6 of it (inside) or inside the hull of all
+ * the entries (clamped: between the cells), else outside. Returns {inside, gait, clamped,
+ * entries (ids), weights (clipped at 0, sum 1), nearest (SI), distance (normalised)}.
+ */
+export function query(document, command, gait = null) {
+  if (command.length !== 3 || !command.every(Number.isFinite)) {
+    throw new LibraryReadError(`a command is three finite numbers, got ${JSON.stringify(command)}`);
+  }
+  const space = storedCells(document);
+  const cells = gait === null ? space.cells : space.cells.filter((c) => c.gait === gait);
+  if (!cells.length) {
+    throw new LibraryReadError(`the control space has no ${gait} cell to blend in (cells: ` +
+                               `${space.cells.map((c) => c.gait).join(", ") || "none"})`);
+  }
+  const x = command.map((value, i) => value / space.scale[i]);
+  const onCone = ontoCone(command).map((value, i) => value / space.scale[i]);
+  const gaitOf = new Map(cells.flatMap((c) => c.simplices.map((s) => [s, c.gait])));
+  const answer = (found, cellGait, point, distance, clamped) => {
+    const clipped = found.weights.map((w) => Math.max(w, 0));
+    const total = clipped.reduce((s, w) => s + w, 0);
+    return {
+      inside: true, gait: cellGait, clamped,
+      entries: found.simplex.map((i) => space.entries[i].id),
+      weights: clipped.map((w) => w / total),
+      nearest: clamped ? point.map((value, i) => value * space.scale[i]) : command.slice(),
+      distance: clamped ? distance : 0,
+    };
+  };
+  const direct = locate(cells.flatMap((c) => c.simplices), space.cone, onCone, WEIGHT_TOLERANCE);
+  if (direct !== null) return answer(direct, gaitOf.get(direct.simplex), onCone, 0, false);
+  let near = null;
+  for (const cell of cells) {
+    let best = null;
+    for (const face of cell.boundary) {
+      const c = closestOnTriangle(onCone, face.map((i) => space.cone[i]));
+      if (best === null || c.d2 < best.d2) best = c;
+    }
+    const distance = Math.sqrt(best.d2);
+    if (near === null || distance < near.distance) near = { cell, point: best.point, distance };
+  }
+  const inHull = outsidePlanes(space.raw, space.hull, x) <= HULL_TOLERANCE;
+  const found = near.distance <= HULL_TOLERANCE || inHull
+    ? locate(near.cell.simplices, space.cone, near.point, BOUNDARY_WEIGHT_TOLERANCE) : null;
+  if (found !== null) {
+    return answer(found, near.cell.gait, near.point, near.distance,
+                  near.distance > HULL_TOLERANCE);
+  }
+  return {
+    inside: false, gait: near.cell.gait, clamped: false,
+    nearest: near.point.map((value, i) => value * space.scale[i]), distance: near.distance,
+  };
+}
+
+/**
+ * The answer of query() with, when the command is served, the blend: the weights of its
+ * entries on their coefficients (from each entry's left toe-off), periods and drift
+ * velocities: {..., T, a, b, drift}.
+ */
+export function blend(document, command, gait = null) {
+  const answer = query(document, command, gait);
+  if (!answer.inside) return answer;
   const dofNames = document.skeleton.dof_names;
-  const parts = best.simplex.map((i) => blendable(entries[i], dofNames));
+  const parts = answer.entries.map((id) => blendable(entryById(document, id), dofNames));
+  const { weights } = answer;
   const mix = (get) => get(parts[0]).map((row, d) => row.map((_, k) =>
     parts.reduce((s, part, j) => s + weights[j] * get(part)[d][k], 0)));
   return {
-    inside: true,
-    entries: best.simplex.map((i) => entries[i].id),
-    weights,
+    ...answer,
     T: parts.reduce((s, part, j) => s + weights[j] * part.T, 0),
     a: mix((part) => part.a),
     b: mix((part) => part.b),
@@ -270,9 +423,10 @@ export function numbers(value, out = []) {
 }
 
 function main(argv) {
-  const args = { queries: [], phases: 8 };
+  const args = { queries: [], phases: 8, gait: null };
   for (let i = 0; i < argv.length; i++) {
     if (argv[i] === "--phases") args.phases = Number(argv[++i]);
+    else if (argv[i] === "--gait") args.gait = argv[++i];
     else if (argv[i] === "--query") {
       args.queries.push(argv.slice(i + 1, i + 4).map(Number));
       i += 3;
@@ -280,7 +434,7 @@ function main(argv) {
   }
   if (!args.library) {
     process.stderr.write("usage: node mocaplib-library.js LIBRARY.json [--phases N] " +
-                         "[--query V OMEGA VL]...\n");
+                         "[--gait walk|run] [--query V OMEGA VL]...\n");
     return 2;
   }
   try {
@@ -290,7 +444,7 @@ function main(argv) {
       angles[entry.id] = Array.from({ length: args.phases },
                                     (_, j) => entryAngles(entry, (entry.T * j) / args.phases));
     }
-    const blends = args.queries.map((command) => blend(document, command));
+    const blends = args.queries.map((command) => blend(document, command, args.gait));
     process.stdout.write(JSON.stringify({ checksum, angles, blends }) + "\n");
     return 0;
   } catch (error) {

@@ -1,5 +1,6 @@
-// The reference reader on a library mocaplib built from seven sample captures
-// (test/fixtures/make_fixtures.py): schema, versions, unknown keys, checksum, formula, blend.
+// The reference reader on a library mocaplib built from sixteen sample captures
+// (test/fixtures/make_fixtures.py): schema, versions, unknown keys, checksum, formula, and
+// the answers to the commands of test/fixtures/queries.json, which mocaplib wrote.
 
 import assert from "node:assert/strict";
 import { readFileSync, mkdtempSync, writeFileSync } from "node:fs";
@@ -12,11 +13,16 @@ import canonicalize from "canonicalize";
 
 import {
   LibraryReadError, SCHEMA_PATH, barycentric, blend, checkLibrary, checksumStatus,
-  contentSha256, entryAngles, entryById, numbers, readLibrary, series, shiftedSeries,
+  closestOnTriangle, contentSha256, entryAngles, entryById, numbers, ontoCone, query,
+  readLibrary, series, shiftedSeries,
 } from "../mocaplib-library.js";
 
 const FIXTURES = path.join(path.dirname(fileURLToPath(import.meta.url)), "fixtures");
 const LIBRARY = path.join(FIXTURES, "library.json");
+/** mocaplib's answers to commands on LIBRARY (make_fixtures.py). */
+const QUERIES = JSON.parse(readFileSync(path.join(FIXTURES, "queries.json"), "utf8"));
+/** Both evaluate the same double-precision formulas; only the order of operations differs. */
+const TOLERANCE = 1e-9;
 const fresh = () => JSON.parse(readFileSync(LIBRARY, "utf8"));
 /** The document with its checksum recomputed: a file a later mocaplib wrote. */
 const resealed = (document) => ({ ...document, content_sha256: contentSha256(document) });
@@ -32,8 +38,8 @@ test("the shipped schema compiles in Ajv 2020 strict mode without a warning", ()
 test("the sample library validates and its JCS checksum verifies", () => {
   const { document, checksum } = readLibrary(LIBRARY);
   assert.equal(checksum, "verified");
-  assert.equal(document.format_version, 3);
-  assert.equal(document.entries.length, 7);
+  assert.equal(document.format_version, 4);
+  assert.equal(document.entries.length, 16);
 });
 
 test("a coefficient changed after writing is a checksum mismatch", () => {
@@ -51,8 +57,25 @@ test("version-1 and -2 checksums are Python's: reported, not judged", () => {
 });
 
 test("an unknown format_version is refused", () => {
-  const document = resealed({ ...fresh(), format_version: 4 });
-  assert.throws(() => checkLibrary(document), /format_version 4 is not one this reader knows/);
+  const document = resealed({ ...fresh(), format_version: 5 });
+  assert.throws(() => checkLibrary(document), /format_version 5 is not one this reader knows/);
+});
+
+test("a version-4 file without its cells' gaits or hull fails the schema", () => {
+  for (const key of ["gaits", "hull"]) {
+    const document = fresh();
+    delete document.control_space.tetrahedra[key];
+    assert.throws(() => checkLibrary(resealed(document)), /tetrahedra: must have required/);
+  }
+});
+
+test("a version-3 file reads, but its tetrahedra (of all the entries) are not blended in", () => {
+  const document = fresh();
+  document.format_version = 3;
+  const { gaits: _gaits, hull: _hull, ...tetrahedra } = document.control_space.tetrahedra;
+  document.control_space.tetrahedra = tetrahedra;
+  assert.equal(checkLibrary(resealed(document)).checksum, "verified");
+  assert.throws(() => query(document, [1.2, 0, 0]), /format_version 3.*build it again/);
 });
 
 test("a later version's keys are ignored in open objects, refused in closed ones", () => {
@@ -131,6 +154,7 @@ test("a blend's weights reproduce the command and blend the entries' series", ()
   const command = [1.1, 0.1, 0.05];
   const result = blend(document, command);
   assert.equal(result.inside, true);
+  assert.equal(result.clamped, false);
   assert.ok(Math.abs(result.weights.reduce((s, w) => s + w, 0) - 1) < 1e-15);
   const entries = result.entries.map((id) => entryById(document, id));
   ["v", "omega", "v_l"].forEach((key, i) => {
@@ -141,8 +165,63 @@ test("a blend's weights reproduce the command and blend the entries' series", ()
   assert.ok(Math.abs(result.T - expectedT) < 1e-15);
   const a05 = entries.reduce((s, e, j) => s + result.weights[j] * e.fourier.a[0][5], 0);
   assert.ok(Math.abs(result.a[0][5] - a05) < 1e-15);
-  assert.deepEqual(blend(document, [9, 0, 0]), { inside: false });
+  const far = blend(document, [9, 0, 0]);
+  assert.equal(far.inside, false);
+  assert.ok(far.distance > 1 && far.gait === "run", JSON.stringify(far));
   assert.throws(() => blend(document, [NaN, 0, 0]), /three finite numbers/);
+  assert.throws(() => query(document, [1, 0, 0], "hop"), /no hop cell/);
+});
+
+test("side-steps within 2° of ±90° go on the cone, others stay", () => {
+  assert.deepEqual(ontoCone([0.4, 0.1, 0.3999]), [0.4, 0.1, 0.4]);
+  assert.deepEqual(ontoCone([0.4, 0.1, -0.3999]), [0.4, 0.1, -0.4]);
+  assert.deepEqual(ontoCone([0.4, 0.1, 0.39]), [0.4, 0.1, 0.39]);      // 77°: a walk
+  assert.deepEqual(ontoCone([0.4, 0.1, 0.41]), [0.4, 0.1, 0.41]);      // faster sideways
+  assert.deepEqual(ontoCone([0, 0.5, 0]), [0, 0.5, 0]);
+});
+
+test("the closest point of a triangle: inside its face, on an edge, at a corner", () => {
+  const t = [[0, 0, 0], [1, 0, 0], [0, 1, 0]];
+  assert.deepEqual(closestOnTriangle([0.2, 0.2, 3], t), { point: [0.2, 0.2, 0], d2: 9 });
+  assert.deepEqual(closestOnTriangle([0.5, -1, 0], t), { point: [0.5, 0, 0], d2: 1 });
+  assert.deepEqual(closestOnTriangle([-1, -1, 0], t), { point: [0, 0, 0], d2: 2 });
+});
+
+/** Weights by entry id (a tie between two tetrahedra sharing a face gives the same blend). */
+function byId(entries, weights) {
+  const out = new Map();
+  entries.forEach((id, j) => out.set(id, (out.get(id) ?? 0) + weights[j]));
+  return out;
+}
+
+test("the reader answers mocaplib's queries: cells, cone, gaps, outside, within 1e-9", () => {
+  const { document } = readLibrary(LIBRARY);
+  const seen = { inside: 0, clamped: 0, outside: 0, run: 0, cone: 0 };
+  for (const expected of QUERIES) {
+    const got = blend(document, expected.command, expected.gait_asked);
+    const what = `${JSON.stringify(expected.command)} gait ${expected.gait_asked}`;
+    assert.equal(got.inside, expected.inside, what);
+    assert.equal(got.gait, expected.gait, what);
+    assert.equal(got.clamped, expected.clamped, what);
+    assert.ok(Math.abs(got.distance - expected.distance) <= TOLERANCE, what);
+    got.nearest.forEach((x, i) => assert.ok(Math.abs(x - expected.nearest[i]) <= TOLERANCE, what));
+    if (!expected.inside) {
+      seen.outside += 1;
+      continue;
+    }
+    seen[expected.clamped ? "clamped" : "inside"] += 1;
+    seen.run += expected.gait === "run";
+    seen.cone += Math.abs(ontoCone(expected.command)[2]) === expected.command[0];   // on the cone
+    const [mine, theirs] = [byId(got.entries, got.weights), byId(expected.entries, expected.weights)];
+    for (const id of new Set([...mine.keys(), ...theirs.keys()])) {
+      assert.ok(Math.abs((mine.get(id) ?? 0) - (theirs.get(id) ?? 0)) <= TOLERANCE, `${what} ${id}`);
+    }
+    assert.ok(Math.abs(got.T - expected.T) <= TOLERANCE, what);
+    got.drift.forEach((x, i) => assert.ok(Math.abs(x - expected.drift[i]) <= TOLERANCE, what));
+  }
+  // every kind of answer is compared: in each cell, on the cone, clamped in the gap, outside
+  assert.ok(seen.inside > 50 && seen.clamped > 10 && seen.outside > 10, JSON.stringify(seen));
+  assert.ok(seen.run > 10 && seen.cone > 15, JSON.stringify(seen));
 });
 
 test("barycentric weights of a vertex, and a library without tetrahedra", () => {
