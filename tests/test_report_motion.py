@@ -97,3 +97,37 @@ def test_blending_in_javascript_is_the_control_spaces():
                                    atol=1e-12)
         np.testing.assert_allclose(mixed["T"], expected.T[0], atol=1e-12)
         np.testing.assert_allclose(mixed["drift"], expected.drift[0], atol=1e-12)
+
+
+def test_the_viewers_pick_is_located_in_the_gait_cells_as_query_locates_it():
+    """The report's clicked blend on the JavaScript reader's fixture (walks, side-steps on the
+    cone, runs): a command in a cell gets query's gait, entries and weights; one between the
+    walks and the runs (clamped by query) or outside is in no cell."""
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.format import load_library
+    from mocaplib.report.figureview import viewer_data
+
+    fixtures = Path(__file__).parents[1] / "js" / "test" / "fixtures"
+    library = load_library(fixtures / "library.json")
+    cs = ControlSpace.from_library(library)
+    space = viewer_data(library, cs, ["walk"] * len(library.entries), {})["space"]
+    asked = [q for q in json.loads((fixtures / "queries.json").read_text())
+             if q["gait_asked"] is None]
+    commands = [q["command"] for q in asked]
+    on_cone = np.array(_node([("ontoCone", [c]) for c in commands])) / cs.scale
+    found = _node([("locate", [space, x]) for x in on_cone.tolist()])
+    result = cs.query(commands)
+    ids = [library.entries[i].id for i in space["entries"]]
+    kinds = set()
+    for k, got in enumerate(found):
+        if not result.inside[k] or result.clamped[k]:
+            assert got["simplex"] == -1, commands[k]
+            kinds.add("clamped" if result.clamped[k] else "outside")
+            continue
+        kinds.add(result.gait[k])
+        assert space["gaits"][got["simplex"]] == result.gait[k]
+        mine = dict(zip([ids[i] for i in space["simplices"][got["simplex"]]], got["weights"]))
+        theirs = dict(zip([cs.ids[i] for i in result.entries[k]], result.weights[k]))
+        for entry in set(mine) | set(theirs):    # a tie on a shared face is the same blend
+            assert abs(max(mine.get(entry, 0.0), 0.0) - theirs.get(entry, 0.0)) < 1e-9
+    assert kinds == {"walk", "run", "clamped", "outside"}

@@ -27,8 +27,10 @@ Boundary and gaps
 -----------------
 A command within :data:`HULL_TOLERANCE` (normalised distance) of a cell is inside it, blended
 at its nearest point on the cell. A command farther from every cell but inside the hull of all
-the entries (between the walks and the runs) is served by the nearest cell, at its nearest
-point on it (``clamped``); outside the hull it is outside the control space.
+the entries (within :data:`HULL_TOLERANCE` of its facets' planes:
+:func:`~mocaplib.library.triangulation.outside_planes`; between the walks and the runs) is
+served by the nearest cell, at its nearest point on it (``clamped``); outside the hull it is
+outside the control space.
 """
 
 from __future__ import annotations
@@ -123,6 +125,14 @@ def union(cells, /) -> Triangulation:
     return Triangulation(cells[0].tri.points,
                          np.concatenate([c.tri.simplices for c in cells]).reshape(-1, 4),
                          np.concatenate([c.tri.convex_hull for c in cells]).reshape(-1, 3))
+
+
+def cell_tetrahedra(cells, /) -> tuple[np.ndarray, list[str]]:
+    """The tetrahedra of ``cells`` (a dict by gait, in :data:`BLEND_GAITS` order) as rows of
+    their points (S, 4), walks first, and the gait of each (S,): what the library file stores
+    and the report's viewer locates a command in."""
+    cells = list(cells.values())
+    return union(cells).simplices, [c.gait for c in cells for _ in c.tri.simplices]
 
 
 def nearest_on_hull(tri: Triangulation, x, /, *, chunk: int = 1024):

@@ -47,7 +47,8 @@ Coverage
 --------
 A target :class:`~mocaplib.library.coverage.Envelope` (the convex hull of a few points, SI units; by default the commanded
 velocities of a capture plan) is sampled on a regular grid; :func:`~mocaplib.library.coverage.coverage` reports the
-fraction of those samples inside the library's hull, the largest hole (the sample farthest from
+fraction of those samples blended at themselves in a gait's cell (:meth:`ControlSpace.contains`),
+the largest hole (the sample farthest from
 every entry), sliver tetrahedra, entries per class and a greedy farthest-point "capture next" list.
 """
 
@@ -64,7 +65,7 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.locomotion import class_gait
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
-from .cells import HULL_TOLERANCE, build_cells, onto_cone, serve, union
+from .cells import HULL_TOLERANCE, build_cells, cell_tetrahedra, onto_cone, serve
 from .phase import from_left_toe_off
 from .triangulation import (DEGENERACY_HINT, Triangulation, degeneracy, delaunay_tetrahedra,
                             outside_planes, stack_padded, tetra_quality)
@@ -428,8 +429,8 @@ def stored_tetrahedra(library) -> dict | None:
         return None
     if not cs.cells:
         return None
-    return {"ids": list(cs.ids), "simplices": union(cs.cells.values()).simplices.tolist(),
-            "gaits": [c.gait for c in cs.cells.values() for _ in c.tri.simplices],
+    simplices, gaits = cell_tetrahedra(cs.cells)
+    return {"ids": list(cs.ids), "simplices": simplices.tolist(), "gaits": gaits,
             "hull": cs.tri.convex_hull.tolist()}
 
 

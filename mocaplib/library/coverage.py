@@ -128,7 +128,8 @@ class Coverage:
 
     Attributes
     ----------
-    fraction_inside : share of envelope samples inside the hull of the entries.
+    fraction_inside : share of envelope samples blended at themselves in a gait's cell
+        (:meth:`ControlSpace.contains`; the gap between the cells is not covered).
     n_samples : number of envelope samples.
     largest_hole : (3,) the envelope sample farthest from every entry, SI.
     largest_hole_distance : its normalised distance to the nearest entry.
@@ -137,7 +138,7 @@ class Coverage:
     capture_next : DataFrame of suggested velocity triples (axes columns, SI) and the
         normalised ``gap`` each one fills (greedy farthest point).
     axes : the control-space axes of every triple above.
-    samples : (S, 3) the envelope samples, SI; samples_inside : (S,) bool, inside the hull.
+    samples : (S, 3) the envelope samples, SI; samples_inside : (S,) bool, in a cell.
     """
 
     fraction_inside: float

@@ -21,7 +21,7 @@ from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, checksum_status,
                        read_document, schema)
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
-from .cells import build_cells
+from .cells import build_cells, cell_tetrahedra
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
@@ -479,8 +479,8 @@ def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
         return []
     cells, _ = build_cells(points, scale, classes=[e.get("locomotion_class") for e in entries],
                            v_f=[float_or_nan(e.get("v_f")) for e in entries])
-    expected = [[*simplex, cell.gait] for cell in cells.values()
-                for simplex in cell.tri.simplices.tolist()]
+    simplices, gaits = cell_tetrahedra(cells)
+    expected = [[*simplex, gait] for simplex, gait in zip(simplices.tolist(), gaits)]
     if len(stored["gaits"]) != len(stored["simplices"]) or _unordered(
             [[*s, g] for s, g in zip(stored["simplices"], stored["gaits"])]) != _unordered(
             expected):

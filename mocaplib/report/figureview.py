@@ -3,7 +3,8 @@
 The viewer (``templates/figure.js`` on ``templates/motion.js``) animates an entry's cycle as a
 stick figure, posed by forward kinematics in JavaScript from :func:`skeleton_data` (the
 description of docs/library-format.md, "Posing the skeleton"), and plays the blend of a
-control-space point picked with the mouse, located in the control space's own tetrahedra
+control-space point picked with the mouse, located in the tetrahedra of the control space's
+gait cells with side-steps put on the cone, as ``mocaplib query`` locates a command
 (:func:`viewer_data`'s ``space``): nothing is triangulated in the browser.
 """
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..export.bvh import end_sites
+from ..library.cells import cell_tetrahedra
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: Significant digits of the Fourier coefficients in the page (1e-6 rad: far below a pixel).
@@ -50,10 +52,11 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
 
     ``entries``: per library entry (``library.entries`` order) its id, class, colour,
     ``mirror_of`` (null unless a mirror image), period ``T`` (s), Fourier ``a``/``b`` up to its
-    own order, and root ``drift`` (u_f, u_l, omega); ``space`` (null without a control space):
+    own order, and root ``drift`` (u_f, u_l, omega); ``space`` (null without a gait cell):
     the chosen entries (``entries``: indices into the list above) at their normalised
-    ``points``, the ``simplices`` of its triangulation (rows of 4 indices into them), its
-    ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
+    ``points`` in the cells (side-steps on the cone), the ``simplices`` of the gait cells
+    (rows of 4 indices into them, :func:`~mocaplib.library.cells.cell_tetrahedra`) with
+    their ``gaits``, the ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
     lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
     entry's class label; ``colours``: class -> CSS colour.
     """
@@ -67,11 +70,12 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
             "drift": [float(x) for x in e.root_drift.velocities],
             "velocity": [float(x) for x in e.velocity]})
     space = None
-    if cs is not None:
+    if cs is not None and cs.cells:
         row = {e.id: i for i, e in enumerate(library.entries)}
+        simplices, gaits = cell_tetrahedra(cs.cells)
         space = {"entries": [row[i] for i in cs.ids],
-                 "points": cs.normalise(cs.points).tolist(),
-                 "simplices": cs.tri.simplices.tolist(), "axes": list(cs.axes),
+                 "points": next(iter(cs.cells.values())).tri.points.tolist(),
+                 "simplices": simplices.tolist(), "gaits": gaits, "axes": list(cs.axes),
                  "scale": [float(s) for s in cs.scale]}
     walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))

@@ -169,22 +169,24 @@
     }
   }
 
-  // Blend the motion at (v, omega, v_l) (SI) from the tetrahedron of the stored triangulation
-  // holding it; returns the weights by entry id, or null outside the control space.
+  // Blend the motion at (v, omega, v_l) (SI) from the tetrahedron of the gait cells holding it
+  // (side-steps on the cone, as mocaplib query); returns the weights by entry id, or null when
+  // no cell holds it.
   function pick(v, omega, vl) {
     picked = [v, omega, vl];
-    var point = [v, omega, vl], x = point.map(function (p, k) { return p / space.scale[k]; });
+    var x = M.ontoCone([v, omega, vl]).map(function (p, k) { return p / space.scale[k]; });
     var found = M.locate(space, x);
     var where = "v̂ " + fixed(v, 2) + " m/s, ω̂ " + fixed(degrees(omega), 0) + " °/s, v̂_l " + fixed(vl, 3) + " m/s";
     if (found.simplex < 0) {
-      weightsText.textContent = where + ": outside the control space (no entries around it to blend)";
+      weightsText.textContent = where + ": in no gait's cell (between the walks and the runs " +
+        "`mocaplib query` blends the nearest cell's nearest point; beyond them it is outside)";
       return null;
     }
     var corners = space.simplices[found.simplex].map(function (i) { return data.entries[space.entries[i]]; });
     play(M.blend(corners, found.weights), "blend at " + where);
     var shares = {};
     corners.forEach(function (e, k) { shares[e.id] = found.weights[k]; });
-    weightsText.textContent = where + ": blend of " + corners.map(function (e, k) {
+    weightsText.textContent = where + ": " + space.gaits[found.simplex] + " blend of " + corners.map(function (e, k) {
       return e.id + (e.mirror_of ? " (mirror image)" : "") + " " + found.weights[k].toFixed(2);
     }).join(", ");
     return shares;

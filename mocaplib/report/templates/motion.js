@@ -77,6 +77,14 @@ var MocapMotion = (function () {
     return [t * (sinc * drift[0] - vers * drift[1]), t * (vers * drift[0] + sinc * drift[1]), phi];
   }
 
+  // A command [v, omega, v_l] with a pure side-step put on the cone |v_l| = v, as
+  // mocaplib.library.cells.onto_cone: v_l = ±v when v > 0 and cos(2°) v <= |v_l| <= v (1 + 1e-9).
+  function ontoCone(command) {
+    var v = command[0], lateral = Math.abs(command[2]);
+    var side = v > 0 && lateral >= Math.cos(2 * (Math.PI / 180)) * v && lateral <= v * (1 + 1e-9);
+    return side ? [v, command[1], Math.sign(command[2]) * v] : command.slice();
+  }
+
   // The tetrahedron of space.simplices (rows of 4 point indices) holding the normalised point
   // x, and its barycentric weights, as mocaplib.controlspace.locate finds them: among the
   // tetrahedra whose smallest weight is >= -tol, the one with the largest smallest weight.
@@ -120,6 +128,6 @@ var MocapMotion = (function () {
   }
 
   return { synthesize: synthesize, forward: forward, apply: apply, frame: frame,
-           locate: locate, blend: blend };
+           ontoCone: ontoCone, locate: locate, blend: blend };
 })();
 if (typeof module !== "undefined") { module.exports = MocapMotion; }
