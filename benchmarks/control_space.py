@@ -77,17 +77,18 @@ def main() -> int:
     add_markdown_option(parser)
     args = parser.parse_args()
     with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
-        library = args.library
-        if library is None:
-            library = Path(tmp) / "lib.json"
-            subprocess.run([sys.executable, "-m", "mocaplib", "build", str(args.samples),
-                            "--static", str(args.samples / "rest.c3d"), "--static-pose",
-                            "neutral", "--forward-reference",
-                            str(args.samples / "walk_straight_normal.c3d"), "-o", str(library),
-                            "--jobs", "2", "--no-cache"], check=True, cwd=ROOT,
-                           capture_output=True)
-        tables(library)
+        tables(args.library or quick_start_library(args.samples, Path(tmp) / "lib.json"))
     return 0
+
+
+def quick_start_library(samples: Path, out: Path) -> Path:
+    """Build the quick start's library of the captures in ``samples`` into ``out`` (module
+    docstring's command, without the cache) and return ``out``."""
+    subprocess.run([sys.executable, "-m", "mocaplib", "build", str(samples), "--static",
+                    str(samples / "rest.c3d"), "--static-pose", "neutral", "--forward-reference",
+                    str(samples / "walk_straight_normal.c3d"), "-o", str(out), "--jobs", "2",
+                    "--no-cache"], check=True, cwd=ROOT, capture_output=True)
+    return out
 
 
 if __name__ == "__main__":
