@@ -197,7 +197,7 @@ def _blend(cs, command, gait):
     return result, cs.blend(result)
 
 
-def _polyline_command(cs, line: _Polyline, pose, speed, period, gait):
+def _polyline_command(cs, line: _Polyline, pose, speed, gait):
     """Command, query result and blend of the next cycle from ``pose`` (x, y, heading)."""
     s0 = line.project(pose[:2])
     segment = line.heading(s0)
@@ -251,13 +251,13 @@ def follow(cs, path: Path, /, *, rate: float = 100.0, speed: float | None = None
         end = float(path.t[-1])
         grid = np.arange(int(np.ceil((end + REFERENCE_BEYOND_S) * rate)) + 1) / rate
         reference = _timeline_reference(path, grid)
-    start, period = 0.0, 1.0
+    start = 0.0
     while True:
         if len(cycles) >= MAX_CYCLES:
             raise MocapError(f"the path takes more than {MAX_CYCLES} cycles", path=path.source)
         if path.kind == "polyline":
             sp = _speed_at(path, line, line.project(pose[:2]), speed)
-            command, result, blend = _polyline_command(cs, line, pose, sp, period, gait)
+            command, result, blend = _polyline_command(cs, line, pose, sp, gait)
         else:
             if start >= end:
                 break
