@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
-from mocaplib.gait.locomotion import class_gait  # noqa: E402
+from mocaplib.gait.gaits import class_gait  # noqa: E402
 from mocaplib.library.controlspace import ControlSpace, leave_one_out  # noqa: E402
 from mocaplib.library.coverage import coverage
 from mocaplib.library.format import load_library  # noqa: E402

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mocaplib.cli import main
-from mocaplib.gait.locomotion import class_gait
+from mocaplib.gait.gaits import class_gait
 from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.coverage import Envelope, coverage
 from mocaplib.library.document import CHECKSUM_KEY, content_sha256, version_note

@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from mocaplib.library.cells import cell_tetrahedra
 from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.format import assemble_library
 from mocaplib.library.mirror import (REFLECTION, mirror_dofs, mirror_id, mirror_library,
@@ -216,5 +217,7 @@ def test_a_mirrored_library_stores_the_tetrahedra_of_its_images_too():
     assert len(mirrored) > len(source) and validate_library(mirrored) == []
     stored = mirrored.document["control_space"]["tetrahedra"]
     cs = ControlSpace.from_library(mirrored)
-    assert stored == {"ids": cs.ids, "simplices": cs.tri.simplices.tolist()}
+    simplices, gaits = cell_tetrahedra(cs.cells)
+    assert stored == {"ids": cs.ids, "simplices": simplices.tolist(), "gaits": gaits,
+                      "hull": cs.tri.convex_hull.tolist()}
     assert any(e.mirrored for e in mirrored.entries if e.id in stored["ids"])

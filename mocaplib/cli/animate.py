@@ -3,7 +3,7 @@ velocity commands), synthesised cycle after cycle from the library's control spa
 
 from __future__ import annotations
 
-from ..gait.locomotion import BLEND_GAITS
+from ..gait.gaits import BLEND_GAITS
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, check_inputs, check_outputs,
                       positive)
 from .query import ANIMATION_RATE, _animation_rate

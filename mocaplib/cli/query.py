@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..gait.locomotion import BLEND_GAITS
+from ..gait.gaits import BLEND_GAITS
 from ..io import printable
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, bounded, check_inputs,
                       check_outputs, positive)

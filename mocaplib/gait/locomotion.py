@@ -71,14 +71,3 @@ def locomotion_class(cycle: Cycle, events: Sequence[GaitEvent], /) -> str:
     if abs(math.atan2(vel.v_l, vel.v_f)) <= FACING_TOLERANCE:
         return "nonholonomic"
     return "mixed" if turning else "holonomic"
-
-
-#: The gaits a control space keeps apart (a blend never mixes them).
-BLEND_GAITS = ("walk", "run")
-
-
-def class_gait(locomotion_class: str | None, /) -> str:
-    """The gait (:data:`BLEND_GAITS`) of an entry of class ``locomotion_class``: ``"run"`` for
-    ``running``, else ``"walk"`` (rest, turns on the spot and steps in place included, and an
-    entry whose class was not measured)."""
-    return "run" if locomotion_class == "running" else "walk"

@@ -3,7 +3,7 @@ as part of the walk cell, and the answer for a command on a cell's boundary or b
 
 Gaits
 -----
-An entry's gait comes from its locomotion class (:func:`mocaplib.gait.locomotion.class_gait`,
+An entry's gait comes from its locomotion class (:func:`mocaplib.gait.gaits.class_gait`,
 measured from the motion: ``running`` is a run, every other class a walk). Each gait with at
 least four entries spanning 3-D has its own cell: the tetrahedra of its entries only
 (:func:`~mocaplib.library.triangulation.delaunay_tetrahedra`), so a blend never mixes a walk
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..gait.locomotion import BLEND_GAITS, class_gait
+from ..gait.gaits import BLEND_GAITS, class_gait
 from .triangulation import (Triangulation, closest_on_triangles, degeneracy,
                             delaunay_tetrahedra, locate)
 

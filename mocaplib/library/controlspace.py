@@ -62,7 +62,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import LibraryError, MocapError
 from ..gait.fourier import RootDrift, synthesize
-from ..gait.locomotion import class_gait
+from ..gait.gaits import class_gait
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
 from .cells import HULL_TOLERANCE, build_cells, cell_tetrahedra, onto_cone, serve
@@ -159,7 +159,7 @@ class ControlSpace:
     T : (E,) periods, s, or None.
     drift : (E, 3) root drift velocities (:data:`~mocaplib.library.entry.DRIFT_VELOCITIES`), or None.
     ids : E entry ids; classes : E locomotion classes (None when unknown), which give each
-        entry's gait (:func:`mocaplib.gait.locomotion.class_gait`).
+        entry's gait (:func:`mocaplib.gait.gaits.class_gait`).
     v_f : (E,) frontal speeds, m/s, or None: on the tangential axes, entries moving backwards
         stay out of the cells (:mod:`mocaplib.library.cells`).
     axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
