@@ -52,7 +52,7 @@ from mocaplib.model.ik import fit  # noqa: E402
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.gait.patterns import cycle_samples, path_velocities, shoulder_heading  # noqa: E402
 from mocaplib.build.settings import BuildSettings
-from mocaplib.build.workflow import forward_offsets
+from mocaplib.build.forward import forward_offsets
 from mocaplib.synth.capture import write_capture  # noqa: E402
 from mocaplib.synth.plan import load_plan, locomotion_type  # noqa: E402
 

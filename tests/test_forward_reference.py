@@ -25,8 +25,8 @@ from mocaplib.build.cache import cache_key
 from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.threads import pinned
-from mocaplib.build.workflow import (FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets,
-                               process_capture)
+from mocaplib.build.forward import FORWARD_LIMIT_DEG, FORWARD_TOLERANCE_DEG, forward_offsets
+from mocaplib.build.workflow import process_capture
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING
 
 STATIC = SAMPLES / "rest.c3d"
@@ -291,8 +291,8 @@ def test_cycles_and_fit_take_the_reference_too(tmp_path, capsys, offset):
 def test_references_that_do_not_settle_are_an_error(monkeypatch):
     # the sample reference needs a second turn (its first is -0.187°, measured); allowed a
     # single turn, it is refused
-    from mocaplib.build import workflow
-    monkeypatch.setattr(workflow, "FORWARD_PASSES", 1)
+    from mocaplib.build import forward
+    monkeypatch.setattr(forward, "FORWARD_PASSES", 1)
     with pytest.raises(CalibrationError, match=r"turn 1 of 1 was still rest\.c3d -0\.1\d\d° "
                                                r"\(the turns stop below 0\.01°\)") as caught:
         forward_offsets(neutral(forward_reference=str(WALK)))

@@ -29,12 +29,12 @@ from ..library.format import Library, assemble_library, diagnostics_path, json_t
 from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
 from .drafting import draft_missing_protocols
+from .forward import forward_offsets
 from .sessions import plan_captures
 from .settings import BuildSettings
 from .threads import pinned
 from .workers import run_tasks
-from .workflow import (DIAGNOSTICS_DIGITS, CaptureResult, file_sha256, forward_offsets,
-                       process_capture)
+from .workflow import DIAGNOSTICS_DIGITS, CaptureResult, file_sha256, process_capture
 
 DIAGNOSTICS_VERSION = 1
 

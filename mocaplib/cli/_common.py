@@ -438,11 +438,11 @@ def unreadable(path: str | os.PathLike, error: Exception) -> str:
 def heading_offsets(args) -> tuple[float, ...] | None:
     """Per ``--static``, the heading correction (radians) its ``--forward-reference`` captures
     measure, through the stages ``mocaplib build`` runs with these options
-    (:func:`mocaplib.build.workflow.forward_offsets`); None without a reference."""
+    (:func:`mocaplib.build.forward.forward_offsets`); None without a reference."""
     if not args.forward_reference:
         return None
+    from ..build.forward import forward_offsets
     from ..build.settings import BuildSettings
-    from ..build.workflow import forward_offsets
 
     return forward_offsets(BuildSettings(
         protocol=args.protocol, static=args.static, static_pose=args.static_pose,

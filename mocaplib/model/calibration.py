@@ -198,7 +198,7 @@ def calibrate(trial: Trial, /, *, protocol: Protocol | str | None = None,
     max_rounds : refinement rounds at most (step 5).
     heading_offset : radians added to the neutral static's fitted heading before the offsets
         are measured (step 4'), turning every segment frame about the vertical: the correction
-        a forward reference measures (:func:`mocaplib.build.workflow.forward_offsets`). Only with a
+        a forward reference measures (:func:`mocaplib.build.forward.forward_offsets`). Only with a
         static in the neutral pose.
     measurements : subject measurements (metres, kilograms;
         :data:`mocaplib.model.anatomy.MEASUREMENTS` keys) that override those the calibration

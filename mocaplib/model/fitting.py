@@ -120,7 +120,7 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
         Marker low-pass cutoff, Hz (:func:`mocaplib.model.filtering.filter_trial`).
     heading_offsets : sequence of float, optional
         Per static, the heading correction of a forward reference, radians
-        (:func:`mocaplib.build.workflow.forward_offsets`; the static in the neutral pose).
+        (:func:`mocaplib.build.forward.forward_offsets`; the static in the neutral pose).
     measurements : dict, optional
         Subject measurements (metres) overriding the calibration file's.
     static_window : (float, float), optional
@@ -284,7 +284,7 @@ def fit(capture, /, *, protocol="auto", static=None, static_pose: str = "free",
         Subject measurements in metres and kilograms (``--subject``).
     heading_offsets : sequence of float, optional
         Per static, the heading correction in radians a forward reference measures
-        (:func:`mocaplib.build.workflow.forward_offsets`).
+        (:func:`mocaplib.build.forward.forward_offsets`).
 
     Returns
     -------
