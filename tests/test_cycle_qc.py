@@ -14,6 +14,7 @@ from mocaplib.skeleton import DOF_NAMES, JOINT_ANGLES, Skeleton
 
 def _motion(q: np.ndarray, rate: float):
     return SimpleNamespace(n_frames=len(q), rate=rate, q=q, residuals=np.zeros((len(q), 4)),
+                           rejected=np.zeros((len(q), 4), dtype=bool),
                            trusted=lambda: np.ones(4, dtype=bool),
                            skeleton=Skeleton.from_height(1.75))
 
@@ -28,7 +29,7 @@ def test_jerk_is_that_of_the_angles_low_passed_at_the_walking_cutoff(frequency, 
     q = np.zeros((len(t), len(DOF_NAMES)))
     q[:, JOINT_ANGLES] = amplitude * np.sin(2 * np.pi * frequency * t)[:, None]
     q[:, DOF_NAMES.index("pelvis_rotation")] = 0.5 * t     # the heading is left out
-    cycle = SimpleNamespace(start_s=1.0, end_s=3.0, event_quality=1.0, encoding=SimpleNamespace(
+    cycle = SimpleNamespace(start_s=1.0, end_s=3.0, event_quality=1.0, rise_per_step=0.0, encoding=SimpleNamespace(
         series=SimpleNamespace(rms=np.zeros(len(DOF_NAMES)))))
     jerk = cycle_qc(cycle, _motion(q, rate))["jerk_rms_rad_s3"]
     expected = gain * amplitude * (2 * np.pi * frequency) ** 3 / np.sqrt(2)
@@ -37,7 +38,7 @@ def test_jerk_is_that_of_the_angles_low_passed_at_the_walking_cutoff(frequency, 
 
 def test_no_jerk_nor_internal_power_for_a_capture_too_short_to_filter():
     q = np.zeros((12, len(DOF_NAMES)))
-    cycle = SimpleNamespace(start_s=0.0, end_s=0.11, event_quality=1.0, encoding=SimpleNamespace(
+    cycle = SimpleNamespace(start_s=0.0, end_s=0.11, event_quality=1.0, rise_per_step=0.0, encoding=SimpleNamespace(
         series=SimpleNamespace(rms=np.zeros(len(DOF_NAMES)))))
     qc = cycle_qc(cycle, _motion(q, 100.0))
     assert qc["jerk_rms_rad_s3"] is None and qc["internal_power_w_kg"] is None
@@ -50,7 +51,7 @@ def test_internal_power_is_that_of_the_low_passed_motion_relative_to_the_floor()
     t = np.arange(int(4 * rate)) / rate
     q = np.zeros((len(t), len(DOF_NAMES)))
     q[:, DOF_NAMES.index("pelvis_tz")] = 0.9 + amplitude * np.sin(w * t)
-    cycle = SimpleNamespace(start_s=1.0, end_s=3.0, event_quality=1.0, encoding=SimpleNamespace(
+    cycle = SimpleNamespace(start_s=1.0, end_s=3.0, event_quality=1.0, rise_per_step=0.0, encoding=SimpleNamespace(
         series=SimpleNamespace(rms=np.zeros(len(DOF_NAMES)))))
     fine = np.linspace(0, 2, 100001)
     z_dot, z_ddot = amplitude * w * np.cos(w * fine), -amplitude * w ** 2 * np.sin(w * fine)
@@ -78,16 +79,56 @@ def test_a_marker_qc_failure_names_its_marker_and_when():
     from mocaplib.gait.qc import named_failures
 
     # 4 markers over 3 s at 100 Hz, the cycle 1-2 s: C's largest residual inside it is at 1.5 s
-    # (the 0.09 m at 0.5 s, outside, does not count); D, untrusted, is left out
+    # (the 0.09 m at 0.5 s, outside, does not count); D, untrusted, is left out. C stays off
+    # for 3 frames, longer than a spike (SPIKE_FRAMES): the marker's, not an outlier's
     residuals = np.full((300, 4), 0.005)
-    residuals[150, 2], residuals[50, 2], residuals[:, 3] = 0.05, 0.09, 0.2
+    residuals[149:152, 2], residuals[50, 2], residuals[:, 3] = 0.045, 0.09, 0.2
+    residuals[150, 2] = 0.05
     residuals[100:201, 1] = 0.03
     motion = SimpleNamespace(rate=100.0, n_frames=300, residuals=residuals,
+                             rejected=np.zeros(residuals.shape, dtype=bool),
                              marker_labels=["A", "B", "C", "D"],
                              trusted=lambda: np.array([True, True, True, False]))
     cycle = SimpleNamespace(start_s=1.0, end_s=2.0)
     qc = {"marker_max_m": 0.05, "marker_rms_m": 0.016, "gap_fraction": 0.0}
-    assert named_failures(cycle, motion, qc, {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.01}) \
+    failures = named_failures(cycle, motion, qc, {**DEFAULT_QC_THRESHOLDS, "marker_rms_m": 0.01})
+    assert [f.split(": likely ")[0] for f in failures] \
         == ["marker_max_m 0.05 > 0.04 (C at 1.50 s)", "marker_rms_m 0.016 > 0.01 (B)"]
-    assert named_failures(cycle, motion, {"marker_max_m": 0.01, "gap_fraction": 0.5},
-                          {"marker_max_m": 0.04, "gap_fraction": 0.1}) == ["gap_fraction 0.5 > 0.1"]
+    # each says its likely cause and what to do
+    assert all("a marker off its segment for several frames" in f and "check the named "
+               "marker's label" in f for f in failures), failures
+    # calibrated from the capture itself, that is the likelier cause
+    assert "calibrated from the capture itself" in named_failures(
+        cycle, motion, qc, DEFAULT_QC_THRESHOLDS, facts={"static": None})[0]
+    gaps = named_failures(cycle, motion, {"marker_max_m": 0.01, "gap_fraction": 0.5},
+                          {"marker_max_m": 0.04, "gap_fraction": 0.1})
+    assert [f.split(": likely ")[0] for f in gaps] == ["gap_fraction 0.5 > 0.1"]
+
+
+def test_one_bad_marker_sample_is_an_outlier_not_the_cycles_maximum():
+    from mocaplib.gait.qc import SPIKE_FRAMES, outlier_samples, qc_series
+
+    # a walk's residuals (2-8 mm, smooth) with one 4.45 cm sample of marker 1 at 1.33 s
+    # (the lab file's RANK) and, on marker 2, 5 cm held for 5 frames (a marker knocked)
+    rate = 100.0
+    t = np.arange(300) / rate
+    q = np.zeros((len(t), len(DOF_NAMES)))
+    motion = _motion(q, rate)
+    motion.residuals = 0.005 + 0.003 * np.sin(2 * np.pi * t)[:, None] * np.ones(4)
+    motion.residuals[133, 1] = 0.0445
+    motion.residuals[60:65, 2] = 0.05
+    outliers = outlier_samples(motion)
+    assert np.flatnonzero(outliers.any(axis=1)).tolist() == [133]
+    assert SPIKE_FRAMES < 5
+    cycle = SimpleNamespace(start_s=1.0, end_s=2.0, event_quality=1.0, rise_per_step=0.0,
+                            encoding=SimpleNamespace(series=SimpleNamespace(
+                                rms=np.zeros(len(DOF_NAMES)))))
+    qc = cycle_qc(cycle, motion, qc_series(motion))
+    # the spike left out: the largest residual is the smooth series' own, 8 mm
+    assert qc["marker_max_m"] == pytest.approx(0.008, abs=1e-4)
+    assert qc["gap_fraction"] == 0.0                   # an outlier is not a gap
+    knocked = SimpleNamespace(**{**vars(cycle), "start_s": 0.5, "end_s": 1.0})
+    assert cycle_qc(knocked, motion)["marker_max_m"] == pytest.approx(0.05)
+    # samples the fit removed (NaN residual, rejected) are outliers too, not gaps
+    motion.rejected[150, 0], motion.residuals[150, 0] = True, np.nan
+    assert cycle_qc(cycle, motion)["gap_fraction"] == 0.0

@@ -352,7 +352,16 @@ def line_pattern(d):
     (lambda d: d["skeleton"]["dof_ranges"].__setitem__(29, [2.6, -0.17]), "lower limit 2.6 > "),
     # a mean pose in degrees: knee_flexion_r 30 "rad"
     (lambda d: d["entries"][2]["fourier"]["a"][DOF_NAMES.index("knee_flexion_r")]
-     .__setitem__(0, 30.0), "mean knee_flexion_r 30 rad lies outside its range"),
+     .__setitem__(0, 30.0), re.escape("mean knee_flexion_r 30 rad (1718.9°, over the cycle "
+                                      "after its start-to-end drift is taken out) lies outside "
+                                      "its range [-0.1745, 2.618] rad ([-10.0°, 150.0°]): "
+                                      "degrees stored as radians?")),
+    # a mean just past the range, as a cycle that is not periodic gives: no unit slip
+    (lambda d: d["entries"][2]["fourier"]["a"][DOF_NAMES.index("knee_flexion_r")]
+     .__setitem__(0, 2.7), re.escape("mean knee_flexion_r 2.7 rad (154.7°, over the cycle "
+                                     "after its start-to-end drift is taken out) lies outside "
+                                     "its range [-0.1745, 2.618] rad ([-10.0°, 150.0°]): the "
+                                     "cycle is not periodic")),
     (lambda d: d["entries"].reverse(), "entries must be sorted by id"),
     (lambda d: d["entries"][0].update(source_file="../../etc/passwd"), "without its folder"),
     # 1e-320 made normalised velocities overflow on the way to query's SVD

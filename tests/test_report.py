@@ -167,7 +167,7 @@ def test_report_contents(report):
                  ".c3d (neutral pose); heading set by the forward reference walk.c3d "
                  "(S&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;.c3d -0.235°); "
                  "marker low-pass by Winter&#39;s residual analysis; cycles cut at lift toe-offs; "
-                 "one cycle per capture; QC failures dropped."):
+                 "one cycle per activity segment of each capture; QC failures dropped."):
         assert text in html, text
     data = json.loads(re.search(r'<script type="application/json" id="cs-data">(.*?)</script>',
                                 html, re.S).group(1))

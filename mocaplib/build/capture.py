@@ -9,15 +9,18 @@ SI units throughout: metres, seconds, radians.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from ..gait.activity import set_activities
 from ..gait.cycles import Cycle, motion_cycles, qc_and_choice, shoulder_centres
 from ..gait.events import EventSettings, capture_events
 from ..gait.foot_events import GaitEvent
 from ..gait.qc import DEFAULT_QC_THRESHOLDS
 from ..io.c3d import read_c3d
 from ..markersets.matching import ProtocolMatch, match_trial, missing_landmarks_error
+from ..markersets.protocols import protocols_dir
 from ..model.fitting import FittedCapture, StageClock, fit_capture
 from ..model.motion import Motion
 from ..model.subject import SubjectModel
@@ -42,8 +45,9 @@ class ProcessedCapture:
     shoulders : (ndarray, ndarray)
         The fitted left and right shoulder joint centres (F, 3), metres.
     cycles : list[Cycle]
-        Every complete cycle, its pattern, velocities and Fourier encoding; ``chosen`` marks
-        the one the library keeps.
+        Every complete cycle, its pattern, velocities, Fourier encoding and activity;
+        ``chosen`` marks those the library keeps (one per activity segment), ``left_out``
+        those a session's choice leaves out.
     qc : dict[int, dict]
         Each cycle's QC metrics by cycle index (names of :data:`mocaplib.gait.qc.QC_LIMITS`).
     """
@@ -70,8 +74,19 @@ class ProcessedCapture:
 
     @property
     def chosen(self) -> Cycle | None:
-        """The cycle the library keeps (None when the capture has none)."""
+        """The first cycle the library keeps (None when the capture has none); a take of
+        several activities keeps one per activity segment: the cycles with ``chosen`` set."""
         return next((c for c in self.cycles if c.chosen), None)
+
+
+def protocol_origin(protocol, /) -> str:
+    """Where a marker-set protocol comes from: ``"shipped"`` (mocaplib's own folder,
+    :func:`mocaplib.markersets.protocols.protocols_dir`), ``"user"`` (a file or folder of the
+    user's) or ``"drafted"`` (drafted from the capture's motion: the protocol says so)."""
+    if getattr(protocol, "drafted", False):      # the one place a drafted protocol is told
+        return "drafted"
+    shipped = Path(protocol.path).resolve().parent == protocols_dir().resolve()
+    return "shipped" if shipped else "user"
 
 
 def process(capture, /, *, protocol="auto", static=None, static_pose: str = "free",
@@ -150,11 +165,16 @@ def fit_events(capture, /, *, protocol="auto", static=None, static_pose: str = "
 
 
 def cut_cycles(capture: ProcessedCapture, /, *, max_gap_s: float = EventSettings.max_gap_s,
-               qc_thresholds: dict | None = None, clock: StageClock | None = None
+               qc_thresholds: dict | None = None, clock: StageClock | None = None,
+               trim: tuple[tuple[float, float], ...] | None = None,
+               picked: tuple[int, ...] | None = None, dropped: tuple[int, ...] = ()
                ) -> ProcessedCapture:
     """The last stages of :func:`process` on a capture :func:`fit_events` gives: its cycles
-    (pattern, velocities, Fourier encoding), their QC and the chosen one, set on ``capture``
-    and returned."""
+    (pattern, velocities, Fourier encoding, activity), their QC and the chosen ones, set on
+    ``capture`` and returned. A session's choice (``session.toml``,
+    :mod:`mocaplib.build.sessions`): ``trim`` the (start, end) windows, s from the capture's
+    first frame, a candidate cycle lies inside; ``picked`` the indices of the cycles to keep
+    instead of the rule's; ``dropped`` those never to keep."""
     clock = clock or StageClock()
     motion = capture.motion
     with clock.stage("cycles"):
@@ -162,8 +182,23 @@ def cut_cycles(capture: ProcessedCapture, /, *, max_gap_s: float = EventSettings
                                        shoulders=capture.shoulders,
                                        fallback_starts=capture.match.protocol.fallback_starts,
                                        max_gap_s=max_gap_s, source=capture.trial.source)
+        set_activities(capture.cycles, capture.events)
+        leave_out(capture.cycles, trim=trim, dropped=dropped)
     with clock.stage("entries"):
         capture.qc = qc_and_choice(capture.cycles, motion, DEFAULT_QC_THRESHOLDS
                                    if qc_thresholds is None else qc_thresholds,
-                                   ground=capture.ground)
+                                   ground=capture.ground, picked=picked)
     return capture
+
+
+def leave_out(cycles: list[Cycle], /, *, trim: tuple[tuple[float, float], ...] | None = None,
+              dropped: tuple[int, ...] = ()) -> None:
+    """Set ``left_out`` on the cycles outside every ``trim`` window ((start, end) s) and on
+    those whose index is ``dropped``, saying why."""
+    for cycle in cycles:
+        if cycle.index in dropped:
+            cycle.left_out = "dropped by the session (drop_cycles)"
+        elif trim is not None and not any(start <= cycle.start_s and cycle.end_s <= end
+                                          for start, end in trim):
+            cycle.left_out = ("outside the session's trim windows " + ", ".join(
+                f"{start:g}-{end:g} s" for start, end in trim))

@@ -26,6 +26,7 @@ from ..io import find_captures, fs_text, printable
 from ..io.atomic import atomic_write_files
 from ..library.document import DIAGNOSTICS_FORMAT
 from ..library.format import Library, assemble_library, diagnostics_path, json_text, to_json_data
+from ..library.validation import entry_problems
 from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
 from .drafting import draft_missing_protocols
@@ -153,7 +154,9 @@ class BuildResult:
         (see ``docs/reliability.md``).
 
         Raises :class:`LibraryError` and writes nothing when the library has no entry (every
-        capture failed, or no cycle was kept): an empty library never replaces one.
+        capture failed, or no cycle was kept): an empty library never replaces one. Entries
+        the library's validation refuses are left out when it is assembled
+        (:func:`valid_library`).
         """
         path = Path(path)
         if not len(self.library):
@@ -277,12 +280,36 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
             bar.update(1)
     captures = [results[i] for i in range(len(paths))]
     _unique_entry_ids(captures)
-    library = assemble_library([e for c in captures for e in c.entries],
-                               settings={**pool.to_dict(), **(
-                                   {"drafted_protocols": drafted} if drafted else {})},
-                               qc_thresholds=pool.qc_thresholds)
+    library = valid_library(captures, settings={**pool.to_dict(), **(
+        {"drafted_protocols": drafted} if drafted else {}), "captures": [
+            {"file": c.file, **c.provenance} for c in captures if c.provenance]},
+        qc_thresholds=pool.qc_thresholds)
     return BuildResult(library, captures, pool, time.perf_counter() - started, notes,
                        [str(folder) for folder in unlisted])
+
+
+def valid_library(captures: list[CaptureResult], /, *, settings: dict,
+                  qc_thresholds: dict) -> Library:
+    """The library of the captures' entries (:func:`~mocaplib.library.format.assemble_library`)
+    that its own validation accepts: an entry :func:`mocaplib.library.validation.validate_library`
+    refuses (with ``--all-cycles --qc waive``, a cycle whose mean angle leaves its range) is
+    left out, with a warning on its capture naming the cycle and why, and the library is
+    assembled again without it (its header depends on the entries)."""
+    while True:
+        library = assemble_library([e for c in captures for e in c.entries], settings=settings,
+                                   qc_thresholds=qc_thresholds)
+        refused = entry_problems(library)
+        if not refused:
+            return library
+        for c in captures:
+            for e in (e for e in c.entries if e.id in refused):
+                c.warnings.append(f"cycle {e.cycle_index} ({e.start_s:.2f}-{e.end_s:.2f} s) "
+                                  f"left out: the library's validation refuses it: " + "; ".join(
+                                      f"{p.where}: {p.message}" for p in refused[e.id]))
+            c.entries = [e for e in c.entries if e.id not in refused]
+            for cycle in c.diagnostics.get("cycles", []) + c.diagnostics.get("mirror_cycles", []):
+                if cycle.get("entry_id") in refused:
+                    cycle["entry_id"] = None
 
 
 def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings) -> list[Path]:

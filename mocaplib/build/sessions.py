@@ -19,7 +19,7 @@ used as one and never counts as a failed capture: processed as a capture it give
 entry when it spans the second a rest entry needs, otherwise no entry, and says why
 (:func:`mocaplib.build.workflow.process_capture`).
 
-The format of ``session.toml`` (every key optional but one of ``static``/``protocol``)::
+The format of ``session.toml`` (every key optional)::
 
     static = "Static1.c3d"        # or a list, one per subject; paths relative to this file
     static_pose = "neutral"       # "free" or "neutral" (default: the build's --static-pose)
@@ -27,6 +27,14 @@ The format of ``session.toml`` (every key optional but one of ``static``/``proto
                                   # whole static when standing, else its quietest second)
     protocol = "padova30"         # a shipped protocol name or a TOML path (relative to this
                                   # file; default: the build's --protocol)
+    keep_non_level = true         # keep cycles on stairs or slopes, flagged (default: the
+                                  # build's --keep-non-level)
+
+    [capture."Take03.c3d"]        # one capture beside this file (:data:`CAPTURE_KEYS`)
+    trim = [[2.0, 9.5]]           # windows (s from its first frame) its cycles must lie in
+    cycles = [3, 7]               # the cycles (indices, as entry ids _c<k>) to keep instead of
+                                  # one per activity segment
+    drop_cycles = [0]             # cycles never to keep
 """
 
 from __future__ import annotations
@@ -39,23 +47,44 @@ from ..errors import MocapError
 from ..io.c3d import read_c3d
 from ..io.tomlfile import read_toml
 from ..statics import STATIC_POSES, check_standing, standing_part
+from .settings import STATIC_SOURCES
 
 #: The name of a session's description, beside its captures.
 SESSION_FILE = "session.toml"
 #: The keys a session file may hold.
-SESSION_KEYS = ("static", "static_pose", "static_window", "protocol")
+SESSION_KEYS = ("static", "static_pose", "static_window", "protocol", "keep_non_level",
+                "capture")
+#: The keys of a session file's ``[capture."NAME.c3d"]`` table.
+CAPTURE_KEYS = ("trim", "cycles", "drop_cycles")
+
+
+@dataclass(frozen=True)
+class CaptureChoice:
+    """A session's choice for one capture: ``trim`` windows ((start, end) s), the ``cycles``
+    to keep (indices) and the ``drop_cycles`` never to keep (:func:`mocaplib.build.capture.cut_cycles`)."""
+
+    trim: tuple[tuple[float, float], ...] | None = None
+    cycles: tuple[int, ...] | None = None
+    drop_cycles: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
 class Session:
     """One folder's ``session.toml``: its statics (absolute paths), static pose, static window
-    (start, end) s and protocol; None where the file leaves the build's setting."""
+    (start, end) s, protocol and ``keep_non_level``, None where the file leaves the build's
+    setting; and its per-capture choices by capture path (absolute)."""
 
     source: Path
     statics: tuple[str, ...] = ()
     static_pose: str | None = None
     static_window: tuple[float, float] | None = None
     protocol: str | None = None
+    keep_non_level: bool | None = None
+    captures: tuple[tuple[str, CaptureChoice], ...] = ()
+
+    def choice(self, capture, /) -> CaptureChoice:
+        """The session's choice for ``capture`` (a path), the default when it names none."""
+        return dict(self.captures).get(os.path.abspath(capture), CaptureChoice())
 
 
 def load_session(path: str | os.PathLike, /) -> Session:
@@ -104,7 +133,60 @@ def load_session(path: str | os.PathLike, /) -> Session:
                              hint=hint)
         relative = path.parent / protocol
         protocol = os.fspath(relative.absolute()) if relative.suffix == ".toml" else protocol
-    return Session(path, statics, pose, window, protocol)
+    keep = data.get("keep_non_level")
+    if keep is not None and not isinstance(keep, bool):
+        raise MocapError(f"keep_non_level must be true or false, got {keep!r}", path=path,
+                         hint=hint)
+    captures = data.get("capture", {})
+    if not isinstance(captures, dict):
+        raise MocapError('capture must be tables, one per capture: [capture."NAME.c3d"]',
+                         path=path, hint=hint)
+    choices = tuple((os.fspath((path.parent / name).absolute()),
+                     _capture_choice(path, name, table, hint))
+                    for name, table in captures.items())
+    return Session(path, statics, pose, window, protocol, keep, choices)
+
+
+def _capture_choice(path: Path, name: str, table, hint: str) -> CaptureChoice:
+    """The ``[capture."NAME"]`` table of the session file ``path``, checked; MocapError naming
+    the file, the capture and the key."""
+    where = f'[capture."{name}"]'
+    if not (path.parent / name).is_file():
+        raise MocapError(f"{where}: no capture {name} beside the session file", path=path,
+                         hint="name a C3D file in the session file's folder")
+    if not isinstance(table, dict):
+        raise MocapError(f"{where} must be a table of {', '.join(CAPTURE_KEYS)}", path=path,
+                         hint=hint)
+    unknown = sorted(set(table) - set(CAPTURE_KEYS))
+    if unknown:
+        raise MocapError(f"{where}: unknown key(s) {', '.join(unknown)}; known: "
+                         f"{', '.join(CAPTURE_KEYS)}", path=path, hint=hint)
+    trim = table.get("trim")
+    if trim is not None:
+        if not (isinstance(trim, list) and trim and all(
+                isinstance(w, list) and len(w) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in w)
+                and 0 <= w[0] < w[1] for w in trim)):
+            raise MocapError(f"{where}: trim must be a list of [start, end] windows in seconds "
+                             f"with 0 <= start < end, got {trim!r}", path=path, hint=hint)
+        trim = tuple((float(a), float(b)) for a, b in trim)
+    picked, dropped = (_indices(path, where, key, table.get(key), hint)
+                       for key in ("cycles", "drop_cycles"))
+    both = sorted(set(picked or ()) & set(dropped or ()))
+    if both:
+        raise MocapError(f"{where}: cycle(s) {', '.join(map(str, both))} both in cycles and "
+                         "in drop_cycles", path=path, hint="name each cycle in one of them")
+    return CaptureChoice(trim, picked, dropped or ())
+
+
+def _indices(path: Path, where: str, key: str, value, hint: str) -> tuple[int, ...] | None:
+    if value is None:
+        return None
+    if not (isinstance(value, list) and all(isinstance(i, int) and not isinstance(i, bool)
+                                            and i >= 0 for i in value)):
+        raise MocapError(f"{where}: {key} must be a list of cycle indices (0, 1, ...: the "
+                         f"_c<k> of the entry ids), got {value!r}", path=path, hint=hint)
+    return tuple(value)
 
 
 def check_session_static(session: Path, static: str, window: tuple[float, float] | None,
@@ -159,10 +241,12 @@ def plan_captures(captures: list[Path], settings, /) -> tuple:
     named = {os.path.realpath(s) for s in settings.statics}
     named |= {os.path.realpath(s) for session in sessions.values() for s in session.statics}
     found = tuple(standing_files(captures, exclude=named))
-    pool = settings
+    given = settings.static_sources or tuple(STATIC_SOURCES[0] for _ in settings.statics)
+    pool = replace(settings, static_sources=given or None)
     if found:
         offsets = settings.heading_offsets
         pool = replace(settings, static=(*settings.statics, *found),
+                       static_sources=(*given, *(STATIC_SOURCES[2] for _ in found)),
                        heading_offsets=None if offsets is None else (*offsets,
                                                                      *(0.0 for _ in found)))
     planned = []
@@ -172,10 +256,16 @@ def plan_captures(captures: list[Path], settings, /) -> tuple:
             planned.append(pool)
             continue
         statics = session.statics or pool.statics
+        choice = session.choice(capture)
         planned.append(replace(
             settings, static=statics or None,
+            static_sources=(tuple(STATIC_SOURCES[1] for _ in session.statics)
+                            or pool.static_sources),
             static_pose=session.static_pose or (settings.static_pose if statics else "free"),
             static_window=session.static_window or settings.static_window,
             protocol=session.protocol or settings.protocol, forward_reference=None,
-            heading_offsets=None))
+            heading_offsets=None, trim=choice.trim, cycles=choice.cycles,
+            drop_cycles=choice.drop_cycles,
+            keep_non_level=(settings.keep_non_level if session.keep_non_level is None
+                            else session.keep_non_level)))
     return pool, planned

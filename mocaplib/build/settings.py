@@ -14,6 +14,14 @@ from ..io import unique_paths
 from ..library.format import to_json_data
 from ..statics import static_names
 
+#: Where a capture's static comes from: named on the command line (``--static``, or the
+#: ``static`` of :class:`BuildSettings`), by a ``session.toml``, or found standing among the
+#: inputs (:func:`mocaplib.build.sessions.plan_captures`).
+STATIC_SOURCES = ("command line", "session.toml", "found among the inputs")
+
+#: The settings a session sets per capture (``[capture."NAME.c3d"]`` in ``session.toml``).
+CAPTURE_CHOICE = ("trim", "cycles", "drop_cycles")
+
 #: Largest ``max_gap_s`` (s): an hour, longer than any capture (beyond, the gap's frame count
 #: overflows).
 MAX_GAP_LIMIT_S = 3600.0
@@ -56,6 +64,16 @@ class BuildSettings:
         :data:`mocaplib.gait.qc.QC_LIMITS`.
     measurements : subject measurements (metres, kilograms) overriding those each
         calibration file stores (see :func:`mocaplib.model.calibration.calibrate`).
+    keep_non_level : keep the cycles on stairs or slopes (QC metric ``step_rise_m`` beyond its
+        limit), flagged by a waiver in the entry, instead of leaving them out of a
+        level-locomotion library (:mod:`mocaplib.gait.activity`).
+    static_sources : per static, where it came from (:data:`STATIC_SOURCES`); None: the
+        command line (:func:`mocaplib.build.sessions.plan_captures` sets the others).
+    trim : a session's time windows ((start, end) s from the capture's first frame) the
+        capture's cycles must lie in, or None for the whole capture.
+    cycles : a session's choice of the capture's cycles (indices), replacing the rule of one
+        per activity segment; None: the rule.
+    drop_cycles : indices of cycles a session leaves out.
     """
 
     protocol: str = "auto"
@@ -73,6 +91,11 @@ class BuildSettings:
     qc_policy: str = "drop"
     qc_thresholds: dict = field(default_factory=lambda: dict(DEFAULT_QC_THRESHOLDS))
     measurements: dict = field(default_factory=dict)
+    keep_non_level: bool = False
+    static_sources: tuple[str, ...] | None = None
+    trim: tuple[tuple[float, float], ...] | None = None
+    cycles: tuple[int, ...] | None = None
+    drop_cycles: tuple[int, ...] = ()
 
     def __post_init__(self):
         for name in ("static", "forward_reference"):
@@ -83,6 +106,12 @@ class BuildSettings:
                 raise MocapError(f"static_window must be (start, end) seconds with 0 <= start "
                                  f"<= end, got {self.static_window!r}")
             object.__setattr__(self, "static_window", window)
+        if self.static_sources is not None:
+            object.__setattr__(self, "static_sources", tuple(self.static_sources))
+            if len(self.static_sources) != len(self.statics) \
+                    or not set(self.static_sources) <= set(STATIC_SOURCES):
+                raise MocapError(f"static_sources needs one of {', '.join(STATIC_SOURCES)} per "
+                                 f"static ({len(self.statics)}), got {self.static_sources!r}")
         if self.heading_offsets is not None:
             object.__setattr__(self, "heading_offsets", tuple(map(float, self.heading_offsets)))
             if len(self.heading_offsets) != len(self.statics):
@@ -113,14 +142,19 @@ class BuildSettings:
         return ((self.forward_reference,) if isinstance(self.forward_reference, str)
                 else self.forward_reference or ())
 
+    def static_source(self, static: int) -> str:
+        """Where static number ``static`` came from (:data:`STATIC_SOURCES`)."""
+        return STATIC_SOURCES[0] if self.static_sources is None else self.static_sources[static]
+
     def heading_offset(self, static: int) -> float:
         """The heading correction (radians) of static number ``static``; 0 when unmeasured."""
         return 0.0 if self.heading_offsets is None else self.heading_offsets[static]
 
     def to_dict(self) -> dict:
         """The settings as JSON data, as stored in the library (static files and forward
-        references by name only: one name, a list of names when several were given, or None)."""
-        data = asdict(self)
+        references by name only: one name, a list of names when several were given, or None;
+        a session's per-capture choice, :data:`CAPTURE_CHOICE`, is the capture's provenance's)."""
+        data = {key: value for key, value in asdict(self).items() if key not in CAPTURE_CHOICE}
 
         for key, paths in (("static", self.statics),
                            ("forward_reference", self.forward_references)):

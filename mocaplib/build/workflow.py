@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import C3DError, CalibrationError, MocapError, NoCycleError
+from ..gait.activity import NON_LEVEL_METRIC, set_activities
 from ..gait.cycles import motion_cycles
 from ..gait.locomotion import locomotion_class
 from ..gait.patterns import cycle_times
@@ -37,8 +38,8 @@ from ..model.filtering import resample
 from ..model.fitting import StageClock
 from ..skeleton import DOF_NAMES
 from ..statics import static_names
-from .capture import ProcessedCapture, cut_cycles, fit_events
-from .settings import BuildSettings
+from .capture import ProcessedCapture, cut_cycles, fit_events, protocol_origin
+from .settings import CAPTURE_CHOICE, BuildSettings
 
 #: Long series in the diagnostics are downsampled to at most this many points.
 MAX_SERIES_POINTS = 300
@@ -82,6 +83,11 @@ class CaptureResult:
     from_cache : bool
     static : str or None
         File name of the static trial the capture was calibrated with (None: none).
+    provenance : dict
+        What the capture was calibrated from (``calibrated_from``: one of
+        :data:`mocaplib.build.settings.STATIC_SOURCES` or "the capture itself"; ``static``: the
+        static's file name or None) and its marker-set protocol (``protocol``: name,
+        ``protocol_origin``: :func:`protocol_origin`); empty when it failed before.
     no_entry : str or None
         Why a capture that did not fail gave no library entry (None when it gave some, or
         failed): no complete cycle, every cycle left out by QC, or a static trial that cannot
@@ -101,6 +107,7 @@ class CaptureResult:
     n_cycles: int = 0
     from_cache: bool = False
     static: str | None = None
+    provenance: dict = field(default_factory=dict)
     no_entry: str | None = None
 
     @property
@@ -200,7 +207,16 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     events, ground = processed.events, processed.ground
     with clock.stage("entries"):
         result.n_cycles = sum(not c.rest for c in cycles)
-        kept = [c for c in cycles if c.chosen or settings.all_cycles]
+        kept = [c for c in cycles if c.left_out is None and (c.chosen or settings.all_cycles)]
+        unknown = sorted(set(settings.cycles or ()) - {c.index for c in cycles})
+        if unknown:
+            result.warnings.append(f"the session names cycle(s) {', '.join(map(str, unknown))}"
+                                   f": the capture has cycles 0-{len(cycles) - 1}")
+        if not kept:
+            raise NoCycleError("the session leaves every cycle out: " + "; ".join(
+                f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
+                f"{c.left_out or 'not among its cycles'}" for c in cycles), path=path,
+                hint="check the capture's trim, cycles and drop_cycles in its session.toml")
     with clock.stage("poulaines"):
         shapes = {c.index: cycle_shape(motion, c) for c in kept}
     with clock.stage("entries"):
@@ -209,7 +225,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         if not result.entries:
             result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
-                + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds))
+                + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds,
+                                           facts=result.provenance))
                 for c in kept)
         if any(qc_failures(qcs[c.index], settings.qc_thresholds) for c in kept):
             result.warnings.extend(processed.fitted.qc_causes)
@@ -267,15 +284,23 @@ def cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                            max_gap_s=settings.max_gap_s, fallback=not settings.require_static,
                            neutral_model=neutral_model, clock=clock)
     fitted = processed.fitted
+    result.provenance = {"calibrated_from": "the capture itself", "static": None,
+                         "protocol": match.protocol.name,
+                         "protocol_origin": protocol_origin(match.protocol)}
+    result.provenance |= {key: getattr(settings, key) for key in CAPTURE_CHOICE
+                          if getattr(settings, key) not in (None, ())}
     if fitted.static is not None:
         result.static = static_names(settings.statics)[fitted.static]
+        result.provenance.update(calibrated_from=settings.static_source(fitted.static),
+                                 static=result.static)
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
     result.warnings.extend(e.warning for e in processed.events if not e.placed)
     result.diagnostics.update(_series(trial, processed.motion, processed.shoulders,
                                       processed.events, fitted.cutoff))
     return cut_cycles(processed, max_gap_s=settings.max_gap_s,
-                      qc_thresholds=settings.qc_thresholds, clock=clock)
+                      qc_thresholds=settings.qc_thresholds, clock=clock, trim=settings.trim,
+                      picked=settings.cycles, dropped=settings.drop_cycles)
 
 
 def static_sha256(path: str) -> str:
@@ -326,16 +351,24 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
         failures = qc_failures(qc, settings.qc_thresholds)
         image_of = None if mirror_of is None else mirror_of[cycle.index]
         where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
-                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s)")
-        waived = {}
+                 f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s, {cycle.activity})")
+        flagged = {f.split()[0]: f"kept by build setting keep_non_level ({f}: stairs or a "
+                                 "slope)" for f in failures
+                   if settings.keep_non_level and f.split()[0] == NON_LEVEL_METRIC}
+        failures = [f for f in failures if f.split()[0] not in flagged]
+        waived = dict(flagged)
+        if flagged:
+            result.warnings.append(f"{where} kept, flagged not level: "
+                                   + "; ".join(flagged))
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: "
                                    + "; ".join(named_failures(cycle, motion, qc,
-                                                              settings.qc_thresholds)))
+                                                              settings.qc_thresholds,
+                                                              facts=result.provenance)))
             continue
         if failures:
-            waived = {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
-                      for f in failures}
+            waived |= {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
+                       for f in failures}
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(LibraryEntry(
@@ -403,6 +436,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     except MocapError as exc:  # fewer than two right toe-offs: the capture's own entries stay
         result.warnings.append(f"no mirror image: {exc.message}")
         return [], []
+    set_activities(images, image_events)
     sources = {e.cycle_index: e for e in result.entries}
     chosen = next(c for c in cycles if c.chosen)
     partner = _nearest(chosen, images)
@@ -458,7 +492,8 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
 def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
     """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
     measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
-    chosen = next(c for c in cycles if c.chosen)
+    chosen = next(c for c in cycles if c.index in shapes and (c.chosen or not any(
+        k.chosen for k in cycles if k.index in shapes)))
     shape = shapes[chosen.index]
     pick = downsample(len(shape["phase"]), MAX_CYCLE_POINTS)
     angles = {"time_s": shape["phase"][pick] * chosen.period}

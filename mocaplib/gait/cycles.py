@@ -4,7 +4,13 @@ A cycle runs from a left toe-off to the next left toe-off (DESIGN.md). For each 
 this module measures the pattern and velocities (:mod:`mocaplib.gait.patterns`), optionally encodes
 the joint coordinates (:mod:`mocaplib.gait.fourier`), and rates how steady it is.
 
-**Choice of one cycle per capture (documented rule).** A steady cycle repeats itself: its two
+**Choice of one cycle per activity segment (documented rule).** Each cycle has an activity
+(:mod:`mocaplib.gait.activity`: standing, stepping in place, turning on the spot, walking
+forwards, backwards or sideways, running, stairs or slopes); consecutive cycles of one
+activity, each starting where the one before ends, form an *activity segment*
+(:func:`activity_segments`), and a capture contributes one cycle per segment, so a mixed take
+gives its forward walk, its backward walk and its turn as separate entries. Within a segment
+the choice is the steadiest cycle. A steady cycle repeats itself: its two
 halves (about one step each) have the same speed and turn rate. The *unsteadiness* of a cycle is
 
     |v₂ − v₁| + r·|ω₂ − ω₁|       (m/s),  r = 0.2 m (about half a shoulder width)
@@ -14,11 +20,14 @@ first and second half of the cycle and ω₁, ω₂ the mean rates of θ_S; ``r�
 difference the shoulders feel from a change of turn rate. Gait initiation and termination,
 stumbles and turns that start mid-cycle all raise it. The chosen cycle is the one with the
 lowest unsteadiness among cycles whose bounding toe-offs have event quality >= 0.5 (all cycles
-if none qualifies); ties go to the earlier cycle. ``mocaplib cycles`` and ``mocaplib build``
-first narrow the candidates to the cycles that pass the library's QC, when any does
-(:func:`mocaplib.gait.cycles.qc_and_choice`), so a capture whose steadiest cycle fails QC
-contributes its steadiest good one. Every cycle is returned, with ``chosen`` set
-on one, so callers keep all of them on request (``--all-cycles``).
+if none qualifies); ties go to the earlier cycle. The candidates are first narrowed to the
+cycles that pass the library's QC, when any of the segment's does, so a segment whose steadiest
+cycle fails QC contributes its steadiest good one. The choice is made once, by
+:func:`qc_and_choice` (what ``mocaplib cycles`` and ``mocaplib build`` run), after the QC:
+:func:`analyse_cycles` measures and rates the cycles and chooses none. A session's per-capture
+choice (``cycles``, ``drop_cycles``, ``trim`` in ``session.toml``) replaces the rule: the cycles
+it leaves out carry the reason in ``left_out``. Every cycle is returned, so callers keep all of
+them on request (``--all-cycles``).
 
 **Partial visibility (documented rule).** A cycle is not cut across a gap longer than
 ``max_gap_s`` (:data:`MAX_GAP_S`, 0.25 s): a run of frames the fit could not solve (too few
@@ -52,7 +61,7 @@ import numpy as np
 
 from ..errors import EventError, NoCycleError
 from ..model.filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
-from ..skeleton import DOF_NAMES, ROOT_X, ROOT_Y, SEGMENT_NAMES, TRANSLATION
+from ..skeleton import DOF_NAMES, ROOT_X, ROOT_Y, ROOT_Z, SEGMENT_NAMES, TRANSLATION
 from ..statics import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 from ..trial import CYCLE_STARTS
 from .events import EventSettings
@@ -83,6 +92,8 @@ GAIT_ORDERS = {"walking": ("left_toe_off", "left_heel_strike", "right_toe_off",
                            "left_heel_strike")}
 #: What a standard cycle starts at.
 LEFT_TOE_OFF = STRIDE_EVENTS[0]
+#: Steps in a cycle (a stride): its rise per step is half its height change.
+STEPS_PER_CYCLE = 2
 
 
 @dataclass
@@ -120,6 +131,15 @@ class Cycle:
     unplaced : tuple[str, ...]
         One sentence per event the detector could not place (:attr:`GaitEvent.warning`) among
         its bounds or inside it: a bound not placed gives the cycle ``event_quality`` 0.
+    rise_per_step : float or None
+        How far the pelvis rises (> 0) or drops per step over the cycle, m: half its height
+        change from start to end (a cycle is two steps); 0 for rest, None without the joint
+        coordinates. Stairs and slopes (:mod:`mocaplib.gait.activity`).
+    activity : str
+        What the person does (:data:`mocaplib.gait.activity.ACTIVITIES`); "" until set
+        (:func:`mocaplib.gait.activity.set_activities`).
+    left_out : str or None
+        Why a session's per-capture choice leaves the cycle out (None: a candidate).
     """
 
     index: int
@@ -135,6 +155,9 @@ class Cycle:
     start_event: str = LEFT_TOE_OFF
     left_toe_off: float | None = None
     unplaced: tuple[str, ...] = ()
+    rise_per_step: float | None = None
+    activity: str = ""
+    left_out: str | None = None
 
     @property
     def period(self) -> float:
@@ -151,7 +174,8 @@ class Cycle:
                "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
                "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off,
                "start_event": self.start_event, "left_toe_off_s": self.left_toe_off,
-               "unplaced_events": list(self.unplaced)}
+               "unplaced_events": list(self.unplaced), "rise_per_step_m": self.rise_per_step,
+               "activity": self.activity, "left_out": self.left_out}
         if self.encoding is not None:
             out.update(fourier_n=self.encoding.order, fourier_rms_deg=self.encoding.rms_deg,
                        fourier_worst_dof=self.encoding.worst_dof)
@@ -265,8 +289,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
     -------
     list of Cycle
         The cycles in time order, each with its velocities, unsteadiness, event quality and
-        (with ``q``) Fourier encoding; one is ``chosen``. A capture without events gives one
-        rest entry.
+        (with ``q``) Fourier encoding and rise per step; none is ``chosen`` yet
+        (:func:`qc_and_choice` chooses). A capture without events gives one rest entry,
+        chosen.
 
     Raises
     ------
@@ -294,13 +319,14 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                                             ground=ground, source=source)
         velocities = path_velocities(times, mid, heading, point_radius=point_radius,
                                      min_arc_angle=min_arc_angle)
-        encoding = None
+        encoding = rise = None
         if q is not None:
             samples = _interpolate(q, rate, times, source)
             noise = None if smooth is None else np.sqrt(np.nanmean(
                 (samples - resample(smooth, rate, times))[:-1] ** 2, axis=0))
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
                                     tol_angle=tol_angle, tol_length=tol_length, noise=noise)
+            rise = float(samples[-1, ROOT_Z] - samples[0, ROOT_Z]) / STEPS_PER_CYCLE
         cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
                             min(first.quality, last.quality), encoding,
                             right_toe_off=0.0 if start_event == "right_toe_off"
@@ -309,8 +335,8 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                             left_toe_off=None if start_event == LEFT_TOE_OFF
                             else _first_inside(events, "left", start, end),
                             unplaced=tuple(e.warning for e in events
-                                           if not e.placed and start <= e.time_s <= end)))
-    choose_cycle(cycles)
+                                           if not e.placed and start <= e.time_s <= end),
+                            rise_per_step=rise))
     return cycles
 
 
@@ -383,7 +409,8 @@ def _no_cycle_hint(left: np.ndarray, right: np.ndarray, rate: float,
 
 
 def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) -> Cycle:
-    """Mark and return the steadiest cycle (module docstring's rule); clears other marks.
+    """Mark and return the steadiest of ``cycles`` (module docstring's rule); clears the other
+    marks among them.
 
     ``eligible``: indices of the cycles that may be chosen (those passing the library's QC,
     :func:`mocaplib.gait.cycles.qc_and_choice`); every cycle when None or when none is eligible.
@@ -396,6 +423,35 @@ def choose_cycle(cycles: list[Cycle], /, *, eligible: set[int] | None = None) ->
     for cycle in cycles:
         cycle.chosen = cycle is best
     return best
+
+
+def activity_segments(cycles: list[Cycle], /) -> list[list[Cycle]]:
+    """The activity segments of a capture's candidate cycles (``left_out`` None), in time
+    order: runs of consecutive cycles of one ``activity``, each starting where the one before
+    ends (module docstring)."""
+    segments: list[list[Cycle]] = []
+    for cycle in (c for c in cycles if c.left_out is None):
+        last = segments[-1][-1] if segments else None
+        if last is not None and last.activity == cycle.activity \
+                and cycle.start_s == last.end_s:     # the same bounding event
+            segments[-1].append(cycle)
+        else:
+            segments.append([cycle])
+    return segments
+
+
+def choose_cycles(cycles: list[Cycle], /, *, eligible: set[int] | None = None,
+                  picked: tuple[int, ...] | None = None) -> list[Cycle]:
+    """Mark and return the cycles a capture contributes: the steadiest of each activity
+    segment (:func:`activity_segments`, :func:`choose_cycle` with ``eligible``), or the cycles
+    whose indices a session ``picked``; cycles ``left_out`` are never chosen."""
+    for cycle in cycles:
+        cycle.chosen = False
+    if picked is not None:
+        for cycle in cycles:
+            cycle.chosen = cycle.index in picked and cycle.left_out is None
+        return [c for c in cycles if c.chosen]
+    return [choose_cycle(segment, eligible=eligible) for segment in activity_segments(cycles)]
 
 
 def _first_inside(events: list[GaitEvent], side: str, start: float, end: float
@@ -443,7 +499,8 @@ def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -
         inside = times < REST_PERIOD
         encoding = encode_cycle(samples[inside], times[inside], REST_PERIOD, samples[0],
                                 tol_angle=tol_angle, tol_length=tol_length, max_order=0)
-    return Cycle(0, 0.0, REST_PERIOD, velocities, 0.0, 1.0, encoding, rest=True, chosen=True)
+    return Cycle(0, 0.0, REST_PERIOD, velocities, 0.0, 1.0, encoding, rest=True, chosen=True,
+                 rise_per_step=0.0)
 
 
 def _unwrapped(q: np.ndarray, n_frames: int, source) -> np.ndarray:
@@ -479,17 +536,17 @@ def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> 
     return resample(q, rate, times)
 
 
-def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None
-                  ) -> dict[int, dict]:
+def qc_and_choice(cycles, motion, thresholds: dict, *, ground: np.ndarray | None = None,
+                  picked: tuple[int, ...] | None = None) -> dict[int, dict]:
     """QC metrics (:func:`cycle_qc`) of every cycle of a fitted capture, by cycle index, and the
-    chosen cycle re-chosen among those that pass ``thresholds`` when any does
-    (:func:`mocaplib.gait.cycles.choose_cycle`): a capture whose steadiest cycle fails QC
-    contributes its steadiest good one. What ``mocaplib build`` and ``mocaplib cycles`` run.
-    ``ground``: the floor's velocity (3,) m/s on a treadmill
-    (:func:`mocaplib.gait.events.capture_events`), for the internal power."""
+    choice of the cycles it contributes (:func:`choose_cycles`: per activity segment, among
+    those that pass ``thresholds`` when any does, or the session's ``picked`` indices). What
+    ``mocaplib build`` and ``mocaplib cycles`` run, once the cycles' activities are set
+    (:func:`mocaplib.gait.activity.set_activities`). ``ground``: the floor's velocity (3,) m/s
+    on a treadmill (:func:`mocaplib.gait.events.capture_events`), for the internal power."""
     series = qc_series(motion, ground)
     qcs = {c.index: cycle_qc(c, motion, series) for c in cycles}
-    if len(cycles) > 1:
-        choose_cycle(cycles, eligible={i for i, qc in qcs.items()
-                                       if not qc_failures(qc, thresholds)})
+    if not (len(cycles) == 1 and cycles[0].rest):
+        choose_cycles(cycles, eligible={i for i, qc in qcs.items()
+                                        if not qc_failures(qc, thresholds)}, picked=picked)
     return qcs

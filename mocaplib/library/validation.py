@@ -346,10 +346,36 @@ def _consistency_problems(doc: dict) -> list[Problem]:
         for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
             mean = float_or_nan(rows[d][0]) if rows[d] else math.nan
             if not lo - RANGE_TOLERANCE <= mean <= hi + RANGE_TOLERANCE and math.isfinite(mean):
-                problems.append(Problem(f"{where}.fourier.a[{d}][0]", f"mean {name} {mean:.6g} "
-                                        f"rad lies outside its range [{lo:.4g}, {hi:.4g}] rad "
-                                        "(degrees stored as radians?)"))
+                problems.append(Problem(f"{where}.fourier.a[{d}][0]", _range_message(
+                    name, mean, lo, hi)))
     return problems
+
+
+def _range_message(name: str, mean: float, lo: float, hi: float) -> str:
+    """Why an angle DOF's mean over a cycle (rad, after the root drift is taken out) outside
+    its range [lo, hi] rad is refused, and its likely cause: degrees stored as radians when
+    the number read in degrees lies in the range and in radians beyond a turn; otherwise a
+    cycle that is not periodic (its start and end poses differ: the drift taken out moves
+    the mean)."""
+    said = (f"mean {name} {mean:.6g} rad ({math.degrees(mean):.1f}°, over the cycle after its "
+            f"start-to-end drift is taken out) lies outside its range [{lo:.4g}, {hi:.4g}] rad "
+            f"([{math.degrees(lo):.1f}°, {math.degrees(hi):.1f}°])")
+    if abs(mean) > 2 * math.pi and lo <= math.radians(mean) <= hi:
+        return said + ": degrees stored as radians?"
+    return said + (": the cycle is not periodic (its start and end poses differ, and the drift "
+                   "taken out moves its mean): leave it out, or choose a steadier cycle")
+
+
+def entry_problems(library) -> dict[str, list[Problem]]:
+    """The problems of :func:`validate_library` that are an entry's own, by entry id: those
+    at ``entries[i]`` (its numbers, fields, QC) — what leaving the entry out removes."""
+    document = library if isinstance(library, dict) else library.document
+    by_id: dict[str, list[Problem]] = {}
+    for problem in validate_library(document):
+        found = re.match(r"entries\[(\d+)\]", problem.where)
+        if found and int(found.group(1)) < len(document["entries"]):
+            by_id.setdefault(document["entries"][int(found.group(1))]["id"], []).append(problem)
+    return by_id
 
 
 def _pattern_problems(pattern: dict, where: str) -> list[Problem]:

@@ -202,13 +202,19 @@ def _built_with(settings: dict) -> list[str]:
         return value if isinstance(value, list) else [value] if value else []
 
     phrases = []
-    if "protocol" in settings:
-        phrases.append(f"protocol {settings['protocol']}")
     statics = names("static")
-    if "static" in settings:
-        phrases.append(f"static {', '.join(map(str, statics))} "
-                       f"({settings.get('static_pose', 'free')} pose)" if statics else
-                       "each capture calibrated from itself")
+    captures = settings.get("captures")
+    if isinstance(captures, list) and captures:
+        phrases += _provenance(captures, settings.get("static_pose", "free"))
+    else:
+        if "protocol" in settings:
+            phrases.append(f"protocol {settings['protocol']}")
+        if "static" in settings:
+            phrases.append(f"static {', '.join(map(str, statics))} "
+                           f"({settings.get('static_pose', 'free')} pose)" if statics else
+                           "each capture calibrated from itself")
+    if settings.get("keep_non_level"):
+        phrases.append("cycles on stairs or slopes kept, flagged")
     references = names("forward_reference")
     if references:
         offsets = settings.get("heading_offsets") or []
@@ -225,12 +231,37 @@ def _built_with(settings: dict) -> list[str]:
         phrases.append(f"cycles cut at {settings['toe_off']} toe-offs")
     if "all_cycles" in settings:
         phrases.append("every complete cycle" if settings["all_cycles"] else
-                       "one cycle per capture")
+                       "one cycle per activity segment of each capture")
     if settings.get("mirror"):
         phrases.append("each capture's mirror image added")
     if "qc_policy" in settings:
         phrases.append(f"QC failures {'waived' if settings['qc_policy'] == 'waive' else 'dropped'}")
     return phrases
+
+
+def _provenance(captures: list, static_pose: str) -> list[str]:
+    """What the library's captures were calibrated from and their marker-set protocols, as
+    phrases (``settings.captures``, see ``docs/library-format.md``): one per static and where
+    it came from, naming the captures; one per protocol and its origin."""
+    def listed(files: list) -> str:
+        return ", ".join(map(str, files[:4])) + (f" and {len(files) - 4} more"
+                                                 if len(files) > 4 else "")
+
+    calibrations: dict[tuple, list] = {}
+    protocols: dict[tuple, list] = {}
+    for c in (c for c in captures if isinstance(c, dict)):
+        calibrations.setdefault((c.get("static"), c.get("calibrated_from")), []).append(
+            c.get("file"))
+        protocols.setdefault((c.get("protocol"), c.get("protocol_origin")), []).append(
+            c.get("file"))
+    said = {"command line": "named on the command line", "session.toml": "named by a "
+            "session.toml", "found among the inputs": "found among the inputs"}
+    phrases = [f"{listed(files)} calibrated from {'itself' if len(files) == 1 else 'themselves'}"
+               if static is None else f"{listed(files)} calibrated from the static {static} "
+               f"({static_pose} pose, {said.get(source, source)})"
+               for (static, source), files in calibrations.items()]
+    return phrases + [f"protocol {name} ({origin}) for {listed(files)}"
+                      for (name, origin), files in protocols.items()]
 
 
 def _entry_rows(entries, label) -> list[dict]:
