@@ -118,6 +118,16 @@ SLOW = {
     ("test_zero_config.py", "test_a_drafted_protocol_gives_the_shipped_protocols_entry"),
     ("test_zero_config.py", "test_the_drafted_protocols_are_written_beside_the_library_and_recorded"),
     ("test_zero_config.py", "test_a_cluster_set_without_static_builds_with_its_drafted_protocol"),
+    ("test_activity.py", "test_a_mixed_take_gives_one_entry_per_activity"),
+    ("test_activity.py", "test_a_session_trims_and_picks_the_cycles_of_a_capture"),
+    ("test_activity.py", "test_all_cycles_with_qc_waived_never_writes_what_validate_refuses"),
+    ("test_activity.py", "test_an_entry_validation_refuses_is_left_out_with_a_warning"),
+    ("test_activity.py",
+     "test_a_slope_is_measured_left_out_by_default_and_kept_flagged_on_request"),
+    ("test_activity.py",
+     "test_a_marker_sample_removed_as_an_outlier_keeps_its_cycle_and_is_not_a_gap"),
+    ("test_activity.py",
+     "test_the_library_and_the_report_say_what_each_capture_was_calibrated_from"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

@@ -60,8 +60,9 @@ CAPTURE_KEYS = ("trim", "cycles", "drop_cycles")
 
 @dataclass(frozen=True)
 class CaptureChoice:
-    """A session's choice for one capture: ``trim`` windows ((start, end) s), the ``cycles``
-    to keep (indices) and the ``drop_cycles`` never to keep (:func:`mocaplib.build.capture.cut_cycles`)."""
+    """A session's choice for one capture: ``trim`` windows ((start, end) s), the ``cycles`` to
+    keep (indices) and the ``drop_cycles`` never to keep
+    (:func:`mocaplib.build.capture.cut_cycles`)."""
 
     trim: tuple[tuple[float, float], ...] | None = None
     cycles: tuple[int, ...] | None = None

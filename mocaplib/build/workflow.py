@@ -86,8 +86,9 @@ class CaptureResult:
     provenance : dict
         What the capture was calibrated from (``calibrated_from``: one of
         :data:`mocaplib.build.settings.STATIC_SOURCES` or "the capture itself"; ``static``: the
-        static's file name or None) and its marker-set protocol (``protocol``: name,
-        ``protocol_origin``: :func:`protocol_origin`); empty when it failed before.
+        static's file name or None; ``static_pose``, with a static) and its marker-set protocol
+        (``protocol``: name, ``protocol_origin``: :func:`protocol_origin`), with its session's
+        ``trim``, ``cycles`` and ``drop_cycles`` when set; empty when it failed before.
     no_entry : str or None
         Why a capture that did not fail gave no library entry (None when it gave some, or
         failed): no complete cycle, every cycle left out by QC, or a static trial that cannot
@@ -292,7 +293,7 @@ def cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     if fitted.static is not None:
         result.static = static_names(settings.statics)[fitted.static]
         result.provenance.update(calibrated_from=settings.static_source(fitted.static),
-                                 static=result.static)
+                                 static=result.static, static_pose=settings.static_pose)
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
     result.warnings.extend(e.warning for e in processed.events if not e.placed)
@@ -359,7 +360,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
         waived = dict(flagged)
         if flagged:
             result.warnings.append(f"{where} kept, flagged not level: "
-                                   + "; ".join(flagged))
+                                   + "; ".join(flagged.values()))
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: "
                                    + "; ".join(named_failures(cycle, motion, qc,

@@ -52,7 +52,12 @@ def register(subparsers) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
     parser.add_argument("--all-cycles", action="store_true",
-                        help="keep every complete cycle, not only the one chosen per capture")
+                        help="keep every complete cycle, not only the one chosen per activity "
+                             "segment of each capture")
+    parser.add_argument("--keep-non-level", action="store_true",
+                        help="keep the cycles on stairs or slopes (the pelvis rises or drops "
+                             "more than 3 cm per step), flagged by a QC waiver, instead of "
+                             "leaving them out of a level-locomotion library")
     parser.add_argument("--mirror", action="store_true",
                         help="also add each capture's left-right mirror image, cut at its right "
                              "toe-offs (fills the turns and side-steps a session made to one "
@@ -102,7 +107,8 @@ def _check_usage(args):
                              forward_reference=args.forward_reference, cutoff=args.cutoff,
                              toe_off=args.toe_off, max_gap_s=args.max_gap_s,
                              all_cycles=args.all_cycles,
-                             mirror=args.mirror, qc_policy=args.qc,
+                             mirror=args.mirror, keep_non_level=args.keep_non_level,
+                             qc_policy=args.qc,
                              measurements=measurements(args))
     inputs = build_inputs(captures, settings)
     check_outputs({"-o": args.output, "-o (its diagnostics sidecar)":

@@ -185,15 +185,16 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
 
     marker RMS / max: fit residuals of the frames in the cycle (m), of the markers the fit
     follows (:meth:`mocaplib.model.motion.Motion.trusted`), outlier samples left out (module
-    docstring); gap fraction: missing marker samples among them (outliers are not gaps); event quality: the cycle's; Fourier RMS: the worst rotational
-    DOF's reconstruction RMS (rad); closure (C2): norm of the joint-angle change from start to
-    end (rad, :func:`mocaplib.gait.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
+    docstring); gap fraction: missing marker samples among them (outliers are not gaps); event
+    quality: the cycle's; Fourier RMS: the worst rotational DOF's reconstruction RMS (rad);
+    closure (C2): norm of the joint-angle change from start to end (rad,
+    :func:`mocaplib.gait.criteria.closure`); jerk (C1): RMS over the cycle's frames and the
     joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
-    energy changes of every body segment between the cycle's consecutive frames over their
-    span, W/kg (:func:`mocaplib.gait.criteria.internal_power`); jerk and power are None when the
+    energy changes of every body segment between the cycle's consecutive frames over their span,
+    W/kg (:func:`mocaplib.gait.criteria.internal_power`); jerk and power are None when the
     capture is too short to be filtered; step rise: how far the pelvis rises or drops per step,
-    m (:attr:`mocaplib.gait.cycles.Cycle.rise_per_step`, stairs and slopes). ``series``: the capture's :func:`qc_series`, when
-    already computed.
+    m (:attr:`mocaplib.gait.cycles.Cycle.rise_per_step`, stairs and slopes). ``series``: the
+    capture's :func:`qc_series`, when already computed.
     """
 
     series = qc_series(motion) if series is None else series

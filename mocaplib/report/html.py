@@ -250,16 +250,16 @@ def _provenance(captures: list, static_pose: str) -> list[str]:
     calibrations: dict[tuple, list] = {}
     protocols: dict[tuple, list] = {}
     for c in (c for c in captures if isinstance(c, dict)):
-        calibrations.setdefault((c.get("static"), c.get("calibrated_from")), []).append(
-            c.get("file"))
+        calibrations.setdefault((c.get("static"), c.get("calibrated_from"),
+                                 c.get("static_pose", static_pose)), []).append(c.get("file"))
         protocols.setdefault((c.get("protocol"), c.get("protocol_origin")), []).append(
             c.get("file"))
     said = {"command line": "named on the command line", "session.toml": "named by a "
             "session.toml", "found among the inputs": "found among the inputs"}
     phrases = [f"{listed(files)} calibrated from {'itself' if len(files) == 1 else 'themselves'}"
                if static is None else f"{listed(files)} calibrated from the static {static} "
-               f"({static_pose} pose, {said.get(source, source)})"
-               for (static, source), files in calibrations.items()]
+               f"({pose} pose, {said.get(source, source)})"
+               for (static, source, pose), files in calibrations.items()]
     return phrases + [f"protocol {name} ({origin}) for {listed(files)}"
                       for (name, origin), files in protocols.items()]
 
