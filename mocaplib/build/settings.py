@@ -64,9 +64,9 @@ class BuildSettings:
         :data:`mocaplib.gait.qc.QC_LIMITS`.
     measurements : subject measurements (metres, kilograms) overriding those each
         calibration file stores (see :func:`mocaplib.model.calibration.calibrate`).
-    keep_non_level : keep the cycles on stairs or slopes (QC metric ``step_rise_m`` beyond its
-        limit), flagged by a waiver in the entry, instead of leaving them out of a
-        level-locomotion library (:mod:`mocaplib.gait.activity`).
+    keep_non_level : keep the cycles on stairs or slopes (:func:`mocaplib.gait.activity.non_level`),
+        flagged in the build's warnings and the cycles' diagnostics (``activity``,
+        ``rise_per_step_m``), instead of leaving them out of a level-locomotion library.
     static_sources : per static, where it came from (:data:`STATIC_SOURCES`); None: the
         command line (:func:`mocaplib.build.sessions.plan_captures` sets the others).
     trim : a session's time windows ((start, end) s from the capture's first frame) the

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import C3DError, CalibrationError, MocapError, NoCycleError
-from ..gait.activity import NON_LEVEL_METRIC, set_activities
+from ..gait.activity import non_level, set_activities
 from ..gait.cycles import motion_cycles
 from ..gait.locomotion import locomotion_class
 from ..gait.patterns import cycle_times
@@ -224,10 +224,11 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes, events)
         if not result.entries:
-            result.no_entry = "every complete cycle was left out by QC: " + "; ".join(
+            result.no_entry = "every complete cycle was left out: " + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
-                + ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds,
-                                           facts=result.provenance))
+                + (non_level(c) if non_level(c) and not settings.keep_non_level else
+                   ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds,
+                                            facts=result.provenance)))
                 for c in kept)
         if any(qc_failures(qcs[c.index], settings.qc_thresholds) for c in kept):
             result.warnings.extend(processed.fitted.qc_causes)
@@ -353,14 +354,14 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
         image_of = None if mirror_of is None else mirror_of[cycle.index]
         where = (f"{'mirror image ' if image_of else ''}cycle {cycle.index} "
                  f"({cycle.start_s:.2f}-{cycle.end_s:.2f} s, {cycle.activity})")
-        flagged = {f.split()[0]: f"kept by build setting keep_non_level ({f}: stairs or a "
-                                 "slope)" for f in failures
-                   if settings.keep_non_level and f.split()[0] == NON_LEVEL_METRIC}
-        failures = [f for f in failures if f.split()[0] not in flagged]
-        waived = dict(flagged)
-        if flagged:
-            result.warnings.append(f"{where} kept, flagged not level: "
-                                   + "; ".join(flagged.values()))
+        sloped = non_level(cycle)
+        if sloped and not settings.keep_non_level:
+            result.warnings.append(f"{where} left out of the level-locomotion library: "
+                                   f"{sloped}; --keep-non-level keeps it, flagged")
+            continue
+        if sloped:
+            result.warnings.append(f"{where} kept, flagged {sloped}")
+        waived = {}
         if failures and settings.qc_policy == "drop":
             result.warnings.append(f"{where} left out of the library: "
                                    + "; ".join(named_failures(cycle, motion, qc,
@@ -368,8 +369,8 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
                                                               facts=result.provenance)))
             continue
         if failures:
-            waived |= {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
-                       for f in failures}
+            waived = {f.split()[0]: f"accepted by build setting qc_policy=waive ({f})"
+                      for f in failures}
             result.warnings.append(f"{where} kept with QC waived: {'; '.join(failures)}")
         vel, enc = cycle.velocities, cycle.encoding
         entries.append(LibraryEntry(

@@ -56,8 +56,9 @@ def register(subparsers) -> None:
                              "segment of each capture")
     parser.add_argument("--keep-non-level", action="store_true",
                         help="keep the cycles on stairs or slopes (the pelvis rises or drops "
-                             "more than 3 cm per step), flagged by a QC waiver, instead of "
-                             "leaving them out of a level-locomotion library")
+                             "more than 3 cm per step), flagged in the warnings and the "
+                             "diagnostics, instead of leaving them out of a level-locomotion "
+                             "library")
     parser.add_argument("--mirror", action="store_true",
                         help="also add each capture's left-right mirror image, cut at its right "
                              "toe-offs (fills the turns and side-steps a session made to one "

@@ -34,20 +34,27 @@ from collections.abc import Sequence
 from .cycles import Cycle
 from .foot_events import GaitEvent
 from .locomotion import FACING_TOLERANCE, SPOT_SPEED, TURN_RATE, stride_gait
-from .qc import QC_LIMITS
 
 #: The activities :func:`cycle_activity` gives (module docstring).
 ACTIVITIES = ("standing", "running", "descending", "ascending", "stepping in place",
               "turning on the spot", "forwards", "backwards", "sideways")
 #: The activities that are not level locomotion: stairs or slopes.
 NON_LEVEL = ("descending", "ascending")
-#: The QC metric that measures it, m per step (:func:`mocaplib.gait.qc.cycle_qc`).
-NON_LEVEL_METRIC = "step_rise_m"
-#: Height (m) the pelvis may rise or drop per step on level ground. Level walks measure at
-#: most 0.009 m per step (the 68 samples, the real level walks of ../shared/data/c3d);
-#: a stair's riser is 0.15-0.18 m and a 1:12 ramp (the steepest wheelchair ramp) climbs
-#: 0.05 m per 0.6 m step, so 0.03 m tells either from level ground.
-NON_LEVEL_RISE = QC_LIMITS[NON_LEVEL_METRIC][0]
+#: Height (m) the pelvis may rise or drop per step on level ground. The real level walks of
+#: ../shared/data/c3d measure at most 0.011 m per step (07_12.c3d, every cycle); a stair's
+#: riser is 0.15-0.18 m and a 1:12 ramp (the steepest wheelchair ramp) climbs 0.05 m per
+#: 0.6 m step, so 0.03 m tells either from level ground.
+NON_LEVEL_RISE = 0.03
+
+
+def non_level(cycle: Cycle, /) -> str | None:
+    """What makes a cycle of :data:`NON_LEVEL` activity not level locomotion, in words; None
+    for a level one."""
+    if cycle.activity not in NON_LEVEL:
+        return None
+    rise = cycle.rise_per_step
+    return (f"not level: the pelvis {'rises' if rise > 0 else 'drops'} {abs(rise):.3f} m per "
+            f"step (stairs or a slope; level walking stays within {NON_LEVEL_RISE:g} m)")
 
 
 def cycle_activity(cycle: Cycle, events: Sequence[GaitEvent], /) -> str:

@@ -102,15 +102,6 @@ class Failure:
 LIKELY_CAUSES: list[Callable[[Failure], tuple[str, str] | None]] = []
 
 
-def _non_level(failure: Failure):
-    rise = getattr(failure.cycle, "rise_per_step", None)
-    if failure.metric != "step_rise_m" or rise is None:
-        return None
-    return (f"stairs or a slope: the pelvis {'rises' if rise > 0 else 'drops'} "
-            f"{abs(rise):.3f} m per step, not level locomotion",
-            "keep it, flagged, with --keep-non-level (keep_non_level in session.toml)")
-
-
 def _self_calibrated(failure: Failure):
     if failure.metric not in ("marker_max_m", "marker_rms_m") or "static" not in failure.facts \
             or failure.facts["static"] is not None:
@@ -143,7 +134,7 @@ def _filled_events(failure: Failure):
             "fill the gaps in the capture, or choose another cycle (cycles in session.toml)")
 
 
-LIKELY_CAUSES += [_non_level, _self_calibrated, _marker_off, _not_periodic, _filled_events]
+LIKELY_CAUSES += [_self_calibrated, _marker_off, _not_periodic, _filled_events]
 
 
 def named_failures(cycle, motion, qc: dict, thresholds: dict, *, facts: dict | None = None
@@ -192,9 +183,8 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     joint angles of their third time derivative (rad/s^3); internal power (C3): the absolute
     energy changes of every body segment between the cycle's consecutive frames over their span,
     W/kg (:func:`mocaplib.gait.criteria.internal_power`); jerk and power are None when the
-    capture is too short to be filtered; step rise: how far the pelvis rises or drops per step,
-    m (:attr:`mocaplib.gait.cycles.Cycle.rise_per_step`, stairs and slopes). ``series``: the
-    capture's :func:`qc_series`, when already computed.
+    capture is too short to be filtered. ``series``: the capture's :func:`qc_series`, when
+    already computed.
     """
 
     series = qc_series(motion) if series is None else series
@@ -216,7 +206,6 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
             "jerk_rms_rad_s3": None if third is None else jerk_rms(third[inside]),
             "internal_power_w_kg": None if energies is None or spanned <= 0
             else internal_power(energies[inside], spanned),
-            "step_rise_m": None if cycle.rise_per_step is None else abs(cycle.rise_per_step),
         }
 
 
@@ -237,8 +226,6 @@ QC_LIMITS: dict[str, tuple[float | None, str]] = {
     "cycle_closure_rad": (None, "max"),
     "jerk_rms_rad_s3": (None, "max"),
     "internal_power_w_kg": (None, "max"),   # C3, mocaplib.gait.criteria; absent in older files
-    # stairs and slopes are not level locomotion: mocaplib.gait.activity.NON_LEVEL_RISE
-    "step_rise_m": (0.03, "max"),
 }
 
 
