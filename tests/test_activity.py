@@ -49,6 +49,8 @@ def _cycle(v_f=0.0, v_l=0.0, omega=0.0, rise=0.0, rest=False):
     (_cycle(v_f=-0.8), "backwards"),
     (_cycle(v_l=0.5), "sideways"),
     (_cycle(v_f=0.5, v_l=0.5), "sideways"),             # a 45° diagonal
+    (_cycle(v_f=-0.87, v_l=0.51), "sideways"),          # the plan's 150° diagonal, 149.6°
+    (_cycle(v_f=-0.86, v_l=0.5), "sideways"),           # and 150.2°
     (_cycle(v_f=1.0, rise=-0.17), "descending"),        # a stair's riser per step
     (_cycle(v_f=1.0, rise=0.05), "ascending"),          # a ramp's
     (_cycle(v_f=1.0, rise=0.011), "forwards"),          # the most a real level walk rises

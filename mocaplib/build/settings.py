@@ -56,7 +56,7 @@ class BuildSettings:
     max_gap_s : the longest gap (s) filled by interpolation: in the foot markers the gait
         events read (:class:`mocaplib.gait.events.EventSettings`) and in the frames the fit could
         not solve inside a cycle (:mod:`mocaplib.gait.cycles`).
-    all_cycles : keep every complete cycle, not only the one chosen per capture.
+    all_cycles : keep every complete cycle, not only the one chosen per activity segment.
     mirror : also add each capture's left-right mirror image (:func:`mirror_entries`).
     qc_policy : ``"drop"`` leaves cycles failing a QC threshold out of the library (with a
         warning); ``"waive"`` keeps them and records the waiver and its reason in the entry.

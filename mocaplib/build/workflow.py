@@ -91,8 +91,8 @@ class CaptureResult:
         ``trim``, ``cycles`` and ``drop_cycles`` when set; empty when it failed before.
     no_entry : str or None
         Why a capture that did not fail gave no library entry (None when it gave some, or
-        failed): no complete cycle, every cycle left out by QC, or a static trial that cannot
-        be a rest entry.
+        failed): no complete cycle, every cycle left out by QC or as not level, or by the
+        session, or a static trial that cannot be a rest entry.
     """
 
     source: str
@@ -224,7 +224,8 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes, events)
         if not result.entries:
-            result.no_entry = "every complete cycle was left out: " + "; ".join(
+            result.no_entry = "every complete cycle was left out by QC or as not level: " \
+                + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
                 + (non_level(c) if non_level(c) and not settings.keep_non_level else
                    ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds,

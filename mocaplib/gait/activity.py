@@ -19,7 +19,7 @@ turning on the spot      v̂ below that while ``|ω̂|`` reaches
                          :data:`~mocaplib.gait.locomotion.TURN_RATE`
 forwards                 travels within :data:`~mocaplib.gait.locomotion.FACING_TOLERANCE`
                          of where the body faces (straight or curving)
-backwards                travels within that of the opposite direction
+backwards                travels within :data:`BACKWARD_TOLERANCE` of the opposite direction
 sideways                 any other direction of travel (side-steps, diagonals)
 =======================  =================================================================
 
@@ -40,8 +40,13 @@ ACTIVITIES = ("standing", "running", "descending", "ascending", "stepping in pla
               "turning on the spot", "forwards", "backwards", "sideways")
 #: The activities that are not level locomotion: stairs or slopes.
 NON_LEVEL = ("descending", "ascending")
+#: Largest angle (rad) between the path and the direction opposite to where the body faces of
+#: a backward walk: half the gap between the paper's steepest backward diagonal (150°) and
+#: 180°, so that a 150° diagonal is always sideways (its cycles measure 149-151°).
+BACKWARD_TOLERANCE = math.radians(15.0)
 #: Height (m) the pelvis may rise or drop per step on level ground. The real level walks of
-#: ../shared/data/c3d measure at most 0.011 m per step (07_12.c3d, every cycle); a stair's
+#: ../shared/data/c3d measure at most 0.011 m per step (07_12.c3d, every cycle), the 68
+#: samples 0.0004 m; a stair's
 #: riser is 0.15-0.18 m and a 1:12 ramp (the steepest wheelchair ramp) climbs 0.05 m per
 #: 0.6 m step, so 0.03 m tells either from level ground.
 NON_LEVEL_RISE = 0.03
@@ -73,7 +78,7 @@ def cycle_activity(cycle: Cycle, events: Sequence[GaitEvent], /) -> str:
     direction = abs(math.atan2(vel.v_l, vel.v_f))
     if direction <= FACING_TOLERANCE:
         return "forwards"
-    return "backwards" if direction >= math.pi - FACING_TOLERANCE else "sideways"
+    return "backwards" if direction >= math.pi - BACKWARD_TOLERANCE else "sideways"
 
 
 def set_activities(cycles: Sequence[Cycle], events: Sequence[GaitEvent], /) -> None:
