@@ -9,7 +9,6 @@ SI units throughout: metres, seconds, radians.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -20,7 +19,6 @@ from ..gait.foot_events import GaitEvent
 from ..gait.qc import DEFAULT_QC_THRESHOLDS
 from ..io.c3d import read_c3d
 from ..markersets.matching import ProtocolMatch, match_trial, missing_landmarks_error
-from ..markersets.protocols import protocols_dir
 from ..model.fitting import FittedCapture, StageClock, fit_capture
 from ..model.motion import Motion
 from ..model.subject import SubjectModel
@@ -77,16 +75,6 @@ class ProcessedCapture:
         """The first cycle the library keeps (None when the capture has none); a take of
         several activities keeps one per activity segment: the cycles with ``chosen`` set."""
         return next((c for c in self.cycles if c.chosen), None)
-
-
-def protocol_origin(protocol, /) -> str:
-    """Where a marker-set protocol comes from: ``"shipped"`` (mocaplib's own folder,
-    :func:`mocaplib.markersets.protocols.protocols_dir`), ``"user"`` (a file or folder of the
-    user's) or ``"drafted"`` (drafted from the capture's motion: the protocol says so)."""
-    if getattr(protocol, "drafted", False):      # the one place a drafted protocol is told
-        return "drafted"
-    shipped = Path(protocol.path).resolve().parent == protocols_dir().resolve()
-    return "shipped" if shipped else "user"
 
 
 def process(capture, /, *, protocol="auto", static=None, static_pose: str = "free",

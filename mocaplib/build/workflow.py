@@ -38,7 +38,7 @@ from ..model.filtering import resample
 from ..model.fitting import StageClock
 from ..skeleton import DOF_NAMES
 from ..statics import static_names
-from .capture import ProcessedCapture, cut_cycles, fit_events, protocol_origin
+from .capture import ProcessedCapture, cut_cycles, fit_events
 from .settings import CAPTURE_CHOICE, BuildSettings
 
 #: Long series in the diagnostics are downsampled to at most this many points.
@@ -87,7 +87,8 @@ class CaptureResult:
         What the capture was calibrated from (``calibrated_from``: one of
         :data:`mocaplib.build.settings.STATIC_SOURCES` or "the capture itself"; ``static``: the
         static's file name or None; ``static_pose``, with a static) and its marker-set protocol
-        (``protocol``: name, ``protocol_origin``: :func:`protocol_origin`), with its session's
+        (``protocol``: name, ``protocol_origin``:
+        :attr:`mocaplib.markersets.protocols.Protocol.origin`), with its session's
         ``trim``, ``cycles`` and ``drop_cycles`` when set; empty when it failed before.
     no_entry : str or None
         Why a capture that did not fail gave no library entry (None when it gave some, or
@@ -289,7 +290,7 @@ def cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, cloc
     fitted = processed.fitted
     result.provenance = {"calibrated_from": "the capture itself", "static": None,
                          "protocol": match.protocol.name,
-                         "protocol_origin": protocol_origin(match.protocol)}
+                         "protocol_origin": match.protocol.origin}
     result.provenance |= {key: getattr(settings, key) for key in CAPTURE_CHOICE
                           if getattr(settings, key) not in (None, ())}
     if fitted.static is not None:
