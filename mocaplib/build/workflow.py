@@ -225,13 +225,14 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes, events)
         if not result.entries:
-            result.no_entry = "every complete cycle was left out by QC or as not level: " \
-                + "; ".join(
+            sloped = {c.index: non_level(c) for c in kept if not settings.keep_non_level}
+            result.no_entry = ("every complete cycle was left out by QC"
+                               + (" or as not level: " if any(sloped.values()) else ": ")
+                               + "; ".join(
                 f"cycle {c.index} ({c.start_s:.2f}-{c.end_s:.2f} s) "
-                + (non_level(c) if non_level(c) and not settings.keep_non_level else
-                   ", ".join(named_failures(c, motion, qcs[c.index], settings.qc_thresholds,
-                                            facts=result.provenance)))
-                for c in kept)
+                + (sloped.get(c.index) or ", ".join(named_failures(
+                    c, motion, qcs[c.index], settings.qc_thresholds, facts=result.provenance)))
+                for c in kept))
         if any(qc_failures(qcs[c.index], settings.qc_thresholds) for c in kept):
             result.warnings.extend(processed.fitted.qc_causes)
         result.diagnostics.update(_cycle_diagnostics(
