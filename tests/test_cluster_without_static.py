@@ -10,7 +10,7 @@ import pytest
 from mocaplib.build.settings import BuildSettings
 from mocaplib.build.workflow import process_capture
 from mocaplib.library.command import Command
-from mocaplib.model.fitting import CLUSTER_WITHOUT_STATIC_CAUSE, fit_capture
+from mocaplib.model.fitting import fit_capture
 from mocaplib.model.ik import fit_quality
 from mocaplib.model.motion import LIMIT_WARNING_SHARE
 from mocaplib.skeleton import DOF_NAMES
@@ -86,7 +86,7 @@ def test_the_assumptions_are_stated_once(fitted):
     stated = [w for w in done.warnings if w.startswith("cluster set without a static")]
     assert len(stated) == 1, done.warnings
     assert "segment zero poses are assumed" in stated[0] and "SCoRE" in stated[0]
-    assert done.qc_causes == [CLUSTER_WITHOUT_STATIC_CAUSE]
+    assert done.joint_centres_from_motion
 
 
 def test_a_qc_failure_of_a_cluster_capture_without_static_names_the_cause(tmp_path, fitted):
@@ -96,5 +96,6 @@ def test_a_qc_failure_of_a_cluster_capture_without_static_names_the_cause(tmp_pa
     thresholds = {**BuildSettings().qc_thresholds, "marker_rms_m": 1e-4}
     result = process_capture(path, BuildSettings(qc_thresholds=thresholds))
     assert not result.entries
-    causes = [w for w in result.warnings if w.startswith("likely cause: a cluster set")]
-    assert causes and "--static" in causes[0], result.warnings
+    assert result.provenance["joint_centres"] == "the motion"
+    assert "likely a cluster set without a static" in result.no_entry, result.no_entry
+    assert "--static" in result.no_entry.split("likely a cluster set")[1]

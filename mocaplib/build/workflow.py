@@ -89,7 +89,10 @@ class CaptureResult:
         static's file name or None; ``static_pose``, with a static) and its marker-set protocol
         (``protocol``: name, ``protocol_origin``:
         :attr:`mocaplib.markersets.protocols.Protocol.origin`), with its session's
-        ``trim``, ``cycles`` and ``drop_cycles`` when set; empty when it failed before.
+        ``trim``, ``cycles`` and ``drop_cycles`` when set, and ``joint_centres`` ("the
+        motion") when a cluster set's joints were assumed from its motion
+        (:attr:`mocaplib.model.fitting.FittedCapture.joint_centres_from_motion`); empty when
+        it failed before.
     no_entry : str or None
         Why a capture that did not fail gave no library entry (None when it gave some, or
         failed): no complete cycle, every cycle left out by QC or as not level, or by the
@@ -233,8 +236,6 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                 + (sloped.get(c.index) or ", ".join(named_failures(
                     c, motion, qcs[c.index], settings.qc_thresholds, facts=result.provenance)))
                 for c in kept))
-        if any(qc_failures(qcs[c.index], settings.qc_thresholds) for c in kept):
-            result.warnings.extend(processed.fitted.qc_causes)
         result.diagnostics.update(_cycle_diagnostics(
             motion, cycles, {e.cycle_index: e.id for e in result.entries}, shapes))
     if settings.mirror and result.entries:
@@ -294,6 +295,8 @@ def cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                          "protocol_origin": match.protocol.origin}
     result.provenance |= {key: getattr(settings, key) for key in CAPTURE_CHOICE
                           if getattr(settings, key) not in (None, ())}
+    if fitted.joint_centres_from_motion:
+        result.provenance["joint_centres"] = "the motion"
     if fitted.static is not None:
         result.static = static_names(settings.statics)[fitted.static]
         result.provenance.update(calibrated_from=settings.static_source(fitted.static),

@@ -102,6 +102,16 @@ class Failure:
 LIKELY_CAUSES: list[Callable[[Failure], tuple[str, str] | None]] = []
 
 
+def _joints_from_motion(failure: Failure):
+    if failure.facts.get("joint_centres") != "the motion":
+        return None
+    return ("a cluster set without a static: the joint centres, the flexion axes and the "
+            "segments' zero poses no landmark gives are assumed from the capture's motion (the "
+            "calibration warning names each)", "record a static standing trial with the knee, "
+            "ankle and elbow markers on and pass it with --static, or check the angles and keep "
+            "the cycle with --qc waive")
+
+
 def _self_calibrated(failure: Failure):
     if failure.metric not in ("marker_max_m", "marker_rms_m") or "static" not in failure.facts \
             or failure.facts["static"] is not None:
@@ -134,7 +144,8 @@ def _filled_events(failure: Failure):
             "fill the gaps in the capture, or choose another cycle (cycles in session.toml)")
 
 
-LIKELY_CAUSES += [_self_calibrated, _marker_off, _not_periodic, _filled_events]
+LIKELY_CAUSES += [_joints_from_motion, _self_calibrated, _marker_off, _not_periodic,
+                  _filled_events]
 
 
 def named_failures(cycle, motion, qc: dict, thresholds: dict, *, facts: dict | None = None

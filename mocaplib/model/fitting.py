@@ -69,11 +69,10 @@ class FittedCapture:
     warnings: list[str]
 
     @property
-    def qc_causes(self) -> list[str]:
-        """The likely causes of a QC failure of this capture's cycles and what to do, one
-        sentence each (empty when none is known)."""
-        return [CLUSTER_WITHOUT_STATIC_CAUSE] if self.static is None and _is_cluster_set(
-            self.model) else []
+    def joint_centres_from_motion(self) -> bool:
+        """Whether joint centres, flexion axes and zero poses no landmark gives were assumed
+        from the capture's motion: a cluster set calibrated without a static."""
+        return self.static is None and _is_cluster_set(self.model)
 
     def fitted_markers(self, trial: Trial, /) -> Trial:
         """The markers the fit followed, as a trial of the model's markers (labels in model
@@ -211,14 +210,6 @@ def _foot_zero_warning(model: SubjectModel) -> str:
 
 
 #: The likely cause of a QC failure of a cluster set fitted without a static, and what to do.
-CLUSTER_WITHOUT_STATIC_CAUSE = (
-    "likely cause: a cluster set without a static: the joint centres, the flexion axes and "
-    "the segments' zero poses no landmark gives are assumed from the capture's motion (the "
-    "calibration warning names each); record a static standing trial with the knee, ankle and "
-    "elbow markers on and pass it with --static, or check the angles and keep the cycle with "
-    "--qc waive")
-
-
 def _is_cluster_set(model: SubjectModel) -> bool:
     """Whether the model follows tracking markers (clusters) on a limb."""
     tracking = {m.label for m in model.protocol.markers if m.tracking}
