@@ -18,7 +18,7 @@ when absent), for each toe-off definition, and prints:
   0.3, 0.4, 0.5 and 0.6 m/s, :data:`SLOW_WALKS`), per speed: toe-offs, % within 1 frame, median
   and worst error against the generator's truth;
 * the force plates of the four real files (read with ezc3d): each plate's unloading (vertical
-  force falling below :data:`PLATE_THRESHOLD_N`, or a share of its peak, after a stance)
+  force in newtons falling below :data:`PLATE_THRESHOLD_N` after a stance, :func:`plate_unloadings`)
   against the nearest detected toe-off and the nearest lab Foot Off, so the lab events a plate
   measured are told from those placed otherwise;
 * per real file that records them (any file under ``--real`` with lab Foot Off events or force
@@ -64,10 +64,11 @@ SYNTHETIC_TARGET, REAL_TARGET_S, REAL_WORST_S = 0.95, 0.010, 0.030
 SLOW_WALKS = tuple((kind, speed, radius, seed) for speed in (0.3, 0.4, 0.5, 0.6)
                    for kind, radius, seed in (("straight", None, 101), ("straight", None, 102),
                                               ("curve", 2.0, 103)))
-#: Vertical force (N) under which a force plate counts as unloaded, or this share of the
-#: plate's peak when smaller (a plate whose analog channel is not scaled to newtons: btkdata's
-#: Gait.c3d peaks at 70-74 units); shortest stance (s) on it.
-PLATE_THRESHOLD_N, PLATE_THRESHOLD_SHARE, PLATE_MIN_STANCE_S = 20.0, 0.04, 0.1
+#: Vertical force (N) under which a force plate counts as unloaded: the common 20 N of the
+#: field's 10-50 N thresholds (Tirosh & Sparrow 2003 compare them), 3 to 10 times the noise
+#: of the plates here (SD 2-7.5 N); least peak (N) of a plate someone stood on; shortest
+#: stance (s) on it.
+PLATE_THRESHOLD_N, PLATE_MIN_PEAK_N, PLATE_MIN_STANCE_S = 20.0, 100.0, 0.1
 #: The rows of the real table: (row name, event kind, lab event sides or None for both).
 REAL_ROWS = (("toe_off", "toe_off", None), ("heel_strike", "heel_strike", None),
              ("left toe_off", "toe_off", "L"))
@@ -177,28 +178,83 @@ def slow_table(walks, toe_off: str) -> None:
               f"{np.median(errors):+.2f} | {np.abs(errors).max():.2f} |")
 
 
-def plate_unloadings(path: Path) -> list[float]:
-    """Seconds from the first frame at which a force plate of the C3D at ``path`` is unloaded:
-    the end of each run of at least :data:`PLATE_MIN_STANCE_S` with |Fz| above
-    :data:`PLATE_THRESHOLD_N` (or :data:`PLATE_THRESHOLD_SHARE` of its peak; the plates are
-    zeroed) that ends inside the recording."""
+def vertical_forces(path: Path) -> tuple[float, list[np.ndarray]]:
+    """The analog rate (Hz) and each force plate's vertical force (N, > 0 under load, zero
+    offset removed), shape (A,) per plate, of the C3D at ``path`` (read with ezc3d, which
+    applies the analog channels' SCALE and OFFSET): the Fz channel of a type 1 or 2 plate, the
+    sum of the four Fz channels of a type 3, the CAL_MATRIX row of Fz applied to the six
+    channels of a type 4. The zero is the median of the samples under a tenth of the peak (a
+    plate may read -15 N empty, as btkdata's Gait.c3d does). Analog sample ``k`` lies at
+    ``k / rate`` s from the first point frame (the C3D layout: the analog samples of a frame
+    start with it)."""
     import ezc3d
-
-    from mocaplib.runs import valid_runs
 
     c3d = ezc3d.c3d(str(path))
     plates = c3d["parameters"]["FORCE_PLATFORM"]
     used = int(plates["USED"]["value"][0])
-    channels = np.asarray(plates["CHANNEL"]["value"]).reshape(6, used)
+    types = np.asarray(plates["TYPE"]["value"]).astype(int)
+    channels = np.asarray(plates["CHANNEL"]["value"]).reshape(-1, used) - 1
     rate = float(c3d["parameters"]["ANALOG"]["RATE"]["value"][0])
     analogs = c3d["data"]["analogs"][0]
     out = []
     for plate in range(used):
-        force = np.abs(analogs[channels[2, plate] - 1])
-        loaded = force > min(PLATE_THRESHOLD_N, PLATE_THRESHOLD_SHARE * force.max())
+        if types[plate] in (1, 2):
+            force = analogs[channels[2, plate]]
+        elif types[plate] == 3:
+            force = analogs[channels[4:8, plate]].sum(axis=0)
+        elif types[plate] == 4:
+            calibration = np.asarray(plates["CAL_MATRIX"]["value"])[:, :, plate]
+            force = calibration[2] @ analogs[channels[:6, plate]]
+        else:
+            continue
+        force = force * np.sign(force[np.argmax(np.abs(force - np.median(force)))])
+        empty = force < 0.1 * force.max()
+        if empty.any():                                      # else a plate reading nothing
+            out.append(force - np.median(force[empty]))
+    return rate, out
+
+
+def plate_unloadings(path: Path) -> list[float]:
+    """Seconds from the first frame at which a force plate of the C3D at ``path`` is unloaded
+    (:func:`vertical_forces`): the first sample below :data:`PLATE_THRESHOLD_N` after each run
+    of at least :data:`PLATE_MIN_STANCE_S` above it that ends inside the recording. A plate
+    that never bears :data:`PLATE_MIN_PEAK_N` (nobody stood on it, or its channel is not in
+    newtons) gives none."""
+    from mocaplib.runs import valid_runs
+
+    rate, forces = vertical_forces(path)
+    out = []
+    for force in forces:
+        if force.max() < PLATE_MIN_PEAK_N:
+            continue
+        loaded = force > PLATE_THRESHOLD_N
         out += [end / rate for start, end in valid_runs(loaded).tolist()
                 if end - start >= PLATE_MIN_STANCE_S * rate and end < len(loaded)]
     return sorted(out)
+
+
+def toe_off_differences(path: Path) -> tuple[np.ndarray, np.ndarray, int]:
+    """Default toe-offs of the C3D at ``path`` minus its recorded toe-offs (s): against the
+    lab's Foot Offs (:func:`mocaplib.gait.feet.event_differences`) and against the plates'
+    unloadings (:func:`plate_unloadings`, the nearest placed toe-off of either side), each
+    NaN where no placed toe-off lies within 0.1 s; and how many lab Foot Offs and unloadings
+    fall in the window of a toe-off the detector reported as not placed."""
+    trial = read_c3d(path)
+    events, _ = capture_events(trial, detect_protocol(trial))
+    lab = event_differences(events, trial.events, kind="toe_off", start_time=trial.start_time)
+    try:
+        unloadings = plate_unloadings(path)
+    except (KeyError, IndexError, ValueError):                      # no usable plate
+        unloadings = []
+    offs = [e.time_s for e in events if e.kind == "toe_off" and e.placed]
+    plates = np.array([min((t - p for t in offs), key=abs, default=np.inf)
+                       for p in unloadings])
+    plates[np.abs(plates) > 0.1] = np.nan
+    labs = [e.time_s - trial.start_time for e in trial.events
+            if LAB_EVENT_KINDS.get(e.label) == "toe_off"]
+    windows = [e.window for e in events if e.kind == "toe_off" and not e.placed]
+    hidden = sum(w[0] <= t <= w[1] for t in labs + unloadings for w in windows)
+    return lab, plates, hidden
 
 
 def plate_table(real: Path) -> None:
@@ -207,9 +263,8 @@ def plate_table(real: Path) -> None:
     paths = [real / name for name in LAB_FILES if (real / name).is_file()]
     if len(paths) < len(LAB_FILES):
         return
-    print(f"\nForce-plate unloading (|Fz| < {PLATE_THRESHOLD_N:.0f} N, or "
-          f"{PLATE_THRESHOLD_SHARE:.0%} of the plate's peak) in the real files, "
-          f"default toe-off:\n")
+    print(f"\nForce-plate unloading (vertical force < {PLATE_THRESHOLD_N:.0f} N above the "
+          f"plate's zero, :func:`plate_unloadings`) in the real files, default toe-off:\n")
     print("| file | unloading (s) | detected − plate (ms) | lab Foot Off − plate (ms) |\n"
           "|---|---|---|---|")
     detected = []
@@ -231,32 +286,17 @@ def plate_table(real: Path) -> None:
 
 def per_file_table(real: Path) -> bool:
     """Print, per real file with lab Foot Offs or force plates, the default toe-offs against
-    each; True when every file's median and worst |difference| meet the targets."""
+    each (:func:`toe_off_differences`); True when every file's median and worst |difference|
+    meet the targets."""
     print("\nToe-offs per real file that records lab Foot Offs or force plates, default "
           "toe-off (median / worst |Δ|, ms; paired of recorded):\n")
     print("| file | against lab Foot Off | against plate unloading | in a toe-off not placed "
           "|\n|---|---|---|---|")
     met, missed = True, []
     for path in sorted(real.rglob("*.c3d")):
-        trial = read_c3d(path)
-        labs = [e.time_s - trial.start_time for e in trial.events
-                if LAB_EVENT_KINDS.get(e.label) == "toe_off"]
-        try:
-            plates = plate_unloadings(path)
-        except (KeyError, IndexError, ValueError):                  # no usable plate
-            plates = []
-        if not labs and not plates:
-            continue
-        events, _ = capture_events(trial, detect_protocol(trial))
-        if not any(e.kind == "toe_off" for e in events):         # plates, nobody walking
-            continue
-        lab = event_differences(events, trial.events, kind="toe_off",
-                                start_time=trial.start_time)
-        offs = [e.time_s for e in events if e.kind == "toe_off" and e.placed]
-        plate = np.array([min((t - p for t in offs), key=abs, default=np.inf) for p in plates])
-        plate[np.abs(plate) > 0.1] = np.nan
-        windows = [e.window for e in events if e.kind == "toe_off" and not e.placed]
-        hidden = sum(w[0] <= t <= w[1] for t in labs + plates for w in windows)
+        lab, plate, hidden = toe_off_differences(path)
+        if not np.isfinite(np.concatenate([lab, plate])).any() and not hidden:
+            continue                       # nothing recorded, or plates with nobody walking
         cells = []
         for name, diff in (("lab", lab), ("plates", plate)):
             paired = 1000 * np.abs(diff[np.isfinite(diff)])
