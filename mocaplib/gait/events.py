@@ -44,8 +44,10 @@ point, the later its peak.
   that bracket it. (a) The upward-velocity peak (sub-frame by a parabola) of the point
   :data:`TOE_OFF_WEIGHT` of the way from the other marker to the one that left the floor last
   (the toe marker, or the heel walking backwards); O'Connor et al.'s foot velocity algorithm
-  takes the midpoint. It comes early when the push-off is slow (up to 14 ms on synthetic walks
-  at 0.4-0.5 m/s). (b) The end of the roll: the foot's pitch rate (how fast the first marker
+  takes the midpoint. It is sought only while the foot still rolls over its forefoot (until
+  its pitch rate, below, is no longer positive), so a foot lifted faster later in the swing,
+  stepping up onto a stair's tread, does not take it. It comes early when the push-off is
+  slow (up to 14 ms on synthetic walks at 0.4-0.5 m/s). (b) The end of the roll: the foot's pitch rate (how fast the first marker
   rises over the last, :func:`_pitch_rate`) peaks while the heel rises about the metatarsal
   heads and falls as the toes leave; the release is where it has fallen to
   :data:`TOE_OFF_PITCH_FRACTION` (half) of that stride's peak, a level relative to the

@@ -39,14 +39,28 @@ def peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
 def toe_off_time(foot: FootTrack, last: int, lo: int, hi: int, rate: float) -> float | None:
     """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames): the mean of
     the upward-velocity peak of the point :data:`TOE_OFF_WEIGHT` of the way from the other
-    marker to the one that left last (index ``last``) and the time the foot's pitch rate falls
-    to :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (module docstring); None when
-    either is not found."""
+    marker to the one that left last (index ``last``), sought while the foot still rolls
+    (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's tread, may rise
+    faster), and the time the foot's pitch rate falls to :data:`TOE_OFF_PITCH_FRACTION` of
+    its push-off peak (:mod:`mocaplib.gait.events`); None when either is not found."""
     velocity = foot.velocity[:, :, 2]
     push = TOE_OFF_WEIGHT * velocity[last] + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last]
-    peak = peak_time(push, lo, hi)
-    release = _release_time(_pitch_rate(foot.points, last, rate), lo, hi)
+    pitch_rate = _pitch_rate(foot.points, last, rate)
+    peak = peak_time(push, lo, _roll_end(pitch_rate, lo, hi))
+    release = _release_time(pitch_rate, lo, hi)
     return None if peak is None or release is None else 0.5 * (peak + release)
+
+
+def _roll_end(pitch_rate: np.ndarray, lo: int, hi: int) -> int:
+    """The first frame in ``[lo, hi)`` past the pitch rate's (F,) rad/s push-off peak where
+    it is no longer positive: the foot has stopped rolling over its forefoot (``hi`` if it
+    never stops there)."""
+    window = pitch_rate[lo:hi]
+    if window.size == 0 or not np.isfinite(window).any():
+        return hi
+    peak = lo + int(np.nanargmax(window))
+    stopped = np.flatnonzero(~(pitch_rate[peak:hi] > 0))
+    return peak + int(stopped[0]) if stopped.size else hi
 
 
 def _pitch_rate(points: np.ndarray, last: int, rate: float) -> np.ndarray:
