@@ -17,10 +17,11 @@ when absent), for each toe-off definition, and prints:
 * slow walks below the sample plan's speeds (generated here, straight and on a 2 m curve at
   0.3, 0.4, 0.5 and 0.6 m/s, :data:`SLOW_WALKS`), per speed: toe-offs, % within 1 frame, median
   and worst error against the generator's truth;
-* the force plates of the four real files (read with ezc3d): each plate's unloading (vertical
-  force in newtons falling below :data:`PLATE_THRESHOLD_N` after a stance, :func:`plate_unloadings`)
-  against the nearest detected toe-off and the nearest lab Foot Off, so the lab events a plate
-  measured are told from those placed otherwise;
+* the force plates of the real files (read with ezc3d): each plate's unloading (vertical
+  force in newtons falling below :data:`PLATE_THRESHOLD_N` after a stance,
+  :func:`plate_unloadings`) against the nearest placed toe-off and the nearest lab Foot Off,
+  so the lab events a plate measured are told from those placed otherwise, and how much
+  later the force falls below :data:`LOW_THRESHOLD_N` (what the threshold's choice moves);
 * per real file that records them (any file under ``--real`` with lab Foot Off events or force
   plates), the toe-offs against its lab Foot Offs and against its plates' unloadings: paired
   (nearest placed toe-off of the side within 0.1 s; a plate with none), median and worst
@@ -69,6 +70,9 @@ SLOW_WALKS = tuple((kind, speed, radius, seed) for speed in (0.3, 0.4, 0.5, 0.6)
 #: of the plates here (SD 2-7.5 N); least peak (N) of a plate someone stood on; shortest
 #: stance (s) on it.
 PLATE_THRESHOLD_N, PLATE_MIN_PEAK_N, PLATE_MIN_STANCE_S = 20.0, 100.0, 0.1
+#: The lower threshold (N) whose unloadings the plate table also shows, to tell how much of a
+#: difference the threshold's choice makes (Tirosh & Sparrow advise 10 N or less for toe-off).
+LOW_THRESHOLD_N = 10.0
 #: The rows of the real table: (row name, event kind, lab event sides or None for both).
 REAL_ROWS = (("toe_off", "toe_off", None), ("heel_strike", "heel_strike", None),
              ("left toe_off", "toe_off", "L"))
@@ -214,11 +218,11 @@ def vertical_forces(path: Path) -> tuple[float, list[np.ndarray]]:
     return rate, out
 
 
-def plate_unloadings(path: Path) -> list[float]:
+def plate_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> list[float]:
     """Seconds from the first frame at which a force plate of the C3D at ``path`` is unloaded
-    (:func:`vertical_forces`): the first sample below :data:`PLATE_THRESHOLD_N` after each run
-    of at least :data:`PLATE_MIN_STANCE_S` above it that ends inside the recording. A plate
-    that never bears :data:`PLATE_MIN_PEAK_N` (nobody stood on it, or its channel is not in
+    (:func:`vertical_forces`): the first sample below ``threshold_n`` (N) after each run of at
+    least :data:`PLATE_MIN_STANCE_S` above it that ends inside the recording. A plate that
+    never bears :data:`PLATE_MIN_PEAK_N` (nobody stood on it, or its channel is not in
     newtons) gives none."""
     from mocaplib.runs import valid_runs
 
@@ -227,7 +231,7 @@ def plate_unloadings(path: Path) -> list[float]:
     for force in forces:
         if force.max() < PLATE_MIN_PEAK_N:
             continue
-        loaded = force > PLATE_THRESHOLD_N
+        loaded = force > threshold_n
         out += [end / rate for start, end in valid_runs(loaded).tolist()
                 if end - start >= PLATE_MIN_STANCE_S * rate and end < len(loaded)]
     return sorted(out)
@@ -258,28 +262,34 @@ def toe_off_differences(path: Path) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def plate_table(real: Path) -> None:
-    """Print, per plate unloading of the four real files, the nearest detected toe-off and lab
-    Foot Off relative to it (ms), with the default toe-off definition."""
-    paths = [real / name for name in LAB_FILES if (real / name).is_file()]
-    if len(paths) < len(LAB_FILES):
-        return
+    """Print, per plate unloading of the real files under ``real``, the nearest placed default
+    toe-off (:func:`toe_off_differences`) and lab Foot Off relative to it (ms), and how much
+    later the plate falls under :data:`LOW_THRESHOLD_N`."""
     print(f"\nForce-plate unloading (vertical force < {PLATE_THRESHOLD_N:.0f} N above the "
-          f"plate's zero, :func:`plate_unloadings`) in the real files, default toe-off:\n")
-    print("| file | unloading (s) | detected − plate (ms) | lab Foot Off − plate (ms) |\n"
-          "|---|---|---|---|")
+          f"plate's zero, `plate_unloadings`) in the real files, default toe-off (– : none "
+          "placed within 0.1 s):\n")
+    print(f"| file | unloading (s) | detected − plate (ms) | lab Foot Off − plate (ms) | at "
+          f"{LOW_THRESHOLD_N:.0f} N − at {PLATE_THRESHOLD_N:.0f} N (ms) |\n|---|---|---|---|---|")
     detected = []
-    for path in paths:
+    for path in sorted(real.rglob("*.c3d")):
+        try:
+            plates = plate_unloadings(path)
+        except (KeyError, IndexError, ValueError):                  # no usable plate
+            continue
+        _, ours, _ = toe_off_differences(path)
+        if not np.isfinite(ours).any():              # no plate, or nobody walking on them
+            continue
         trial = read_c3d(path)
-        events, _ = capture_events(trial, detect_protocol(trial))
-        offs = [e.time_s for e in events if e.kind == "toe_off"]
         labs = [e.time_s - trial.start_time for e in trial.events
                 if LAB_EVENT_KINDS.get(e.label) == "toe_off"]
-        for plate in plate_unloadings(path):
-            ours = min((t - plate for t in offs), key=abs, default=np.inf)
+        low = plate_unloadings(path, threshold_n=LOW_THRESHOLD_N)
+        for plate, off in zip(plates, ours):
             lab = min((t - plate for t in labs), key=abs, default=np.inf)
-            detected.append(ours)
-            print(f"| {path.stem} | {plate:.3f} | {1000 * ours:+.1f} | {1000 * lab:+.1f} |")
-    detected = 1000 * np.abs(detected)
+            later = min((t - plate for t in low), key=abs, default=np.inf)
+            detected.append(off)
+            cells = [f"{1000 * x:+.1f}" if abs(x) <= 0.1 else "–" for x in (off, lab, later)]
+            print(f"| {path.stem} | {plate:.3f} | " + " | ".join(cells) + " |")
+    detected = 1000 * np.abs(np.array(detected)[np.isfinite(detected)])
     print(f"\nDetected toe-off against the plates: median |Δ| {np.median(detected):.1f} ms, "
           f"worst {detected.max():.1f} ms over {len(detected)} unloadings.")
 
@@ -353,8 +363,8 @@ def tables(args) -> dict[str, tuple[bool, bool]]:
     walks = slow_walks()
     for toe_off in TOE_OFF_DEFINITIONS:
         slow_table(walks, toe_off)
-    plate_table(args.real)
     if args.real.is_dir():
+        plate_table(args.real)
         per_file_table(args.real)
     print()
     for toe_off, (synthetic, real) in verdict.items():
