@@ -52,15 +52,16 @@ def toe_off_time(foot: FootTrack, last: int, lo: int, hi: int, rate: float) -> f
 
 
 def _roll_end(pitch_rate: np.ndarray, lo: int, hi: int) -> int:
-    """The first frame in ``[lo, hi)`` past the pitch rate's (F,) rad/s push-off peak where
-    it is no longer positive: the foot has stopped rolling over its forefoot (``hi`` if it
-    never stops there)."""
+    """The end (exclusive, frames) of the push-off in ``[lo, hi)``: one past the first frame,
+    after the pitch rate's (F,) rad/s push-off peak, where it is no longer positive (the foot
+    has stopped rolling over its forefoot between that frame and the one before); ``hi`` if
+    it never stops there."""
     window = pitch_rate[lo:hi]
     if window.size == 0 or not np.isfinite(window).any():
         return hi
     peak = lo + int(np.nanargmax(window))
     stopped = np.flatnonzero(~(pitch_rate[peak:hi] > 0))
-    return peak + int(stopped[0]) if stopped.size else hi
+    return min(hi, peak + int(stopped[0]) + 1) if stopped.size else hi
 
 
 def _pitch_rate(points: np.ndarray, last: int, rate: float) -> np.ndarray:
