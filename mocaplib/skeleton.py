@@ -360,6 +360,14 @@ class Skeleton:
         """Lower and upper DOF limits, each shape (D,), radians or metres."""
         return (np.array([d.lower for d in DOFS]), np.array([d.upper for d in DOFS]))
 
+    def sole(self) -> np.ndarray:
+        """The heel and the toe tip on the sole, in the foot segments' frames: (2, 3) m, rows
+        heel then toe, :data:`HEEL_AHEAD` and :data:`TOE_AHEAD` of ``foot_length`` ahead of the
+        ankle centre and ``ankle_height`` below it (the same for both feet)."""
+        L = self.lengths
+        return np.array([(ahead * L["foot_length"], 0.0, -L["ankle_height"])
+                         for ahead in (HEEL_AHEAD, TOE_AHEAD)])
+
     def joint_offsets(self) -> np.ndarray:
         """Each segment's joint centre in its parent's frame, neutral pose, shape (S, 3), metres.
 

@@ -70,16 +70,7 @@ def walks():
     return synthetic_walks()[0]
 
 
-def test_retargeting_to_a_taller_body_is_no_worse_than_measured(walks):
-    # the 1.15 factor misses the 5 mm target (its strict xfail): measured 5.6 mm
-    body = walks.entry_skeleton("walk_straight_normal_c1").scaled(1.15)
-    result = retarget(walks, "walk_straight_normal_c1", skeleton=body)
-    assert result.limit_violations() == 0
-    assert result.ankle_error_m < 0.0056 + 0.0003, result.ankle_error_m
-
-
-@pytest.mark.parametrize("factor", [0.85, pytest.param(1.15, marks=pytest.mark.xfail(
-    strict=True, reason="measured ankle error 5.6 mm (target 5 mm) on the samples"))])
+@pytest.mark.parametrize("factor", [0.85, 1.15])
 def test_retargeting_to_a_shorter_or_taller_body(walks, factor):
     entry = "walk_straight_normal_c1"
     own = walks.entry_skeleton(entry)
@@ -90,18 +81,18 @@ def test_retargeting_to_a_shorter_or_taller_body(walks, factor):
     np.testing.assert_allclose(result.requested, np.multiply(source.parameters, factor))
     assert result.limit_violations() == 0
     assert result.ankle_error_m < 0.005, result.ankle_error_m
+    # a body scaled as a whole walks the entry's own poulaine scaled (the poulaines are
+    # compared as if walked by the target body): its ankles reach it
+    assert result.sources == (entry,) * 3 and result.ankle_error_m < 1e-6
     # the feet slide at most 2.5 times as fast in support as the entry's (measured 1.3 and 2.0:
     # the blend mixes poulaines of other walks, the Fourier series of the entry's own)
     t = result.time_s
     entry_skate = foot_skate(own, walks.root_drift(entry).restore(walks.angles(entry, t), t), t)
     assert foot_skate(body, result.q, result.time_s) < 2.5 * entry_skate
-    # the output's feet: each ankle in its travel frame on the requested poulaine, so the
-    # ankles' lowest points sit the target's ankle height apart from the entry's
-    ankles = ankle_centres(body, result.q)
-    lowest = ankles[..., 2].min()
-    entry_lowest = ankle_centres(own, walks.angles(entry, result.time_s))[..., 2].min()
-    assert lowest - entry_lowest == pytest.approx((factor - 1) * own.lengths["ankle_height"],
-                                                  abs=0.005)
+    # the output's feet are planted: a flat foot's ankle centre stands the target's ankle height
+    # above the floor (within 1 mm: the flat-foot hover target), the entry's 17-18 mm higher
+    lowest = ankle_centres(body, result.q)[..., 2].min()
+    assert lowest == pytest.approx(body.lengths["ankle_height"], abs=0.001)
     # every criterion computed, of the same order as the entry's
     for key, value in result.criteria["output"].items():
         reference = result.criteria["input"][key]
@@ -117,22 +108,29 @@ def test_requested_values_are_met_exactly_and_checked(walks):
                       stance=0.74)
     assert result.requested == (0.55, 0.12, 0.74)
     assert result.ankle_error_m < 1e-5
-    # the output's ankles, where the entry passes its characteristic points, have them
+    # the IK's ankles, where the entry passes its characteristic points, have them; the planted
+    # output's within 4 mm (measured 3.3 mm: the flat foot's roll taken out, the hover)
     from mocaplib.gait.poulaine import travel_coordinates
 
     own = walks.poulaine(entry)
-    ankles = ankle_centres(body, travel_coordinates(result.path_coordinates(), own.travel))
     phase = result.time_s / result.time_s[-1]
 
-    def at(kind):
-        return np.array([[np.interp(p.phases[p.kinds.index(kind)], phase, ankles[:, side, axis])
-                          for axis in range(3)] for side, p in enumerate((own.left, own.right))])
+    def parameters(q_path):
+        ankles = ankle_centres(body, travel_coordinates(q_path, own.travel))
 
-    step = np.mean(at("foremost")[:, 0] - at("rearmost")[:, 0])
-    under = at("under_pelvis")
+        def at(kind):
+            return np.array([[np.interp(p.phases[p.kinds.index(kind)], phase,
+                                        ankles[:, side, axis]) for axis in range(3)]
+                             for side, p in enumerate((own.left, own.right))])
+
+        under = at("under_pelvis")
+        return [np.mean(at("foremost")[:, 0] - at("rearmost")[:, 0]),
+                under[0, 1] - under[1, 1], -under[:, 2].mean()]
+
     # 1 mm: linear interpolation between the 100 Hz samples
-    np.testing.assert_allclose([step, under[0, 1] - under[1, 1], -under[:, 2].mean()],
-                               result.requested, atol=1e-3)
+    np.testing.assert_allclose(parameters(result.poulaine_q), result.requested, atol=1e-3)
+    np.testing.assert_allclose(parameters(result.path_coordinates()), result.requested,
+                               atol=4e-3)
     with pytest.raises(MocapError, match="must be > 0 m"):
         retarget(walks, entry, skeleton=body, stance=-0.7)
     with pytest.raises(MocapError, match="metres, not centimetres"):
@@ -151,15 +149,16 @@ def test_each_secondary_task_pulls_the_null_space_its_way(walks):
     task = list(TASK_DOFS)
     reference = walks.angles(entry, base.time_s)[:, task]
 
+    # the IK's own solution (poulaine_q), before the feet are planted
     def distance(result):      # to the entry's posture, pelvis heading aside
-        return np.sqrt(np.mean((result.path_coordinates()[:, task[1:]] - reference[:, 1:]) ** 2))
+        return np.sqrt(np.mean((result.poulaine_q[:, task[1:]] - reference[:, 1:]) ** 2))
 
     def speed(result):
-        return np.sqrt(np.mean(np.diff(result.q[:, task], axis=0) ** 2))
+        return np.sqrt(np.mean(np.diff(result.poulaine_q[:, task], axis=0) ** 2))
 
     def crowding(result):      # Chan & Dubey's criterion over the bounded task DOFs
         lower, upper = (bound[task[1:]] for bound in Skeleton.bounds())
-        theta = result.q[:, task[1:]]
+        theta = result.poulaine_q[:, task[1:]]
         return np.mean((upper - lower) ** 2 / (4 * (upper - theta) * (theta - lower)))
 
     assert distance(free) > distance(base)          # less pull to the reference posture

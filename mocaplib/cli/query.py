@@ -55,7 +55,8 @@ def register(subparsers) -> None:
                              "command, else the nearest)")
     parser.add_argument("--json", action="store_true",
                         help="print {inside, gait, clamped, entries, weights, point, nearest, "
-                             "distance, nearest_entries, T_s}")
+                             "distance, nearest_entries, T_s} (and feet: the planted feet's "
+                             "slide, penetration, hover, with --bvh or --gltf)")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
     parser.add_argument("--gltf", metavar="OUT.gltf",
@@ -79,6 +80,7 @@ def _run(args) -> int:
     from ..library.controlspace import ControlSpace
     from ..library.document import checksum_status
     from ..library.format import load_library
+    from ..library.planting import plant_blend
     from ..model.motion import Motion
     from ._common import print_json, warn
 
@@ -121,8 +123,10 @@ def _run(args) -> int:
                          hint=_serving_options(cs, args))
     if outputs:
         rate = args.rate or ANIMATION_RATE
-        _, q = blend.world(0, rate=rate, cycles=args.cycles or ANIMATION_CYCLES)
-        motion = Motion(q, library.skeleton, rate, source="blend")
+        planted = plant_blend(blend, library.skeleton, rate=rate,
+                              cycles=args.cycles or ANIMATION_CYCLES)
+        answer["feet"] = planted.after.as_dict()
+        motion = Motion(planted.q, library.skeleton, rate, source="blend")
         for option, path in outputs.items():
             binary = option == "--gltf" and path.lower().endswith(".glb")
             answer[option[2:]] = str(write(motion, path,
@@ -156,6 +160,11 @@ def _run(args) -> int:
         for entry, weight in zip(entries, answer["weights"]):
             print(f"  {entry:<{width}}  {weight:.4f}")
         print(f"  blended period T_d = {answer['T_s']:.3f} s")
+    if outputs:
+        feet = answer["feet"]
+        print(f"  feet planted: slide {feet['slide_m'] * 1000:.1f} mm, below the floor "
+              f"{feet['penetration_m'] * 1000:.1f} mm, flat-foot hover {feet['hover_m'] * 1000:.1f}"
+              f" mm at worst over {feet['stances']} stances")
     for option in outputs:
         print(f"  {option[2:].upper()}: {answer[option[2:]]}")
     return 0

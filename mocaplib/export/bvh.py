@@ -20,8 +20,8 @@ whose value is ``sign · degrees(q)``. Joints with fewer than three DOFs get the
 as zero-valued channels (three rotation channels per joint suit every importer). The root has
 ``Xposition Yposition Zposition`` (the root's translation DOFs in file coordinates) first. Joint names are
 :data:`mocaplib.skeleton.SEGMENT_NAMES`; end sites mark the vertex, the finger tips and the toes
-(display only: the toe tip at :data:`~mocaplib.skeleton.TOE_AHEAD` of the foot length ahead of the
-ankle, on the sole).
+(display only: the toe tip of :meth:`~mocaplib.skeleton.Skeleton.sole`, ahead of the ankle on
+the sole).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import MocapError
 from ..io.atomic import atomic_write_text
-from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, SHIFTS, TOE_AHEAD, Skeleton
+from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, SHIFTS, Skeleton
 
 if TYPE_CHECKING:
     from ..model.motion import Motion
@@ -57,7 +57,7 @@ def end_sites(skeleton: Skeleton) -> dict[str, tuple]:
     finger tips, the toes (3/4 of the foot length ahead of the ankle, on the sole)."""
     L = skeleton.lengths
     hand = (0.0, 0.0, -(L["forearm"] + L["hand"]))
-    toe = (TOE_AHEAD * L["foot_length"], 0.0, -L["ankle_height"])
+    toe = tuple(skeleton.sole()[1])
     return {"head": (0.0, 0.0, L["head_length"]), "forearm_r": hand, "forearm_l": hand,
             "foot_r": toe, "foot_l": toe}
 

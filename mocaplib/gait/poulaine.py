@@ -51,7 +51,7 @@ closest in that parameter, then corrected exactly).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -323,6 +323,15 @@ class Poulaine:
         return float(np.mean([np.mod(p.phases[p.kinds.index("rearmost")]
                                      - p.phases[p.kinds.index("foremost")], 1.0)
                               for p in (self.left, self.right)]))
+
+    def scaled(self, factor: float) -> "Poulaine":
+        """The same cycle for a body ``factor`` times as large: points, tangents and fit
+        errors times ``factor``, phases and timing unchanged (geometric similarity)."""
+        def path(ankle: AnklePath) -> AnklePath:
+            return replace(ankle, points=ankle.points * factor, tangents=ankle.tangents * factor,
+                           fit_rms=ankle.fit_rms * factor, fit_max=ankle.fit_max * factor,
+                           timed_rms=ankle.timed_rms * factor)
+        return Poulaine(self.travel, path(self.left), path(self.right))
 
     def __call__(self, phase) -> np.ndarray:
         """Both modelled ankle centres at phases ``phase`` (n,): (n, 2, 3) m, left then right."""

@@ -57,13 +57,14 @@ import numpy as np
 from ..errors import MocapError
 from ..export.formats import write
 from ..gait.criteria import closure, internal_power, jerk_rms, segment_energies, third_derivative
-from ..gait.fourier import RootDrift, fit_series
+from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..gait.poulaine import FEET, MIN_TRAVEL_SPEED, ankle_centres, blend, travel_coordinates
 from ..model.anthropometry import bodies
 from ..model.filtering import WALKING_CUTOFF
 from ..model.motion import Motion
 from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
                         Skeleton, segment_dofs)
+from .planting import KNEES, ContactMeasures, contact_measures, plant_cycles, stance_frames
 
 #: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis
 #: (the pelvis's rotations, the hips and the knees).
@@ -124,10 +125,12 @@ class Retargeted:
     skeleton : Skeleton
         The target body.
     time_s : ndarray, shape (n + 1,)
-        Sample times over the cycle, 0 to T s.
+        Sample times over the cycle, k / rate s: the cycle of n = round(T × rate) samples is
+        played in n / rate s (within half a sample of the entry's period T).
     q : ndarray, shape (n + 1, D)
         Joint coordinates in :data:`~mocaplib.skeleton.DOF_NAMES` order (rad; ``pelvis_t*`` m),
-        world frame, the pelvis starting at the origin facing +X.
+        world frame, the pelvis starting at the origin facing +X; the feet planted
+        (:mod:`mocaplib.library.planting`).
     requested : tuple[float, float, float]
         Step length, foot spacing and stance, m.
     sources : tuple[str, str, str]
@@ -142,6 +145,14 @@ class Retargeted:
     drift : RootDrift
         The path frame the pelvis moves along (the entry's, sped up or slowed down).
     weights : Weights
+    rate : float
+        Samples per second, exactly as requested.
+    feet : dict
+        ``{"entry": ContactMeasures, "output": ContactMeasures}``: the entry's feet (its cycle
+        on its own body, as stored) and the output's (:func:`mocaplib.library.planting.contact_measures`).
+    poulaine_q : ndarray, shape (n + 1, D) or None
+        The inverse kinematics' solution before the feet are planted, in the path frame: its
+        ankles on the requested poulaine (planting then moves them by a few millimetres).
     """
 
     entry: str
@@ -155,25 +166,28 @@ class Retargeted:
     criteria: dict
     drift: RootDrift
     weights: Weights = field(default_factory=Weights)
+    rate: float = RATE
+    feet: dict[str, ContactMeasures] = field(default_factory=dict)
+    poulaine_q: np.ndarray | None = None
 
     def path_coordinates(self) -> np.ndarray:
         """``q`` (n + 1, D) with the root in the path frame, as the library stores cycles."""
         return self.drift.remove(self.q, self.time_s)
 
-    @property
-    def rate(self) -> float:
-        """Samples per second, n / T."""
-        return (len(self.time_s) - 1) / self.time_s[-1]
-
     def summary(self) -> dict:
         """What ``mocaplib retarget --json`` prints: ``entry``, ``requested_m`` (step length,
         foot spacing, stance), ``sources`` (the entries of x, y, z), ``rate_hz``, ``frames``,
-        ``ankle_error_m``, ``clamped_steps``, ``limit_violations``, ``weights`` and
+        ``ankle_error_m`` (the IK's, before the feet are planted), ``clamped_steps``,
+        ``limit_violations``, ``hyperextended_samples`` (knee samples below 0),
+        ``feet`` (:class:`~mocaplib.library.planting.ContactMeasures` of the entry and of the
+        output: slide, penetration, hover, pelvis vertical acceleration), ``weights`` and
         ``criteria``."""
         return {"entry": self.entry, "requested_m": list(self.requested),
                 "sources": list(self.sources), "rate_hz": self.rate, "frames": len(self.q),
                 "ankle_error_m": self.ankle_error_m, "clamped_steps": self.clamped,
                 "limit_violations": self.limit_violations(),
+                "hyperextended_samples": int(np.sum(self.q[:, list(KNEES)] < -1e-9)),
+                "feet": {key: value.as_dict() for key, value in self.feet.items()},
                 "weights": {"joint_limits": self.weights.joint_limits,
                             "reference": self.weights.reference,
                             "kinetic": self.weights.kinetic},
@@ -244,30 +258,42 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
                          hint=f"ask for at least {lowest_rate(period):.3g} Hz")
     source = library.entry_skeleton(entry_id)
     requested = _requested(own.parameters, source, skeleton, step_length, foot_spacing, stance)
-    path = blend(_candidates(library, entry, own), step_length=requested[0],
-                 foot_spacing=requested[1], stance=requested[2], prefer=entry_id)
+    sizes = _body_sizes(library, entry, own, skeleton)
+    path = blend({name: library.poulaine(name).scaled(size) for name, size in sizes.items()},
+                 step_length=requested[0], foot_spacing=requested[1], stance=requested[2],
+                 prefer=entry_id)
     steps = int(round(period * rate))
+    played = steps / rate                           # the cycle's period in the output, s
     phase = np.arange(steps + 1) / steps
-    times = phase * period
-    reference = library.angles(entry_id, times)                  # path frame
+    captured = library.angles(entry_id, phase * period)                    # path frame
+    reference = synthesize(entry.fourier.a, entry.fourier.b, period, phase * period)  # closed
     targets = _targets(path, own, requested, phase, period)
     solved, error, clamped = solve(skeleton, targets,
                                    travel_coordinates(reference, own.travel),
-                                   weights=weights, step=period / steps)
+                                   weights=weights, step=1.0 / rate)
     out = np.clip(reference, *Skeleton.bounds())   # a Fourier series may ring past a limit
     out[:, list(TASK_DOFS)] = solved[:, list(TASK_DOFS)]
     out[:, ROOT_HEADING] += own.travel
-    scale = _stride_scale(library, entry, path)
+    scale = _stride_scale(library, entry, path, sizes[path.names[0]])
     out[:, [ROOT_X, ROOT_Y]] *= scale
-    lowest = ankle_centres(source, reference)[..., 2].min(axis=1)          # world z
-    out[:, _ROOT_Z] = (lowest + skeleton.lengths["ankle_height"] - source.lengths["ankle_height"]
-                       - targets[..., 2].min(axis=1))
+    out[:, _ROOT_Z] = (skeleton.lengths["ankle_height"] + requested[2] / own.parameters[2]
+                       * (reference[:, _ROOT_Z] - source.lengths["ankle_height"]))
     still = library.root_drift(entry_id)
-    moved = RootDrift(0.0, 0.0, 0.0, still.u_f * scale, still.u_l * scale, still.omega)
-    criteria = {"input": cycle_criteria(source, reference, still, period),
-                "output": cycle_criteria(skeleton, out, moved, period)}
-    return Retargeted(entry_id, skeleton, times, moved.restore(out, times), requested,
-                      path.names, float(error.max()), clamped, criteria, moved, weights)
+    pace = period / played
+    moved = RootDrift(0.0, 0.0, 0.0, still.u_f * scale * pace, still.u_l * scale * pace,
+                      still.omega * pace)
+    planted = plant_cycles(skeleton, lambda t: out[np.mod(np.rint(t * rate).astype(int), steps)],
+                           moved, played, rate, steps + 1)
+    times = np.arange(steps + 1) / rate
+    entry_world = still.restore(captured, phase * period)
+    feet = {"entry": contact_measures(source, entry_world, steps / period,
+                                      stance_frames(source, entry_world, steps / period)),
+            "output": planted.after}
+    criteria = {"input": cycle_criteria(source, captured, still, period),
+                "output": cycle_criteria(skeleton, moved.remove(planted.q, times), moved, played)}
+    return Retargeted(entry_id, skeleton, times, planted.q, requested, path.names,
+                      float(error.max()), clamped, criteria, moved, weights, rate=float(rate),
+                      feet=feet, poulaine_q=out)
 
 
 def lowest_rate(period: float) -> float:
@@ -304,26 +330,38 @@ def _requested(own: tuple, source: Skeleton, target: Skeleton, step_length, foot
     return out
 
 
-def _stride_scale(library, entry, path) -> float:
+def _stride_scale(library, entry, path, size: float) -> float:
     """How much faster the retargeted pelvis travels than the entry's: the x-source's stride
-    (its path frame's speed times its period) times its x-correction, over the entry's stride:
-    the stance ankle then moves back under the pelvis as fast as the pelvis moves on."""
+    (its path frame's speed times its period) scaled to the target's body (``size``, its
+    poulaine's factor) times its x-correction, over the entry's stride: the stance ankle then
+    moves back under the pelvis as fast as the pelvis moves on."""
     def stride(e) -> float:
         return float(np.hypot(e.root_drift.u_f_m_s, e.root_drift.u_l_m_s) * e.T)
 
     own = stride(entry)
     if own < 1e-3:            # turning on the spot: the x-correction alone
         return path.x_scale
-    return stride(library.entry(path.names[0])) * path.x_scale / own
+    return stride(library.entry(path.names[0])) * size * path.x_scale / own
 
 
-def _candidates(library, entry, own) -> dict:
-    """The poulaines :func:`~mocaplib.gait.poulaine.blend` chooses from: the library's entries with
-    one, of ``entry``'s locomotion class, moving if it moves (v̂ at least
+def _body_sizes(library, entry, own, target: Skeleton) -> dict[str, float]:
+    """The entries whose poulaines :func:`~mocaplib.gait.poulaine.blend` chooses from, each
+    with the factor that scales its poulaine to the ``target`` body (the ratio of leg lengths,
+    thigh + shank: the poulaines are compared as if walked by the target): the library's
+    entries with one, of ``entry``'s locomotion class, moving if it moves (v̂ at least
     :data:`~mocaplib.gait.poulaine.MIN_TRAVEL_SPEED`) and on the spot if it does not, turning within
     :data:`SIMILAR_TURN` of its ω̂, travelling within :data:`SIMILAR_TRAVEL` of its direction
     relative to the pelvis and in support within :data:`SIMILAR_SUPPORT` of its share of the
     cycle (``own``: its poulaine; :attr:`~mocaplib.gait.poulaine.Poulaine.duty_factor`)."""
+    def leg(skeleton: Skeleton) -> float:
+        return skeleton.lengths["thigh"] + skeleton.lengths["shank"]
+
+    return {name: leg(target) / leg(library.entry_skeleton(name))
+            for name in _candidates(library, entry, own)}
+
+
+def _candidates(library, entry, own) -> dict:
+    """The poulaines of the entries :func:`_body_sizes` names, by entry id."""
 
     moving = entry.v >= MIN_TRAVEL_SPEED
     same = [e.id for e in library.entries if e.poulaine is not None
@@ -406,7 +444,9 @@ def solve(skeleton: Skeleton, targets: np.ndarray, reference: np.ndarray, /, *,
     """
 
     task = np.array(TASK_DOFS)
-    lower, upper = (bound[task] for bound in Skeleton.bounds())
+    lower, upper = (bound[task].copy() for bound in Skeleton.bounds())
+    knees = np.isin(task, KNEES)
+    lower[knees] = np.maximum(lower[knees], 0.0)             # never hyperextended
     reference = np.clip(reference, *Skeleton.bounds())
     parts = bodies(skeleton)
     feet, offsets = np.array(FEET), np.zeros((2, 3))

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..skeleton import HEEL_AHEAD, SEGMENT_NAMES, TOE_AHEAD, Skeleton
+from ..skeleton import SEGMENT_NAMES, Skeleton
 
 #: de Leva (1996), Table 4, males: mass fraction of the body, centre of mass from the first
 #: endpoint (fraction of the length), radii of gyration (sagittal, transverse, longitudinal;
@@ -126,9 +126,7 @@ def bodies(skeleton: Skeleton) -> Bodies:
             joints[SEGMENT_NAMES.index(f"tibia_{side}")])
         add("shank", side, f"tibia_{side}", (0.0, 0.0, 0.0),
             joints[SEGMENT_NAMES.index(f"foot_{side}")])
-        add("foot", side, f"foot_{side}",
-            (HEEL_AHEAD * L["foot_length"], 0.0, -L["ankle_height"]),
-            (TOE_AHEAD * L["foot_length"], 0.0, -L["ankle_height"]), long_axis=0)
+        add("foot", side, f"foot_{side}", *skeleton.sole(), long_axis=0)
     names, segments, mass, com, inertia = zip(*rows)
     return Bodies(tuple(names), np.array(segments), np.array(mass), np.array(com),
                   np.array(inertia))

@@ -1,0 +1,305 @@
+"""Planted feet: every motion mocaplib writes from a library (``mocaplib query``, ``mocaplib
+retarget``, the path follower) holds each foot on the floor through its stance.
+
+**Feet.** Each foot is rigid: its ankle centre (the foot segment's origin) and the heel and toe
+tip of :meth:`mocaplib.skeleton.Skeleton.sole`, on the sole. The floor is the plane z = 0 of the
+world frame.
+
+**Stance** (:func:`stance_frames`). A library entry stores its toe-offs (the left one at phase
+0, ``right_toe_off_s``), not its foot strikes, and a blend stores neither; the stance of each
+foot is read from the motion itself: the frames where the slower of its heel and toe moves
+horizontally at most :data:`CONTACT_SPEED` and the lower of them is within
+:data:`CONTACT_RISE` of the foot's standing level (the median height of that lower point over
+the frames where the foot is still, below :data:`STILL_SPEED`), in runs of at least
+:data:`MIN_STANCE_S`. On the samples these stances end within two frames of the entries' toe-offs
+(tests/test_planting.py).
+
+**Planting** (:func:`plant_feet`):
+
+1. The whole body is lowered by the feet's median hover, the median height of the lower sole
+   point over the stance frames (the fitted ankle centre sits higher above the floor than the
+   skeleton's ``ankle_height``: 17-18 mm on the samples).
+2. Each stance run is locked at its flattest frame (the frame where the higher of heel and toe
+   is lowest): the foot's heading there and the horizontal position of its heel (and of its toe,
+   the sole's length ahead). Through the run the foot keeps its own pitch, loses its roll, and
+   rolls on the floor: about the locked heel while its toes point up, about the locked toe while
+   its heel is up (the two coincide when the foot is flat, so the pivot changes without a jump).
+3. Outside stance the foot follows the motion; within :data:`BLEND_S` of a run the correction of
+   the run's first (last) frame fades in (out) by a smoothstep, and a sole point that would
+   pass below the floor lifts its foot by as much.
+4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
+   of each foot per frame, all frames at once, by damped Gauss-Newton steps
+   (:data:`IK_ITERATIONS`) that stay near the motion: every DOF is pulled to its own value
+   with weight :data:`PRIOR`, the pelvis height with :data:`PELVIS_PRIOR` (it moves only where a
+   leg cannot reach); the DOFs are kept within their joint limits and the knees at 0 or more
+   (never hyperextended). The pelvis height's correction is then smoothed
+   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it.
+
+:func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
+pelvis's vertical acceleration (:class:`ContactMeasures`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, minimum_filter1d
+
+from ..gait.fourier import RootDrift, synthesize
+from ..gait.poulaine import FEET
+from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
+
+#: Stance: the slower sole point moves at most this horizontally (m/s), the lower is within
+#: CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot is
+#: still below STILL_SPEED (m/s).
+CONTACT_SPEED, CONTACT_RISE, MIN_STANCE_S, STILL_SPEED = 0.3, 0.008, 0.1, 0.1
+#: Time (s) over which a run's correction fades in before it and out after it.
+BLEND_S = 0.1
+#: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
+#: and the pelvis height to the motion's values.
+IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-4, 1e-6, 3e-2
+#: The pelvis height's correction (where a leg cannot reach) is spread over this (s): the
+#: lowest correction within it, smoothed by a Gaussian of half its width.
+PELVIS_SMOOTHING_S = 0.12
+#: The DOFs solved: both legs, then the pelvis height.
+LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_r", "tibia_r",
+                                                                         "foot_r"))
+SOLVED = LEGS + (ROOT_Z,)
+KNEES = (DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r"))
+#: A sole point within this (m) of the floor touches it (:func:`contact_measures`).
+TOUCH = 0.001
+
+
+@dataclass(frozen=True)
+class ContactMeasures:
+    """How a motion's feet meet the floor (:func:`contact_measures`), metres and m/s².
+
+    ``slide_m``: the largest horizontal travel of a sole point (heel or toe) while it touches
+    the floor (within :data:`TOUCH`) in one stance; ``penetration_m``: the deepest a sole point
+    goes below the floor; ``hover_m``: the largest, over the stances, of the lowest height the
+    higher of heel and toe reaches (0 when the foot lies flat on the floor once in each stance);
+    ``pelvis_acceleration_m_s2``: the largest vertical acceleration of the pelvis (second
+    differences); ``stances``: the stance runs measured, both feet.
+    """
+
+    slide_m: float
+    penetration_m: float
+    hover_m: float
+    pelvis_acceleration_m_s2: float
+    stances: int
+
+    def as_dict(self) -> dict:
+        return {"slide_m": self.slide_m, "penetration_m": self.penetration_m,
+                "hover_m": self.hover_m,
+                "pelvis_acceleration_m_s2": self.pelvis_acceleration_m_s2,
+                "stances": self.stances}
+
+
+@dataclass(frozen=True)
+class Planted:
+    """A motion with its feet planted (:func:`plant_feet`): joint coordinates ``q`` (F, D),
+    the ``stance`` frames (F, 2) bool (left, right), and the :class:`ContactMeasures` of the
+    motion ``before`` and ``after``."""
+
+    q: np.ndarray
+    stance: np.ndarray
+    before: ContactMeasures
+    after: ContactMeasures
+
+
+def sole_points(skeleton: Skeleton, q: np.ndarray, /) -> np.ndarray:
+    """Heel and toe of both feet in poses ``q`` (F, D): (F, 2, 2, 3) m (frames, left/right,
+    heel/toe, xyz)."""
+    T = skeleton.forward(q)[:, list(FEET)]
+    return np.einsum("fsij,pj->fspi", T[..., :3, :3], skeleton.sole()) + T[:, :, None, :3, 3]
+
+
+def stance_frames(skeleton: Skeleton, q: np.ndarray, rate: float, /) -> np.ndarray:
+    """The frames (F, 2) bool in which each foot (left, right) stands on the floor, in world
+    poses ``q`` (F, D) at ``rate`` Hz (module docstring)."""
+    sole = sole_points(skeleton, q)
+    low = sole[..., 2].min(axis=2)                                            # (F, 2)
+    speed = np.linalg.norm(np.gradient(sole[..., :2], axis=0) * rate, axis=-1).min(axis=2)
+    out = np.zeros(low.shape, dtype=bool)
+    shortest = max(1, int(round(MIN_STANCE_S * rate)))
+    for side in (0, 1):
+        still = speed[:, side] < STILL_SPEED
+        if not still.any():
+            continue
+        level = np.median(low[still, side])
+        contact = (speed[:, side] <= CONTACT_SPEED) & (low[:, side] <= level + CONTACT_RISE)
+        for start, stop in _runs(contact):
+            out[start:stop, side] = stop - start >= shortest
+    return out
+
+
+def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
+               stance: np.ndarray | None = None, window: tuple[int, int] | None = None
+               ) -> Planted:
+    """Plant the feet of world poses ``q`` (F, D) at ``rate`` Hz (module docstring).
+
+    ``stance``: the frames (F, 2) bool of each foot's stance; default :func:`stance_frames`.
+    ``window``: the frames [start, stop) measured (:func:`contact_measures`); default all.
+    Returns the :class:`Planted` motion, its stance frames and the measures before and after.
+    """
+    q = np.array(q, dtype=np.float64)
+    stance = stance_frames(skeleton, q, rate) if stance is None else np.asarray(stance, bool)
+    before = contact_measures(skeleton, q, rate, stance, window=window)
+    sole = sole_points(skeleton, q)
+    if stance.any():
+        q[:, ROOT_Z] -= np.median(sole[..., 2].min(axis=2)[stance])
+    targets = _targets(skeleton, q, stance, rate)
+    reached = _solve(skeleton, q, targets, SOLVED)
+    drop = reached[:, ROOT_Z] - q[:, ROOT_Z]
+    spread = max(1, int(round(PELVIS_SMOOTHING_S * rate)))
+    q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode="nearest"),
+                                      spread / 2, mode="nearest")
+    out = _solve(skeleton, q, targets, LEGS)
+    return Planted(out, stance, before,
+                   contact_measures(skeleton, out, rate, stance, window=window))
+
+
+def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
+                 drift: RootDrift, period: float, rate: float, frames: int, /) -> Planted:
+    """:func:`plant_feet` on ``frames`` frames at ``rate`` Hz from t = 0 of a periodic motion:
+    ``angles(t)`` (F, D), the joint coordinates at times ``t`` (F,) s in the path frame that
+    ``drift`` moves along, periodic in ``period`` s. The motion is planted with one period more
+    on each side, so that a stance across the clip's ends is locked as a whole and a clip of
+    whole cycles loops."""
+    pad = int(np.ceil(period * rate))
+    t = np.arange(-pad, frames + pad) / rate
+    planted = plant_feet(skeleton, drift.restore(angles(t), t), rate, window=(pad, pad + frames))
+    keep = slice(pad, pad + frames)
+    return Planted(planted.q[keep], planted.stance[keep], planted.before, planted.after)
+
+
+def plant_blend(blend, skeleton: Skeleton, /, i: int = 0, *, rate: float, cycles: int
+                ) -> Planted:
+    """Blend ``i`` of a :class:`~mocaplib.library.controlspace.Blend` as
+    :meth:`~mocaplib.library.controlspace.Blend.world` samples it (``cycles`` cycles at
+    ``rate`` Hz from t = 0) on ``skeleton``, its feet planted (:func:`plant_cycles`)."""
+    period = float(blend.T[i])
+    drift = RootDrift(0.0, 0.0, 0.0, *(0.0, 0.0, 0.0) if blend.drift is None
+                      else (float(v) for v in blend.drift[i]))
+    frames = len(blend.synthesize(i, rate=rate, cycles=cycles)[0])
+    return plant_cycles(skeleton, lambda t: synthesize(blend.a[i], blend.b[i], period, t),
+                        drift, period, rate, frames)
+
+
+def contact_measures(skeleton: Skeleton, q: np.ndarray, rate: float, stance: np.ndarray, /, *,
+                     window: tuple[int, int] | None = None) -> ContactMeasures:
+    """The :class:`ContactMeasures` of world poses ``q`` (F, D) at ``rate`` Hz, the stances
+    ``stance`` (F, 2) bool, over the frames [start, stop) of ``window`` (default all): the
+    stances that overlap it, whole, and its frames' penetration and acceleration."""
+    first, last = (0, len(q)) if window is None else window
+    sole = sole_points(skeleton, q)
+    slide, hover, count = 0.0, 0.0, 0
+    for side in (0, 1):
+        for start, stop in _runs(stance[:, side]):
+            if stop <= first or start >= last:
+                continue
+            count += 1
+            run = sole[start:stop, side]                                   # (n, 2, 3)
+            hover = max(hover, float(run[..., 2].max(axis=1).min()))
+            for point in (0, 1):
+                touching = run[run[:, point, 2] <= TOUCH, point, :2]
+                if len(touching):
+                    slide = max(slide, float(np.linalg.norm(
+                        touching - touching[0], axis=1).max()))
+    z = q[max(first - 1, 0):last + 1, ROOT_Z]
+    acceleration = np.abs(np.diff(z, 2)) * rate ** 2 if len(z) > 2 else np.zeros(1)
+    return ContactMeasures(slide, float(max(0.0, -sole[first:last, ..., 2].min())), hover,
+                           float(acceleration.max()), count)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The [start, stop) frame ranges where ``mask`` (F,) bool is True."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def _foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch (toes up > 0) and heading (rad) of feet with orientations ``R`` (..., 3, 3)."""
+    x = R[..., :, 0]
+    return np.arctan2(x[..., 2], np.hypot(x[..., 0], x[..., 1])), np.arctan2(x[..., 1], x[..., 0])
+
+
+def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float) -> np.ndarray:
+    """Where the ankle, heel and toe of each foot go: (F, 2, 3, 3) m (module docstring, 2-3)."""
+    T = skeleton.forward(q)[:, list(FEET)]
+    local = np.vstack([np.zeros(3), skeleton.sole()])                     # ankle, heel, toe
+    points = np.einsum("fsij,pj->fspi", T[..., :3, :3], local) + T[:, :, None, :3, 3]
+    targets = points.copy()
+    pitch, heading = _foot_axes(T[..., :3, :3])
+    fade = max(1, int(round(BLEND_S * rate)))
+    length = local[2, 0] - local[1, 0]
+    for side in (0, 1):
+        for start, stop in _runs(stance[:, side]):
+            frames = np.arange(start, stop)
+            sole = points[frames, side, 1:]
+            flat = start + int(np.argmin(sole[..., 2].max(axis=1)))
+            psi = heading[flat, side]
+            heel = np.array([*points[flat, side, 1, :2], 0.0])
+            toe = heel + length * np.array([np.cos(psi), np.sin(psi), 0.0])
+            theta = pitch[frames, side]
+            R = _level_frames(theta, psi)                                   # (n, 3, 3)
+            placed = np.einsum("nij,pj->npi", R, local)
+            pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
+            targets[frames, side] = placed + pivot[:, None]
+            _fade(targets, points, side, start, -1, fade, targets[start, side] - points[start, side])
+            _fade(targets, points, side, stop - 1, 1, fade,
+                  targets[stop - 1, side] - points[stop - 1, side])
+    lift = np.maximum(0.0, -targets[:, :, 1:, 2].min(axis=2))               # (F, 2)
+    targets[..., 2] += lift[:, :, None]
+    return targets
+
+
+def _fade(targets, points, side: int, edge: int, direction: int, fade: int,
+          correction: np.ndarray) -> None:
+    """Add ``correction`` (3, 3) to ``fade`` frames of foot ``side`` beyond frame ``edge`` in
+    ``direction`` (±1), weighted by a smoothstep from 1 at the edge to 0, where no stance has
+    set them (their target is still the motion's point)."""
+    for k in range(1, fade):
+        frame = edge + direction * k
+        if not 0 <= frame < len(targets):
+            return
+        if not np.array_equal(targets[frame, side], points[frame, side]):
+            return
+        s = 1.0 - k / fade
+        targets[frame, side] += s * s * (3 - 2 * s) * correction
+
+
+def _level_frames(pitch: np.ndarray, heading: float) -> np.ndarray:
+    """Foot orientations (n, 3, 3) with ``pitch`` (n,) rad, ``heading`` rad and no roll."""
+    c, s = np.cos(pitch), np.sin(pitch)
+    x = np.stack([c * np.cos(heading), c * np.sin(heading), s], axis=-1)
+    y = np.broadcast_to([-np.sin(heading), np.cos(heading), 0.0], x.shape)
+    return np.stack([x, y, np.cross(x, y)], axis=-1)
+
+
+def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[int, ...]
+           ) -> np.ndarray:
+    """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
+    from those of ``q`` (F, D) (module docstring, 4)."""
+    solved = np.array(dofs)
+    lower, upper = (bound[solved].copy() for bound in Skeleton.bounds())
+    knees = np.isin(solved, KNEES)
+    lower[knees] = np.maximum(lower[knees], 0.0)
+    segments = np.repeat(FEET, 3)
+    offsets = np.tile(np.vstack([np.zeros(3), skeleton.sole()]), (2, 1))
+    prior = np.where(solved == ROOT_Z, PELVIS_PRIOR, PRIOR)
+    start = q[:, solved].copy()
+    out = q.copy()
+    out[:, solved] = np.clip(start, lower, upper)
+    wanted = targets.reshape(len(q), -1)
+    for _ in range(IK_ITERATIONS):
+        points, jacobian = skeleton.marker_jacobian(out, segments, offsets)
+        J = jacobian.reshape(len(q), -1, len(DOF_NAMES))[:, :, solved]        # (F, 18, K)
+        gap = wanted - points.reshape(len(q), -1)
+        normal = np.einsum("fmi,fmj->fij", J, J) + np.diag(prior + DAMPING)
+        rhs = np.einsum("fmi,fm->fi", J, gap) - prior * (out[:, solved] - start)
+        step = np.linalg.solve(normal, rhs[..., None])[..., 0]
+        out[:, solved] = np.clip(out[:, solved] + step, lower, upper)
+    return out
