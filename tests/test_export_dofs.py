@@ -12,7 +12,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 from conftest import REPO
 from fk_data import fk_trial, true_model
-from test_bvh import parse_bvh
+from bvh_reader import parse_bvh
 
 from mocaplib.export.formats import write
 from mocaplib.model.motion import Motion
@@ -100,7 +100,7 @@ from mocaplib.export.formats import write
 from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 from test_gltf import animated_positions
-from test_bvh import parse_bvh
+from bvh_reader import parse_bvh
 
 out = Path(sys.argv[1])
 assert len(DOF_NAMES) == 34 and "toe_out_r" in DOF_NAMES

@@ -169,7 +169,7 @@ def test_each_secondary_task_pulls_the_null_space_its_way(walks):
 
 
 def test_outputs_are_written_by_suffix(walks, tmp_path):
-    from test_bvh import _to_ours, bvh_positions
+    from bvh_reader import bvh_positions, to_z_up
 
     slow = next(entry for entry in walks.table.index if entry.startswith("walk_straight_slow_"))
     result = retarget(walks, slow, skeleton=Skeleton.from_height(1.7))
@@ -182,7 +182,7 @@ def test_outputs_are_written_by_suffix(walks, tmp_path):
     names, positions, frame_time = bvh_positions(result.write(tmp_path / "out.bvh").read_text())
     assert frame_time == pytest.approx(1 / result.rate)
     # a loop: the closing frame (the first pose one cycle on) is left out
-    np.testing.assert_allclose(_to_ours(positions),
+    np.testing.assert_allclose(to_z_up(positions),
                                result.skeleton.forward(result.q[:-1])[..., :3, 3], atol=1e-6)
     with pytest.raises(MocapError, match="end the file name with .csv, .mot, .bvh, .gltf, .glb"):
         result.write(tmp_path / "out.txt")

@@ -104,10 +104,17 @@ def _run(args) -> int:
     step, spacing, stance = summary["requested_m"]
     print(f"{args.entry} retargeted: step length {step:.3f} m, foot spacing {spacing:.3f} m, "
           f"stance {stance:.3f} m (poulaine x, y, z from {', '.join(summary['sources'])})")
-    print(f"  {summary['frames']} frames at {summary['rate_hz']:.2f} Hz; ankles within "
+    print(f"  {summary['frames']} frames at {summary['rate_hz']:g} Hz; the IK's ankles within "
           f"{summary['ankle_error_m'] * 1000:.1f} mm of the poulaine; "
           f"{summary['clamped_steps']} IK steps stopped by a joint limit, "
-          f"{summary['limit_violations']} samples outside the limits")
+          f"{summary['limit_violations']} samples outside the limits, "
+          f"{summary['hyperextended_samples']} of a hyperextended knee")
+    feet, entry = summary["feet"]["output"], summary["feet"]["entry"]
+    print(f"  feet planted, at worst: slide {feet['slide_m'] * 1000:.1f} mm per stance, "
+          f"{feet['penetration_m'] * 1000:.1f} mm below the floor, flat-foot hover "
+          f"{feet['hover_m'] * 1000:.1f} mm (the entry's {entry['hover_m'] * 1000:.1f} mm); "
+          f"pelvis vertical acceleration {feet['pelvis_acceleration_m_s2']:.1f} m/s² (the "
+          f"entry's {entry['pelvis_acceleration_m_s2']:.1f} m/s²)")
     print("  criterion                      entry      result")
     for key, label, digits in (("jerk_rms_rad_s3", "C1 jerk RMS (rad/s³)", 0),
                                ("cycle_closure_rad", "C2 closure (rad)", 4),

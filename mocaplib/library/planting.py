@@ -11,8 +11,9 @@ foot is read from the motion itself: the frames where the slower of its heel and
 horizontally at most :data:`CONTACT_SPEED` and the lower of them is within
 :data:`CONTACT_RISE` of the foot's standing level (the median height of that lower point over
 the frames where the foot is still, below :data:`STILL_SPEED`), in runs of at least
-:data:`MIN_STANCE_S`. On the samples these stances end within two frames of the entries' toe-offs
-(tests/test_planting.py).
+:data:`MIN_STANCE_S`. On the samples these stances end -0.011 to 0.079 s after the entries' toe-offs (events
+from foot-marker kinematics), the latest where a side-stepping or turning foot pivots on its
+toe (tests/test_planting.py).
 
 **Planting** (:func:`plant_feet`):
 
@@ -25,8 +26,10 @@ the frames where the foot is still, below :data:`STILL_SPEED`), in runs of at le
    rolls on the floor: about the locked heel while its toes point up, about the locked toe while
    its heel is up (the two coincide when the foot is flat, so the pivot changes without a jump).
 3. Outside stance the foot follows the motion; within :data:`BLEND_S` of a run the correction of
-   the run's first (last) frame fades in (out) by a smoothstep, and a sole point that would
-   pass below the floor lifts its foot by as much.
+   the run's first (last) frame fades in (out) by a smoothstep, the foot coming down to (rising
+   from) the floor at :data:`APPROACH_SPEED` at least; a swing foot whose toe (heel) would be
+   lower turns about its ankle to lift it (the rigid toe that dips into the floor at push-off),
+   and rises as a whole by what is still missing.
 4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
    of each foot per frame, all frames at once, by damped Gauss-Newton steps
    (:data:`IK_ITERATIONS`) that stay near the motion: every DOF is pulled to its own value
@@ -41,8 +44,8 @@ pelvis's vertical acceleration (:class:`ContactMeasures`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
@@ -51,12 +54,15 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.poulaine import FEET
 from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
 
-#: Stance: the slower sole point moves at most this horizontally (m/s), the lower is within
-#: CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot is
-#: still below STILL_SPEED (m/s).
+#: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
+#: within CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot
+#: is still below STILL_SPEED (m/s).
 CONTACT_SPEED, CONTACT_RISE, MIN_STANCE_S, STILL_SPEED = 0.3, 0.008, 0.1, 0.1
-#: Time (s) over which a run's correction fades in before it and out after it.
-BLEND_S = 0.1
+#: Time (s) over which a run's correction fades in before it and out after it; within it a foot
+#: stays above the floor by APPROACH_SPEED (m/s) times the time to the stance.
+BLEND_S, APPROACH_SPEED = 0.1, 0.2
+#: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
+MAX_TOE_TURN = np.deg2rad(30.0)
 #: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
 #: and the pelvis height to the motion's values.
 IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-4, 1e-6, 3e-2
@@ -123,7 +129,7 @@ def stance_frames(skeleton: Skeleton, q: np.ndarray, rate: float, /) -> np.ndarr
     low = sole[..., 2].min(axis=2)                                            # (F, 2)
     speed = np.linalg.norm(np.gradient(sole[..., :2], axis=0) * rate, axis=-1).min(axis=2)
     out = np.zeros(low.shape, dtype=bool)
-    shortest = max(1, int(round(MIN_STANCE_S * rate)))
+    shortest = max(1, round(MIN_STANCE_S * rate))
     for side in (0, 1):
         still = speed[:, side] < STILL_SPEED
         if not still.any():
@@ -153,7 +159,7 @@ def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
     targets = _targets(skeleton, q, stance, rate)
     reached = _solve(skeleton, q, targets, SOLVED)
     drop = reached[:, ROOT_Z] - q[:, ROOT_Z]
-    spread = max(1, int(round(PELVIS_SMOOTHING_S * rate)))
+    spread = max(1, round(PELVIS_SMOOTHING_S * rate))
     q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode="nearest"),
                                       spread / 2, mode="nearest")
     out = _solve(skeleton, q, targets, LEGS)
@@ -168,11 +174,28 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     ``drift`` moves along, periodic in ``period`` s. The motion is planted with one period more
     on each side, so that a stance across the clip's ends is locked as a whole and a clip of
     whole cycles loops."""
+    q, window = _padded(angles, drift, period, rate, frames)
+    planted = plant_feet(skeleton, q, rate, window=window)
+    keep = slice(*window)
+    return Planted(planted.q[keep], planted.stance[keep], planted.before, planted.after)
+
+
+def cycle_contact(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
+                  drift: RootDrift, period: float, rate: float, frames: int, /
+                  ) -> ContactMeasures:
+    """The :class:`ContactMeasures` of the periodic motion :func:`plant_cycles` takes, as it
+    is (its stances whole, from one period more on each side)."""
+    q, window = _padded(angles, drift, period, rate, frames)
+    return contact_measures(skeleton, q, rate, stance_frames(skeleton, q, rate), window=window)
+
+
+def _padded(angles, drift: RootDrift, period: float, rate: float, frames: int
+            ) -> tuple[np.ndarray, tuple[int, int]]:
+    """World poses (P + frames + P, D) of the periodic motion of :func:`plant_cycles` from
+    t = -P / rate on, P the frames of one period, and the window [P, P + frames)."""
     pad = int(np.ceil(period * rate))
     t = np.arange(-pad, frames + pad) / rate
-    planted = plant_feet(skeleton, drift.restore(angles(t), t), rate, window=(pad, pad + frames))
-    keep = slice(pad, pad + frames)
-    return Planted(planted.q[keep], planted.stance[keep], planted.before, planted.after)
+    return drift.restore(angles(t), t), (pad, pad + frames)
 
 
 def plant_blend(blend, skeleton: Skeleton, /, i: int = 0, *, rate: float, cycles: int
@@ -233,8 +256,9 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
     points = np.einsum("fsij,pj->fspi", T[..., :3, :3], local) + T[:, :, None, :3, 3]
     targets = points.copy()
     pitch, heading = _foot_axes(T[..., :3, :3])
-    fade = max(1, int(round(BLEND_S * rate)))
+    fade = max(1, round(BLEND_S * rate))
     length = local[2, 0] - local[1, 0]
+    clearance = np.zeros(stance.shape)            # how high the lower sole point must stay, m
     for side in (0, 1):
         for start, stop in _runs(stance[:, side]):
             frames = np.arange(start, stop)
@@ -248,27 +272,68 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
             placed = np.einsum("nij,pj->npi", R, local)
             pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
             targets[frames, side] = placed + pivot[:, None]
-            _fade(targets, points, side, start, -1, fade, targets[start, side] - points[start, side])
-            _fade(targets, points, side, stop - 1, 1, fade,
-                  targets[stop - 1, side] - points[stop - 1, side])
-    lift = np.maximum(0.0, -targets[:, :, 1:, 2].min(axis=2))               # (F, 2)
-    targets[..., 2] += lift[:, :, None]
+            for edge, direction in ((start, -1), (stop - 1, 1)):
+                for k, frame in _fade(targets, points, side, edge, direction, fade,
+                                      targets[edge, side] - points[edge, side]):
+                    clearance[frame, side] = APPROACH_SPEED * k / rate
+    swing = ~stance
+    targets[swing] = _cleared(targets[swing], clearance[swing])
     return targets
 
 
 def _fade(targets, points, side: int, edge: int, direction: int, fade: int,
-          correction: np.ndarray) -> None:
+          correction: np.ndarray) -> list[tuple[int, int]]:
     """Add ``correction`` (3, 3) to ``fade`` frames of foot ``side`` beyond frame ``edge`` in
     ``direction`` (±1), weighted by a smoothstep from 1 at the edge to 0, where no stance has
-    set them (their target is still the motion's point)."""
+    set them (their target is still the motion's point); returns the (k, frame) pairs set, k
+    frames from the edge."""
+    done = []
     for k in range(1, fade):
         frame = edge + direction * k
-        if not 0 <= frame < len(targets):
-            return
-        if not np.array_equal(targets[frame, side], points[frame, side]):
-            return
+        if not 0 <= frame < len(targets) or not np.array_equal(targets[frame, side],
+                                                                  points[frame, side]):
+            break
         s = 1.0 - k / fade
         targets[frame, side] += s * s * (3 - 2 * s) * correction
+        done.append((k, frame))
+    return done
+
+
+def _cleared(feet: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """Feet (n, 3, 3) (ankle, heel, toe) with heel and toe at least ``height`` (n,) m above the
+    floor: a foot with only its toe (heel) too low turns about its ankle, in its vertical plane,
+    by the least angle (up to :data:`MAX_TOE_TURN`) that lifts it, then the whole foot rises by
+    what is still missing."""
+    feet = feet.copy()
+    ankle, heel, toe = feet[:, 0], feet[:, 1], feet[:, 2]
+    axis = np.cross(toe - heel, [0.0, 0.0, 1.0])
+    axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    for point, other in ((2, 1), (1, 2)):
+        low = (feet[:, point, 2] < height) & (feet[:, other, 2] >= height)
+        if not low.any():
+            continue
+        r = feet[low, point] - ankle[low]
+        across = np.cross(axis[low], r)[:, 2]                 # z of u × r: z(φ) = r_z cos φ + c sin φ
+        reach = np.hypot(r[:, 2], across)
+        delta = np.arctan2(across, r[:, 2])
+        cosine = np.clip((height[low] - ankle[low, 2]) / np.maximum(reach, 1e-12), -1.0, 1.0)
+        turns = np.stack([delta - np.arccos(cosine), delta + np.arccos(cosine)])
+        turns = np.angle(np.exp(1j * turns))
+        phi = np.clip(np.take_along_axis(turns, np.argmin(np.abs(turns), axis=0)[None], 0)[0],
+                      -MAX_TOE_TURN, MAX_TOE_TURN)
+        feet[low] = ankle[low, None] + _turned(feet[low] - ankle[low, None], axis[low], phi)
+    short = np.maximum(0.0, height - feet[:, 1:, 2].min(axis=1))
+    feet[..., 2] += short[:, None]
+    return feet
+
+
+def _turned(vectors: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """``vectors`` (n, k, 3) turned about unit ``axis`` (n, 3) by ``angle`` (n,) rad
+    (Rodrigues)."""
+    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
+    u = axis[:, None, :]
+    return (vectors * c + np.cross(u, vectors) * s
+            + u * np.sum(u * vectors, axis=-1, keepdims=True) * (1 - c))
 
 
 def _level_frames(pitch: np.ndarray, heading: float) -> np.ndarray:

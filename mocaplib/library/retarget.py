@@ -6,7 +6,9 @@
    :mod:`mocaplib.gait.poulaine` defines them) default to the entry's own, scaled to the target: step
    length and stance by the ratio of leg lengths (thigh + shank), foot spacing by the ratio of
    hip widths. :func:`mocaplib.gait.poulaine.blend` picks, per axis, the poulaine of the library
-   closest in that parameter among the entries of the same locomotion class that move (or
+   closest in that parameter, each first scaled to the target's body by the ratio of leg lengths
+   (:meth:`~mocaplib.gait.poulaine.Poulaine.scaled`: compared as if walked by the target, so a
+   body scaled as a whole walks the entry's own poulaine), among the entries of the same locomotion class that move (or
    stay on the spot), turn, travel and support themselves like the entry (:data:`SIMILAR_TURN`,
    :data:`SIMILAR_TRAVEL`, :data:`SIMILAR_SUPPORT`; the entry itself wins ties), corrects it exactly to the requested
    values and times it on the entry's characteristic points. Sampled over the cycle, it is
@@ -15,7 +17,10 @@
    targets have the requested values exactly where the entry passes its characteristic
    points.
 2. **Inverse kinematics** on the target skeleton, frame after frame over the cycle sampled in
-   ``round(T × rate)`` equal steps (both ends included). The primary task puts both ankle
+   n = ``round(T × rate)`` equal steps (both ends included), played in n / rate s so that the
+   output has the requested rate exactly (the period changes by at most half a sample); the
+   reference is the entry's closed cycle (its Fourier series without the ramp), so that the
+   output loops. The primary task puts both ankle
    centres on the poulaine, in the travel frame of a pelvis at the origin: Δθ = J⁺ΔX over the
    :data:`TASK_DOFS` (the pelvis's orientation, hips and knees; J⁺ damped near a stretched
    leg, :data:`DAMPING`, and steps of at most :data:`MAX_STEP`). In the null space of J (the
@@ -31,15 +36,19 @@
       θ_previous frame) / Δt, M = Σ_b A_bᵀ R_b I_b R_bᵀ A_b over de Leva's bodies
       (:mod:`mocaplib.model.anthropometry`), A_b the world axes of the task DOFs that turn body b.
 
-   Up to :data:`ITERATIONS` steps per frame, each clamped to the joint limits; the other DOFs
+   Up to :data:`ITERATIONS` steps per frame, each clamped to the joint limits (the knees at 0
+   or more: never hyperextended); the other DOFs
    (trunk, head, arms, ankles) keep the entry's angles, clipped to the joint limits (a Fourier
    series may ring past one by a fraction of a degree).
 3. **Root.** The path frame's speed (the entry's root drift) and the pelvis's excursions in it
    are scaled so that the pelvis covers per cycle the stride of the poulaine's x-source times
    its x-correction (the stance ankle then moves back under the pelvis as fast as the pelvis
-   moves on: the foot stays where it landed). The pelvis height puts the lower ankle centre
-   where the entry's lower ankle centre is (on the floor in support, up in a run's flight),
-   raised by the difference of the two bodies' ankle heights.
+   moves on: the foot stays where it landed). The pelvis height is the entry's above its ankle
+   height, times the ratio of the requested stance to the entry's, plus the target's ankle
+   height (smooth: the entry's own rise and fall, scaled).
+4. **Feet** planted on the floor through each stance
+   (:func:`mocaplib.library.planting.plant_cycles`), and measured with the entry's
+   (:attr:`Retargeted.feet`).
 
 The result carries the criteria C1-C3 of the entry (its Fourier series on its own skeleton)
 and of the result, computed alike (:func:`cycle_criteria`), and writes it in any motion format of
@@ -64,7 +73,7 @@ from ..model.filtering import WALKING_CUTOFF
 from ..model.motion import Motion
 from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
                         Skeleton, segment_dofs)
-from .planting import KNEES, ContactMeasures, contact_measures, plant_cycles, stance_frames
+from .planting import KNEES, ContactMeasures, cycle_contact, plant_cycles
 
 #: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis
 #: (the pelvis's rotations, the hips and the knees).
@@ -148,8 +157,9 @@ class Retargeted:
     rate : float
         Samples per second, exactly as requested.
     feet : dict
-        ``{"entry": ContactMeasures, "output": ContactMeasures}``: the entry's feet (its cycle
-        on its own body, as stored) and the output's (:func:`mocaplib.library.planting.contact_measures`).
+        ``{"entry": ContactMeasures, "output": ContactMeasures}``: the feet of the entry's closed
+        cycle (its Fourier series) on its own body and the output's
+        (:func:`mocaplib.library.planting.contact_measures`).
     poulaine_q : ndarray, shape (n + 1, D) or None
         The inverse kinematics' solution before the feet are planted, in the path frame: its
         ankles on the requested poulaine (planting then moves them by a few millimetres).
@@ -285,9 +295,9 @@ def retarget(library, entry_id: str, /, *, skeleton: Skeleton, step_length: floa
     planted = plant_cycles(skeleton, lambda t: out[np.mod(np.rint(t * rate).astype(int), steps)],
                            moved, played, rate, steps + 1)
     times = np.arange(steps + 1) / rate
-    entry_world = still.restore(captured, phase * period)
-    feet = {"entry": contact_measures(source, entry_world, steps / period,
-                                      stance_frames(source, entry_world, steps / period)),
+    feet = {"entry": cycle_contact(source, lambda t: synthesize(entry.fourier.a, entry.fourier.b,
+                                                                period, t),
+                                   still, period, steps / period, steps + 1),
             "output": planted.after}
     criteria = {"input": cycle_criteria(source, captured, still, period),
                 "output": cycle_criteria(skeleton, moved.remove(planted.q, times), moved, played)}
