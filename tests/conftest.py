@@ -128,6 +128,10 @@ SLOW = {
      "test_a_marker_sample_removed_as_an_outlier_keeps_its_cycle_and_is_not_a_gap"),
     ("test_activity.py",
      "test_the_library_and_the_report_say_what_each_capture_was_calibrated_from"),
+    ("test_planting.py", "test_query_outputs_have_planted_feet"),
+    ("test_planting.py", "test_retargeted_outputs_hold_up"),
+    ("test_planting.py", "test_a_loop_steps_from_its_last_frame_to_its_first_as_between_any_two"),
+    ("test_planting.py", "test_stances_end_at_the_entries_toe_offs"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

@@ -14,6 +14,7 @@ entry's and the knees at 0 or more; files at the requested rate, loops without a
 
 from __future__ import annotations
 
+import json
 from functools import lru_cache
 
 import numpy as np
@@ -94,12 +95,17 @@ def test_query_outputs_have_planted_feet(kind, tmp_path, capsys):
     entry = library.entry(entry_id)
     out = tmp_path / "query.bvh"
     assert main(["query", str(path), str(entry.v), str(entry.omega), str(entry.v_l), "--clamp",
-                 "--bvh", str(out), "--cycles", "2"]) == 0
-    assert "feet planted: slide" in capsys.readouterr().out
+                 "--bvh", str(out), "--cycles", "2", "--json"]) == 0
+    said = json.loads(capsys.readouterr().out)["feet"]
     reference = entry_character(library, entry_id, tmp_path)
     # the issue's measures, unplanted: the flat foot hovers 13-18 mm above the floor
-    assert reference.hover() > 0.01 or not reference.stances()
-    assert_planted(Character(out.read_text()), reference)
+    assert reference.hover() > 0.01
+    character = Character(out.read_text())
+    assert_planted(character, reference)
+    # what the command says is what the file shows (0.1 mm: the file's 10 digits, the readers'
+    # stance rules)
+    assert said["slide_m"] == pytest.approx(character.slide(), abs=1e-4)
+    assert said["penetration_m"] == pytest.approx(character.penetration(), abs=1e-4)
 
 
 @pytest.mark.usefixtures("sample_dir")
@@ -166,6 +172,20 @@ def test_stances_end_at_the_entries_toe_offs():
             ends = np.flatnonzero(stance[:-1, side] & ~stance[1:, side]) + 1
             phase = np.mod(t[ends] - toe_off + period / 2, period) - period / 2
             assert len(ends) >= 2 and np.abs(phase).max() <= 0.1, (entry_id, side, phase)
+
+
+def test_a_retargeted_walk_is_planted_and_loops(tmp_path):
+    from walking_library import synthetic_walks
+
+    library = synthetic_walks()[0]
+    entry_id = chosen(library, "walk_straight_normal")
+    result = retarget(library, entry_id, skeleton=Skeleton.from_height(1.9), rate=120.0)
+    character = Character(result.write(tmp_path / "tall.bvh").read_text(), loop=True)
+    assert_planted(character, entry_character(library, entry_id, tmp_path),
+                   size=result.requested[2] / library.poulaine(entry_id).parameters[2])
+    assert character.frame_time * 120.0 == pytest.approx(1.0, abs=1e-9)   # 10 digits written
+    assert character.frames == len(result.q) - 1 and result.rate == 120.0
+    assert character.knee_flexion().min() >= -1e-6
 
 
 def test_a_foot_that_hovers_and_slides_is_planted():

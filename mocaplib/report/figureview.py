@@ -2,7 +2,9 @@
 
 The viewer (``templates/figure.js`` on ``templates/motion.js``) animates an entry's cycle as a
 stick figure, posed by forward kinematics in JavaScript from :func:`skeleton_data` (the
-description of docs/library-format.md, "Posing the skeleton"), and plays the blend of a
+description of docs/library-format.md, "Posing the skeleton") and from the entry's series with
+its feet planted as ``mocaplib query`` writes them
+(:func:`mocaplib.library.planting.planted_series`), and plays the blend of a
 control-space point picked with the mouse, located in the tetrahedra of the control space's
 gait cells with side-steps put on the cone, as ``mocaplib query`` locates a command
 (:func:`viewer_data`'s ``space``): nothing is triangulated in the browser.
@@ -13,7 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..export.bvh import end_sites
+from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra
+from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: Significant digits of the Fourier coefficients in the page (1e-6 rad: far below a pixel).
@@ -29,7 +33,6 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     joint centre ``offset`` in the parent's frame (m), ``dofs`` as [DOF index, axis, is a
     translation], parents before children), ``ends`` (segment index -> points drawn in its
     frame, m: head top, finger tip, heel and toe) and ``lines`` (pairs of segment indices)."""
-    lengths = skeleton.lengths
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -39,9 +42,7 @@ def skeleton_data(skeleton: Skeleton) -> dict:
                 for s, seg in enumerate(SEGMENTS)]
     ends = {}
     for name, tip in end_sites(skeleton).items():
-        points = [list(map(float, tip))]
-        if name.startswith("foot"):        # the heel: a foot length behind the toe
-            points.insert(0, [tip[0] - lengths["foot_length"], tip[1], tip[2]])
+        points = skeleton.sole().tolist() if name.startswith("foot") else [list(map(float, tip))]
         ends[SEGMENT_NAMES.index(name)] = points
     return {"segments": segments, "ends": ends,
             "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES]}
@@ -51,8 +52,10 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     """Everything the figure viewer needs, as JSON data.
 
     ``entries``: per library entry (``library.entries`` order) its id, class, colour,
-    ``mirror_of`` (null unless a mirror image), period ``T`` (s), Fourier ``a``/``b`` up to its
-    own order, and root ``drift`` (u_f, u_l, omega); ``space`` (null without a gait cell):
+    ``mirror_of`` (null unless a mirror image), period ``T`` (s), Fourier ``a``/``b`` of its
+    cycle with the feet planted on the library's skeleton (an entry without a finite drift:
+    its own, up to its order), and root ``drift`` (u_f, u_l, omega); ``space`` (null without a
+    gait cell):
     the chosen entries (``entries``: indices into the list above) at their normalised
     ``points`` in the cells (side-steps on the cone), the ``simplices`` of the gait cells
     (rows of 4 indices into them, :func:`~mocaplib.library.cells.cell_tetrahedra`) with
@@ -62,11 +65,15 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     """
     entries = []
     for e, cls in zip(library.entries, classes):
-        n = e.fourier.n + 1
+        a, b = e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1]
+        drift = np.array(e.root_drift.velocities, dtype=np.float64)
+        if np.isfinite(drift).all() and np.isfinite([a, b]).all():
+            a, b = planted_series(library.skeleton, a, b, float(e.T),
+                                  RootDrift(0.0, 0.0, 0.0, *drift))
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
             "mirror_of": e.mirror_of, "T": float(e.T),
-            "a": _rounded(e.fourier.a[:, :n]), "b": _rounded(e.fourier.b[:, :n]),
+            "a": _rounded(a), "b": _rounded(b),
             "drift": [float(x) for x in e.root_drift.velocities],
             "velocity": [float(x) for x in e.velocity]})
     space = None
