@@ -141,6 +141,21 @@ def test_retargeted_outputs_hold_up(kind, height, tmp_path):
 
 
 @pytest.mark.usefixtures("sample_dir")
+def test_the_path_follower_plants_its_feet(tmp_path, capsys):
+    library, path = sample_library()
+    route = tmp_path / "route.csv"
+    route.write_text("x,y\n0,0\n3,0\n5,1.5\n", encoding="utf-8")      # a walk, then a turn
+    out = tmp_path / "animated.bvh"
+    assert main(["animate", str(path), "--path", str(route), "--speed", "1.2", "--bvh",
+                 str(out)]) == 0
+    assert "feet planted: slide" in capsys.readouterr().out
+    character = Character(out.read_text())
+    assert len(character.stances()) >= 4
+    assert character.slide() <= SLIDE and character.penetration() <= PENETRATION
+    assert character.hover() <= HOVER
+
+
+@pytest.mark.usefixtures("sample_dir")
 def test_a_loop_steps_from_its_last_frame_to_its_first_as_between_any_two(tmp_path):
     library, _ = sample_library()
     entry_id = chosen(library, TYPES["walk"])
@@ -189,14 +204,18 @@ def test_a_retargeted_walk_is_planted_and_loops(tmp_path):
 
 
 def test_a_foot_that_hovers_and_slides_is_planted():
-    # a standing skeleton whose feet hover 15 mm and slide 10 mm forward: planted, no slide
+    # a standing skeleton whose feet hover 15 mm and slide 10 mm forward, standing from frame 5
+    # to 55 of 60: planted, no slide, no hover
     body = Skeleton.from_height(1.75)
     q = np.zeros((60, len(body.bounds()[0])))
     L = body.lengths
     q[:, 2] = L["thigh"] + L["shank"] + L["ankle_height"] + 0.015        # hip centres over the soles
     q[:, 0] = np.linspace(0.0, 0.01, 60)
-    planted = plant_feet(body, q, 100.0)
-    assert planted.stance.all()
+    stance = np.zeros((60, 2), dtype=bool)
+    stance[5:55] = True
+    assert stance_frames(body, q, 100.0).all()          # both feet still and low throughout
+    planted = plant_feet(body, q, 100.0, stance=stance)
     assert planted.before.hover_m == pytest.approx(0.015, abs=1e-6)
+    assert planted.before.stances == planted.after.stances == 2
     assert planted.after.hover_m < 1e-4 and planted.after.slide_m < 1e-4
     assert planted.after.penetration_m < 1e-4

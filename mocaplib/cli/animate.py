@@ -41,6 +41,7 @@ def _run(args) -> int:
     from ..library.controlspace import ControlSpace
     from ..library.follow import follow, read_path, tracking_errors
     from ..library.format import load_library
+    from ..library.planting import plant_feet
     from ..model.motion import Motion
 
     outputs = {option: getattr(args, option[2:]) for option in OUTPUTS
@@ -54,7 +55,8 @@ def _run(args) -> int:
     cs = ControlSpace.from_library(library, source=args.library)
     rate = args.rate or ANIMATION_RATE
     followed = follow(cs, path, rate=rate, speed=args.speed, gait=args.gait)
-    motion = Motion(followed.q, library.skeleton, rate, source="animate")
+    planted = plant_feet(library.skeleton, followed.q, rate)
+    motion = Motion(planted.q, library.skeleton, rate, source="animate")
     for option, out in outputs.items():
         print(f"{option[2:].upper()}: {write(motion, out, suffix=OUTPUTS[option])}")
     for k, c in enumerate(followed.cycles):
@@ -66,4 +68,8 @@ def _run(args) -> int:
           f"of the path, heading within {errors['heading_deg']:.1f}°; largest frame-to-frame "
           f"joint change {errors['jump_deg']:.2f}° (the blended cycles' own: "
           f"{errors['own_jump_deg']:.2f}°)")
+    feet = planted.after
+    print(f"feet planted: slide {feet.slide_m * 1000:.1f} mm, below the floor "
+          f"{feet.penetration_m * 1000:.1f} mm, flat-foot hover {feet.hover_m * 1000:.1f} mm at "
+          f"worst over {feet.stances} stances")
     return 0

@@ -90,8 +90,9 @@ class ContactMeasures:
 
     ``slide_m``: the largest horizontal travel of a sole point (heel or toe) while it touches
     the floor (within :data:`TOUCH`) in one stance; ``penetration_m``: the deepest a sole point
-    goes below the floor; ``hover_m``: the largest, over the stances, of the lowest height the
-    higher of heel and toe reaches (0 when the foot lies flat on the floor once in each stance);
+    goes below the floor; ``hover_m``: the largest, over the stances seen whole (not cut by the
+    motion's ends), of the lowest height the higher of heel and toe reaches (0 when the foot
+    lies flat on the floor once in each stance);
     ``pelvis_acceleration_m_s2``: the largest vertical acceleration of the pelvis (second
     differences); ``stances``: the stance runs measured, both feet.
     """
@@ -252,7 +253,8 @@ def contact_measures(skeleton: Skeleton, q: np.ndarray, rate: float, stance: np.
                 continue
             count += 1
             run = sole[start:stop, side]                                   # (n, 2, 3)
-            hover = max(hover, float(run[..., 2].max(axis=1).min()))
+            if 0 < start and stop < len(q):                  # seen whole
+                hover = max(hover, float(run[..., 2].max(axis=1).min()))
             for point in (0, 1):
                 touching = run[run[:, point, 2] <= TOUCH, point, :2]
                 if len(touching):
