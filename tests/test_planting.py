@@ -25,10 +25,10 @@ from conftest import SAMPLES
 from mocaplib.cli import main
 from mocaplib.export.formats import write
 from mocaplib.gait.fourier import synthesize
-from mocaplib.library.planting import plant_feet, stance_frames
+from mocaplib.library.planting import plant_feet, sole_points, stance_frames
 from mocaplib.library.retarget import retarget
 from mocaplib.model.motion import Motion
-from mocaplib.skeleton import Skeleton
+from mocaplib.skeleton import DOF_NAMES, Skeleton
 
 SLIDE, PENETRATION, HOVER = 0.002, 0.0005, 0.003
 #: How far beyond the entry's pelvis acceleration (scaled) a planted output may go: ratio, m/s²
@@ -207,9 +207,12 @@ def test_a_foot_that_hovers_and_slides_is_planted():
     # a standing skeleton whose feet hover 15 mm and slide 10 mm forward, standing from frame 5
     # to 55 of 60: planted, no slide, no hover
     body = Skeleton.from_height(1.75)
-    q = np.zeros((60, len(body.bounds()[0])))
-    L = body.lengths
-    q[:, 2] = L["thigh"] + L["shank"] + L["ankle_height"] + 0.015        # hip centres over the soles
+    q = np.zeros((60, len(DOF_NAMES)))
+    for side in "lr":                   # knees a little bent, the soles level
+        q[:, DOF_NAMES.index(f"hip_flexion_{side}")] = 0.15
+        q[:, DOF_NAMES.index(f"knee_flexion_{side}")] = 0.3
+        q[:, DOF_NAMES.index(f"ankle_dorsiflexion_{side}")] = 0.15
+    q[:, 2] = 0.015 - sole_points(body, q)[..., 2].min()
     q[:, 0] = np.linspace(0.0, 0.01, 60)
     stance = np.zeros((60, 2), dtype=bool)
     stance[5:55] = True
