@@ -198,8 +198,9 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
     moving along ``drift``) with its feet planted on ``skeleton``: the cycle sampled at about
     ``rate`` Hz, planted (:func:`plant_cycles`) and fitted again with ``order`` harmonics, (D,
     order+1) each. For animations that pose the skeleton from a series (the report's viewer);
-    measured on the samples at the defaults, the refitted feet slide up to 1.4 mm, go up to
-    0.8 mm below the floor and hover up to 2.3 mm (benchmarks/character.py)."""
+    on the sample entries at the defaults the refitted feet slide up to 5.0 mm, go up to 1.9 mm
+    below the floor and hover up to 3.4 mm (docs/results/character.md): the series' harmonics
+    round the planted stance off."""
     steps = max(round(period * rate), 2 * order + 1)
     planted = plant_cycles(skeleton, lambda t: synthesize(a, b, period, t), drift, period,
                            steps / period, steps)
