@@ -142,7 +142,7 @@ def test_retargeted_outputs_hold_up(kind, height, tmp_path):
 
 @pytest.mark.usefixtures("sample_dir")
 def test_the_path_follower_plants_its_feet(tmp_path, capsys):
-    library, path = sample_library()
+    _, path = sample_library()
     route = tmp_path / "route.csv"
     route.write_text("x,y\n0,0\n3,0\n5,1.5\n", encoding="utf-8")      # a walk, then a turn
     out = tmp_path / "animated.bvh"
@@ -222,3 +222,38 @@ def test_a_foot_that_hovers_and_slides_is_planted():
     assert planted.before.stances == planted.after.stances == 2
     assert planted.after.hover_m < 1e-4 and planted.after.slide_m < 1e-4
     assert planted.after.penetration_m < 1e-4
+
+
+def _viewer_feet(library):
+    """The worst ContactMeasures fields (slide, penetration, hover), m, of every entry's cycle
+    as the report's viewer poses it (planted_series), measured at 100 Hz."""
+    from mocaplib.gait.fourier import RootDrift
+    from mocaplib.library.planting import cycle_contact, planted_series
+
+    worst = np.zeros(3)
+    for e in library.entries:
+        period, drift = float(e.T), RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
+        a, b = planted_series(library.skeleton, e.fourier.a, e.fourier.b, period, drift)
+        m = cycle_contact(library.skeleton, lambda t, a=a, b=b, p=period: synthesize(a, b, p, t),
+                          drift, period, 100.0, round(period * 100))
+        worst = np.maximum(worst, [m.slide_m, m.penetration_m, m.hover_m])
+    return worst
+
+
+def test_the_report_viewers_feet_are_no_worse_than_measured():
+    from walking_library import synthetic_walks
+
+    # measured on the 21 synthetic walks: slide 3.22 mm, 1.15 mm below the floor, hover 1.56 mm
+    # (the series' 15 harmonics round the planted stance off; the targets' strict xfail below)
+    slide, below, hover = _viewer_feet(synthetic_walks()[0])
+    assert slide <= 0.0035 and below <= 0.0013 and hover <= 0.0018, (slide, below, hover)
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the 21 synthetic walks: the report viewer's "
+                   "refitted series slide 3.22 mm and go 1.15 mm below the floor (targets 2 mm, "
+                   "0.5 mm)")
+def test_the_report_viewers_feet_meet_the_targets():
+    from walking_library import synthetic_walks
+
+    slide, below, hover = _viewer_feet(synthetic_walks()[0])
+    assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER
