@@ -133,6 +133,8 @@ SLOW = {
     ("test_planting.py", "test_a_loop_steps_from_its_last_frame_to_its_first_as_between_any_two"),
     ("test_planting.py", "test_stances_end_at_the_entries_toe_offs"),
     ("test_planting.py", "test_the_path_follower_plants_its_feet"),
+    ("test_dask_batches.py", "test_batches_on_a_local_cluster_give_the_libraries_of_local_jobs"),
+    ("test_dask_batches.py", "test_a_batch_runs_with_one_blas_thread"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

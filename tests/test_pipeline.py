@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.build import pipeline, workflow
+from mocaplib.build import dask_batches, pipeline, workflow
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
 from mocaplib.io import fs_text
@@ -230,7 +230,7 @@ def test_dask_local_cluster_gives_the_same_bytes(tmp_path):
 
 
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(pipeline, "SCHEDULER_TIMEOUT_S", 1)
+    monkeypatch.setattr(dask_batches, "SCHEDULER_TIMEOUT_S", 1)
     write_captures(tmp_path / "caps", TRIPLES[:1])
     with pytest.raises(MocapError, match="cannot connect to the Dask scheduler"):
         build_library([tmp_path / "caps"], scheduler="tcp://127.0.0.1:1", progress=False,

@@ -29,6 +29,7 @@ from ..library.format import Library, assemble_library, diagnostics_path, json_t
 from ..library.validation import entry_problems
 from ..statics import static_names
 from .cache import cache_key, internal_result, read_cache, write_cache
+from .dask_batches import run_on_dask
 from .drafting import draft_missing_protocols
 from .forward import forward_offsets
 from .sessions import plan_captures
@@ -38,10 +39,6 @@ from .workers import run_tasks
 from .workflow import DIAGNOSTICS_DIGITS, CaptureResult, file_sha256, process_capture
 
 DIAGNOSTICS_VERSION = 1
-
-
-#: Seconds to wait for a Dask scheduler to answer.
-SCHEDULER_TIMEOUT_S = 20
 
 
 #: Seconds one capture may take in a worker process before the worker is ended and the
@@ -178,7 +175,8 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
           progress: bool = True,
           process: Callable[[str, BuildSettings], CaptureResult] | None = None,
           capture_timeout: float | None = CAPTURE_TIMEOUT_S,
-          drafts_dir: str | os.PathLike | None = None) -> BuildResult:
+          drafts_dir: str | os.PathLike | None = None,
+          batch_size: int | None = None) -> BuildResult:
     """Process every capture and assemble the library.
 
     Parameters
@@ -195,7 +193,8 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         Worker processes (1 = in this process).
     scheduler
         Address of a Dask distributed scheduler (``tcp://host:8786``); needs the optional
-        extra ``mocaplib[dask]``. Overrides ``jobs``.
+        extra ``mocaplib[dask]``. Overrides ``jobs``. The captures go in batches, several
+        to a task (:mod:`mocaplib.build.dask_batches`).
     cache_dir
         Folder of cached per-capture results (JSON); None disables the cache.
     progress
@@ -211,6 +210,9 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
         Folder to draft protocols into for the captures no protocol serves
         (:mod:`mocaplib.build.drafting`; the library's settings list them as
         ``drafted_protocols``); None: such captures fail at their protocol.
+    batch_size
+        Captures per Dask task (``scheduler`` only); None: chosen from the captures' frame
+        counts, about :data:`mocaplib.build.dask_batches.TASK_FRAMES` frames a task.
 
     Returns
     -------
@@ -268,7 +270,7 @@ def build_library(inputs: Iterable[str | os.PathLike], settings: BuildSettings |
     with tqdm(total=len(paths), initial=len(results), desc="build", unit="capture",
               disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
         for i, result in _run(process, [(i, paths[i], planned[i]) for i in todo], jobs,
-                              scheduler, capture_timeout):
+                              scheduler, capture_timeout, batch_size):
             results[i] = result
             if cache is not None and result.sha256 and not internal_result(result) \
                     and not cache_failed:
@@ -322,43 +324,22 @@ def build_inputs(captures: Iterable[str | os.PathLike], settings: BuildSettings)
 
 
 def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
-         scheduler: str | None, timeout: float | None):
+         scheduler: str | None, timeout: float | None, batch_size: int | None):
     """Yield ``(index, CaptureResult)`` as captures finish (in any order), each work item
     ``(index, path, its settings)`` run by :func:`mocaplib.build.workers.run_tasks` (at most
-    ``timeout`` s in a worker) or on a Dask cluster."""
+    ``timeout`` s in a worker) or on a Dask cluster, in batches
+    (:func:`mocaplib.build.dask_batches.run_on_dask`)."""
     if not work:
         return
     if scheduler is not None:
-        yield from _run_dask(process, work, scheduler)
-        return
-    tasks = [(os.fspath(path), settings) for _, path, settings in work]
-    for k, result, error in run_tasks(process, tasks, jobs=jobs, timeout=timeout):
-        index, path, _ = work[k]
-        yield index, result if error is None else _worker_failure(path, error)
-
-
-def _run_dask(process, work, address: str):
-    try:
-        from distributed import Client
-        from distributed import as_completed as dask_completed
-    except ImportError as exc:
-        raise MocapError("a Dask scheduler needs the optional dask extra",
-                         hint="pip install 'mocaplib[dask]'") from exc
-    try:
-        client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
-    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
-        raise MocapError(f"cannot connect to the Dask scheduler at {address}: {exc}",
-                         hint="start one with `dask scheduler` or check the address") from exc
-    with client:
-        futures = {client.submit(pinned, process, os.fspath(path), settings, pure=False):
-                   (i, path) for i, path, settings in work}
-        for future in dask_completed(futures):
-            index, path = futures[future]
-            try:
-                result = future.result()
-            except Exception as exc:  # the task raised, or its worker died (KilledWorker)
-                result = _worker_failure(path, exc)
-            yield index, result
+        outcomes = run_on_dask(process, work, scheduler, batch_size=batch_size)
+    else:
+        tasks = [(os.fspath(path), settings) for _, path, settings in work]
+        outcomes = ((work[k][0], result, error) for k, result, error
+                    in run_tasks(process, tasks, jobs=jobs, timeout=timeout))
+    paths = dict((index, path) for index, path, _ in work)
+    for index, result, error in outcomes:
+        yield index, result if error is None else _worker_failure(paths[index], error)
 
 
 def _worker_failure(path, error: BaseException) -> CaptureResult:

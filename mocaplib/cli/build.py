@@ -51,6 +51,9 @@ def register(subparsers) -> None:
                              f"(default {CAPTURE_TIMEOUT_S:g})")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="Dask scheduler address, e.g. tcp://host:8786 (needs mocaplib[dask])")
+    parser.add_argument("--batch-size", type=positive(int), default=None, metavar="N",
+                        help="captures per Dask task, with --scheduler (default: chosen from "
+                             "the captures' frame counts: one to two seconds of work a task)")
     parser.add_argument("--all-cycles", action="store_true",
                         help="keep every complete cycle, not only the one chosen per activity "
                              "segment of each capture")
@@ -91,6 +94,9 @@ def _check_usage(args):
     from ..build.settings import BuildSettings
     from ..library.format import diagnostics_path
 
+    if args.batch_size is not None and args.scheduler is None:
+        raise UsageError("--batch-size sets the captures per Dask task: give it with "
+                         "--scheduler ADDRESS (local jobs run one capture per task)")
     check_inputs(args.inputs, args.static, static_pose=args.static_pose,
                  references=args.forward_reference, static_window=args.static_window)
     unlisted: list[MocapError] = []    # said by the build's summary when there are captures
@@ -132,7 +138,8 @@ def _run(args) -> int:
     result = build_library(captures, settings, jobs=args.jobs, scheduler=args.scheduler,
                            cache_dir=cache_dir, progress=not args.quiet and sys.stderr.isatty(),
                            capture_timeout=args.capture_timeout,
-                           drafts_dir=output.parent / DRAFTS_FOLDER)
+                           drafts_dir=output.parent / DRAFTS_FOLDER,
+                           batch_size=args.batch_size)
     result.unlisted += [str(folder) for folder in unlisted]   # the build got the files found
     print(result.summary_text())
     library_path, sidecar = result.write(output)  # LibraryError, nothing written: no entry

@@ -75,10 +75,23 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
     C3DError
         The file cannot be read; the message names the file and the problem.
     """
+    return _with_file(path, _read_trial)
+
+
+def c3d_frames(path: str | os.PathLike, /) -> int:
+    """The number of frames :func:`read_c3d` reads from the C3D file ``path`` (the length of
+    the Trial's axis 0), from its header, parameters and size only: no marker sample is
+    read. Raises :class:`~mocaplib.errors.C3DError` as :func:`read_c3d` does."""
+    return _with_file(path, lambda handle, path: _point_layout(handle, path, [])[1].frames)
+
+
+def _with_file(path: str | os.PathLike, read):
+    """``read(handle, path)`` on the regular file ``path`` opened for reading; a file that
+    cannot be opened raises :class:`~mocaplib.errors.C3DError` naming it."""
     path = Path(path)
     try:
         with open_regular(path) as handle:
-            return _read_trial(handle, path)
+            return read(handle, path)
     except FileNotFoundError:
         raise C3DError("no such file", path=path, hint="check the path") from None
     except IsADirectoryError:
@@ -89,13 +102,18 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
         raise C3DError(f"cannot read the file: {exc.strerror}", path=path, hint=hint) from None
 
 
-def _read_trial(handle, path: Path) -> Trial:
+def _point_layout(handle, path: Path, notes: list[str]):
+    """The parsed parameters and the POINT layout of the open file; notes go to ``notes``."""
     size = os.fstat(handle.fileno()).st_size
-    metadata = read_metadata(handle, size, path)
-    notes: list[str] = []
-    reader = parse_parameters(metadata, path, notes)
+    reader = parse_parameters(read_metadata(handle, size, path), path, notes)
     layout = frames_past_16_bits(handle, point_layout(reader, handle, size, path, notes),
                                  size, notes)
+    return reader, layout
+
+
+def _read_trial(handle, path: Path) -> Trial:
+    notes: list[str] = []
+    reader, layout = _point_layout(handle, path, notes)
 
     labels = _point_labels(reader, layout.count, path, notes)
     declared = _model_outputs(reader, path)
