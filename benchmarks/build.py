@@ -1,9 +1,15 @@
-"""Benchmark `mocaplib build`: captures/s with 1 and 2 jobs, time per stage, growth with data.
+"""Benchmark `mocaplib build`: captures/s with 1 and 2 jobs, time per stage, growth with data,
+and throughput against the number of captures for local jobs and Dask clusters.
 
 Usage (from the repository root)::
 
     python benchmarks/build.py [SAMPLES] [--static FILE [--static-pose neutral]]
                                [--growth-captures N] [--repeat R] [--markdown PATH]
+    python benchmarks/build.py --throughput [--quick] [--batch-size N] [SAMPLES]
+                               [--static FILE [--static-pose neutral]] [--repeat R]
+                               [--markdown PATH]
+
+Without ``--throughput``:
 
 1. Builds every capture in SAMPLES (default ``sample_c3d/``) with 1 job and with 2 jobs, cache
    off, and prints wall time, captures/s and the speed-up (ratio of the two wall times).
@@ -11,6 +17,13 @@ Usage (from the repository root)::
 3. Builds 1x, 2x and 4x the data — N captures (default: all of them) copied 1, 2 and 4 times
    into a temporary folder — with 2 jobs, and prints the wall time against the total number of
    frames, and the time per 1000 frames (flat means linear growth).
+
+With ``--throughput`` (:mod:`build_throughput`): 10, 30, 100, 300 and 1000 copies of the
+captures (``--quick``: up to 100) built with jobs 1, jobs 2, a Dask LocalCluster and a Dask
+scheduler and workers started by hand; captures/s, the overhead per capture of each, the Dask
+target (within 10 % of local jobs) printed met/missed, and with ``--markdown PATH`` the plot
+``build_throughput.png`` beside the page. ``--batch-size N`` sets the captures per Dask task
+(default: chosen from the frame counts, as ``mocaplib build --scheduler`` does).
 
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
 ``--static`` / ``--static-pose`` calibrate as the quick start's main command does (default:
@@ -31,6 +44,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from build_throughput import throughput  # noqa: E402
 from markdown_results import add_markdown_option, markdown_page, shown  # noqa: E402
 from mocaplib.build.pipeline import build_library
 from mocaplib.io import find_captures
@@ -58,6 +72,14 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--static", default=None, help="static calibration capture")
     parser.add_argument("--static-pose", default="free", choices=("free", "neutral"))
+    parser.add_argument("--throughput", action="store_true",
+                        help="measure throughput against the number of captures, for local "
+                             "jobs and Dask clusters (instead of the three tables)")
+    parser.add_argument("--quick", action="store_true",
+                        help="throughput up to 100 captures (default: up to 1000)")
+    parser.add_argument("--batch-size", type=int, default=None, metavar="N",
+                        help="captures per Dask task in the throughput runs (default: chosen "
+                             "from the frame counts)")
     add_markdown_option(parser)
     args = parser.parse_args()
     captures = find_captures([args.samples])
@@ -65,7 +87,11 @@ def main() -> int:
         print(f"no captures in {args.samples}; generate the samples first", file=sys.stderr)
         return 1
     with markdown_page(args.markdown, __file__):
-        report(args, captures)
+        if args.throughput:
+            throughput(args, captures, BuildSettings(static=args.static,
+                                                     static_pose=args.static_pose))
+        else:
+            report(args, captures)
     return 0
 
 
