@@ -7,9 +7,12 @@ of N copies of the sample captures, built uncached by every *way*, one after the
 * ``jobs 1`` and ``jobs 2``: local worker processes (``build_library(jobs=...)``);
 * ``LocalCluster``: a Dask ``LocalCluster`` of 2 worker processes x 1 thread, started afresh
   for each size (its start-up is printed apart: a cluster runs before a build is sent to it;
-  its workers' imports and warm-up are in the build's time, as a local worker's are);
+  its workers' warm-up is in the build's time, as a local worker's is; they import this
+  script, and mocaplib with it, as they start);
 * ``by hand``: ``dask scheduler --port 0 --scheduler-file F`` and two ``dask worker
-  --scheduler-file F --nthreads 1`` processes, started and stopped by the benchmark;
+  --scheduler-file F --nthreads 1`` processes, started for each size and stopped by the
+  benchmark; their first build (the workers import mocaplib and warm up in it) and
+  ``by hand, warm``, a second build on the same workers (a cluster that served a build before);
 * ``LocalCluster, 1 a task`` (sizes up to 100): the same cluster sent one capture a task, what
   batching saves.
 
@@ -151,8 +154,10 @@ def measure(folder: Path, settings, repeat: int, batch_size: int | None,
             rows["LocalCluster, 1 a task"] = (wall, WORKERS, result.library.to_json() == library)
     with tempfile.TemporaryDirectory() as scratch, \
             cluster_by_hand(Path(scratch)) as (address, startups["by hand"]):
-        wall, result = timed(folder, settings, repeat, scheduler=address, batch_size=batch_size)
-        rows["by hand"] = (wall, WORKERS, result.library.to_json() == library)
+        for way in ("by hand", "by hand, warm"):
+            wall, result = timed(folder, settings, repeat, scheduler=address,
+                                 batch_size=batch_size)
+            rows[way] = (wall, WORKERS, result.library.to_json() == library)
     return rows, startups, compute
 
 
@@ -182,7 +187,7 @@ def throughput(args, captures: list[Path], settings) -> None:
                       f"{(cost - per_capture) / per_capture:+.0%} | {same} |", flush=True)
                 curves.setdefault(way, []).append((size, size / wall))
             local = rows[f"jobs {WORKERS}"][0]
-            for way in ("LocalCluster", "by hand"):
+            for way in ("LocalCluster", "by hand", "by hand, warm"):
                 ratio = rows[way][0] / local
                 verdicts.append((size, way, ratio))
             startup_lines.append(f"{size}: " + ", ".join(f"{way} {seconds:.1f} s"
