@@ -135,6 +135,7 @@ SLOW = {
     ("test_planting.py", "test_the_path_follower_plants_its_feet"),
     ("test_dask_batches.py", "test_batches_on_a_local_cluster_give_the_libraries_of_local_jobs"),
     ("test_dask_batches.py", "test_a_batch_runs_with_one_blas_thread"),
+    ("test_dask_batches.py", "test_a_capture_that_kills_its_worker_fails_alone_and_its_batch_lands"),
 }
 #: The marker each fixture gives the tests that use it (directly or through other fixtures).
 FIXTURE_MARKERS = {"real_c3d": "real", "shared_c3d": "real", "sample_dir": "samples"}

@@ -24,7 +24,7 @@ from mocaplib.errors import C3DError, MocapError
 from mocaplib.io import find_captures
 from mocaplib.io.c3d import c3d_frames, read_c3d
 
-from test_pipeline import build_bytes, calls, fake_process, write_captures
+from test_pipeline import TRIPLES, build_bytes, calls, fake_process, write_captures
 
 dask = pytest.importorskip("dask")
 distributed = pytest.importorskip("distributed")
@@ -157,3 +157,19 @@ def test_batch_size_without_a_scheduler_is_a_usage_error(tmp_path, sample_dir, c
                  "--batch-size", "4"])
     assert code == 2
     assert "--batch-size sets the captures per Dask task" in capsys.readouterr().err
+
+
+def test_a_capture_that_kills_its_worker_fails_alone_and_its_batch_lands(tmp_path):
+    paths = write_captures(tmp_path / "caps", TRIPLES[:4])
+    paths[1].write_text(json.dumps({"die": "always"}))
+    # one task at a time per worker (no innocent task queued on the dying one), and Dask
+    # gives a task up after its second worker died
+    config = {"distributed.scheduler.allowed-failures": 1,
+              "distributed.scheduler.worker-saturation": 1.0}
+    with dask.config.set(config), local_cluster(processes=True) as address:
+        result = build_library([tmp_path / "caps"], scheduler=address, batch_size=4,
+                               progress=False, process=fake_process)
+    failures = result.summary()["failures"]
+    assert [(f["file"], f["stage"]) for f in failures] == [(str(paths[1]), "worker")], failures
+    assert "KilledWorker" in failures[0]["reason"]
+    assert len(result.library) == 3                        # the batch's other captures landed
