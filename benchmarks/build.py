@@ -8,8 +8,10 @@ Usage (from the repository root)::
     python benchmarks/build.py --throughput [--quick] [--batch-size N] [SAMPLES]
                                [--static FILE [--static-pose neutral]] [--repeat R]
                                [--markdown PATH]
+    python benchmarks/build.py --dask-memory [SAMPLES] [--static FILE [--static-pose neutral]]
+                               [--markdown PATH]
 
-Without ``--throughput``:
+Without ``--throughput`` or ``--dask-memory``:
 
 1. Builds every capture in SAMPLES (default ``sample_c3d/``) with 1 job and with 2 jobs, cache
    off, and prints wall time, captures/s and the speed-up (ratio of the two wall times).
@@ -22,7 +24,9 @@ With ``--throughput`` (:mod:`build_throughput`): 10, 30, 100, 300 and 1000 copie
 captures (``--quick``: up to 100) built with jobs 1, jobs 2, a Dask LocalCluster and a Dask
 scheduler and workers started by hand; captures/s, the overhead per capture of each, the Dask
 target (within 10 % of local jobs) printed met/missed, and with ``--markdown PATH`` the plot
-``build_throughput.png`` beside the page. ``--batch-size N`` sets the captures per Dask task
+``build_throughput.png`` beside the page. With ``--dask-memory``: the CPU time and page faults
+of one batch of 20 captures in this process and in a Dask worker, with and without the
+batch's glibc thresholds (:func:`mocaplib.build.dask_batches.glibc_thresholds`). ``--batch-size N`` sets the captures per Dask task
 (default: chosen from the frame counts, as ``mocaplib build --scheduler`` does).
 
 Timings are wall-clock seconds of one run each (``--repeat`` takes the best of R runs).
@@ -44,7 +48,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from build_throughput import throughput  # noqa: E402
+from build_throughput import dask_memory, throughput  # noqa: E402
 from markdown_results import add_markdown_option, markdown_page, shown  # noqa: E402
 from mocaplib.build.pipeline import build_library
 from mocaplib.io import find_captures
@@ -75,6 +79,9 @@ def main() -> int:
     parser.add_argument("--throughput", action="store_true",
                         help="measure throughput against the number of captures, for local "
                              "jobs and Dask clusters (instead of the three tables)")
+    parser.add_argument("--dask-memory", action="store_true",
+                        help="measure the CPU time and page faults of one batch in a Dask "
+                             "worker (instead of the three tables)")
     parser.add_argument("--quick", action="store_true",
                         help="throughput up to 100 captures (default: up to 1000)")
     parser.add_argument("--batch-size", type=int, default=None, metavar="N",
@@ -90,6 +97,8 @@ def main() -> int:
         if args.throughput:
             throughput(args, captures, BuildSettings(static=args.static,
                                                      static_pose=args.static_pose))
+        elif args.dask_memory:
+            dask_memory(captures, BuildSettings(static=args.static, static_pose=args.static_pose))
         else:
             report(args, captures)
     return 0

@@ -1,5 +1,6 @@
 """The throughput section of ``benchmarks/build.py``: captures/s against the number of captures
-for local jobs and Dask clusters, the overhead per capture of each, the Dask target met/missed.
+for local jobs and Dask clusters, the overhead per capture of each, the Dask target met/missed;
+and (:func:`dask_memory`) the CPU time and page faults of one batch in a Dask worker.
 
 Each size N (10, 30, 100, 300, 1000 captures; ``--quick`` stops at 100) is a temporary folder
 of N copies of the sample captures, built uncached by every *way*, one after the other:
@@ -35,7 +36,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from mocaplib.build.dask_batches import run_batch
 from mocaplib.build.pipeline import build_library
+from mocaplib.build.threads import pinned
+from mocaplib.build.workflow import process_capture
 from mocaplib.io.atomic import atomic_write_bytes
 
 SIZES = (10, 30, 100, 300, 1000)
@@ -74,14 +78,14 @@ def kept_environment():
 
 
 @contextlib.contextmanager
-def local_cluster():
-    """A Dask LocalCluster of :data:`WORKERS` worker processes x 1 thread: its address, and
-    the seconds it took to start."""
+def local_cluster(workers: int = WORKERS):
+    """A Dask LocalCluster of ``workers`` worker processes x 1 thread: its address, and the
+    seconds it took to start."""
     from distributed import LocalCluster
 
     with kept_environment():
         start = time.perf_counter()
-        with LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True,
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                           dashboard_address=None) as cluster:
             yield cluster.scheduler_address, time.perf_counter() - start
 
@@ -231,3 +235,43 @@ def draw(curves: dict[str, list[tuple[int, float]]], path: Path) -> Path:
     figure.savefig(image, format="png", metadata={"Software": None})
     pyplot.close(figure)
     return atomic_write_bytes(path, image.getvalue())
+
+
+def task_cost(function, process, items) -> tuple[float, int]:
+    """CPU seconds and minor page faults of this thread while ``function(process, items)``
+    runs (what a Dask task runs, measured in the worker)."""
+    import resource
+
+    before, faults = time.thread_time(), resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+    function(process, items)
+    return (time.thread_time() - before,
+            resource.getrusage(resource.RUSAGE_THREAD).ru_minflt - faults)
+
+
+def unthresholded_batch(process, items) -> list:
+    """:func:`mocaplib.build.dask_batches.run_batch` without its glibc thresholds: one BLAS
+    thread only."""
+    return pinned(lambda: [process(path, settings) for path, settings in items])
+
+
+def dask_memory(captures: list[Path], settings, count: int = 20) -> None:
+    """Print the CPU time and page faults of one batch of ``count`` captures in a Dask worker
+    started as Dask starts them (its nanny's ``MALLOC_TRIM_THRESHOLD_``), with and without
+    the batch's glibc thresholds, beside the same batch run in this process."""
+    from distributed import Client
+
+    items = [(str(path), settings) for path in captures[:count]]
+    print(f"One batch of {len(items)} captures, CPU seconds and minor page faults of the "
+          "task's thread (a warm-up batch of 2 first; CPU time, unlike wall time, hardly "
+          "depends on the machine's other work):\n")
+    print("| where | CPU s | page faults |\n|---|---|---|")
+    task_cost(run_batch, process_capture, items[:2])
+    cpu, faults = task_cost(run_batch, process_capture, items)
+    print(f"| this process | {cpu:.2f} | {faults} |")
+    with local_cluster(workers=1) as (address, _), Client(address) as client:
+        client.submit(task_cost, run_batch, process_capture, items[:2], pure=False).result()
+        for name, function in (("Dask worker, glibc thresholds (run_batch)", run_batch),
+                               ("Dask worker, Dask's trim threshold", unthresholded_batch)):
+            cpu, faults = client.submit(task_cost, function, process_capture, items,
+                                        pure=False).result()
+            print(f"| {name} | {cpu:.2f} | {faults} |")
