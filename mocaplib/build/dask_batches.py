@@ -15,8 +15,8 @@ What it guarantees
     * A capture that raises fails alone: its exception is its outcome, the other captures of
       its batch run and their results come back.
     * A batch runs with glibc's own memory thresholds (:func:`glibc_thresholds`), not the
-      trim threshold Dask's nanny starts its workers with, which costs the fit about 45 %
-      more CPU time in page faults.
+      trim threshold Dask's nanny starts its workers with, which costs a capture 20-45 %
+      more CPU time in page faults (``benchmarks/build.py --dask-memory``).
     * A batch whose task fails as a whole (Dask gave up on it after its workers died,
       ``KilledWorker``; a result that cannot be serialised) is sent again one capture per
       task: only the captures that then fail again fail.
@@ -133,8 +133,9 @@ def glibc_thresholds():
 
     Dask's nanny starts its workers with ``MALLOC_TRIM_THRESHOLD_=65536``, to give memory back
     to the system sooner. Setting it also fixes glibc's mmap threshold at 128 KiB, so every
-    array larger than that is mapped and unmapped afresh: on the samples a capture then takes
-    ten times the page faults and about 45 % more CPU time than in a local worker. Inside the
+    array larger than that is mapped and unmapped afresh: on the samples a batch then takes
+    tens of times the page faults and 20-45 % more CPU time (``benchmarks/build.py
+    --dask-memory``, docs/results/build.md). Inside the
     body, in a Linux process whose environment sets that variable, the mmap and trim thresholds
     are those glibc's dynamic rule rises to (32 and 64 MiB); when the last body running in the
     process ends, the variable's trim threshold and the fixed mmap threshold are set again and
