@@ -337,7 +337,7 @@ def _run(process, work: list[tuple[int, Path, BuildSettings]], jobs: int,
         tasks = [(os.fspath(path), settings) for _, path, settings in work]
         outcomes = ((work[k][0], result, error) for k, result, error
                     in run_tasks(process, tasks, jobs=jobs, timeout=timeout))
-    paths = dict((index, path) for index, path, _ in work)
+    paths = {index: path for index, path, _ in work}
     for index, result, error in outcomes:
         yield index, result if error is None else _worker_failure(paths[index], error)
 
