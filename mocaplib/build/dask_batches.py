@@ -168,10 +168,9 @@ def _glibc():
         return None
     try:
         libc = ctypes.CDLL(None)
-        libc.mallopt, libc.malloc_trim  # noqa: B018  (musl has neither)
-    except (OSError, AttributeError):
+    except OSError:
         return None
-    return libc
+    return libc if hasattr(libc, "mallopt") and hasattr(libc, "malloc_trim") else None  # musl: no
 
 
 def capture_frames(path: str | os.PathLike) -> int | None:
