@@ -7,6 +7,7 @@ unusable.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -17,6 +18,7 @@ import numpy as np
 from ..errors import LibraryError
 from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
+from ..io.fastjson import all_finite
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, checksum_status,
                        read_document, schema)
@@ -146,6 +148,8 @@ def _structure_problems(document) -> list[Problem]:
 
 def _non_finite_problems(document) -> list[Problem]:
     """Every NaN or ±Infinity (read from the non-standard JSON tokens), in document order."""
+    if all_finite(document):
+        return []
     problems, stack = [], [((), document)]
     while stack:
         parts, value = stack.pop()
@@ -166,13 +170,29 @@ def _non_finite_problems(document) -> list[Problem]:
 
 
 def _schema_problems(document) -> list[Problem]:
+    """The schema's problems: none when the compiled validator (jsonschema-rs, the same
+    schema) passes the document, else each as jsonschema words it."""
     from jsonschema import Draft202012Validator
 
+    try:
+        if _compiled_schema().is_valid(document):
+            return []
+    except ValueError:      # values it cannot take (OutOfRange): jsonschema says what they are
+        pass
     validator = Draft202012Validator(schema())
     errors = sorted((_specific(error) for error in validator.iter_errors(document)),
                     key=lambda e: list(map(str, e.absolute_path)))
     return [Problem(_json_path(error.absolute_path), f"schema: {error.message[:300]}")
             for error in errors]
+
+
+@functools.cache
+def _compiled_schema():
+    """The shipped schema compiled by jsonschema-rs (draft 2020-12, formats not asserted, as
+    jsonschema's default)."""
+    import jsonschema_rs
+
+    return jsonschema_rs.Draft202012Validator(schema(), validate_formats=False)
 
 
 def _specific(error):
