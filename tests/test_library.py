@@ -18,7 +18,7 @@ from mocaplib import load_library
 from mocaplib.errors import LibraryError, MocapError
 from mocaplib.library.document import CHECKSUM_KEY, checksum_status, schema
 from mocaplib.library.format import Library, assemble_library
-from mocaplib.library.validation import validate_library
+from mocaplib.library.validation import control_space_warning, validate_library
 from mocaplib.gait.qc import QC_NAMES
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
@@ -247,8 +247,10 @@ def broken(mutate) -> dict:
     (lambda d: d["entries"][0].update(T=None), "period must be finite and > 0"),
     (lambda d: d["entries"][0].update(end_s=1.7), "end_s - start_s"),
     (lambda d: d["entries"][3].update(omega=None), "velocity is missing"),
-    (lambda d: [e.update(v_l=0.0) for e in d["entries"]], "degenerate: it lies on a plane"),
-    (lambda d: d["entries"].__delitem__(slice(3, None)), "needs at least 4"),
+    # a degenerate control space is valid (a warning), tetrahedra stored for one are not
+    (lambda d: [e.update(v_l=0.0) for e in d["entries"]], "tetrahedra are stored but the "
+                                                          "chosen entries span no 3-D"),
+    (lambda d: d["entries"].__delitem__(slice(3, None)), "tetrahedra are stored but"),
     (lambda d: d["entries"][0]["qc"].update(marker_rms_m=0.031), "marker_rms_m 0.031 > 0.02"),
     (lambda d: d["entries"][0]["qc"].update(fourier_rms_rad=None), "fourier_rms_rad is not fin"),
     (lambda d: d["entries"][0]["qc"].update(event_quality=0.3), "event_quality 0.3 < 0.5"),
@@ -441,20 +443,25 @@ def test_validation_and_the_control_space_use_the_chosen_entries():
     # --all-cycles: 3 chosen entries (one per capture) and 3 more cycles that span 3-D
     entries = [entry(i, chosen=i < 3) for i in range(6)]
     lib = assemble_library(entries, settings={})
-    problems = problems_of(lib.document)
-    assert problems == ["control_space: the control space of the 3 chosen entries with finite "
-                        "velocities is degenerate: it needs at least 4 entries with distinct "
-                        "velocities, got 3; add captures with other speeds, turns and "
-                        "side-steps so the entries span all three axes"]
-    with pytest.raises(LibraryError, match="needs at least 4 entries with distinct velocities, "
-                                           "got 3"):
+    # valid without a control space: no tetrahedra stored, a warning saying why
+    assert problems_of(lib.document) == [] and "tetrahedra" not in lib.document["control_space"]
+    assert control_space_warning(lib) == (
+        "no control space: the control space of the 3 chosen entries with finite velocities "
+        "is degenerate: it needs at least 4 entries with distinct velocities, got 3; "
+        "`mocaplib query` cannot blend commands and the report has no control-space figures; "
+        "add captures with other speeds, turns and side-steps so the entries span all three "
+        "axes")
+    with pytest.raises(LibraryError, match="no control space: .*needs at least 4 entries with "
+                                           "distinct velocities, got 3"):
         ControlSpace.from_library(lib)
-    none_chosen = broken(lambda d: [e.update(chosen=False) for e in d["entries"]])
-    assert any("got 0" in p for p in problems_of(none_chosen))
+    none_chosen = assemble_library([entry(i, chosen=False) for i in range(6)], settings={})
+    assert problems_of(none_chosen.document) == []
+    assert "got 0" in control_space_warning(none_chosen)
+    assert control_space_warning(library()) is None
 
 
 @pytest.mark.parametrize("thickness", [0.0, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3])
-def test_validation_refuses_exactly_the_control_spaces_query_refuses(thickness):
+def test_validation_warns_of_exactly_the_control_spaces_query_refuses(thickness):
     # the validator counted rank with 1e-6 of all entries, the control space with 1e-9 of the
     # chosen ones: a library 1e-7 thick passed one and not the other
     from mocaplib.library.controlspace import ControlSpace
@@ -467,7 +474,8 @@ def test_validation_refuses_exactly_the_control_spaces_query_refuses(thickness):
         e.update(v=v, omega=w, v_l=vl)  # full precision: 10 digits would hide the thinnest
     doc["control_space"].pop("tetrahedra", None)  # those of the velocities replaced above
     lib = Library(doc)
-    invalid = any(p.startswith("control_space") for p in problems_of(lib.document))
+    invalid = control_space_warning(lib) is not None
+    assert not any(p.startswith("control_space") for p in problems_of(lib.document))
     try:
         ControlSpace.from_library(lib)
         refused = False

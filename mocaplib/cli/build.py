@@ -130,7 +130,7 @@ def _check_usage(args):
 def _run(args) -> int:
     from ..build.drafting import DRAFTS_FOLDER
     from ..build.pipeline import build_library
-    from ..library.validation import validate_library
+    from ..library.validation import control_space_warning, validate_library
 
     captures, settings, unlisted = _check_usage(args)
     output = Path(args.output)
@@ -147,6 +147,8 @@ def _run(args) -> int:
     problems = validate_library(result.library)
     for problem in problems:
         warn(f"library: {problem}")
+    if not problems and control_space_warning(result.library):
+        warn(f"{library_path}: {control_space_warning(result.library)}")
     if problems:
         print(f"mocaplib build: error: {library_path} was written but is not valid "
               f"({len(problems)} problem(s) above): fix what they name and build again",

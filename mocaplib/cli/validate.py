@@ -10,31 +10,44 @@ def register(subparsers) -> None:
         "validate", help="check a library file against its schema and semantic rules",
         description="Print every problem of a motion library file (content checksum, "
                     "schema, DOF lists, coefficients, periods, ids, control space, QC). Exit 0 "
-                    "valid, 1 invalid.")
+                    "valid, 1 invalid. A library whose entries span no 3-D control space "
+                    "(fewer than 4) is valid, with a warning: it cannot blend commands.")
     parser.add_argument("library", help="library JSON file")
     parser.add_argument("--json", action="store_true",
                         help="print {\"file\", \"valid\", \"checksum\": \"verified\", "
                              "\"mismatch\" or \"absent\", \"problems\": [{\"where\", "
-                             "\"message\"}]}")
+                             "\"message\"}], \"warnings\": [text]}")
     parser.set_defaults(run=_run)
 
 
 def _run(args) -> int:
-    from ..library.document import (NO_CHECKSUM_NOTE, checksum_status, read_document,
-                                    version_note)
-    from ..library.validation import validate_library
-    from ._common import LIBRARY_HINT, check_inputs, print_json
+    from ..errors import LibraryError
+    from ..library.document import (CHECKSUM_KEY, NO_CHECKSUM_NOTE, checksum_status,
+                                    read_document, version_note)
+    from ..library.validation import control_space_warning, validate_library
+    from ._common import LIBRARY_HINT, check_inputs, print_json, warn
 
     check_inputs([args.library], hint=LIBRARY_HINT)
-    problems = validate_library(args.library)
-    readable = not any(p.where == "file" for p in problems)
-    checksum = checksum_status(args.library) if readable else None
-    note = version_note(read_document(args.library)[0]) if readable else None
+    try:
+        document, _ = read_document(args.library)
+    except LibraryError:
+        document = None         # validate_library names why
+    problems = validate_library(args.library if document is None else document)
+    if document is None:
+        checksum = None
+    elif problems:
+        checksum = checksum_status(document)
+    else:                       # a valid library's checksum is verified or absent
+        checksum = "verified" if CHECKSUM_KEY in document else "absent"
+    note = None if document is None else version_note(document)
+    warnings = [] if problems else [w for w in (control_space_warning(document),) if w]
     if args.json:
         print_json({"file": args.library, "valid": not problems, "checksum": checksum,
                     "problems": [{"where": p.where, "message": p.message} for p in problems],
-                    **({"note": note} if note else {})})
+                    "warnings": warnings, **({"note": note} if note else {})})
         return 1 if problems else 0
+    for warning in warnings:
+        warn(f"{args.library}: {warning}")
     if problems:
         print(f"{args.library}: {len(problems)} problem(s)")
         for problem in problems:

@@ -269,9 +269,9 @@ class ControlSpace:
         x = self.normalise(self.points)
         reason = degeneracy(x)
         if reason:
-            raise LibraryError(f"the control space of the entries' ({', '.join(self.axes)}) "
-                               f"is degenerate: it {reason}", path=self.source,
-                               hint=DEGENERACY_HINT)
+            raise LibraryError(f"no control space: the control space of the {len(x)} entries' "
+                               f"({', '.join(self.axes)}) is degenerate: it {reason}",
+                               path=self.source, hint=DEGENERACY_HINT)
         return delaunay_tetrahedra(x, source=self.source)
 
     # ----------------------------------------------------------------- queries

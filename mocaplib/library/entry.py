@@ -158,10 +158,13 @@ class EntryFourier(_Record):
         return cls(np.shape(a)[1] - 1, a, b, ramp)
 
     def padded(self, n_harmonics: int) -> "EntryFourier":
-        """The same series with zero columns up to ``n_harmonics`` (exact: a file's entries
-        share one N)."""
-        extra = ((0, 0), (0, max(0, n_harmonics + 1 - self.a.shape[1])))
-        return EntryFourier(self.n, np.pad(self.a, extra), np.pad(self.b, extra), self.ramp)
+        """The same series as ``n_harmonics + 1`` columns (``n_harmonics`` >= ``n``): zero
+        columns added, or the zero columns beyond ``n`` dropped (an entry taken from a library
+        of larger N); exact: a file's entries share one N."""
+        width = n_harmonics + 1
+        extra = ((0, 0), (0, max(0, width - self.a.shape[1])))
+        return EntryFourier(self.n, np.pad(self.a, extra)[:, :width],
+                            np.pad(self.b, extra)[:, :width], self.ramp)
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, EntryFourier):

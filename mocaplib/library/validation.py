@@ -21,7 +21,7 @@ from ..gait.qc import qc_failures
 from ..io.fastjson import all_finite
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, checksum_status,
-                       read_document, schema)
+                       library_document, read_document, schema)
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
 from .cells import build_cells, cell_tetrahedra
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
@@ -91,10 +91,11 @@ def validate_library(library) -> list[Problem]:
     (1 ms); velocities finite; ids unique and ``cycle_index`` the id's ``_c<k>``; the pattern's
     parameters those of its type; the root drift's displacement the one its velocities give
     over T, its turn rate of the entry's ω̂'s sign; a poulaine's phases in order, speed
-    profiles rising and parameters those of its characteristic points; the chosen entries' normalised
-    (v, omega, v_l) points not degenerate (:func:`mocaplib.library.triangulation.degeneracy`: the rule
-    the control space uses); every QC metric within ``qc_thresholds`` or listed in the
-    entry's ``qc_waived`` with a reason.
+    profiles rising and parameters those of its characteristic points; the chosen entries'
+    control space triangulated, and its stored tetrahedra its own (none stored when the points
+    are degenerate, :func:`mocaplib.library.triangulation.degeneracy`: such a library is valid
+    without a control space, :func:`control_space_warning`); every QC metric within
+    ``qc_thresholds`` or listed in the entry's ``qc_waived`` with a reason.
 
     Parameters
     ----------
@@ -483,23 +484,46 @@ def _is_number(value) -> bool:
 
 def _control_space_problems(doc: dict) -> list[Problem]:
     """The chosen entries' control space, as :class:`mocaplib.library.controlspace.ControlSpace`
-    builds it for queries: degenerate (:func:`~mocaplib.library.triangulation.degeneracy`), or failing
-    to triangulate."""
+    builds it for queries: failing to triangulate, or tetrahedra stored that are not its own.
+    A degenerate one (:func:`~mocaplib.library.triangulation.degeneracy`) is no problem: the
+    library has no control space (:func:`control_space_warning`), and must store none."""
 
-    points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
-    points = points[np.isfinite(points).all(axis=1)]
-    x = points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
-    what = f"the control space of the {len(x)} chosen entries with finite velocities"
-    reason = degeneracy(x)
-    if reason:
-        return [Problem("control_space", f"{what} is degenerate: it {reason}; "
-                                         f"{DEGENERACY_HINT}")]
+    x = _normalised_points(doc)
+    if degeneracy(x):
+        if "tetrahedra" in doc["control_space"]:
+            return [Problem("control_space.tetrahedra", "tetrahedra are stored but the chosen "
+                                                        "entries span no 3-D control space; "
+                                                        "write the library again")]
+        return []
     try:
         delaunay_tetrahedra(x)
     except LibraryError as exc:
-        return [Problem("control_space", f"{what}: {exc.message}")]
+        return [Problem("control_space", f"the control space of the {len(x)} chosen entries "
+                                         f"with finite velocities: {exc.message}")]
     stored = doc["control_space"].get("tetrahedra")
     return [] if stored is None else _tetrahedra_problems(doc, stored)
+
+
+def control_space_warning(library) -> str | None:
+    """Why a valid library (path, JSON dict or :class:`~mocaplib.library.format.Library`) has
+    no control space, with what to do; None when it has one. A library of fewer than 4
+    entries with distinct velocities, or whose entries lie on a plane or a line, is valid:
+    its entries can be read, animated and retargeted, but no command can be blended."""
+    document = library_document(library)
+    x = _normalised_points(document)
+    reason = degeneracy(x)
+    if reason is None:
+        return None
+    return (f"no control space: the control space of the {len(x)} chosen entries with finite "
+            f"velocities is degenerate: it {reason}; `mocaplib query` cannot blend commands "
+            f"and the report has no control-space figures; {DEGENERACY_HINT}")
+
+
+def _normalised_points(doc: dict) -> np.ndarray:
+    """The chosen entries' normalised (v, omega, v_l) (E, 3), those with finite velocities."""
+    points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
+    points = points[np.isfinite(points).all(axis=1)]
+    return points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
 
 
 def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
