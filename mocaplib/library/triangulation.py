@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -108,6 +109,84 @@ class Triangulation:
     simplices: np.ndarray
     convex_hull: np.ndarray
 
+    @cached_property
+    def barycentric(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per tetrahedron the rows of the inverse of [v0-v3, v1-v3, v2-v3] (S, 3, 3) and v3
+        (S, 3): the first three barycentric weights of x are ``inverse @ (x - v3)``.
+        Closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex, which
+        can stall for a second on a busy multi-threaded BLAS)."""
+        pts = self.points[self.simplices]                      # (S, 4, 3)
+        a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
+        rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)
+        det = np.einsum("si,si->s", a, rows[:, 0])             # 6 × signed volume, never 0
+        return rows / det[:, None, None], pts[:, 3]
+
+    @cached_property
+    def grid(self) -> "TetraGrid":
+        """The :class:`TetraGrid` :func:`locate` searches (built on first use)."""
+        return TetraGrid.of(self.points[self.simplices])
+
+
+#: Barycentric tolerance of :func:`locate`: a point within it of a face counts inside.
+LOCATE_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class TetraGrid:
+    """A uniform grid of cells over the tetrahedra's bounding boxes: the tetrahedra whose box
+    (grown by :data:`LOCATE_TOLERANCE` of its size) meets each cell, so that a point is tested
+    against the few tetrahedra of its cell, not all of them.
+
+    ``origin`` (3,) and ``size`` (3,) place the ``cells`` (n per axis, n³ in all) in
+    normalised units; the tetrahedra of cell ``k`` are ``members[starts[k]:starts[k + 1]]``.
+    About one tetrahedron per cell (n = S^(1/3)): building takes O(S), a query O(1) tetrahedra
+    for well-shaped ones.
+    """
+
+    origin: np.ndarray
+    size: np.ndarray
+    cells: int
+    starts: np.ndarray
+    members: np.ndarray
+
+    @classmethod
+    def of(cls, vertices: np.ndarray) -> "TetraGrid":
+        """The grid of tetrahedra ``vertices`` (S, 4, 3)."""
+        lo, hi = vertices.min(axis=1), vertices.max(axis=1)
+        # a point whose weights are all >= -tol lies within 3 tol of the box on each axis
+        margin = 4 * LOCATE_TOLERANCE * (hi - lo) + 1e-12
+        lo, hi = lo - margin, hi + margin
+        origin = lo.min(axis=0)
+        n = max(1, round(len(vertices) ** (1 / 3)))
+        size = (hi.max(axis=0) - origin) / n
+        first, last = (np.clip(np.floor((b - origin) / size), 0, n - 1).astype(np.int64)
+                       for b in (lo, hi))
+        span = last - first + 1                                  # (S, 3) cells per axis
+        count = span.prod(axis=1)
+        tetra = np.repeat(np.arange(len(vertices)), count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        span, first = span[tetra], first[tetra]
+        i = first[:, 0] + k % span[:, 0]
+        j = first[:, 1] + (k // span[:, 0]) % span[:, 1]
+        m = first[:, 2] + k // (span[:, 0] * span[:, 1])
+        cell = (i * n + j) * n + m
+        order = np.argsort(cell, kind="stable")
+        starts = np.searchsorted(cell[order], np.arange(n ** 3 + 1))
+        return cls(origin, size, n, starts, tetra[order])
+
+    def candidates(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs (point row, tetrahedron) (P,), (P,) to test for points x (Q, 3): the
+        tetrahedra of each point's cell (none for a point outside the grid)."""
+        c = np.floor((x - self.origin) / self.size)
+        inside = np.all((c >= 0) & (c < self.cells), axis=1)
+        rows = np.flatnonzero(inside)
+        c = c[inside].astype(np.int64)
+        cell = (c[:, 0] * self.cells + c[:, 1]) * self.cells + c[:, 2]
+        lo, count = self.starts[cell], self.starts[cell + 1] - self.starts[cell]
+        point = np.repeat(rows, count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        return point, self.members[np.repeat(lo, count) + k]
+
 
 def _lift_heights(x: np.ndarray) -> np.ndarray:
     """A pseudo-random number in [0, 1) per point (E,), a hash of its coordinates (so a point
@@ -156,31 +235,28 @@ def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
     return Triangulation(x, simplices, faces[count == 1])
 
 
-def locate(tri: Triangulation, x: np.ndarray, *, tol: float = 1e-9, chunk: int = 256):
+def locate(tri: Triangulation, x: np.ndarray, *, tol: float = LOCATE_TOLERANCE):
     """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
 
-    Plain numpy, closed-form 3x3 inverses (scipy's ``find_simplex`` calls LAPACK per simplex,
-    which can stall for a second on a busy multi-threaded BLAS); brute force over simplices,
-    fine for libraries of hundreds of entries. A point within ``tol`` of a face counts inside;
-    the simplex with the largest smallest weight is chosen.
+    A point within ``tol`` of a face counts inside; of the tetrahedra holding it, the one with
+    the largest smallest weight is chosen (the first such in ``tri.simplices``). Only the
+    tetrahedra of the point's cell of :attr:`Triangulation.grid` are tested: every tetrahedron
+    that can hold the point is among them, so the answer is the one testing all would give.
     """
-    pts = tri.points[tri.simplices]                        # (S, 4, 3)
-    a, b, c = (pts[:, i] - pts[:, 3] for i in range(3))
-    rows = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=1)  # (S, 3, 3)
-    det = np.einsum("si,si->s", a, rows[:, 0])             # 6 × signed volume, never 0
-    inv = rows / det[:, None, None]                        # rows of the inverse of [a b c]
-    origin = pts[:, 3]
+    x = np.asarray(x, dtype=float).reshape(-1, 3)
+    inverse, origin = tri.barycentric
+    point, tetra = tri.grid.candidates(x)
+    w3 = np.einsum("pij,pj->pi", inverse[tetra], x[point] - origin[tetra])
+    w = np.concatenate([w3, 1.0 - w3.sum(axis=1, keepdims=True)], axis=1)   # (P, 4)
+    worst = w.min(axis=1)
+    held = worst >= -tol
+    point, tetra, w, worst = point[held], tetra[held], w[held], worst[held]
+    order = np.lexsort((tetra, -worst, point))     # per point: best first, ties by simplex
+    first = order[np.r_[True, point[order][1:] != point[order][:-1]]] if len(order) else order
     simplex = np.full(len(x), -1)
     weights = np.full((len(x), 4), np.nan)
-    for lo in range(0, len(x), chunk):
-        w3 = np.einsum("sij,qsj->qsi", inv, x[lo:lo + chunk, None, :] - origin[None])
-        w = np.concatenate([w3, 1.0 - w3.sum(axis=2, keepdims=True)], axis=2)  # (q, S, 4)
-        worst = w.min(axis=2)
-        best = np.argmax(worst, axis=1)
-        q = np.arange(len(best))
-        hit = worst[q, best] >= -tol
-        simplex[lo:lo + chunk] = np.where(hit, best, -1)
-        weights[lo:lo + chunk][hit] = w[q[hit], best[hit]]
+    simplex[point[first]] = tetra[first]
+    weights[point[first]] = w[first]
     return simplex, weights
 
 

@@ -159,14 +159,16 @@ def control_space_3d(points, classes, axes, *, edges=(), envelope=None) -> bytes
 
     ``points`` SI (E, 3); ``edges`` (K, 2) row pairs of Delaunay edges; ``envelope`` SI (P, 3)
     vertices drawn as their convex hull's edges."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
     from scipy.spatial import ConvexHull, QhullError
 
     colours = class_colours(classes)
     fig = new_figure(8, 6.5)
     ax = fig.add_subplot(projection="3d")
     p = _display(points, axes)
-    for a, b in edges:
-        ax.plot(*p[[a, b]].T, color="0.6", lw=0.6)
+    edges = np.asarray(edges, dtype=int).reshape(-1, 2)
+    if len(edges):      # one artist for every edge: thousands of plot calls take minutes
+        ax.add_collection3d(Line3DCollection(p[edges], colors="0.6", linewidths=0.6))
     if envelope is not None and len(envelope) >= 4:
         e = _display(envelope, axes)
         try:
