@@ -129,6 +129,9 @@ class Triangulation:
 
 #: Barycentric tolerance of :func:`locate`: a point within it of a face counts inside.
 LOCATE_TOLERANCE = 1e-9
+#: Up to this many tetrahedra :func:`locate` tests every one (a leave-one-out star, an
+#: envelope); beyond, those of the point's cell of the :class:`TetraGrid`.
+FEW_TETRAHEDRA = 256
 
 
 @dataclass(frozen=True)
@@ -239,13 +242,18 @@ def locate(tri: Triangulation, x: np.ndarray, *, tol: float = LOCATE_TOLERANCE):
     """Enclosing simplex (Q,) (-1 outside) and barycentric weights (Q, 4) of points x (Q, 3).
 
     A point within ``tol`` of a face counts inside; of the tetrahedra holding it, the one with
-    the largest smallest weight is chosen (the first such in ``tri.simplices``). Only the
-    tetrahedra of the point's cell of :attr:`Triangulation.grid` are tested: every tetrahedron
-    that can hold the point is among them, so the answer is the one testing all would give.
+    the largest smallest weight is chosen (the first such in ``tri.simplices``). Beyond
+    :data:`FEW_TETRAHEDRA`, only the tetrahedra of the point's cell of
+    :attr:`Triangulation.grid` are tested: every tetrahedron that can hold the point is among
+    them, so the answer is the one testing all would give.
     """
     x = np.asarray(x, dtype=float).reshape(-1, 3)
     inverse, origin = tri.barycentric
-    point, tetra = tri.grid.candidates(x)
+    n = len(tri.simplices)
+    if n <= FEW_TETRAHEDRA:     # every pair: cheaper than building a grid
+        point, tetra = np.repeat(np.arange(len(x)), n), np.tile(np.arange(n), len(x))
+    else:
+        point, tetra = tri.grid.candidates(x)
     w3 = np.einsum("pij,pj->pi", inverse[tetra], x[point] - origin[tetra])
     w = np.concatenate([w3, 1.0 - w3.sum(axis=1, keepdims=True)], axis=1)   # (P, 4)
     worst = w.min(axis=1)

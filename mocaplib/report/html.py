@@ -22,7 +22,7 @@ from ..errors import MocapError
 from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io.atomic import atomic_write_text
 from ..library.controlspace import AXIS_UNITS, ControlSpace
-from ..library.document import NO_CHECKSUM_NOTE, checksum_status, version_note
+from ..library.document import CHECKSUM_KEY, NO_CHECKSUM_NOTE, version_note
 from ..library.format import load_library
 from ..library.validation import validate_library
 from ..skeleton import DOF_NAMES
@@ -93,7 +93,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
     entries = library.entries
     warnings = [f"library check: {p}" for p in validate_library(library)]
-    if checksum_status(library.document) == "absent":
+    if library.document.get(CHECKSUM_KEY) is None:      # a stored one is checked above
         warnings.append(f"library check: {NO_CHECKSUM_NOTE}")
     if version_note(library.document):
         warnings.append(f"library check: {version_note(library.document)}")
