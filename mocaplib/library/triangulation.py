@@ -142,8 +142,9 @@ class TetraGrid:
 
     ``origin`` (3,) and ``size`` (3,) place the ``cells`` (n per axis, n³ in all) in
     normalised units; the tetrahedra of cell ``k`` are ``members[starts[k]:starts[k + 1]]``.
-    About one tetrahedron per cell (n = S^(1/3)): building takes O(S), a query O(1) tetrahedra
-    for well-shaped ones.
+    n = (S / 8)^(1/3): a tetrahedron's box meets about 8 cells, a cell about 60 tetrahedra
+    (50,000 random points: 335,000 tetrahedra in 2.7 million cell memberships). Building
+    takes O(S), a query tests O(1) tetrahedra.
     """
 
     origin: np.ndarray
@@ -160,7 +161,7 @@ class TetraGrid:
         margin = 4 * LOCATE_TOLERANCE * (hi - lo) + 1e-12
         lo, hi = lo - margin, hi + margin
         origin = lo.min(axis=0)
-        n = max(1, round(len(vertices) ** (1 / 3)))
+        n = max(1, round((len(vertices) / 8) ** (1 / 3)))
         size = (hi.max(axis=0) - origin) / n
         first, last = (np.clip(np.floor((b - origin) / size), 0, n - 1).astype(np.int64)
                        for b in (lo, hi))
