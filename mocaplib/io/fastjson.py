@@ -73,10 +73,11 @@ def all_finite(data) -> bool:
 
 
 def _finite_sum(values) -> bool:
-    """True when ``values`` are all numbers and their exact sum is finite (so is each)."""
+    """True when ``values`` are all numbers and their sum is finite (so is each; a sum that
+    overflows says False, and the caller looks at each)."""
     try:
-        return math.isfinite(math.fsum(values))
-    except (TypeError, OverflowError, ValueError):   # not numbers; huge; inf - inf
+        return math.isfinite(sum(values))
+    except TypeError:                                # not numbers
         return False
 
 

@@ -85,18 +85,18 @@ def schema() -> dict:
     return json.loads(text)
 
 
-def content_sha256(document: dict) -> str:
+def content_sha256(document: dict, *, finite: bool = False) -> str:
     """The library's content checksum, the one its ``format_version`` carries: SHA-256 of the
     RFC 8785 (JCS) form of the document without ``content_sha256``
     (:func:`mocaplib.io.jsonvalues.jcs_sha256`), or for versions
     :data:`PYTHON_CHECKSUM_VERSIONS` of its Python-printed canonical JSON
     (:func:`mocaplib.io.jsonvalues.canonical_sha256`). Reformatting a file keeps it; changing
     a value, a key or an entry changes it. Raises ValueError for content JCS cannot hold
-    (NaN, ±inf)."""
+    (NaN, ±inf); ``finite``: the caller has checked there are none."""
     content = {k: v for k, v in document.items() if k != CHECKSUM_KEY}
     if document.get("format_version") in PYTHON_CHECKSUM_VERSIONS:
         return canonical_sha256(content)
-    return jcs_sha256(content)
+    return jcs_sha256(content, finite=finite)
 
 
 def checksum_status(library) -> str | None:

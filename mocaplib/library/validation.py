@@ -20,7 +20,7 @@ from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
 from ..io.fastjson import all_finite
 from ..io.jsonvalues import OutOfRange, float_or_nan
-from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, checksum_status,
+from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, content_sha256,
                        library_document, read_document, schema)
 from .entry import DRIFT_DISPLACEMENT, drift_displacement
 from .cells import build_cells, cell_tetrahedra
@@ -67,7 +67,9 @@ def _control_points(entries: list[dict]) -> np.ndarray:
 
 
 def _matrix(rows) -> np.ndarray:
-    return np.array([[float_or_nan(x) for x in row] for row in rows], dtype=np.float64)
+    """Rows of JSON numbers (the schema checked their types) as a float array, null as NaN:
+    numpy converts a whole list at once."""
+    return np.array(rows, dtype=np.float64)
 
 
 #: Parameters of each pattern type (``entries[i].pattern.parameters``).
@@ -126,8 +128,13 @@ def validate_library(library) -> list[Problem]:
 
 
 def _checksum_problems(document: dict) -> list[Problem]:
-    if checksum_status(document) != "mismatch":
-        return []
+    """The stored checksum against the content's (whose numbers are finite: checked first)."""
+    stored = document.get(CHECKSUM_KEY)
+    try:
+        if stored is None or stored == content_sha256(document, finite=True):
+            return []
+    except ValueError:                  # no RFC 8785 form (an integer beyond 2**53)
+        pass
     return [Problem(CHECKSUM_KEY, "the content does not match the checksum the file was "
                                   "written with: it was changed after `mocaplib build` wrote "
                                   "it (by hand or by another tool), so its values cannot be "
