@@ -91,4 +91,12 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
 
 
 def _rounded(rows) -> list:
-    return [[float(f"{x:.{COEFFICIENT_DIGITS}g}") for x in row] for row in rows]
+    """``rows`` (an array) rounded to :data:`COEFFICIENT_DIGITS` significant digits, as lists:
+    one numpy expression for the whole array (the digits scaled up by an exact power of ten,
+    rounded, and scaled back)."""
+    x = np.asarray(rows, dtype=float)
+    with np.errstate(divide="ignore"):
+        magnitude = np.floor(np.log10(np.abs(x)))
+    shift = np.where(np.isfinite(magnitude), COEFFICIENT_DIGITS - 1 - magnitude, 0.0)
+    up = 10.0 ** np.abs(shift)                           # exact for |shift| <= 22
+    return np.where(shift >= 0, np.round(x * up) / up, np.round(x / up) * up).tolist()
