@@ -63,3 +63,14 @@ def test_the_grid_locates_as_testing_every_tetrahedron(name):
     rebuilt = np.einsum("qk,qkj->qj", weights[inside],
                         tri.points[tri.simplices[simplex[inside]]])
     np.testing.assert_allclose(rebuilt, queries[inside], atol=1e-12)
+
+
+def test_hull_faces_are_qhulls_on_thousands_of_points():
+    # the faces of one tetrahedron each, found by an integer key per face: the convex hull
+    # Qhull gives for the same points (3,000 points: keys beyond 32 bits)
+    from scipy.spatial import ConvexHull
+
+    points = np.random.default_rng(4).normal(size=(3000, 3))
+    tri = delaunay_tetrahedra(points)
+    assert sorted(map(tuple, np.sort(tri.convex_hull, axis=1))) == sorted(
+        map(tuple, np.sort(ConvexHull(points).simplices, axis=1)))

@@ -252,9 +252,9 @@ def delaunay_tetrahedra(x: np.ndarray, *, source=None) -> Triangulation:
                            path=source, hint="report this library as a bug")
     faces = np.sort(simplices[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3),
                     axis=1)
-    # each face once, by a key of its three sorted vertices: a face of one tetrahedron is on
-    # the hull, a face of two is inside
-    n = len(x) + 1
+    # each face once, by a key of its three sorted vertices (int64: n³ fits up to 2 million
+    # points): a face of one tetrahedron is on the hull, a face of two is inside
+    faces, n = faces.astype(np.int64), len(x) + 1
     keys, count = np.unique((faces[:, 0] * n + faces[:, 1]) * n + faces[:, 2],
                             return_counts=True)
     hull = keys[count == 1]
