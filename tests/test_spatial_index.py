@@ -33,8 +33,9 @@ def point_sets():
             "few": rng.uniform(-1.0, 1.0, (20, 3))}
 
 
+@pytest.mark.parametrize("tol", [LOCATE_TOLERANCE, 1e-7])   # the tolerances the cells use
 @pytest.mark.parametrize("name", ["random", "gridded", "flat cloud", "few"])
-def test_the_grid_locates_as_testing_every_tetrahedron(name):
+def test_the_grid_locates_as_testing_every_tetrahedron(name, tol):
     # 700 to 1,800 tetrahedra, located on the grid; "few": 20 points, every pair tested
     points = point_sets()[name]
     tri = delaunay_tetrahedra(points)
@@ -43,11 +44,11 @@ def test_the_grid_locates_as_testing_every_tetrahedron(name):
     lo, hi = points.min(axis=0), points.max(axis=0)
     box = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), (1500, 3))
     queries = np.vstack([box, points[:50], faces])
-    simplex, weights = locate(tri, queries)
+    simplex, weights = locate(tri, queries, tol=tol)
     if name != "few":   # the grid tests a few tetrahedra per point, not all of them
         tested = len(tri.grid.candidates(queries)[0]) / len(queries)
         assert tested < 0.25 * len(tri.simplices), tested   # measured 4 % to 11 %
-    expected, every_weight, worst = locate_directly(tri, queries)
+    expected, every_weight, worst = locate_directly(tri, queries, tol)
     np.testing.assert_array_equal(simplex >= 0, expected >= 0)
     assert (simplex >= 0).sum() > 100 and (simplex < 0).sum() > 100, "both kinds tested"
     inside = np.flatnonzero(expected >= 0)

@@ -35,6 +35,7 @@ outside the control space.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,11 +121,22 @@ def build_cells(points, scale, /, *, classes=None, v_f=None, tangential: bool = 
 
 
 def union(cells, /) -> Triangulation:
-    """The tetrahedra of several cells (sharing their points) as one triangulation."""
-    cells = list(cells)
-    return Triangulation(cells[0].tri.points,
-                         np.concatenate([c.tri.simplices for c in cells]).reshape(-1, 4),
-                         np.concatenate([c.tri.convex_hull for c in cells]).reshape(-1, 3))
+    """The tetrahedra of several cells (sharing their points) as one triangulation. The same
+    cells give the same object (the last :data:`_UNIONS`' ``maxlen`` are kept), so its
+    locating grid (:attr:`Triangulation.grid`) is built once, not at every query."""
+    cells = tuple(cells)
+    for held, tri in _UNIONS:
+        if len(held) == len(cells) and all(a is b for a, b in zip(held, cells)):
+            return tri
+    tri = Triangulation(cells[0].tri.points,
+                        np.concatenate([c.tri.simplices for c in cells]).reshape(-1, 4),
+                        np.concatenate([c.tri.convex_hull for c in cells]).reshape(-1, 3))
+    _UNIONS.appendleft((cells, tri))
+    return tri
+
+
+#: The last unions made, with their cells (:func:`union`).
+_UNIONS: deque = deque(maxlen=4)
 
 
 def cell_tetrahedra(cells, /) -> tuple[np.ndarray, list[str]]:

@@ -146,6 +146,9 @@ class Triangulation:
 
 #: Barycentric tolerance of :func:`locate`: a point within it of a face counts inside.
 LOCATE_TOLERANCE = 1e-9
+#: Largest tolerance :class:`TetraGrid`'s cells hold the tetrahedra for (the tolerances used:
+#: 1e-9 and 1e-7); :func:`locate` tests every tetrahedron for a larger one.
+GRID_TOLERANCE = 1e-6
 #: Up to this many tetrahedra :func:`locate` tests every one (a leave-one-out star, an
 #: envelope); beyond, those of the point's cell of the :class:`TetraGrid`.
 FEW_TETRAHEDRA = 256
@@ -154,7 +157,7 @@ FEW_TETRAHEDRA = 256
 @dataclass(frozen=True)
 class TetraGrid:
     """A uniform grid of cells over the tetrahedra's bounding boxes: the tetrahedra whose box
-    (grown by :data:`LOCATE_TOLERANCE` of its size) meets each cell, so that a point is tested
+    (grown by :data:`GRID_TOLERANCE` of its size) meets each cell, so that a point is tested
     against the few tetrahedra of its cell, not all of them.
 
     ``origin`` (3,) and ``size`` (3,) place the ``cells`` (n per axis, n³ in all) in
@@ -175,7 +178,7 @@ class TetraGrid:
         """The grid of tetrahedra ``vertices`` (S, 4, 3)."""
         lo, hi = vertices.min(axis=1), vertices.max(axis=1)
         # a point whose weights are all >= -tol lies within 3 tol of the box on each axis
-        margin = 4 * LOCATE_TOLERANCE * (hi - lo) + 1e-12
+        margin = 4 * GRID_TOLERANCE * (hi - lo) + 1e-12
         lo, hi = lo - margin, hi + margin
         origin = lo.min(axis=0)
         n = max(1, round((len(vertices) / 8) ** (1 / 3)))
@@ -274,7 +277,7 @@ def locate(tri: Triangulation, x: np.ndarray, *, tol: float = LOCATE_TOLERANCE):
     x = np.asarray(x, dtype=float).reshape(-1, 3)
     inverse, origin = tri.barycentric
     n = len(tri.simplices)
-    if n <= FEW_TETRAHEDRA:     # every pair: cheaper than building a grid
+    if n <= FEW_TETRAHEDRA or tol > GRID_TOLERANCE:     # every pair
         point, tetra = np.repeat(np.arange(len(x)), n), np.tile(np.arange(n), len(x))
     else:
         point, tetra = tri.grid.candidates(x)
