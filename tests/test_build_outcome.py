@@ -56,15 +56,28 @@ def test_an_empty_library_is_never_written_from_python_either(tmp_path):
 
 
 def test_an_invalid_library_is_written_and_the_build_exits_1(tmp_path, fake_build, capsys):
-    write_captures(tmp_path / "caps", TRIPLES[:3])  # 3 entries: no 3-D control space
+    write_captures(tmp_path / "caps", [*TRIPLES[:4], (150.0, 0.0, 0.0)])  # 150 m/s: no walk's
     out = tmp_path / "lib.json"
     assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 1
     printed = capsys.readouterr()
-    assert "failed 0" in printed.out and len(load_library(out)) == 3
-    assert "warning: library: control_space: the control space of the 3 chosen entries" \
-        in printed.err
-    assert f"error: {out} was written but is not valid (1 problem(s) above)" in printed.err
+    assert "failed 0" in printed.out and len(json.loads(out.read_text())["entries"]) == 5
+    assert "warning: library: entries[4].v: entry 'walk04_c0': velocity 150.0 is not a " \
+        "locomotion's" in printed.err
+    assert f"error: {out} was written but is not valid (" in printed.err
     assert main(["validate", str(out)]) == 1
+
+
+def test_a_library_without_a_control_space_is_valid_and_the_build_says_why(tmp_path,
+                                                                           fake_build, capsys):
+    write_captures(tmp_path / "caps", TRIPLES[:3])  # 3 entries: no 3-D control space
+    out = tmp_path / "lib.json"
+    assert main(["build", str(tmp_path / "caps"), "-o", str(out), "--no-cache", "-q"]) == 0
+    printed = capsys.readouterr()
+    assert "failed 0" in printed.out and len(load_library(out)) == 3
+    assert (f"warning: {out}: no control space: the control space of the 3 chosen entries"
+            in printed.err) and "add captures" in printed.err
+    assert "not valid" not in printed.err
+    assert main(["validate", str(out)]) == 0
 
 
 @pytest.mark.usefixtures("sample_dir")
