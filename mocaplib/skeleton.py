@@ -391,19 +391,22 @@ class Skeleton:
         return origin[:, np.asarray(segments)]
 
     # ----------------------------------------------------------------- kinematics
-    def forward(self, q: np.ndarray) -> np.ndarray:
-        """Segment-to-world transforms for every frame.
+    def forward(self, q: np.ndarray, *, segments: np.ndarray | None = None) -> np.ndarray:
+        """Segment-to-world transforms for every frame, :data:`FRAME_BLOCK` frames at a time.
 
         Parameters
         ----------
         q : ndarray, shape (F, D) or (D,)
             Joint coordinates in :data:`DOF_NAMES` order.
+        segments : int ndarray, shape (K,), optional
+            Only these segments' transforms (default all S).
 
         Returns
         -------
-        ndarray, shape (F, S, 4, 4)
+        ndarray, shape (F, S, 4, 4) or (F, K, 4, 4)
         """
-        return self.chain(q)[0]
+        chosen = slice(None) if segments is None else np.asarray(segments, dtype=int)
+        return _by_blocks(_poses(q), lambda rows: self.chain(rows)[0][:, chosen])
 
     def chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Transforms (F, S, 4, 4) plus each DOF's world axis (F, D, 3) and pivot (F, D, 3).
@@ -411,11 +414,7 @@ class Skeleton:
         A DOF's axis is its unit axis in the frame reached after the joint's earlier DOFs; its
         pivot is the joint centre (for translations, the pivot is unused and set to zero).
         """
-        q = np.asarray(q, dtype=np.float64)
-        if q.ndim == 1:
-            q = q[None, :]
-        if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
-            raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
+        q = _poses(q)
         n = q.shape[0]
         offsets = self._joints
         local = elementary_rotations(q)
@@ -488,8 +487,47 @@ class Skeleton:
         -------
         ndarray, shape (F, M, 3), metres.
         """
-        T = (self.forward(q) if transforms is None else transforms)[:, np.asarray(segments, int)]
-        return (T[..., :3, :3] @ np.asarray(offsets, float)[..., None])[..., 0] + T[..., :3, 3]
+        segments, offsets = np.asarray(segments, dtype=int), np.asarray(offsets, dtype=float)
+        if transforms is not None:
+            return _placed(transforms[:, segments], offsets)
+        return _by_blocks(_poses(q), lambda rows: _placed(self.chain(rows)[0][:, segments],
+                                                          offsets))
+
+
+#: Frames :meth:`Skeleton.forward` and :meth:`Skeleton.points` compute at once: their work
+#: arrays (each DOF's rotation, the chain's transforms, axes and pivots, about 10 kB a frame)
+#: stay near 40 MB whatever the capture's length. Each frame's numbers are the same in any
+#: block.
+FRAME_BLOCK = 4096
+
+
+def _poses(q: np.ndarray) -> np.ndarray:
+    """Joint coordinates ``q`` (F, D) or (D,) as a float (F, D) array; MocapError otherwise."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim == 1:
+        q = q[None, :]
+    if q.ndim != 2 or q.shape[1] != len(DOF_NAMES):
+        raise MocapError(f"q must have shape (F, {len(DOF_NAMES)}), got {q.shape}")
+    return q
+
+
+def _by_blocks(q: np.ndarray, compute) -> np.ndarray:
+    """``compute(q)`` for poses ``q`` (F, D), a function whose result has one row per frame,
+    computed :data:`FRAME_BLOCK` frames at a time and stacked."""
+    if len(q) <= FRAME_BLOCK:
+        return compute(q)
+    first = compute(q[:FRAME_BLOCK])
+    out = np.empty((len(q),) + first.shape[1:], dtype=first.dtype)
+    out[:FRAME_BLOCK] = first
+    for start in range(FRAME_BLOCK, len(q), FRAME_BLOCK):
+        out[start:start + FRAME_BLOCK] = compute(q[start:start + FRAME_BLOCK])
+    return out
+
+
+def _placed(transforms: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """World positions (F, M, 3) of points at ``offsets`` (M, 3) in the frames
+    ``transforms`` (F, M, 4, 4)."""
+    return (transforms[..., :3, :3] @ offsets[..., None])[..., 0] + transforms[..., :3, 3]
 
 
 def elementary_rotations(q: np.ndarray) -> np.ndarray:

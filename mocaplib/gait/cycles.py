@@ -61,6 +61,7 @@ import numpy as np
 
 from ..errors import EventError, NoCycleError
 from ..model.filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
+from ..runs import frames_within, valid_runs
 from ..skeleton import DOF_NAMES, ROOT_X, ROOT_Y, ROOT_Z, SEGMENT_NAMES, TRANSLATION
 from ..statics import STANDING_EXTENT, STATIC_WINDOW_S, moved_extent, quietest_stretch
 from ..trial import CYCLE_STARTS
@@ -190,9 +191,9 @@ def shoulder_centres(motion, /) -> tuple[np.ndarray, np.ndarray]:
     shoulder line), see docs/results/velocity_accuracy.md.
     """
 
-    frames = motion.segment_transforms()
-    return (frames[:, SEGMENT_NAMES.index("humerus_l"), :3, 3],
-            frames[:, SEGMENT_NAMES.index("humerus_r"), :3, 3])
+    frames = motion.skeleton.forward(motion.q, segments=[SEGMENT_NAMES.index("humerus_l"),
+                                                         SEGMENT_NAMES.index("humerus_r")])
+    return frames[:, 0, :3, 3], frames[:, 1, :3, 3]
 
 
 def motion_cycles(events: list[GaitEvent], motion, /, *, ground: np.ndarray | None = None,
@@ -239,16 +240,14 @@ def longest_gap(filled: np.ndarray | None, rate: float, start_s: float, end_s: f
     if filled is None:
         return 0.0
     filled = np.asarray(filled, dtype=bool)
-    frames = np.arange(len(filled)) / rate
-    inside = (frames >= start_s) & (frames <= end_s)
-    edges = np.diff(np.concatenate([[0], filled.astype(np.int8), [0]]))
+    inside = frames_within(start_s, end_s, rate, len(filled))
     longest = 0.0
-    for first, stop in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
-        n = int(inside[first:stop].sum())
-        if n and (first == 0 or stop == len(filled)):
+    for first, stop in valid_runs(filled[inside]).tolist():
+        from_start = first == 0 and filled[:inside.start].all()
+        to_end = inside.start + stop >= inside.stop and filled[inside.stop:].all()
+        if from_start or to_end:
             return float("inf")
-        if n:
-            longest = max(longest, (n + 1) / rate)
+        longest = max(longest, (stop - first + 1) / rate)
     return longest
 
 
@@ -312,9 +311,11 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                               max_gap_s=max_gap_s, shoulders=(left_shoulder, right_shoulder),
                               source=source)
     smooth = None if q is None else _smoothed(q, rate)
+    between = _events_between(events)
     cycles = []
     for index, (first, last) in enumerate(pairs):
         start, end = first.time_s, last.time_s
+        near = between(start, end)
         times, mid, heading = cycle_samples(left_shoulder, right_shoulder, rate, start, end,
                                             ground=ground, source=source)
         velocities = path_velocities(times, mid, heading, point_radius=point_radius,
@@ -330,12 +331,11 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         cycles.append(Cycle(index, start, end, velocities, _unsteadiness(times, mid, heading),
                             min(first.quality, last.quality), encoding,
                             right_toe_off=0.0 if start_event == "right_toe_off"
-                            else _first_inside(events, "right", start, end),
+                            else _first_inside(near, "right", start, end),
                             start_event=start_event,
                             left_toe_off=None if start_event == LEFT_TOE_OFF
-                            else _first_inside(events, "left", start, end),
-                            unplaced=tuple(e.warning for e in events
-                                           if not e.placed and start <= e.time_s <= end),
+                            else _first_inside(near, "left", start, end),
+                            unplaced=tuple(e.warning for e in near if not e.placed),
                             rise_per_step=rise))
     return cycles
 
@@ -452,6 +452,20 @@ def choose_cycles(cycles: list[Cycle], /, *, eligible: set[int] | None = None,
             cycle.chosen = cycle.index in picked and cycle.left_out is None
         return [c for c in cycles if c.chosen]
     return [choose_cycle(segment, eligible=eligible) for segment in activity_segments(cycles)]
+
+
+def _events_between(events: list[GaitEvent], /):
+    """A function ``(start, end)`` -> the ``events`` whose time lies in [start, end] (s), in
+    their order in the list: a binary search in the events sorted once by time, so a long
+    take's every cycle does not scan all of its events."""
+    order = sorted((i for i, e in enumerate(events) if np.isfinite(e.time_s)),
+                   key=lambda i: events[i].time_s)
+    times = np.array([events[i].time_s for i in order], dtype=np.float64)
+
+    def between(start: float, end: float) -> list[GaitEvent]:
+        lo, hi = np.searchsorted(times, start, "left"), np.searchsorted(times, end, "right")
+        return [events[i] for i in sorted(order[lo:hi])]
+    return between
 
 
 def _first_inside(events: list[GaitEvent], side: str, start: float, end: float

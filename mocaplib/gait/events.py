@@ -83,7 +83,8 @@ from ..runs import valid_runs
 from ..trial import check_gait_rate
 from .feet import feet_of
 from .foot_events import (FootTrack, GaitEvent, arrival_time, gait_event, lift_time, median_kink,
-                          peak_time, swing_spans, toe_off_time, unplaced_event)
+                          peak_time, swing_spans, toe_off_signals, toe_off_time,
+                          unplaced_event)
 
 SIDES = ("left", "right")
 #: Toe-off definitions, see the module docstring.
@@ -321,6 +322,7 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
     half = max(3, round(config.refine_s * rate))
     n_frames = len(clearance)
     seen = np.flatnonzero(np.isfinite(clearance))
+    marks: dict[int, object] = {}       # the toe-off signals by marker leaving last, made once
 
     def not_placed(kind, lo, hi, reason):
         events.append(unplaced_event(foot.side, kind, (lo, hi), rate, n_frames, reason))
@@ -332,11 +334,14 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
         if start > 0 and np.isfinite(clearance[start - 1]):
             last = int(np.argmin(heights[:, start]))  # the point that left last
             lo, hi = max(before, start - window), top + 1
+            if last not in marks:
+                marks[last] = (np.gradient(velocity[last, :, 2]) if lift
+                               else toe_off_signals(foot, last, rate))
             if lift:
                 t = peak_time(centre_velocity[:, 2], lo, hi)
-                t = None if t is None else lift_time(velocity[last, :, 2], t, rate)
+                t = None if t is None else lift_time(marks[last], t, rate)
             else:
-                t = toe_off_time(foot, last, lo, hi, rate)
+                t = toe_off_time(marks[last], lo, hi)
             if t is not None and _supported(supported, t):
                 events.append(gait_event(foot.side, "toe_off", t / rate, measured, rate))
             else:

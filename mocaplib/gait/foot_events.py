@@ -36,16 +36,24 @@ def peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
     return float(i)
 
 
-def toe_off_time(foot: FootTrack, last: int, lo: int, hi: int, rate: float) -> float | None:
-    """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames): the mean of
-    the upward-velocity peak of the point :data:`TOE_OFF_WEIGHT` of the way from the other
-    marker to the one that left last (index ``last``), sought while the foot still rolls
-    (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's tread, may rise
-    faster), and the time the foot's pitch rate falls to :data:`TOE_OFF_PITCH_FRACTION` of
-    its push-off peak (:mod:`mocaplib.gait.events`); None when either is not found."""
+def toe_off_signals(foot: FootTrack, last: int, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """What the default toe-off of a walking foot is read from, when the marker of index
+    ``last`` is the one that leaves the floor last: the upward velocity (F,) m/s of the point
+    :data:`TOE_OFF_WEIGHT` of the way from the other marker to it, and the foot's pitch rate
+    (F,) rad/s (:func:`_pitch_rate`). Computed once per foot for all its toe-offs."""
     velocity = foot.velocity[:, :, 2]
     push = TOE_OFF_WEIGHT * velocity[last] + (1.0 - TOE_OFF_WEIGHT) * velocity[1 - last]
-    pitch_rate = _pitch_rate(foot.points, last, rate)
+    return push, _pitch_rate(foot.points, last, rate)
+
+
+def toe_off_time(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int) -> float | None:
+    """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames), from its
+    :func:`toe_off_signals`: the mean of the push point's upward-velocity peak, sought while
+    the foot still rolls (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's
+    tread, may rise faster), and the time the foot's pitch rate falls to
+    :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (:mod:`mocaplib.gait.events`); None
+    when either is not found."""
+    push, pitch_rate = signals
     peak = peak_time(push, lo, _roll_end(pitch_rate, lo, hi))
     release = _release_time(pitch_rate, lo, hi)
     return None if peak is None or release is None else 0.5 * (peak + release)
@@ -94,11 +102,12 @@ def _release_time(pitch_rate: np.ndarray, lo: int, hi: int) -> float | None:
     return (i - 1) + (pitch_rate[i - 1] - level) / (pitch_rate[i - 1] - pitch_rate[i])
 
 
-def lift_time(upward: np.ndarray, peak: float, rate: float) -> float:
-    """When a point's low-passed upward velocity ``upward`` (F,) m/s rises fastest (frames),
-    from 0.1 s before to 0.05 s after the foot centre's upward-velocity ``peak`` (frames)."""
+def lift_time(rise: np.ndarray, peak: float, rate: float) -> float:
+    """When a point's low-passed upward velocity rises fastest (frames), from 0.1 s before to
+    0.05 s after the foot centre's upward-velocity ``peak`` (frames); ``rise`` (F,) m/s per
+    frame: ``np.gradient`` of that velocity, computed once per foot for all its toe-offs."""
     reach = round(0.1 * rate)
-    lift = peak_time(np.gradient(upward), max(0, int(peak) - reach), int(peak) + reach // 2)
+    lift = peak_time(rise, max(0, int(peak) - reach), int(peak) + reach // 2)
     return peak if lift is None else lift
 
 
@@ -140,11 +149,12 @@ def _kink(values: np.ndarray, centre: float, half: int, step: float = 0.05) -> f
     squared error: where a foot point's velocity jumps (lift-off or landing of a rigid foot) or,
     for smooth data, where its acceleration changes most.
     """
-    values = values.reshape(len(values), -1)
     lo = max(0, int(np.floor(centre - half / 2)) - half // 2)
     hi = min(len(values), int(np.ceil(centre)) + half + 1)
-    y = values[lo:hi]
-    if hi - lo < 2 * half // 2 + 6 or not np.isfinite(y).all():
+    if hi - lo < 2 * half // 2 + 6:
+        return None
+    y = values[lo:hi].reshape(hi - lo, -1)         # the window only: reshaping all F copies
+    if not np.isfinite(y).all():
         return None
     x = np.arange(lo, hi, dtype=np.float64)
     knots = np.arange(max(centre - half / 2, lo + 2), min(centre + half / 2, hi - 3) + step / 2,

@@ -48,6 +48,7 @@ from scipy.optimize import least_squares
 from ..errors import EventError
 from ..io.jsonvalues import json_values
 from ..model.filtering import resample
+from ..runs import frames_within
 
 
 @dataclass(frozen=True)
@@ -333,16 +334,15 @@ def sample_shoulders(left_shoulder: np.ndarray, right_shoulder: np.ndarray, rate
     if left.shape != right.shape or left.ndim != 2 or left.shape[1] != 3:
         raise EventError(f"shoulders must both have shape (F, 3), got {left.shape} and "
                          f"{right.shape}", path=source)
-    frames = np.arange(len(left)) / rate
-    inside = (frames >= times[0]) & (frames <= times[-1])
+    inside = frames_within(times[0], times[-1], rate, len(left))
     sampled = []
     for name, points in (("left", left), ("right", right)):
-        valid = np.isfinite(points).all(axis=1)
-        if not inside.any() or valid[inside].mean() < min_valid:
+        valid = np.isfinite(points[inside]).all(axis=1)
+        if not valid.size or valid.mean() < min_valid:
             raise EventError(f"{name} shoulder missing in more than {1 - min_valid:.0%} of "
                              f"{times[0]:.3f}-{times[-1]:.3f} s", path=source,
                              hint="check the shoulder markers or fill the gaps")
-        sampled.append(resample(np.where(valid[:, None], points, np.nan), rate, times))
+        sampled.append(resample(points, rate, times, jointly=True))
     left_s, right_s = sampled
     mid = 0.5 * (left_s + right_s)
     if ground is not None:

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ..model.filtering import WALKING_CUTOFF, lowpass, resample, shortest_run
+from ..runs import frames_within
 from ..skeleton import JOINT_ANGLES, ROOT_X, ROOT_Y, TRANSLATION
 from .criteria import closure, internal_power, jerk_rms, segment_energies, third_derivative
 
@@ -50,10 +51,10 @@ def qc_series(motion, ground: np.ndarray | None = None) -> dict:
             "outliers": outlier_samples(motion)}
 
 
-def inside_cycle(cycle, motion) -> np.ndarray:
-    """The frames (F,) bool of ``motion`` from the cycle's start to its end."""
-    frames = np.arange(motion.n_frames) / motion.rate
-    return (frames >= cycle.start_s) & (frames <= cycle.end_s)
+def inside_cycle(cycle, motion) -> slice:
+    """The frames of ``motion`` from the cycle's start to its end (a slice of the frame axis:
+    :func:`mocaplib.runs.frames_within`)."""
+    return frames_within(cycle.start_s, cycle.end_s, motion.rate, motion.n_frames)
 
 
 #: The longest run of samples (frames) of one marker a residual spike spans: a longer excursion
@@ -159,7 +160,8 @@ def named_failures(cycle, motion, qc: dict, thresholds: dict, *, facts: dict | N
     failures = qc_failures(qc, thresholds)
     culprits = {}
     if any(f.split()[0] in ("marker_max_m", "marker_rms_m") for f in failures):
-        inside = np.flatnonzero(inside_cycle(cycle, motion))
+        span = inside_cycle(cycle, motion)
+        inside = np.arange(span.start, span.stop)
         trusted = np.flatnonzero(motion.trusted())
         residuals = np.where(outlier_samples(motion), np.nan,
                              motion.residuals)[np.ix_(inside, trusted)]
@@ -205,7 +207,7 @@ def cycle_qc(cycle, motion, series: dict | None = None) -> dict:
     measured = np.where(outliers, np.nan, residuals)
     ends = resample(series["q"], motion.rate, np.array([cycle.start_s, cycle.end_s]))
     third, energies = series["third"], series["energies"]
-    spanned = (np.count_nonzero(inside) - 1) / motion.rate
+    spanned = (max(inside.stop - inside.start, 0) - 1) / motion.rate
     with np.errstate(invalid="ignore"):
         return {
             "marker_rms_m": float(np.sqrt(np.nanmean(measured ** 2))),

@@ -46,6 +46,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..numeric import distinct, nanmedian
+from ..runs import frames_within
 from ..trial import Trial, check_gait_rate
 
 #: Butterworth order of each pass (forward and backward: effective order 4).
@@ -71,18 +72,53 @@ NOISE_BAND = (0.4, 0.75)
 AUTO_MIN, AUTO_MAX = 2.0, 0.4
 
 
-def resample(values: np.ndarray, rate: float, times: np.ndarray) -> np.ndarray:
+def resample(values: np.ndarray, rate: float, times: np.ndarray, /, *,
+             jointly: bool = False) -> np.ndarray:
     """``values`` (F, C), frame k at ``k / rate`` s, at ``times`` (n,) s: linear between the
     finite samples of each column, gaps bridged, held flat beyond the first and last. Returns
-    (n, C); a column without any finite sample is NaN."""
+    (n, C); a column without any finite sample is NaN. ``jointly``: a frame is a sample of
+    every column or of none, only where all its columns are finite (a point's x, y and z).
+
+    Reads only the frames from one before the earliest time to one after the latest when a
+    column's samples there bracket the times (finite at both ends of that window, or the
+    window reaching the capture's end), else the column's every frame: the same numbers, in
+    time proportional to the span of ``times`` rather than to F (a cycle of a long take)."""
     values = np.asarray(values, dtype=np.float64)
-    frames = np.arange(len(values)) / rate
+    times = np.asarray(times, dtype=np.float64)
+    n_frames = len(values)
+    window = _frames_around(times, rate, n_frames)
+    frames = np.arange(window.start, window.stop) / rate
+    finite = _finite(values[window], jointly)
     out = np.full((len(times), values.shape[1]), np.nan)
+    everywhere = None                                   # every frame's finite samples, if needed
     for column in range(values.shape[1]):
-        valid = np.isfinite(values[:, column])
+        valid, at, samples = finite[:, column], frames, values[window, column]
+        if not (valid.any() and (valid[0] or window.start == 0)
+                and (valid[-1] or window.stop == n_frames)):
+            if everywhere is None:
+                everywhere = _finite(values, jointly)
+            valid, at, samples = everywhere[:, column], np.arange(n_frames) / rate, \
+                values[:, column]
         if valid.any():
-            out[:, column] = np.interp(times, frames[valid], values[valid, column])
+            out[:, column] = np.interp(times, at[valid], samples[valid])
     return out
+
+
+def _finite(values: np.ndarray, jointly: bool) -> np.ndarray:
+    """Where ``values`` (F, C) are finite (F, C) bool; ``jointly``: where the whole row is."""
+    finite = np.isfinite(values)
+    if jointly:
+        finite[:] = finite.all(axis=1, keepdims=True)
+    return finite
+
+
+def _frames_around(times: np.ndarray, rate: float, n_frames: int) -> slice:
+    """The frames from the last before the earliest of ``times`` (s) to the first after the
+    latest, within [0, n_frames); every frame when a time is not finite."""
+    if not times.size or not np.isfinite(times).all():
+        return slice(0, n_frames)
+    inside = frames_within(float(times.min()), float(times.max()), rate, n_frames)
+    return slice(max(inside.start - 1, 0), min(inside.stop + 1, n_frames))
 
 
 def longest_run(data: np.ndarray) -> int:
@@ -166,15 +202,31 @@ def lowpass(data: np.ndarray, rate: float, cutoff: float, /, *, order: int = ORD
     pad = 3 * (2 * ((order + 1) // 2) + 1)       # sosfiltfilt's default for the sections
     flat = data.reshape(len(data), -1)
     out = flat.copy()
-    for rows, columns in _run_groups(flat, shortest_run(rate, cutoff)):
-        runs = flat[rows, columns]                            # (n, k): k runs of n samples
-        edge = min(pad, len(runs) - 1)
-        extended = np.concatenate([2 * runs[:1] - runs[edge:0:-1], runs,
-                                   2 * runs[-1:] - runs[-2:-edge - 2:-1]])
-        forward = _one_pass(extended, rate, cutoff, order)
-        both = _one_pass(forward[::-1], rate, cutoff, order)[::-1]
-        out[rows, columns] = both[edge:len(both) - edge]
+    for n, starts, columns in _run_groups(flat, shortest_run(rate, cutoff)):
+        for block in _blocks(n, len(starts)):
+            rows_b, columns_b = _runs_of(n, starts[block], columns[block])
+            runs = flat[rows_b, columns_b]                    # (n, k): k runs of n samples
+            edge = min(pad, len(runs) - 1)
+            extended = np.concatenate([2 * runs[:1] - runs[edge:0:-1], runs,
+                                       2 * runs[-1:] - runs[-2:-edge - 2:-1]])
+            forward = _one_pass(extended, rate, cutoff, order)
+            both = _one_pass(forward[::-1], rate, cutoff, order)[::-1]
+            out[rows_b, columns_b] = both[edge:len(both) - edge]
     return out.reshape(data.shape)
+
+
+#: Samples (series × their length) filtered, analysed or searched for spikes at once: a long
+#: take's runs (the cutoffs of its residual analysis, its frames) are taken a few at a time,
+#: so the work arrays stay near 8-32 MB whatever the capture's length (each run's FFT is the
+#: same, to the bit, in any batch).
+BLOCK_SAMPLES = 1 << 20
+
+
+def _blocks(n: int, k: int) -> list[slice]:
+    """Slices of ``k`` series (runs, cutoffs) of ``n`` samples each, each slice at most
+    :data:`BLOCK_SAMPLES` samples (one series at least)."""
+    width = max(1, BLOCK_SAMPLES // max(n, 1))
+    return [slice(start, start + width) for start in range(0, k, width)]
 
 
 def residual_curve(data: np.ndarray, rate: float, cutoffs: np.ndarray) -> np.ndarray:
@@ -195,13 +247,18 @@ def residual_curve(data: np.ndarray, rate: float, cutoffs: np.ndarray) -> np.nda
     cutoffs = np.asarray(cutoffs, dtype=np.float64)
     shortest = np.array([shortest_run(rate, fc) for fc in cutoffs])
     energy = np.zeros(len(cutoffs))
-    for rows, columns in _run_groups(flat, int(shortest.min(initial=MIN_RUN))):
-        n = len(rows)
-        spectra = _odd_spectra(flat[rows, columns])
-        power = np.sum(spectra.real ** 2 + spectra.imag ** 2, axis=1)
+    for n, starts, columns in _run_groups(flat, int(shortest.min(initial=MIN_RUN))):
+        squared = np.empty((n, len(starts)))               # |FFT|^2 (n, k), a block at a time
+        for block in _blocks(n, len(starts)):
+            spectra = _odd_spectra(flat[_runs_of(n, starts[block], columns[block])])
+            squared[:, block] = spectra.real ** 2 + spectra.imag ** 2
+        power = np.sum(squared, axis=1)
         power[1:-1] *= 2                                    # the negative frequencies
         frequencies = np.fft.rfftfreq(2 * (n - 1), 1.0 / rate)
-        removed = 1.0 - zero_lag_gain(frequencies[None, :], rate, cutoffs[:, None])
+        removed = np.empty((len(cutoffs), len(frequencies)))      # (C, n), a block at a time
+        for block in _blocks(len(frequencies), len(cutoffs)):
+            removed[block] = 1.0 - zero_lag_gain(frequencies[None, :], rate,
+                                                 cutoffs[block, None])
         energy += np.where(n >= shortest, removed ** 2 @ power, 0.0) / (4 * (n - 1))
     count = np.count_nonzero(np.isfinite(flat))
     return np.sqrt(energy / count) if count else np.full(len(cutoffs), np.nan)
@@ -225,16 +282,21 @@ def _column_runs(finite: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return column[0::2], frame[0::2], frame[1::2]
 
 
-def _run_groups(flat: np.ndarray, shortest: int
-                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+def _run_groups(flat: np.ndarray, shortest: int) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
     """For each length n of the runs of finite samples of ``flat`` (F, C) of ``shortest``
-    frames or more: index arrays ``rows`` (n, k) and ``columns`` (1, k) of its k runs, so that
-    ``flat[rows, columns]`` is (n, k)."""
+    frames or more: n, and the first frame and the column (k,) each of its k runs
+    (:func:`_runs_of`)."""
     column, start, stop = _column_runs(np.isfinite(flat))
     length = stop - start
     for n in distinct(length[length >= max(shortest, 2)]):
         chosen = length == n
-        yield start[chosen] + np.arange(n)[:, None], column[chosen][None, :]
+        yield int(n), start[chosen], column[chosen]
+
+
+def _runs_of(n: int, starts: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays ``rows`` (n, k) and ``columns`` (1, k) of k runs of n samples starting at
+    ``starts`` (k,) in ``columns`` (k,): ``flat[rows, columns]`` is the (n, k) runs."""
+    return starts + np.arange(n)[:, None], columns[None, :]
 
 
 def residual_cutoff(data: np.ndarray, rate: float) -> float:
@@ -291,9 +353,13 @@ def remove_spikes(markers: np.ndarray, rate: float, /) -> np.ndarray:
     """
     half = max(1, int(round(SPIKE_WINDOW_S * rate)))
     out = markers.copy()
-    with np.errstate(invalid="ignore"):
-        jumps = np.linalg.norm(np.diff(markers, axis=0), axis=2) > SPIKE_DISTANCE / 2
-    for m in np.flatnonzero(jumps.any(axis=0)):
+    jumps = np.zeros(markers.shape[1], dtype=bool)
+    stretch = max(2, BLOCK_SAMPLES // max(3 * markers.shape[1], 1))
+    for start in range(0, max(len(markers) - 1, 0), stretch):   # frames overlap by one
+        with np.errstate(invalid="ignore"):
+            steps = np.linalg.norm(np.diff(markers[start:start + stretch + 1], axis=0), axis=2)
+            jumps |= (steps > SPIKE_DISTANCE / 2).any(axis=0)
+    for m in np.flatnonzero(jumps):
         track = markers[:, m]
         windows = np.lib.stride_tricks.sliding_window_view(
             np.pad(track, ((half, half), (0, 0)), constant_values=np.nan), 2 * half + 1, axis=0)
