@@ -16,9 +16,10 @@ Usage (from the repository root)::
    the capture's stages from ``build_library`` run on it in another fresh process (the
    command's own time without start-up and writing).
 3. Prints one row per length: frames/s of the whole command and of the stages, peak memory,
-   and the ratio of each frames/s to the shortest length's; then the targets, met or missed:
-   the longest take at >= 80 % of the shortest's frames/s (whole command), and under 1 GiB
-   (1024 MiB) of peak memory.
+   and the ratio of each frames/s to the shortest length's, then each stage's seconds per
+   10,000 frames; then the targets, met or missed: the longest take at >= 80 % of the
+   shortest's frames/s (whole command, and stages alone: start-up counts for less in a long
+   command), and under 1 GiB (1024 MiB) of peak memory.
 
 ``--repeat R`` keeps the fastest of R runs of each length (and the largest peak memory).
 Prints Markdown; ``--markdown PATH`` also writes it into a results page
@@ -175,11 +176,12 @@ def report(lengths: list[int], repeat: int) -> list[dict]:
         print(f"| {name} | " + " | ".join(
             f"{1e4 * r['stages'].get(name, 0.0) / r['frames']:.2f}" for r in rows) + " |")
     last = rows[-1]
-    ratio = last["fps"] / first["fps"]
     print(f"\nTargets, {last['frames']:,} frames against {first['frames']:,}:\n")
-    print(f"- frames/s at >= {MIN_SPEED_RATIO:.0%} of the shortest take's: {ratio:.0%} "
-          f"({last['fps']:.0f} against {first['fps']:.0f} frames/s): "
-          f"**{'met' if ratio >= MIN_SPEED_RATIO else 'missed'}**")
+    for what, key in (("whole command", "fps"), ("stages alone", "stage_fps")):
+        ratio = last[key] / first[key]
+        print(f"- frames/s ({what}) at >= {MIN_SPEED_RATIO:.0%} of the shortest take's: "
+              f"{ratio:.0%} ({last[key]:.0f} against {first[key]:.0f} frames/s): "
+              f"**{'met' if ratio >= MIN_SPEED_RATIO else 'missed'}**")
     print(f"- peak memory under {MAX_PEAK_MIB:.0f} MiB: {last['peak']:.0f} MiB: "
           f"**{'met' if last['peak'] < MAX_PEAK_MIB else 'missed'}**")
     return rows
@@ -195,8 +197,9 @@ def draw(rows: list[dict], path: Path, page: Path | None) -> None:
     figure, (speed, memory) = plt.subplots(1, 2, figsize=(10, 4))
     speed.plot(frames, [r["fps"] for r in rows], "o-", label="whole command")
     speed.plot(frames, [r["stage_fps"] for r in rows], "s--", label="its stages")
-    speed.axhline(MIN_SPEED_RATIO * rows[0]["fps"], color="grey", linestyle=":",
-                  label=f"target: {MIN_SPEED_RATIO:.0%} of the shortest")
+    for key, colour in (("fps", "C0"), ("stage_fps", "C1")):
+        speed.axhline(MIN_SPEED_RATIO * rows[0][key], color=colour, linestyle=":",
+                      label=f"target: {MIN_SPEED_RATIO:.0%} of the shortest")
     speed.set(xlabel="frames in the take", ylabel="frames / s", ylim=(0, None),
               title="build speed")
     speed.legend()
