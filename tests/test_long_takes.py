@@ -13,7 +13,8 @@ import pytest
 from mocaplib import skeleton as skeleton_module
 from mocaplib.gait import criteria
 from mocaplib.gait.cycles import _events_between, longest_gap
-from mocaplib.gait.foot_events import GaitEvent
+from mocaplib.gait.events import _lost_stances
+from mocaplib.gait.foot_events import GaitEvent, unplaced_event
 from mocaplib.model import filtering
 from mocaplib.runs import frames_within, valid_runs
 from mocaplib.skeleton import DOF_NAMES, Skeleton
@@ -200,3 +201,31 @@ def test_events_between_are_those_a_scan_finds():
     for start, end in [(0.0, 60.0), (-1, 0.0)] + [tuple(sorted(rng.uniform(-1, 61, 2)))
                                                   for _ in range(300)]:
         assert between(start, end) == [e for e in events if start <= e.time_s <= end]
+
+
+def lost_stances_every_pair(airborne, rate, n_frames):
+    """The direct computation: every span of one foot against every swing of the other."""
+    out = []
+    for side, other in ((a, b) for a in airborne for b in airborne if a != b):
+        for start, end in airborne[side]:
+            for inner_start, inner_end in airborne[other]:
+                if start < inner_start and inner_end < end:
+                    reason = (f"the foot seems in the air from {start / rate:.2f} to "
+                              f"{end / rate:.2f} s while the {other} foot swings (a stance "
+                              "hidden by missing markers or on another floor)")
+                    out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
+                                           n_frames, reason),
+                            unplaced_event(side, "toe_off", (inner_end, end), rate,
+                                           n_frames, reason)]
+    return out
+
+
+def test_lost_stances_search_the_other_foots_swings_by_time():
+    rng = np.random.default_rng(8)
+    for _ in range(300):
+        airborne = {}
+        for side in ("left", "right"):
+            edges = np.sort(rng.choice(5000, size=2 * int(rng.integers(0, 40)), replace=False))
+            airborne[side] = [(int(a), int(b)) for a, b in edges.reshape(-1, 2)]
+        assert _lost_stances(airborne, 100.0, 5000) == \
+            lost_stances_every_pair(airborne, 100.0, 5000)

@@ -70,6 +70,7 @@ Units: metres, seconds, Z up; times are seconds from the capture's first frame (
 
 from __future__ import annotations
 
+import bisect
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -254,16 +255,20 @@ def _lost_stances(airborne: dict[str, list[tuple[int, int]]], rate: float, n_fra
     raised tread of a stair)."""
     out = []
     for side, other in ((a, b) for a in airborne for b in airborne if a != b):
+        spans = airborne[other]                  # in time order, disjoint: ends in order too
+        starts = [inner_start for inner_start, _ in spans]
         for start, end in airborne[side]:
-            for inner_start, inner_end in airborne[other]:
-                if start < inner_start and inner_end < end:
-                    reason = (f"the foot seems in the air from {start / rate:.2f} to "
-                              f"{end / rate:.2f} s while the {other} foot swings (a stance "
-                              "hidden by missing markers or on another floor)")
-                    out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
-                                           n_frames, reason),
-                            unplaced_event(side, "toe_off", (inner_end, end), rate,
-                                           n_frames, reason)]
+            k = bisect.bisect_right(starts, start)       # the first of them starting after it
+            while k < len(spans) and spans[k][1] < end:
+                inner_start, inner_end = spans[k]
+                k += 1
+                reason = (f"the foot seems in the air from {start / rate:.2f} to "
+                          f"{end / rate:.2f} s while the {other} foot swings (a stance "
+                          "hidden by missing markers or on another floor)")
+                out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
+                                       n_frames, reason),
+                        unplaced_event(side, "toe_off", (inner_end, end), rate,
+                                       n_frames, reason)]
     return out
 
 
