@@ -304,6 +304,7 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
         q = _unwrapped(np.asarray(q, dtype=np.float64), n_frames, source)
         if ground is not None:
             q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(n_frames) / rate, ground[:2])
+        never = ~np.isfinite(q).any(axis=0)
     if not events:
         return [_rest_entry(left_shoulder, right_shoulder, rate, q, n_frames, source,
                             tol_angle, tol_length)]
@@ -322,7 +323,7 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                                      min_arc_angle=min_arc_angle)
         encoding = rise = None
         if q is not None:
-            samples = _interpolate(q, rate, times, source)
+            samples = _interpolate(q, rate, times, never, source)
             noise = None if smooth is None else np.sqrt(np.nanmean(
                 (samples - resample(smooth, rate, times))[:-1] ** 2, axis=0))
             encoding = encode_cycle(samples[:-1], times[:-1] - start, end - start, samples[-1],
@@ -509,7 +510,7 @@ def _rest_entry(left, right, rate, q, n_frames, source, tol_angle, tol_length) -
     velocities = CycleVelocities(pattern, REST_PERIOD, 0.0, 0.0, 0.0, 0.0)
     encoding = None
     if q is not None:
-        samples = _interpolate(q, rate, times, source)
+        samples = _interpolate(q, rate, times, ~np.isfinite(q).any(axis=0), source)
         inside = times < REST_PERIOD
         encoding = encode_cycle(samples[inside], times[inside], REST_PERIOD, samples[0],
                                 tol_angle=tol_angle, tol_length=tol_length, max_order=0)
@@ -539,10 +540,12 @@ def _smoothed(q: np.ndarray, rate: float) -> np.ndarray | None:
     return lowpass(q, rate, WALKING_CUTOFF)
 
 
-def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, source=None) -> np.ndarray:
-    """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too."""
+def _interpolate(q: np.ndarray, rate: float, times: np.ndarray, never: np.ndarray,
+                 source=None) -> np.ndarray:
+    """Joint coordinates (n, D) at ``times`` (s), linear between frames, over NaN gaps too;
+    EventError when a DOF is ``never`` (D,) bool finite (found once per capture: a long take's
+    every cycle does not scan all of ``q``)."""
 
-    never = ~np.isfinite(q).any(axis=0)
     if never.any():
         name = DOF_NAMES[int(np.argmax(never))]
         raise EventError(f"joint coordinate {name} is missing in every frame", path=source,
