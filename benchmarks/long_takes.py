@@ -12,7 +12,9 @@ Usage (from the repository root)::
    12,000). The files hold no events: the build detects them, as on a lab's long take.
 2. Runs ``python -m mocaplib build FILE -o LIBRARY --no-cache --jobs 1 --quiet`` on each
    in a fresh process and measures its wall time and peak resident memory (``ru_maxrss``
-   of the process and what it waited for, from ``os.wait4``), and reads the time spent in
+   of the process and what it waited for, from ``os.wait4``; the walk is made in another
+   process so that this one, whose memory at the fork ``ru_maxrss`` also counts, stays
+   small), and reads the time spent in
    the capture's stages from ``build_library`` run on it in another fresh process (the
    command's own time without start-up and writing).
 3. Prints one row per length: frames/s of the whole command and of the stages, peak memory,
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import subprocess
 import sys
@@ -80,6 +83,16 @@ def make_takes(lengths, folder: Path) -> dict[int, Path]:
         files[n] = write_c3d(path, trial.markers[:n], trial.labels, trial.rate, units="mm",
                              integer=True)
     return files
+
+
+def resident_mib() -> float:
+    """This process's resident memory now, MiB (Linux; NaN elsewhere)."""
+    try:
+        status = Path("/proc/self/status").read_text(encoding="utf-8")
+    except OSError:
+        return float("nan")
+    return next((int(line.split()[1]) / 1024 for line in status.splitlines()
+                 if line.startswith("VmRSS:")), float("nan"))
 
 
 def timed_command(args: list[str], env: dict) -> tuple[float, float, int]:
@@ -147,13 +160,19 @@ def report(lengths: list[int], repeat: int) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        files = make_takes(lengths, Path(tmp))
+        # made in another process: a build's ru_maxrss starts from this process's memory
+        # when it forks, which must stay small
+        with multiprocessing.get_context("spawn").Pool(1) as pool:
+            files = pool.apply(make_takes, (lengths, Path(tmp)))
+        floor = resident_mib()
         print(f"One synthetic walk ({WALK.v_f:g} m/s on a circle of "
               f"{WALK.v_f / WALK.omega:g} m radius, fullbody38, {RATE:g} Hz, no events in "
               f"the files), cut at {', '.join(f'{n:,}' for n in lengths)} frames "
               f"(made in {time.perf_counter() - start:.0f} s, not timed). `mocaplib build "
               f"FILE --no-cache --jobs 1`, {'best' if repeat > 1 else 'one run'}"
-              f"{f' of {repeat}' if repeat > 1 else ''} each, in a fresh process:\n")
+              f"{f' of {repeat}' if repeat > 1 else ''} each, in a fresh process (this "
+              f"script held {floor:.0f} MiB when it started them, which a build's peak "
+              "counts at least):\n")
         for n in lengths:
             result = measure(files[n], Path(tmp) / f"library_{n}.json", env, repeat)
             rows.append({"frames": n, **result})
