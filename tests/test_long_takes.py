@@ -7,11 +7,13 @@ here (or the same function with one block holding everything)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from mocaplib import skeleton as skeleton_module
-from mocaplib.gait import criteria
+from mocaplib.gait import criteria, qc
 from mocaplib.gait.cycles import _events_between, longest_gap
 from mocaplib.gait.events import _lost_stances
 from mocaplib.gait.foot_events import GaitEvent, unplaced_event
@@ -229,3 +231,18 @@ def test_lost_stances_search_the_other_foots_swings_by_time():
             airborne[side] = [(int(a), int(b)) for a, b in edges.reshape(-1, 2)]
         assert _lost_stances(airborne, 100.0, 5000) == \
             lost_stances_every_pair(airborne, 100.0, 5000)
+
+
+def test_outlier_samples_by_frame_blocks(monkeypatch):
+    rng = np.random.default_rng(9)
+    residuals = np.abs(rng.normal(scale=0.003, size=(1000, 6)))
+    residuals[rng.random(residuals.shape) < 0.02] += 0.05          # spikes
+    residuals[100:140, 2] = np.nan
+    motion = SimpleNamespace(residuals=residuals, rejected=rng.random(residuals.shape) < 0.01)
+    whole = qc.outlier_samples(motion)
+    for block in (7, 256, 999):
+        monkeypatch.setattr(qc, "OUTLIER_BLOCK", block)
+        np.testing.assert_array_equal(qc.outlier_samples(motion), whole,
+                                      err_msg=f"blocks of {block} frames")
+    monkeypatch.setattr(qc, "OUTLIER_BLOCK", 1 << 30)
+    np.testing.assert_array_equal(qc.outlier_samples(motion), whole)

@@ -74,11 +74,19 @@ def outlier_samples(motion) -> np.ndarray:
     half = SPIKE_FRAMES
     padded = np.pad(residuals, ((half, half), (0, 0)), mode="edge")
     windows = sliding_window_view(padded, 2 * half + 1, axis=0)      # (F, M, 2h+1)
+    baseline = np.empty(residuals.shape)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)     # a window without a sample: NaN
-        baseline = np.nanmedian(windows, axis=2)
+        for start in range(0, len(residuals), OUTLIER_BLOCK):   # a long take's, a block at a time
+            rows = slice(start, start + OUTLIER_BLOCK)
+            baseline[rows] = np.nanmedian(windows[rows], axis=2)
         spikes = residuals - baseline > SPIKE_RISE
     return spikes | motion.rejected
+
+
+#: Frames whose residual medians :func:`outlier_samples` takes at once: the median's work
+#: arrays stay near 10 MB whatever the capture's length (each window's median is the same).
+OUTLIER_BLOCK = 4096
 
 
 @dataclass(frozen=True)
