@@ -11,7 +11,9 @@ foot is read from the motion itself: the frames where the slower of its heel and
 horizontally at most :data:`CONTACT_SPEED` and the lower of them is within
 :data:`CONTACT_RISE` of the foot's standing level (the median height of that lower point over
 the frames where the foot is still, below :data:`STILL_SPEED`), gaps of up to
-:data:`STANCE_GAP_S` bridged, in runs of at least :data:`MIN_STANCE_S`. On the samples these stances end -0.011 to 0.079 s after the entries' toe-offs (events
+:data:`STANCE_GAP_S` bridged, in runs of at least :data:`MIN_STANCE_S`. A foot whose standing
+level is above :data:`MAX_LEVEL` has no stance (on the shared files' ``running_c5`` the feet
+stay 142 mm or more above the floor: it is not planted, its body not lowered). On the samples these stances end -0.011 to 0.079 s after the entries' toe-offs (events
 from foot-marker kinematics), the latest where a side-stepping or turning foot pivots on its
 toe (tests/test_planting.py).
 
@@ -22,9 +24,12 @@ toe (tests/test_planting.py).
    skeleton's ``ankle_height``: 17-18 mm on the samples).
 2. Each stance run is locked at its flattest frame (the frame where the higher of heel and toe
    is lowest): the foot's heading there and the horizontal position of its heel (and of its toe,
-   the sole's length ahead). Through the run the foot keeps its own pitch, loses its roll, and
-   rolls on the floor: about the locked heel while its toes point up, about the locked toe while
-   its heel is up (the two coincide when the foot is flat, so the pivot changes without a jump).
+   the sole's length ahead). Through the run the foot loses its roll and rolls on the floor:
+   about the locked heel while its toes point up, about the locked toe while its heel is up (the
+   two coincide when the foot is flat, so the pivot changes without a jump). It keeps its own
+   pitch where that puts the ankle within :data:`ANKLE_GAP` of the motion's, and beyond twice
+   that takes the pitch that brings the ankle nearest the motion's (a rigid toe below the floor
+   at push-off costs an ankle turn, not a raised ankle).
 3. Outside stance the foot follows the motion; within :data:`BLEND_S` of a run the correction of
    the run's first (last) frame fades in (out) by a smoothstep, the foot coming down to (rising
    from) the floor at :data:`APPROACH_SPEED` at least near it; a swing foot whose toe (heel) would be
@@ -40,6 +45,13 @@ toe (tests/test_planting.py).
 
 :func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
 pelvis's vertical acceleration (:class:`ContactMeasures`).
+
+**On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
+own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
+floor at push-off and the feet hover up to 47 mm; planting changes a knee by up to 27.9 deg and
+a hip's flexion by up to 13.5 deg (target 5 deg for the knee, not met: the swing foot's ankle
+rises where the whole rigid foot is below the floor next to a stance), lowers no body by more
+than its feet's hover in stance (at most 31 mm).
 """
 
 from __future__ import annotations
@@ -59,10 +71,16 @@ from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
 #: is still below STILL_SPEED (m/s). Gaps of at most STANCE_GAP_S (s) within a stance are
 #: bridged (a foot rolling from heel to toe may move faster than CONTACT_SPEED for a frame).
 CONTACT_SPEED, CONTACT_RISE, MIN_STANCE_S, STILL_SPEED, STANCE_GAP_S = 0.3, 0.008, 0.1, 0.1, 0.03
+#: A foot whose standing level is higher than this above the floor (m) has no stance: it never
+#: comes near the floor (a run in flight, a floor not at z = 0), and the body is not lowered.
+MAX_LEVEL = 0.05
 #: Time (s) over which a run's correction fades in before it and out after it; within it a foot
 #: stays above the floor by APPROACH_SPEED (m/s) times the time to the stance (times the share
 #: of the window still ahead: nothing at its far end).
 BLEND_S, APPROACH_SPEED = 0.1, 0.2
+#: A stance foot keeps its own pitch where that puts its ankle within ANKLE_GAP (m) of the
+#: motion's, and turns to bring the ankle nearest the motion's beyond twice that.
+ANKLE_GAP = 0.02
 #: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
 MAX_TOE_TURN = np.deg2rad(30.0)
 #: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
@@ -143,6 +161,8 @@ def stance_frames(skeleton: Skeleton, q: np.ndarray, rate: float, /) -> np.ndarr
         if not still.any():
             continue
         level = np.median(low[still, side])
+        if level > MAX_LEVEL:
+            continue
         contact = (speed[:, side] <= CONTACT_SPEED) & (low[:, side] <= level + CONTACT_RISE)
         for start, stop in _runs(~contact):
             if 0 < start and stop < len(contact) and stop - start <= bridge:
@@ -297,7 +317,8 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
             psi = heading[flat, side]
             heel = np.array([*points[flat, side, 1, :2], 0.0])
             toe = heel + length * np.array([np.cos(psi), np.sin(psi), 0.0])
-            theta = pitch[frames, side]
+            theta = _stance_pitch(points[frames, side, 0], pitch[frames, side], heel, toe, psi,
+                                  local)
             R = _level_frames(theta, psi)                                   # (n, 3, 3)
             placed = np.einsum("nij,pj->npi", R, local)
             pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
@@ -309,6 +330,35 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
     swing = ~stance
     targets[swing] = _cleared(targets[swing], clearance[swing])
     return targets
+
+
+def _stance_pitch(ankle: np.ndarray, pitch: np.ndarray, heel: np.ndarray, toe: np.ndarray,
+                  psi: float, local: np.ndarray) -> np.ndarray:
+    """The pitch (n,) rad of a foot rolling on the floor about its locked ``heel`` (toes up,
+    pitch >= 0) or ``toe`` (heel up, pitch < 0), heading ``psi`` rad: the motion's ``pitch``
+    (n,) rad where it puts the ankle within :data:`ANKLE_GAP` of the motion's ``ankle`` (n, 3)
+    m, the pitch that brings the ankle nearest it beyond twice that, a linear blend between;
+    ``local``: ankle, heel, toe in the foot frame (3, 3) m."""
+    forward = np.array([np.cos(psi), np.sin(psi)])
+    rest = {1.0: np.arctan2(-local[1, 2], -local[1, 0]), -1.0: np.arctan2(-local[2, 2],
+                                                                          -local[2, 0])}
+    arm = {1.0: np.hypot(*local[1, [0, 2]]), -1.0: np.hypot(*local[2, [0, 2]])}
+    offset = {1.0: ankle - heel, -1.0: ankle - toe}
+    plane = {k: np.stack([d[:, :2] @ forward, d[:, 2]], axis=-1) for k, d in offset.items()}
+
+    def gap(theta: np.ndarray) -> np.ndarray:
+        side = np.where(theta >= 0, 1.0, -1.0)
+        reach = np.where(side > 0, rest[1.0], rest[-1.0]) + theta
+        length = np.where(side > 0, arm[1.0], arm[-1.0])
+        d = np.where((side > 0)[:, None], plane[1.0], plane[-1.0])
+        return np.hypot(d[:, 0] - length * np.cos(reach), d[:, 1] - length * np.sin(reach))
+
+    nearest = [side * np.clip(side * np.angle(np.exp(1j * (
+        np.arctan2(plane[side][:, 1], plane[side][:, 0]) - rest[side]))), 0.0, None)
+        for side in (1.0, -1.0)]
+    best = np.where(gap(nearest[0]) <= gap(nearest[1]), nearest[0], nearest[1])
+    share = np.clip(gap(pitch) / ANKLE_GAP - 1.0, 0.0, 1.0)
+    return pitch + share * (best - pitch)
 
 
 def _fade(targets, points, side: int, edge: int, direction: int, fade: int,

@@ -1,0 +1,85 @@
+"""Planting on the real entries: the library of the shared files, each entry planted on its own
+skeleton as ``mocaplib query`` plants it (:func:`mocaplib.library.planting.plant_cycles`); how
+far planting moves the knees and hips and the body's height."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import SHARED_C3D
+
+from mocaplib.build.pipeline import build_library
+from mocaplib.build.settings import BuildSettings
+from mocaplib.gait.fourier import RootDrift, synthesize
+from mocaplib.library.planting import (MAX_LEVEL, _padded, plant_feet, sole_points,
+                                       stance_frames)
+from mocaplib.skeleton import DOF_NAMES, ROOT_Z
+
+RATE = 100.0
+KNEES = [DOF_NAMES.index(n) for n in ("knee_flexion_l", "knee_flexion_r")]
+HIPS = [DOF_NAMES.index(n) for n in ("hip_flexion_l", "hip_flexion_r")]
+#: Entries moving faster than this (m/s) are walks (the rest stand or turn on the spot).
+WALKING = 0.3
+#: The largest knee and hip flexion change (deg) planting makes on a real walk, measured 27.9
+#: and 13.5 (07_01_c0, right leg).
+KNEE_BOUND_DEG, HIP_BOUND_DEG = 29.0, 14.5
+#: The knee change aimed at (deg): the leg moves only as much as holding the foot needs.
+KNEE_TARGET_DEG = 5.0
+
+
+@pytest.fixture(scope="module")
+def planted_entries():
+    """Per real entry: (id, speed m/s, unplanted world poses (F, D), stance (F, 2), planted
+    poses (F, D)), the cycle planted with one period more on each side, that period cut off."""
+    if not SHARED_C3D.is_dir():
+        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
+    library = build_library([SHARED_C3D], BuildSettings(), progress=False).library
+    out = []
+    for entry in library.entries:
+        velocities = np.array(entry.root_drift.velocities, float)
+        if not np.isfinite(velocities).all():
+            continue
+        period = float(entry.T)
+        skeleton = library.entry_skeleton(entry.id)
+        q, window = _padded(lambda t: synthesize(entry.fourier.a, entry.fourier.b, period, t),
+                            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE,
+                            round(period * RATE))
+        stance = stance_frames(skeleton, q, RATE)
+        planted = plant_feet(skeleton, q, RATE, stance=stance, window=window)
+        keep = slice(*window)
+        level = (float(np.median(sole_points(skeleton, q)[..., 2].min(axis=2)[stance]))
+                 if stance.any() else 0.0)
+        out.append((entry.id, float(np.hypot(*velocities[:2])), q[keep], level,
+                    planted.q[keep]))
+    assert len(out) >= 10
+    return out
+
+
+def _largest_change(entries, dofs) -> float:
+    """The largest change (deg) of ``dofs`` planting makes on the walks among ``entries``."""
+    return max(float(np.degrees(np.abs(p[:, dofs] - q[:, dofs]).max()))
+               for _, speed, q, _, p in entries if speed > WALKING)
+
+
+def test_planting_moves_real_knees_and_hips_no_more_than_measured(planted_entries):
+    assert _largest_change(planted_entries, KNEES) <= KNEE_BOUND_DEG
+    assert _largest_change(planted_entries, HIPS) <= HIP_BOUND_DEG
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the 9 moving real entries of the shared files: "
+                   "planting changes a knee by up to 27.9 deg (the target 5 deg): the swing "
+                   "foot's ankle rises where the rigid foot is below the floor at push-off")
+def test_planting_moves_real_knees_by_at_most_the_target(planted_entries):
+    assert _largest_change(planted_entries, KNEES) <= KNEE_TARGET_DEG
+
+
+def test_no_body_is_lowered_by_more_than_its_feet_hover(planted_entries):
+    """An entry is lowered (median over its frames) by at most its feet's hover in stance (the
+    median height of the lower sole point, at most MAX_LEVEL) and 5 mm of the pelvis's own
+    correction; an entry whose feet never come near the floor is not lowered."""
+    for name, _, q, level, planted in planted_entries:
+        lowered = float(np.median(q[:, ROOT_Z] - planted[:, ROOT_Z]))
+        assert level <= MAX_LEVEL, name
+        assert lowered <= max(level, 0.0) + 0.005, (name, lowered, level)
+    assert any(level == 0.0 and np.abs(p - q).max() < 1e-4 for _, _, q, level, p in planted_entries)
+
