@@ -132,3 +132,23 @@ def test_one_bad_marker_sample_is_an_outlier_not_the_cycles_maximum():
     # samples the fit removed (NaN residual, rejected) are outliers too, not gaps
     motion.rejected[150, 0], motion.residuals[150, 0] = True, np.nan
     assert cycle_qc(cycle, motion)["gap_fraction"] == 0.0
+
+
+def test_a_marker_noisy_throughout_is_not_cleared_as_outliers():
+    from mocaplib.gait.qc import SPIKE_SHARE, outlier_samples
+
+    # 25 mm of noise on each coordinate of marker 0's fit: its residuals spike everywhere,
+    # and none of them is an outlier; marker 1's one bad sample still is
+    rate = 100.0
+    motion = _motion(np.zeros((300, len(DOF_NAMES))), rate)
+    noise = np.random.default_rng(1).normal(0.0, 0.025, (300, 3))
+    motion.residuals = np.full((300, 4), 0.005)
+    motion.residuals[:, 0] = np.linalg.norm(noise, axis=1)
+    motion.residuals[133, 1] = 0.0445
+    spiking = (motion.residuals[:, 0] - np.median(motion.residuals[:, 0]) > 0.01).mean()
+    assert spiking > SPIKE_SHARE
+    outliers = outlier_samples(motion)
+    assert not outliers[:, 0].any() and np.flatnonzero(outliers[:, 1]).tolist() == [133]
+    # so are the samples the fit removed from a marker it removes often
+    motion.rejected[::10, 2] = True
+    assert not outlier_samples(motion)[:, 2].any()

@@ -7,8 +7,10 @@ cause and what to do (:func:`named_failures`, :data:`LIKELY_CAUSES`).
 :data:`SPIKE_FRAMES` consecutive samples of one marker standing more than :data:`SPIKE_RISE`
 above the running median of its residual (:func:`outlier_samples`) — is left out of the
 cycle's marker metrics: one bad sample is an outlier to remove, not a reason to reject a
-cycle. What a technician rejects (a marker off for several frames, a poor fit throughout)
-still fails.
+cycle. Outliers are rare: a marker whose removed samples and spikes are more than
+:data:`SPIKE_SHARE` of its samples is noisy throughout, and they count (its spikes in the
+marker metrics, its removed samples as gaps). What a technician
+rejects (a marker off for several frames, a poor or noisy fit throughout) still fails.
 """
 
 
@@ -64,12 +66,17 @@ SPIKE_FRAMES = 2
 #: marker's residual: the jump the fit's repairs call a marker's own
 #: (:data:`mocaplib.model.repairs.JUMP`, 0.01 m), ten times the samples' marker noise.
 SPIKE_RISE = 0.01
+#: The largest share of a marker's samples that may be outliers (removed or spikes) for them to
+#: be left out: beyond it the marker is noisy throughout (25 mm of noise on every coordinate
+#: spikes about a third of the samples; a lab capture's bad sample or two is well under 1 %).
+SPIKE_SHARE = 0.02
 
 
 def outlier_samples(motion) -> np.ndarray:
     """The marker samples (F, M) bool the QC metrics leave out: those the fit removed as
     outliers (:attr:`~mocaplib.model.motion.Motion.rejected`) and the residual spikes (module
-    docstring), over the whole capture."""
+    docstring), over the whole capture, but for markers with more of them than
+    :data:`SPIKE_SHARE` of their samples."""
     residuals = motion.residuals
     half = SPIKE_FRAMES
     padded = np.pad(residuals, ((half, half), (0, 0)), mode="edge")
@@ -80,8 +87,8 @@ def outlier_samples(motion) -> np.ndarray:
         for start in range(0, len(residuals), OUTLIER_BLOCK):   # a long take's, a block at a time
             rows = slice(start, start + OUTLIER_BLOCK)
             baseline[rows] = np.nanmedian(windows[rows], axis=2)
-        spikes = residuals - baseline > SPIKE_RISE
-    return spikes | motion.rejected
+        outliers = (residuals - baseline > SPIKE_RISE) | motion.rejected
+    return outliers & (outliers.mean(axis=0) <= SPIKE_SHARE)        # rare ones only, per marker
 
 
 #: Frames whose residual medians :func:`outlier_samples` takes at once: the median's work

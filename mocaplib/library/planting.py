@@ -216,8 +216,9 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
                    rate: float = SERIES_RATE) -> tuple[np.ndarray, np.ndarray]:
     """A cycle's Fourier coefficients ``a``, ``b`` (D, N+1) (path frame, period ``period`` s,
     moving along ``drift``) with its feet planted on ``skeleton``: the cycle sampled at about
-    ``rate`` Hz, planted (:func:`plant_cycles`) and fitted again with ``order`` harmonics, (D,
-    order+1) each. For animations that pose the skeleton from a series (the report's viewer);
+    ``rate`` Hz, planted (:func:`plant_cycles`) and the DOFs planting solves (:data:`SOLVED`)
+    fitted again with ``order`` harmonics; (D, max(N, order)+1) each, the other DOFs' rows
+    ``a``'s and ``b``'s own padded with zeros. For animations that pose the skeleton from a series (the report's viewer);
     on the sample entries at the defaults the refitted feet slide up to 5.0 mm, go up to 1.9 mm
     below the floor and hover up to 3.4 mm (docs/results/character.md): the series' harmonics
     round the planted stance off."""
@@ -226,7 +227,13 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
                            steps / period, steps)
     t = np.arange(steps) * period / steps
     series = fit_series(drift.remove(planted.q, t), t, period, order)
-    return series.a, series.b
+    width = max(a.shape[1], order + 1)
+    out_a, out_b = np.zeros((len(a), width)), np.zeros((len(a), width))
+    out_a[:, :a.shape[1]], out_b[:, :b.shape[1]] = a, b
+    rows = list(SOLVED)
+    out_a[rows], out_b[rows] = 0.0, 0.0
+    out_a[rows, :order + 1], out_b[rows, :order + 1] = series.a[rows], series.b[rows]
+    return out_a, out_b
 
 
 def cycle_contact(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],

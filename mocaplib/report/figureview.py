@@ -20,8 +20,8 @@ from ..library.cells import cell_tetrahedra
 from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
-#: Significant digits of the Fourier coefficients in the page (1e-6 rad: far below a pixel).
-COEFFICIENT_DIGITS = 6
+#: Decimals of the Fourier coefficients in the page: 1e-6 rad (and m), far below a pixel.
+COEFFICIENT_DECIMALS = 6
 #: The entry shown first: the one nearest this (v̂, ω̂, v̂_l) (m/s, rad/s, m/s), normal walking.
 FIRST_SHOWN = (1.2, 0.0, 0.0)
 #: Segment origins joined by a line besides each segment's bone to its parent.
@@ -73,7 +73,7 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
             "mirror_of": e.mirror_of, "T": float(e.T),
-            "a": _rounded(a), "b": _rounded(b),
+            **_rounded(a, b),
             "drift": [float(x) for x in e.root_drift.velocities],
             "velocity": [float(x) for x in e.velocity]})
     space = None
@@ -90,13 +90,13 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
             "skeleton": skeleton_data(library.skeleton)}
 
 
-def _rounded(rows) -> list:
-    """``rows`` (an array) rounded to :data:`COEFFICIENT_DIGITS` significant digits, as lists:
-    one numpy expression for the whole array (the digits scaled up by an exact power of ten,
-    rounded, and scaled back)."""
-    x = np.asarray(rows, dtype=float)
-    with np.errstate(divide="ignore"):
-        magnitude = np.floor(np.log10(np.abs(x)))
-    shift = np.where(np.isfinite(magnitude), COEFFICIENT_DIGITS - 1 - magnitude, 0.0)
-    up = 10.0 ** np.abs(shift)                           # exact for |shift| <= 22
-    return np.where(shift >= 0, np.round(x * up) / up, np.round(x / up) * up).tolist()
+def _rounded(a: np.ndarray, b: np.ndarray) -> dict:
+    """Fourier coefficients ``a``, ``b`` (D, N+1) for the page: ``{"a": rows, "b": rows}``, to
+    :data:`COEFFICIENT_DECIMALS` decimals, each DOF's row without its trailing zero harmonics
+    (rows of different lengths: the viewer sums what each row holds)."""
+    rows_a = np.round(a, COEFFICIENT_DECIMALS) + 0.0          # + 0.0: no negative zeros
+    rows_b = np.round(b, COEFFICIENT_DECIMALS) + 0.0
+    lengths = [1 + max(np.flatnonzero(ra).max(initial=0), np.flatnonzero(rb).max(initial=0))
+               for ra, rb in zip(rows_a, rows_b)]
+    return {"a": [ra[:n].tolist() for ra, n in zip(rows_a, lengths)],
+            "b": [rb[:n].tolist() for rb, n in zip(rows_b, lengths)]}

@@ -109,11 +109,11 @@ var MocapMotion = (function () {
   function dot(u, v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
   function cross(u, v) { return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]; }
 
-  // Weighted sum of entries' coefficients (shorter series padded with zeros), periods and
+  // Weighted sum of entries' coefficients (shorter rows padded with zeros), periods and
   // drifts: equations (4)-(6) of Truong et al. 2010, as mocaplib.controlspace blends.
   function blend(entries, weights) {
     var D = entries[0].a.length, N = 0;
-    entries.forEach(function (e) { N = Math.max(N, e.a[0].length); });
+    entries.forEach(function (e) { e.a.forEach(function (row) { N = Math.max(N, row.length); }); });
     var out = { a: [], b: [], T: 0, drift: [0, 0, 0] };
     for (var d = 0; d < D; d++) { out.a.push(new Array(N).fill(0)); out.b.push(new Array(N).fill(0)); }
     entries.forEach(function (e, i) {
