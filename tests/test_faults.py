@@ -858,6 +858,23 @@ def test_ctrl_c_at_any_moment_of_the_start_is_quiet(tmp_path, delay):
     assert process.returncode in (130, -signal.SIGINT, 1), (process.returncode, err)
 
 
+def test_a_module_that_cannot_load_is_one_line_without_traceback(monkeypatch, capsys):
+    # as numpy reports a Ctrl-C inside its C extension's import of datetime
+    from mocaplib import cli
+
+    def broken(argv):
+        try:
+            raise ImportError('PyCapsule_Import could not import module "datetime"')
+        except ImportError as cause:
+            raise ImportError("\n\nIMPORTANT: PLEASE READ THIS") from cause
+
+    monkeypatch.setattr(cli, "_main", broken)
+    assert main(["inspect", "x.c3d"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert 'could not be loaded (PyCapsule_Import could not import module "datetime")' in err
+
+
 # --------------------------------------------------------------------------- statics
 def _markers_replaced(source: Path, path: Path, value: float) -> Path:
     """``source`` written again with every marker coordinate ``value`` (NaN: none seen)."""

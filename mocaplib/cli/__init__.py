@@ -59,12 +59,24 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout, sys.stderr = streams
     except KeyboardInterrupt:
         return interrupted()
+    except ImportError as exc:   # a broken install, or Ctrl-C while an extension module loads
+        return unloadable(exc)
 
 
 def interrupted() -> int:
     """Say that the command was interrupted (Ctrl-C); its exit code, 130."""
     print("mocaplib: interrupted", file=sys.stderr)
     return 130
+
+
+def unloadable(exc: ImportError) -> int:
+    """Say, in one line, that a module mocaplib needs could not be loaded; exit code 1. (A
+    Ctrl-C landing inside a C extension's own imports reaches Python as such an error.)"""
+    lines = str(exc.__cause__ or exc).strip().splitlines() or [type(exc).__name__]
+    print(f"mocaplib: error: a module it needs could not be loaded ({lines[0]}); if it was not "
+          "interrupted, reinstall mocaplib and its dependencies in a fresh environment",
+          file=sys.stderr)
+    return 1
 
 
 def _main(argv: list[str] | None) -> int:
