@@ -73,6 +73,19 @@ def test_a_blend_never_mixes_walks_and_runs(space):
     assert {gaits[cs.ids[k]] for k in asked.entries[0]} == {"run"}
 
 
+def test_query_says_a_command_between_the_gait_cells_is_served_clamped(space, tmp_path,
+                                                                       capsys):
+    from mocaplib.cli import main
+
+    _, library = space
+    lib = library.write(tmp_path / "library.json")
+    assert main(["query", str(lib), "1.75", "0.19", "0"]) == 0
+    first, second = capsys.readouterr().out.splitlines()[:2]
+    assert first.endswith(": inside the control space, between its gait cells"), first
+    assert second.strip().startswith("between the gaits' cells: blended at the nearest point "
+                                     "of the walk cell"), second
+
+
 def test_side_steps_on_the_cone_are_inside_and_walk_sideways(space):
     cs, _ = space
     for v_l, expected in ((0.4, 90.0), (-0.4, -90.0)):

@@ -135,8 +135,10 @@ def _run(args) -> int:
         print_json(answer)
         return 0
     names = ", ".join(cs.axes)
-    where = "inside" if res.inside[0] else "OUTSIDE"
-    print(f"({names}) = {_triple(res.points[0])}: {where} the control space")
+    where = ("OUTSIDE the control space" if not res.inside[0] else
+             "inside the control space, between its gait cells" if res.clamped[0] else
+             "inside the control space")
+    print(f"({names}) = {_triple(res.points[0])}: {where}")
     if not res.inside[0]:
         print(f"  outside by {res.distance[0]:.3g} (normalised); nearest point of the "
               f"{res.gait[0]} cell: {_triple(res.nearest[0])}")
