@@ -59,7 +59,7 @@ def test_a_blend_never_mixes_walks_and_runs(space):
     assert set(cs.cells) == {"walk", "run"}
     for simplex in cs.cells["walk"].tri.simplices.tolist() + cs.cells["run"].tri.simplices.tolist():
         assert len({gaits[cs.ids[k]] for k in simplex}) == 1
-    # the fast walk between the walks and the runs: walks only, clamped, said so
+    # a fast walk between the walks and the runs: walks only, clamped, said so
     res = cs.query([1.75, 0.19, 0.0])
     assert res.inside[0] and res.clamped[0] and res.gait[0] == "walk"
     assert {gaits[cs.ids[k]] for k, w in zip(res.entries[0], res.weights[0]) if w > 0} == {"walk"}

@@ -6,10 +6,11 @@ Targets: a planted foot slides at most 2 mm per stance; no heel or toe below the
 tolerance: the IK's residual); a flat foot at most 3 mm above it; no jolt: the pelvis's
 vertical acceleration at most 1.3 times the entry's own (its cycle on its own body, written and
 read alike) times the body's size ratio, plus 0.5 m/s² (a taller body covers the same cycle in
-the same time: its accelerations scale with it; a planted stance foot no longer slides, and the
+the same time: its accelerations scale with it; a planted stance foot does not slide, and the
 pelvis follows it up and down by up to 8 mm at the step frequency, about 0.8 m/s² on the sample
-walk, where the issue's jolts reached 52 m/s² against the entries' 4.2); retargeting keeps the pelvis's yaw range within 1.5 times the
-entry's and the knees at 0 or more; files at the requested rate, loops without a repeated frame.
+walk, where a jolt within one frame reaches tens of m/s² against the entries' 4.2); retargeting
+keeps the pelvis's yaw range within 1.5 times the entry's and the knees at 0 or more; files at
+the requested rate, loops without a repeated frame.
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ def test_query_outputs_have_planted_feet(kind, tmp_path, capsys):
                  "--bvh", str(out), "--cycles", "2", "--json"]) == 0
     said = json.loads(capsys.readouterr().out)["feet"]
     reference = entry_character(library, entry_id, tmp_path)
-    # the issue's measures, unplanted: the flat foot hovers 13-18 mm above the floor
+    # unplanted, the flat foot hovers 13-18 mm above the floor
     assert reference.hover() > 0.01
     character = Character(out.read_text())
     assert_planted(character, reference)
