@@ -71,14 +71,21 @@ def tables(library_path: Path) -> None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    on_a_library(tables, __doc__, __file__)
+    return 0
+
+
+def on_a_library(measure, doc: str, script: str):
+    """A benchmark's command line ``[LIBRARY] [--samples DIR] [--markdown PATH]``: ``measure``
+    (a function of a library's path) on LIBRARY, or on the quick start's library of the samples
+    built now, within the results page of ``script`` (``doc``: its docstring); its result."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("library", nargs="?", type=Path, help="a built library (else built now)")
     parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
     add_markdown_option(parser)
     args = parser.parse_args()
-    with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
-        tables(args.library or quick_start_library(args.samples, Path(tmp) / "lib.json"))
-    return 0
+    with markdown_page(args.markdown, script), tempfile.TemporaryDirectory() as tmp:
+        return measure(args.library or quick_start_library(args.samples, Path(tmp) / "lib.json"))
 
 
 def quick_start_library(samples: Path, out: Path) -> Path:

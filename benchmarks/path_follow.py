@@ -15,9 +15,7 @@ when a target is missed.
 
 from __future__ import annotations
 
-import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from control_space import quick_start_library  # noqa: E402
-from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from control_space import on_a_library  # noqa: E402
 from mocaplib.library.controlspace import ControlSpace  # noqa: E402
 from mocaplib.library.follow import Path as FollowedPath  # noqa: E402
 from mocaplib.library.follow import follow, tracking_errors  # noqa: E402
@@ -98,14 +95,7 @@ def table(library_path: Path) -> bool:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("library", nargs="?", type=Path, help="a built library (else built now)")
-    parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
-    add_markdown_option(parser)
-    args = parser.parse_args()
-    with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
-        ok = table(args.library or quick_start_library(args.samples, Path(tmp) / "lib.json"))
-    return 0 if ok else 1
+    return 0 if on_a_library(table, __doc__, __file__) else 1
 
 
 if __name__ == "__main__":
