@@ -16,11 +16,11 @@ By place
     floor the lowest markers), scaled to the catalogue's 1.75 m subject; compared with each
     landmark's place on the standing catalogue skeleton.
 Which markers move together
-    Markers whose distances stay constant over the motion (standard deviation under
-    :data:`RIGID_SD`) ride on one rigid body: a group of three or more that no landmark fits
-    is a cluster, its markers tracking markers on the segment nearest to it. The motion also
-    finds the head (:mod:`mocaplib.markersets.draft_motion`): a compact rigid cluster above
-    every other one, whose markers are then kept off the trunk's landmarks.
+    Markers whose distances stay constant over the motion ride on one rigid body (the rigid
+    clusters of :func:`mocaplib.markersets.draft_motion.rigid_clusters`): a cluster of three or
+    more that no landmark fits is a marker cluster, its markers tracking markers on the segment
+    nearest to it. The motion also finds the head: a compact rigid cluster above every other
+    one, whose markers are then kept off the trunk's landmarks.
 
 The labels and landmarks are paired by one assignment (Hungarian, ``scipy``) of least total
 cost: the distance between the marker and the landmark, less :data:`NAME_BONUS` when the name
@@ -66,9 +66,6 @@ NONE_COST = 0.12
 NAMED_CAP = 0.30
 #: ...and a named label stays unmatched only beyond NONE_COST + NAME_BONUS + this (m).
 NAMED_SLACK = 0.10
-#: Markers whose distance varies less than this (m, standard deviation over the frames) move
-#: together as one rigid body (real clusters: 0.2-4.8 mm; markers of two segments: 10 mm and up).
-RIGID_SD = 0.005
 #: A rigid group of at least this many unmatched markers is a cluster.
 CLUSTER_SIZE = 3
 #: Weights of the forward, lateral and vertical distances in the cost: the side is the surest
@@ -287,36 +284,6 @@ def body_positions(X: np.ndarray, cues: dict[str, np.ndarray]) -> tuple[np.ndarr
     return nanmedian(local, axis=0), how
 
 
-def rigid_groups(X: np.ndarray) -> list[list[int]]:
-    """Groups of markers (indices into X (F, M, 3)) that move as one rigid body: every pair of
-    a group keeps its distance to :data:`RIGID_SD` (standard deviation over the frames; pairs
-    seen together in 10 frames or more), grown greedily from the most rigid pairs."""
-    d = np.linalg.norm(X[:, :, None] - X[:, None], axis=3)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        sd = np.nanstd(d, axis=0)
-    sd[(np.isfinite(d).sum(axis=0) < 10) | ~np.isfinite(sd)] = np.inf
-    np.fill_diagonal(sd, np.inf)
-    group_of = np.full(X.shape[1], -1)
-    groups: list[list[int]] = []
-    for flat in np.argsort(sd, axis=None):
-        i, j = np.unravel_index(flat, sd.shape)
-        if sd[i, j] >= RIGID_SD:
-            break
-        gi, gj = group_of[i], group_of[j]
-        if gi >= 0 and gj >= 0:
-            continue
-        if gi < 0 and gj < 0:
-            group_of[[i, j]] = len(groups)
-            groups.append([int(i), int(j)])
-            continue
-        g, new = (gi, j) if gi >= 0 else (gj, i)
-        if (sd[new, groups[g]] < RIGID_SD).all():               # rigid with every member
-            group_of[new] = g
-            groups[g].append(int(new))
-    return groups
-
-
 # ----------------------------------------------------------------------------- the draft
 def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = "mylab",
                    use_names: bool = True) -> Draft:
@@ -355,8 +322,7 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     # the top marker is the head's when a head marker is named or the motion finds the head
     # (else C7's or the shoulders'): without either both are tried, the least cost is kept
     moving = _motion_markers(trial, every)
-    motion_groups = rigid_groups(moving) if _moves(moving) else []
-    clusters, weights = rigid_clusters(moving) if motion_groups else ([], None)
+    clusters, weights = rigid_clusters(moving) if _moves(moving) else ([], None)
     head = head_cluster(moving, clusters)
     tops = (0.95,) if heads or head is not None else (0.83,) if use_names else (0.95, 0.83)
     extra = 0.0
@@ -367,7 +333,7 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     trials = [_assign(raw, np.nanmax(raw[:, 2]) / top, lm_places, named, mismatch,
                       penalty + extra, none) for top in tops]
     chosen, place, delta, used, _ = min(trials, key=lambda t: t[-1])
-    in_group = {k: g for g in motion_groups for k in g}
+    in_group = {k: g for g in clusters for k in g}
     entries = []
     for k, label in enumerate(every):
         j = chosen.get(k, len(lm_names))
@@ -393,7 +359,7 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
             e.evidence.append(f"moves rigidly with {', '.join(mates[:4])}"
                               + (" ..." if len(mates) > 4 else ""))
         entries.append(e)
-    _clusters(entries, motion_groups, told, place, lm_places, lm_segments)
+    _clusters(entries, clusters, told, place, lm_places, lm_segments)
     check_draft(entries, [label_stem(x) for x in every], AXIS_WEIGHTS)
     for e in entries:
         bare = e.landmark[2:] if e.landmark and e.landmark[:2] in ("L_", "R_") else e.landmark
