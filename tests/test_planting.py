@@ -171,6 +171,28 @@ def test_a_loop_steps_from_its_last_frame_to_its_first_as_between_any_two(tmp_pa
 
 
 @pytest.mark.usefixtures("sample_dir")
+def test_a_query_clip_loops_in_whole_frames(tmp_path, capsys):
+    # a rate at which the blended period is n + 1/2 frames: sampled at the blend's own period,
+    # the step from the last frame back to the first would be half a frame of motion
+    library, path = sample_library()
+    entry = library.entry(chosen(library, TYPES["walk"]))
+    period = float(entry.T)
+    rate = float((np.floor(period * 100.0) + 0.5) / period)
+    out = tmp_path / "clip.bvh"
+    assert main(["query", str(path), str(entry.v), str(entry.omega), str(entry.v_l), "--clamp",
+                 "--bvh", str(out), "--rate", repr(rate), "--json"]) == 0
+    said = json.loads(capsys.readouterr().out)
+    character = Character(out.read_text())
+    frames = len(character.position("pelvis"))
+    assert frames == round(said["played_T_s"] * rate)
+    assert abs(said["played_T_s"] - said["T_s"]) <= 0.5 / rate + 1e-9
+    relative = character.feet() - character.position("pelvis")[:, None, None]
+    steps = np.linalg.norm(np.diff(relative, axis=0), axis=-1).max(axis=(1, 2))
+    seam = np.linalg.norm(relative[0] - relative[-1], axis=-1).max()
+    assert 0.85 <= seam / (0.5 * (steps[0] + steps[-1])) <= 1.15, (seam, steps[0], steps[-1])
+
+
+@pytest.mark.usefixtures("sample_dir")
 def test_stances_end_at_the_entries_toe_offs():
     # entries store their toe-offs (the left at phase 0, right_toe_off_s): the stances read
     # from the motion end within 0.1 s of them (measured -0.011 to 0.079 s over every sample

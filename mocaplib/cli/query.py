@@ -55,8 +55,9 @@ def register(subparsers) -> None:
                              "command, else the nearest)")
     parser.add_argument("--json", action="store_true",
                         help="print {inside, gait, clamped, entries, weights, point, nearest, "
-                             "distance, nearest_entries, T_s} (and feet: the planted feet's "
-                             "slide, penetration, hover, with --bvh or --gltf)")
+                             "distance, nearest_entries, T_s} (and, with --bvh or --gltf, played_T_s: "
+                             "the period in whole frames, and feet: the planted feet's slide, "
+                             "penetration, hover)")
     parser.add_argument("--bvh", metavar="OUT.bvh",
                         help="write the blended cycle as BVH (Y up, metres; Blender opens it)")
     parser.add_argument("--gltf", metavar="OUT.gltf",
@@ -123,6 +124,8 @@ def _run(args) -> int:
                          hint=_serving_options(cs, args))
     if outputs:
         rate = args.rate or ANIMATION_RATE
+        blend = blend.looped(rate)
+        answer["played_T_s"] = float(blend.T[0])
         planted = plant_blend(blend, library.skeleton, rate=rate,
                               cycles=args.cycles or ANIMATION_CYCLES)
         answer["feet"] = planted.after.as_dict()
@@ -163,6 +166,9 @@ def _run(args) -> int:
             print(f"  {entry:<{width}}  {weight:.4f}")
         print(f"  blended period T_d = {answer['T_s']:.3f} s")
     if outputs:
+        played = answer["played_T_s"]
+        print(f"  played in whole frames: T = {played:.3f} s ({round(played * rate)} frames a "
+              f"cycle at {rate:g} Hz), so the clip loops")
         feet = answer["feet"]
         print(f"  feet planted: slide {feet['slide_m'] * 1000:.1f} mm, below the floor "
               f"{feet['penetration_m'] * 1000:.1f} mm, flat-foot hover {feet['hover_m'] * 1000:.1f}"

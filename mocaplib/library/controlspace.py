@@ -133,6 +133,16 @@ class Blend:
         t = np.arange(int(np.ceil(cycles * self.T[i] * rate - 1e-9))) / rate
         return t, synthesize(self.a[i], self.b[i], self.T[i], t)
 
+    def looped(self, rate: float) -> Blend:
+        """The blends played in whole frames at ``rate`` Hz: each period T (s) becomes
+        n / rate, n = round(T × rate) (at least 1), so that a clip of whole cycles loops with
+        every step one frame long; the joint angles are the same cycle played n / (T × rate)
+        times slower (at most half a frame per cycle) and the drift velocities are scaled by
+        the same factor, so each cycle still covers its path."""
+        played = np.maximum(np.round(self.T * rate), 1.0) / rate
+        drift = None if self.drift is None else self.drift * (self.T / played)[:, None]
+        return Blend(self.a, self.b, played, drift)
+
     def world(self, i: int = 0, *, rate: float = 100.0,
               cycles: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Like :meth:`synthesize` with the root moved into the world frame by the blended drift.
