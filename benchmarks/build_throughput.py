@@ -11,9 +11,11 @@ of N copies of the sample captures, built uncached by every *way*, one after the
   its workers' warm-up is in the build's time, as a local worker's is; they import this
   script, and mocaplib with it, as they start);
 * ``by hand``: ``dask scheduler --port 0 --scheduler-file F`` and two ``dask worker
-  --scheduler-file F --nthreads 1`` processes, started for each size and stopped by the
-  benchmark; their first build (the workers import mocaplib and warm up in it) and
-  ``by hand, warm``, a second build on the same workers (a cluster that served a build before);
+  --scheduler-file F --nthreads 1 --preload mocaplib.build.workflow`` processes (as the guide
+  starts them: the workers import mocaplib as they start, in the cluster's start-up), started
+  for each size and stopped by the benchmark; their first build (the workers warm up in it)
+  and ``by hand, warm``, a second build on the same workers (a cluster that served a build
+  before);
 * ``LocalCluster, 1 a task`` (sizes up to 100): the same cluster sent one capture a task, what
   batching saves.
 
@@ -46,6 +48,9 @@ SIZES = (10, 30, 100, 300, 1000)
 QUICK_SIZES = (10, 30, 100)
 #: Sizes up to which the Dask cluster is also sent one capture a task.
 UNBATCHED_UP_TO = 100
+#: The module hand-started workers import as they start (``dask worker --preload``): the
+#: stages a capture runs, as the guide's SLURM examples start them.
+WORKER_PRELOAD = "mocaplib.build.workflow"
 #: Dask ways meet the target when their seconds per capture are at most this ratio of jobs 2's.
 TARGET_RATIO = 1.10
 WORKERS = 2
@@ -93,7 +98,7 @@ def local_cluster(workers: int = WORKERS):
 @contextlib.contextmanager
 def cluster_by_hand(folder: Path):
     """``dask scheduler`` and :data:`WORKERS` ``dask worker`` processes started here (this
-    checkout on their import path), stopped at the end: the scheduler's address, and the
+    checkout on their import path, :data:`WORKER_PRELOAD` imported as they start), stopped at the end: the scheduler's address, and the
     seconds until every worker had joined."""
     from distributed import Client
 
@@ -111,7 +116,8 @@ def cluster_by_hand(folder: Path):
                 raise RuntimeError("the Dask scheduler did not start")
             time.sleep(0.1)
         processes += [subprocess.Popen([dask, "worker", "--scheduler-file", str(address_file),
-                                        "--nthreads", "1", "--no-dashboard"], **quiet)
+                                        "--nthreads", "1", "--no-dashboard",
+                                        "--preload", WORKER_PRELOAD], **quiet)
                       for _ in range(WORKERS)]
         with Client(scheduler_file=str(address_file)) as client:
             client.wait_for_workers(WORKERS, timeout=START_TIMEOUT_S)

@@ -2,7 +2,7 @@
 
 Usage (from the repository root)::
 
-    python benchmarks/long_takes.py [--frames N [N ...] | --quick] [--repeat R]
+    python benchmarks/long_takes.py [--frames N [N ...] | --quick] [--repeat R] [--all-cycles]
                                     [--markdown PATH] [--plot PATH]
 
 1. Makes one synthetic walk (:mod:`mocaplib.synth`: the project's walker, fullbody38 markers
@@ -65,7 +65,8 @@ STAGES_SCRIPT = """
 import json, sys
 from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
-result = build_library([sys.argv[1]], BuildSettings(), jobs=1, cache_dir=None, progress=False)
+settings = BuildSettings(all_cycles=sys.argv[2] == "all")
+result = build_library([sys.argv[1]], settings, jobs=1, cache_dir=None, progress=False)
 print(json.dumps(result.captures[0].stage_times))
 """
 
@@ -110,23 +111,25 @@ def timed_command(args: list[str], env: dict) -> tuple[float, float, int]:
     return wall, usage.ru_maxrss / 1024, process.returncode
 
 
-def measure(path: Path, out: Path, env: dict, repeat: int) -> dict:
-    """The build of one take: best wall time, largest peak memory, stage times, entries."""
+def measure(path: Path, out: Path, env: dict, repeat: int, all_cycles: bool = False) -> dict:
+    """The build of one take (every cycle an entry with ``all_cycles``): best wall time,
+    largest peak memory, stage times, entries."""
     walls, peaks = [], []
     for _ in range(repeat):
         wall, peak, _ = timed_command([sys.executable, "-m", "mocaplib", "build", str(path),
                                        "-o", str(out), "--no-cache", "--jobs", "1", "--quiet",
-                                       "--force"], env)
+                                       "--force"] + ["--all-cycles"] * all_cycles, env)
         walls.append(wall)
         peaks.append(peak)
     entries = json.loads(out.read_text(encoding="utf-8"))["entries"]
-    if len(entries) != 1:
+    if len(entries) != 1 and not all_cycles:
         raise SystemExit(f"{out}: expected the take's one entry, found {len(entries)}")
     stages = min((json.loads(subprocess.run(
-        [sys.executable, "-c", STAGES_SCRIPT, str(path)], env=env, check=True,
+        [sys.executable, "-c", STAGES_SCRIPT, str(path), "all" if all_cycles else "chosen"],
+        env=env, check=True,
         capture_output=True, text=True).stdout) for _ in range(repeat)),
         key=lambda times: sum(times.values()))
-    return {"wall": min(walls), "peak": max(peaks), "stages": stages}
+    return {"wall": min(walls), "peak": max(peaks), "stages": stages, "entries": len(entries)}
 
 
 def main() -> int:
@@ -137,6 +140,8 @@ def main() -> int:
     sizes.add_argument("--quick", action="store_true",
                        help=f"shorter takes: {' '.join(map(str, QUICK))} frames")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--all-cycles", action="store_true",
+                        help="build with --all-cycles: every cycle of the take an entry")
     parser.add_argument("--plot", type=Path, default=None,
                         help="PNG of frames/s and peak memory against frames (default: next "
                              "to --markdown's page)")
@@ -147,14 +152,15 @@ def main() -> int:
         parser.error("give at least two lengths of 1000 frames or more")
     plot = args.plot or (args.markdown.with_suffix(".png") if args.markdown else None)
     with markdown_page(args.markdown, __file__):
-        rows = report(lengths, args.repeat)
+        rows = report(lengths, args.repeat, args.all_cycles)
         if plot is not None:
             draw(rows, plot, args.markdown)
     return 0
 
 
-def report(lengths: list[int], repeat: int) -> list[dict]:
-    """Build each length, print the tables and the targets; returns the rows."""
+def report(lengths: list[int], repeat: int, all_cycles: bool = False) -> list[dict]:
+    """Build each length (every cycle an entry with ``all_cycles``), print the tables and
+    the targets; returns the rows."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
     rows = []
@@ -169,21 +175,24 @@ def report(lengths: list[int], repeat: int) -> list[dict]:
               f"{WALK.v_f / WALK.omega:g} m radius, fullbody38, {RATE:g} Hz, no events in "
               f"the files), cut at {', '.join(f'{n:,}' for n in lengths)} frames "
               f"(made in {time.perf_counter() - start:.0f} s, not timed). `mocaplib build "
-              f"FILE --no-cache --jobs 1`, {'best' if repeat > 1 else 'one run'}"
+              f"FILE --no-cache --jobs 1{' --all-cycles' * all_cycles}`, "
+              f"{'best' if repeat > 1 else 'one run'}"
               f"{f' of {repeat}' if repeat > 1 else ''} each, in a fresh process (this "
               f"script held {floor:.0f} MiB when it started them, which a build's peak "
               "counts at least):\n")
         for n in lengths:
-            result = measure(files[n], Path(tmp) / f"library_{n}.json", env, repeat)
+            result = measure(files[n], Path(tmp) / f"library_{n}.json", env, repeat,
+                             all_cycles)
             rows.append({"frames": n, **result})
             print(f"built {n} frames: {result['wall']:.1f} s", file=sys.stderr)
     first = rows[0]
-    print("| frames | minutes | wall (s) | frames/s | ratio | stages (s) | stage frames/s "
-          "| ratio | peak MiB |\n|---|---|---|---|---|---|---|---|---|")
+    print("| frames | minutes | entries | wall (s) | frames/s | ratio | stages (s) | "
+          "stage frames/s | ratio | peak MiB |\n|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         stages = sum(row["stages"].values())
         row["fps"], row["stage_fps"] = row["frames"] / row["wall"], row["frames"] / stages
-        print(f"| {row['frames']:,} | {row['frames'] / RATE / 60:.1f} | {row['wall']:.1f} | "
+        print(f"| {row['frames']:,} | {row['frames'] / RATE / 60:.1f} | {row['entries']} | "
+              f"{row['wall']:.1f} | "
               f"{row['fps']:.0f} | {row['fps'] / first['fps']:.2f} | {stages:.1f} | "
               f"{row['stage_fps']:.0f} | {row['stage_fps'] / first['stage_fps']:.2f} | "
               f"{row['peak']:.0f} |")

@@ -7,7 +7,7 @@ Builds two libraries with every complete cycle that passes QC (``all_cycles``): 
 samples calibrated on their session's static (``rest.c3d``, neutral pose, as
 the quick start, without its forward reference, which turns only the heading) and the real
 walks of the shared folder (default settings). Each capture is fitted a second time through the
-same public stages (``fit_capture``, ``capture_events``, ``motion_cycles``, ``cycle_shape``) for
+same public stages (``fit_capture``, ``capture_events``, ``motion_cycles``, ``cycle_shapes``) for
 its captured cycles. Then, per cycle:
 
 * the poulaine model's fit errors (the larger of the two ankles': distance to the curve, and
@@ -49,7 +49,7 @@ from mocaplib.model.fitting import fit_capture  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
-from mocaplib.build.workflow import cycle_shape  # noqa: E402
+from mocaplib.build.workflow import cycle_shapes  # noqa: E402
 from mocaplib.markersets.matching import match_trial
 from mocaplib.library.retarget import TASK_DOFS, Weights, foot_skate, retarget  # noqa: E402
 from mocaplib.skeleton import DOF_NAMES, Skeleton  # noqa: E402
@@ -79,10 +79,9 @@ def captured_cycles(paths: list[Path], settings: BuildSettings) -> dict:
         q[:, [ROOT_X, ROOT_Y]] -= np.outer(np.arange(len(q)) / motion.rate, ground[:2])
         raw = segment_energies(motion.skeleton, q, motion.rate)
         frames = np.arange(motion.n_frames) / motion.rate
-        for cycle in motion_cycles(events, motion, ground=ground, source=path):
-            if cycle.rest:
-                continue
-            shape = cycle_shape(motion, cycle)
+        cycles = [c for c in motion_cycles(events, motion, ground=ground, source=path)
+                  if not c.rest]
+        for cycle, shape in zip(cycles, cycle_shapes(motion, cycles).values()):
             inside = (frames >= cycle.start_s) & (frames <= cycle.end_s)
             out[f"{path.stem}_c{cycle.index}"] = (
                 shape["phase"], shape["q"],

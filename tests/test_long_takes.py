@@ -11,13 +11,19 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import SAMPLES
 
 from mocaplib import skeleton as skeleton_module
+from mocaplib.build.workflow import cycle_shapes
 from mocaplib.gait import criteria, qc
-from mocaplib.gait.cycles import _events_between, longest_gap
-from mocaplib.gait.events import _lost_stances
+from mocaplib.gait.cycles import _events_between, longest_gap, motion_cycles
+from mocaplib.gait.events import _lost_stances, capture_events
 from mocaplib.gait.foot_events import GaitEvent, unplaced_event
+from mocaplib.gait.patterns import cycle_times
+from mocaplib.io.c3d import read_c3d
+from mocaplib.markersets.matching import match_trial
 from mocaplib.model import filtering
+from mocaplib.model.fitting import fit_capture
 from mocaplib.runs import frames_within, valid_runs
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
@@ -246,3 +252,22 @@ def test_outlier_samples_by_frame_blocks(monkeypatch):
                                       err_msg=f"blocks of {block} frames")
     monkeypatch.setattr(qc, "OUTLIER_BLOCK", 1 << 30)
     np.testing.assert_array_equal(qc.outlier_samples(motion), whole)
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_cycle_shapes_give_the_numbers_of_each_cycle_alone():
+    # every cycle of a take from one unwrapping of the whole motion
+    trial = read_c3d(SAMPLES / "turn_spot_left_normal.c3d")
+    match = match_trial(trial)
+    motion = fit_capture(trial, protocol=match.protocol).motion
+    events, ground = capture_events(trial, match, motion=motion)
+    cycles = motion_cycles(events, motion, ground=ground)
+    assert len(cycles) >= 2
+    shapes = cycle_shapes(motion, cycles)
+    for cycle in cycles:   # the direct computation: the whole take unwrapped for each cycle
+        times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+        q = filtering.resample(np.unwrap(motion.q, axis=0), motion.rate, times)
+        direct = cycle.encoding.drift.remove(q, times - cycle.start_s)
+        assert np.array_equal(shapes[cycle.index]["q"], direct)
+        assert np.array_equal(shapes[cycle.index]["phase"],
+                              (times - cycle.start_s) / cycle.period)

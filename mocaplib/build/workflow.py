@@ -223,7 +223,7 @@ def _run_stages(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                 f"{c.left_out or 'not among its cycles'}" for c in cycles), path=path,
                 hint="check the capture's trim, cycles and drop_cycles in its session.toml")
     with clock.stage("poulaines"):
-        shapes = {c.index: cycle_shape(motion, c) for c in kept}
+        shapes = cycle_shapes(motion, kept)
     with clock.stage("entries"):
         result.entries = _entries(path, result, kept, qcs, settings, motion, trial.first_frame,
                                   shapes, events)
@@ -348,7 +348,7 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
     """Library entries of the kept cycles of the fitted ``motion``; cycles failing QC are
     dropped or waived. ``qcs``: QC metrics by cycle index (:func:`qc_and_choice`);
     ``first_frame``: the capture's first C3D frame number (``start_s`` counts from it);
-    ``shapes``: :func:`cycle_shape` by cycle index; ``events``: the gait events the cycles were
+    ``shapes``: :func:`cycle_shapes`; ``events``: the gait events the cycles were
     cut at (their order gives a cycle's gait, :func:`mocaplib.gait.locomotion.locomotion_class`);
     ``mirror_of``: for the cycles of a mirror
     image (``motion`` mirrored), the id of the entry each one mirrors, by cycle index."""
@@ -401,20 +401,26 @@ def _entries(path: Path, result: CaptureResult, cycles, qcs: dict[int, dict],
     return entries
 
 
-def cycle_shape(motion, cycle) -> dict:
-    """A cycle's samples: ``phase`` (n,) t/T in [0, 1), ``q`` its coordinates (n, D) in its
-    path frame (root as the library stores it), and, unless it is rest, its ``poulaine``
-    (:class:`mocaplib.gait.poulaine.Poulaine`) and the ``measured`` ankle centres (n, 2, 3) m it
-    models (:func:`mocaplib.gait.poulaine.cycle_poulaine`)."""
+def cycle_shapes(motion, cycles) -> dict[int, dict]:
+    """Each of ``cycles``' samples, by cycle index: ``phase`` (n,) t/T in [0, 1), ``q`` its
+    coordinates (n, D) in its path frame (root as the library stores it), and, unless it is
+    rest, its ``poulaine`` (:class:`mocaplib.gait.poulaine.Poulaine`) and the ``measured``
+    ankle centres (n, 2, 3) m it models (:func:`mocaplib.gait.poulaine.cycle_poulaine`). The
+    motion's angles are unwrapped once for all the cycles (a long take's hundreds of cycles
+    cost their own frames, not the take's each)."""
 
-    times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
-    q = resample(np.unwrap(motion.q, axis=0), motion.rate, times)
-    shape = {"phase": (times - cycle.start_s) / cycle.period,
-             "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
-    if not cycle.rest:
-        shape["poulaine"], shape["measured"] = cycle_poulaine(
-            motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
-    return shape
+    unwrapped = np.unwrap(motion.q, axis=0)
+    shapes = {}
+    for cycle in cycles:
+        times = cycle_times(cycle.start_s, cycle.end_s, motion.rate)[:-1]
+        q = resample(unwrapped, motion.rate, times)
+        shape = {"phase": (times - cycle.start_s) / cycle.period,
+                 "q": cycle.encoding.drift.remove(q, times - cycle.start_s)}
+        if not cycle.rest:
+            shape["poulaine"], shape["measured"] = cycle_poulaine(
+                motion.skeleton, shape["q"], shape["phase"], cycle.encoding.drift)
+        shapes[cycle.index] = shape
+    return shapes
 
 
 def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, ground,
@@ -455,7 +461,7 @@ def mirror_entries(path: Path, result: CaptureResult, cycles, motion, events, gr
     mirror_of = {image.index: sources[_nearest(image, own).index].id for image in kept}
     series = qc_series(mirrored, None if ground is None else REFLECTION @ ground)
     qcs = {image.index: cycle_qc(image, mirrored, series) for image in kept}
-    shapes = {image.index: cycle_shape(mirrored, image) for image in kept}
+    shapes = cycle_shapes(mirrored, kept)
     entries = []
     for entry in _entries(path, result, kept, qcs, settings, mirrored, first_frame, shapes,
                           image_events, mirror_of=mirror_of):
@@ -499,7 +505,7 @@ def _series(trial, motion, shoulders, events, cutoff_hz) -> dict:
 
 def _cycle_diagnostics(motion, cycles, entry_ids, shapes: dict) -> dict:
     """Every cycle's summary, the chosen cycle's angles (root in the moving frame) and its
-    measured ankle paths (``shapes``: :func:`cycle_shape` by cycle index)."""
+    measured ankle paths (``shapes``: :func:`cycle_shapes`)."""
     chosen = next(c for c in cycles if c.index in shapes and (c.chosen or not any(
         k.chosen for k in cycles if k.index in shapes)))
     shape = shapes[chosen.index]
