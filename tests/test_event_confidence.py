@@ -169,3 +169,18 @@ def test_plate_forces_are_newtons_about_zero_when_empty(real_c3d, name):
         assert 300.0 < force.max() < 1500.0, force.max()
         # empty, it reads only its noise (SD 2-7.5 N here): well under the 20 N threshold
         assert np.std(force[force < 0.1 * force.max()]) < 10.0
+
+
+@pytest.mark.parametrize("name", LAB_TOE_OFFS)
+def test_the_marks_benchmark_finds_the_detectors_own_marks(real_c3d, name):
+    # benchmarks/toe_off_marks.py re-seeks the default's two marks in its own window around
+    # each toe-off: their mean must be the detected toe-off, else its table measures other marks
+    from event_accuracy import plate_unloadings
+    from toe_off_marks import paired_marks
+
+    path = real_c3d(name)
+    paired = paired_marks(path, [(t, None) for t in plate_unloadings(path)])
+    assert paired
+    for _, marks, _ in paired:
+        np.testing.assert_allclose(0.5 * (marks["(a)"] + marks["(b)"]), marks["default"],
+                                   atol=1e-9, err_msg=str(marks))   # seconds: the same frames

@@ -193,10 +193,18 @@ def capture_events(trial, match, /, *, motion=None, **settings
     counts only the samples the capture measured. ``settings`` as for :func:`detect_events`.
     """
     config = EventSettings(**settings)
-    feet, measured = feet_of(trial, match, motion=motion)
-    prepared = _prepared_feet(feet, trial.rate, config, trial.source)
+    prepared, measured = capture_feet(trial, match, motion=motion, **settings)
     return (_events(prepared, measured, trial.rate, config, trial.source),
             _ground(prepared, MIN_BELT_SPEED))
+
+
+def capture_feet(trial, match, /, *, motion=None, **settings
+                 ) -> tuple[list[FootTrack], dict[str, np.ndarray]]:
+    """A capture's feet prepared for detection (steps 1-2 of the module docstring), one
+    :class:`FootTrack` per side, and the frames (F,) bool each side's heel and toe were
+    measured; arguments as for :func:`capture_events`."""
+    feet, measured = feet_of(trial, match, motion=motion)
+    return _prepared_feet(feet, trial.rate, EventSettings(**settings), trial.source), measured
 
 
 def _prepared_feet(feet, rate, config: EventSettings, source) -> list[FootTrack]:

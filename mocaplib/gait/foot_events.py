@@ -53,10 +53,18 @@ def toe_off_time(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int) -> fl
     tread, may rise faster), and the time the foot's pitch rate falls to
     :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (:mod:`mocaplib.gait.events`); None
     when either is not found."""
-    push, pitch_rate = signals
-    peak = peak_time(push, lo, _roll_end(pitch_rate, lo, hi))
-    release = _release_time(pitch_rate, lo, hi)
+    peak, release = toe_off_marks(signals, lo, hi)
     return None if peak is None or release is None else 0.5 * (peak + release)
+
+
+def toe_off_marks(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int
+                  ) -> tuple[float | None, float | None]:
+    """The two marks (frames, None where not found) the default toe-off in ``[lo, hi)``
+    (frames) is the mean of (:func:`toe_off_time`): the push point's upward-velocity peak
+    while the foot rolls, and the end of the roll."""
+    push, pitch_rate = signals
+    return (peak_time(push, lo, _roll_end(pitch_rate, lo, hi)),
+            _release_time(pitch_rate, lo, hi))
 
 
 def _roll_end(pitch_rate: np.ndarray, lo: int, hi: int) -> int:

@@ -1,0 +1,194 @@
+"""Where kinematic toe-off marks lie against the force plates and the synthetic truth.
+
+    python benchmarks/toe_off_marks.py [--samples sample_c3d] [--real DIR] [--markdown PATH]
+
+For every force-plate unloading of the real files under ``--real`` (default
+``$MOCAPLIB_SHARED_C3D``, else ``../shared/data/c3d``; :func:`event_accuracy.plate_unloadings`,
+20 N) paired with a placed default toe-off within 0.1 s, and for every toe-off of the walking
+samples of ``--samples`` (their truth: the toes' tips leaving the floor; runs left out, their
+toe-off is the lift), prints each candidate mark's time minus the reference's (:data:`MARKS`):
+the default toe-off's two marks (:func:`mocaplib.gait.foot_events.toe_off_marks`) and the
+features the literature times toe-offs on (O'Connor et al. 2007: the foot centre's upward
+velocity peak; Hreljac & Marshall 2000: the toe's horizontal acceleration peak; Bruening &
+Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 2010: the toe's
+vertical velocity, acceleration and position), and the foot's pitch rate at the reference as a
+share of its push-off peak. Each mark is sought from 0.15 s before to 0.1 s after the default
+toe-off, on the detector's low-passed points (:func:`mocaplib.gait.events.capture_feet`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from event_accuracy import plate_unloadings
+from markdown_results import add_markdown_option, markdown_page
+
+from mocaplib.gait.events import capture_events, capture_feet
+from mocaplib.gait.foot_events import peak_time, toe_off_marks, toe_off_signals
+from mocaplib.io.c3d import read_c3d
+from mocaplib.markersets.matching import detect_protocol
+from mocaplib.synth.plan import locomotion_type
+
+#: The candidate marks, in the tables' order: (column, what it is).
+MARKS = (("default", "the default toe-off (mean of (a) and (b))"),
+         ("(a)", "velocity peak of the point 60 % of the way to the toe marker"),
+         ("(b)", "end of the roll: the pitch rate down to half its push-off peak"),
+         ("centre", "foot centre's upward-velocity peak (O'Connor 2007)"),
+         ("toe vz", "toe marker's upward-velocity peak"),
+         ("toe az", "toe marker's upward-acceleration peak"),
+         ("toe +10 mm", "toe marker 10 mm above its stance height"),
+         ("pitch 0.7", "the pitch rate down to 0.7 of its push-off peak"),
+         ("toe 1 m/s", "toe marker's horizontal speed over 1 m/s"),
+         ("toe ah", "toe marker's horizontal-acceleration peak (Hreljac 2000)"))
+#: Search window around the default toe-off (s before, s after).
+BEFORE_S, AFTER_S = 0.15, 0.10
+
+
+def _crossing(signal: np.ndarray, lo: int, hi: int, level: float, *, rising: bool) -> float:
+    """First sub-frame time (frames) in ``[lo, hi)`` where ``signal`` crosses ``level``."""
+    for i in range(max(lo, 1), hi):
+        a, b = signal[i - 1], signal[i]
+        if (a < level <= b) if rising else (a > level >= b):
+            return i - 1 + (a - level) / (a - b)
+    return np.nan
+
+
+def marks_of(foot, rate: float, detected: float) -> tuple[dict[str, float], np.ndarray]:
+    """{column of :data:`MARKS`: time (frames, NaN where not found)} around the default
+    toe-off ``detected`` (frames) of the prepared ``foot``, and the foot's pitch rate (F,)."""
+    lo = max(0, round(detected - BEFORE_S * rate))
+    hi = min(len(foot.given), round(detected + AFTER_S * rate))
+    last = int(np.argmin(foot.heights[:, min(hi - 1, round(detected + 0.05 * rate))]))
+    signals = toe_off_signals(foot, last, rate)
+    pitch_rate = signals[1]
+    peak = lo + int(np.nanargmax(pitch_rate[lo:hi]))
+    vertical = foot.velocity[:, :, 2]
+    horizontal = np.linalg.norm(foot.velocity[last, :, :2] - foot.ground[:2], axis=1)
+    stance = np.nanmedian(foot.heights[last, max(0, lo - 10):lo + 1])
+    found = {"default": detected,
+             **dict(zip(("(a)", "(b)"), toe_off_marks(signals, lo, hi))),
+             "centre": peak_time(vertical.mean(axis=0), lo, hi),
+             "toe vz": peak_time(vertical[last], lo, hi),
+             "toe az": peak_time(np.gradient(vertical[last]), lo, hi),
+             "toe +10 mm": _crossing(foot.heights[last], lo, hi, stance + 0.010, rising=True),
+             "pitch 0.7": _crossing(pitch_rate, peak, hi, 0.7 * pitch_rate[peak], rising=False),
+             "toe 1 m/s": _crossing(horizontal, lo, hi, 1.0, rising=True),
+             "toe ah": peak_time(np.gradient(horizontal), lo, hi)}
+    return {k: np.nan if v is None else float(v) for k, v in found.items()}, pitch_rate
+
+
+def paired_marks(path: Path, references: list[tuple[float, str | None]]
+                 ) -> list[tuple[float, dict[str, float], float]]:
+    """For each reference toe-off (s from the first frame, side or None for either) of the C3D
+    at ``path`` with a placed default toe-off within 0.1 s: (the reference, {column: mark −
+    reference (s)}, the pitch rate at the reference as a share of its push-off peak)."""
+    trial = read_c3d(path)
+    match = detect_protocol(trial)
+    events, _ = capture_events(trial, match)
+    feet = {foot.side: foot for foot in capture_feet(trial, match)[0]}
+    offs = [e for e in events if e.kind == "toe_off" and e.placed]
+    out = []
+    for reference, side in references:
+        near = [e for e in offs if side in (None, e.side)]
+        event = min(near, key=lambda e: abs(e.time_s - reference), default=None)
+        if event is None or abs(event.time_s - reference) > 0.1:
+            continue
+        marks, pitch_rate = marks_of(feet[event.side], trial.rate, event.time_s * trial.rate)
+        at = reference * trial.rate
+        lo = max(0, round(at - BEFORE_S * trial.rate))
+        share = np.interp(at, np.arange(len(pitch_rate)), pitch_rate) / np.nanmax(
+            pitch_rate[lo:round(at + AFTER_S * trial.rate)])
+        out.append((reference, {k: v / trial.rate - reference for k, v in marks.items()},
+                    float(share)))
+    return out
+
+
+def plate_table(real: Path) -> None:
+    """Print each mark against each plate unloading of the real files (ms) and a summary."""
+    columns = [name for name, _ in MARKS]
+    print("\nEach mark minus the plate's unloading (ms; 20 N), and the foot's pitch rate at the "
+          "unloading (share of its push-off peak):\n")
+    print("| file | unloading (s) | " + " | ".join(columns) + " | pitch rate |\n"
+          + "|---" * (len(columns) + 3) + "|")
+    by_file: dict[str, list[dict[str, float]]] = defaultdict(list)
+    shares = []
+    for path in sorted(real.rglob("*.c3d")):
+        try:
+            unloadings = plate_unloadings(path)
+        except (KeyError, IndexError, ValueError):                  # no usable plate
+            continue
+        for unloading, marks, share in paired_marks(path, [(u, None) for u in unloadings]):
+            by_file[path.stem].append(marks)
+            shares.append(share)
+            print(f"| {path.stem} | {unloading:.3f} | "
+                  + " | ".join(f"{1000 * marks[c]:+.1f}" for c in columns) + f" | {share:.2f} |")
+    print("\n| mark | median (ms) | median \\|Δ\\| (ms) | worst \\|Δ\\| (ms) | files over 10 ms "
+          "(median \\|Δ\\|) |\n|---|---|---|---|---|")
+    for column, meaning in MARKS:
+        every = 1000 * np.array([m[column] for ms in by_file.values() for m in ms])
+        over = [name for name, ms in by_file.items()
+                if np.nanmedian(np.abs([1000 * m[column] for m in ms])) > 10.0]
+        print(f"| {column}: {meaning} | {np.nanmedian(every):+.1f} | "
+              f"{np.nanmedian(np.abs(every)):.1f} | {np.nanmax(np.abs(every)):.1f} | "
+              f"{len(over)} of {len(by_file)}{': ' + ', '.join(over) if over else ''} |")
+    print(f"\nPitch rate at the plates' unloading: {min(shares):.2f}–{max(shares):.2f} of its "
+          f"push-off peak (median {np.median(shares):.2f}).")
+
+
+def synthetic_table(samples: Path) -> None:
+    """Print each mark against the walking samples' true toe-offs (frames) per locomotion type."""
+    by_type: dict[str, list[dict[str, float]]] = defaultdict(list)
+    shares = []
+    for path in sorted(samples.glob("*.c3d")):
+        truth_file = path.with_suffix(".truth.json")
+        if not truth_file.is_file() or locomotion_type(path.stem) == "run":
+            continue
+        truth = json.loads(truth_file.read_text())
+        rate = read_c3d(path).rate
+        references = [(e["time_s"], e["side"]) for e in truth["events"] if e["kind"] == "toe_off"]
+        for _, marks, share in paired_marks(path, references):
+            by_type[locomotion_type(path.stem)].append({k: v * rate for k, v in marks.items()})
+            shares.append(share)
+    every = [m for ms in by_type.values() for m in ms]
+    print(f"\nEach mark minus the true toe-off on the walking samples ({samples.name}, "
+          f"{len(every)} toe-offs; frames): median, and within 1 frame overall and in the "
+          "worst locomotion type:\n")
+    print("| mark | median (frames) | within 1 frame | worst type |\n|---|---|---|---|")
+    for column, _ in MARKS:
+        within = {kind: np.mean([abs(m[column]) <= 1.0 for m in ms]) for kind, ms in by_type.items()}
+        worst = min(within, key=within.get)
+        print(f"| {column} | {np.nanmedian([m[column] for m in every]):+.2f} | "
+              f"{100 * np.mean([abs(m[column]) <= 1.0 for m in every]):.0f} % | "
+              f"{worst} {100 * within[worst]:.0f} % |")
+    print(f"\nPitch rate at the samples' true toe-offs: {min(shares):.2f}–{max(shares):.2f} of its "
+          f"push-off peak (median {np.median(shares):.2f}).")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
+    parser.add_argument("--real", type=Path, default=Path(os.environ.get(
+        "MOCAPLIB_SHARED_C3D", ROOT.parent / "shared" / "data" / "c3d")))
+    add_markdown_option(parser)
+    args = parser.parse_args(argv)
+    with markdown_page(args.markdown, __file__, argv):
+        if args.real.is_dir():
+            plate_table(args.real)
+        else:
+            print(f"\nreal lab files not found under {args.real}: skipped")
+        synthetic_table(args.samples)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
