@@ -57,8 +57,10 @@ point, the later its peak.
   toes leave, the toe-off is the ``"lift"`` below, the forefoot's fastest upswing at the
   release (Handsaker et al. 2016 time running toe-offs on forefoot accelerations too).
   Measured (docs/results/event_accuracy.md): against the lab's Foot Off, the force plates'
-  unloading (20 N) and the synthetic toe-offs (the toes' tips leaving the floor); on real
-  feet, which go on rolling after their toes leave, (b) comes later than on the synthetic.
+  unloading (20 N) and the synthetic toe-offs (the toes' tips leaving the floor). Real feet
+  leave the plate at any point of their roll (pitch rate 0.28-0.99 of its push-off peak, the
+  synthetic 0.40-0.69), so (b) is late on the feet that go on rolling after their toes leave;
+  benchmarks/toe_off_marks.py times (a), (b) and the literature's other marks against both.
 * ``"lift"``: where the low-passed upward velocity of the point that left last rises fastest,
   from 0.1 s before to 0.05 s after the foot centre's velocity peak: the lift-off of a foot
   that leaves the floor in one step (a rigid or stiff-soled foot, a running forefoot); on
