@@ -14,11 +14,15 @@ Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 20
 vertical velocity, acceleration and position), and the foot's pitch rate at the reference as a
 share of its push-off peak. Each mark is sought from 0.15 s before to 0.1 s after the default
 toe-off, on the detector's low-passed points (:func:`mocaplib.gait.events.capture_feet`).
+Then every mean of two marks (weights ¼, ½, ¾) and median of three against the per-file
+targets (median |Δ| <= 10 ms and worst <= 30 ms against each real file's plates and lab Foot
+Offs) and the samples' (within 1 frame in every locomotion type).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import sys
@@ -34,6 +38,7 @@ from event_accuracy import plate_unloadings
 from markdown_results import add_markdown_option, markdown_page
 
 from mocaplib.gait.events import capture_events, capture_feet
+from mocaplib.gait.feet import LAB_EVENT_KINDS
 from mocaplib.gait.foot_events import peak_time, toe_off_marks, toe_off_signals
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.matching import detect_protocol
@@ -113,8 +118,9 @@ def paired_marks(path: Path, references: list[tuple[float, str | None]]
     return out
 
 
-def plate_table(real: Path) -> None:
-    """Print each mark against each plate unloading of the real files (ms) and a summary."""
+def plate_table(real: Path) -> dict[str, list[dict[str, float]]]:
+    """Print each mark against each plate unloading of the real files (ms) and a summary;
+    {file stem: [{column: mark − unloading (s)} per paired unloading]}."""
     columns = [name for name, _ in MARKS]
     print("\nEach mark minus the plate's unloading (ms; 20 N), and the foot's pitch rate at the "
           "unloading (share of its push-off peak):\n")
@@ -143,10 +149,33 @@ def plate_table(real: Path) -> None:
               f"{len(over)} of {len(by_file)}{': ' + ', '.join(over) if over else ''} |")
     print(f"\nPitch rate at the plates' unloading: {min(shares):.2f}–{max(shares):.2f} of its "
           f"push-off peak (median {np.median(shares):.2f}).")
+    return by_file
 
 
-def synthetic_table(samples: Path) -> None:
-    """Print each mark against the walking samples' true toe-offs (frames) per locomotion type."""
+def lab_marks(real: Path) -> dict[str, list[dict[str, float]]]:
+    """{file stem: [{column: mark − Foot Off (s)} per lab Foot Off paired with a placed toe-off
+    of its side]} for the real files under ``real`` whose EVENT group holds Foot Offs."""
+    by_file = {}
+    for path in sorted(real.rglob("*.c3d")):
+        trial = read_c3d(path)
+        references = [(e.time_s - trial.start_time, _side(e)) for e in trial.events
+                      if LAB_EVENT_KINDS.get(e.label) == "toe_off" and _side(e)]
+        paired = paired_marks(path, references) if references else []
+        if paired:
+            by_file[path.stem] = [marks for _, marks, _ in paired]
+    return by_file
+
+
+def _side(event) -> str | None:
+    """"left" or "right" from a lab event's context, else its label (LTO); None if neither."""
+    letter = next((text[:1].upper() for text in (event.context, event.label)
+                   if text[:1].upper() in ("L", "R")), None)
+    return {"L": "left", "R": "right"}.get(letter)
+
+
+def synthetic_table(samples: Path) -> dict[str, list[dict[str, float]]]:
+    """Print each mark against the walking samples' true toe-offs (frames) per locomotion type;
+    {locomotion type: [{column: mark − truth (frames)} per toe-off]}."""
     by_type: dict[str, list[dict[str, float]]] = defaultdict(list)
     shares = []
     for path in sorted(samples.glob("*.c3d")):
@@ -172,6 +201,36 @@ def synthetic_table(samples: Path) -> None:
               f"{worst} {100 * within[worst]:.0f} % |")
     print(f"\nPitch rate at the samples' true toe-offs: {min(shares):.2f}–{max(shares):.2f} of its "
           f"push-off peak (median {np.median(shares):.2f}).")
+    return by_type
+
+
+def combinations_table(real: dict[str, dict[str, list[dict[str, float]]]],
+                       by_type: dict[str, list[dict[str, float]]], *, shown: int = 8) -> None:
+    """Print how the means of two marks (weights ¼, ½, ¾) and the medians of three do against
+    the per-file targets (median |Δ| <= 10 ms, worst <= 30 ms) on ``real`` ({"plates" or "lab
+    Foot Off": {file: marks (s)}}) and within 1 frame on the samples ``by_type`` (frames)."""
+    columns = [name for name, _ in MARKS]
+    rules = {f"{w:g}·{a} + {1 - w:g}·{b}": (lambda m, a=a, b=b, w=w: w * m[a] + (1 - w) * m[b])
+             for a, b in itertools.combinations(columns, 2) for w in (0.25, 0.5, 0.75)}
+    rules.update({f"median({a}, {b}, {c})": (lambda m, k=(a, b, c): np.median([m[x] for x in k]))
+                  for a, b, c in itertools.combinations(columns, 3)})
+    rows = []
+    for name, rule in rules.items():
+        missed = []
+        for against, by_file in real.items():
+            for stem, marks in by_file.items():
+                errors = np.abs([rule(m) for m in marks])
+                if not (np.median(errors) <= 0.010 and errors.max() <= 0.030):
+                    missed.append(f"{stem} ({against})")
+        within = min(np.mean([abs(rule(m)) <= 1.0 for m in ms]) for ms in by_type.values())
+        rows.append((len(missed), -within, name, missed))
+    rows.sort()
+    met = sum(not missed for _, _, _, missed in rows)
+    print(f"\n{len(rows)} combinations of the marks (means of two weighted ¼, ½, ¾; medians of "
+          f"three): {met} meet the per-file targets on every real file; those missing fewest:\n")
+    print("| combination | real files missed | samples: worst type within 1 frame |\n|---|---|---|")
+    for count, within, name, missed in rows[:shown]:
+        print(f"| {name} | {count}: {', '.join(missed)} | {-100 * within:.0f} % |")
 
 
 def main(argv=None) -> int:
@@ -182,11 +241,13 @@ def main(argv=None) -> int:
     add_markdown_option(parser)
     args = parser.parse_args(argv)
     with markdown_page(args.markdown, __file__, argv):
-        if args.real.is_dir():
-            plate_table(args.real)
-        else:
+        real = ({"plates": plate_table(args.real), "lab Foot Off": lab_marks(args.real)}
+                if args.real.is_dir() else {})
+        if not real:
             print(f"\nreal lab files not found under {args.real}: skipped")
-        synthetic_table(args.samples)
+        by_type = synthetic_table(args.samples)
+        if real:
+            combinations_table(real, by_type)
     return 0
 
 
