@@ -16,7 +16,9 @@ the requested rate, loops without a repeated frame.
 from __future__ import annotations
 
 import json
+import sys
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,10 +28,15 @@ from conftest import SAMPLES
 from mocaplib.cli import main
 from mocaplib.export.formats import write
 from mocaplib.gait.fourier import synthesize
+from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.planting import plant_feet, sole_points, stance_frames
 from mocaplib.library.retarget import retarget
 from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, Skeleton
+
+# the paths of benchmarks/path_follow.py (its page: docs/results/path_follow.md)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from path_follow import PATHS, followed_and_errors, met  # noqa: E402
 
 SLIDE, PENETRATION, HOVER = 0.002, 0.0005, 0.003
 #: How far beyond the entry's pelvis acceleration (scaled) a planted output may go: ratio, m/s²
@@ -47,7 +54,6 @@ HEIGHTS = (1.4, 1.75, 2.0)
 def sample_library():
     """The shipped samples' library as the quick start builds it: (library, its file)."""
     import tempfile
-    from pathlib import Path
 
     from mocaplib.build.pipeline import build_library
     from mocaplib.build.settings import BuildSettings
@@ -190,6 +196,19 @@ def test_a_query_clip_loops_in_whole_frames(tmp_path, capsys):
     steps = np.linalg.norm(np.diff(relative, axis=0), axis=-1).max(axis=(1, 2))
     seam = np.linalg.norm(relative[0] - relative[-1], axis=-1).max()
     assert 0.85 <= seam / (0.5 * (steps[0] + steps[-1])) <= 1.15, (seam, steps[0], steps[-1])
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_runs_captured_straight_still_steer_back_onto_the_path():
+    # the samples' runs span omega -0.003..0.003 rad/s and drift left: the run cycles are
+    # clamped onto the run cell, and their path frames take the turn rate the cell lacks
+    library, _ = sample_library()
+    followed, errors = followed_and_errors(library.skeleton, ControlSpace.from_library(library),
+                                           PATHS["walk to run timeline"])
+    runs = [c for c in followed.cycles if c.gait == "run"]
+    assert runs and all(c.clamped for c in runs) and any(c.turn_warp for c in runs)
+    assert max(abs(c.turn_warp) for c in runs) < 0.02       # a few mrad/s: 0.3 deg/s measured
+    assert met(errors) == [], errors                         # root 2.2 cm, heading 0.47 deg
 
 
 @pytest.mark.usefixtures("sample_dir")

@@ -3,6 +3,8 @@ velocity commands), synthesised cycle after cycle from the library's control spa
 
 from __future__ import annotations
 
+import math
+
 from ..gait.gaits import BLEND_GAITS
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, check_inputs, check_outputs,
                       positive)
@@ -62,7 +64,7 @@ def _run(args) -> int:
     for k, c in enumerate(followed.cycles):
         print(f"  cycle {k}: t = {c.start_s:.3f} s, T = {c.T:.3f} s, command "
               f"({c.command[0]:.3f} m/s, {c.command[1]:.3f} rad/s, {c.command[2]:.3f} m/s), "
-              f"{c.gait}{' (clamped)' if c.clamped else ''}: {', '.join(c.entries)}")
+              f"{c.gait}{_clamped(c)}: {', '.join(c.entries)}")
     errors = tracking_errors(path, followed)
     print(f"{len(followed.q)} frames at {rate:g} Hz; root within {100 * errors['root_m']:.1f} cm "
           f"of the path, heading within {errors['heading_deg']:.1f}°; largest frame-to-frame "
@@ -73,3 +75,11 @@ def _run(args) -> int:
           f"{feet.penetration_m * 1000:.1f} mm, flat-foot hover {feet.hover_m * 1000:.1f} mm at "
           f"worst over {feet.stances} stances")
     return 0
+
+
+def _clamped(cycle) -> str:
+    """How a cycle served clamped onto its cell is said: with its turn warp (deg/s)."""
+    if not cycle.clamped:
+        return ""
+    return (f" (clamped; its path frame turned {math.degrees(cycle.turn_warp):+.2f} deg/s "
+            "beyond the blend's)" if cycle.turn_warp else " (clamped)")

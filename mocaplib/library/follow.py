@@ -30,7 +30,11 @@ origin facing +X). Cycle after cycle, at the pose the previous cycle ended at:
    across its direction of travel; the reference is the commands integrated (the body facing
    +X at the start, the heading the integral of ω̂).
 2. **Blend** at that command in one gait's cell (:meth:`ControlSpace.query` and
-   :meth:`~ControlSpace.blend`): coefficients, period T and root drift.
+   :meth:`~ControlSpace.blend`): coefficients, period T and root drift. A command the cell
+   serves only clamped (at its nearest point) is served at that point's turn rate; the turn
+   rate it lacks, up to :data:`MAX_TURN_WARP`, turns the cycle's path frame (the *turn
+   warp*, as a game engine's orientation warping turns a clip's root): a run cell whose
+   captured runs are all straight still steers a run back onto its path.
 3. **Stitch.** Each cycle starts at a left toe-off, where the previous one ended (phase
    continuity). Its path frame starts at the pose the previous one ended at and moves with
    its blended drift (:class:`mocaplib.gait.fourier.RootDrift`); the joint angles and the root
@@ -64,6 +68,10 @@ TANGENT_WINDOW = 0.2
 REFERENCE_BEYOND_S = 5.0
 #: Most cycles one path may take (a typing mistake in a timeline's times, not a walk).
 MAX_CYCLES = 2000
+#: The largest turn rate (rad/s, about 6 deg/s) a clamped cycle's path frame is turned beyond
+#: its blend's (module docstring, 2.): the heading and offset corrections of a straight path
+#: need a few hundredths.
+MAX_TURN_WARP = 0.1
 #: Headers of the two path forms.
 POLYLINE_COLUMNS, TIMELINE_COLUMNS = ("x", "y"), ("t", "v", "omega", "v_l")
 
@@ -125,7 +133,8 @@ def read_path(path, /) -> Path:
 @dataclass
 class Cycle:
     """One synthesised cycle: ``start_s`` (from the first frame), ``T`` s, ``command``
-    (v̂, ω̂, v̂_l), its ``gait``, blended ``entries`` (ids) and ``weights``, ``clamped``."""
+    (v̂, ω̂, v̂_l), its ``gait``, blended ``entries`` (ids) and ``weights``, ``clamped``, and
+    ``turn_warp`` (rad/s) its path frame turns beyond the blend's."""
 
     start_s: float
     T: float
@@ -134,6 +143,7 @@ class Cycle:
     entries: list
     weights: list
     clamped: bool
+    turn_warp: float = 0.0
 
 
 @dataclass
@@ -207,6 +217,7 @@ def _polyline_command(cs, line: _Polyline, pose, speed, gait):
     for _ in range(3):
         result, blend = _blend(cs, (speed, omega, 0.0), gait)
         u_f, u_l, turn = blend.drift[0]
+        turn += _turn_warp((speed, omega, 0.0), result)
         period = float(blend.T[0])
         stride = float(np.hypot(u_f, u_l)) * period
         ahead = line.chord_heading(s0 + stride, TANGENT_WINDOW * stride)
@@ -215,6 +226,14 @@ def _polyline_command(cs, line: _Polyline, pose, speed, gait):
         omega += wanted - turn
     result, blend = _blend(cs, (speed, omega, 0.0), gait)
     return (speed, omega, 0.0), result, blend
+
+
+def _turn_warp(command, result) -> float:
+    """The turn rate (rad/s) a cycle served clamped lacks: the command's ω̂ less that of the
+    point blended, within ±:data:`MAX_TURN_WARP`; 0 for a command served where it is."""
+    if not result.clamped[0]:
+        return 0.0
+    return float(np.clip(command[1] - result.nearest[0, 1], -MAX_TURN_WARP, MAX_TURN_WARP))
 
 
 def _speed_at(path: Path, line: _Polyline, s: float, speed: float | None) -> float:
@@ -278,10 +297,12 @@ def follow(cs, path: Path, /, *, rate: float = 100.0, speed: float | None = None
             command = (command[0], command[1] + turn / period, command[2])
             result, blend = _blend(cs, command, gait)
         period = float(blend.T[0])
+        warp = _turn_warp(command, result)
         cycles.append(Cycle(start, period, tuple(float(c) for c in command), result.gait[0],
                             [cs.ids[k] for k in result.entries[0]],
-                            result.weights[0].tolist(), bool(result.clamped[0])))
-        drift = RootDrift(*pose, *(float(v) for v in blend.drift[0]))
+                            result.weights[0].tolist(), bool(result.clamped[0]), warp))
+        u_f, u_l, turn = (float(v) for v in blend.drift[0])
+        drift = RootDrift(*pose, u_f, u_l, turn + warp)
         blends.append((blend, drift))
         x, y, psi = drift.frame(period)
         pose = np.array([float(x), float(y), float(psi)])
