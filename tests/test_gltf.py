@@ -189,13 +189,16 @@ def test_a_blended_query_as_gltf(walks, tmp_path, capsys, name):
     check_structure(out)
     times, positions, names = animated_positions(out)
     space = ControlSpace.from_library(library)
-    # the blend's world motion with its feet planted, as the command writes every animation
-    q = plant_blend(space.blend(space.query([command])), library.skeleton, rate=60.0,
-                    cycles=2).q
-    # keys at exactly k / 60 s, two periods long, the first pose not repeated at the end
-    assert len(times) == len(q) == int(np.ceil(2 * answer["T_s"] * 60 - 1e-9))
+    # the blend's world motion with its feet planted, as the command writes every animation,
+    # in whole frames
+    q = plant_blend(space.blend(space.query([command])).looped(60.0), library.skeleton,
+                    rate=60.0, cycles=2).q
+    # keys at exactly k / 60 s, two periods of whole frames long, the first pose not repeated
+    # at the end
+    assert len(times) == len(q) == 2 * round(answer["T_s"] * 60)
+    assert answer["played_T_s"] == pytest.approx(round(answer["T_s"] * 60) / 60)
     np.testing.assert_array_equal(times, (np.arange(len(q)) / 60.0).astype(np.float32))
-    assert times[-1] < 2 * answer["T_s"]
+    assert times[-1] < 2 * answer["played_T_s"]
     np.testing.assert_allclose(_joints(positions, names),
                                library.skeleton.forward(q)[:, :, :3, 3], atol=TOLERANCE_M)
 
