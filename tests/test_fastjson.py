@@ -5,14 +5,16 @@ decline and the reference is used."""
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 
 import numpy as np
+import orjson
 import pytest
 import rfc8785
 
-from mocaplib.io.fastjson import all_finite, jcs_bytes, strict_loads
+from mocaplib.io.fastjson import all_finite, collection_paused, jcs_bytes, strict_loads
 from mocaplib.io.jsonvalues import jcs_sha256, parse_json
 
 
@@ -75,3 +77,20 @@ def test_all_finite_finds_nan_and_infinity_anywhere():
             holder[path[-1]] = bad
             assert not all_finite(changed), (path, bad)
     assert all_finite({"big": [1e308, 1e308]})   # the sum overflows, each number is finite
+
+
+def test_collection_paused_restores_the_collectors_state():
+    assert gc.isenabled()
+    with pytest.raises(orjson.JSONDecodeError):
+        with collection_paused():
+            assert not gc.isenabled()
+            orjson.loads(b"[1,")
+    assert gc.isenabled()
+    assert strict_loads(b"[1, 2]") == [1, 2] and gc.isenabled()
+    gc.disable()
+    try:
+        with collection_paused():
+            pass
+        assert not gc.isenabled()      # left as it was: disabled
+    finally:
+        gc.enable()

@@ -9,8 +9,10 @@ parsed and canonicalised in a fraction of a second instead of several seconds.
 
 from __future__ import annotations
 
+import gc
 import math
 import re
+from contextlib import contextmanager
 from itertools import chain
 
 import orjson
@@ -49,9 +51,25 @@ def strict_loads(text: str | bytes):
     if _LONG_DIGITS in data.translate(_DIGITS_ONLY):
         return None
     try:
-        return orjson.loads(data)
+        with collection_paused():
+            return orjson.loads(data)
     except orjson.JSONDecodeError:
         return None
+
+
+@contextmanager
+def collection_paused():
+    """Python's cyclic garbage collector paused inside the block (as it was after it). Parsing
+    makes millions of lists and dicts, none of them garbage, and every collection on the way
+    visits those made so far: a 5,000-entry library (71 MB) parses in 0.25 s of CPU paused,
+    0.7 s not (``benchmarks/library_scale.py``, load)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def all_finite(data) -> bool:
