@@ -2,7 +2,7 @@
 the number of entries.
 
     python benchmarks/library_scale.py [LIBRARY.json] [--samples sample_c3d] [--sizes 68 500 ...]
-        [--query-entries 50000] [--quick] [--markdown PATH]
+        [--query-entries 50000] [--quick] [--stages load validate ...] [--markdown PATH]
 
 Without a library, builds the quick start's one from ``--samples`` (``mocaplib build SAMPLES
 --static SAMPLES/rest.c3d --static-pose neutral --forward-reference
@@ -18,6 +18,11 @@ a real, valid, checksummed file. On it, one run times:
 * control space: :meth:`ControlSpace.from_library`; query: one command, the median of 200
   (the first, which builds the locating grid, apart); coverage of the default envelope;
 * report: :func:`mocaplib.report.write_report` (matplotlib 3-D view, as without OpenGL).
+
+``--stages`` times only the stages named (of :data:`STAGES`; all by default), e.g. ``--stages
+load validate`` for the reading and validation alone (each library is still written); a stage
+not timed is shown as "–", and the query on ``--query-entries`` points runs only with
+``query``.
 
 Then a query on ``--query-entries`` points (default 50,000), a control space built in memory
 from the library's velocities jittered the same way (a file of 50,000 entries is 700 MB).
@@ -65,6 +70,9 @@ COLUMNS = (("write", "assemble + write (s)"), ("load", "load (s)"),
            ("first_query", "first query (ms)"), ("query", "query, median (ms)"),
            ("coverage", "coverage (s)"), ("report", "report (s)"))
 MILLISECONDS = {"first_query", "query"}
+#: Stages ``--stages`` can name, and the columns each one fills.
+STAGES = {"load": ("load",), "validate": ("validate",), "control_space": ("control_space",),
+          "query": ("first_query", "query"), "coverage": ("coverage",), "report": ("report",)}
 
 
 def jittered_entries(entries: list, n: int, rng: np.random.Generator) -> list:
@@ -100,26 +108,31 @@ def query_times(cs: ControlSpace, rng: np.random.Generator) -> tuple[float, floa
     return first, statistics.median(timed(cs.query, c)[1] for c in commands[1:])
 
 
-def measure(base, n: int, folder: Path, rng: np.random.Generator, envelope) -> dict:
-    """Every stage's time on a library of ``n`` jittered entries of ``base``."""
+def measure(base, n: int, folder: Path, rng: np.random.Generator, envelope,
+            stages=tuple(STAGES)) -> dict:
+    """The time of each of ``stages`` (:data:`STAGES`) on a library of ``n`` jittered entries
+    of ``base``, by column (and the write's)."""
     path = folder / f"library_{n}.json"
     entries = jittered_entries(base.entries, n, rng)
     _, write = timed(lambda: assemble_library(entries, settings=base.settings,
                                               qc_thresholds=base.document["qc_thresholds"])
                      .write(path))
-    library, load = timed(load_library, path)
-    problems, validate = timed(validate_library, path)
-    if problems:
-        raise SystemExit(f"the {n}-entry library is not valid: {problems[0]}")
-    cs, control_space = timed(ControlSpace.from_library, library)
-    first_query, query = query_times(cs, rng)
-    _, cover = timed(coverage, cs, envelope)
-    _, report = timed(write_report, path, folder / "report", renderer="matplotlib")
-    megabytes = path.stat().st_size / 1e6
+    row = {"entries": n, "megabytes": path.stat().st_size / 1e6, "write": write}
+    library, row["load"] = timed(load_library, path)
+    if "validate" in stages:
+        problems, row["validate"] = timed(validate_library, path)
+        if problems:
+            raise SystemExit(f"the {n}-entry library is not valid: {problems[0]}")
+    if {"control_space", "query", "coverage"} & set(stages):
+        cs, row["control_space"] = timed(ControlSpace.from_library, library)
+        if "query" in stages:
+            row["first_query"], row["query"] = query_times(cs, rng)
+        if "coverage" in stages:
+            _, row["coverage"] = timed(coverage, cs, envelope)
+    if "report" in stages:
+        _, row["report"] = timed(write_report, path, folder / "report", renderer="matplotlib")
     path.unlink()
-    return {"entries": n, "megabytes": megabytes, "write": write,
-            "load": load, "validate": validate, "control_space": control_space,
-            "first_query": first_query, "query": query, "coverage": cover, "report": report}
+    return row
 
 
 def big_query(base, n: int, rng: np.random.Generator) -> dict:
@@ -134,26 +147,33 @@ def big_query(base, n: int, rng: np.random.Generator) -> dict:
             "first_query": first, "query": median}
 
 
-def print_tables(rows: list[dict], big: dict) -> None:
+def cell(row: dict, key: str) -> str:
+    """A timing table's cell: ``row[key]`` in its column's unit, "–" when not timed."""
+    if key not in row:
+        return "–"
+    return f"{1000 * row[key]:.1f}" if key in MILLISECONDS else f"{row[key]:.2f}"
+
+
+def print_tables(rows: list[dict], big: dict | None) -> None:
     print("| entries | file (MB) | " + " | ".join(h for _, h in COLUMNS) + " |")
     print("|---|---|" + "---|" * len(COLUMNS))
     for row in rows:
-        print(f"| {row['entries']:,} | {row['megabytes']:.1f} | " + " | ".join(
-            f"{1000 * row[k]:.1f}" if k in MILLISECONDS else f"{row[k]:.2f}"
-            for k, _ in COLUMNS) + " |")
-    print(f"\nQuery on {big['entries']:,} entries (control space built in memory: "
-          f"{big['tetrahedra']:,} tetrahedra in {big['build']:.1f} s): first query "
-          f"{1000 * big['first_query']:.1f} ms (builds the locating grid), median of "
-          f"{QUERIES} {1000 * big['query']:.2f} ms.\n")
-    print("| target | measured | |")
+        print(f"| {row['entries']:,} | {row['megabytes']:.1f} | "
+              + " | ".join(cell(row, k) for k, _ in COLUMNS) + " |")
+    if big is not None:
+        print(f"\nQuery on {big['entries']:,} entries (control space built in memory: "
+              f"{big['tetrahedra']:,} tetrahedra in {big['build']:.1f} s): first query "
+              f"{1000 * big['first_query']:.1f} ms (builds the locating grid), median of "
+              f"{QUERIES} {1000 * big['query']:.2f} ms.")
+    print("\n| target | measured | |")
     print("|---|---|---|")
     by_size = {row["entries"]: row for row in rows}
     for key, n, limit in TARGETS:
-        if n in by_size:
+        if key in by_size.get(n, {}):
             seconds = by_size[n][key]
             print(f"| {key}, {n:,} entries ≤ {limit:g} s | {seconds:.2f} s | "
                   f"{'met' if seconds <= limit else 'MISSED'} |")
-    if big["entries"] >= QUERY_ENTRIES:
+    if big is not None and big["entries"] >= QUERY_ENTRIES:
         print(f"| query, {QUERY_ENTRIES:,} entries ≤ {1000 * QUERY_TARGET_S:g} ms | "
               f"{1000 * big['query']:.2f} ms | "
               f"{'met' if big['query'] <= QUERY_TARGET_S else 'MISSED'} |")
@@ -169,10 +189,12 @@ def save_plot(rows: list[dict], path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     n = [row["entries"] for row in rows]
     for key, heading in COLUMNS:
-        seconds = [row[key] for row in rows]
-        ax.loglog(n, seconds, "o-", label=heading.replace(" (ms)", "").replace(" (s)", ""))
+        if key in rows[0]:
+            ax.loglog(n, [row[key] for row in rows], "o-",
+                      label=heading.replace(" (ms)", "").replace(" (s)", ""))
     for key, size, limit in TARGETS:
-        ax.plot([size], [limit], "k_", ms=14)
+        if key in rows[0]:
+            ax.plot([size], [limit], "k_", ms=14)
     ax.set_xlabel("entries")
     ax.set_ylabel("seconds")
     ax.set_title("Library size and what it costs (targets: black bars)")
@@ -193,6 +215,8 @@ def main() -> int:
                         help=f"entries of the in-memory query (default {QUERY_ENTRIES:,})")
     parser.add_argument("--quick", action="store_true",
                         help=f"sizes {QUICK_SIZES}, {QUICK_QUERY_ENTRIES:,} query entries")
+    parser.add_argument("--stages", nargs="+", choices=STAGES, default=list(STAGES),
+                        help="time only these stages (default: all); load is always timed")
     add_markdown_option(parser)
     args = parser.parse_args()
     sizes = args.sizes or (QUICK_SIZES if args.quick else SIZES)
@@ -211,8 +235,8 @@ def main() -> int:
                             "--jobs", "2", "--no-cache"], check=True, cwd=ROOT,
                            capture_output=True)
         base = load_library(library)
-        rows = [measure(base, n, folder, rng, envelope) for n in sizes]
-        big = big_query(base, query_entries, rng)
+        rows = [measure(base, n, folder, rng, envelope, args.stages) for n in sizes]
+        big = big_query(base, query_entries, rng) if "query" in args.stages else None
         print_tables(rows, big)
         if args.markdown is not None:
             plot = save_plot(rows, args.markdown.with_suffix(".png"))
