@@ -45,6 +45,20 @@ def test_canonical_bytes_are_rfc8785s(seed):
     assert fast == rfc8785.dumps(document)
 
 
+
+@pytest.mark.parametrize("seed", range(5))
+def test_canonical_bytes_around_escaped_strings_are_rfc8785s(seed):
+    """Strings with escaped quotes and backslashes (the rewrite tells strings from numbers by
+    the quotes), beside numbers to rewrite, and numbers alone at the text's start and end."""
+    document = random_document(np.random.default_rng(seed))
+    del document["strings"], document["nested"]
+    document["escaped"] = ['a\\', '\\"', 'x\\\\"y', '"', "\\\\", 'ab"c\\', "é"]
+    document['k"\\'] = [1.0, -0.0, 1e-6, -1.5e-6, 1e16, 2.5e20]
+    assert jcs_bytes(document) == rfc8785.dumps(document)
+    for alone in (1.0, -0.0, 1e-6, -1.5e-6, 1e16, 2.5e20, 1e21, 0.5, [1.0], [-0.0, 2.0],
+                  {"a": 1.5e-6, "b": "x" * 40}, [-2.5e-6, 3e16, "y" * 40]):
+        assert jcs_bytes(alone) == rfc8785.dumps(alone), alone
+
 def test_canonical_bytes_decline_what_they_cannot_write():
     assert jcs_bytes({"\U0001f600": 1, "\ue000": 2}) is None     # keys sorted by UTF-16 units
     assert jcs_bytes({"n": 2**53 + 1}) is None                    # beyond JCS's integers
