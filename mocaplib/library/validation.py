@@ -503,12 +503,12 @@ def _control_space_problems(doc: dict) -> list[Problem]:
                                                         "write the library again")]
         return []
     try:
-        delaunay_tetrahedra(x)
+        every = delaunay_tetrahedra(x)
     except LibraryError as exc:
         return [Problem("control_space", f"the control space of the {len(x)} chosen entries "
                                          f"with finite velocities: {exc.message}")]
     stored = doc["control_space"].get("tetrahedra")
-    return [] if stored is None else _tetrahedra_problems(doc, stored)
+    return [] if stored is None else _tetrahedra_problems(doc, stored, every)
 
 
 def control_space_warning(library) -> str | None:
@@ -533,11 +533,13 @@ def _normalised_points(doc: dict) -> np.ndarray:
     return points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
 
 
-def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
+def _tetrahedra_problems(doc: dict, stored: dict, every) -> list[Problem]:
     """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
     in the file's order (with finite velocities and period); from
     :data:`~mocaplib.library.document.GAIT_CELLS_VERSION` the tetrahedra of their gait cells
-    with each one's gait and the hull of all of them, before it the tetrahedra of all of them."""
+    with each one's gait and the hull of all of them, before it the tetrahedra of all of them.
+    ``every``: the Delaunay tetrahedra of the chosen entries with finite velocities (those
+    with a finite period too, when they are all)."""
 
     where = "control_space.tetrahedra"
     hint = "write the library again (mocaplib build, or mocaplib mirror)"
@@ -547,9 +549,10 @@ def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
         return [Problem(where, f"ids are not the control space's entries (chosen, with finite "
                                f"velocities and period, in the file's order); {hint}")]
     points, scale = _control_points(entries), doc["control_space"]["scale"]
-    every = delaunay_tetrahedra(points / np.asarray(scale, dtype=np.float64))
+    if len(points) != len(every.points):            # an entry without a finite period
+        every = delaunay_tetrahedra(points / np.asarray(scale, dtype=np.float64))
     if doc["format_version"] < GAIT_CELLS_VERSION:
-        if _unordered(stored["simplices"]) != _unordered(every.simplices.tolist()):
+        if not _same_rows(stored["simplices"], every.simplices):
             return [Problem(where, f"simplices are not the tetrahedra of these entries "
                                    f"(format_version {doc['format_version']}: of all of "
                                    f"them); {hint}")]
@@ -557,19 +560,35 @@ def _tetrahedra_problems(doc: dict, stored: dict) -> list[Problem]:
     cells, _ = build_cells(points, scale, classes=[e.get("locomotion_class") for e in entries],
                            v_f=[float_or_nan(e.get("v_f")) for e in entries])
     simplices, gaits = cell_tetrahedra(cells)
-    expected = [[*simplex, gait] for simplex, gait in zip(simplices.tolist(), gaits)]
-    if len(stored["gaits"]) != len(stored["simplices"]) or _unordered(
-            [[*s, g] for s, g in zip(stored["simplices"], stored["gaits"])]) != _unordered(
-            expected):
+    if len(stored["gaits"]) != len(stored["simplices"]) or not _same_rows(
+            stored["simplices"], simplices, stored["gaits"], gaits):
         return [Problem(where, f"simplices and gaits are not the tetrahedra of these entries' "
                                f"gait cells; {hint}")]
-    if _unordered(stored["hull"]) != _unordered(every.convex_hull.tolist()):
+    if not _same_rows(stored["hull"], every.convex_hull):
         return [Problem(where, f"hull is not the boundary of these entries' points; {hint}")]
     return []
 
 
-def _unordered(rows: list[list]) -> list[tuple]:
-    """Rows of vertex numbers (and a trailing gait name) as sorted tuples, sorted: what two
-    lists of simplices or triangles share whatever their order."""
-    return sorted((*sorted(int(v) for v in row if not isinstance(v, str)),
-                   *(v for v in row if isinstance(v, str))) for row in rows)
+def _same_rows(stored: list, expected: np.ndarray, stored_gaits: list | None = None,
+               expected_gaits: list | None = None) -> bool:
+    """Whether the rows of vertex numbers ``stored`` (R, K) (JSON lists) and ``expected``
+    (R', K), each with its gait (``stored_gaits`` (R,), ``expected_gaits`` (R',)) when
+    given, are the same simplices or triangles whatever the order of the rows and of the
+    vertices in each row."""
+    expected = np.asarray(expected, dtype=np.int64)
+    try:
+        rows = np.asarray(stored, dtype=np.int64)
+    except (ValueError, OverflowError, TypeError):      # rows of several lengths
+        return False
+    if rows.size == 0 or expected.size == 0:
+        return rows.size == expected.size
+    if rows.shape != expected.shape:
+        return False
+    tables = [np.sort(rows, axis=1), np.sort(expected, axis=1)]
+    if stored_gaits is not None:
+        _, codes = np.unique(np.asarray([*stored_gaits, *expected_gaits], dtype=str),
+                             return_inverse=True)
+        tables = [np.column_stack([tables[0], codes[:len(rows)]]),
+                  np.column_stack([tables[1], codes[len(rows):]])]
+    first, second = (t[np.lexsort(t.T[::-1])] for t in tables)
+    return np.array_equal(first, second)
