@@ -29,7 +29,7 @@ def _run(args) -> int:
 
     check_inputs([args.library], hint=LIBRARY_HINT)
     try:
-        document, _ = read_document(args.library)
+        document, _ = read_document(args.library, file_sha256=False)
     except LibraryError:
         document = None         # validate_library names why
     problems = validate_library(args.library if document is None else document)

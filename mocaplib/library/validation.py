@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import LibraryError
 from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
-from ..io.fastjson import all_finite
+from ..io.fastjson import all_finite, collection_paused
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, content_sha256,
                        library_document, read_document, schema)
@@ -108,14 +108,26 @@ def validate_library(library) -> list[Problem]:
     -------
     list of Problem
         Every problem found, each with the JSON path it is at; empty for a valid library.
+
+    Notes
+    -----
+    Python's cyclic garbage collector is paused while it runs: the checks make no reference
+    cycles, and each collection would visit every value of the document (0.15 to 0.3 s on a
+    5,000-entry library).
     """
+    with collection_paused():
+        return _validation_problems(library)
+
+
+def _validation_problems(library) -> list[Problem]:
+    """:func:`validate_library`'s problems."""
     if isinstance(library, dict):
         document = library
     elif not isinstance(library, (str, os.PathLike)):
         document = library.document
     else:
         try:
-            document, _ = read_document(library)
+            document, _ = read_document(library, file_sha256=False)
         except LibraryError as exc:
             return [Problem("file", exc.message if not exc.hint else
                             f"{exc.message} ({exc.hint})")]
