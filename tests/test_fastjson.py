@@ -108,3 +108,12 @@ def test_collection_paused_restores_the_collectors_state():
         assert not gc.isenabled()      # left as it was: disabled
     finally:
         gc.enable()
+
+
+def test_parse_json_reads_utf8_bytes_as_their_text():
+    text = '{"é": [1.5, NaN], "n": 12345678901234567890123}'
+    for given in ('{"é": [1.5, 2]}', text):
+        assert repr(parse_json(given.encode("utf-8"))) == repr(parse_json(given))
+    for other in ("latin-1", "utf-16"):       # bytes are UTF-8 or refused
+        with pytest.raises(UnicodeDecodeError):
+            parse_json('{"é": 1, "x": NaN}'.encode(other))

@@ -52,7 +52,7 @@ def read_document(path: str | os.PathLike, *,
         raise LibraryError(f"cannot read library: {exc.strerror}", path=path,
                            hint="check the path") from exc
     try:
-        document = parse_json(data.decode("utf-8"))
+        document = parse_json(data)
     except UnicodeDecodeError as exc:
         raise LibraryError("library is not UTF-8 text", path=path, hint=hint) from exc
     except json.JSONDecodeError as exc:
