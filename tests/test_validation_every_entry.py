@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 
 from mocaplib.library.document import CHECKSUM_KEY, content_sha256
-from mocaplib.library.validation import validate_library
+from mocaplib.library.entry import drift_displacement
+from mocaplib.library.validation import TURN_SIGN_RATE, validate_library
 
 FIXTURE = Path(__file__).resolve().parents[1] / "js" / "test" / "fixtures" / "library.json"
 #: Where a problem is put: the first, a middle and the last entry (or row).
@@ -74,3 +75,42 @@ def test_a_stored_gait_changed_is_found(document, place):
     gaits[k] = "walk" if gaits[k] == "run" else "run"
     problems = problems_of(edited)
     assert len(problems) == 1 and "simplices and gaits are not" in problems[0], problems
+
+
+@pytest.mark.parametrize("place", PLACES)
+def test_a_root_drift_displacement_edited_is_found(document, place):
+    edited = copy.deepcopy(document)
+    k = index(edited["entries"], place)
+    edited["entries"][k]["root_drift"]["dy_m"] += 0.01
+    problems = problems_of(edited)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith(f"entries[{k}].root_drift: entry ")
+    assert "the displacement does not follow from" in problems[0] and "dy_m" in problems[0]
+    assert "dx_m" not in problems[0] and "dheading_rad" not in problems[0]
+
+
+@pytest.mark.parametrize("place", PLACES)
+def test_a_root_drift_turning_the_other_way_is_found(document, place):
+    # among the entries that turn faster than the rate from which signs must agree
+    turning = [i for i, e in enumerate(document["entries"]) if abs(e["omega"]) > TURN_SIGN_RATE]
+    k = turning[index(turning, place)]
+    edited = copy.deepcopy(document)
+    entry = edited["entries"][k]
+    entry["root_drift"]["omega_rad_s"] = -entry["omega"]
+    entry["root_drift"].update(drift_displacement(entry["root_drift"], entry["T"]))
+    problems = problems_of(edited)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith(f"entries[{k}].root_drift.omega_rad_s: entry ")
+    assert "turns the other way from the entry's omega" in problems[0]
+
+
+@pytest.mark.parametrize("place", PLACES)
+def test_a_mean_angle_outside_its_range_is_found(document, place):
+    edited = copy.deepcopy(document)
+    k = index(edited["entries"], place)
+    d = edited["skeleton"]["dof_names"].index("trunk_flexion")   # range -40° to 90°
+    edited["entries"][k]["fourier"]["a"][d][0] = 57.3       # 1 rad written in degrees
+    problems = problems_of(edited)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith(f"entries[{k}].fourier.a[{d}][0]: entry ")
+    assert "lies outside its range" in problems[0] and "degrees stored as radians?" in problems[0]

@@ -228,9 +228,18 @@ def drift_displacement(drift: dict, T: float) -> dict:
     ``dheading_rad`` of the path frame moving for ``T`` s with an entry's root-drift velocities
     (:data:`DRIFT_VELOCITIES`; see :class:`mocaplib.gait.fourier.RootDrift`)."""
 
-    velocities = (float_or_nan(drift[key]) for key in DRIFT_VELOCITIES)
-    x, y, turned = RootDrift(0.0, 0.0, 0.0, *velocities).frame(float_or_nan(T))
-    return {"dx_m": float(x), "dy_m": float(y), "dheading_rad": float(turned)}
+    velocities = [[float_or_nan(drift[key]) for key in DRIFT_VELOCITIES]]
+    moved = drift_displacements(velocities, [float_or_nan(T)])[0]
+    return {key: float(value) for key, value in zip(DRIFT_DISPLACEMENT, moved)}
+
+
+def drift_displacements(velocities, T, /) -> np.ndarray:
+    """:func:`drift_displacement` of many entries at once: (E, 3) in
+    :data:`DRIFT_DISPLACEMENT` order (m, m, rad), for velocities (E, 3) in
+    :data:`DRIFT_VELOCITIES` order (m/s, m/s, rad/s) and periods ``T`` (E,) s."""
+    velocities = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
+    return np.column_stack(RootDrift(0.0, 0.0, 0.0, *velocities.T).frame(
+        np.asarray(T, dtype=np.float64)))
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from ..io.fastjson import all_finite, collection_paused
 from ..io.jsonvalues import OutOfRange, float_or_nan
 from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, content_sha256,
                        library_document, read_document, schema)
-from .entry import DRIFT_DISPLACEMENT, drift_displacement
+from .entry import DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, drift_displacements
 from .cells import build_cells, cell_tetrahedra
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
@@ -355,6 +355,9 @@ def _consistency_problems(doc: dict) -> list[Problem]:
     angles = [(d, name, lo, hi) for d, (name, unit, (lo, hi))
               in enumerate(zip(skel["dof_names"], skel["dof_units"], ranges)) if unit == "rad"]
     ids = [e["id"] for e in doc["entries"]]
+    drift_problems = _drift_problems(doc["entries"])
+    range_problems = (_range_problems(doc["entries"], angles, len(skel["dof_names"]))
+                      if angles else {})
     if ids != sorted(ids):
         first = next(i for i in range(1, len(ids)) if ids[i] < ids[i - 1])
         problems.append(Problem(f"entries[{first}].id", f"entries must be sorted by id: "
@@ -379,15 +382,30 @@ def _consistency_problems(doc: dict) -> list[Problem]:
                 problems.append(Problem(f"{where}.{key}", f"{toe_off} s is not inside the "
                                                           f"cycle of T = {e['T']} s"))
         problems += _pattern_problems(e["pattern"], f"{where}.pattern")
-        problems += _drift_problems(e, f"{where}.root_drift")
+        problems += drift_problems.get(i, [])
         if e.get("poulaine") is not None:
             problems += _poulaine_problems(e["poulaine"], f"{where}.poulaine")
-        rows = e["fourier"]["a"]
-        for d, name, lo, hi in angles if len(rows) == len(skel["dof_names"]) else ():
-            mean = float_or_nan(rows[d][0]) if rows[d] else math.nan
-            if not lo - RANGE_TOLERANCE <= mean <= hi + RANGE_TOLERANCE and math.isfinite(mean):
-                problems.append(Problem(f"{where}.fourier.a[{d}][0]", _range_message(
-                    name, mean, lo, hi)))
+        problems += range_problems.get(i, [])
+    return problems
+
+
+def _range_problems(entries: list[dict], angles: list[tuple], n_dof: int
+                    ) -> dict[int, list[Problem]]:
+    """By entry index, each angle DOF's mean ``a[d][0]`` outside its range (``angles``: rows
+    (d, name, lo, hi) in rad) beyond :data:`RANGE_TOLERANCE`, of the entries with ``n_dof``
+    coefficient rows: compared for all the entries at once."""
+    dofs = [d for d, *_ in angles]
+    rows = [i for i, e in enumerate(entries) if len(e["fourier"]["a"]) == n_dof]
+    means = _matrix([[a[d][0] if a[d] else None for d in dofs]
+                     for a in (entries[i]["fourier"]["a"] for i in rows)]).reshape(-1, len(dofs))
+    lo, hi = (np.array([angle[k] for angle in angles], dtype=np.float64) for k in (2, 3))
+    outside = ~((lo - RANGE_TOLERANCE <= means) & (means <= hi + RANGE_TOLERANCE))
+    problems: dict[int, list[Problem]] = {}
+    for r, k in zip(*np.nonzero(outside & np.isfinite(means))):
+        d, name, lo_d, hi_d = angles[k]
+        problems.setdefault(rows[r], []).append(Problem(
+            f"entries[{rows[r]}].fourier.a[{d}][0]",
+            _range_message(name, float(means[r, k]), lo_d, hi_d)))
     return problems
 
 
@@ -447,24 +465,35 @@ def _pattern_problems(pattern: dict, where: str) -> list[Problem]:
     return problems
 
 
-def _drift_problems(e: dict, where: str) -> list[Problem]:
-    """The root drift's displacement against its velocities over T, and its turn's sign."""
-    drift, period = e["root_drift"], float_or_nan(e["T"])
-    problems = []
-    if math.isfinite(period):
-        expected = drift_displacement(drift, period)
-        wrong = [key for key in DRIFT_DISPLACEMENT if not abs(drift[key] - expected[key])
-                 <= DRIFT_TOLERANCE * max(1.0, abs(expected[key]))]
-        if wrong:
-            problems.append(Problem(where, "the displacement does not follow from u_f_m_s, "
-                                           f"u_l_m_s, omega_rad_s over T = {period} s: " +
-                                           ", ".join(f"{k} {drift[k]:.6g}, expected "
-                                                     f"{expected[k]:.6g}" for k in wrong)))
-    omega, turn = float_or_nan(e["omega"]), drift["omega_rad_s"]
-    if min(abs(omega), abs(turn)) > TURN_SIGN_RATE and omega * turn < 0:
-        problems.append(Problem(f"{where}.omega_rad_s", f"{turn:.4g} rad/s turns the other way "
-                                                        f"from the entry's omega {omega:.4g} "
-                                                        "rad/s (a sign flipped?)"))
+def _drift_problems(entries: list[dict]) -> dict[int, list[Problem]]:
+    """By entry index, the root drift's displacement against its velocities over T, and its
+    turn's sign: computed for all the entries at once."""
+    drifts = [e["root_drift"] for e in entries]
+    velocities = _matrix([[d[k] for k in DRIFT_VELOCITIES] for d in drifts]).reshape(-1, 3)
+    stored = _matrix([[d[k] for k in DRIFT_DISPLACEMENT] for d in drifts]).reshape(-1, 3)
+    period = _matrix([e["T"] for e in entries])
+    omega = _matrix([e["omega"] for e in entries])
+    expected = drift_displacements(velocities, period)
+    wrong = ~(np.abs(stored - expected) <= DRIFT_TOLERANCE * np.fmax(1.0, np.abs(expected)))
+    wrong &= np.isfinite(period)[:, None]
+    turn = velocities[:, DRIFT_VELOCITIES.index("omega_rad_s")]
+    flipped = (np.fmin(np.abs(omega), np.abs(turn)) > TURN_SIGN_RATE) & (omega * turn < 0)
+    problems: dict[int, list[Problem]] = {}
+    for i in np.flatnonzero(wrong.any(axis=1) | flipped).tolist():
+        drift, where, found = drifts[i], f"entries[{i}].root_drift", []
+        if wrong[i].any():
+            found.append(Problem(where, "the displacement does not follow from u_f_m_s, "
+                                        f"u_l_m_s, omega_rad_s over T = {float(period[i])} s: "
+                                 + ", ".join(f"{k} {drift[k]:.6g}, expected "
+                                             f"{float(expected[i, j]):.6g}"
+                                             for j, k in enumerate(DRIFT_DISPLACEMENT)
+                                             if wrong[i, j])))
+        if flipped[i]:
+            found.append(Problem(f"{where}.omega_rad_s",
+                                 f"{drift['omega_rad_s']:.4g} rad/s turns the other way from "
+                                 f"the entry's omega {float(omega[i]):.4g} rad/s (a sign "
+                                 "flipped?)"))
+        problems[i] = found
     return problems
 
 
