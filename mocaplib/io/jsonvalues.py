@@ -55,6 +55,12 @@ def parse_json(text: str | bytes, /):
         raise ValueError("JSON nested too deep to read") from None
 
 
+def is_finite_number(value, /) -> bool:
+    """Whether a JSON value is a finite number (not null, a bool or a string)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
 def float_or_nan(value, /) -> float:
     """A JSON number as a float, NaN for null (None): the reverse of :func:`json_values`."""
     return math.nan if value is None else float(value)

@@ -19,12 +19,11 @@ from ..errors import LibraryError
 from ..gait.poulaine import Poulaine
 from ..gait.qc import qc_failures
 from ..io.fastjson import all_finite, collection_paused
-from ..io.jsonvalues import OutOfRange, float_or_nan
-from .document import (CHECKSUM_KEY, CONTROL_AXES, GAIT_CELLS_VERSION, content_sha256,
-                       library_document, read_document, schema)
+from ..io.jsonvalues import OutOfRange, float_or_nan, is_finite_number
+from .controlspace_rules import control_space_problems
+from .controlspace_rules import control_space_warning  # noqa: F401 (imported from here)
+from .document import CHECKSUM_KEY, content_sha256, read_document, schema
 from .entry import DRIFT_DISPLACEMENT, DRIFT_VELOCITIES, drift_displacements
-from .cells import build_cells, cell_tetrahedra
-from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 #: Largest |velocity| (m/s, rad/s) and |Fourier coefficient| (rad, or m for pelvis_t*) an entry
 #: may have: far beyond any human locomotion, so only corrupt files are refused (and the control
@@ -59,11 +58,6 @@ class Problem:
 
     def __str__(self) -> str:
         return f"{self.where}: {self.message}"
-
-
-def _control_points(entries: list[dict]) -> np.ndarray:
-    return np.array([[float_or_nan(e[axis]) for axis in CONTROL_AXES] for e in entries],
-                    dtype=np.float64).reshape(-1, 3)
 
 
 def _matrix(rows) -> np.ndarray:
@@ -136,7 +130,8 @@ def _validation_problems(library) -> list[Problem]:
         return problems
     return _named(document, _checksum_problems(document) + _skeleton_problems(document)
                   + _entry_problems(document) + _consistency_problems(document)
-                  + _control_space_problems(document))
+                  + [Problem(where, message)
+                     for where, message in control_space_problems(document)])
 
 
 def _checksum_problems(document: dict) -> list[Problem]:
@@ -446,20 +441,20 @@ def _pattern_problems(pattern: dict, where: str) -> list[Problem]:
     problems = []
     for key in sorted(set(params) & {"centre", "direction", "point"}):
         xy = params[key]
-        if not (isinstance(xy, list) and len(xy) == 2 and all(map(_is_number, xy))):
+        if not (isinstance(xy, list) and len(xy) == 2 and all(map(is_finite_number, xy))):
             problems.append(Problem(f"{where}.parameters.{key}", f"must be [x, y], got {xy!r}"))
         elif key == "direction" and abs(math.hypot(*xy) - 1.0) > 1e-6:
             # stored to 10 digits, the unit vectors of the files at hand are within 7e-11 of 1
             problems.append(Problem(f"{where}.parameters.direction", f"must be a unit vector, "
                                                                      f"its length is "
                                                                      f"{math.hypot(*xy):.6g}"))
-    if not (_is_number(params["length"]) and params["length"] >= 0):
+    if not (is_finite_number(params["length"]) and params["length"] >= 0):
         problems.append(Problem(f"{where}.parameters.length", f"must be a number of metres "
                                                               f">= 0, got {params['length']!r}"))
-    if "radius" in params and not (_is_number(params["radius"]) and params["radius"] > 0):
+    if "radius" in params and not (is_finite_number(params["radius"]) and params["radius"] > 0):
         problems.append(Problem(f"{where}.parameters.radius", f"must be a number of metres "
                                                               f"> 0, got {params['radius']!r}"))
-    if kind == "arc" and not (_is_number(params["turn"]) and params["turn"] in (1, -1)):
+    if kind == "arc" and not (is_finite_number(params["turn"]) and params["turn"] in (1, -1)):
         problems.append(Problem(f"{where}.parameters.turn", f"must be 1 (counter-clockwise) "
                                                             f"or -1, got {params['turn']!r}"))
     return problems
@@ -523,113 +518,3 @@ def _poulaine_problems(poulaine: dict, where: str) -> list[Problem]:
                                                               f"points give {computed[k]:.6g}"
                                                               for k in wrong)))
     return problems
-
-
-def _is_number(value) -> bool:
-    return (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value))
-
-
-def _control_space_problems(doc: dict) -> list[Problem]:
-    """The chosen entries' control space, as :class:`mocaplib.library.controlspace.ControlSpace`
-    builds it for queries: failing to triangulate, or tetrahedra stored that are not its own.
-    A degenerate one (:func:`~mocaplib.library.triangulation.degeneracy`) is no problem: the
-    library has no control space (:func:`control_space_warning`), and must store none."""
-
-    x = _normalised_points(doc)
-    if degeneracy(x):
-        if "tetrahedra" in doc["control_space"]:
-            return [Problem("control_space.tetrahedra", "tetrahedra are stored but the chosen "
-                                                        "entries span no 3-D control space; "
-                                                        "write the library again")]
-        return []
-    try:
-        every = delaunay_tetrahedra(x)
-    except LibraryError as exc:
-        return [Problem("control_space", f"the control space of the {len(x)} chosen entries "
-                                         f"with finite velocities: {exc.message}")]
-    stored = doc["control_space"].get("tetrahedra")
-    return [] if stored is None else _tetrahedra_problems(doc, stored, every)
-
-
-def control_space_warning(library) -> str | None:
-    """Why a valid library (path, JSON dict or :class:`~mocaplib.library.format.Library`) has
-    no control space, with what to do; None when it has one. A library of fewer than 4
-    entries with distinct velocities, or whose entries lie on a plane or a line, is valid:
-    its entries can be read, animated and retargeted, but no command can be blended."""
-    document = library_document(library)
-    x = _normalised_points(document)
-    reason = degeneracy(x)
-    if reason is None:
-        return None
-    return (f"no control space: the control space of the {len(x)} chosen entries with finite "
-            f"velocities is degenerate: it {reason}; `mocaplib query` cannot blend commands "
-            f"and the report has no control-space figures; {DEGENERACY_HINT}")
-
-
-def _normalised_points(doc: dict) -> np.ndarray:
-    """The chosen entries' normalised (v, omega, v_l) (E, 3), those with finite velocities."""
-    points = _control_points([e for e in doc["entries"] if e.get("chosen", True)])
-    points = points[np.isfinite(points).all(axis=1)]
-    return points / np.asarray(doc["control_space"]["scale"], dtype=np.float64)
-
-
-def _tetrahedra_problems(doc: dict, stored: dict, every) -> list[Problem]:
-    """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
-    in the file's order (with finite velocities and period); from
-    :data:`~mocaplib.library.document.GAIT_CELLS_VERSION` the tetrahedra of their gait cells
-    with each one's gait and the hull of all of them, before it the tetrahedra of all of them.
-    ``every``: the Delaunay tetrahedra of the chosen entries with finite velocities (those
-    with a finite period too, when they are all)."""
-
-    where = "control_space.tetrahedra"
-    hint = "write the library again (mocaplib build, or mocaplib mirror)"
-    entries = [e for e in doc["entries"] if e.get("chosen", True)
-               and all(_is_number(e.get(k)) for k in ("v", "omega", "v_l", "T"))]
-    if stored["ids"] != [e["id"] for e in entries]:
-        return [Problem(where, f"ids are not the control space's entries (chosen, with finite "
-                               f"velocities and period, in the file's order); {hint}")]
-    points, scale = _control_points(entries), doc["control_space"]["scale"]
-    if len(points) != len(every.points):            # an entry without a finite period
-        every = delaunay_tetrahedra(points / np.asarray(scale, dtype=np.float64))
-    if doc["format_version"] < GAIT_CELLS_VERSION:
-        if not _same_rows(stored["simplices"], every.simplices):
-            return [Problem(where, f"simplices are not the tetrahedra of these entries "
-                                   f"(format_version {doc['format_version']}: of all of "
-                                   f"them); {hint}")]
-        return []
-    cells, _ = build_cells(points, scale, classes=[e.get("locomotion_class") for e in entries],
-                           v_f=[float_or_nan(e.get("v_f")) for e in entries])
-    simplices, gaits = cell_tetrahedra(cells)
-    if len(stored["gaits"]) != len(stored["simplices"]) or not _same_rows(
-            stored["simplices"], simplices, stored["gaits"], gaits):
-        return [Problem(where, f"simplices and gaits are not the tetrahedra of these entries' "
-                               f"gait cells; {hint}")]
-    if not _same_rows(stored["hull"], every.convex_hull):
-        return [Problem(where, f"hull is not the boundary of these entries' points; {hint}")]
-    return []
-
-
-def _same_rows(stored: list, expected: np.ndarray, stored_gaits: list | None = None,
-               expected_gaits: list | None = None) -> bool:
-    """Whether the rows of vertex numbers ``stored`` (R, K) (JSON lists) and ``expected``
-    (R', K), each with its gait (``stored_gaits`` (R,), ``expected_gaits`` (R',)) when
-    given, are the same simplices or triangles whatever the order of the rows and of the
-    vertices in each row."""
-    expected = np.asarray(expected, dtype=np.int64)
-    try:
-        rows = np.asarray(stored, dtype=np.int64)
-    except (ValueError, OverflowError, TypeError):      # rows of several lengths
-        return False
-    if rows.size == 0 or expected.size == 0:
-        return rows.size == expected.size
-    if rows.shape != expected.shape:
-        return False
-    tables = [np.sort(rows, axis=1), np.sort(expected, axis=1)]
-    if stored_gaits is not None:
-        _, codes = np.unique(np.asarray([*stored_gaits, *expected_gaits], dtype=str),
-                             return_inverse=True)
-        tables = [np.column_stack([tables[0], codes[:len(rows)]]),
-                  np.column_stack([tables[1], codes[len(rows):]])]
-    first, second = (t[np.lexsort(t.T[::-1])] for t in tables)
-    return np.array_equal(first, second)
