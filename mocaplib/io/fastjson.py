@@ -76,8 +76,8 @@ def all_finite(data) -> bool:
         if isinstance(value, dict):
             stack.extend(value.values())
         elif isinstance(value, list):
-            if _finite_sum(value) or (value and isinstance(value[0], list)
-                                      and _finite_sum(chain.from_iterable(value))):
+            rows = value and isinstance(value[0], list)
+            if _finite_sum(chain.from_iterable(value) if rows else value):
                 continue
             stack.extend(value)
         elif isinstance(value, float) and not math.isfinite(value):

@@ -186,14 +186,14 @@ def _non_finite_problems(document) -> list[Problem]:
 
 def _schema_problems(document) -> list[Problem]:
     """The schema's problems: none when the compiled validator (jsonschema-rs, the same
-    schema) passes the document, else each as jsonschema words it."""
-    from jsonschema import Draft202012Validator
-
+    schema) passes the document, else each as jsonschema words it (imported then: 0.07 s)."""
     try:
         if _compiled_schema().is_valid(document):
             return []
     except ValueError:      # values it cannot take (OutOfRange): jsonschema says what they are
         pass
+    from jsonschema import Draft202012Validator
+
     validator = Draft202012Validator(schema())
     errors = sorted((_specific(error) for error in validator.iter_errors(document)),
                     key=lambda e: list(map(str, e.absolute_path)))
