@@ -21,26 +21,15 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..errors import LibraryError
-    from ..library.document import (CHECKSUM_KEY, NO_CHECKSUM_NOTE, checksum_status,
-                                    read_document, version_note)
-    from ..library.validation import control_space_warning, validate_library
+    from ..io.fastjson import collection_paused
+    from ..library.document import NO_CHECKSUM_NOTE
     from ._common import LIBRARY_HINT, check_inputs, print_json, warn
 
     check_inputs([args.library], hint=LIBRARY_HINT)
-    try:
-        document, _ = read_document(args.library, file_sha256=False)
-    except LibraryError:
-        document = None         # validate_library names why
-    problems = validate_library(args.library if document is None else document)
-    if document is None:
-        checksum = None
-    elif problems:
-        checksum = checksum_status(document)
-    else:                       # a valid library's checksum is verified or absent
-        checksum = "verified" if CHECKSUM_KEY in document else "absent"
-    note = None if document is None else version_note(document)
-    warnings = [] if problems else [w for w in (control_space_warning(document),) if w]
+    # the document's values are never garbage: with the collector paused until the document
+    # is released, no collection visits them (0.5 s on a 5,000-entry library)
+    with collection_paused():
+        problems, checksum, note, warnings = _findings(args.library)
     if args.json:
         print_json({"file": args.library, "valid": not problems, "checksum": checksum,
                     "problems": [{"where": p.where, "message": p.message} for p in problems],
@@ -60,3 +49,27 @@ def _run(args) -> int:
     if note:
         print(f"note: {note}")
     return 1 if problems else 0
+
+
+def _findings(path: str):
+    """The problems of the library at ``path``, its checksum status (None when it cannot be
+    read), the note on its version and the warnings of a valid library."""
+    from ..errors import LibraryError
+    from ..library.document import CHECKSUM_KEY, checksum_status, read_document, version_note
+    from ..library.validation import control_space_warning, validate_library
+
+    try:
+        document, _ = read_document(path, file_sha256=False)
+    except LibraryError:
+        document = None         # validate_library names why
+    problems = validate_library(path if document is None else document)
+    if document is None:
+        checksum = None
+    elif problems:
+        checksum = checksum_status(document)
+    else:                       # a valid library's checksum is verified or absent
+        checksum = "verified" if CHECKSUM_KEY in document else "absent"
+    note = None if document is None else version_note(document)
+    warnings = [] if problems else [w for w in (control_space_warning(document),) if w]
+    return problems, checksum, note, warnings
+
