@@ -133,6 +133,7 @@ SLOW = {
     ("test_planting.py", "test_a_loop_steps_from_its_last_frame_to_its_first_as_between_any_two"),
     ("test_planting.py", "test_stances_end_at_the_entries_toe_offs"),
     ("test_planting.py", "test_the_path_follower_plants_its_feet"),
+    ("test_legs.py", "test_the_sample_entries_planted_series_are_those_of_the_generic_solve"),
     ("test_dask_batches.py", "test_batches_on_a_local_cluster_give_the_libraries_of_local_jobs"),
     ("test_dask_batches.py", "test_a_batch_runs_with_one_blas_thread"),
     ("test_dask_batches.py", "test_a_capture_that_kills_its_worker_fails_alone_and_its_batch_lands"),

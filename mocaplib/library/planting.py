@@ -37,10 +37,13 @@ toe (tests/test_planting.py).
    and rises as a whole by what is still missing.
 4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
    of each foot per frame, all frames at once, by damped Gauss-Newton steps
-   (:data:`IK_ITERATIONS`) that stay near the motion: every DOF is pulled to its own value
-   with weight :data:`PRIOR`, the pelvis height with :data:`PELVIS_PRIOR` (it moves only where a
-   leg cannot reach); the DOFs are kept within their joint limits and the knees at 0 or more
-   (never hyperextended). The pelvis height's correction is then smoothed
+   (:data:`IK_ITERATIONS` at most, until no DOF moves by :data:`STEP_TOLERANCE`) that stay
+   near the motion: every DOF is pulled to its own value with weight :data:`PRIOR`, the pelvis
+   height with :data:`PELVIS_PRIOR` (it moves only where a leg cannot reach); the DOFs are kept
+   within their joint limits and the knees at 0 or more (never hyperextended). Each step poses
+   only the legs below the motion's pelvis (:class:`~mocaplib.library.legs.LegChains`: both
+   legs, all frames at once) and solves each frame's normal equations with the pelvis height
+   eliminated, the two legs' blocks apart. The pelvis height's correction is then smoothed
    (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it.
 
 :func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
@@ -65,6 +68,7 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..gait.poulaine import FEET
 from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
+from .legs import LEG_DOFS, LegChains
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
 #: within CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot
@@ -434,27 +438,43 @@ def _level_frames(pitch: np.ndarray, heading: float) -> np.ndarray:
 def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[int, ...], *,
            initial: np.ndarray | None = None) -> np.ndarray:
     """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
-    near those of ``q`` (F, D), from those of ``initial`` (default ``q``) on, until no DOF moves
-    by :data:`STEP_TOLERANCE` (module docstring, 4)."""
-    solved = np.array(dofs)
-    lower, upper = (bound[solved].copy() for bound in Skeleton.bounds())
-    knees = np.isin(solved, KNEES)
-    lower[knees] = np.maximum(lower[knees], 0.0)
-    segments = np.repeat(FEET, 3)
-    offsets = np.tile(np.vstack([np.zeros(3), skeleton.sole()]), (2, 1))
-    prior = np.where(solved == ROOT_Z, PELVIS_PRIOR, PRIOR)
-    start = q[:, solved].copy()
-    out = q.copy()
-    out[:, solved] = np.clip(start if initial is None else initial[:, solved], lower, upper)
-    wanted = targets.reshape(len(q), -1)
+    (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
+    those of ``initial`` (default ``q``) on, until no DOF moves by :data:`STEP_TOLERANCE`
+    (module docstring, 4). Each frame's normal equations are solved with the pelvis height
+    eliminated (Schur complement): the legs' 6 x 6 blocks do not couple."""
+    assert set(dofs) - {ROOT_Z} == set(LEGS), "planting solves both legs, maybe the pelvis height"
+    pelvis = ROOT_Z in dofs
+    bounds = Skeleton.bounds()
+    lower, upper = (bound[LEG_DOFS] for bound in bounds)                      # (2, 6)
+    lower = np.where(np.isin(LEG_DOFS, KNEES), np.maximum(lower, 0.0), lower)
+    lowest, highest = (bound[ROOT_Z] for bound in bounds)
+    start, height = q[:, LEG_DOFS], q[:, ROOT_Z]
+    out = q.copy() if initial is None else np.where(np.isin(np.arange(q.shape[1]), dofs),
+                                                    initial, q)
+    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, 6)
+    z = np.clip(out[:, ROOT_Z], lowest, highest) if pelvis else out[:, ROOT_Z]
+    chains = LegChains(skeleton, out)
+    wanted = targets.reshape(len(q), 2, 9)
+    diagonal = (PRIOR + DAMPING) * np.eye(6)
     for _ in range(IK_ITERATIONS):
-        points, jacobian = skeleton.marker_jacobian(out, segments, offsets)
-        J = jacobian.reshape(len(q), -1, len(DOF_NAMES))[:, :, solved]        # (F, 18, K)
-        gap = wanted - points.reshape(len(q), -1)
-        normal = np.einsum("fmi,fmj->fij", J, J) + np.diag(prior + DAMPING)
-        rhs = np.einsum("fmi,fm->fi", J, gap) - prior * (out[:, solved] - start)
-        step = np.linalg.solve(normal, rhs[..., None])[..., 0]
-        out[:, solved] = np.clip(out[:, solved] + step, lower, upper)
-        if np.abs(step).max() < STEP_TOLERANCE:
+        points, jacobian = chains.feet(angles, z)
+        J = jacobian.reshape(len(q), 2, 9, 6)
+        Jt = J.transpose(0, 1, 3, 2)
+        gap = wanted - points.reshape(len(q), 2, 9)
+        normal = Jt @ J + diagonal                                             # (F, 2, 6, 6)
+        rhs = (Jt @ gap[..., None])[..., 0] - PRIOR * (angles - start)
+        if pelvis:                           # the pelvis height moves every point along Z
+            coupling = J[:, :, 2::3].sum(axis=2)                               # (F, 2, 6)
+            legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, 6, 2)
+            across = (coupling[..., None] * legs).sum(axis=(1, 2))             # (F, 2)
+            lift = ((gap[:, :, 2::3].sum(axis=(1, 2)) - PELVIS_PRIOR * (z - height)
+                     - across[:, 0]) / (6.0 + PELVIS_PRIOR + DAMPING - across[:, 1]))
+            step = legs[..., 0] - legs[..., 1] * lift[:, None, None]
+            z = np.clip(z + lift, lowest, highest)
+        else:
+            step, lift = np.linalg.solve(normal, rhs[..., None])[..., 0], np.zeros(1)
+        angles = np.clip(angles + step, lower, upper)
+        if max(np.abs(step).max(), np.abs(lift).max()) < STEP_TOLERANCE:
             break
+    out[:, LEG_DOFS], out[:, ROOT_Z] = angles, z
     return out

@@ -1,0 +1,111 @@
+"""Both legs' forward kinematics below a fixed pelvis, with the Jacobian of each foot's ankle,
+heel and toe: what planting's solve (:func:`mocaplib.library.planting.plant_feet`, step 4)
+evaluates at every Gauss-Newton step.
+
+Planting moves only the legs (hip, knee and ankle DOFs, :data:`LEG_DOFS`) and the pelvis
+height; the pelvis's orientation and horizontal position stay those of the motion. So
+:class:`LegChains` takes the pelvis's frames once (:meth:`Skeleton.forward`) and at each step
+composes only the legs: both legs and all frames at once, in (F, 2, ...) arrays (left, right:
+the order of :data:`mocaplib.gait.poulaine.FEET`), each DOF turning two columns of its
+segment's rotation (its axis is ±X, ±Y or ±Z, as :meth:`Skeleton.chain` composes it). The
+numbers are those of :meth:`Skeleton.marker_jacobian` on the same poses, to round-off
+(tests/test_legs.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..gait.poulaine import FEET
+from ..skeleton import DOFS, ROOT_Z, SEGMENT_NAMES, Skeleton, segment_dofs
+
+#: Each leg's DOFs (2, 6), rows left and right, in chain order: hip flexion, adduction,
+#: rotation (femur), knee flexion (tibia), ankle dorsiflexion, inversion (foot).
+LEG_DOFS = np.array([segment_dofs(f"femur_{s}", f"tibia_{s}", f"foot_{s}") for s in "lr"])
+#: The segments of each leg (2, 3), rows left and right: femur, tibia, foot.
+LEG_SEGMENTS = np.array([[SEGMENT_NAMES.index(f"{name}_{s}") for name in ("femur", "tibia",
+                                                                           "foot")]
+                         for s in "lr"])
+#: How many of a leg's DOFs (in :data:`LEG_DOFS` order) each segment of it holds.
+SEGMENT_DOF_COUNTS = (3, 1, 2)
+_PELVIS = SEGMENT_NAMES.index("pelvis")
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])    # cyclic shifts for cross products
+
+
+def _letter(j: int) -> tuple[int, float]:
+    """The axis letter (0-2 for X-Z) and sign of DOF ``j``, which turns about ±X, ±Y or ±Z."""
+    axis = np.asarray(DOFS[j].axis)
+    k = int(np.argmax(np.abs(axis)))
+    assert np.abs(axis).sum() == abs(axis[k]) == 1.0, f"{DOFS[j].name}: not about ±X, ±Y or ±Z"
+    return k, float(axis[k])
+
+
+def _turn(R: np.ndarray, letter: int, cos: np.ndarray, sin: np.ndarray) -> None:
+    """Rotations ``R`` (..., 3, 3) times the turn about their axis ``letter`` (0-2 for X-Z) by
+    angles of cosine ``cos`` and sine ``sin`` (..., 1), in place: as
+    :meth:`Skeleton.chain` composes a DOF's rotation (only two columns change)."""
+    i, j = (letter + 1) % 3, (letter + 2) % 3
+    R[..., i], R[..., j] = R[..., i] * cos + R[..., j] * sin, R[..., j] * cos - R[..., i] * sin
+
+
+#: The pelvis's DOFs that planting keeps: its horizontal slides, its turns in chain order.
+_PELVIS_SLIDES = [j for j in segment_dofs("pelvis") if DOFS[j].translation and j != ROOT_Z]
+_PELVIS_TURNS = [j for j in segment_dofs("pelvis") if not DOFS[j].translation]
+_AXES = np.array([d.axis for d in DOFS])
+_LETTERS = np.array([_letter(j)[0] for j in LEG_DOFS[0]])
+_SIGNS = np.array([[_letter(j)[1] for j in row] for row in LEG_DOFS])             # (2, 6)
+assert all(_letter(j)[0] == k for row in LEG_DOFS for j, k in zip(row, _LETTERS)), \
+    "both legs' DOFs turn about the same axes, in the same order"
+assert SEGMENT_DOF_COUNTS == tuple(len(segment_dofs(f"{name}_l"))
+                                   for name in ("femur", "tibia", "foot")), "the legs' chains"
+assert list(FEET) == LEG_SEGMENTS[:, 2].tolist(), "legs in the order of the feet"
+
+
+class LegChains:
+    """Both legs of ``skeleton`` hanging from the pelvis of poses ``q`` (F, D): the pelvis's
+    orientation and horizontal position are those of ``q``; its height and the legs' DOFs are
+    given to :meth:`feet`."""
+
+    def __init__(self, skeleton: Skeleton, q: np.ndarray, /):
+        q = np.asarray(q, dtype=np.float64)
+        self.rotation = np.repeat(np.eye(3)[None], len(q), axis=0)         # (F, 3, 3)
+        for j in _PELVIS_TURNS:
+            k, sign = _letter(j)
+            _turn(self.rotation, k, np.cos(q[:, j, None]), sign * np.sin(q[:, j, None]))
+        joints = skeleton.joint_offsets()
+        self.origin = (joints[_PELVIS]                                    # at height 0
+                       + q[:, _PELVIS_SLIDES] @ _AXES[_PELVIS_SLIDES])
+        self.hips = np.einsum("fij,sj->fsi", self.rotation, joints[LEG_SEGMENTS[:, 0]])
+        #: knee centres in the femurs' frames and ankle centres in the tibias' (2, 2, 3, 1)
+        self.offsets = joints[LEG_SEGMENTS[:, 1:].T, :, None]
+        self.sole = skeleton.sole().T                                     # (3, 2) heel, toe
+
+    def feet(self, angles: np.ndarray, height: np.ndarray, /
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Each foot's ankle, heel and toe (F, 2, 3, 3) m (frames, left/right, point, xyz) for
+        the legs' DOFs ``angles`` (F, 2, 6) rad (:data:`LEG_DOFS`) and pelvis heights
+        ``height`` (F,) m, and their Jacobian (F, 2, 3, 3, 6) with respect to the leg's own
+        DOFs, m/rad (a leg's DOFs move only its own foot; the pelvis height moves every point
+        by 1 m/m along Z)."""
+        n = len(angles)
+        R = np.repeat(self.rotation[:, None], 2, axis=1)                  # (F, 2, 3, 3)
+        pivot = self.origin[:, None] + self.hips
+        pivot[..., 2] += height[:, None]
+        cos, sin = np.cos(angles), np.sin(angles) * _SIGNS
+        axes, pivots = np.empty((n, 2, 3, 6)), np.empty((n, 2, 3, 6))      # xyz by DOF
+        dof = 0
+        for segment, count in enumerate(SEGMENT_DOF_COUNTS):
+            if segment:
+                pivot = pivot + (R @ self.offsets[segment - 1])[..., 0]
+            pivots[..., dof:dof + count] = pivot[..., None]
+            for _ in range(count):
+                axes[..., dof] = R[..., _LETTERS[dof]] * _SIGNS[:, dof, None]
+                _turn(R, _LETTERS[dof], cos[:, :, dof, None], sin[:, :, dof, None])
+                dof += 1
+        points = np.empty((n, 2, 3, 3))
+        points[:, :, 0] = pivot
+        points[:, :, 1:] = pivot[:, :, None] + (R @ self.sole).transpose(0, 1, 3, 2)
+        arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, 6)
+        jacobian = (axes[:, :, None, _NEXT] * arm[..., _AFTER, :]         # ω × (x − c)
+                    - axes[:, :, None, _AFTER] * arm[..., _NEXT, :])
+        return points, jacobian
