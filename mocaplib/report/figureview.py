@@ -64,11 +64,12 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     entry's class label; ``colours``: class -> CSS colour.
     """
     entries = []
+    skeleton = library.skeleton                     # built from the header at each access
     for e, cls in zip(library.entries, classes):
         a, b = e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1]
         drift = np.array(e.root_drift.velocities, dtype=np.float64)
         if np.isfinite(drift).all() and np.isfinite([a, b]).all():
-            a, b = planted_series(library.skeleton, a, b, float(e.T),
+            a, b = planted_series(skeleton, a, b, float(e.T),
                                   RootDrift(0.0, 0.0, 0.0, *drift))
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
@@ -87,7 +88,7 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,
-            "skeleton": skeleton_data(library.skeleton)}
+            "skeleton": skeleton_data(skeleton)}
 
 
 def _rounded(a: np.ndarray, b: np.ndarray) -> dict:

@@ -199,7 +199,7 @@ def _loo_context(df) -> dict:
     median without them is given too."""
     mode_of = dict(zip(df["id"], (_gait_mode(c) for c in df["class"])))
     rows = []
-    for _, r in df.sort_values("rms_deg", ascending=False, kind="stable").iterrows():
+    for r in df.sort_values("rms_deg", ascending=False, kind="stable").to_dict("records"):
         rows.append({"id": r["id"], "class": r["class"] or figures.UNKNOWN_CLASS,
                      "inside": bool(r["inside"]), "rest": mode_of[r["id"]] == "rest",
                      "cross": _cross_mode(mode_of[r["id"]], r["neighbours"], r["weights"],
