@@ -17,7 +17,8 @@ a real, valid, checksummed file. On it, one run times:
   validate``: reading, schema, checksum, every rule);
 * control space: :meth:`ControlSpace.from_library`; query: one command, the median of 200
   (the first, which builds the locating grid, apart); coverage of the default envelope;
-* report: :func:`mocaplib.report.write_report` (matplotlib 3-D view, as without OpenGL).
+* report: :func:`mocaplib.report.write_report` (matplotlib 3-D view, as without OpenGL), and
+  the size of the page it writes.
 
 ``--stages`` times only the stages named (of :data:`STAGES`; all by default), e.g. ``--stages
 load validate`` for the reading and validation alone (each library is still written); a stage
@@ -130,7 +131,8 @@ def measure(base, n: int, folder: Path, rng: np.random.Generator, envelope,
         if "coverage" in stages:
             _, row["coverage"] = timed(coverage, cs, envelope)
     if "report" in stages:
-        _, row["report"] = timed(write_report, path, folder / "report", renderer="matplotlib")
+        page, row["report"] = timed(write_report, path, folder / "report", renderer="matplotlib")
+        row["page_megabytes"] = Path(page).stat().st_size / 1e6
     path.unlink()
     return row
 
@@ -155,11 +157,13 @@ def cell(row: dict, key: str) -> str:
 
 
 def print_tables(rows: list[dict], big: dict | None) -> None:
-    print("| entries | file (MB) | " + " | ".join(h for _, h in COLUMNS) + " |")
-    print("|---|---|" + "---|" * len(COLUMNS))
+    print("| entries | file (MB) | " + " | ".join(h for _, h in COLUMNS)
+          + " | report page (MB) |")
+    print("|---|---|" + "---|" * (len(COLUMNS) + 1))
     for row in rows:
+        page = f"{row['page_megabytes']:.1f}" if "page_megabytes" in row else "–"
         print(f"| {row['entries']:,} | {row['megabytes']:.1f} | "
-              + " | ".join(cell(row, k) for k, _ in COLUMNS) + " |")
+              + " | ".join(cell(row, k) for k, _ in COLUMNS) + f" | {page} |")
     if big is not None:
         print(f"\nQuery on {big['entries']:,} entries (control space built in memory: "
               f"{big['tetrahedra']:,} tetrahedra in {big['build']:.1f} s): first query "
