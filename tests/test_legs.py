@@ -128,3 +128,11 @@ def test_the_sample_entries_planted_series_are_those_of_the_generic_solve(monkey
 
     # every locomotion type (walks, curves, side-steps, turns on the spot, runs); measured 6e-15
     assert_series_equal(sample_library()[0], monkeypatch)
+
+
+def test_sole_points_are_the_skeletons_heel_and_toe():
+    q = random_poses(30, seed=3)
+    T = SKELETON.forward(q)[:, list(planting.FEET)]
+    want = np.einsum("fsij,pj->fspi", T[..., :3, :3], SKELETON.sole()) + T[:, :, None, :3, 3]
+    # posed down the legs alone: the whole chain's numbers to round-off
+    np.testing.assert_allclose(planting.sole_points(SKELETON, q), want, atol=1e-12)

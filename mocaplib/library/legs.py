@@ -87,12 +87,27 @@ class LegChains:
         ``height`` (F,) m, and their Jacobian (F, 2, 3, 3, 6) with respect to the leg's own
         DOFs, m/rad (a leg's DOFs move only its own foot; the pelvis height moves every point
         by 1 m/m along Z)."""
+        points, axes, pivots = self._posed(angles, height)
+        arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, 6)
+        jacobian = (axes[:, :, None, _NEXT] * arm[..., _AFTER, :]         # ω × (x − c)
+                    - axes[:, :, None, _AFTER] * arm[..., _NEXT, :])
+        return points, jacobian
+
+    def points(self, angles: np.ndarray, height: np.ndarray, /) -> np.ndarray:
+        """Each foot's ankle, heel and toe (F, 2, 3, 3) m, as :meth:`feet` gives them."""
+        return self._posed(angles, height)[0]
+
+    def _posed(self, angles: np.ndarray, height: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The foot points of :meth:`feet` (F, 2, 3, 3), and each leg DOF's world axis and
+        pivot (F, 2, 3, 6) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain`
+        does."""
         n = len(angles)
         R = np.repeat(self.rotation[:, None], 2, axis=1)                  # (F, 2, 3, 3)
         pivot = self.origin[:, None] + self.hips
         pivot[..., 2] += height[:, None]
         cos, sin = np.cos(angles), np.sin(angles) * _SIGNS
-        axes, pivots = np.empty((n, 2, 3, 6)), np.empty((n, 2, 3, 6))      # xyz by DOF
+        axes, pivots = np.empty((n, 2, 3, 6)), np.empty((n, 2, 3, 6))
         dof = 0
         for segment, count in enumerate(SEGMENT_DOF_COUNTS):
             if segment:
@@ -105,7 +120,4 @@ class LegChains:
         points = np.empty((n, 2, 3, 3))
         points[:, :, 0] = pivot
         points[:, :, 1:] = pivot[:, :, None] + (R @ self.sole).transpose(0, 1, 3, 2)
-        arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, 6)
-        jacobian = (axes[:, :, None, _NEXT] * arm[..., _AFTER, :]         # ω × (x − c)
-                    - axes[:, :, None, _AFTER] * arm[..., _NEXT, :])
-        return points, jacobian
+        return points, axes, pivots

@@ -146,9 +146,9 @@ class Planted:
 
 def sole_points(skeleton: Skeleton, q: np.ndarray, /) -> np.ndarray:
     """Heel and toe of both feet in poses ``q`` (F, D): (F, 2, 2, 3) m (frames, left/right,
-    heel/toe, xyz)."""
-    T = skeleton.forward(q)[:, list(FEET)]
-    return np.einsum("fsij,pj->fspi", T[..., :3, :3], skeleton.sole()) + T[:, :, None, :3, 3]
+    heel/toe, xyz), posed down the legs alone (:class:`~mocaplib.library.legs.LegChains`)."""
+    q = np.asarray(q, dtype=np.float64)
+    return LegChains(skeleton, q).points(q[:, LEG_DOFS], q[:, ROOT_Z])[:, :, 1:]
 
 
 def stance_frames(skeleton: Skeleton, q: np.ndarray, rate: float, /) -> np.ndarray:
