@@ -4,12 +4,11 @@ evaluates at every Gauss-Newton step.
 
 Planting moves only the legs (hip, knee and ankle DOFs, :data:`LEG_DOFS`) and the pelvis
 height; the pelvis's orientation and horizontal position stay those of the motion. So
-:class:`LegChains` takes the pelvis's frames once (:meth:`Skeleton.forward`) and at each step
-composes only the legs: both legs and all frames at once, in (F, 2, ...) arrays (left, right:
-the order of :data:`mocaplib.gait.poulaine.FEET`), each DOF turning two columns of its
-segment's rotation (its axis is ±X, ±Y or ±Z, as :meth:`Skeleton.chain` composes it). The
-numbers are those of :meth:`Skeleton.marker_jacobian` on the same poses, to round-off
-(tests/test_legs.py).
+:class:`LegChains` composes the pelvis's frames once, from its DOFs, and at each step only
+the legs: both legs and all frames at once, in (F, 2, ...) arrays (left, right: the order of
+:data:`mocaplib.gait.poulaine.FEET`), each DOF turning two columns of its segment's rotation
+(its axis is ±X, ±Y or ±Z, as :meth:`Skeleton.chain` composes it). The numbers are those of
+:meth:`Skeleton.marker_jacobian` on the same poses, to round-off (tests/test_legs.py).
 """
 
 from __future__ import annotations

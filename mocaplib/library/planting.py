@@ -468,7 +468,8 @@ def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[i
             legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, 6, 2)
             across = (coupling[..., None] * legs).sum(axis=(1, 2))             # (F, 2)
             lift = ((gap[:, :, 2::3].sum(axis=(1, 2)) - PELVIS_PRIOR * (z - height)
-                     - across[:, 0]) / (6.0 + PELVIS_PRIOR + DAMPING - across[:, 1]))
+                     - across[:, 0])          # 6.0: the six foot points rise with the pelvis
+                    / (6.0 + PELVIS_PRIOR + DAMPING - across[:, 1]))
             step = legs[..., 0] - legs[..., 1] * lift[:, None, None]
             z = np.clip(z + lift, lowest, highest)
         else:
