@@ -16,17 +16,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..gait.poulaine import FEET
-from ..skeleton import DOFS, ROOT_Z, SEGMENT_NAMES, Skeleton, segment_dofs
+from ..skeleton import DOF_NAMES, DOFS, ROOT_Z, SEGMENT_NAMES, SEGMENTS, Skeleton
 
-#: Each leg's DOFs (2, 6), rows left and right, in chain order: hip flexion, adduction,
-#: rotation (femur), knee flexion (tibia), ankle dorsiflexion, inversion (foot).
-LEG_DOFS = np.array([segment_dofs(f"femur_{s}", f"tibia_{s}", f"foot_{s}") for s in "lr"])
 #: The segments of each leg (2, 3), rows left and right: femur, tibia, foot.
 LEG_SEGMENTS = np.array([[SEGMENT_NAMES.index(f"{name}_{s}") for name in ("femur", "tibia",
                                                                            "foot")]
                          for s in "lr"])
+#: Each leg's K DOFs (2, K), rows left and right, in chain order (hip flexion, adduction,
+#: rotation; knee flexion; ankle dorsiflexion, inversion: K = 6).
+LEG_DOFS = np.array([[DOF_NAMES.index(name) for segment in row
+                      for name in SEGMENTS[segment].dofs] for row in LEG_SEGMENTS])
 #: How many of a leg's DOFs (in :data:`LEG_DOFS` order) each segment of it holds.
-SEGMENT_DOF_COUNTS = (3, 1, 2)
+SEGMENT_DOF_COUNTS = tuple(len(SEGMENTS[segment].dofs) for segment in LEG_SEGMENTS[0])
 _PELVIS = SEGMENT_NAMES.index("pelvis")
 _NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])    # cyclic shifts for cross products
 
@@ -48,15 +49,16 @@ def _turn(R: np.ndarray, letter: int, cos: np.ndarray, sin: np.ndarray) -> None:
 
 
 #: The pelvis's DOFs that planting keeps: its horizontal slides, its turns in chain order.
-_PELVIS_SLIDES = [j for j in segment_dofs("pelvis") if DOFS[j].translation and j != ROOT_Z]
-_PELVIS_TURNS = [j for j in segment_dofs("pelvis") if not DOFS[j].translation]
+_PELVIS_DOFS = [DOF_NAMES.index(name) for name in SEGMENTS[_PELVIS].dofs]
+_PELVIS_SLIDES = [j for j in _PELVIS_DOFS if DOFS[j].translation and j != ROOT_Z]
+_PELVIS_TURNS = [j for j in _PELVIS_DOFS if not DOFS[j].translation]
 _AXES = np.array([d.axis for d in DOFS])
 _LETTERS = np.array([_letter(j)[0] for j in LEG_DOFS[0]])
-_SIGNS = np.array([[_letter(j)[1] for j in row] for row in LEG_DOFS])             # (2, 6)
+_SIGNS = np.array([[_letter(j)[1] for j in row] for row in LEG_DOFS])             # (2, K)
 assert all(_letter(j)[0] == k for row in LEG_DOFS for j, k in zip(row, _LETTERS)), \
     "both legs' DOFs turn about the same axes, in the same order"
-assert SEGMENT_DOF_COUNTS == tuple(len(segment_dofs(f"{name}_l"))
-                                   for name in ("femur", "tibia", "foot")), "the legs' chains"
+assert SEGMENT_DOF_COUNTS == tuple(len(SEGMENTS[s].dofs) for s in LEG_SEGMENTS[1]) \
+    and not any(DOFS[j].translation for j in LEG_DOFS.ravel()), "two legs alike, turns only"
 assert list(FEET) == LEG_SEGMENTS[:, 2].tolist(), "legs in the order of the feet"
 
 
@@ -82,12 +84,12 @@ class LegChains:
     def feet(self, angles: np.ndarray, height: np.ndarray, /
              ) -> tuple[np.ndarray, np.ndarray]:
         """Each foot's ankle, heel and toe (F, 2, 3, 3) m (frames, left/right, point, xyz) for
-        the legs' DOFs ``angles`` (F, 2, 6) rad (:data:`LEG_DOFS`) and pelvis heights
-        ``height`` (F,) m, and their Jacobian (F, 2, 3, 3, 6) with respect to the leg's own
+        the legs' DOFs ``angles`` (F, 2, K) rad (:data:`LEG_DOFS`) and pelvis heights
+        ``height`` (F,) m, and their Jacobian (F, 2, 3, 3, K) with respect to the leg's own
         DOFs, m/rad (a leg's DOFs move only its own foot; the pelvis height moves every point
         by 1 m/m along Z)."""
         points, axes, pivots = self._posed(angles, height)
-        arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, 6)
+        arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, K)
         jacobian = (axes[:, :, None, _NEXT] * arm[..., _AFTER, :]         # ω × (x − c)
                     - axes[:, :, None, _AFTER] * arm[..., _NEXT, :])
         return points, jacobian
@@ -99,14 +101,14 @@ class LegChains:
     def _posed(self, angles: np.ndarray, height: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The foot points of :meth:`feet` (F, 2, 3, 3), and each leg DOF's world axis and
-        pivot (F, 2, 3, 6) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain`
+        pivot (F, 2, 3, K) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain`
         does."""
         n = len(angles)
         R = np.repeat(self.rotation[:, None], 2, axis=1)                  # (F, 2, 3, 3)
         pivot = self.origin[:, None] + self.hips
         pivot[..., 2] += height[:, None]
         cos, sin = np.cos(angles), np.sin(angles) * _SIGNS
-        axes, pivots = np.empty((n, 2, 3, 6)), np.empty((n, 2, 3, 6))
+        axes, pivots = (np.empty((n, 2, 3, LEG_DOFS.shape[1])) for _ in range(2))
         dof = 0
         for segment, count in enumerate(SEGMENT_DOF_COUNTS):
             if segment:

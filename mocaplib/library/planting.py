@@ -441,31 +441,31 @@ def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[i
     (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
     those of ``initial`` (default ``q``) on, until no DOF moves by :data:`STEP_TOLERANCE`
     (module docstring, 4). Each frame's normal equations are solved with the pelvis height
-    eliminated (Schur complement): the legs' 6 x 6 blocks do not couple."""
+    eliminated (Schur complement): the two legs' blocks do not couple."""
     assert set(dofs) - {ROOT_Z} == set(LEGS), "planting solves both legs, maybe the pelvis height"
     pelvis = ROOT_Z in dofs
     bounds = Skeleton.bounds()
-    lower, upper = (bound[LEG_DOFS] for bound in bounds)                      # (2, 6)
+    lower, upper = (bound[LEG_DOFS] for bound in bounds)                      # (2, K)
     lower = np.where(np.isin(LEG_DOFS, KNEES), np.maximum(lower, 0.0), lower)
     lowest, highest = (bound[ROOT_Z] for bound in bounds)
     start, height = q[:, LEG_DOFS], q[:, ROOT_Z]
     out = q.copy() if initial is None else np.where(np.isin(np.arange(q.shape[1]), dofs),
                                                     initial, q)
-    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, 6)
+    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, K)
     z = np.clip(out[:, ROOT_Z], lowest, highest) if pelvis else out[:, ROOT_Z]
     chains = LegChains(skeleton, out)
     wanted = targets.reshape(len(q), 2, 9)
-    diagonal = (PRIOR + DAMPING) * np.eye(6)
+    diagonal = (PRIOR + DAMPING) * np.eye(LEG_DOFS.shape[1])
     for _ in range(IK_ITERATIONS):
         points, jacobian = chains.feet(angles, z)
-        J = jacobian.reshape(len(q), 2, 9, 6)
+        J = jacobian.reshape(len(q), 2, 9, -1)
         Jt = J.transpose(0, 1, 3, 2)
         gap = wanted - points.reshape(len(q), 2, 9)
-        normal = Jt @ J + diagonal                                             # (F, 2, 6, 6)
+        normal = Jt @ J + diagonal                                             # (F, 2, K, K)
         rhs = (Jt @ gap[..., None])[..., 0] - PRIOR * (angles - start)
         if pelvis:                           # the pelvis height moves every point along Z
-            coupling = J[:, :, 2::3].sum(axis=2)                               # (F, 2, 6)
-            legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, 6, 2)
+            coupling = J[:, :, 2::3].sum(axis=2)                               # (F, 2, K)
+            legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, K, 2)
             across = (coupling[..., None] * legs).sum(axis=(1, 2))             # (F, 2)
             lift = ((gap[:, :, 2::3].sum(axis=(1, 2)) - PELVIS_PRIOR * (z - height)
                      - across[:, 0])          # 6.0: the six foot points rise with the pelvis
