@@ -32,7 +32,7 @@ from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.planting import plant_feet, sole_points, stance_frames
 from mocaplib.library.retarget import retarget
 from mocaplib.model.motion import Motion
-from mocaplib.skeleton import DOF_NAMES, Skeleton
+from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
 
 # the paths of benchmarks/path_follow.py (its page: docs/results/path_follow.md)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -299,3 +299,33 @@ def test_the_report_viewers_feet_meet_the_targets():
 
     slide, below, hover = _viewer_feet(synthetic_walks()[0])
     assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER
+
+
+def test_a_foot_rolling_over_its_ball_keeps_the_knee():
+    # the right foot rises onto its forefoot as a real foot does, turning 25 deg about the ball
+    # (half the foot length ahead of the ankle, on the sole) while the rigid toe tip of the
+    # skeleton's sole dips into the floor: planted, the toe tip is locked on the floor by
+    # turning the foot so that the leg keeps its length (measured: the knee moves 0.9 deg;
+    # raising the ankle by the toe's dip instead moves it 16 deg), nothing slides or goes
+    # below the floor
+    body = Skeleton.from_height(1.75)
+    frames, knee = 60, DOF_NAMES.index("knee_flexion_r")
+    q = np.zeros((frames, len(DOF_NAMES)))
+    for side in "lr":
+        q[:, DOF_NAMES.index(f"hip_flexion_{side}")] = 0.15
+        q[:, DOF_NAMES.index(f"knee_flexion_{side}")] = 0.3
+        q[:, DOF_NAMES.index(f"ankle_dorsiflexion_{side}")] = 0.15
+    q[:, DOF_NAMES.index("ankle_dorsiflexion_r")] -= np.deg2rad(25.0) * np.clip(
+        (np.arange(frames) - 20) / 20, 0.0, 1.0)
+    ball = np.array([0.5 * body.lengths["foot_length"], 0.0, -body.lengths["ankle_height"]])
+    foot = body.forward(q)[:, SEGMENT_NAMES.index("foot_r")]
+    where = np.einsum("fij,j->fi", foot[:, :3, :3], ball) + foot[:, :3, 3]
+    q[:, 0] -= where[:, 0] - where[0, 0]
+    q[:, 2] -= where[:, 2]
+    stance = np.zeros((frames, 2), dtype=bool)
+    stance[:, 1] = True
+    planted = plant_feet(body, q, 100.0, stance=stance)
+    assert planted.before.penetration_m > 0.025                        # the rigid toe dips
+    assert planted.after.penetration_m < 5e-4 and planted.after.slide_m < 5e-4
+    change = np.degrees(np.abs(planted.q[:, knee] - q[:, knee]).max())
+    assert change <= 2.0, change

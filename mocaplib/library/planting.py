@@ -19,20 +19,28 @@ toe (tests/test_planting.py).
 
 **Planting** (:func:`plant_feet`):
 
-1. The whole body is lowered by the feet's median hover, the median height of the lower sole
-   point over the stance frames (the fitted ankle centre sits higher above the floor than the
-   skeleton's ``ankle_height``: 17-18 mm on the samples).
+1. The whole body is lowered by the height at which the feet stand (:func:`standing_level`):
+   the median, over the stance runs, of the sole's mean height at the run's flattest frame (the
+   fitted ankle centre sits higher above the floor than the skeleton's ``ankle_height``: 17-18
+   mm on the samples; the real entries' feet stand from 9 mm below to 30 mm above the floor).
+   The flat foot sets it, not the lowest sole point of every stance frame: the rigid toe tip
+   dips into the floor at push-off where a real foot bends its toes.
 2. Each stance run is locked at its flattest frame (the frame where the higher of heel and toe
    is lowest): the foot's heading there and the horizontal position of its heel (and of its toe,
    the sole's length ahead). Through the run the foot loses its roll and rolls on the floor:
    about the locked heel while its toes point up, about the locked toe while its heel is up (the
    two coincide when the foot is flat, so the pivot changes without a jump). It keeps its own
-   pitch where that puts the ankle within :data:`ANKLE_GAP` of the motion's, and beyond twice
-   that takes the pitch that brings the ankle nearest the motion's (a rigid toe below the floor
-   at push-off costs an ankle turn, not a raised ankle).
+   pitch where that changes the knee's flexion by at most :data:`KNEE_GAP`, and beyond twice
+   that takes the pitch that keeps the ankle as far from the hip as the motion's is (the leg's
+   length: the knee keeps its flexion and the hip turns the leg). A real foot rolls over the
+   ball of the foot at push-off (half its length ahead of the ankle on the real entries, where
+   the rigid toe tip is three quarters), so the rigid toe tip locked on the floor costs a
+   steeper or flatter foot, not a raised ankle: near a straight knee, as in late stance, each
+   millimetre the ankle rises bends the knee by degrees.
 3. Outside stance the foot follows the motion; within :data:`BLEND_S` of a run the correction of
-   the run's first (last) frame fades in (out) by a smoothstep, the foot coming down to (rising
-   from) the floor at :data:`APPROACH_SPEED` at least near it; a swing foot whose toe (heel) would be
+   the run's first (last) frame, a turn about the ankle and a shift, fades in (out) by a
+   smoothstep (the foot stays rigid), the foot coming down to (rising from) the floor at
+   :data:`APPROACH_SPEED` at least near it; a swing foot whose toe (heel) would be
    lower turns about its ankle to lift it (the rigid toe that dips into the floor at push-off),
    and rises as a whole by what is still missing.
 4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
@@ -44,17 +52,22 @@ toe (tests/test_planting.py).
    only the legs below the motion's pelvis (:class:`~mocaplib.library.legs.LegChains`: both
    legs, all frames at once) and solves each frame's normal equations with the pelvis height
    eliminated, the two legs' blocks apart. The pelvis height's correction is then smoothed
-   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it.
+   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it, for the targets
+   of the motion with that pelvis (a swing foot goes up and down with the body, and a stance
+   foot's pitch keeps the knee for the hip where it is).
 
 :func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
 pelvis's vertical acceleration (:class:`ContactMeasures`).
 
 **On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
 own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
-floor at push-off and the feet hover up to 47 mm; planting changes a knee by up to 27.9 deg and
-a hip's flexion by up to 13.5 deg (target 5 deg for the knee, not met: the swing foot's ankle
-rises where the whole rigid foot is below the floor next to a stance), lowers no body by more
-than its feet's hover in stance (at most 31 mm).
+floor at push-off and the feet hover up to 47 mm; planting changes a knee by up to 15.5 deg and
+a hip's flexion by up to 8.1 deg (target 5 deg, not met). Where: a swing foot whose rigid heel
+is below the floor in the frames before its heel strike turns and rises (HC030A22_c3); a foot
+that stands pitched 4-7 deg (its fitted sole is not level when the real one is) is laid flat
+about its heel (PiG_Motion-FlatFoot-Full_c1, 07_01_c0); a knee the motion hyperextends is held
+at 0 (07_01_c0: 12.3 deg). It lowers no body by more than its feet's hover in stance (at most
+30 mm).
 """
 
 from __future__ import annotations
@@ -64,10 +77,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
+from scipy.spatial.transform import Rotation
 
 from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..gait.poulaine import FEET
-from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
+from ..skeleton import DOF_NAMES, ROOT_Z, SEGMENT_NAMES, Skeleton, segment_dofs
 from .legs import LEG_DOFS, LegChains
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
@@ -82,9 +96,9 @@ MAX_LEVEL = 0.05
 #: stays above the floor by APPROACH_SPEED (m/s) times the time to the stance (times the share
 #: of the window still ahead: nothing at its far end).
 BLEND_S, APPROACH_SPEED = 0.1, 0.2
-#: A stance foot keeps its own pitch where that puts its ankle within ANKLE_GAP (m) of the
-#: motion's, and turns to bring the ankle nearest the motion's beyond twice that.
-ANKLE_GAP = 0.02
+#: A stance foot keeps its own pitch where that changes its knee's flexion by at most KNEE_GAP
+#: (rad), and beyond twice that takes the pitch that keeps the knee's flexion.
+KNEE_GAP = np.deg2rad(1.0)
 #: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
 MAX_TOE_TURN = np.deg2rad(30.0)
 #: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
@@ -100,6 +114,8 @@ LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_
                                                                          "foot_r"))
 SOLVED = LEGS + (ROOT_Z,)
 KNEES = (DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r"))
+#: The thighs' segments (left, right), whose origins are the hip joint centres.
+HIPS = (SEGMENT_NAMES.index("femur_l"), SEGMENT_NAMES.index("femur_r"))
 #: Harmonics and sampling rate (Hz) of :func:`planted_series`.
 SERIES_ORDER, SERIES_RATE = 15, 30.0
 #: A sole point within this (m) of the floor touches it (:func:`contact_measures`).
@@ -176,6 +192,15 @@ def stance_frames(skeleton: Skeleton, q: np.ndarray, rate: float, /) -> np.ndarr
     return out
 
 
+def standing_level(sole: np.ndarray, stance: np.ndarray, /) -> float:
+    """The height (m) at which the feet stand: the median, over the stance runs of ``stance``
+    (F, 2) bool, of the sole's mean height at the run's flattest frame (where the higher of
+    heel and toe is lowest); ``sole`` (F, 2, 2, 3) m as :func:`sole_points` gives it."""
+    heights = [sole[start:stop, side, :, 2] for side in (0, 1)
+               for start, stop in _runs(stance[:, side])]
+    return float(np.median([run[np.argmin(run.max(axis=1))].mean() for run in heights]))
+
+
 def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
                stance: np.ndarray | None = None, window: tuple[int, int] | None = None
                ) -> Planted:
@@ -188,16 +213,15 @@ def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
     q = np.array(q, dtype=np.float64)
     stance = stance_frames(skeleton, q, rate) if stance is None else np.asarray(stance, bool)
     before = contact_measures(skeleton, q, rate, stance, window=window)
-    sole = sole_points(skeleton, q)
     if stance.any():
-        q[:, ROOT_Z] -= np.median(sole[..., 2].min(axis=2)[stance])
+        q[:, ROOT_Z] -= standing_level(sole_points(skeleton, q), stance)
     targets = _targets(skeleton, q, stance, rate)
     reached = _solve(skeleton, q, targets, SOLVED)
     drop = reached[:, ROOT_Z] - q[:, ROOT_Z]
     spread = max(1, round(PELVIS_SMOOTHING_S * rate))
     q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode="nearest"),
                                       spread / 2, mode="nearest")
-    out = _solve(skeleton, q, targets, LEGS, initial=reached)
+    out = _solve(skeleton, q, _targets(skeleton, q, stance, rate), LEGS, initial=reached)
     return Planted(out, stance, before,
                    contact_measures(skeleton, out, rate, stance, window=window))
 
@@ -312,13 +336,15 @@ def _foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float) -> np.ndarray:
     """Where the ankle, heel and toe of each foot go: (F, 2, 3, 3) m (module docstring, 2-3)."""
-    T = skeleton.forward(q)[:, list(FEET)]
+    transforms = skeleton.forward(q)
+    T, hips = transforms[:, list(FEET)], transforms[:, list(HIPS)][..., :3, 3]
     local = np.vstack([np.zeros(3), skeleton.sole()])                     # ankle, heel, toe
     points = np.einsum("fsij,pj->fspi", T[..., :3, :3], local) + T[:, :, None, :3, 3]
     targets = points.copy()
     pitch, heading = _foot_axes(T[..., :3, :3])
     fade = max(1, round(BLEND_S * rate))
     length = local[2, 0] - local[1, 0]
+    leg = (skeleton.lengths["thigh"], skeleton.lengths["shank"])
     clearance = np.zeros(stance.shape)            # how high the lower sole point must stay, m
     for side in (0, 1):
         for start, stop in _runs(stance[:, side]):
@@ -328,56 +354,89 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
             psi = heading[flat, side]
             heel = np.array([*points[flat, side, 1, :2], 0.0])
             toe = heel + length * np.array([np.cos(psi), np.sin(psi), 0.0])
-            theta = _stance_pitch(points[frames, side, 0], pitch[frames, side], heel, toe, psi,
-                                  local)
+            theta = _stance_pitch(points[frames, side, 0], hips[frames, side],
+                                  q[frames, KNEES[side]], pitch[frames, side], heel, toe, psi,
+                                  local, leg)
             R = _level_frames(theta, psi)                                   # (n, 3, 3)
             placed = np.einsum("nij,pj->npi", R, local)
             pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
             targets[frames, side] = placed + pivot[:, None]
             for edge, direction in ((start, -1), (stop - 1, 1)):
-                for k, frame in _fade(targets, points, side, edge, direction, fade,
-                                      targets[edge, side] - points[edge, side]):
+                for k, frame in _fade(targets, points, side, edge, direction, fade):
                     clearance[frame, side] = APPROACH_SPEED * k / rate * (1 - k / fade)
     swing = ~stance
     targets[swing] = _cleared(targets[swing], clearance[swing])
     return targets
 
 
-def _stance_pitch(ankle: np.ndarray, pitch: np.ndarray, heel: np.ndarray, toe: np.ndarray,
-                  psi: float, local: np.ndarray) -> np.ndarray:
+def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch: np.ndarray,
+                  heel: np.ndarray, toe: np.ndarray, psi: float, local: np.ndarray,
+                  leg: tuple[float, float]) -> np.ndarray:
     """The pitch (n,) rad of a foot rolling on the floor about its locked ``heel`` (toes up,
     pitch >= 0) or ``toe`` (heel up, pitch < 0), heading ``psi`` rad: the motion's ``pitch``
-    (n,) rad where it puts the ankle within :data:`ANKLE_GAP` of the motion's ``ankle`` (n, 3)
-    m, the pitch that brings the ankle nearest it beyond twice that, a linear blend between;
-    ``local``: ankle, heel, toe in the foot frame (3, 3) m."""
-    forward = np.array([np.cos(psi), np.sin(psi)])
-    rest = {1.0: np.arctan2(-local[1, 2], -local[1, 0]), -1.0: np.arctan2(-local[2, 2],
-                                                                          -local[2, 0])}
-    arm = {1.0: np.hypot(*local[1, [0, 2]]), -1.0: np.hypot(*local[2, [0, 2]])}
-    offset = {1.0: ankle - heel, -1.0: ankle - toe}
-    plane = {k: np.stack([d[:, :2] @ forward, d[:, 2]], axis=-1) for k, d in offset.items()}
+    (n,) rad where that changes the knee's flexion by at most :data:`KNEE_GAP`, beyond twice
+    that the pitch that keeps the ankle as far from the ``hip`` (n, 3) m as the motion's
+    ``ankle`` (n, 3) m is (the knee's flexion kept; the solution nearest the motion's pitch,
+    or the one that comes nearest where none keeps it), a linear blend between. The knee's
+    ``flexion`` (n,) rad in the motion; ``local``: ankle, heel, toe in the foot frame (3, 3) m;
+    ``leg``: thigh and shank lengths, m (the knee's flexion follows the law of cosines, its
+    constant term fitted to the motion's flexion, which takes the joints' shifts in)."""
+    forward = np.array([np.cos(psi), np.sin(psi), 0.0])
+    wanted = np.sum((ankle - hip) ** 2, axis=1)                 # the leg's length², m²
+    pivots = {1.0: (heel, local[1]), -1.0: (toe, local[2])}
 
-    def gap(theta: np.ndarray) -> np.ndarray:
-        side = np.where(theta >= 0, 1.0, -1.0)
-        reach = np.where(side > 0, rest[1.0], rest[-1.0]) + theta
-        length = np.where(side > 0, arm[1.0], arm[-1.0])
-        d = np.where((side > 0)[:, None], plane[1.0], plane[-1.0])
-        return np.hypot(d[:, 0] - length * np.cos(reach), d[:, 1] - length * np.sin(reach))
+    def reach(sign: float) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """Rest angle and arm of the ankle about the pivot, and the pivot's offset from the hip
+        along and above the foot's heading, |pivot - hip|² (n,): |ankle - hip|² = offset² +
+        arm² + 2 arm |offset| cos(rest + pitch - direction)."""
+        pivot, point = pivots[sign]
+        d = pivot - hip
+        return (np.arctan2(-point[2], -point[0]), np.hypot(point[0], point[2]),
+                np.stack([d @ forward, d[:, 2]], axis=-1), np.sum(d * d, axis=1))
 
-    nearest = [side * np.clip(side * np.angle(np.exp(1j * (
-        np.arctan2(plane[side][:, 1], plane[side][:, 0]) - rest[side]))), 0.0, None)
-        for side in (1.0, -1.0)]
-    best = np.where(gap(nearest[0]) <= gap(nearest[1]), nearest[0], nearest[1])
-    share = np.clip(gap(pitch) / ANKLE_GAP - 1.0, 0.0, 1.0)
+    twice = 2 * leg[0] * leg[1]
+    constant = wanted - twice * np.cos(flexion)
+
+    def knee(length2: np.ndarray) -> np.ndarray:
+        """Knee flexion (rad, 0 or more) of a leg whose ankle is length2 (m²) from its hip."""
+        return np.arccos(np.clip((length2 - constant) / twice, -1.0, 1.0))
+
+    def length2(theta: np.ndarray) -> np.ndarray:
+        """|ankle - hip|² (n,) m² at pitch ``theta`` (n,) rad, about the pivot its sign picks."""
+        about = {}
+        for sign in (1.0, -1.0):
+            rest, arm, offset, square = reach(sign)
+            about[sign] = square + arm ** 2 + 2 * arm * (offset[:, 0] * np.cos(rest + theta)
+                                                         + offset[:, 1] * np.sin(rest + theta))
+        return np.where(theta >= 0, about[1.0], about[-1.0])
+
+    best, miss = np.zeros(len(pitch)), np.full(len(pitch), np.inf)
+    for sign in (1.0, -1.0):
+        rest, arm, offset, square = reach(sign)
+        span = np.maximum(2 * arm * np.hypot(*offset.T), 1e-12)
+        cosine = np.clip((wanted - square - arm ** 2) / span, -1.0, 1.0)
+        direction = np.arctan2(offset[:, 1], offset[:, 0])
+        for root in (np.arccos(cosine), -np.arccos(cosine)):
+            theta = np.angle(np.exp(1j * (direction + root - rest)))
+            theta = sign * np.maximum(sign * theta, 0.0)
+            away = np.abs(theta - pitch)
+            better = away < miss
+            best[better], miss[better] = theta[better], away[better]
+    change = np.abs(knee(length2(pitch)) - np.abs(flexion))
+    share = np.clip(change / KNEE_GAP - 1.0, 0.0, 1.0)
     return pitch + share * (best - pitch)
 
 
-def _fade(targets, points, side: int, edge: int, direction: int, fade: int,
-          correction: np.ndarray) -> list[tuple[int, int]]:
-    """Add ``correction`` (3, 3) to ``fade`` frames of foot ``side`` beyond frame ``edge`` in
-    ``direction`` (±1), weighted by a smoothstep from 1 at the edge to 0, where no stance has
-    set them (their target is still the motion's point); returns the (k, frame) pairs set, k
-    frames from the edge."""
+def _fade(targets, points, side: int, edge: int, direction: int, fade: int
+          ) -> list[tuple[int, int]]:
+    """Move ``fade`` frames of foot ``side`` beyond frame ``edge`` in ``direction`` (±1), where
+    no stance has set them (their target is still the motion's point), by the rigid correction
+    that takes the motion's foot to its target at ``edge`` (a turn about the ankle, then a
+    shift), weighted by a smoothstep from 1 at the edge to 0; returns the (k, frame) pairs
+    set, k frames from the edge. ``targets``, ``points``: (F, 2, 3, 3) m, ankle, heel, toe."""
+    target, point = targets[edge, side], points[edge, side]
+    turn = Rotation.align_vectors(target[1:] - target[0], point[1:] - point[0])[0].as_rotvec()
+    shift = target[0] - point[0]
     done = []
     for k in range(1, fade):
         frame = edge + direction * k
@@ -385,7 +444,10 @@ def _fade(targets, points, side: int, edge: int, direction: int, fade: int,
                                                                   points[frame, side]):
             break
         s = 1.0 - k / fade
-        targets[frame, side] += s * s * (3 - 2 * s) * correction
+        s = s * s * (3 - 2 * s)
+        ankle = points[frame, side, 0]
+        targets[frame, side] = (ankle + s * shift
+                                + Rotation.from_rotvec(s * turn).apply(points[frame, side] - ankle))
         done.append((k, frame))
     return done
 
