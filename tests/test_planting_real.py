@@ -74,7 +74,7 @@ def test_planting_moves_real_knees_and_hips_no_more_than_measured(planted_entrie
                    "8.1 deg (the target 5 deg): a swing foot whose rigid heel is below the floor "
                    "before its heel strike turns and rises (HC030A22_c3), a foot that stands "
                    "pitched 4-7 deg is laid flat (PiG_Motion-FlatFoot-Full_c1, 07_01_c0), a "
-                   "hyperextended knee is held at 0 (07_01_c0: 12.3 deg, 9.6 beyond that)")
+                   "hyperextended knee is held at 0 (07_01_c0 bends to -12.3 deg)")
 def test_planting_moves_real_knees_and_hips_by_at_most_the_target(planted_entries):
     assert _largest_change(planted_entries, KNEES) <= TARGET_DEG
     assert _largest_change(planted_entries, HIPS) <= TARGET_DEG
