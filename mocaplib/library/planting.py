@@ -248,8 +248,8 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
     ``rate`` Hz, planted (:func:`plant_cycles`) and the DOFs planting solves (:data:`SOLVED`)
     fitted again with ``order`` harmonics; (D, max(N, order)+1) each, the other DOFs' rows
     ``a``'s and ``b``'s own padded with zeros. For animations that pose the skeleton from a series (the report's viewer);
-    on the sample entries at the defaults the refitted feet slide up to 5.0 mm, go up to 1.9 mm
-    below the floor and hover up to 3.4 mm (docs/results/character.md): the series' harmonics
+    on the sample entries at the defaults the refitted feet slide up to 3.7 mm, go up to 2.0 mm
+    below the floor and hover up to 3.2 mm (docs/results/character.md): the series' harmonics
     round the planted stance off."""
     steps = max(round(period * rate), 2 * order + 1)
     planted = plant_cycles(skeleton, lambda t: synthesize(a, b, period, t), drift, period,
