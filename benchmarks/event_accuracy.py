@@ -1,4 +1,4 @@
-"""Toe-off and heel-strike accuracy of both toe-off definitions, against the issue's targets.
+"""Toe-off and heel-strike accuracy of both toe-off definitions, against their targets.
 
     python benchmarks/event_accuracy.py [--samples sample_c3d] [--real DIR] [--markdown PATH]
     python benchmarks/event_accuracy.py --noise-sd 0     # samples without noise
@@ -9,7 +9,7 @@ events under ``--real`` (default ``$MOCAPLIB_SHARED_C3D``, else ``../shared/data
 when absent), for each toe-off definition, and prints:
 
 * synthetic, per locomotion type (the name without speed and size): toe-offs, % within 1 frame
-  (the issue's target: >= 95 % for every type), % within 2 frames, worst |error| in frames;
+  (the target: >= 95 % for every type), % within 2 frames, worst |error| in frames;
 * real, per event kind: events paired with a lab event, median difference, median |difference|
   (target for toe-off: <= 10 ms), how many within 10 ms, worst |difference|; and the left
   toe-offs alone, which bound the cycles (targets: median |difference| <= 10 ms, worst

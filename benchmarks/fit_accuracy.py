@@ -178,7 +178,7 @@ def synthetic(folder: Path, static_path: Path | None) -> None:
 def dof_table(errors: list[tuple[str, np.ndarray]]) -> None:
     """Per DOF over the captures' angle errors ((name, (F, D) degrees) each): RMS mean and
     max (the capture), the mean |offset| (each capture's mean error) and tracking (the RMS
-    about it) averaged, and the issue's target (every capture; 2° for a DOF named for a
+    about it) averaged, and the target (every capture; 2° for a DOF named for a
     flexion, 4° for the others)."""
     names = [name for name, _ in errors]
     rms = np.array([np.sqrt((e ** 2).mean(axis=0)) for _, e in errors])

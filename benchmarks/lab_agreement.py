@@ -71,7 +71,7 @@ RUNS = tuple((motion, static, Path(motion).stem) for motion, static in CAPTURES)
 FLEXIONS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 #: The arms' flexions (Plug-in Gait point, component, mocaplib DOF), compared per side.
 ARMS = (("ElbowAngles", 0, "elbow_flexion"), ("ShoulderAngles", 0, "shoulder_flexion"))
-#: The issue's targets: flexions (median |offset| over captures and sides, worst |offset|,
+#: The targets: flexions (median |offset| over captures and sides, worst |offset|,
 #: r, RMS after offset), frontal angles (r, |offset|), limits, pelvis range, the arms' flexions
 #: (|offset| on every capture and side, r, RMS after offset, range within this factor of
 #: Plug-in Gait's either way), degrees; the shoulder centres' mean distance from Plug-in

@@ -8,7 +8,7 @@ Builds the library from ``--samples`` (``mocaplib build ... --jobs 2``) unless a
 is given, then matches every entry with the truth cycle of its capture whose start time is
 nearest (``*.truth.json`` beside each ``*.c3d``) and prints, per locomotion type, the number of
 entries and the worst |Δv̂| (also as % of the truth), |Δω̂| and |Δv̂_l|, each against the
-issue's targets: v̂ within 2 % (0.02 m/s where the truth is near 0: under 1 m/s), ω̂ within
+targets: v̂ within 2 % (0.02 m/s where the truth is near 0: under 1 m/s), ω̂ within
 0.02 rad/s, v̂_l within 0.02 m/s. Exit code 1 when a target is missed. With ``--static``
 (neutral) the build also gets ``--forward-reference SAMPLES/walk_straight_normal.c3d``
 (``--forward-reference NAME``, or ``none``); ``--toe-off`` is passed to the build (the quick
@@ -81,7 +81,7 @@ def compare(library_path: Path, samples: Path) -> list[dict]:
 
 
 def v_tolerance(true_v: float) -> float:
-    """2 % of v̂, at least 0.02 m/s (the issue's tolerance near 0)."""
+    """2 % of v̂, at least 0.02 m/s (the tolerance near 0)."""
     return max(V_REL * abs(true_v), V_ABS)
 
 

@@ -61,7 +61,7 @@ def test_real_file_equals_ezc3d(relative, real_c3d):
     # (0, 0, 0) (CMU files store missing markers that way; see test_all_zero_samples_are_missing).
     reference = np.where((reference == 0).all(axis=2, keepdims=True), np.nan, reference)
     np.testing.assert_array_equal(np.isnan(trial.markers), np.isnan(reference))
-    # Both decode the same float32 / int16 x SCALE words to float64: 1e-6 m is the bar.
+    # Both decode the same float32 / int16 x SCALE words to float64: 1e-6 m is the bar.
     np.testing.assert_allclose(trial.markers, reference, atol=1e-6, rtol=0, equal_nan=True)
 
 

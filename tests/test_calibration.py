@@ -363,7 +363,7 @@ def test_the_elbow_reads_the_known_flexion_of_the_independent_body(exact_run):
     error = (fit(run.trial, model).q - np.asarray(run.truth["angles"]["values"])) / DEG
     for side in "lr":
         j = DOF_NAMES.index(f"elbow_flexion_{side}")
-        # the flexion target, 2°: measured 1.5° RMS (8.7° with the elbow hinged where
+        # the flexion target, 2°: measured 1.5° RMS (8.7° with the elbow hinged where
         # the nominal layout puts it)
         assert np.sqrt((error[:, j] ** 2).mean()) <= 2.0, (side, error[:, j].mean())
 

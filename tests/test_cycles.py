@@ -144,7 +144,7 @@ def test_synthetic_truth_shoulders_give_the_true_velocities():
         for true in truth["cycles"]:
             checked += 1
             got = cycle_velocities(left, right, trial.rate, true["start_s"], true["end_s"])
-            # the targets: v 2 % (0.02 m/s near 0), omega 0.02 rad/s, v_l 0.02 m/s
+            # the targets: v 2 % (0.02 m/s near 0), omega 0.02 rad/s, v_l 0.02 m/s
             np.testing.assert_allclose(got.v, true["v"], atol=max(0.02 * true["v"], 0.02),
                                        err_msg=name)
             np.testing.assert_allclose(got.omega, true["omega"], atol=0.02, err_msg=name)
@@ -207,7 +207,7 @@ def test_cli_cycles_json(capsys):
                 "fourier_rms_deg", "chosen"} <= set(row)
         assert row["pattern"]["type"] == "arc" and row["pattern"]["arc_angle_rad"] > 0
         np.testing.assert_allclose(row["omega"], 0.5, atol=0.02)  # 1.0 m/s on a 2 m radius
-        # fitted shoulder centres: the 0.02 m/s on v_l (truth 0 to 1e-3)
+        # fitted shoulder centres: the 0.02 m/s target on v_l (truth 0 to 1e-3)
         np.testing.assert_allclose(row["v_l"], 0.0, atol=0.02)
         assert row["fourier_n"] >= 1
     assert sum(row["chosen"] for row in out["cycles"]) == 1
@@ -274,7 +274,7 @@ def test_treadmill_cycles_relative_to_the_belt():
                             ground=np.array([-speed, 0.0, 0.0]))
     assert len(moving) == 3
     for c in moving:
-        np.testing.assert_allclose(c.velocities.v, speed, rtol=0.02)  # the 2 %
+        np.testing.assert_allclose(c.velocities.v, speed, rtol=0.02)  # the 2 % target
         np.testing.assert_allclose(c.velocities.v_f, speed, rtol=0.02)
         # the root drifts forwards with the belt speed in the encoding too
         np.testing.assert_allclose(c.encoding.drift.u_f, speed, rtol=0.02)

@@ -368,7 +368,7 @@ def test_event_differences_pairs_by_side_and_kind():
 def test_real_toe_offs_match_lab_foot_off(real_c3d):
     diff = lab_differences(real_c3d, "toe_off")  # the default, foot_velocity
     assert len(diff) >= 19  # 21 lab Foot Off events in the four files are paired (measured)
-    # the issue's target: median |difference| <= 10 ms against the lab's Foot Off
+    # the target: median |difference| <= 10 ms against the lab's Foot Off
     assert np.median(np.abs(diff)) <= 0.010, np.round(diff * 1000)
 
 
@@ -378,7 +378,7 @@ def test_real_left_toe_offs_median_within_10_ms(real_c3d):
 
 
 def test_real_left_toe_offs_worst_within_30_ms(real_c3d):
-    # the earlier issue's target for the toe-offs that bound the cycles (measured worst
+    # the target for the toe-offs that bound the cycles (measured worst
     # 11.2 ms; the upward-velocity peak alone is 31.5 ms before PiG_Motion-FlatFoot-Full's
     # left Foot Off at 1.18 s, which no force plate measured: docs/results/event_accuracy.md)
     diff = lab_differences(real_c3d, "toe_off", side="L")
@@ -395,7 +395,7 @@ def test_real_forefoot_lift_precedes_foot_off_by_the_toe_roll(real_c3d):
 def test_real_heel_strikes_match_lab_foot_strike(real_c3d):
     diff = lab_differences(real_c3d, "heel_strike")
     assert len(diff) >= 22  # 24 paired (measured)
-    # no target in the issue; measured 10.2 ms; 20 ms catches a regression
+    # no target set; measured 10.2 ms; 20 ms catches a regression
     assert np.median(np.abs(diff)) <= 0.020, np.round(diff * 1000)
 
 
@@ -423,7 +423,7 @@ def test_synthetic_toe_offs_default_within_one_frame():
     by_type = synthetic_toe_off_errors("foot_velocity")
     within = {kind: np.mean(errors <= 1.0) for kind, errors in by_type.items()}
     everything = np.concatenate(list(by_type.values()))
-    # the issue's target: >= 95 % of the toe-offs (the toes' tips leaving the floor) within one
+    # the target: >= 95 % of the toe-offs (the toes' tips leaving the floor) within one
     # frame in every locomotion type. The samples are made from fixed seeds, so this is the
     # shipped samples' score (docs/results/event_accuracy.md).
     assert min(within.values()) >= 0.95, within

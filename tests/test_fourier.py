@@ -122,7 +122,7 @@ def test_drift_frame_reaches_the_end_pose():
 
 @pytest.mark.real
 def test_real_chosen_cycles_encode_with_few_harmonics():
-    # the target: order <= 12 for >= 90 % of the real chosen cycles (every one hit the
+    # the target: order <= 12 for >= 90 % of the real chosen cycles (every one hit the
     # cap of 20 at a flat 0.5 deg tolerance, forced through each cycle's start-to-end step);
     # measured 5-10 on the 10 real walks (docs/guide/fourier.md)
     from walking_library import real_walks

@@ -36,7 +36,7 @@ def mirrored_samples(tmp_path_factory):
 
 @pytest.mark.slow
 def test_every_sample_entry_meets_the_velocity_targets(mirrored_samples):
-    # the targets against the truth cycle nearest in start time, on every captured
+    # the targets against the truth cycle nearest in start time, on every captured
     # entry of the quick start's library (benchmarks/velocity_accuracy.py measures the same:
     # worst v̂ 0.8 %, ω̂ 0.0034 rad/s, v̂_l 0.0113 m/s)
     captured = [e for e in mirrored_samples.library.entries if not e.mirrored]

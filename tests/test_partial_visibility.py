@@ -74,7 +74,7 @@ def test_a_short_run_at_250_hz_gives_an_entry_from_its_right_toe_off(short_run):
     inside = left[(left > first) & (left < next_right)]
     assert len(inside) == 1
     np.testing.assert_allclose(entry.left_toe_off_s, inside[0] - first, atol=0.010)
-    # velocities against the truth of a cycle of the same steady run (the targets:
+    # velocities against the truth of a cycle of the same steady run (the targets:
     # v̂ within 2 %, ω̂ and v̂_l within 0.02)
     truth = capture.truth["cycles"][0]
     np.testing.assert_allclose(entry.v, truth["v"], rtol=0.02)

@@ -95,7 +95,7 @@ def cycle(*, v_f=1.2, v_l=0.0, omega=0.0, period=1.1, noise=0.001):
 def test_velocities_and_signs(v_f, v_l, omega):
     got = cycle(v_f=v_f, v_l=v_l, omega=omega)
     speed = np.hypot(v_f, v_l)
-    # truth of model (2); tolerances are the targets (2 % or 0.02 m/s, 0.02 rad/s)
+    # truth of model (2); tolerances are the targets (2 % or 0.02 m/s, 0.02 rad/s)
     np.testing.assert_allclose(got.v, speed, atol=max(0.02 * speed, 0.02))
     np.testing.assert_allclose(got.omega, omega, atol=0.02)
     np.testing.assert_allclose(got.v_l, v_l, atol=0.02)

@@ -53,7 +53,7 @@ def test_synthetic_swaps_are_undone(cluster_session, a, b, frames):
     assert none == []                              # nothing to repair in a clean capture
     rms, repairs = _rms_and_repairs(swapped(walk, a, b, frames), static=rest,
                                     static_pose="neutral")
-    assert abs(rms - reference) <= 1.0, (rms, reference)           # the target
+    assert abs(rms - reference) <= 1.0, (rms, reference)           # the target
     (repair,) = repairs
     first, last = frames.indices(walk.n_frames)[:2]
     assert repair["kind"] == "swap" and set(repair["markers"]) == {a, b}

@@ -15,7 +15,7 @@ from mocaplib.export.formats import suffixes
 from mocaplib.library.retarget import TASK_DOFS, Weights, foot_skate, retarget
 from mocaplib.skeleton import DOF_NAMES, Skeleton
 
-#: The issue's target: joint-angle RMS of the pelvis, hip and knee DOFs (the IK's, TASK_DOFS)
+#: The target: joint-angle RMS of the pelvis, hip and knee DOFs (the IK's, TASK_DOFS)
 #: between a cycle retargeted to its own body and the captured cycle, rad.
 SELF_RMS = 0.05
 

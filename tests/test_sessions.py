@@ -177,7 +177,7 @@ def test_static_options_are_checked_before_any_work(tmp_path, capsys):
 
 
 def test_the_shared_files_with_two_statics_build_without_failure(shared_c3d, tmp_path, capsys):
-    # the target: all 17 shared files with HC030A01 and Static1 as statics exit 0 and
+    # the target: all 17 shared files with HC030A01 and Static1 as statics exit 0 and
     # keep >= 10 entries (measured 12: docs/guide/build.md lists the captures without entry)
     statics = [shared_c3d / "biomechzoo" / "HC030A01.c3d", shared_c3d / "motonms_unipd" /
                "Static1.c3d"]

@@ -47,7 +47,7 @@ def test_a_shorter_and_a_taller_subject_get_a_skeleton_of_their_size(tmp_path, h
         "measured knee flexion 2.85° RMS; other DOFs within 4° (hip rotation 3.11°, "
         "elbow flexion 1.70°; docs/results/fit_accuracy.md)")))])
 def test_a_shorter_and_a_taller_subject_are_fitted_within_the_targets(tmp_path, height):
-    # the targets against the independent body's truth, every DOF fitted (not held):
+    # the targets against the independent body's truth, every DOF fitted (not held):
     # flexion within 2°, other DOFs within 4°
     model, rms, _ = _stature_fit(tmp_path, height)
     other = [j for j in OTHER if DOF_NAMES[j] not in model.unobservable]

@@ -103,7 +103,7 @@ def test_velocities_from_shoulders_match_command(name):
     cmd = cap.command
     want = {"v": cmd.speed, "omega": cmd.omega, "v_l": cmd.v_l, "v_f": cmd.v_f}
     for key in want:
-        # the tolerance: 1 % or 0.01 (m/s, rad/s), whichever is larger
+        # the tolerance: 1 % or 0.01 (m/s, rad/s), whichever is larger
         tol = max(0.01 * abs(want[key]), 0.01)
         assert abs(got[key] - want[key]) <= tol, f"{name} {key}: {got[key]:.4f} vs {want[key]}"
 
