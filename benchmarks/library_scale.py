@@ -2,7 +2,8 @@
 the number of entries.
 
     python benchmarks/library_scale.py [LIBRARY.json] [--samples sample_c3d] [--sizes 68 500 ...]
-        [--query-entries 50000] [--quick] [--stages load validate ...] [--markdown PATH]
+        [--query-entries 50000] [--quick] [--stages load validate ...] [--jobs N]
+        [--markdown PATH]
 
 Without a library, builds the quick start's one from ``--samples`` (``mocaplib build SAMPLES
 --static SAMPLES/rest.c3d --static-pose neutral --forward-reference
@@ -17,8 +18,9 @@ a real, valid, checksummed file. On it, one run times:
   validate``: reading, schema, checksum, every rule);
 * control space: :meth:`ControlSpace.from_library`; query: one command, the median of 200
   (the first, which builds the locating grid, apart); coverage of the default envelope;
-* report: :func:`mocaplib.report.write_report` (matplotlib 3-D view, as without OpenGL), and
-  the size of the page it writes.
+* report: :func:`mocaplib.report.write_report` (matplotlib 3-D view, as without OpenGL; ``--jobs
+  N`` worker processes, as ``mocaplib report --jobs N``, default 1), and the size of the page
+  it writes.
 
 ``--stages`` times only the stages named (of :data:`STAGES`; all by default), e.g. ``--stages
 load validate`` for the reading and validation alone (each library is still written); a stage
@@ -110,9 +112,9 @@ def query_times(cs: ControlSpace, rng: np.random.Generator) -> tuple[float, floa
 
 
 def measure(base, n: int, folder: Path, rng: np.random.Generator, envelope,
-            stages=tuple(STAGES)) -> dict:
+            stages=tuple(STAGES), jobs: int = 1) -> dict:
     """The time of each of ``stages`` (:data:`STAGES`) on a library of ``n`` jittered entries
-    of ``base``, by column (and the write's)."""
+    of ``base``, by column (and the write's); the report by ``jobs`` processes."""
     path = folder / f"library_{n}.json"
     entries = jittered_entries(base.entries, n, rng)
     _, write = timed(lambda: assemble_library(entries, settings=base.settings,
@@ -131,7 +133,8 @@ def measure(base, n: int, folder: Path, rng: np.random.Generator, envelope,
         if "coverage" in stages:
             _, row["coverage"] = timed(coverage, cs, envelope)
     if "report" in stages:
-        page, row["report"] = timed(write_report, path, folder / "report", renderer="matplotlib")
+        page, row["report"] = timed(write_report, path, folder / "report", renderer="matplotlib",
+                                    jobs=jobs)
         row["page_megabytes"] = Path(page).stat().st_size / 1e6
     path.unlink()
     return row
@@ -219,6 +222,8 @@ def main() -> int:
                         help=f"entries of the in-memory query (default {QUERY_ENTRIES:,})")
     parser.add_argument("--quick", action="store_true",
                         help=f"sizes {QUICK_SIZES}, {QUICK_QUERY_ENTRIES:,} query entries")
+    parser.add_argument("--jobs", type=int, default=1, metavar="N",
+                        help="worker processes of the report (default 1)")
     parser.add_argument("--stages", nargs="+", choices=STAGES, default=list(STAGES),
                         help="time only these stages (default: all); load is always timed")
     add_markdown_option(parser)
@@ -239,7 +244,7 @@ def main() -> int:
                             "--jobs", "2", "--no-cache"], check=True, cwd=ROOT,
                            capture_output=True)
         base = load_library(library)
-        rows = [measure(base, n, folder, rng, envelope, args.stages) for n in sizes]
+        rows = [measure(base, n, folder, rng, envelope, args.stages, args.jobs) for n in sizes]
         big = big_query(base, query_entries, rng) if "query" in args.stages else None
         print_tables(rows, big)
         if args.markdown is not None:

@@ -14,7 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocaplib.library.format import assemble_library
+from mocaplib.library.controlspace import ControlSpace
+from mocaplib.library.format import assemble_library, load_library
+from mocaplib.report import figureview
 from mocaplib.skeleton import DOF_NAMES
 
 from entries import plain_entry
@@ -797,3 +799,18 @@ def test_a_cycle_from_a_fallback_event_says_so_in_the_capture_section():
 
     cycles = _captures(diagnostics, SimpleNamespace(entries=[]))[0]["cycles"]
     assert [c["start_event"] for c in cycles] == ["right toe off", None]
+
+
+def test_the_viewers_cycles_planted_by_two_jobs_are_those_of_one(monkeypatch):
+    # tasks of 3 cycles over two worker processes give every entry's planted series of one
+    # process, in the library's order
+    library = load_library(Path(__file__).parents[1] / "js" / "test" / "fixtures"
+                           / "library.json")
+    cs = ControlSpace.from_library(library)
+    classes = ["walk"] * len(library.entries)
+    monkeypatch.setattr(figureview, "PLANTED_PER_TASK", 3)
+    one = figureview.viewer_data(library, cs, classes, {}, jobs=1)["entries"]
+    two = figureview.viewer_data(library, cs, classes, {}, jobs=2)["entries"]
+    assert len(library.entries) > 6
+    assert [e["id"] for e in two] == [e.id for e in library.entries]
+    assert one == two

@@ -20,7 +20,8 @@ def register(subparsers) -> None:
                              "capture plan (default: the plan of mocaplib's synthetic sample "
                              "captures, shipped with it)")
     parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
-                        help="processes drawing the per-capture figures (default 1)")
+                        help="processes drawing the per-capture figures and planting the "
+                             "viewer's cycles (default 1)")
     parser.add_argument("--no-opengl", action="store_true",
                         help="draw the 3-D view with matplotlib instead of pyvista/VTK")
     parser.set_defaults(run=_run)

@@ -30,7 +30,8 @@ def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"
         The 3-D control-space view: pyvista, falling back to matplotlib without OpenGL, or
         matplotlib.
     jobs : int
-        Processes drawing the per-capture figures (the report's slowest part).
+        Processes drawing the per-capture figures and planting the figure viewer's cycles
+        (the report's slowest parts).
 
     Returns
     -------

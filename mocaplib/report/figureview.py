@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..build.workers import run_tasks
 from ..export.bvh import end_sites
 from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra
@@ -24,6 +25,8 @@ from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 COEFFICIENT_DECIMALS = 6
 #: The entry shown first: the one nearest this (v̂, ω̂, v̂_l) (m/s, rad/s, m/s), normal walking.
 FIRST_SHOWN = (1.2, 0.0, 0.0)
+#: Entries one worker task plants when the viewer's cycles are planted by several jobs.
+PLANTED_PER_TASK = 25
 #: Segment origins joined by a line besides each segment's bone to its parent.
 EXTRA_LINES = (("femur_l", "femur_r"), ("humerus_l", "humerus_r"))
 
@@ -48,7 +51,7 @@ def skeleton_data(skeleton: Skeleton) -> dict:
             "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES]}
 
 
-def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
+def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1) -> dict:
     """Everything the figure viewer needs, as JSON data.
 
     ``entries``: per library entry (``library.entries`` order) its id, class, colour,
@@ -61,16 +64,15 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     (rows of 4 indices into them, :func:`~mocaplib.library.cells.cell_tetrahedra`) with
     their ``gaits``, the ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
     lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
-    entry's class label; ``colours``: class -> CSS colour.
+    entry's class label; ``colours``: class -> CSS colour. ``jobs``: worker processes planting
+    the cycles (:func:`planted_cycles`).
     """
     entries = []
     skeleton = library.skeleton                     # built from the header at each access
-    for e, cls in zip(library.entries, classes):
-        a, b = e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1]
-        drift = np.array(e.root_drift.velocities, dtype=np.float64)
-        if np.isfinite(drift).all() and np.isfinite([a, b]).all():
-            a, b = planted_series(skeleton, a, b, float(e.T),
-                                  RootDrift(0.0, 0.0, 0.0, *drift))
+    for e, cls, (a, b) in zip(library.entries, classes, planted_cycles(skeleton, [
+            (e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1], float(e.T),
+             np.array(e.root_drift.velocities, dtype=np.float64)) for e in library.entries],
+            jobs=jobs)):
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
             "mirror_of": e.mirror_of, "T": float(e.T),
@@ -89,6 +91,31 @@ def viewer_data(library, cs, classes: list[str], colours: dict) -> dict:
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,
             "skeleton": skeleton_data(skeleton)}
+
+
+def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) -> list[tuple]:
+    """Each cycle ``(a, b, T, drift)`` (coefficients (D, N+1), period s, drift velocities (3,))
+    as :func:`~mocaplib.library.planting.planted_series` plants it on ``skeleton``: ``(a, b)``
+    planted, or the cycle's own where its coefficients or drift are not finite. ``jobs`` > 1:
+    :data:`PLANTED_PER_TASK` cycles a task in worker processes
+    (:func:`mocaplib.build.workers.run_tasks`); a task whose worker failed is planted here
+    again, so that a real error shows as itself."""
+    chunks = [cycles[k:k + PLANTED_PER_TASK] for k in range(0, len(cycles), PLANTED_PER_TASK)]
+    planted: list = [None] * len(chunks)
+    for index, value, error in run_tasks(_planted_chunk, [(skeleton, c) for c in chunks],
+                                         jobs=jobs):
+        planted[index] = _planted_chunk(skeleton, chunks[index]) if error else value
+    return [pair for chunk in planted for pair in chunk]
+
+
+def _planted_chunk(skeleton: Skeleton, cycles: list[tuple]) -> list[tuple]:
+    """:func:`planted_cycles` of one task."""
+    out = []
+    for a, b, period, drift in cycles:
+        if np.isfinite(drift).all() and np.isfinite([a, b]).all():
+            a, b = planted_series(skeleton, a, b, period, RootDrift(0.0, 0.0, 0.0, *drift))
+        out.append((a, b))
+    return out
 
 
 def _rounded(a: np.ndarray, b: np.ndarray) -> dict:

@@ -48,7 +48,7 @@ def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
     table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
     back to matplotlib without OpenGL) or ``"matplotlib"``. ``jobs``: processes drawing the
-    per-capture figures (the report's slowest part). Reads the diagnostics sidecar
+    per-capture figures and planting the figure viewer's cycles (the report's slowest parts). Reads the diagnostics sidecar
     ``<stem>.diagnostics.json`` beside the library when it exists and belongs to it.
     """
     library_path = Path(library_path)
@@ -122,7 +122,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
     add_control_space(context, cs, env, library, label, classes_all, renderer)
-    context["motion"] = _motion(library, cs, classes_all, warnings)
+    context["motion"] = _motion(library, cs, classes_all, warnings, jobs=jobs)
     _shorten_paths(context)
     return context
 
@@ -281,9 +281,11 @@ def _entry_rows(entries, label) -> list[dict]:
              "fourier_deg": degrees(e.qc.get("fourier_rms_rad"))} for e in entries]
 
 
-def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None:
-    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`); None, with a
-    warning, when the library has no entry or its DOFs are not this mocaplib's skeleton's."""
+def _motion(library, cs, classes: list[str], warnings: list[str], *, jobs: int = 1
+            ) -> dict | None:
+    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`, its cycles
+    planted by ``jobs`` processes); None, with a warning, when the library has no entry or its
+    DOFs are not this mocaplib's skeleton's."""
 
     if not len(library):
         warnings.append("motion viewer left out: the library has no entry")
@@ -293,7 +295,7 @@ def _motion(library, cs, classes: list[str], warnings: list[str]) -> dict | None
                         "skeleton's (report it with the mocaplib version that wrote it)")
         return None
     colours = css_colours(figures.class_colours(classes))
-    return viewer_data(library, cs, classes, colours)
+    return viewer_data(library, cs, classes, colours, jobs=jobs)
 
 
 def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]:
