@@ -17,8 +17,8 @@ from mocaplib import skeleton as skeleton_module
 from mocaplib.build.workflow import cycle_shapes
 from mocaplib.gait import criteria, qc
 from mocaplib.gait.cycles import _events_between, longest_gap, motion_cycles
-from mocaplib.gait.events import _lost_stances, capture_events
-from mocaplib.gait.foot_events import GaitEvent, unplaced_event
+from mocaplib.gait.events import _lost_stances, capture_events, lost_stance
+from mocaplib.gait.foot_events import GaitEvent
 from mocaplib.gait.patterns import cycle_times
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.matching import match_trial
@@ -218,13 +218,8 @@ def lost_stances_every_pair(airborne, rate, n_frames):
         for start, end in airborne[side]:
             for inner_start, inner_end in airborne[other]:
                 if start < inner_start and inner_end < end:
-                    reason = (f"the foot seems in the air from {start / rate:.2f} to "
-                              f"{end / rate:.2f} s while the {other} foot swings (a stance "
-                              "hidden by missing markers or on another floor)")
-                    out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
-                                           n_frames, reason),
-                            unplaced_event(side, "toe_off", (inner_end, end), rate,
-                                           n_frames, reason)]
+                    out += lost_stance(side, (start, end), other, (inner_start, inner_end),
+                                       rate, n_frames)
     return out
 
 

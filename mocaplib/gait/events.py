@@ -266,20 +266,26 @@ def _lost_stances(airborne: dict[str, list[tuple[int, int]]], rate: float, n_fra
     out = []
     for side, other in ((a, b) for a in airborne for b in airborne if a != b):
         spans = airborne[other]                  # in time order, disjoint: ends in order too
-        starts = [inner_start for inner_start, _ in spans]
+        starts = [swing_start for swing_start, _ in spans]
         for start, end in airborne[side]:
             k = bisect.bisect_right(starts, start)       # the first of them starting after it
             while k < len(spans) and spans[k][1] < end:
-                inner_start, inner_end = spans[k]
+                out += lost_stance(side, (start, end), other, spans[k], rate, n_frames)
                 k += 1
-                reason = (f"the foot seems in the air from {start / rate:.2f} to "
-                          f"{end / rate:.2f} s while the {other} foot swings (a stance "
-                          "hidden by missing markers or on another floor)")
-                out += [unplaced_event(side, "heel_strike", (start, inner_start), rate,
-                                       n_frames, reason),
-                        unplaced_event(side, "toe_off", (inner_end, end), rate,
-                                       n_frames, reason)]
     return out
+
+
+def lost_stance(side: str, span: tuple[int, int], other: str, swing: tuple[int, int],
+                rate: float, n_frames: int) -> list[GaitEvent]:
+    """The heel strike and toe-off, not placed, of the stance of ``side`` hidden in its
+    ``span`` in the air ([start, end) frames) around a whole ``swing`` of the ``other`` foot
+    (:func:`_lost_stances`)."""
+    (start, end), (inner_start, inner_end) = span, swing
+    reason = (f"the foot seems in the air from {start / rate:.2f} to {end / rate:.2f} s while "
+              f"the {other} foot swings (a stance hidden by missing markers or on another "
+              "floor)")
+    return [unplaced_event(side, "heel_strike", (start, inner_start), rate, n_frames, reason),
+            unplaced_event(side, "toe_off", (inner_end, end), rate, n_frames, reason)]
 
 
 #: Shortest flight phase (s, both feet off the floor) that makes a capture a run.

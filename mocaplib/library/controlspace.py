@@ -130,8 +130,13 @@ class Blend:
 
         Root channels are in the path frame, as stored in the library (see :meth:`world`).
         """
-        t = np.arange(int(np.ceil(cycles * self.T[i] * rate - 1e-9))) / rate
+        t = np.arange(self.frames(i, rate=rate, cycles=cycles)) / rate
         return t, synthesize(self.a[i], self.b[i], self.T[i], t)
+
+    def frames(self, i: int = 0, *, rate: float = 100.0, cycles: int = 1) -> int:
+        """How many frames :meth:`synthesize` samples: k / ``rate`` s before the end of the
+        last of ``cycles`` periods."""
+        return int(np.ceil(cycles * self.T[i] * rate - 1e-9))
 
     def looped(self, rate: float) -> Blend:
         """The blends played in whole frames at ``rate`` Hz: each period T (s) becomes

@@ -291,7 +291,7 @@ def plant_blend(blend, skeleton: Skeleton, /, i: int = 0, *, rate: float, cycles
     period = float(blend.T[i])
     drift = RootDrift(0.0, 0.0, 0.0, *(0.0, 0.0, 0.0) if blend.drift is None
                       else (float(v) for v in blend.drift[i]))
-    frames = len(blend.synthesize(i, rate=rate, cycles=cycles)[0])
+    frames = blend.frames(i, rate=rate, cycles=cycles)
     return plant_cycles(skeleton, lambda t: synthesize(blend.a[i], blend.b[i], period, t),
                         drift, period, rate, frames)
 
