@@ -329,3 +329,27 @@ def test_a_foot_rolling_over_its_ball_keeps_the_knee():
     assert planted.after.penetration_m < 5e-4 and planted.after.slide_m < 5e-4
     change = np.degrees(np.abs(planted.q[:, knee] - q[:, knee]).max())
     assert change <= 5.0, change
+
+
+@pytest.mark.usefixtures("sample_dir")
+def test_a_cycle_of_whole_frames_is_solved_on_one_cycle():
+    """A periodic motion sampled at a whole number of frames a cycle is solved on its first
+    cycle and repeated (plant_feet's ``period``): the motion planted over all its frames gives
+    the same, to the solve's step tolerance, on every locomotion type of the samples."""
+    from mocaplib.gait.fourier import RootDrift
+    from mocaplib.library.planting import SOLVED, _padded
+
+    library, _ = sample_library()
+    worst = 0.0
+    for e in library.entries[::4]:
+        period, rate = float(e.T), 30.0
+        steps = round(period * rate)
+        drift = RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
+        q, window = _padded(lambda t: synthesize(e.fourier.a, e.fourier.b, period, t), drift,
+                            period, steps / period, 2 * steps)
+        whole = plant_feet(library.skeleton, q, steps / period, window=window)
+        cyclic = plant_feet(library.skeleton, q, steps / period, window=window, period=steps)
+        worst = max(worst, float(np.abs(cyclic.q - whole.q).max()))
+        others = np.setdiff1d(np.arange(q.shape[1]), SOLVED)        # not solved: as they were
+        np.testing.assert_array_equal(cyclic.q[:, others], q[slice(*window)][:, others])
+    assert worst < 1e-5, worst                     # measured 1.1e-6

@@ -52,8 +52,7 @@ def planted_entries():
         hovers = [higher[start:stop, side].min() for side in (0, 1)
                   for start, stop in _runs(stance[:, side])]
         level = float(np.median(hovers)) if hovers else 0.0
-        out.append((entry.id, float(np.hypot(*velocities[:2])), q[keep], level,
-                    planted.q[keep]))
+        out.append((entry.id, float(np.hypot(*velocities[:2])), q[keep], level, planted.q))
     assert len(out) >= 10
     return out
 

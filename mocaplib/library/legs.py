@@ -98,11 +98,18 @@ class LegChains:
         """Each foot's ankle, heel and toe (F, 2, 3, 3) m, as :meth:`feet` gives them."""
         return self._posed(angles, height)[0]
 
-    def _posed(self, angles: np.ndarray, height: np.ndarray
+    def frames(self, angles: np.ndarray, height: np.ndarray, /
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each foot's ankle, heel and toe (F, 2, 3, 3) m as :meth:`feet` gives them, its
+        orientation (F, 2, 3, 3) in the world and each hip joint centre (F, 2, 3) m."""
+        points, axes, pivots, R = self._posed(angles, height, orientation=True)
+        return points, R, pivots[..., 0]
+
+    def _posed(self, angles: np.ndarray, height: np.ndarray, *, orientation: bool = False
+               ) -> tuple[np.ndarray, ...]:
         """The foot points of :meth:`feet` (F, 2, 3, 3), and each leg DOF's world axis and
         pivot (F, 2, 3, K) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain`
-        does."""
+        does; with ``orientation``, also each foot's orientation (F, 2, 3, 3)."""
         n = len(angles)
         R = np.repeat(self.rotation[:, None], 2, axis=1)                  # (F, 2, 3, 3)
         pivot = self.origin[:, None] + self.hips
@@ -121,4 +128,4 @@ class LegChains:
         points = np.empty((n, 2, 3, 3))
         points[:, :, 0] = pivot
         points[:, :, 1:] = pivot[:, :, None] + (R @ self.sole).transpose(0, 1, 3, 2)
-        return points, axes, pivots
+        return (points, axes, pivots, R) if orientation else (points, axes, pivots)

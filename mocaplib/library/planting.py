@@ -45,16 +45,20 @@ toe (tests/test_planting.py).
    and rises as a whole by what is still missing.
 4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
    of each foot per frame, all frames at once, by damped Gauss-Newton steps
-   (:data:`IK_ITERATIONS` at most, until no DOF moves by :data:`STEP_TOLERANCE`) that stay
-   near the motion: every DOF is pulled to its own value with weight :data:`PRIOR`, the pelvis
+   (:data:`IK_ITERATIONS` at most, until no pelvis height moves by :data:`STEP_TOLERANCE`:
+   only the heights are kept from this solve) that stay near the motion: every DOF is pulled to its own value with weight :data:`PRIOR`, the pelvis
    height with :data:`PELVIS_PRIOR` (it moves only where a leg cannot reach); the DOFs are kept
    within their joint limits and the knees at 0 or more (never hyperextended). Each step poses
    only the legs below the motion's pelvis (:class:`~mocaplib.library.legs.LegChains`: both
    legs, all frames at once) and solves each frame's normal equations with the pelvis height
    eliminated, the two legs' blocks apart. The pelvis height's correction is then smoothed
-   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it, for the targets
-   of the motion with that pelvis (a swing foot goes up and down with the body, and a stance
-   foot's pitch keeps the knee for the hip where it is).
+   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it (until no DOF
+   moves by :data:`STEP_TOLERANCE`), for the targets of the motion with that pelvis (a swing
+   foot goes up and down with the body, and a stance foot's pitch keeps the knee for the hip
+   where it is). The Levenberg damping (:data:`DAMPING`) is small, so that the DOFs that move
+   the feet least converge too: on the sample entries the first solve takes 4-12 steps
+   (median 7), the second 2-4 (one entry 10). A periodic motion sampled at a whole number of frames a
+   cycle is solved on one cycle (:func:`plant_feet`'s ``period``).
 
 :func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
 pelvis's vertical acceleration (:class:`ContactMeasures`).
@@ -74,14 +78,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from scipy.spatial.transform import Rotation
 
 from ..gait.fourier import RootDrift, fit_series, synthesize
-from ..gait.poulaine import FEET
-from ..skeleton import DOF_NAMES, ROOT_Z, SEGMENT_NAMES, Skeleton, segment_dofs
+from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
 from .legs import LEG_DOFS, LegChains
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
@@ -104,8 +108,9 @@ KNEE_GAP = np.deg2rad(4.0)
 MAX_TOE_TURN = np.deg2rad(30.0)
 #: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
 #: and the pelvis height to the motion's values.
-IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-4, 1e-6, 3e-2
-#: A solve stops when no DOF moves by more than this in a step (rad, m).
+IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-5, 1e-6, 3e-2
+#: A solve stops when no DOF (the first solve: no pelvis height) moves by more than this in a
+#: step (rad, m).
 STEP_TOLERANCE = 1e-6
 #: The pelvis height's correction (where a leg cannot reach) is spread over this (s): the
 #: lowest correction within it, smoothed by a Gaussian of half its width.
@@ -115,8 +120,6 @@ LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_
                                                                          "foot_r"))
 SOLVED = LEGS + (ROOT_Z,)
 KNEES = (DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r"))
-#: The thighs' segments (left, right), whose origins are the hip joint centres.
-HIPS = (SEGMENT_NAMES.index("femur_l"), SEGMENT_NAMES.index("femur_r"))
 #: Harmonics and sampling rate (Hz) of :func:`planted_series`.
 SERIES_ORDER, SERIES_RATE = 15, 30.0
 #: A sole point within this (m) of the floor touches it (:func:`contact_measures`).
@@ -151,14 +154,38 @@ class ContactMeasures:
 
 @dataclass(frozen=True)
 class Planted:
-    """A motion with its feet planted (:func:`plant_feet`): joint coordinates ``q`` (F, D),
-    the ``stance`` frames (F, 2) bool (left, right), and the :class:`ContactMeasures` of the
-    motion ``before`` and ``after``."""
+    """A motion with its feet planted (:func:`plant_feet`): ``motion`` (P, D) the world poses
+    at ``rate`` Hz before planting, ``planted`` (P, D) after, ``stances`` (P, 2) bool the frames
+    where each foot (left, right) stands, and the frames [start, stop) ``window`` of them that
+    count: :attr:`q`, :attr:`stance`, and the :class:`ContactMeasures` :attr:`before` and
+    :attr:`after` (over the window, its stances whole; computed when first read)."""
 
-    q: np.ndarray
-    stance: np.ndarray
-    before: ContactMeasures
-    after: ContactMeasures
+    skeleton: Skeleton
+    motion: np.ndarray
+    planted: np.ndarray
+    stances: np.ndarray
+    rate: float
+    window: tuple[int, int]
+
+    @property
+    def q(self) -> np.ndarray:
+        """The planted poses (F, D) of the window's frames."""
+        return self.planted[slice(*self.window)]
+
+    @property
+    def stance(self) -> np.ndarray:
+        """The stance frames (F, 2) bool of the window's frames."""
+        return self.stances[slice(*self.window)]
+
+    @cached_property
+    def before(self) -> ContactMeasures:
+        return contact_measures(self.skeleton, self.motion, self.rate, self.stances,
+                                window=self.window)
+
+    @cached_property
+    def after(self) -> ContactMeasures:
+        return contact_measures(self.skeleton, self.planted, self.rate, self.stances,
+                                window=self.window)
 
 
 def sole_points(skeleton: Skeleton, q: np.ndarray, /) -> np.ndarray:
@@ -203,28 +230,37 @@ def standing_level(sole: np.ndarray, stance: np.ndarray, /) -> float:
 
 
 def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
-               stance: np.ndarray | None = None, window: tuple[int, int] | None = None
-               ) -> Planted:
+               stance: np.ndarray | None = None, window: tuple[int, int] | None = None,
+               period: int | None = None) -> Planted:
     """Plant the feet of world poses ``q`` (F, D) at ``rate`` Hz (module docstring).
 
     ``stance``: the frames (F, 2) bool of each foot's stance; default :func:`stance_frames`.
-    ``window``: the frames [start, stop) measured (:func:`contact_measures`); default all.
-    Returns the :class:`Planted` motion, its stance frames and the measures before and after.
+    ``window``: the frames [start, stop) that count (:class:`Planted`); default all.
+    ``period``: frames after which ``q`` repeats itself moved on the floor (a periodic motion
+    sampled at a whole number of frames a cycle, its path a line or an arc: the same in the
+    path frame; the window as long as the motion's ends need to see each stance whole): each
+    solve then poses the window's first period of frames only, the others repeat its
+    solution (the pelvis height's correction spread around the cycle).
+    Returns the :class:`Planted` motion.
     """
     q = np.array(q, dtype=np.float64)
+    motion = q.copy()
+    window = (0, len(q)) if window is None else window
     stance = stance_frames(skeleton, q, rate) if stance is None else np.asarray(stance, bool)
-    before = contact_measures(skeleton, q, rate, stance, window=window)
     if stance.any():
         q[:, ROOT_Z] -= standing_level(sole_points(skeleton, q), stance)
-    targets = _targets(skeleton, q, stance, rate)
-    reached = _solve(skeleton, q, targets, SOLVED)
-    drop = reached[:, ROOT_Z] - q[:, ROOT_Z]
-    spread = max(1, round(PELVIS_SMOOTHING_S * rate))
-    q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode="nearest"),
-                                      spread / 2, mode="nearest")
-    out = _solve(skeleton, q, _targets(skeleton, q, stance, rate), LEGS, initial=reached)
-    return Planted(out, stance, before,
-                   contact_measures(skeleton, out, rate, stance, window=window))
+    solved = np.arange(len(q)) if period is None else window[0] + np.arange(period)
+    cyclic = (np.arange(len(q)) - window[0]) % period if period else slice(None)
+    reached = _solve(skeleton, q[solved], _targets(skeleton, q, stance, rate)[solved], SOLVED)
+    drop = reached[:, ROOT_Z] - q[solved, ROOT_Z]
+    spread, mode = max(1, round(PELVIS_SMOOTHING_S * rate)), "nearest" if period is None \
+        else "wrap"
+    q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode=mode),
+                                      spread / 2, mode=mode)[cyclic]
+    out = q.copy()
+    out[:, list(SOLVED)] = _solve(skeleton, q[solved], _targets(skeleton, q, stance, rate)[solved],
+                                  LEGS, initial=reached)[cyclic][:, list(SOLVED)]
+    return Planted(skeleton, motion, out, stance, rate, window)
 
 
 def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
@@ -233,11 +269,12 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     ``angles(t)`` (F, D), the joint coordinates at times ``t`` (F,) s in the path frame that
     ``drift`` moves along, periodic in ``period`` s. The motion is planted with one period more
     on each side, so that a stance across the clip's ends is locked as a whole and a clip of
-    whole cycles loops."""
+    whole cycles loops; a clip of whole cycles of a whole number of frames each is solved on
+    one cycle (``plant_feet``'s ``period``)."""
     q, window = _padded(angles, drift, period, rate, frames)
-    planted = plant_feet(skeleton, q, rate, window=window)
-    keep = slice(*window)
-    return Planted(planted.q[keep], planted.stance[keep], planted.before, planted.after)
+    steps = round(period * rate)
+    whole = abs(period * rate - steps) < 1e-9 * steps and frames % steps == 0
+    return plant_feet(skeleton, q, rate, window=window, period=steps if whole else None)
 
 
 def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: float,
@@ -337,44 +374,42 @@ def _foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float) -> np.ndarray:
     """Where the ankle, heel and toe of each foot go: (F, 2, 3, 3) m (module docstring, 2-3)."""
-    transforms = skeleton.forward(q)
-    T, hips = transforms[:, list(FEET)], transforms[:, list(HIPS)][..., :3, 3]
+    points, orientation, hips = LegChains(skeleton, q).frames(q[:, LEG_DOFS], q[:, ROOT_Z])
     local = np.vstack([np.zeros(3), skeleton.sole()])                     # ankle, heel, toe
-    points = np.einsum("fsij,pj->fspi", T[..., :3, :3], local) + T[:, :, None, :3, 3]
     targets = points.copy()
-    pitch, heading = _foot_axes(T[..., :3, :3])
-    fade = max(1, round(BLEND_S * rate))
+    runs = [(side, start, stop) for side in (0, 1) for start, stop in _runs(stance[:, side])]
+    if not runs:
+        return targets
+    pitch, heading = _foot_axes(orientation)
     length = local[2, 0] - local[1, 0]
-    leg = (skeleton.lengths["thigh"], skeleton.lengths["shank"])
-    clearance = np.zeros(stance.shape)            # how high the lower sole point must stay, m
-    for side in (0, 1):
-        for start, stop in _runs(stance[:, side]):
-            frames = np.arange(start, stop)
-            sole = points[frames, side, 1:]
-            flat = start + int(np.argmin(sole[..., 2].max(axis=1)))
-            psi = heading[flat, side]
-            heel = np.array([*points[flat, side, 1, :2], 0.0])
-            toe = heel + length * np.array([np.cos(psi), np.sin(psi), 0.0])
-            theta = _stance_pitch(points[frames, side, 0], hips[frames, side],
-                                  q[frames, KNEES[side]], pitch[frames, side], heel, toe, psi,
-                                  local, leg)
-            R = _level_frames(theta, psi)                                   # (n, 3, 3)
-            placed = np.einsum("nij,pj->npi", R, local)
-            pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
-            targets[frames, side] = placed + pivot[:, None]
-            for edge, direction in ((start, -1), (stop - 1, 1)):
-                for k, frame in _fade(targets, points, side, edge, direction, fade):
-                    clearance[frame, side] = APPROACH_SPEED * k / rate * (1 - k / fade)
+    frame, side, heel, psi = [], [], [], []
+    for s, start, stop in runs:                # each run locked at its flattest frame
+        flat = start + int(np.argmin(points[start:stop, s, 1:, 2].max(axis=1)))
+        frame.append(np.arange(start, stop))
+        side.append(np.full(stop - start, s))
+        heel.append(np.tile([*points[flat, s, 1, :2], 0.0], (stop - start, 1)))
+        psi.append(np.full(stop - start, heading[flat, s]))
+    frame, side, heel, psi = (np.concatenate(x) for x in (frame, side, heel, psi))
+    forward = np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], axis=-1)
+    toe = heel + length * forward
+    theta = _stance_pitch(points[frame, side, 0], hips[frame, side], q[frame, np.array(KNEES)[side]],
+                          pitch[frame, side], heel, toe, forward, local,
+                          (skeleton.lengths["thigh"], skeleton.lengths["shank"]))
+    placed = np.einsum("nij,pj->npi", _level_frames(theta, psi), local)
+    pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
+    targets[frame, side] = placed + pivot[:, None]
+    clearance = _fade(targets, points, runs, max(1, round(BLEND_S * rate)), rate)
     swing = ~stance
     targets[swing] = _cleared(targets[swing], clearance[swing])
     return targets
 
 
 def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch: np.ndarray,
-                  heel: np.ndarray, toe: np.ndarray, psi: float, local: np.ndarray,
+                  heel: np.ndarray, toe: np.ndarray, forward: np.ndarray, local: np.ndarray,
                   leg: tuple[float, float]) -> np.ndarray:
-    """The pitch (n,) rad of a foot rolling on the floor about its locked ``heel`` (toes up,
-    pitch >= 0) or ``toe`` (heel up, pitch < 0), heading ``psi`` rad: the motion's ``pitch``
+    """The pitch (n,) rad of a foot rolling on the floor about its locked ``heel`` (n, 3) m (toes
+    up, pitch >= 0) or ``toe`` (n, 3) m (heel up, pitch < 0), its heading the horizontal unit
+    vector ``forward`` (n, 3): the motion's ``pitch``
     (n,) rad where that changes the knee's flexion by at most :data:`KNEE_GAP`, beyond twice
     that the pitch that keeps the ankle as far from the ``hip`` (n, 3) m as the motion's
     ``ankle`` (n, 3) m is (the knee's flexion kept; the solution nearest the motion's pitch,
@@ -382,7 +417,6 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     ``flexion`` (n,) rad in the motion; ``local``: ankle, heel, toe in the foot frame (3, 3) m;
     ``leg``: thigh and shank lengths, m (the knee's flexion follows the law of cosines, its
     constant term fitted to the motion's flexion, which takes the joints' shifts in)."""
-    forward = np.array([np.cos(psi), np.sin(psi), 0.0])
     wanted = np.sum((ankle - hip) ** 2, axis=1)                 # the leg's length², m²
     pivots = {1.0: (heel, local[1]), -1.0: (toe, local[2])}
 
@@ -393,7 +427,7 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
         pivot, point = pivots[sign]
         d = pivot - hip
         return (np.arctan2(-point[2], -point[0]), np.hypot(point[0], point[2]),
-                np.stack([d @ forward, d[:, 2]], axis=-1), np.sum(d * d, axis=1))
+                np.stack([np.sum(d * forward, axis=1), d[:, 2]], axis=-1), np.sum(d * d, axis=1))
 
     twice = 2 * leg[0] * leg[1]
     constant = wanted - twice * np.cos(flexion)
@@ -428,29 +462,53 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     return pitch + share * (best - pitch)
 
 
-def _fade(targets, points, side: int, edge: int, direction: int, fade: int
-          ) -> list[tuple[int, int]]:
-    """Move ``fade`` frames of foot ``side`` beyond frame ``edge`` in ``direction`` (±1), where
-    no stance has set them (their target is still the motion's point), by the rigid correction
-    that takes the motion's foot to its target at ``edge`` (a turn about the ankle, then a
-    shift), weighted by a smoothstep from 1 at the edge to 0; returns the (k, frame) pairs
-    set, k frames from the edge. ``targets``, ``points``: (F, 2, 3, 3) m, ankle, heel, toe."""
-    target, point = targets[edge, side], points[edge, side]
-    turn = Rotation.align_vectors(target[1:] - target[0], point[1:] - point[0])[0].as_rotvec()
-    shift = target[0] - point[0]
-    done = []
-    for k in range(1, fade):
-        frame = edge + direction * k
-        if not 0 <= frame < len(targets) or not np.array_equal(targets[frame, side],
-                                                                  points[frame, side]):
-            break
-        s = 1.0 - k / fade
-        s = s * s * (3 - 2 * s)
-        ankle = points[frame, side, 0]
-        targets[frame, side] = (ankle + s * shift
-                                + Rotation.from_rotvec(s * turn).apply(points[frame, side] - ankle))
-        done.append((k, frame))
-    return done
+def _fade(targets: np.ndarray, points: np.ndarray, runs: list[tuple[int, int, int]], fade: int,
+          rate: float) -> np.ndarray:
+    """Fade each stance run's correction in before it and out after it: the ``fade`` - 1 frames
+    of its foot beyond each of its edges that no stance (and no fade before) has set, up to the
+    first that one has, take the rigid correction that moves the motion's foot to its target at
+    the edge (a turn about the ankle, then a shift), weighted by a smoothstep from 1 at the edge
+    to 0. ``targets`` (set in place), ``points``: (F, 2, 3, 3) m, ankle, heel, toe; ``runs``:
+    (side, start, stop) each. Returns how high (F, 2) m the lower sole point must stay in the
+    frames faded (module docstring, 3)."""
+    free = np.all(targets == points, axis=(2, 3))                 # (F, 2): no stance set them
+    edges, where, steps = [], [], []
+    k = np.arange(1, fade)
+    for side, start, stop in runs:
+        for edge, direction in ((start, -1), (stop - 1, 1)):
+            frames = edge + direction * k
+            frames = frames[(frames >= 0) & (frames < len(targets))]
+            frames = frames[:np.cumprod(free[frames, side]).sum()]
+            free[frames, side] = False
+            edges.append((edge, side))
+            where.append(np.column_stack([frames, np.full(len(frames), side)]))
+            steps.append(k[:len(frames)])
+    edge, side = np.array(edges).T
+    turn = _aligning_turns(targets[edge, side] - targets[edge, side, :1],
+                           points[edge, side] - points[edge, side, :1])
+    shift = targets[edge, side, 0] - points[edge, side, 0]
+    which = np.repeat(np.arange(len(edges)), [len(s) for s in steps])
+    (frame, side), k = np.concatenate(where).T, np.concatenate(steps)
+    s = 1.0 - k / fade
+    s = s * s * (3 - 2 * s)
+    ankle = points[frame, side, :1]
+    angle = np.linalg.norm(turn[which], axis=1)
+    axis = turn[which] / np.maximum(angle, 1e-300)[:, None]
+    targets[frame, side] = (ankle + s[:, None, None] * shift[which, None]
+                            + _turned(points[frame, side] - ankle, axis, s * angle))
+    clearance = np.zeros(targets.shape[:2])
+    clearance[frame, side] = APPROACH_SPEED * k / rate * (1 - k / fade)
+    return clearance
+
+
+def _aligning_turns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) rad of the rotations R that take the points ``b`` (n, P, 3) nearest
+    to ``a`` (n, P, 3) (least squares, Kabsch: Σ |a - R b|² least, det R = 1)."""
+    u, _, vt = np.linalg.svd(np.einsum("npi,npj->nij", b, a))
+    d = np.sign(np.linalg.det(vt.transpose(0, 2, 1) @ u.transpose(0, 2, 1)))
+    vt[:, 2] *= d[:, None]
+    return Rotation.from_matrix(vt.transpose(0, 2, 1) @ u.transpose(0, 2, 1)).as_rotvec()
+
 
 
 def _cleared(feet: np.ndarray, height: np.ndarray) -> np.ndarray:
@@ -490,11 +548,11 @@ def _turned(vectors: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndar
             + u * np.sum(u * vectors, axis=-1, keepdims=True) * (1 - c))
 
 
-def _level_frames(pitch: np.ndarray, heading: float) -> np.ndarray:
-    """Foot orientations (n, 3, 3) with ``pitch`` (n,) rad, ``heading`` rad and no roll."""
+def _level_frames(pitch: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Foot orientations (n, 3, 3) with ``pitch`` (n,) rad, ``heading`` (n,) rad and no roll."""
     c, s = np.cos(pitch), np.sin(pitch)
     x = np.stack([c * np.cos(heading), c * np.sin(heading), s], axis=-1)
-    y = np.broadcast_to([-np.sin(heading), np.cos(heading), 0.0], x.shape)
+    y = np.stack([-np.sin(heading), np.cos(heading), np.zeros_like(heading)], axis=-1)
     return np.stack([x, y, np.cross(x, y)], axis=-1)
 
 
@@ -502,7 +560,8 @@ def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[i
            initial: np.ndarray | None = None) -> np.ndarray:
     """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
     (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
-    those of ``initial`` (default ``q``) on, until no DOF moves by :data:`STEP_TOLERANCE`
+    those of ``initial`` (default ``q``) on, until no DOF (with the pelvis height: no
+    pelvis height) moves by :data:`STEP_TOLERANCE`
     (module docstring, 4). Each frame's normal equations are solved with the pelvis height
     eliminated (Schur complement): the two legs' blocks do not couple."""
     assert set(dofs) - {ROOT_Z} == set(LEGS), "planting solves both legs, maybe the pelvis height"
@@ -538,7 +597,7 @@ def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[i
         else:
             step, lift = np.linalg.solve(normal, rhs[..., None])[..., 0], np.zeros(1)
         angles = np.clip(angles + step, lower, upper)
-        if max(np.abs(step).max(), np.abs(lift).max()) < STEP_TOLERANCE:
+        if np.abs(lift if pelvis else step).max() < STEP_TOLERANCE:
             break
     out[:, LEG_DOFS], out[:, ROOT_Z] = angles, z
     return out

@@ -12,6 +12,9 @@ gait cells with side-steps put on the cone, as ``mocaplib query`` locates a comm
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable
+
 import numpy as np
 
 from ..build.workers import run_tasks
@@ -51,7 +54,8 @@ def skeleton_data(skeleton: Skeleton) -> dict:
             "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES]}
 
 
-def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1) -> dict:
+def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1,
+                planted: Callable[[], list[tuple]] | None = None) -> dict:
     """Everything the figure viewer needs, as JSON data.
 
     ``entries``: per library entry (``library.entries`` order) its id, class, colour,
@@ -65,14 +69,13 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     their ``gaits``, the ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
     lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
     entry's class label; ``colours``: class -> CSS colour. ``jobs``: worker processes planting
-    the cycles (:func:`planted_cycles`).
+    the cycles (:func:`planted_cycles`); ``planted``: what :func:`start_planting` returned for
+    the library, if it was called (the cycles are planted here otherwise).
     """
     entries = []
     skeleton = library.skeleton                     # built from the header at each access
-    for e, cls, (a, b) in zip(library.entries, classes, planted_cycles(skeleton, [
-            (e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1], float(e.T),
-             np.array(e.root_drift.velocities, dtype=np.float64)) for e in library.entries],
-            jobs=jobs)):
+    planted = start_planting(library, jobs=jobs) if planted is None else planted
+    for e, cls, (a, b) in zip(library.entries, classes, planted()):
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
             "mirror_of": e.mirror_of, "T": float(e.T),
@@ -91,6 +94,36 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,
             "skeleton": skeleton_data(skeleton)}
+
+
+def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
+    """Start planting the viewer's cycle of every entry of ``library`` (:func:`planted_cycles`,
+    ``jobs`` worker processes) and return the function that waits for them and returns them
+    (or raises what planting raised). With ``jobs`` > 1 a thread of this process drives the
+    workers meanwhile, so that the report's other sections are made while they plant; with one
+    job the cycles are planted when the function is called."""
+    cycles = [(e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1], float(e.T),
+               np.array(e.root_drift.velocities, dtype=np.float64)) for e in library.entries]
+    skeleton = library.skeleton
+    if jobs <= 1:
+        return lambda: planted_cycles(skeleton, cycles)
+    outcome: dict = {}
+
+    def plant() -> None:
+        try:
+            outcome["value"] = planted_cycles(skeleton, cycles, jobs=jobs)
+        except BaseException as exc:          # re-raised in the caller's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=plant, name="mocaplib-planting", daemon=True)
+    thread.start()
+
+    def result() -> list[tuple]:
+        thread.join()
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome["value"]
+    return result
 
 
 def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) -> list[tuple]:

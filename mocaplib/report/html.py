@@ -28,7 +28,7 @@ from ..library.validation import validate_library
 from ..skeleton import DOF_NAMES
 from . import figures
 from .diagnostics import read_diagnostics
-from .figureview import viewer_data
+from .figureview import start_planting, viewer_data
 from .files import data_uri, report_name
 from .plan import planned_status
 from .space_sections import AXIS_NAMES, add_control_space, css_colours, resolve_envelope
@@ -92,6 +92,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
 
     ``diagnostics``: the sidecar as :func:`read_diagnostics` returns it (records checked)."""
     entries = library.entries
+    planted = start_planting(library, jobs=jobs) if _motion_shown(library) is None else None
     warnings = [f"library check: {p}" for p in validate_library(library)]
     if library.document.get(CHECKSUM_KEY) is None:      # a stored one is checked above
         warnings.append(f"library check: {NO_CHECKSUM_NOTE}")
@@ -122,7 +123,7 @@ def build_context(library, library_path: Path, diagnostics: dict | None, *, enve
     for capture in context["captures"]:
         warnings.extend(f"{capture['source']}: {w}" for w in capture["warnings"])
     add_control_space(context, cs, env, library, label, classes_all, renderer)
-    context["motion"] = _motion(library, cs, classes_all, warnings, jobs=jobs)
+    context["motion"] = _motion(library, cs, classes_all, warnings, planted)
     _shorten_paths(context)
     return context
 
@@ -281,21 +282,26 @@ def _entry_rows(entries, label) -> list[dict]:
              "fourier_deg": degrees(e.qc.get("fourier_rms_rad"))} for e in entries]
 
 
-def _motion(library, cs, classes: list[str], warnings: list[str], *, jobs: int = 1
-            ) -> dict | None:
-    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`, its cycles
-    planted by ``jobs`` processes); None, with a warning, when the library has no entry or its
-    DOFs are not this mocaplib's skeleton's."""
-
+def _motion_shown(library) -> str | None:
+    """Why the report has no figure viewer for ``library``, or None when it has one."""
     if not len(library):
-        warnings.append("motion viewer left out: the library has no entry")
-        return None
+        return "motion viewer left out: the library has no entry"
     if library.dof_names != list(DOF_NAMES):
-        warnings.append("motion viewer left out: the library's DOFs are not this mocaplib's "
-                        "skeleton's (report it with the mocaplib version that wrote it)")
+        return ("motion viewer left out: the library's DOFs are not this mocaplib's skeleton's "
+                "(report it with the mocaplib version that wrote it)")
+    return None
+
+
+def _motion(library, cs, classes: list[str], warnings: list[str], planted) -> dict | None:
+    """The figure viewer's data (:func:`mocaplib.report.figureview.viewer_data`, its cycles
+    from ``planted``, what :func:`~mocaplib.report.figureview.start_planting` returned); None,
+    with a warning, when :func:`_motion_shown` says why there is none."""
+    reason = _motion_shown(library)
+    if reason:
+        warnings.append(reason)
         return None
     colours = css_colours(figures.class_colours(classes))
-    return viewer_data(library, cs, classes, colours, jobs=jobs)
+    return viewer_data(library, cs, classes, colours, planted=planted)
 
 
 def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]:
