@@ -454,3 +454,22 @@ def test_query_command_bvh(cube_library, tmp_path, capsys):
     for bad in (["--cycles", "0"], ["--rate", "-5"], ["--rate", "fast"]):  # usage errors
         assert main(["query", str(cube_library), "0.7", "0.4", "0.2", *bad]) == 2
     assert "must be > 0" in capsys.readouterr().err
+
+
+def test_a_gait_cell_of_every_point_is_the_whole_triangulation():
+    """Where every entry is of one gait and none is put on the cone, the gait's cell is the
+    control space's own triangulation (made once), the tetrahedra of triangulating it apart;
+    a side-step put on the cone gets its own."""
+    from mocaplib.library.triangulation import delaunay_tetrahedra
+
+    rng = np.random.default_rng(5)
+    points = np.column_stack([rng.uniform(0.5, 1.5, 30), rng.uniform(-0.5, 0.5, 30),
+                              rng.uniform(-0.3, 0.3, 30)])
+    cs = ControlSpace(points)
+    assert cs.cells["walk"].tri is cs.tri
+    apart = delaunay_tetrahedra(cs.normalise(points))
+    np.testing.assert_array_equal(cs.tri.simplices, apart.simplices)
+    stepping = points.copy()
+    stepping[0] = [0.4, 0.0, 0.4 * 0.9998]          # 1.1° from sideways: put on the cone
+    cs = ControlSpace(stepping)
+    assert cs.cells["walk"].tri is not cs.tri

@@ -83,9 +83,12 @@ class Cell:
     tri: Triangulation
 
 
-def gait_cells(x, gaits, usable, /, *, source=None) -> tuple[dict[str, Cell], dict[str, str]]:
+def gait_cells(x, gaits, usable, /, *, source=None, whole: Triangulation | None = None
+               ) -> tuple[dict[str, Cell], dict[str, str]]:
     """The cells of normalised points x (E, 3) by gait (E,) among the ``usable`` (E,) ones,
-    and why each gait without a cell has none (the reason completes "its entries …")."""
+    and why each gait without a cell has none (the reason completes "its entries …").
+    ``whole``: the Delaunay triangulation of all of x, if made already: the cell of a gait
+    that has every point is that one."""
     x = np.asarray(x, dtype=float)
     gaits = np.asarray(gaits)
     cells, missing = {}, {}
@@ -97,6 +100,9 @@ def gait_cells(x, gaits, usable, /, *, source=None) -> tuple[dict[str, Cell], di
         if reason:
             missing[gait] = reason
             continue
+        if whole is not None and len(rows) == len(x):
+            cells[gait] = Cell(gait, rows, whole)
+            continue
         tri = delaunay_tetrahedra(x[rows], source=source)
         cells[gait] = Cell(gait, rows, Triangulation(x, rows[tri.simplices],
                                                      rows[tri.convex_hull]))
@@ -104,20 +110,26 @@ def gait_cells(x, gaits, usable, /, *, source=None) -> tuple[dict[str, Cell], di
 
 
 def build_cells(points, scale, /, *, classes=None, v_f=None, tangential: bool = True,
-                source=None) -> tuple[dict[str, Cell], dict[str, str]]:
+                source=None, whole: Triangulation | None = None
+                ) -> tuple[dict[str, Cell], dict[str, str]]:
     """The cells of entries at SI ``points`` (E, 3) on the tangential (or frontal) axes,
     normalised by ``scale`` (3,), of locomotion ``classes`` (E,) (None: all walks) and frontal
     speeds ``v_f`` (E,) m/s (None or NaN: not backwards); on the tangential axes side-steps
     are put on the cone and backward entries left out (module docstring). Returns the cells
-    by gait and, per gait without one, why (:func:`gait_cells`)."""
+    by gait and, per gait without one, why (:func:`gait_cells`). ``whole``: the Delaunay
+    triangulation of all the points normalised, if made already (used where no point is put on
+    the cone)."""
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     gaits = [class_gait(c) for c in (classes if classes is not None else [None] * len(p))]
     usable = np.ones(len(p), bool)
     if tangential:
         if v_f is not None:
             usable &= ~backwards(p[:, 0], v_f)
-        p = onto_cone(p)
-    return gait_cells(p / np.asarray(scale, dtype=float), gaits, usable, source=source)
+        coned = onto_cone(p)
+        whole = whole if np.array_equal(coned, p) else None
+        p = coned
+    return gait_cells(p / np.asarray(scale, dtype=float), gaits, usable, source=source,
+                      whole=whole)
 
 
 def union(cells, /) -> Triangulation:

@@ -207,7 +207,7 @@ class ControlSpace:
         self.tri = self._triangulate()
         self.cells, self.cell_problems = build_cells(
             self.points, self.scale, classes=self.classes, v_f=v_f,
-            tangential=axes == "tangential", source=source)
+            tangential=axes == "tangential", source=source, whole=self.tri)
         self.a = None if a is None else stack_padded(a)
         self.b = None if b is None else stack_padded(b)
         self.T = None if T is None else np.asarray(T, dtype=float)

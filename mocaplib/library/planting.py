@@ -464,40 +464,41 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
 
 def _fade(targets: np.ndarray, points: np.ndarray, runs: list[tuple[int, int, int]], fade: int,
           rate: float) -> np.ndarray:
-    """Fade each stance run's correction in before it and out after it: the ``fade`` - 1 frames
-    of its foot beyond each of its edges that no stance (and no fade before) has set, up to the
-    first that one has, take the rigid correction that moves the motion's foot to its target at
-    the edge (a turn about the ankle, then a shift), weighted by a smoothstep from 1 at the edge
-    to 0. ``targets`` (set in place), ``points``: (F, 2, 3, 3) m, ankle, heel, toe; ``runs``:
-    (side, start, stop) each. Returns how high (F, 2) m the lower sole point must stay in the
+    """Fade each stance run's correction in before it and out after it: up to ``fade`` - 1
+    frames of its foot beyond each of its edges, as far as the foot's neighbouring run and that
+    run's own fade (taken first: runs in order, each fading in, then out) leave free, take the
+    rigid correction that moves the motion's foot to its target at the edge (a turn about the
+    ankle, then a shift), weighted by a smoothstep from 1 at the edge to 0. ``targets`` (set
+    in place), ``points``: (F, 2, 3, 3) m, ankle, heel, toe; ``runs``: (side, start, stop)
+    each, by foot and in order. Returns how high (F, 2) m the lower sole point must stay in the
     frames faded (module docstring, 3)."""
-    free = np.all(targets == points, axis=(2, 3))                 # (F, 2): no stance set them
-    edges, where, steps = [], [], []
-    k = np.arange(1, fade)
-    for side, start, stop in runs:
-        for edge, direction in ((start, -1), (stop - 1, 1)):
-            frames = edge + direction * k
-            frames = frames[(frames >= 0) & (frames < len(targets))]
-            frames = frames[:np.cumprod(free[frames, side]).sum()]
-            free[frames, side] = False
-            edges.append((edge, side))
-            where.append(np.column_stack([frames, np.full(len(frames), side)]))
-            steps.append(k[:len(frames)])
-    edge, side = np.array(edges).T
-    turn = _aligning_turns(targets[edge, side] - targets[edge, side, :1],
-                           points[edge, side] - points[edge, side, :1])
-    shift = targets[edge, side, 0] - points[edge, side, 0]
-    which = np.repeat(np.arange(len(edges)), [len(s) for s in steps])
-    (frame, side), k = np.concatenate(where).T, np.concatenate(steps)
+    side, start, stop = np.asarray(runs, dtype=int).reshape(-1, 3).T
+    longest = fade - 1
+    after_own = np.r_[side[1:] == side[:-1], False]          # the foot's next run follows
+    before_own = np.r_[False, after_own[:-1]]
+    fading_out = np.minimum(longest, np.where(after_own, np.r_[start[1:], 0] - stop,
+                                              len(targets) - stop))
+    free_before = np.where(before_own, start - np.r_[0, stop[:-1]] - np.r_[0, fading_out[:-1]],
+                           start)
+    edge = np.r_[start, stop - 1]
+    direction, count = np.r_[-np.ones_like(start), np.ones_like(stop)], \
+        np.r_[np.minimum(longest, free_before), fading_out]
+    edge_side = np.r_[side, side]
+    turn = _aligning_turns(targets[edge, edge_side] - targets[edge, edge_side, :1],
+                           points[edge, edge_side] - points[edge, edge_side, :1])
+    shift = targets[edge, edge_side, 0] - points[edge, edge_side, 0]
+    which = np.repeat(np.arange(len(edge)), count)
+    k = np.arange(len(which)) - np.repeat(np.cumsum(count) - count, count) + 1
+    frame, foot = edge[which] + direction[which] * k, edge_side[which]
     s = 1.0 - k / fade
     s = s * s * (3 - 2 * s)
-    ankle = points[frame, side, :1]
+    ankle = points[frame, foot, :1]
     angle = np.linalg.norm(turn[which], axis=1)
     axis = turn[which] / np.maximum(angle, 1e-300)[:, None]
-    targets[frame, side] = (ankle + s[:, None, None] * shift[which, None]
-                            + _turned(points[frame, side] - ankle, axis, s * angle))
+    targets[frame, foot] = (ankle + s[:, None, None] * shift[which, None]
+                            + _turned(points[frame, foot] - ankle, axis, s * angle))
     clearance = np.zeros(targets.shape[:2])
-    clearance[frame, side] = APPROACH_SPEED * k / rate * (1 - k / fade)
+    clearance[frame, foot] = APPROACH_SPEED * k / rate * (1 - k / fade)
     return clearance
 
 

@@ -157,7 +157,8 @@ def _rounded(a: np.ndarray, b: np.ndarray) -> dict:
     (rows of different lengths: the viewer sums what each row holds)."""
     rows_a = np.round(a, COEFFICIENT_DECIMALS) + 0.0          # + 0.0: no negative zeros
     rows_b = np.round(b, COEFFICIENT_DECIMALS) + 0.0
-    lengths = [1 + max(np.flatnonzero(ra).max(initial=0), np.flatnonzero(rb).max(initial=0))
-               for ra, rb in zip(rows_a, rows_b)]
-    return {"a": [ra[:n].tolist() for ra, n in zip(rows_a, lengths)],
-            "b": [rb[:n].tolist() for rb, n in zip(rows_b, lengths)]}
+    nonzero = (rows_a != 0) | (rows_b != 0)                                  # (D, N+1)
+    lengths = np.where(nonzero.any(axis=1),
+                       nonzero.shape[1] - np.argmax(nonzero[:, ::-1], axis=1), 1)
+    return {"a": [ra[:n] for ra, n in zip(rows_a.tolist(), lengths)],
+            "b": [rb[:n] for rb, n in zip(rows_b.tolist(), lengths)]}
