@@ -19,7 +19,9 @@ when absent), for each toe-off definition, and prints:
   and worst error against the generator's truth;
 * the force plates of the real files (read with ezc3d): each plate's unloading (vertical
   force in newtons falling below :data:`PLATE_THRESHOLD_N` after a stance,
-  :func:`plate_unloadings`) against the nearest placed toe-off and the nearest lab Foot Off,
+  :func:`plate_unloadings`; extrapolated on a plate whose recording cut the force to zero
+  above the threshold, :func:`unloadings`) against the nearest placed toe-off and the
+  nearest lab Foot Off,
   so the lab events a plate measured are told from those placed otherwise, and how much
   later the force falls below :data:`LOW_THRESHOLD_N` (what the threshold's choice moves);
 * per real file that records them (any file under ``--real`` with lab Foot Off events or force

@@ -58,7 +58,7 @@ point, the later its peak.
   release (Handsaker et al. 2016 time running toe-offs on forefoot accelerations too).
   Measured (docs/results/event_accuracy.md): against the lab's Foot Off, the force plates'
   unloading (20 N) and the synthetic toe-offs (the toes' tips leaving the floor). Real feet
-  leave the plate at any point of their roll (pitch rate 0.28-0.99 of its push-off peak, the
+  leave the plate at any point of their roll (pitch rate 0.24-0.99 of its push-off peak, the
   synthetic 0.40-0.69), so (b) is late on the feet that go on rolling after their toes leave;
   benchmarks/toe_off_marks.py times (a), (b) and the literature's other marks against both.
 * ``"lift"``: where the low-passed upward velocity of the point that left last rises fastest,
