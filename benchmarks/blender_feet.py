@@ -1,0 +1,214 @@
+"""mocaplib's BVH outputs as Blender shows them: joints, frame rate and planted feet, measured in
+Blender itself.
+
+    python benchmarks/blender_feet.py [LIBRARY.json] [--samples sample_c3d] [--blender blender]
+                                      [--heights 1.5 1.9] [--markdown PATH]
+
+Without a library, builds the quick start's one from ``--samples``. Writes, with the CLI a user
+runs: for one entry of every locomotion type, ``mocaplib query LIBRARY V OMEGA VL --clamp --bvh
+--cycles 3`` at the entry's own command; ``mocaplib retarget`` of the straight normal walk to
+each of ``--heights``; ``mocaplib animate`` along a path turning left. Each file is imported
+into Blender (``blender -b``, :mod:`blender_pose`: Blender's default import with the scene's
+frame rate updated) and measured there:
+
+* **joints**: the largest distance over every bone head and frame between Blender's pose and
+  an independent reader's forward kinematics of the same file (tests/bvh_reader.py, no
+  mocaplib code); the frame counts and the scene's frame rate against the file's;
+* **feet** as Blender poses them: each foot's toe is its bone's end site, its heel on the sole
+  (tests/bvh_reader.py's :class:`Character`, its points moved with Blender's foot matrices):
+  ``slide``, the largest horizontal travel of a heel or toe touching the floor (within 1 mm) in
+  one stance; ``below``, the deepest a heel or toe goes under Blender's floor (z = 0);
+  ``hover``, how far a flat foot stays above it.
+
+Targets (as benchmarks/character.py): slide ≤ 2 mm, below ≤ 0.5 mm, hover ≤ 3 mm, joints
+within 0.1 mm of the reader, the scene's frame rate the file's. Prints Markdown
+(``--markdown PATH`` also writes it into a results page); exit code 1 when a target is missed,
+2 when Blender is not found.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+from bvh_reader import Character, parse_bvh, to_z_up  # noqa: E402
+from character import HOVER, SLIDE, moving_entries  # noqa: E402
+from control_space import quick_start_library  # noqa: E402
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from mocaplib.library.format import load_library  # noqa: E402
+from mocaplib.synth.plan import locomotion_type  # noqa: E402
+
+BELOW, JOINTS = 0.0005, 1e-4
+HEIGHTS = (1.5, 1.9)
+#: Blender's import (Y up, -Z forward): Blender's world (x, y, z) = (x, -z, y) of the file,
+#: as the reader's Z-up frame.
+POSE_SCRIPT = Path(__file__).resolve().parent / "blender_pose.py"
+#: The path ``animate`` follows: 4 m straight, then a quarter circle of radius 2 m to the left.
+PATH_CSV = "x,y\n" + "\n".join(f"{x:.3f},{y:.3f}" for x, y in (
+    [(0.5 * k, 0.0) for k in range(9)]
+    + [(4.0 + 2.0 * np.sin(a), 2.0 - 2.0 * np.cos(a)) for a in np.linspace(0.2, np.pi / 2, 8)]))
+
+
+class BlenderCharacter(Character):
+    """A BVH file's character with its feet as Blender poses them: the reader's heel and toe
+    points of each foot, in the foot's rest frame, moved by Blender's foot matrices."""
+
+    def __init__(self, text: str, pose: dict, *, loop: bool = False):
+        super().__init__(text, loop=loop)
+        self.pose = pose
+
+    def feet(self) -> np.ndarray:
+        joints, _, _ = parse_bvh(self.text)
+        rest_feet = Character(self.text)
+        rest = np.array(self.pose["feet_rest"])                               # (2, 4, 4)
+        moved = np.array(self.pose["feet"])                                   # (F, 2, 4, 4)
+        out = []
+        for side, name in enumerate(("foot_l", "foot_r")):
+            # the sole's points at rest: the reader's heel and toe in the zero pose
+            points = _rest_points(joints, rest_feet, name)                    # (2, 3) Z up
+            local = np.linalg.solve(rest[side], np.c_[points, np.ones(2)].T)  # (4, 2)
+            out.append(np.einsum("fij,jp->fpi", moved[:, side], local)[..., :3])
+        return np.stack(out, axis=1)
+
+
+def _rest_points(joints, character: Character, name: str) -> np.ndarray:
+    """Heel and toe (2, 3) m, Z up, of foot ``name`` in the file's zero pose (every channel 0)."""
+    zero = "\n".join(character.text.split("MOTION")[0].splitlines()) + (
+        "\nMOTION\nFrames: 1\nFrame Time: 0.01\n"
+        + " ".join("0" for j in joints for _ in j.get("channels", [])) + "\n")
+    at_rest = Character(zero, heel_ahead=character.heel_ahead)
+    return at_rest.feet()[0, ("foot_l", "foot_r").index(name)]
+
+
+def blender_pose(blender: str, bvh: Path) -> dict:
+    """What Blender shows of ``bvh`` (:mod:`blender_pose`)."""
+    out = bvh.with_suffix(".json")
+    subprocess.run([blender, "-b", "--factory-startup", "--python", str(POSE_SCRIPT), "--",
+                    str(bvh), str(out)], check=True, capture_output=True, timeout=600)
+    return json.loads(out.read_text())
+
+
+def measure(name: str, bvh: Path, loop: bool, blender: str) -> dict:
+    """One file's row: joints against the reader, frame rate, feet in Blender (``loop``: the
+    file is one cycle that a player repeats, its stances across its ends whole)."""
+    text = bvh.read_text()
+    pose = blender_pose(blender, bvh)
+    reader = Character(text)
+    joints, _, _ = parse_bvh(text)
+    named = [j["name"] for j in joints if j["name"] is not None]
+    keyed = round(pose["keyed"][1] - pose["keyed"][0]) + 1
+    scene = pose["frame_end"] - pose["frame_start"] + 1
+    # the scene's frames from its first, as many as the file has (the importer's duration
+    # update ends the scene one frame after the last keyed one)
+    pose = {**pose, "head": pose["head"][:reader.frames], "feet": pose["feet"][:reader.frames]}
+    heads = np.array(pose["head"])                                           # (F, B, 3)
+    theirs = np.stack([reader.position(bone) for bone in pose["bones"]], axis=1)
+    seen = BlenderCharacter(text, pose, loop=loop)
+    return {"output": name, "frames": reader.frames, "blender_frames": keyed,
+            "scene_frames": scene,
+            "file_hz": 1.0 / reader.frame_time, "blender_fps": pose["fps"],
+            "bones": f"{len(pose['bones'])}/{len(named)}",
+            "joints_mm": 1000 * float(np.abs(heads - theirs).max()),
+            "stances": len(seen.stances()), "slide_mm": 1000 * seen.slide(),
+            "below_mm": 1000 * seen.penetration(), "hover_mm": 1000 * seen.hover(),
+            "blender": pose["blender"]}
+
+
+def outputs(library: Path, folder: Path, heights) -> list[tuple[str, Path, bool]]:
+    """Write the BVH files measured (module docstring) with the CLI; (label, path, whether it
+    is one looping cycle) each."""
+    lib = load_library(library)
+    cli = [sys.executable, "-m", "mocaplib"]
+    written, seen = [], set()
+    for entry in moving_entries(lib):
+        kind = locomotion_type(entry.id.rsplit("_c", 1)[0], sided=False)
+        if kind in seen:
+            continue
+        seen.add(kind)
+        out = folder / f"query_{kind}.bvh"
+        subprocess.run([*cli, "query", str(library), repr(entry.v), repr(entry.omega),
+                        repr(entry.v_l), "--clamp", "--bvh", str(out), "--cycles", "3"],
+                       check=True, capture_output=True, cwd=ROOT)
+        written.append((f"query, {kind} ({entry.id})", out, False))
+    walk = next(e.id for e in moving_entries(lib) if e.id.startswith("walk_straight_normal"))
+    for height in heights:
+        out = folder / f"retarget_{height}.bvh"
+        subprocess.run([*cli, "retarget", str(library), walk, "--height", str(height), "-o",
+                        str(out)], check=True, capture_output=True, cwd=ROOT)
+        written.append((f"retarget, {walk} to {height} m (one cycle, looped)", out, True))
+    path = folder / "path.csv"
+    path.write_text(PATH_CSV)
+    out = folder / "animate.bvh"
+    subprocess.run([*cli, "animate", str(library), "--path", str(path), "--speed", "1.1",
+                    "--bvh", str(out)], check=True, capture_output=True, cwd=ROOT)
+    written.append(("animate, 4 m then a left quarter circle of 2 m at 1.1 m/s", out, False))
+    return written
+
+
+def missed(df: pd.DataFrame) -> list[str]:
+    """The targets the rows miss, in words."""
+    out = []
+    for row in df.itertuples(index=False):
+        checks = {"slide": row.slide_mm <= 1000 * SLIDE, "below": row.below_mm <= 1000 * BELOW,
+                  "hover": row.hover_mm <= 1000 * HOVER, "joints": row.joints_mm <= 1000 * JOINTS,
+                  "frame rate": abs(row.blender_fps - row.file_hz) < 1e-6 * row.file_hz,
+                  "frames": row.frames == row.blender_frames, "stances": row.stances >= 2}
+        out += [f"{row.output}: {name}" for name, ok in checks.items() if not ok]
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("library", nargs="?", type=Path, help="a built library (else built now)")
+    parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
+    parser.add_argument("--blender", default="blender", help="the Blender executable")
+    parser.add_argument("--heights", type=float, nargs="+", default=HEIGHTS, metavar="M")
+    add_markdown_option(parser)
+    args = parser.parse_args()
+    blender = shutil.which(args.blender)
+    if blender is None:
+        print(f"Blender not found ({args.blender}): install it (Debian: apt-get install "
+              "blender) or give --blender PATH", file=sys.stderr)
+        return 2
+    with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        library = args.library or quick_start_library(args.samples, folder / "lib.json")
+        df = pd.DataFrame([measure(*output, blender)
+                           for output in outputs(library, folder, args.heights)])
+        print(f"Blender {df.blender.iloc[0]}, each file imported with its default options and "
+              "the scene's frame rate updated.\n")
+        print("| output | frames (file / keyed / scene) | rate (file Hz / scene fps) | bones | "
+              "joints vs reader (mm) | stances | slide (mm) | below (mm) | hover (mm) |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for r in df.itertuples(index=False):
+            print(f"| {r.output} | {r.frames} / {r.blender_frames} / {r.scene_frames} | "
+                  f"{r.file_hz:g} / "
+                  f"{r.blender_fps:g} | {r.bones} | {r.joints_mm:.4f} | {r.stances} | "
+                  f"{r.slide_mm:.2f} | {r.below_mm:.2f} | {r.hover_mm:.2f} |")
+        print("\nThe importer keys one frame per file frame from the scene's first; updating the "
+              "scene's duration, it moves the scene's end to one frame after the last keyed one "
+              "where the scene was shorter (never shortening it: 250 frames by default), hence "
+              "the guide's note to set the end frame to the file's frame count for a loop. "
+              "Measured on the keyed frames.")
+        misses = missed(df)
+        print(f"\nTargets: slide ≤ {1000 * SLIDE:g} mm, below ≤ {1000 * BELOW:g} mm, hover ≤ "
+              f"{1000 * HOVER:g} mm, joints within {1000 * JOINTS:g} mm of the reader, the "
+              "file's frame rate and frame count: "
+              + ("all met." if not misses else "MISSED: " + "; ".join(misses) + "."))
+    return 1 if misses else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
