@@ -284,10 +284,12 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
     moving along ``drift``) with its feet planted on ``skeleton``: the cycle sampled at about
     ``rate`` Hz, planted (:func:`plant_cycles`) and the DOFs planting solves (:data:`SOLVED`)
     fitted again with ``order`` harmonics; (D, max(N, order)+1) each, the other DOFs' rows
-    ``a``'s and ``b``'s own padded with zeros. For animations that pose the skeleton from a series (the report's viewer);
-    on the sample entries at the defaults the refitted feet slide up to 3.7 mm, go up to 2.0 mm
-    below the floor and hover up to 3.2 mm (docs/results/character.md): the series' harmonics
-    round the planted stance off."""
+    ``a``'s and ``b``'s own padded with zeros. For animations that pose the skeleton from a
+    series (the report's viewer); on the sample entries at the defaults the refitted feet slide
+    up to 3.7 mm, go up to 2.0 mm below the floor and hover up to 3.2 mm
+    (docs/results/character.md). The sampling rate sets it more than the harmonics: on the
+    synthetic walks the planted 30 Hz frames joined by lines slide 2.6 mm, by a periodic cubic
+    3.3 mm (the series 3.3 mm); 100 Hz with 30 harmonics slides 2.0 mm."""
     steps = max(round(period * rate), 2 * order + 1)
     planted = plant_cycles(skeleton, lambda t: synthesize(a, b, period, t), drift, period,
                            steps / period, steps)
