@@ -814,3 +814,14 @@ def test_the_viewers_cycles_planted_by_two_jobs_are_those_of_one(monkeypatch):
     assert len(library.entries) > 6
     assert [e["id"] for e in two] == [e.id for e in library.entries]
     assert one == two
+
+
+def test_the_default_jobs_grow_with_the_entries_and_captures(monkeypatch):
+    from mocaplib.report import html
+
+    monkeypatch.setattr(html, "max_jobs", lambda: 8)
+    assert html.default_jobs(68, 0) == 1                  # planted before a worker starts
+    assert html.default_jobs(68, 68) == 8                 # the quick start: 68 figures to draw
+    assert html.default_jobs(5000, 0) == 8 and html.default_jobs(1200, 0) == 3
+    monkeypatch.setattr(html, "max_jobs", lambda: 2)
+    assert html.default_jobs(5000, 0) == 2 and html.default_jobs(0, 0) == 1

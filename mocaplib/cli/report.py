@@ -19,9 +19,11 @@ def register(subparsers) -> None:
                         help="target envelope: a TOML file with an [envelope] table, or your "
                              "capture plan (default: the plan of mocaplib's synthetic sample "
                              "captures, shipped with it)")
-    parser.add_argument("--jobs", "-j", type=jobs_count, default=1, metavar="N",
+    parser.add_argument("--jobs", "-j", type=jobs_count, default=None, metavar="N",
                         help="processes drawing the per-capture figures and planting the "
-                             "viewer's cycles (default 1)")
+                             "viewer's cycles (default: one per 500 entries, a capture "
+                             "counting as 60, at most the processors; the report is the same "
+                             "with any number)")
     parser.add_argument("--no-opengl", action="store_true",
                         help="draw the 3-D view with matplotlib instead of pyvista/VTK")
     parser.set_defaults(run=_run)

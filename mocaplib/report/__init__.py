@@ -12,7 +12,7 @@ __all__ = ["report_name", "write_report"]
 
 
 def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto",
-                 jobs: int = 1):
+                 jobs: int | None = None):
     """Write the self-contained HTML report of a library file.
 
     Parameters
@@ -29,9 +29,11 @@ def write_report(library_path, out_dir, *, envelope=None, renderer: str = "auto"
     renderer : {"auto", "matplotlib"}
         The 3-D control-space view: pyvista, falling back to matplotlib without OpenGL, or
         matplotlib.
-    jobs : int
+    jobs : int or None
         Processes drawing the per-capture figures and planting the figure viewer's cycles
-        (the report's slowest parts).
+        (the report's slowest parts); None: :func:`~mocaplib.report.html.default_jobs`, one per
+        500 entries (a capture's figures counting as 60), at most the processors mocaplib may
+        use. The page is the same with any number.
 
     Returns
     -------

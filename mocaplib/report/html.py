@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..build.workers import run_tasks
+from ..build.workers import max_jobs, run_tasks
 from ..errors import MocapError
 from ..gait.fourier import ANGLE_TOLERANCE, MAX_ANGLE_TOLERANCE, MAX_ORDER
 from ..io.atomic import atomic_write_text
@@ -38,27 +38,43 @@ from .space_sections import AXIS_NAMES, add_control_space, css_colours, resolve_
 MAX_CAPTURE_FIGURES = 80
 #: Points of each modelled poulaine drawn per capture.
 POULAINE_POINTS = 121
+#: Entries a report's worker process takes by default (:func:`default_jobs`; on the 2-core
+#: machine a worker pays for itself from about 500 entries, 6 ms each to plant), and how many
+#: entries a capture's figures count for (0.37 s to draw).
+ENTRIES_PER_JOB, CAPTURE_ENTRIES = 500, 60
 
 
 def write_report(library_path: str | os.PathLike, out_dir: str | os.PathLike, *,
-                 envelope=None, renderer: str = "auto", jobs: int = 1) -> Path:
+                 envelope=None, renderer: str = "auto", jobs: int | None = None) -> Path:
     """Write ``<out_dir>/<library stem>-report.html`` for a library file; returns its path.
 
     ``envelope``: an :class:`~mocaplib.library.coverage.Envelope`, a TOML file (an ``[envelope]``
     table, or a capture plan), or None for the capture plan shipped with mocaplib (see
     :func:`mocaplib.report.plan.default_envelope`). ``renderer``: ``"auto"`` (pyvista, falling
     back to matplotlib without OpenGL) or ``"matplotlib"``. ``jobs``: processes drawing the
-    per-capture figures and planting the figure viewer's cycles (the report's slowest parts). Reads the diagnostics sidecar
-    ``<stem>.diagnostics.json`` beside the library when it exists and belongs to it.
+    per-capture figures and planting the figure viewer's cycles (the report's slowest parts;
+    None: :func:`default_jobs`). Reads the diagnostics sidecar ``<stem>.diagnostics.json``
+    beside the library when it exists and belongs to it.
     """
     library_path = Path(library_path)
     library = load_library(library_path)
     diagnostics, diag_warnings = read_diagnostics(library_path, library)
+    if jobs is None:
+        jobs = default_jobs(len(library), len((diagnostics or {}).get("captures", [])))
     context = build_context(library, library_path, diagnostics, envelope=envelope,
                             renderer=renderer, jobs=jobs)
     context["warnings"][:0] = diag_warnings
     html = render_html(context)
     return atomic_write_text(Path(out_dir) / report_name(library_path), html)
+
+
+def default_jobs(entries: int, captures: int) -> int:
+    """Worker processes for a report of ``entries`` entries and ``captures`` captures in its
+    diagnostics: one per :data:`ENTRIES_PER_JOB` entries, a capture counting as
+    :data:`CAPTURE_ENTRIES`, at most :func:`~mocaplib.build.workers.max_jobs` (a smaller
+    library is done before a worker would have started)."""
+    work = entries + CAPTURE_ENTRIES * captures
+    return max(1, min(max_jobs(), -(-work // ENTRIES_PER_JOB)))
 
 
 def render_html(context: dict) -> str:
