@@ -10,7 +10,7 @@ import pytest
 
 from mocaplib.gait.fourier import RootDrift
 from mocaplib.gait.poulaine import FEET
-from mocaplib.library import planting
+from mocaplib.library import legs, planting
 from mocaplib.library.legs import LEG_DOFS, LegChains
 from mocaplib.skeleton import DOF_NAMES, ROOT_Z, SEGMENT_NAMES, Skeleton
 
@@ -22,30 +22,30 @@ SKELETON = Skeleton(Skeleton.from_height(1.75).lengths,
 
 
 def reference_solve(skeleton, q, targets, dofs, *, initial=None):
-    """Planting's solve (same arguments as ``planting._solve``) on the full chain: Jacobian of
+    """Planting's solve (same arguments as :func:`legs.solve_feet`) on the full chain: Jacobian of
     every DOF from :meth:`Skeleton.marker_jacobian`, the solved DOFs' columns taken, the normal
     equations of all of them solved together."""
     solved = np.array(dofs)
     lower, upper = (bound[solved].copy() for bound in Skeleton.bounds())
-    knees = np.isin(solved, planting.KNEES)
+    knees = np.isin(solved, legs.KNEES)
     lower[knees] = np.maximum(lower[knees], 0.0)
     segments = np.repeat(FEET, 3)
     offsets = np.tile(np.vstack([np.zeros(3), skeleton.sole()]), (2, 1))
-    prior = np.where(solved == ROOT_Z, planting.PELVIS_PRIOR, planting.PRIOR)
+    prior = np.where(solved == ROOT_Z, legs.PELVIS_PRIOR, legs.PRIOR)
     start = q[:, solved].copy()
     out = q.copy()
     out[:, solved] = np.clip(start if initial is None else initial[:, solved], lower, upper)
     wanted = targets.reshape(len(q), -1)
-    for _ in range(planting.IK_ITERATIONS):
+    for _ in range(legs.IK_ITERATIONS):
         points, jacobian = skeleton.marker_jacobian(out, segments, offsets)
         J = jacobian.reshape(len(q), -1, len(DOF_NAMES))[:, :, solved]
         gap = wanted - points.reshape(len(q), -1)
-        normal = np.einsum("fmi,fmj->fij", J, J) + np.diag(prior + planting.DAMPING)
+        normal = np.einsum("fmi,fmj->fij", J, J) + np.diag(prior + legs.DAMPING)
         rhs = np.einsum("fmi,fm->fi", J, gap) - prior * (out[:, solved] - start)
         step = np.linalg.solve(normal, rhs[..., None])[..., 0]
         out[:, solved] = np.clip(out[:, solved] + step, lower, upper)
         moved = step[:, solved == ROOT_Z] if ROOT_Z in solved else step
-        if np.abs(moved).max() < planting.STEP_TOLERANCE:  # with the pelvis: its height's
+        if np.abs(moved).max() < legs.STEP_TOLERANCE:  # with the pelvis: its height's
             break
     return out
 
@@ -89,14 +89,14 @@ def test_leg_chains_frames_are_the_skeletons_feet_and_hips():
     np.testing.assert_allclose(hips, T[:, thighs][..., :3, 3], atol=1e-12)
 
 
-@pytest.mark.parametrize("dofs", [planting.SOLVED, planting.LEGS], ids=["pelvis", "legs"])
+@pytest.mark.parametrize("dofs", [legs.SOLVED, legs.LEGS], ids=["pelvis", "legs"])
 def test_the_solve_is_the_generic_gauss_newton(dofs):
     q = random_poses(40, seed=1)
     # targets the legs can and cannot reach: the feet's own points moved by up to 10 cm
     points, _ = LegChains(SKELETON, q).feet(q[:, LEG_DOFS], q[:, ROOT_Z])
     targets = points + np.random.default_rng(2).uniform(-0.1, 0.1, points.shape)
     initial = q + 0.01
-    got = planting._solve(SKELETON, q, targets, dofs, initial=initial)
+    got = legs.solve_feet(SKELETON, q, targets, dofs, initial=initial)
     want = reference_solve(SKELETON, q, targets, dofs, initial=initial)
     # the same steps summed in another order: round-off, amplified by the normal equations'
     # condition (straight knees, targets out of reach, the Levenberg damping 1e-5): measured
@@ -109,7 +109,7 @@ def test_the_solve_is_the_generic_gauss_newton(dofs):
 def planted_series_of(library, solve, monkeypatch) -> list[tuple[np.ndarray, np.ndarray]]:
     """The report viewer's planted series (:func:`planting.planted_series`) of every entry of
     ``library`` with ``solve`` as planting's solve."""
-    monkeypatch.setattr(planting, "_solve", solve)
+    monkeypatch.setattr(planting, "solve_feet", solve)
     out = []
     for e in library.entries:
         drift = RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
@@ -122,7 +122,7 @@ def planted_series_of(library, solve, monkeypatch) -> list[tuple[np.ndarray, np.
 def assert_series_equal(library, monkeypatch):
     """The planted series of every entry of ``library`` are those of the reference solve within
     1e-6 rad (m) per coefficient: both stop on the same step tolerance."""
-    fast = planted_series_of(library, planting._solve, monkeypatch)
+    fast = planted_series_of(library, legs.solve_feet, monkeypatch)
     slow = planted_series_of(library, reference_solve, monkeypatch)
     worst = max(np.abs(np.concatenate([f[k] - s[k] for k in (0, 1)])).max()
                 for f, s in zip(fast, slow))

@@ -29,7 +29,8 @@ from mocaplib.cli import main
 from mocaplib.export.formats import write
 from mocaplib.gait.fourier import synthesize
 from mocaplib.library.controlspace import ControlSpace
-from mocaplib.library.planting import plant_feet, sole_points, stance_frames
+from mocaplib.library.legs import level_frames
+from mocaplib.library.planting import _cleared, plant_feet, sole_points, stance_frames
 from mocaplib.library.retarget import retarget
 from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
@@ -330,6 +331,30 @@ def test_a_foot_rolling_over_its_ball_keeps_the_knee():
     assert planted.after.penetration_m < 5e-4 and planted.after.slide_m < 5e-4
     change = np.degrees(np.abs(planted.q[:, knee] - q[:, knee]).max())
     assert change <= 5.0, change
+
+
+def test_a_swing_foot_turned_toward_level_stops_at_level():
+    """A swing foot with its heel (toe) below the floor turns about its ankle to lift it, no
+    further than level (beyond, its other end would go down faster than this one rises), then
+    rises by what is still missing."""
+    local = np.vstack([np.zeros(3), Skeleton.from_height(1.75).sole()])   # ankle, heel, toe (m)
+    # toes up with the heel 12 mm down and toes down with the toe 40 mm down (turned level they
+    # rise only 11 and 34 mm), toes up with the heel 4 mm down (a turn short of level lifts it)
+    pitch, heading = np.radians([10.0, -10.0, 10.0]), np.radians([40.0, -20.0, 160.0])
+    low, depth = np.array([1, 2, 1]), np.array([-0.012, -0.040, -0.004])
+    feet = np.einsum("nij,pj->npi", level_frames(pitch, heading), local)
+    feet[:, :, 2] += (depth - feet[np.arange(3), low, 2])[:, None]
+    cleared = _cleared(feet, np.zeros(3))
+    # rigid: each foot's points keep their distances (round-off)
+    np.testing.assert_allclose(np.linalg.norm(cleared[:, :, None] - cleared[:, None], axis=-1),
+                               np.linalg.norm(feet[:, :, None] - feet[:, None], axis=-1),
+                               atol=1e-12)
+    # the first two stop at level and rise by what is missing: heel and toe on the floor (a
+    # turn past level would leave the other end up by millimetres)
+    np.testing.assert_allclose(cleared[:2, 1:, 2], 0.0, atol=1e-12)
+    # the third turns short of level: its heel on the floor, its toe still up
+    np.testing.assert_allclose(cleared[2, 1, 2], 0.0, atol=1e-12)
+    assert cleared[2, 2, 2] > 0.01, cleared[2, 2, 2]
 
 
 @pytest.mark.usefixtures("sample_dir")

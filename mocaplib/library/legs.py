@@ -1,6 +1,7 @@
 """Both legs' forward kinematics below a fixed pelvis, with the Jacobian of each foot's ankle,
-heel and toe: what planting's solve (:func:`mocaplib.library.planting.plant_feet`, step 4)
-evaluates at every Gauss-Newton step.
+heel and toe, and planting's solve (:func:`solve_feet`;
+:func:`mocaplib.library.planting.plant_feet`, step 4), which evaluates them at every
+Gauss-Newton step.
 
 Planting moves only the legs (hip, knee and ankle DOFs, :data:`LEG_DOFS`) and the pelvis
 height; the pelvis's orientation and horizontal position stay those of the motion. So
@@ -16,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..gait.poulaine import FEET
-from ..skeleton import DOF_NAMES, DOFS, ROOT_Z, SEGMENT_NAMES, SEGMENTS, Skeleton
+from ..skeleton import (DOF_NAMES, DOFS, ROOT_Z, SEGMENT_NAMES, SEGMENTS, Skeleton,
+                        segment_dofs)
 
 #: The segments of each leg (2, 3), rows left and right: femur, tibia, foot.
 LEG_SEGMENTS = np.array([[SEGMENT_NAMES.index(f"{name}_{s}") for name in ("femur", "tibia",
@@ -60,6 +62,27 @@ assert all(_letter(j)[0] == k for row in LEG_DOFS for j, k in zip(row, _LETTERS)
 assert SEGMENT_DOF_COUNTS == tuple(len(SEGMENTS[s].dofs) for s in LEG_SEGMENTS[1]) \
     and not any(DOFS[j].translation for j in LEG_DOFS.ravel()), "two legs alike, turns only"
 assert list(FEET) == LEG_SEGMENTS[:, 2].tolist(), "legs in the order of the feet"
+
+
+#: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
+#: and the pelvis height to the motion's values.
+IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-5, 1e-6, 3e-2
+#: A solve stops when no DOF (the first solve: no pelvis height) moves by more than this in a
+#: step (rad, m).
+STEP_TOLERANCE = 1e-6
+#: The DOFs solved: both legs, then the pelvis height.
+LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_r", "tibia_r",
+                                                                         "foot_r"))
+SOLVED = LEGS + (ROOT_Z,)
+KNEES = (DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r"))
+
+
+def level_frames(pitch: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Foot orientations (n, 3, 3) with ``pitch`` (n,) rad, ``heading`` (n,) rad and no roll."""
+    c, s = np.cos(pitch), np.sin(pitch)
+    x = np.stack([c * np.cos(heading), c * np.sin(heading), s], axis=-1)
+    y = np.stack([-np.sin(heading), np.cos(heading), np.zeros_like(heading)], axis=-1)
+    return np.stack([x, y, np.cross(x, y)], axis=-1)
 
 
 class LegChains:
@@ -129,3 +152,51 @@ class LegChains:
         points[:, :, 0] = pivot
         points[:, :, 1:] = pivot[:, :, None] + (R @ self.sole).transpose(0, 1, 3, 2)
         return (points, axes, pivots, R) if orientation else (points, axes, pivots)
+
+
+def solve_feet(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[int, ...], *,
+               initial: np.ndarray | None = None) -> np.ndarray:
+    """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
+    (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
+    those of ``initial`` (default ``q``) on, until no DOF (with the pelvis height: no
+    pelvis height) moves by :data:`STEP_TOLERANCE`
+    (:func:`mocaplib.library.planting.plant_feet`, step 4). Each frame's normal equations are
+    solved with the pelvis height eliminated (Schur complement): the two legs' blocks do not
+    couple."""
+    assert set(dofs) - {ROOT_Z} == set(LEGS), "planting solves both legs, maybe the pelvis height"
+    pelvis = ROOT_Z in dofs
+    bounds = Skeleton.bounds()
+    lower, upper = (bound[LEG_DOFS] for bound in bounds)                      # (2, K)
+    lower = np.where(np.isin(LEG_DOFS, KNEES), np.maximum(lower, 0.0), lower)
+    lowest, highest = (bound[ROOT_Z] for bound in bounds)
+    start, height = q[:, LEG_DOFS], q[:, ROOT_Z]
+    out = q.copy() if initial is None else np.where(np.isin(np.arange(q.shape[1]), dofs),
+                                                    initial, q)
+    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, K)
+    z = np.clip(out[:, ROOT_Z], lowest, highest) if pelvis else out[:, ROOT_Z]
+    chains = LegChains(skeleton, out)
+    wanted = targets.reshape(len(q), 2, 9)
+    diagonal = (PRIOR + DAMPING) * np.eye(LEG_DOFS.shape[1])
+    for _ in range(IK_ITERATIONS):
+        points, jacobian = chains.feet(angles, z)
+        J = jacobian.reshape(len(q), 2, 9, -1)
+        Jt = J.transpose(0, 1, 3, 2)
+        gap = wanted - points.reshape(len(q), 2, 9)
+        normal = Jt @ J + diagonal                                             # (F, 2, K, K)
+        rhs = (Jt @ gap[..., None])[..., 0] - PRIOR * (angles - start)
+        if pelvis:                           # the pelvis height moves every point along Z
+            coupling = J[:, :, 2::3].sum(axis=2)                               # (F, 2, K)
+            legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, K, 2)
+            across = (coupling[..., None] * legs).sum(axis=(1, 2))             # (F, 2)
+            lift = ((gap[:, :, 2::3].sum(axis=(1, 2)) - PELVIS_PRIOR * (z - height)
+                     - across[:, 0])          # 6.0: the six foot points rise with the pelvis
+                    / (6.0 + PELVIS_PRIOR + DAMPING - across[:, 1]))
+            step = legs[..., 0] - legs[..., 1] * lift[:, None, None]
+            z = np.clip(z + lift, lowest, highest)
+        else:
+            step, lift = np.linalg.solve(normal, rhs[..., None])[..., 0], np.zeros(1)
+        angles = np.clip(angles + step, lower, upper)
+        if np.abs(lift if pelvis else step).max() < STEP_TOLERANCE:
+            break
+    out[:, LEG_DOFS], out[:, ROOT_Z] = angles, z
+    return out

@@ -40,38 +40,42 @@ toe (tests/test_planting.py).
 3. Outside stance the foot follows the motion; within :data:`BLEND_S` of a run the correction of
    the run's first (last) frame, a turn about the ankle and a shift, fades in (out) by a
    smoothstep (the foot stays rigid), the foot coming down to (rising from) the floor at
-   :data:`APPROACH_SPEED` at least near it; a swing foot whose toe (heel) would be
-   lower turns about its ankle to lift it (the rigid toe that dips into the floor at push-off),
-   and rises as a whole by what is still missing.
-4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points
-   of each foot per frame, all frames at once, by damped Gauss-Newton steps
-   (:data:`IK_ITERATIONS` at most, until no pelvis height moves by :data:`STEP_TOLERANCE`:
-   only the heights are kept from this solve) that stay near the motion: every DOF is pulled to its own value with weight :data:`PRIOR`, the pelvis
-   height with :data:`PELVIS_PRIOR` (it moves only where a leg cannot reach); the DOFs are kept
-   within their joint limits and the knees at 0 or more (never hyperextended). Each step poses
-   only the legs below the motion's pelvis (:class:`~mocaplib.library.legs.LegChains`: both
+   :data:`APPROACH_SPEED` at least near it; a swing foot whose toe (heel) would be lower turns
+   about its ankle to lift it (the rigid toe that dips into the floor at push-off), no further
+   than to lay its sole level, and rises as a whole by what is still missing.
+4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points of
+   each foot per frame, all frames at once, by damped Gauss-Newton steps
+   (:data:`~.legs.IK_ITERATIONS` at most, until no pelvis height moves by
+   :data:`~.legs.STEP_TOLERANCE`: only the heights are kept from this solve) that stay near the
+   motion: every DOF is pulled to its own value with weight :data:`~.legs.PRIOR`, the pelvis
+   height with :data:`~.legs.PELVIS_PRIOR` (it moves only where a leg cannot reach); the DOFs are
+   kept within their joint limits and the knees at 0 or more (never hyperextended). Each step
+   poses only the legs below the motion's pelvis (:class:`~mocaplib.library.legs.LegChains`: both
    legs, all frames at once) and solves each frame's normal equations with the pelvis height
    eliminated, the two legs' blocks apart. The pelvis height's correction is then smoothed
-   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it (until no DOF
-   moves by :data:`STEP_TOLERANCE`), for the targets of the motion with that pelvis (a swing
-   foot goes up and down with the body, and a stance foot's pitch keeps the knee for the hip
-   where it is). The Levenberg damping (:data:`DAMPING`) is small, so that the DOFs that move
-   the feet least converge too: on the sample entries the first solve takes 4-12 steps
-   (median 7), the second 2-4 (one entry 10). A periodic motion sampled at a whole number of frames a
-   cycle is solved on one cycle (:func:`plant_feet`'s ``period``).
+   (:data:`PELVIS_SMOOTHING_S`: no jolt) and the legs solved again under it (until no DOF moves by
+   :data:`~.legs.STEP_TOLERANCE`), for the targets of the motion with that pelvis (a swing foot
+   goes up and down with the body, and a stance foot's pitch keeps the knee for the hip where it
+   is). The Levenberg damping (:data:`~.legs.DAMPING`) is small, so that the DOFs that move the
+   feet least converge too: on the sample entries the first solve takes 4-12 steps (median 7), the
+   second 2-4 (one entry 10). A periodic motion sampled at a whole number of frames a cycle is
+   solved on one cycle (:func:`plant_feet`'s ``period``).
 
 :func:`contact_measures` measures the result: slide, penetration, flat-foot hover and the
 pelvis's vertical acceleration (:class:`ContactMeasures`).
 
 **On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
 own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
-floor at push-off and the feet hover up to 47 mm; planting changes a knee by up to 15.5 deg and
-a hip's flexion by up to 8.1 deg (target 5 deg, not met). Where: a swing foot whose rigid heel
-is below the floor in the frames before its heel strike turns and rises (HC030A22_c3); a foot
-that stands pitched 4-7 deg (its fitted sole is not level when the real one is) is laid flat
-about its heel (PiG_Motion-FlatFoot-Full_c1, 07_01_c0); a knee the motion hyperextends is held
-at 0 (07_01_c0 bends to -12.3 deg). It lowers no body by more than its feet's hover in stance
-(at most 30 mm).
+floor at push-off and the feet hover up to 47 mm. Planting changes a knee by up to 13.4 deg and
+a hip's flexion by up to 7.0 deg; the joint limits force up to 12.3 deg of it (07_01_c0's
+hyperextended knee held at 0), planting chooses up to 13.4 and 7.0 deg (target 5 deg, not met):
+HC030A22_c3's right leg in the swing between a stance and a short stance on its toe (the heel
+20 mm up), found apart and locked at its own first frame; two left feet whose fitted soles
+stand pitched 4.2 and 6.8 deg toes up, the heel 14-18 mm below the floor, laid flat about their
+heel (07_01_c0 12.3, PiG_Motion-FlatFoot-Full_c1 11.4 deg in stance); BTS_c0's left toe, 55 mm
+below the floor after toe-off, turned the :data:`MAX_TOE_TURN` it may and raised (9.3 deg);
+HC030A05_c0's right foot, pitched 2.5 deg toes up, laid flat (8.6 deg). It lowers no body by
+more than its feet's hover in stance (at most 30 mm).
 """
 
 from __future__ import annotations
@@ -85,8 +89,8 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from scipy.spatial.transform import Rotation
 
 from ..gait.fourier import RootDrift, fit_series, synthesize
-from ..skeleton import DOF_NAMES, ROOT_Z, Skeleton, segment_dofs
-from .legs import LEG_DOFS, LegChains
+from ..skeleton import ROOT_Z, Skeleton
+from .legs import KNEES, LEG_DOFS, LEGS, SOLVED, LegChains, level_frames, solve_feet
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
 #: within CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot
@@ -106,20 +110,9 @@ BLEND_S, APPROACH_SPEED = 0.1, 0.2
 KNEE_GAP = np.deg2rad(4.0)
 #: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
 MAX_TOE_TURN = np.deg2rad(30.0)
-#: Gauss-Newton steps; Levenberg damping; weights (m² per rad², m² per m²) pulling each leg DOF
-#: and the pelvis height to the motion's values.
-IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-5, 1e-6, 3e-2
-#: A solve stops when no DOF (the first solve: no pelvis height) moves by more than this in a
-#: step (rad, m).
-STEP_TOLERANCE = 1e-6
 #: The pelvis height's correction (where a leg cannot reach) is spread over this (s): the
 #: lowest correction within it, smoothed by a Gaussian of half its width.
 PELVIS_SMOOTHING_S = 0.12
-#: The DOFs solved: both legs, then the pelvis height.
-LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_r", "tibia_r",
-                                                                         "foot_r"))
-SOLVED = LEGS + (ROOT_Z,)
-KNEES = (DOF_NAMES.index("knee_flexion_l"), DOF_NAMES.index("knee_flexion_r"))
 #: Harmonics and sampling rate (Hz) of :func:`planted_series`.
 SERIES_ORDER, SERIES_RATE = 15, 30.0
 #: A sole point within this (m) of the floor touches it (:func:`contact_measures`).
@@ -251,15 +244,17 @@ def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
         q[:, ROOT_Z] -= standing_level(sole_points(skeleton, q), stance)
     solved = np.arange(len(q)) if period is None else window[0] + np.arange(period)
     cyclic = (np.arange(len(q)) - window[0]) % period if period else slice(None)
-    reached = _solve(skeleton, q[solved], _targets(skeleton, q, stance, rate)[solved], SOLVED)
+    reached = solve_feet(skeleton, q[solved], _targets(skeleton, q, stance, rate)[solved],
+                         SOLVED)
     drop = reached[:, ROOT_Z] - q[solved, ROOT_Z]
     spread, mode = max(1, round(PELVIS_SMOOTHING_S * rate)), "nearest" if period is None \
         else "wrap"
     q[:, ROOT_Z] += gaussian_filter1d(minimum_filter1d(drop, 2 * spread + 1, mode=mode),
                                       spread / 2, mode=mode)[cyclic]
     out = q.copy()
-    out[:, list(SOLVED)] = _solve(skeleton, q[solved], _targets(skeleton, q, stance, rate)[solved],
-                                  LEGS, initial=reached)[cyclic][:, list(SOLVED)]
+    out[:, list(SOLVED)] = solve_feet(skeleton, q[solved],
+                                      _targets(skeleton, q, stance, rate)[solved], LEGS,
+                                      initial=reached)[cyclic][:, list(SOLVED)]
     return Planted(skeleton, motion, out, stance, rate, window)
 
 
@@ -397,7 +392,7 @@ def _targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: float)
     theta = _stance_pitch(points[frame, side, 0], hips[frame, side], q[frame, np.array(KNEES)[side]],
                           pitch[frame, side], heel, toe, forward, local,
                           (skeleton.lengths["thigh"], skeleton.lengths["shank"]))
-    placed = np.einsum("nij,pj->npi", _level_frames(theta, psi), local)
+    placed = np.einsum("nij,pj->npi", level_frames(theta, psi), local)
     pivot = np.where((theta >= 0)[:, None], heel - placed[:, 1], toe - placed[:, 2])
     targets[frame, side] = placed + pivot[:, None]
     clearance = _fade(targets, points, runs, max(1, round(BLEND_S * rate)), rate)
@@ -517,12 +512,14 @@ def _aligning_turns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _cleared(feet: np.ndarray, height: np.ndarray) -> np.ndarray:
     """Feet (n, 3, 3) (ankle, heel, toe) with heel and toe at least ``height`` (n,) m above the
     floor: a foot with only its toe (heel) too low turns about its ankle, in its vertical plane,
-    by the least angle (up to :data:`MAX_TOE_TURN`) that lifts it, then the whole foot rises by
-    what is still missing."""
+    by the least angle that lifts it, up to :data:`MAX_TOE_TURN` and, turning towards level, no
+    further than to lay its sole level (beyond, the other end would go down faster than this one
+    rises), then the whole foot rises by what is still missing."""
     feet = feet.copy()
     ankle, heel, toe = feet[:, 0], feet[:, 1], feet[:, 2]
-    axis = np.cross(toe - heel, [0.0, 0.0, 1.0])
+    axis = np.cross(toe - heel, [0.0, 0.0, 1.0])                    # a turn by φ > 0: toes up
     axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    level = -np.arctan2(toe[:, 2] - heel[:, 2], np.linalg.norm((toe - heel)[:, :2], axis=1))
     for point, other in ((2, 1), (1, 2)):
         low = (feet[:, point, 2] < height) & (feet[:, other, 2] >= height)
         if not low.any():
@@ -536,6 +533,8 @@ def _cleared(feet: np.ndarray, height: np.ndarray) -> np.ndarray:
         turns = np.angle(np.exp(1j * turns))
         phi = np.clip(np.take_along_axis(turns, np.argmin(np.abs(turns), axis=0)[None], 0)[0],
                       -MAX_TOE_TURN, MAX_TOE_TURN)
+        past = phi * level[low] > level[low] ** 2                # turned beyond level
+        phi[past] = level[low][past]
         feet[low] = ankle[low, None] + _turned(feet[low] - ankle[low, None], axis[low], phi)
     short = np.maximum(0.0, height - feet[:, 1:, 2].min(axis=1))
     feet[..., 2] += short[:, None]
@@ -549,58 +548,3 @@ def _turned(vectors: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndar
     u = axis[:, None, :]
     return (vectors * c + np.cross(u, vectors) * s
             + u * np.sum(u * vectors, axis=-1, keepdims=True) * (1 - c))
-
-
-def _level_frames(pitch: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """Foot orientations (n, 3, 3) with ``pitch`` (n,) rad, ``heading`` (n,) rad and no roll."""
-    c, s = np.cos(pitch), np.sin(pitch)
-    x = np.stack([c * np.cos(heading), c * np.sin(heading), s], axis=-1)
-    y = np.stack([-np.sin(heading), np.cos(heading), np.zeros_like(heading)], axis=-1)
-    return np.stack([x, y, np.cross(x, y)], axis=-1)
-
-
-def _solve(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[int, ...], *,
-           initial: np.ndarray | None = None) -> np.ndarray:
-    """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
-    (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
-    those of ``initial`` (default ``q``) on, until no DOF (with the pelvis height: no
-    pelvis height) moves by :data:`STEP_TOLERANCE`
-    (module docstring, 4). Each frame's normal equations are solved with the pelvis height
-    eliminated (Schur complement): the two legs' blocks do not couple."""
-    assert set(dofs) - {ROOT_Z} == set(LEGS), "planting solves both legs, maybe the pelvis height"
-    pelvis = ROOT_Z in dofs
-    bounds = Skeleton.bounds()
-    lower, upper = (bound[LEG_DOFS] for bound in bounds)                      # (2, K)
-    lower = np.where(np.isin(LEG_DOFS, KNEES), np.maximum(lower, 0.0), lower)
-    lowest, highest = (bound[ROOT_Z] for bound in bounds)
-    start, height = q[:, LEG_DOFS], q[:, ROOT_Z]
-    out = q.copy() if initial is None else np.where(np.isin(np.arange(q.shape[1]), dofs),
-                                                    initial, q)
-    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, K)
-    z = np.clip(out[:, ROOT_Z], lowest, highest) if pelvis else out[:, ROOT_Z]
-    chains = LegChains(skeleton, out)
-    wanted = targets.reshape(len(q), 2, 9)
-    diagonal = (PRIOR + DAMPING) * np.eye(LEG_DOFS.shape[1])
-    for _ in range(IK_ITERATIONS):
-        points, jacobian = chains.feet(angles, z)
-        J = jacobian.reshape(len(q), 2, 9, -1)
-        Jt = J.transpose(0, 1, 3, 2)
-        gap = wanted - points.reshape(len(q), 2, 9)
-        normal = Jt @ J + diagonal                                             # (F, 2, K, K)
-        rhs = (Jt @ gap[..., None])[..., 0] - PRIOR * (angles - start)
-        if pelvis:                           # the pelvis height moves every point along Z
-            coupling = J[:, :, 2::3].sum(axis=2)                               # (F, 2, K)
-            legs = np.linalg.solve(normal, np.stack([rhs, coupling], axis=-1))  # (F, 2, K, 2)
-            across = (coupling[..., None] * legs).sum(axis=(1, 2))             # (F, 2)
-            lift = ((gap[:, :, 2::3].sum(axis=(1, 2)) - PELVIS_PRIOR * (z - height)
-                     - across[:, 0])          # 6.0: the six foot points rise with the pelvis
-                    / (6.0 + PELVIS_PRIOR + DAMPING - across[:, 1]))
-            step = legs[..., 0] - legs[..., 1] * lift[:, None, None]
-            z = np.clip(z + lift, lowest, highest)
-        else:
-            step, lift = np.linalg.solve(normal, rhs[..., None])[..., 0], np.zeros(1)
-        angles = np.clip(angles + step, lower, upper)
-        if np.abs(lift if pelvis else step).max() < STEP_TOLERANCE:
-            break
-    out[:, LEG_DOFS], out[:, ROOT_Z] = angles, z
-    return out
