@@ -30,9 +30,11 @@ const HERE = path.dirname(fileURLToPath(import.meta.url));
 export const SCHEMA_PATH = path.join(HERE, "..", "mocaplib", "schema", "library.schema.json");
 export const FORMAT = "mocaplib-library";
 /** The versions this reader knows (docs/library-format.md, Versions). */
-export const KNOWN_VERSIONS = [1, 2, 3, 4];
+export const KNOWN_VERSIONS = [1, 2, 3, 4, 5];
 /** The first version whose stored tetrahedra are the gait cells (with gaits and hull). */
 export const GAIT_CELLS_VERSION = 4;
+/** The first version that stores each cell's frontal tetrahedra, where weights are computed. */
+export const FRONTAL_WEIGHTS_VERSION = 5;
 /** Versions whose checksum is Python-printed JSON, which only Python reproduces. */
 export const PYTHON_CHECKSUM_VERSIONS = [1, 2];
 /** Root channels (pelvis_tx, pelvis_ty, pelvis_rotation) by name, for re-anchoring. */
@@ -238,6 +240,14 @@ export function ontoCone([v, omega, vl]) {
 }
 
 /**
+ * A command [v, omega, v_l] on the frontal axes [v_f, omega, v_l]: v_f = +sqrt(v² − v_l²)
+ * (0 when |v_l| > v), as mocaplib.library.cells.to_frontal.
+ */
+export function toFrontal([v, omega, vl]) {
+  return [Math.sqrt(Math.max(v * v - vl * vl, 0)), omega, vl];
+}
+
+/**
  * Of tetrahedra (rows of 4 indices into points), the one holding x whose smallest weight is
  * largest (the first of equals), when that weight is >= -tol: {simplex, weights}, else null.
  */
@@ -303,8 +313,10 @@ function outsidePlanes(points, hull, x) {
 
 /**
  * The stored control space of a document: entries (by row of tetrahedra.ids), their
- * normalised points as stored (raw) and with side-steps on the cone (cone), the gait cells
- * ({gait, simplices, boundary}, walks first) and the hull of all the entries.
+ * normalised points as stored (raw), with side-steps on the cone (cone) and those on the
+ * frontal axes (frontal), the gait cells ({gait, simplices, boundary, frontal: the cell's
+ * frontal tetrahedra {simplices, boundary} or null}, walks first) and the hull of all the
+ * entries.
  */
 export function storedCells(document) {
   const stored = document.control_space.tetrahedra;
@@ -323,15 +335,50 @@ export function storedCells(document) {
   const normalised = (p) => p.map((value, i) => value / scale[i]);
   const raw = entries.map((e) => normalised([e.v, e.omega, e.v_l]));
   const cone = entries.map((e) => normalised(ontoCone([e.v, e.omega, e.v_l])));
+  const frontal = entries.map((e) => normalised(toFrontal(ontoCone([e.v, e.omega, e.v_l]))));
   const cells = [];
   stored.simplices.forEach((simplex, s) => {
     const gait = stored.gaits[s];
     let cell = cells.find((c) => c.gait === gait);
-    if (!cell) cells.push((cell = { gait, simplices: [] }));
+    if (!cell) cells.push((cell = { gait, simplices: [], frontal: null }));
     cell.simplices.push(simplex);
   });
-  for (const cell of cells) cell.boundary = boundary(cell.simplices);
-  return { scale, entries, raw, cone, cells, hull: stored.hull };
+  (stored.frontal_simplices ?? []).forEach((simplex, s) => {
+    const cell = cells.find((c) => c.gait === stored.frontal_gaits[s]);
+    if (cell.frontal === null) cell.frontal = { simplices: [] };
+    cell.frontal.simplices.push(simplex);
+  });
+  for (const cell of cells) {
+    cell.boundary = boundary(cell.simplices);
+    if (cell.frontal !== null) cell.frontal.boundary = boundary(cell.frontal.simplices);
+  }
+  return { scale, entries, raw, cone, frontal, cells, hull: stored.hull };
+}
+
+/** The nearest point of the triangles `faces` (rows of 3 indices into points) to x. */
+function nearestOnFaces(faces, points, x) {
+  let best = null;
+  for (const face of faces) {
+    const c = closestOnTriangle(x, face.map((i) => points[i]));
+    if (best === null || c.d2 < best.d2) best = c;
+  }
+  return best;
+}
+
+/**
+ * The entries and weights of a point served by `cell` (SI, on the cone): its barycentric
+ * coordinates on the frontal axes (normalised) in the cell's frontal tetrahedra, or at the
+ * nearest point of their boundary when it lies outside them; the tetrahedron `found` in the
+ * cell's own tetrahedra when the cell has no frontal ones.
+ */
+function weighOnFrontalAxes(space, cell, served, found) {
+  if (cell.frontal === null) return found;
+  const f = toFrontal(served).map((value, i) => value / space.scale[i]);
+  return locate(cell.frontal.simplices, space.frontal, f, WEIGHT_TOLERANCE)
+    ?? locate(cell.frontal.simplices, space.frontal,
+              nearestOnFaces(cell.frontal.boundary, space.frontal, f).point,
+              BOUNDARY_WEIGHT_TOLERANCE)
+    ?? found;
 }
 
 /**
@@ -339,7 +386,8 @@ export function storedCells(document) {
  * (side-steps on the cone, / scale) in the tetrahedron of the cells (of `gait` only, when
  * given) whose smallest weight is largest (inside when >= -1e-9); else the nearest point of
  * the nearest cell, served there when within 1e-6 of it (inside) or inside the hull of all
- * the entries (clamped: between the cells), else outside. Returns {inside, gait, clamped,
+ * the entries (clamped: between the cells), else outside. The weights of a served point are
+ * computed on the frontal axes (weighOnFrontalAxes). Returns {inside, gait, clamped,
  * entries (ids), weights (clipped at 0, sum 1), nearest (SI), distance (normalised)}.
  */
 export function query(document, command, gait = null) {
@@ -354,12 +402,15 @@ export function query(document, command, gait = null) {
   }
   const x = command.map((value, i) => value / space.scale[i]);
   const onCone = ontoCone(command).map((value, i) => value / space.scale[i]);
-  const gaitOf = new Map(cells.flatMap((c) => c.simplices.map((s) => [s, c.gait])));
-  const answer = (found, cellGait, point, distance, clamped) => {
+  const cellOf = new Map(cells.flatMap((c) => c.simplices.map((s) => [s, c])));
+  const answer = (located, cell, point, distance, clamped) => {
+    const served = point === onCone ? ontoCone(command)
+      : point.map((value, i) => value * space.scale[i]);
+    const found = weighOnFrontalAxes(space, cell, served, located);
     const clipped = found.weights.map((w) => Math.max(w, 0));
     const total = clipped.reduce((s, w) => s + w, 0);
     return {
-      inside: true, gait: cellGait, clamped,
+      inside: true, gait: cell.gait, clamped,
       entries: found.simplex.map((i) => space.entries[i].id),
       weights: clipped.map((w) => w / total),
       nearest: clamped ? point.map((value, i) => value * space.scale[i]) : command.slice(),
@@ -367,14 +418,10 @@ export function query(document, command, gait = null) {
     };
   };
   const direct = locate(cells.flatMap((c) => c.simplices), space.cone, onCone, WEIGHT_TOLERANCE);
-  if (direct !== null) return answer(direct, gaitOf.get(direct.simplex), onCone, 0, false);
+  if (direct !== null) return answer(direct, cellOf.get(direct.simplex), onCone, 0, false);
   let near = null;
   for (const cell of cells) {
-    let best = null;
-    for (const face of cell.boundary) {
-      const c = closestOnTriangle(onCone, face.map((i) => space.cone[i]));
-      if (best === null || c.d2 < best.d2) best = c;
-    }
+    const best = nearestOnFaces(cell.boundary, space.cone, onCone);
     const distance = Math.sqrt(best.d2);
     if (near === null || distance < near.distance) near = { cell, point: best.point, distance };
   }
@@ -382,7 +429,7 @@ export function query(document, command, gait = null) {
   const found = near.distance <= HULL_TOLERANCE || inHull
     ? locate(near.cell.simplices, space.cone, near.point, BOUNDARY_WEIGHT_TOLERANCE) : null;
   if (found !== null) {
-    return answer(found, near.cell.gait, near.point, near.distance,
+    return answer(found, near.cell, near.point, near.distance,
                   near.distance > HULL_TOLERANCE);
   }
   return {

@@ -41,15 +41,17 @@ def hand_library(points, *, a=None, b=None, T=None, classes=None, v_f=None):
     return assemble_library(entries, settings={})
 
 
-def random_space(seed=0, n=40):
+def random_space(seed=0, n=40, *, axes="tangential"):
     rng = np.random.default_rng(seed)
     pts = rng.uniform([0.0, -1.5, -0.5], [2.0, 1.5, 0.5], (n, 3))
     return ControlSpace(pts, a=rng.normal(size=(n, D, 4)), b=rng.normal(size=(n, D, 4)),
-                        T=rng.uniform(0.9, 1.3, n)), rng
+                        T=rng.uniform(0.9, 1.3, n), axes=axes), rng
 
 
 def test_barycentric_weights_sum_to_one_and_reproduce_the_point():
-    cs, rng = random_space()
+    # on the frontal axes the weights reproduce the point itself (on the tangential ones its
+    # frontal point: tests/test_gait_blending.py)
+    cs, rng = random_space(axes="frontal")
     q = rng.uniform([0.0, -1.5, -0.5], [2.0, 1.5, 0.5], (500, 3))
     res = cs.query(q)
     assert 100 < res.inside.sum() < 500  # random points: many inside, some outside
@@ -186,7 +188,8 @@ def test_leave_one_out_keeps_root_channels_and_drift_apart():
     a[8, DOF_NAMES.index("pelvis_tx"), 0] = 0.010
     a[8, DOF_NAMES.index("pelvis_rotation"), 0] = 0.02
     T = np.array([1.0] * 8 + [1.2])
-    row = leave_one_out(ControlSpace.from_library(hand_library(pts, a=a, T=T))).iloc[8]
+    row = leave_one_out(ControlSpace.from_library(hand_library(pts, a=a, T=T),
+                                                  axes="frontal")).iloc[8]
     assert row["inside"] and row["rms_deg"] == 0  # metres and heading stay out of the joints
     # Constant offsets: RMS over pelvis_tx/ty/tz of (10, 0, 0) mm; heading 0.02 rad.
     np.testing.assert_allclose(row["root_rms_mm"], 10 / np.sqrt(3), atol=1e-9)
@@ -211,7 +214,7 @@ def test_gridded_library_has_no_flat_tetrahedra():
     p = x[Delaunay(x).simplices]
     qhull_volumes = np.abs(np.linalg.det(p[:, 1:] - p[:, :1])) / 6
     assert (qhull_volumes < 1e-12).sum() > 0  # the degeneracy this test is about exists
-    cs = ControlSpace(grid)
+    cs = ControlSpace(grid, axes="frontal")       # the weights reproduce the point itself
     p = cs.tri.points[cs.tri.simplices]
     volumes = np.abs(np.linalg.det(p[:, 1:] - p[:, :1])) / 6
     hull = ConvexHull(x).volume
@@ -236,7 +239,7 @@ def test_gridded_library_has_no_flat_tetrahedra():
     np.testing.assert_allclose(res.weights.sum(axis=1), 1.0, atol=1e-12)
     np.testing.assert_allclose(np.einsum("qk,qkj->qj", res.weights, cs.points[res.entries]), q,
                                atol=1e-12)  # one affine solve per point: round-off only
-    assert coverage(cs, Envelope.box({"v": (0, 1.5), "omega": (-1.2, 1.2),
+    assert coverage(cs, Envelope.box({"v_f": (0, 1.5), "omega": (-1.2, 1.2),
                                       "v_l": (-0.5, 0.5)})).slivers.empty
 
 
@@ -252,12 +255,14 @@ def test_triangulation_does_not_depend_on_entry_order():
 
 
 def test_leave_one_out_is_exact_for_affine_coefficients():
-    # Barycentric blending reproduces any affine function of the control point exactly.
+    # Barycentric blending reproduces any affine function of the point weighed exactly (on
+    # the frontal axes the control point itself).
     rng = np.random.default_rng(5)
     pts = rng.uniform(0, 1, (30, 3))
     M, c = rng.normal(size=(D, 3, 3)), rng.normal(size=(D, 3))
     a = np.einsum("dnj,ej->edn", M, pts) + c
-    cs = ControlSpace(pts, a=a, b=np.zeros_like(a), T=1 + pts[:, 0], scale=[1, 1, 1])
+    cs = ControlSpace(pts, a=a, b=np.zeros_like(a), T=1 + pts[:, 0], scale=[1, 1, 1],
+                      axes="frontal")
     df = leave_one_out(cs)
     assert df["inside"].sum() >= 5
     # Round-off of the weights times coefficients of size ~3 rad: far below 1e-9 degrees.

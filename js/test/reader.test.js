@@ -14,7 +14,7 @@ import canonicalize from "canonicalize";
 import {
   LibraryReadError, SCHEMA_PATH, barycentric, blend, checkLibrary, checksumStatus,
   closestOnTriangle, contentSha256, entryAngles, entryById, numbers, ontoCone, query,
-  readLibrary, series, shiftedSeries,
+  readLibrary, series, shiftedSeries, toFrontal,
 } from "../mocaplib-library.js";
 
 const FIXTURES = path.join(path.dirname(fileURLToPath(import.meta.url)), "fixtures");
@@ -38,7 +38,7 @@ test("the shipped schema compiles in Ajv 2020 strict mode without a warning", ()
 test("the sample library validates and its JCS checksum verifies", () => {
   const { document, checksum } = readLibrary(LIBRARY);
   assert.equal(checksum, "verified");
-  assert.equal(document.format_version, 4);
+  assert.equal(document.format_version, 5);
   assert.equal(document.entries.length, 16);
 });
 
@@ -57,8 +57,8 @@ test("version-1 and -2 checksums are Python's: reported, not judged", () => {
 });
 
 test("an unknown format_version is refused", () => {
-  const document = resealed({ ...fresh(), format_version: 5 });
-  assert.throws(() => checkLibrary(document), /format_version 5 is not one this reader knows/);
+  const document = resealed({ ...fresh(), format_version: 6 });
+  assert.throws(() => checkLibrary(document), /format_version 6 is not one this reader knows/);
 });
 
 test("a version-4 file without its cells' gaits or hull fails the schema", () => {
@@ -148,7 +148,7 @@ test("a series seen from tau later is the series at t + tau (joint angles)", () 
   }
 });
 
-test("a blend's weights reproduce the command and blend the entries' series", () => {
+test("a blend's weights reproduce the command's frontal speeds and blend the entries' series", () => {
   const { document } = readLibrary(LIBRARY);
   const scale = document.control_space.scale;
   const command = [1.1, 0.1, 0.05];
@@ -157,9 +157,11 @@ test("a blend's weights reproduce the command and blend the entries' series", ()
   assert.equal(result.clamped, false);
   assert.ok(Math.abs(result.weights.reduce((s, w) => s + w, 0) - 1) < 1e-15);
   const entries = result.entries.map((id) => entryById(document, id));
-  ["v", "omega", "v_l"].forEach((key, i) => {
-    const reproduced = entries.reduce((s, e, j) => s + result.weights[j] * e[key], 0);
-    assert.ok(Math.abs(reproduced - command[i]) < 1e-12 * scale[i] + 1e-12, key);
+  // weighed on the frontal axes: (v_f, omega, v_l), v_f = sqrt(v² − v_l²), side-steps on the cone
+  const frontal = entries.map((e) => toFrontal(ontoCone([e.v, e.omega, e.v_l])));
+  toFrontal(command).forEach((asked, i) => {
+    const reproduced = frontal.reduce((s, f, j) => s + result.weights[j] * f[i], 0);
+    assert.ok(Math.abs(reproduced - asked) < 1e-12 * scale[i] + 1e-12, `axis ${i}`);
   });
   const expectedT = entries.reduce((s, e, j) => s + result.weights[j] * e.T, 0);
   assert.ok(Math.abs(result.T - expectedT) < 1e-15);

@@ -36,8 +36,13 @@ Blending (Truong et al. 2010, equations (4)-(6))
 ------------------------------------------------
 A command is blended in the tetrahedra of one gait (:mod:`mocaplib.library.cells`: one cell
 per gait, the side-step cone a facet of the walk cell, the boundary within a stated tolerance,
-a command between the walks and the runs served by the nearest cell). A query point inside a
-cell lies in one tetrahedron; its barycentric weights ``w`` (four,
+a command between the walks and the runs served by the nearest cell). On the tangential axes
+the cells say whether and by which gait a command is served, and its weights are computed on
+the frontal axes (v̂_f, ω̂, v̂_l) in that gait's frontal tetrahedra (``Cell.frontal``; module
+docstring of :mod:`mocaplib.library.cells`), so that the blend moves at the frontal and
+lateral speeds and turns at the rate the command asks: barycentric weights reproduce a
+quantity linear in the axes exactly, and v̂_f is not linear in (v̂, v̂_l) near the side-step
+cone. The point blended lies in one tetrahedron; its barycentric weights ``w`` (four,
 summing to 1, reproducing the point) blend the four entries' Fourier coefficients and periods:
 ``a_d = Σ w_i a_i``, ``b_d = Σ w_i b_i``, ``T_d = Σ w_i T_i`` (entries with fewer harmonics are
 padded with zeros), and the joint angles are synthesised with the team's convention
@@ -65,7 +70,8 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.gaits import class_gait
 from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
 from .entry import DRIFT_VELOCITIES
-from .cells import HULL_TOLERANCE, build_cells, cell_tetrahedra, onto_cone, serve
+from .cells import (HULL_TOLERANCE, build_cells, cell_tetrahedra, frontal_tetrahedra, onto_cone,
+                    serve, to_frontal, weigh_on_frontal_axes)
 from .phase import from_left_toe_off
 from .triangulation import (DEGENERACY_HINT, Triangulation, degeneracy, delaunay_tetrahedra,
                             outside_planes, stack_padded, tetra_quality)
@@ -94,9 +100,11 @@ class QueryResult:
     points : (Q, 3) the query points, SI units.
     inside : (Q,) bool, True when the point is served: inside a gait's cell (within
         :data:`~mocaplib.library.cells.HULL_TOLERANCE`), or between cells (``clamped``).
-    entries : (Q, 4) int, row numbers (in :attr:`ControlSpace.ids`) of the enclosing
-        tetrahedron's entries; -1 when outside.
-    weights : (Q, 4) barycentric weights (sum 1, reproduce the point blended); NaN when outside.
+    entries : (Q, 4) int, row numbers (in :attr:`ControlSpace.ids`) of the entries of the
+        tetrahedron the weights are computed in (on the tangential axes, a frontal one of the
+        serving cell); -1 when outside.
+    weights : (Q, 4) barycentric weights (sum 1, reproduce the point blended, on the tangential
+        axes its (v̂_f, ω̂, v̂_l)); NaN when outside.
     nearest : (Q, 3) SI units: the point blended when ``clamped``, the nearest point of the
         nearest cell when outside, else the query point itself.
     distance : (Q,) normalised distance from the point to ``nearest`` (0 inside a cell).
@@ -297,7 +305,7 @@ class ControlSpace:
 
     def query(self, points, *, gait: str | None = None) -> QueryResult:
         """Enclosing tetrahedra and barycentric weights (equation (4)) of query points, in the
-        cells of one gait (:mod:`mocaplib.library.cells`).
+        cells of one gait (:mod:`mocaplib.library.cells`), the weights on the frontal axes.
 
         Parameters
         ----------
@@ -325,6 +333,10 @@ class ControlSpace:
         x = self.normalise(p)
         on_cone = self.normalise(onto_cone(p)) if self.variant == "tangential" else x
         served = serve(cells, on_cone, outside_planes(self.tri, x) <= HULL_TOLERANCE)
+        if self.variant == "tangential":     # the SI point served: exactly on the cone there
+            at = np.all(served.point == on_cone, axis=1)[:, None]
+            weigh_on_frontal_axes(cells, served, self.normalise(to_frontal(
+                np.where(at, onto_cone(p), served.point * self.scale))))
         inside = served.simplex[:, 0] >= 0
         weights = np.full((len(p), 4), np.nan)
         w = np.clip(served.weights[inside], 0.0, None)
@@ -432,11 +444,14 @@ def stored_tetrahedra(library) -> dict | None:
     Keys: ``ids`` (the control space's entries: chosen, with finite velocities and period, in
     the file's order), ``simplices`` (S, 4) row numbers of ``ids``: the tetrahedra of each
     gait's cell (:mod:`mocaplib.library.cells`), walks first, ``gaits`` (S,) the gait of each
-    tetrahedron's cell, and ``hull`` (H, 3) row numbers of ``ids``: the boundary triangles of
-    all the entries' points, which tell a command between the cells from one outside. A
-    point's normalised coordinates are its (v, omega, v_l) / ``control_space.scale``, in the
-    cells with the side-steps put on the cone (:meth:`ControlSpace.from_library`, tangential
-    axes).
+    tetrahedron's cell, ``hull`` (H, 3) row numbers of ``ids``: the boundary triangles of
+    all the entries' points, which tell a command between the cells from one outside, and
+    ``frontal_simplices`` (S', 4) with ``frontal_gaits`` (S',): each cell's frontal
+    tetrahedra, where a served command's weights are computed. A point's normalised
+    coordinates are its (v, omega, v_l) / ``control_space.scale``, in the cells with the
+    side-steps put on the cone (:meth:`ControlSpace.from_library`, tangential axes), and in
+    the frontal tetrahedra those points' (v_f, omega, v_l) / scale
+    (:func:`~mocaplib.library.cells.to_frontal`).
     """
     try:
         cs = ControlSpace.from_library(library)
@@ -445,8 +460,10 @@ def stored_tetrahedra(library) -> dict | None:
     if not cs.cells:
         return None
     simplices, gaits = cell_tetrahedra(cs.cells)
+    frontal, frontal_gaits = frontal_tetrahedra(cs.cells)
     return {"ids": list(cs.ids), "simplices": simplices.tolist(), "gaits": gaits,
-            "hull": cs.tri.convex_hull.tolist()}
+            "hull": cs.tri.convex_hull.tolist(), "frontal_simplices": frontal.tolist(),
+            "frontal_gaits": frontal_gaits}
 
 
 def close_entries(cs: ControlSpace, *, within: float = CLOSE_DISTANCE) -> pd.DataFrame:
@@ -467,8 +484,9 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     rebuilt from them.
 
     Removing an entry changes the tetrahedra around it only (its star), which the tetrahedra of
-    its neighbours tile again (:func:`star_neighbours`): each entry is located among those,
-    so the cost grows with the entries, not their square.
+    its neighbours tile again (:func:`star_neighbours`, in the tangential and the frontal
+    tetrahedra): each entry is located and weighed among those, so the cost grows with the
+    entries, not their square.
 
     Both cycles are compared at ``n_phase`` equally spaced phases of their own period, channel by
     channel in the units they are stored in (the Fourier convention: root in the path frame,
@@ -487,7 +505,11 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     phase = np.arange(n_phase) / n_phase
     joint_names = np.asarray(DOF_NAMES)[JOINT_ANGLES]
     rows = []
-    for i, keep in enumerate(star_neighbours(cs.tri.simplices, len(cs.points))):
+    frontal, _ = frontal_tetrahedra(cs.cells)
+    stars = zip(star_neighbours(cs.tri.simplices, len(cs.points)),
+                star_neighbours(frontal, len(cs.points)) if len(frontal)
+                else [np.zeros(0, int)] * len(cs.points))
+    for i, keep in enumerate(np.union1d(*star) for star in stars):
         row = {"id": cs.ids[i], "class": cs.classes[i], "inside": False, "neighbours": [],
                "weights": [], "rms_deg": np.nan, "max_deg": np.nan, "worst_dof": None,
                "heading_rms_deg": np.nan, "root_rms_mm": np.nan, "stride_error_mm": np.nan,

@@ -10,8 +10,8 @@ import numpy as np
 
 from ..errors import LibraryError
 from ..io.jsonvalues import float_or_nan, is_finite_number
-from .cells import build_cells, cell_tetrahedra
-from .document import CONTROL_AXES, GAIT_CELLS_VERSION, library_document
+from .cells import build_cells, cell_tetrahedra, frontal_tetrahedra
+from .document import CONTROL_AXES, FRONTAL_WEIGHTS_VERSION, GAIT_CELLS_VERSION, library_document
 from .triangulation import DEGENERACY_HINT, degeneracy, delaunay_tetrahedra
 
 
@@ -64,7 +64,9 @@ def _tetrahedra_problems(doc: dict, stored: dict, every) -> list[tuple[str, str]
     """The stored ``control_space.tetrahedra`` against the chosen entries' own: the same entries
     in the file's order (with finite velocities and period); from
     :data:`~mocaplib.library.document.GAIT_CELLS_VERSION` the tetrahedra of their gait cells
-    with each one's gait and the hull of all of them, before it the tetrahedra of all of them.
+    with each one's gait and the hull of all of them (from
+    :data:`~mocaplib.library.document.FRONTAL_WEIGHTS_VERSION` with the cells' frontal
+    tetrahedra and their gaits), before it the tetrahedra of all of them.
     ``every``: the Delaunay tetrahedra of the chosen entries with finite velocities (those
     with a finite period too, when they are all)."""
 
@@ -93,6 +95,12 @@ def _tetrahedra_problems(doc: dict, stored: dict, every) -> list[tuple[str, str]
                                f"gait cells; {hint}")]
     if not _same_rows(stored["hull"], every.convex_hull):
         return [(where, f"hull is not the boundary of these entries' points; {hint}")]
+    if doc["format_version"] >= FRONTAL_WEIGHTS_VERSION:
+        frontal, frontal_gaits = frontal_tetrahedra(cells)
+        if len(stored["frontal_gaits"]) != len(stored["frontal_simplices"]) or not _same_rows(
+                stored["frontal_simplices"], frontal, stored["frontal_gaits"], frontal_gaits):
+            return [(where, f"frontal_simplices and frontal_gaits are not the frontal "
+                            f"tetrahedra of these entries' gait cells; {hint}")]
     return []
 
 

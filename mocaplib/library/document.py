@@ -20,12 +20,16 @@ from ..io.jsonvalues import canonical_sha256, jcs_sha256, parse_json
 FORMAT = "mocaplib-library"
 #: The version this mocaplib writes; it reads :data:`READ_VERSIONS` (docs/library-format.md,
 #: *Versions*).
-FORMAT_VERSION = 4
-READ_VERSIONS = (1, 2, 3, 4)
+FORMAT_VERSION = 5
+READ_VERSIONS = (1, 2, 3, 4, 5)
 #: The first version whose ``control_space.tetrahedra`` are the gait cells (with each
 #: tetrahedron's gait and the hull of all the entries); before it, the Delaunay tetrahedra of
 #: all the entries, walks and runs together.
 GAIT_CELLS_VERSION = 4
+#: The first version whose ``control_space.tetrahedra`` also store each cell's frontal
+#: tetrahedra (``frontal_simplices``, ``frontal_gaits``), where a served command's weights are
+#: computed; before it, readers weigh commands in the cells' own tetrahedra.
+FRONTAL_WEIGHTS_VERSION = 5
 #: Versions whose ``content_sha256`` is :func:`mocaplib.io.jsonvalues.canonical_sha256` (numbers
 #: as Python prints them); later versions carry :func:`mocaplib.io.jsonvalues.jcs_sha256`.
 PYTHON_CHECKSUM_VERSIONS = (1, 2)
@@ -125,12 +129,19 @@ def version_note(document: dict) -> str | None:
     """What a person reading a library of an earlier version needs to know about its control
     space (``mocaplib validate``, the report), or None for a file of the current version."""
     version = document.get("format_version")
-    if not isinstance(version, int) or version >= GAIT_CELLS_VERSION:
+    if not isinstance(version, int) or version >= FRONTAL_WEIGHTS_VERSION:
         return None
+    if version >= GAIT_CELLS_VERSION:
+        return (f"format_version {version}: the control space's stored tetrahedra are the gait "
+                f"cells without their frontal tetrahedra; mocaplib weighs commands in the "
+                f"frontal tetrahedra it computes from the entries, but a reader in another "
+                f"language needs format_version {FRONTAL_WEIGHTS_VERSION}: build the library "
+                f"again with mocaplib build")
     return (f"format_version {version}: the control space's stored tetrahedra (if any) are "
             f"those of all the entries, walks and runs together; mocaplib blends in the gait "
             f"cells it computes from the entries, but a reader in another language needs "
-            f"format_version {GAIT_CELLS_VERSION}: build the library again with mocaplib build")
+            f"format_version {FRONTAL_WEIGHTS_VERSION}: build the library again with mocaplib "
+            f"build")
 
 
 #: What a library without a checksum is told (``mocaplib validate``, the report).
