@@ -1,5 +1,5 @@
-"""The gait cells as the library file stores them (format_version 4), how a version-3 file is
-read, and who uses the cells: coverage, and the answer to a command no motion does.
+"""The gait cells and their frontal tetrahedra as the library file stores them (format_version
+5), how version-3 and -4 files are read, and who uses the cells: coverage, and the answer to a command no motion does.
 
 On the JavaScript reader's fixture (js/test/fixtures/library.json, made by
 make_fixtures.py): sixteen sample captures, walks, side-steps on the cone and four runs."""
@@ -15,6 +15,7 @@ import pytest
 
 from mocaplib.cli import main
 from mocaplib.gait.gaits import class_gait
+from mocaplib.library.cells import onto_cone, to_frontal
 from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.coverage import Envelope, coverage
 from mocaplib.library.document import CHECKSUM_KEY, content_sha256, version_note
@@ -66,10 +67,30 @@ def test_each_stored_tetrahedron_is_of_one_gait_and_the_hull_of_all_entries(docu
     assert sorted(map(sorted, stored["hull"])) == sorted(map(sorted, hull.tolist()))
 
 
+def test_the_stored_frontal_tetrahedra_are_each_cells_on_the_frontal_axes(document):
+    stored = document["control_space"]["tetrahedra"]
+    gait_of = {e["id"]: class_gait(e["locomotion_class"]) for e in document["entries"]}
+    assert [{gait_of[stored["ids"][k]] for k in s} for s in stored["frontal_simplices"]] == [
+        {g} for g in stored["frontal_gaits"]]
+    assert set(stored["frontal_gaits"]) == {"walk", "run"}
+    # the walk cell's frontal points: (sqrt(v² − v_l²), omega, v_l), side-steps on the cone
+    entries = {e["id"]: e for e in document["entries"]}
+    walks = [i for i, e in enumerate(stored["ids"]) if gait_of[e] == "walk"]
+    x = np.array([[entries[stored["ids"][i]][k] for k in ("v", "omega", "v_l")] for i in walks])
+    x = to_frontal(onto_cone(x)) / document["control_space"]["scale"]
+    expected = np.array(walks)[delaunay_tetrahedra(x).simplices]
+    got = [s for s, g in zip(stored["frontal_simplices"], stored["frontal_gaits"]) if g == "walk"]
+    assert sorted(map(sorted, got)) == sorted(map(sorted, expected.tolist()))
+    assert sorted(map(sorted, got)) != sorted(map(sorted, [   # not the cell's own tetrahedra
+        s for s, g in zip(stored["simplices"], stored["gaits"]) if g == "walk"]))
+
+
 @pytest.mark.parametrize("edit, message", [
     (lambda t: t["gaits"].__setitem__(0, "run"), "gaits are not"),
     (lambda t: t["hull"].pop(), "hull is not"),
     (lambda t: t.__setitem__("gaits", t["gaits"][1:]), "gaits are not"),
+    (lambda t: t["frontal_simplices"].__setitem__(0, t["simplices"][0]),
+     "frontal_simplices and frontal_gaits are not"),
 ])
 def test_validation_finds_stored_cells_that_are_not_the_entries(document, edit, message):
     edited = copy.deepcopy(document)
@@ -126,3 +147,22 @@ def test_coverage_counts_the_cells_not_the_gap_between_walks_and_runs():
     res = cs.query(cov.samples)
     np.testing.assert_array_equal(cov.samples_inside, res.inside & ~res.clamped)
     assert (res.clamped & ~cov.samples_inside).any()
+
+
+def test_a_version_4_file_validates_with_a_note_and_queries_as_version_5(document, tmp_path,
+                                                                           capsys):
+    old = copy.deepcopy(document)
+    old["format_version"] = 4
+    for key in ("frontal_simplices", "frontal_gaits"):
+        del old["control_space"]["tetrahedra"][key]
+    path = written(old, tmp_path)
+    assert validate_library(path) == []
+    assert main(["validate", str(path)]) == 0
+    said = capsys.readouterr().out
+    assert "note: format_version 4" in said and "frontal tetrahedra" in said, said
+    # mocaplib weighs in the frontal tetrahedra it computes from the entries
+    commands = np.array([[1.2, 0.0, 0.0], [0.4, 0.0, 0.39], [0.4, 0.0, 0.4]])
+    new, then = (ControlSpace.from_library(load_library(p)).query(commands)
+                 for p in (FIXTURE, path))
+    np.testing.assert_array_equal(new.entries, then.entries)
+    np.testing.assert_allclose(new.weights, then.weights, atol=1e-15)

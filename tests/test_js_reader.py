@@ -108,11 +108,11 @@ def test_node_reads_every_number_as_python_does(tmp_path, node_modules):
 def test_the_js_reader_refuses_what_mocaplib_refuses(tmp_path, node_modules):
     _, path = library_with_ramps_and_a_late_start(tmp_path)
     document = json.loads(path.read_text())
-    document["format_version"] = 5
+    document["format_version"] = 6
     path.write_text(json.dumps(document))
     done = subprocess.run([NODE, str(JS / "mocaplib-library.js"), str(path)],
                           capture_output=True, text=True, timeout=60)
-    assert done.returncode == 1 and "format_version 5" in done.stderr
+    assert done.returncode == 1 and "format_version 6" in done.stderr
 
 
 def test_the_js_fixture_holds_what_mocaplib_answers_on_it():

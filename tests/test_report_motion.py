@@ -67,7 +67,8 @@ def test_the_series_and_the_drift_in_javascript_are_mocaplibs():
 
 def test_blending_in_javascript_is_the_control_spaces():
     """The tetrahedron and weights found in the stored triangulation, and the blended
-    coefficients, period and drift, for points inside and outside the hull."""
+    coefficients, period and drift, for points inside and outside the hull (on the frontal
+    axes, where query weighs a point where it locates it)."""
     from mocaplib.library.controlspace import ControlSpace
 
     rng = np.random.default_rng(7)
@@ -76,7 +77,7 @@ def test_blending_in_javascript_is_the_control_spaces():
     a = [rng.normal(size=(4, k + 1)) for k in n]
     b = [np.column_stack([np.zeros(4), rng.normal(size=(4, k))]) for k in n]
     cs = ControlSpace(points, a=a, b=b, T=rng.uniform(0.8, 1.3, 25),
-                      drift=rng.normal(size=(25, 3)))
+                      drift=rng.normal(size=(25, 3)), axes="frontal")
     queries = np.vstack([rng.uniform([0.2, -1.0, -0.3], [1.5, 1.0, 0.3], (30, 3)),
                          [[5.0, 0.0, 0.0]]])
     space = {"points": cs.normalise(cs.points).tolist(), "simplices": cs.tri.simplices.tolist()}
@@ -101,8 +102,9 @@ def test_blending_in_javascript_is_the_control_spaces():
 
 def test_the_viewers_pick_is_located_in_the_gait_cells_as_query_locates_it():
     """The report's clicked blend on the JavaScript reader's fixture (walks, side-steps on the
-    cone, runs): a command in a cell gets query's gait, entries and weights; one between the
-    walks and the runs (clamped by query) or outside is in no cell."""
+    cone and off it, runs): a command in a cell gets query's gait, entries and weights
+    (weighed on the frontal axes); one between the walks and the runs (clamped by query) or
+    outside is in no cell."""
     from mocaplib.library.controlspace import ControlSpace
     from mocaplib.library.format import load_library
     from mocaplib.report.figureview import viewer_data
@@ -114,20 +116,21 @@ def test_the_viewers_pick_is_located_in_the_gait_cells_as_query_locates_it():
     asked = [q for q in json.loads((fixtures / "queries.json").read_text())
              if q["gait_asked"] is None]
     commands = [q["command"] for q in asked]
-    on_cone = np.array(_node([("ontoCone", [c]) for c in commands])) / cs.scale
-    found = _node([("locate", [space, x]) for x in on_cone.tolist()])
+    found = _node([("weigh", [space, c]) for c in commands])
     result = cs.query(commands)
     ids = [library.entries[i].id for i in space["entries"]]
-    kinds = set()
+    kinds, elsewhere = set(), 0
     for k, got in enumerate(found):
         if not result.inside[k] or result.clamped[k]:
             assert got["simplex"] == -1, commands[k]
             kinds.add("clamped" if result.clamped[k] else "outside")
             continue
         kinds.add(result.gait[k])
+        elsewhere += set(got["corners"]) != set(space["simplices"][got["simplex"]])
         assert space["gaits"][got["simplex"]] == result.gait[k]
-        mine = dict(zip([ids[i] for i in space["simplices"][got["simplex"]]], got["weights"]))
+        mine = dict(zip([ids[i] for i in got["corners"]], got["weights"]))
         theirs = dict(zip([cs.ids[i] for i in result.entries[k]], result.weights[k]))
         for entry in set(mine) | set(theirs):    # a tie on a shared face is the same blend
             assert abs(max(mine.get(entry, 0.0), 0.0) - theirs.get(entry, 0.0)) < 1e-9
     assert kinds == {"walk", "run", "clamped", "outside"}
+    assert elsewhere >= 10, elsewhere    # weighed in another tetrahedron than located in

@@ -20,7 +20,7 @@ import numpy as np
 from ..build.workers import run_tasks
 from ..export.bvh import end_sites
 from ..gait.fourier import RootDrift
-from ..library.cells import cell_tetrahedra
+from ..library.cells import cell_tetrahedra, frontal_tetrahedra
 from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
@@ -66,7 +66,9 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     the chosen entries (``entries``: indices into the list above) at their normalised
     ``points`` in the cells (side-steps on the cone), the ``simplices`` of the gait cells
     (rows of 4 indices into them, :func:`~mocaplib.library.cells.cell_tetrahedra`) with
-    their ``gaits``, the ``axes`` and ``scale``; ``skeleton``: :func:`skeleton_data` of the library's segment
+    their ``gaits``, the ``axes`` and ``scale``, and ``frontal``: the cells' frontal
+    tetrahedra where a picked point's weights are computed (``points`` on the frontal axes,
+    normalised, ``simplices`` and ``gaits``, :func:`~mocaplib.library.cells.frontal_tetrahedra`); ``skeleton``: :func:`skeleton_data` of the library's segment
     lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
     entry's class label; ``colours``: class -> CSS colour. ``jobs``: worker processes planting
     the cycles (:func:`planted_cycles`); ``planted``: what :func:`start_planting` returned for
@@ -86,10 +88,14 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     if cs is not None and cs.cells:
         row = {e.id: i for i, e in enumerate(library.entries)}
         simplices, gaits = cell_tetrahedra(cs.cells)
+        frontal, frontal_gaits = frontal_tetrahedra(cs.cells)
+        with_frontal = [c for c in cs.cells.values() if c.frontal is not None]
         space = {"entries": [row[i] for i in cs.ids],
                  "points": next(iter(cs.cells.values())).tri.points.tolist(),
                  "simplices": simplices.tolist(), "gaits": gaits, "axes": list(cs.axes),
-                 "scale": [float(s) for s in cs.scale]}
+                 "scale": [float(s) for s in cs.scale],
+                 "frontal": {"points": with_frontal[0].frontal.points.tolist() if with_frontal
+                             else [], "simplices": frontal.tolist(), "gaits": frontal_gaits}}
     walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,

@@ -169,20 +169,19 @@
     }
   }
 
-  // Blend the motion at (v, omega, v_l) (SI) from the tetrahedron of the gait cells holding it
-  // (side-steps on the cone, as mocaplib query); returns the weights by entry id, or null when
-  // no cell holds it.
+  // Blend the motion at (v, omega, v_l) (SI) in the gait cell holding it, weighed on the
+  // frontal axes (side-steps on the cone, as mocaplib query); returns the weights by entry id,
+  // or null when no cell holds it.
   function pick(v, omega, vl) {
     picked = [v, omega, vl];
-    var x = M.ontoCone([v, omega, vl]).map(function (p, k) { return p / space.scale[k]; });
-    var found = M.locate(space, x);
+    var found = M.weigh(space, [v, omega, vl]);
     var where = "v̂ " + fixed(v, 2) + " m/s, ω̂ " + fixed(degrees(omega), 0) + " °/s, v̂_l " + fixed(vl, 3) + " m/s";
     if (found.simplex < 0) {
       weightsText.textContent = where + ": in no gait's cell (between the walks and the runs " +
         "`mocaplib query` blends the nearest cell's nearest point; beyond them it is outside)";
       return null;
     }
-    var corners = space.simplices[found.simplex].map(function (i) { return data.entries[space.entries[i]]; });
+    var corners = found.corners.map(function (i) { return data.entries[space.entries[i]]; });
     play(M.blend(corners, found.weights), "blend at " + where);
     var shares = {};
     corners.forEach(function (e, k) { shares[e.id] = found.weights[k]; });

@@ -105,6 +105,76 @@ var MocapMotion = (function () {
     return bestWorst >= -tol ? { simplex: best, weights: bestWeights } : { simplex: -1, weights: null };
   }
 
+  // Where the viewer blends a command [v, omega, v_l] (SI), as `mocaplib query` weighs a
+  // command inside a gait cell: located (on the cone, / scale) in space.simplices; then
+  // weighed on the frontal axes [sqrt(v² − v_l²), omega, v_l] / scale in that gait's frontal
+  // tetrahedra (space.frontal), or at the nearest point of their boundary when outside them
+  // (mocaplib.library.cells.weigh_on_frontal_axes). Returns {simplex: index into
+  // space.simplices (its gait) or -1 (in no cell), corners: 4 point indices, weights: 4}.
+  function weigh(space, command) {
+    var coned = ontoCone(command);
+    var x = coned.map(function (p, k) { return p / space.scale[k]; });
+    var found = locate(space, x);
+    if (found.simplex < 0) { return { simplex: -1, corners: null, weights: null }; }
+    var gait = space.gaits[found.simplex];
+    var frontal = { points: space.frontal.points, simplices: space.frontal.simplices.filter(
+      function (s, k) { return space.frontal.gaits[k] === gait; }) };
+    var f = [Math.sqrt(Math.max(coned[0] * coned[0] - coned[2] * coned[2], 0)), coned[1], coned[2]]
+      .map(function (p, k) { return p / space.scale[k]; });
+    var weighed = frontal.simplices.length ? locate(frontal, f) : { simplex: -1 };
+    if (frontal.simplices.length && weighed.simplex < 0) {
+      weighed = locate(frontal, nearestOnBoundary(frontal, f), 1e-7);
+    }
+    return weighed.simplex < 0
+      ? { simplex: found.simplex, corners: space.simplices[found.simplex], weights: found.weights }
+      : { simplex: found.simplex, corners: frontal.simplices[weighed.simplex], weights: weighed.weights };
+  }
+
+  // The nearest point to x of the triangles that only one of the tetrahedra
+  // tetra.simplices has (their boundary), tetra.points their vertices.
+  function nearestOnBoundary(tetra, x) {
+    var count = {};
+    tetra.simplices.forEach(function (s) {
+      [0, 1, 2, 3].forEach(function (drop) {
+        var key = s.filter(function (_, k) { return k !== drop; })
+          .sort(function (i, j) { return i - j; }).join(",");
+        count[key] = (count[key] || 0) + 1;
+      });
+    });
+    var best = null, bestD2 = Infinity;
+    Object.keys(count).sort(byVertices).forEach(function (key) {
+      if (count[key] !== 1) { return; }
+      var c = closestOnTriangle(x, key.split(",").map(function (i) { return tetra.points[+i]; }));
+      if (c.d2 < bestD2) { best = c.point; bestD2 = c.d2; }
+    });
+    return best;
+  }
+
+  function byVertices(f, g) {
+    var a = f.split(",").map(Number), b = g.split(",").map(Number);
+    return a[0] - b[0] || a[1] - b[1] || a[2] - b[2];
+  }
+
+  // The closest point of triangle [A, B, C] to p and its squared distance: the projection
+  // onto its plane when inside it, else the closest point of its edges.
+  function closestOnTriangle(p, t) {
+    var A = t[0], B = t[1], C = t[2], n = cross(sub(B, A), sub(C, A));
+    var proj = sub(p, scaled(dot(sub(p, A), n) / dot(n, n), n));
+    var edges = [[A, B], [B, C], [C, A]];
+    if (edges.every(function (e) { return dot(cross(sub(e[1], e[0]), sub(proj, e[0])), n) >= 0; })) {
+      return { point: proj, d2: dot(sub(p, proj), sub(p, proj)) };
+    }
+    var best = { point: null, d2: Infinity };
+    edges.forEach(function (e) {
+      var d = sub(e[1], e[0]);
+      var s = Math.min(Math.max(dot(sub(p, e[0]), d) / dot(d, d), 0), 1);
+      var c = sub(e[0], scaled(-s, d)), d2 = dot(sub(p, c), sub(p, c));
+      if (d2 < best.d2) { best = { point: c, d2: d2 }; }
+    });
+    return best;
+  }
+
+  function scaled(s, u) { return [s * u[0], s * u[1], s * u[2]]; }
   function sub(u, v) { return [u[0] - v[0], u[1] - v[1], u[2] - v[2]]; }
   function dot(u, v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
   function cross(u, v) { return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]; }
@@ -128,6 +198,6 @@ var MocapMotion = (function () {
   }
 
   return { synthesize: synthesize, forward: forward, apply: apply, frame: frame,
-           ontoCone: ontoCone, locate: locate, blend: blend };
+           ontoCone: ontoCone, locate: locate, weigh: weigh, blend: blend };
 })();
 if (typeof module !== "undefined") { module.exports = MocapMotion; }
