@@ -665,19 +665,19 @@ def test_validate_catches_a_broken_poulaine(mutate, expected):
     assert all("capture01_c0" in p for p in problems)
 
 
-def test_version_4_is_written_and_version_1_files_still_read(tmp_path):
+def test_version_5_is_written_and_version_1_files_still_read(tmp_path):
     from mocaplib.library.document import FORMAT_VERSION
 
     path = library().write(tmp_path / "lib.json")
     document = json.loads(path.read_text())
-    assert document["format_version"] == FORMAT_VERSION == 4
+    assert document["format_version"] == FORMAT_VERSION == 5
     # a version-1 file: no joint shifts (nor any field version 2 added), its own checksum gone
     document["format_version"] = 1
     del document[CHECKSUM_KEY]
     old = tmp_path / "old.json"
     old.write_text(json.dumps(document))
     assert validate_library(old) == [] and len(load_library(old)) == 5
-    document["format_version"] = 5
+    document["format_version"] = 6
     old.write_text(json.dumps(document))
     assert any("format_version" in p.where for p in validate_library(old))
 

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocaplib.library.cells import cell_tetrahedra
+from mocaplib.library.cells import cell_tetrahedra, frontal_tetrahedra
 from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.format import assemble_library
 from mocaplib.library.mirror import (REFLECTION, mirror_dofs, mirror_id, mirror_library,
@@ -218,6 +218,8 @@ def test_a_mirrored_library_stores_the_tetrahedra_of_its_images_too():
     stored = mirrored.document["control_space"]["tetrahedra"]
     cs = ControlSpace.from_library(mirrored)
     simplices, gaits = cell_tetrahedra(cs.cells)
+    frontal, frontal_gaits = frontal_tetrahedra(cs.cells)
     assert stored == {"ids": cs.ids, "simplices": simplices.tolist(), "gaits": gaits,
-                      "hull": cs.tri.convex_hull.tolist()}
+                      "hull": cs.tri.convex_hull.tolist(), "frontal_simplices": frontal.tolist(),
+                      "frontal_gaits": frontal_gaits}
     assert any(e.mirrored for e in mirrored.entries if e.id in stored["ids"])

@@ -3,7 +3,7 @@ wherever it is: at the first, a middle and the last entry or row, with the messa
 it; rows and vertices stored in another order stay valid.
 
 On the JavaScript reader's fixture (js/test/fixtures/library.json, made by make_fixtures.py):
-sixteen sample captures, walks, side-steps and four runs, format_version 4."""
+sixteen sample captures, walks, side-steps and four runs, format_version 5."""
 
 from __future__ import annotations
 
