@@ -59,6 +59,8 @@ every entry), sliver tetrahedra, entries per class and a greedy farthest-point "
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -505,11 +507,11 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     phase = np.arange(n_phase) / n_phase
     joint_names = np.asarray(DOF_NAMES)[JOINT_ANGLES]
     rows = []
-    frontal, _ = frontal_tetrahedra(cs.cells)
-    stars = zip(star_neighbours(cs.tri.simplices, len(cs.points)),
-                star_neighbours(frontal, len(cs.points)) if len(frontal)
-                else [np.zeros(0, int)] * len(cs.points))
-    for i, keep in enumerate(np.union1d(*star) for star in stars):
+    n = len(cs.points)
+    stars = [star_neighbours(cs.tri.simplices, n)] + [
+        star_neighbours(cell.frontal.simplices, n, cell.rows) for cell in cs.cells.values()
+        if cell.frontal is not None]
+    for i, keep in enumerate(functools.reduce(np.union1d, star) for star in zip(*stars)):
         row = {"id": cs.ids[i], "class": cs.classes[i], "inside": False, "neighbours": [],
                "weights": [], "rms_deg": np.nan, "max_deg": np.nan, "worst_dof": None,
                "heading_rms_deg": np.nan, "root_rms_mm": np.nan, "stride_error_mm": np.nan,
@@ -553,26 +555,30 @@ def leave_one_out(cs: ControlSpace, *, n_phase: int = 100) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def star_neighbours(simplices: np.ndarray, n_points: int) -> list[np.ndarray]:
-    """Per point of a triangulation with ``simplices`` (S, 4), the row numbers (sorted) of the
-    points whose tetrahedra tile its neighbourhood once it is removed: the vertices of the
-    tetrahedra it belongs to, and the points of no tetrahedron (duplicates of a vertex, which
-    take its place when it is removed).
+def star_neighbours(simplices: np.ndarray, n_points: int, rows=None) -> list[np.ndarray]:
+    """Per point of a triangulation with ``simplices`` (S, 4) of the points ``rows`` (default
+    all ``n_points``), the row numbers (sorted) of the points whose tetrahedra tile its
+    neighbourhood once it is removed: the vertices of the tetrahedra it belongs to, and the
+    points of ``rows`` in no tetrahedron (duplicates of a vertex, which take its place when it
+    is removed); none for a point not in ``rows``.
 
     The lifted points' heights do not depend on which points are triangulated
     (:func:`~mocaplib.library.triangulation.delaunay_tetrahedra`), so the tetrahedra of the
     points without ``i`` inside the star of ``i`` are exactly those of these neighbours.
     """
+    rows = np.arange(n_points) if rows is None else np.asarray(rows)
     vertex = simplices.ravel()
     owner = np.repeat(np.arange(len(simplices)), simplices.shape[1])
-    unused = np.setdiff1d(np.arange(n_points), vertex)
+    unused = np.setdiff1d(rows, vertex)
     by_vertex = np.argsort(vertex, kind="stable")
     starts = np.searchsorted(vertex[by_vertex], np.arange(n_points + 1))
+    triangulated = np.zeros(n_points, bool)
+    triangulated[rows] = True
     out = []
     for i in range(n_points):
         star = simplices[owner[by_vertex[starts[i]:starts[i + 1]]]].ravel()
         out.append(np.setdiff1d(np.union1d(star, unused), [i]) if len(star)
-                   else np.setdiff1d(np.arange(n_points), [i]))
+                   else np.setdiff1d(rows, [i]) if triangulated[i] else np.zeros(0, int))
     return out
 
 
