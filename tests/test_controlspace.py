@@ -478,3 +478,17 @@ def test_a_gait_cell_of_every_point_is_the_whole_triangulation():
     stepping[0] = [0.4, 0.0, 0.4 * 0.9998]          # 1.1° from sideways: put on the cone
     cs = ControlSpace(stepping)
     assert cs.cells["walk"].tri is not cs.tri
+
+
+def test_a_star_is_taken_among_the_triangulated_points_only():
+    """The tetrahedra of some of the points (a gait's cell, its frontal tetrahedra): a point
+    outside them has no star there, and no star holds it."""
+    from mocaplib.library.controlspace import star_neighbours
+
+    x = np.random.default_rng(7).uniform(size=(30, 3))
+    tri = delaunay_tetrahedra(x[:20])
+    stars = star_neighbours(tri.simplices, 30, np.arange(20))
+    assert all(len(star) == 0 for star in stars[20:])
+    assert all(len(star) and star.max() < 20 for star in stars[:20])
+    everyone = star_neighbours(delaunay_tetrahedra(x).simplices, 30)
+    assert all(len(star) for star in everyone)
