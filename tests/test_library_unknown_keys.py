@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mocaplib.errors import LibraryError
-from mocaplib.library.document import schema
+from mocaplib.library.document import FORMAT_VERSION, schema
 from mocaplib.library.format import load_library, Library
 from mocaplib.library.validation import validate_library
 
@@ -80,7 +80,7 @@ def test_pattern_parameters_stay_those_of_the_type(tmp_path):
 
 def test_an_unknown_format_version_is_refused(tmp_path):
     document = copy.deepcopy(with_poulaines().document)
-    document["format_version"] = 5
+    document["format_version"] = FORMAT_VERSION + 1
     path = written(document, tmp_path)
     assert [p.where for p in validate_library(path)] == ["format_version"]
     with pytest.raises(LibraryError, match="format_version"):

@@ -86,6 +86,8 @@ def render_html(context: dict) -> str:
         autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
         lstrip_blocks=True)
     env.filters["fmt"] = _fmt
+    # the page's JSON data (the figure viewer's) without the spaces after commas and colons
+    env.policies["json.dumps_kwargs"] = {"sort_keys": True, "separators": (",", ":")}
     template = env.get_template("report.html.j2")
     scripts = {f"{name}_js": env.loader.get_source(env, f"{name}.js")[0]
                for name in ("viewer", "motion", "figure")}
