@@ -700,9 +700,27 @@ def test_read_document_hashes_the_files_bytes_only_when_asked(tmp_path):
     from mocaplib.library.document import read_document
 
     path = library().write(tmp_path / "library.json")
-    document, sha256 = read_document(path)
+    from mocaplib.io.fastjson import strict_loads
+
+    document, sha256, finite = read_document(path)
     assert sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
-    assert read_document(path, file_sha256=False) == (document, None)
+    # known finite where orjson read it (this file has a run of 19 digits: the reference did)
+    assert finite == (strict_loads(path.read_bytes()) is not None)
+    assert read_document(path, file_sha256=False) == (document, None, finite)
+
+
+def test_a_file_with_nan_is_not_known_finite_and_its_nan_is_named(tmp_path):
+    # orjson reads no NaN: the reference parser reads the file, and validation looks for them
+    from mocaplib.library.document import read_document
+    from mocaplib.library.validation import validate_library
+
+    path = library().write(tmp_path / "library.json")
+    text = path.read_text()
+    start = text.index('"T":') + len('"T":')
+    path.write_text(text[:start] + "NaN" + text[text.index(",", start):])
+    assert read_document(path, file_sha256=False)[2] is False
+    problems = validate_library(path)
+    assert problems and "NaN" in problems[0].message and problems[0].where.endswith(".T")
 
 
 def test_mocaplib_validate_reads_and_checks_with_the_garbage_collector_paused(tmp_path,
@@ -721,3 +739,24 @@ def test_mocaplib_validate_reads_and_checks_with_the_garbage_collector_paused(tm
     assert mocaplib.cli.main(["validate", str(path)]) == 0
     assert "valid (content checksum verified)" in capsys.readouterr().out
     assert enabled == [False, False] and gc.isenabled()
+
+
+def test_a_file_orjson_reads_is_not_searched_for_nan(tmp_path, monkeypatch):
+    # its numbers are finite for certain: loading and validating skip the search (the
+    # fixture's made-up hashes, runs of 64 digits, written with letters for orjson to read it)
+    import re
+
+    from mocaplib.io.fastjson import strict_loads
+    from mocaplib.library import validation
+    from mocaplib.library.validation import validate_library
+
+    path = library().write(tmp_path / "library.json")
+    path.write_text(re.sub(r'"\d{64}"', '"' + "a" * 64 + '"', path.read_text()))
+    assert strict_loads(path.read_bytes()) is not None
+
+    def searched(document):
+        raise AssertionError("searched for NaN")
+    monkeypatch.setattr(validation, "all_finite", searched)
+    # the hashes changed the content: the checksum is the one problem
+    assert [p.where for p in validate_library(path)] == ["content_sha256"]
+    load_library(path)

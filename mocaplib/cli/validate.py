@@ -59,10 +59,10 @@ def _findings(path: str):
     from ..library.validation import control_space_warning, validate_library
 
     try:
-        document, _ = read_document(path, file_sha256=False)
+        document, _, finite = read_document(path, file_sha256=False)
     except LibraryError:
-        document = None         # validate_library names why
-    problems = validate_library(path if document is None else document)
+        document, finite = None, False         # validate_library names why
+    problems = validate_library(path if document is None else document, finite=finite)
     if document is None:
         checksum = None
     elif problems:

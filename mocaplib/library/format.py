@@ -419,8 +419,8 @@ def load_library(path: str | os.PathLike) -> Library:
     LibraryError
         The file is not a valid library; the message names the file and each problem.
     """
-    document, sha256 = read_document(path)
-    problems = reading_problems(document)
+    document, sha256, finite = read_document(path)
+    problems = reading_problems(document, finite=finite)
     if problems:
         raise LibraryError(f"not a valid mocaplib library: {problems[0]}"
                            + (f" (and {len(problems) - 1} more problems)" if len(problems) > 1

@@ -76,7 +76,7 @@ PATTERN_PARAMETERS = {"line": ("direction", "length", "point"),
 RANGE_TOLERANCE = 1e-6
 
 
-def validate_library(library) -> list[Problem]:
+def validate_library(library, *, finite: bool = False) -> list[Problem]:
     """Schema and semantic problems of a library (path, JSON dict or
     :class:`~mocaplib.library.format.Library`).
 
@@ -97,6 +97,10 @@ def validate_library(library) -> list[Problem]:
     ----------
     library : str, os.PathLike, dict or Library
         A library file, its parsed JSON document, or a loaded :class:`Library`.
+    finite : bool
+        The document's numbers are known finite (as
+        :func:`~mocaplib.library.document.read_document` says of a file it read): NaN and
+        infinities are not looked for. A file given by its path is read so.
 
     Returns
     -------
@@ -110,10 +114,10 @@ def validate_library(library) -> list[Problem]:
     5,000-entry library).
     """
     with collection_paused():
-        return _validation_problems(library)
+        return _validation_problems(library, finite)
 
 
-def _validation_problems(library) -> list[Problem]:
+def _validation_problems(library, finite: bool) -> list[Problem]:
     """:func:`validate_library`'s problems."""
     if isinstance(library, dict):
         document = library
@@ -121,11 +125,11 @@ def _validation_problems(library) -> list[Problem]:
         document = library.document
     else:
         try:
-            document, _ = read_document(library, file_sha256=False)
+            document, _, finite = read_document(library, file_sha256=False)
         except LibraryError as exc:
             return [Problem("file", exc.message if not exc.hint else
                             f"{exc.message} ({exc.hint})")]
-    problems = _structure_problems(document)
+    problems = _structure_problems(document, finite)
     if problems:
         return problems
     return _named(document, _checksum_problems(document) + _skeleton_problems(document)
@@ -148,17 +152,19 @@ def _checksum_problems(document: dict) -> list[Problem]:
                                   "trusted; build it again")]
 
 
-def reading_problems(document) -> list[Problem]:
+def reading_problems(document, *, finite: bool = False) -> list[Problem]:
     """What makes a library document unusable (:func:`mocaplib.library.format.load_library`
-    refuses it): numbers JSON cannot hold, the schema, the skeleton's lists, and each entry's
-    coefficient shapes, finite values, period and velocities (QC thresholds not applied)."""
-    return _structure_problems(document) or _named(document, _skeleton_problems(document)
-                                                   + _entry_problems(document, qc=False))
+    refuses it): numbers JSON cannot hold (not looked for when ``finite``: known finite), the
+    schema, the skeleton's lists, and each entry's coefficient shapes, finite values, period
+    and velocities (QC thresholds not applied)."""
+    return _structure_problems(document, finite) or _named(
+        document, _skeleton_problems(document) + _entry_problems(document, qc=False))
 
 
-def _structure_problems(document) -> list[Problem]:
-    """Numbers JSON cannot hold, then the schema's problems."""
-    return _named(document, _non_finite_problems(document) + _schema_problems(document))
+def _structure_problems(document, finite: bool = False) -> list[Problem]:
+    """Numbers JSON cannot hold (none when ``finite``), then the schema's problems."""
+    return _named(document, ([] if finite else _non_finite_problems(document))
+                  + _schema_problems(document))
 
 
 def _non_finite_problems(document) -> list[Problem]:
