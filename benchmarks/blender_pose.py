@@ -11,7 +11,7 @@ m, Blender's Z-up world), the world matrices of the feet (``feet``: frames x 2 x
 and right) and their rest matrices (``feet_rest``: 2 x 4 x 4). Only Blender's Python runs this
 file (no mocaplib import).
 
-Blender 3.4's importer opens the file in mode "rU", which Python 3.11 no longer accepts (Debian
+Blender 3.4's importer opens the file in mode "rU", which Python 3.11 refuses (Debian
 builds Blender on the system's Python 3.11; blender.org's 3.4 bundles 3.10, where "rU" reads
 as "r"): the import runs with "U" dropped from the modes it asks for, which is what "rU" means
 on 3.10.
