@@ -251,6 +251,17 @@ def cut_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> lis
                   key=lambda u: u.time_s)
 
 
+def plate_files(real: Path, unloaded=cut_unloadings):
+    """(path, ``unloaded(path)``) of every C3D file under ``real`` whose force plates can be
+    read (:func:`cut_unloadings` by default), in path order."""
+    for path in sorted(real.rglob("*.c3d")):
+        try:
+            found = unloaded(path)
+        except (KeyError, IndexError, ValueError):                  # no usable plate
+            continue
+        yield path, found
+
+
 def unloadings(force: np.ndarray, rate: float, /, *, threshold_n: float = PLATE_THRESHOLD_N
                ) -> list[Unloading]:
     """When the vertical force (A,) N of one plate sampled at ``rate`` Hz falls below
@@ -319,11 +330,7 @@ def plate_table(real: Path) -> None:
           f"(ms) | lab Foot Off − plate (ms) | at {LOW_THRESHOLD_N:.0f} N − at "
           f"{PLATE_THRESHOLD_N:.0f} N (ms) |\n|---|---|---|---|---|---|---|")
     detected = []
-    for path in sorted(real.rglob("*.c3d")):
-        try:
-            plates = cut_unloadings(path)
-        except (KeyError, IndexError, ValueError):                  # no usable plate
-            continue
+    for path, plates in plate_files(real):
         _, ours, _ = toe_off_differences(path)
         if not np.isfinite(ours).any():              # no plate, or nobody walking on them
             continue

@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from event_accuracy import plate_unloadings
+from event_accuracy import plate_files, plate_unloadings
 from markdown_results import add_markdown_option, markdown_page
 
 from mocaplib.gait.events import capture_events, capture_feet
@@ -128,11 +128,7 @@ def plate_table(real: Path) -> dict[str, list[dict[str, float]]]:
           + "|---" * (len(columns) + 3) + "|")
     by_file: dict[str, list[dict[str, float]]] = defaultdict(list)
     shares = []
-    for path in sorted(real.rglob("*.c3d")):
-        try:
-            unloadings = plate_unloadings(path)
-        except (KeyError, IndexError, ValueError):                  # no usable plate
-            continue
+    for path, unloadings in plate_files(real, plate_unloadings):
         for unloading, marks, share in paired_marks(path, [(u, None) for u in unloadings]):
             by_file[path.stem].append(marks)
             shares.append(share)

@@ -333,12 +333,13 @@ class ControlSpace:
             raise MocapError(f"query points must have shape (Q, 3), got {np.shape(points)}")
         cells = self._cells(gait)
         x = self.normalise(p)
-        on_cone = self.normalise(onto_cone(p)) if self.variant == "tangential" else x
+        coned = onto_cone(p) if self.variant == "tangential" else p
+        on_cone = self.normalise(coned)
         served = serve(cells, on_cone, outside_planes(self.tri, x) <= HULL_TOLERANCE)
         if self.variant == "tangential":     # the SI point served: exactly on the cone there
             at = np.all(served.point == on_cone, axis=1)[:, None]
             weigh_on_frontal_axes(cells, served, self.normalise(to_frontal(
-                np.where(at, onto_cone(p), served.point * self.scale))))
+                np.where(at, coned, served.point * self.scale))))
         inside = served.simplex[:, 0] >= 0
         weights = np.full((len(p), 4), np.nan)
         w = np.clip(served.weights[inside], 0.0, None)

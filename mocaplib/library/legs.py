@@ -111,7 +111,7 @@ class LegChains:
         ``height`` (F,) m, and their Jacobian (F, 2, 3, 3, K) with respect to the leg's own
         DOFs, m/rad (a leg's DOFs move only its own foot; the pelvis height moves every point
         by 1 m/m along Z)."""
-        points, axes, pivots = self._posed(angles, height)
+        points, axes, pivots, _ = self._posed(angles, height)
         arm = points[..., None] - pivots[:, :, None]                      # (F, 2, 3, 3, K)
         jacobian = (axes[:, :, None, _NEXT] * arm[..., _AFTER, :]         # ω × (x − c)
                     - axes[:, :, None, _AFTER] * arm[..., _NEXT, :])
@@ -125,14 +125,14 @@ class LegChains:
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each foot's ankle, heel and toe (F, 2, 3, 3) m as :meth:`feet` gives them, its
         orientation (F, 2, 3, 3) in the world and each hip joint centre (F, 2, 3) m."""
-        points, axes, pivots, R = self._posed(angles, height, orientation=True)
+        points, _, pivots, R = self._posed(angles, height)
         return points, R, pivots[..., 0]
 
-    def _posed(self, angles: np.ndarray, height: np.ndarray, *, orientation: bool = False
-               ) -> tuple[np.ndarray, ...]:
-        """The foot points of :meth:`feet` (F, 2, 3, 3), and each leg DOF's world axis and
-        pivot (F, 2, 3, K) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain`
-        does; with ``orientation``, also each foot's orientation (F, 2, 3, 3)."""
+    def _posed(self, angles: np.ndarray, height: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The foot points of :meth:`feet` (F, 2, 3, 3), each leg DOF's world axis and pivot
+        (F, 2, 3, K) (xyz by DOF), composed down each leg as :meth:`Skeleton.chain` does, and
+        each foot's orientation (F, 2, 3, 3)."""
         n = len(angles)
         R = np.repeat(self.rotation[:, None], 2, axis=1)                  # (F, 2, 3, 3)
         pivot = self.origin[:, None] + self.hips
@@ -151,7 +151,7 @@ class LegChains:
         points = np.empty((n, 2, 3, 3))
         points[:, :, 0] = pivot
         points[:, :, 1:] = pivot[:, :, None] + (R @ self.sole).transpose(0, 1, 3, 2)
-        return (points, axes, pivots, R) if orientation else (points, axes, pivots)
+        return points, axes, pivots, R
 
 
 def solve_feet(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tuple[int, ...], *,

@@ -114,7 +114,7 @@ MAX_TOE_TURN = np.deg2rad(30.0)
 #: lowest correction within it, smoothed by a Gaussian of half its width. A correction of at
 #: most PELVIS_TARGETS_TOLERANCE (m) everywhere keeps the targets of the motion before it (on
 #: the samples its largest is 0.045 mm at the median entry; the planted series change by at
-#: most 0.0024 rad for it, the feet's measures not at all: tests/test_planting.py).
+#: most 0.0024 rad for it, the feet's measures not at all: benchmarks/character.py).
 PELVIS_SMOOTHING_S, PELVIS_TARGETS_TOLERANCE = 0.12, 1e-4
 #: Harmonics and sampling rate (Hz) of :func:`planted_series`.
 SERIES_ORDER, SERIES_RATE = 15, 30.0

@@ -75,7 +75,6 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     the library, if it was called (the cycles are planted here otherwise).
     """
     entries = []
-    skeleton = library.skeleton                     # built from the header at each access
     planted = start_planting(library, jobs=jobs) if planted is None else planted
     for e, cls, (a, b) in zip(library.entries, classes, planted()):
         entries.append({
@@ -99,7 +98,7 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     walk = np.array([e["velocity"] for e in entries]) - FIRST_SHOWN
     first = int(np.argmin(np.linalg.norm(walk / library.control_scale, axis=1)))
     return {"entries": entries, "space": space, "first": first,
-            "skeleton": skeleton_data(skeleton)}
+            "skeleton": skeleton_data(library.skeleton)}
 
 
 def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:

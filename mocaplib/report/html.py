@@ -39,7 +39,7 @@ MAX_CAPTURE_FIGURES = 80
 #: Points of each modelled poulaine drawn per capture.
 POULAINE_POINTS = 121
 #: Entries a report's worker process takes by default (:func:`default_jobs`; on the 2-core
-#: machine a worker pays for itself from about 500 entries, 6 ms each to plant), and how many
+#: machine a worker pays for itself from about 500 entries, 4.5 ms each to plant), and how many
 #: entries a capture's figures count for (0.37 s to draw).
 ENTRIES_PER_JOB, CAPTURE_ENTRIES = 500, 60
 
