@@ -18,7 +18,8 @@ from conftest import SHARED_C3D
 from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.gait.fourier import RootDrift, synthesize
-from mocaplib.library.planting import (MAX_LEVEL, _padded, _runs, plant_feet, sole_points,
+from mocaplib.library.foot_targets import mask_runs
+from mocaplib.library.planting import (MAX_LEVEL, _padded, plant_feet, sole_points,
                                        stance_frames)
 from mocaplib.skeleton import DOF_NAMES, ROOT_Z, Skeleton
 
@@ -64,7 +65,7 @@ def planted_entries():
         keep = slice(*window)
         higher = sole_points(skeleton, q)[..., 2].max(axis=2)                 # (F, 2)
         hovers = [higher[start:stop, side].min() for side in (0, 1)
-                  for start, stop in _runs(stance[:, side])]
+                  for start, stop in mask_runs(stance[:, side])]
         level = float(np.median(hovers)) if hovers else 0.0
         out.append((entry.id, float(np.hypot(*velocities[:2])), q[keep], level, planted.q))
     assert len(out) >= 10
