@@ -50,8 +50,8 @@ from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.fourier import RootDrift, synthesize  # noqa: E402
 from mocaplib.library.controlspace import ControlSpace  # noqa: E402
 from mocaplib.library.format import load_library  # noqa: E402
-from mocaplib.library.planting import (KNEES, cycle_contact, plant_blend,  # noqa: E402
-                                       planted_series)
+from mocaplib.library.legs import KNEES  # noqa: E402
+from mocaplib.library.planting import cycle_contact, plant_blend, planted_series  # noqa: E402
 from mocaplib.library.retarget import retarget  # noqa: E402
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402

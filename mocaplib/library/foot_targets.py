@@ -23,6 +23,10 @@ KNEE_GAP = np.deg2rad(4.0)
 #: A fade spends this many times the knee change it makes (the smoothstep's steepest slope is
 #: 1.5 times its mean; the knee follows the foot's correction only nearly in proportion).
 FADE_MARGIN = 2.0
+#: A stance foot whose heel and toe come within FLAT_RISE (m) of the same height is laid flat
+#: where they come nearest (twice the 3 mm flat-foot hover target: a runner's foot that lands
+#: nearly flat, 2.8 mm on the samples' runs; a foot that stays on its toes stays so).
+FLAT_RISE = 0.006
 #: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
 MAX_TOE_TURN = np.deg2rad(30.0)
 
@@ -141,23 +145,45 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     own = np.abs(flexion)
     change = knee(length2(pitch)) - own
     share = np.clip(np.abs(change) / KNEE_GAP - 1.0, 0.0, 1.0)
-    ruled = pitch + share * (nearest(wanted) - pitch)
+    ruled = _laid_flat(pitch + share * (nearest(wanted) - pitch), lengths,
+                       local[2, 0] - local[1, 0])
     kept = knee(length2(ruled)) - own
-    limited = _rate_limited(own + kept, lengths, np.abs(ruled), own) - own
+    limited = _rate_limited(own + kept, lengths, ruled, own) - own
     moved = np.abs(limited - kept) > 1e-9
     out = ruled.copy()
     out[moved] = nearest(constant + twice * np.cos(own + limited))[moved]
     return out
 
 
+def _flattest(pitch: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The index (runs,) of the frame of least absolute ``pitch`` (n,) in each of the
+    consecutive runs of ``lengths`` frames."""
+    return np.lexsort((np.abs(pitch), np.repeat(np.arange(len(lengths)), lengths)))[
+        np.cumsum(lengths) - lengths]
+
+
+def _laid_flat(pitch: np.ndarray, lengths: np.ndarray, sole: float) -> np.ndarray:
+    """Stance pitches (n,) rad of consecutive runs of ``lengths`` frames, each run whose foot (a
+    sole ``sole`` m long) comes within :data:`FLAT_RISE` of lying flat laid flat where it lies
+    flattest: its pitch there taken off, less by a smoothstep towards the run's ends."""
+    first = np.cumsum(lengths) - lengths
+    anchor = _flattest(pitch, lengths)
+    offset = pitch[anchor] * (np.abs(np.sin(pitch[anchor])) * sole <= FLAT_RISE)
+    run = np.repeat(np.arange(len(lengths)), lengths)
+    away = np.arange(len(pitch)) - anchor[run]
+    reach = np.where(away < 0, (anchor - first + 1)[run], (first + lengths - anchor)[run])
+    w = 1.0 - np.abs(away) / reach
+    return pitch - offset[run] * w * w * (3 - 2 * w)
+
+
 def _rate_limited(values: np.ndarray, lengths: np.ndarray, tilt: np.ndarray,
                   reference: np.ndarray) -> np.ndarray:
     """``values`` (n,) of consecutive runs of ``lengths`` frames each, changed to move by at most
     as far in a frame as ``reference`` (n,) moves at most in the run: kept where ``tilt`` (n,)
-    is least in the run, each frame away from there clipped to that step from the one before
+    is nearest 0 in the run, each frame away from there clipped to that step from the one before
     it on the way out."""
     first = np.cumsum(lengths) - lengths
-    anchor = np.lexsort((tilt, np.repeat(np.arange(len(lengths)), lengths)))[first]
+    anchor = _flattest(tilt, lengths)
     steps = np.abs(np.diff(reference, prepend=reference[:1]))
     steps[first] = 0.0
     step = np.maximum.reduceat(steps, first)                        # (runs,)

@@ -33,7 +33,10 @@ kinematics), the latest where a side-stepping or turning foot pivots on its toe
    two coincide when the foot is flat, so the pivot changes without a jump). It keeps its own
    pitch where that changes the knee's flexion by at most :data:`~.foot_targets.KNEE_GAP`, and
    beyond twice that takes the pitch that keeps the ankle as far from the hip as the motion's is
-   (the leg's length: the knee keeps its flexion and the hip turns the leg). Nor does it move
+   (the leg's length: the knee keeps its flexion and the hip turns the leg). A foot that comes
+   within :data:`~.foot_targets.FLAT_RISE` of lying flat in the run is laid flat where it lies
+   flattest, its pitch there taken off the run's, less by a smoothstep towards the run's ends
+   (a runner's foot that lands nearly flat stands flat once). Nor does it move
    the knee further in a frame than the motion's knee moves at most in that stance: outwards
    from the frame where the foot lies flattest (kept, so that the foot still lies flat), a
    pitch that would is replaced by one that moves the knee that far. A real foot rolls over the
@@ -104,7 +107,7 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..skeleton import ROOT_Z, Skeleton
 from .foot_targets import foot_targets, mask_runs
-from .legs import KNEES, LEG_DOFS, LEGS, SOLVED, LegChains, solve_feet
+from .legs import LEG_DOFS, LEGS, SOLVED, LegChains, solve_feet
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
 #: within CONTACT_RISE (m) of the foot's standing level, for at least MIN_STANCE_S (s); a foot

@@ -73,7 +73,8 @@ from ..model.filtering import WALKING_CUTOFF
 from ..model.motion import Motion
 from ..skeleton import (DOF_NAMES, JOINT_ANGLES, MOVES, ROOT_HEADING, ROOT_X, ROOT_Y, TRANSLATION,
                         Skeleton, segment_dofs)
-from .planting import KNEES, ContactMeasures, cycle_contact, plant_cycles
+from .legs import KNEES
+from .planting import ContactMeasures, cycle_contact, plant_cycles
 
 #: The DOFs the inverse kinematics solves: they place the ankle centres relative to the pelvis
 #: (the pelvis's rotations, the hips and the knees).
