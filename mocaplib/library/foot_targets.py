@@ -187,10 +187,13 @@ def _rate_limited(values: np.ndarray, lengths: np.ndarray, tilt: np.ndarray,
     steps = np.abs(np.diff(reference, prepend=reference[:1]))
     steps[first] = 0.0
     step = np.maximum.reduceat(steps, first)                        # (runs,)
+    moves = np.abs(np.diff(values, prepend=values[:1]))
+    moves[first] = 0.0
+    faster = np.maximum.reduceat(moves, first) > step               # the runs to change
     out = values.copy()
     for way in (1, -1):
         at = anchor.copy()
-        going = np.ones(len(first), bool)
+        going = faster.copy()
         while True:
             going &= (at + way >= first) & (at + way < first + lengths)
             if not going.any():
