@@ -12,7 +12,9 @@ SAMPLES/walk_straight_normal.c3d --jobs 2``). Then, for every chosen entry that 
   ``mocaplib query --bvh`` writes them (:func:`mocaplib.library.planting.plant_blend`), its feet
   before and after planting;
 * **the report's viewer**: the entry's cycle planted and fitted again as a series
-  (:func:`mocaplib.library.planting.planted_series`), its feet;
+  (:func:`mocaplib.library.planting.planted_series`), posed at 100 Hz by the viewer's own
+  JavaScript (node on templates/motion.js, tests/viewer_poses.py: each leg moved to its
+  foot's lock), its feet; and the series alone (the legs not moved), for comparison;
 * **retarget** to each height: :func:`mocaplib.library.retarget.retarget` at 100 Hz, its feet,
   its pelvis's vertical acceleration against the entry's (its closed cycle on its own body)
   times the body's size ratio (requested stance over the entry's), its pelvis yaw range (about
@@ -45,6 +47,7 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))      # the viewer's poses, computed by node
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.fourier import RootDrift, synthesize  # noqa: E402
@@ -55,6 +58,7 @@ from mocaplib.library.planting import cycle_contact, plant_blend, planted_series
 from mocaplib.library.retarget import retarget  # noqa: E402
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
+from viewer_poses import viewer_contact  # noqa: E402
 
 SLIDE, BELOW, HOVER = 0.002, 0.0005, 0.003
 JOLT_RATIO, JOLT_MARGIN, YAW_RATIO, YAW_MARGIN = 1.3, 0.5, 1.5, np.radians(0.5)
@@ -70,6 +74,7 @@ def moving_entries(library) -> list:
 def query_rows(library) -> pd.DataFrame:
     """One row per entry: its type and the planted blend's feet before and after."""
     cs = ControlSpace.from_library(library)
+    shown = dict(viewer_contact(library, RATE))
     rows = []
     for entry in moving_entries(library):
         answer = cs.query([[entry.v, entry.omega, entry.v_l]])
@@ -79,15 +84,20 @@ def query_rows(library) -> pd.DataFrame:
         before, after = planted.before, planted.after
         period = float(entry.T)
         drift = RootDrift(0.0, 0.0, 0.0, *entry.root_drift.velocities)
-        a, b = planted_series(library.skeleton, entry.fourier.a, entry.fourier.b, period, drift)
-        viewer = cycle_contact(library.skeleton, lambda t: synthesize(a, b, period, t), drift,
-                               period, RATE, round(period * RATE))
+        series = planted_series(library.skeleton, entry.fourier.a, entry.fourier.b, period,
+                                drift)
+        alone = cycle_contact(library.skeleton,
+                              lambda t: synthesize(series.a, series.b, period, t), drift,
+                              period, RATE, round(period * RATE))
+        viewer = shown[entry.id]
         rows.append({"entry": entry.id, "type": locomotion_type(entry.id.rsplit("_c", 1)[0], sided=False),
                      "slide_before": before.slide_m, "below_before": before.penetration_m,
                      "hover_before": before.hover_m, "slide": after.slide_m,
                      "below": after.penetration_m, "hover": after.hover_m,
                      "jolt": after.pelvis_acceleration_m_s2, "viewer_slide": viewer.slide_m,
                      "viewer_below": viewer.penetration_m, "viewer_hover": viewer.hover_m,
+                     "series_slide": alone.slide_m, "series_below": alone.penetration_m,
+                     "series_hover": alone.hover_m,
                      "own_jolt": before.pelvis_acceleration_m_s2})
     return pd.DataFrame(rows)
 
@@ -168,6 +178,10 @@ def missed_targets(queries: pd.DataFrame, retargets: pd.DataFrame) -> list[str]:
             worst = df[column].max()
             if worst > limit:
                 missed.append(f"{name} {column} {_mm(worst)} mm ({df.entry[df[column].idxmax()]})")
+    for column, limit in (("viewer_slide", SLIDE), ("viewer_below", BELOW),
+                          ("viewer_hover", HOVER)):
+        if queries[column].max() > limit:
+            missed.append(f"the report's viewer: {column[7:]} {_mm(queries[column].max())} mm")
     jolts = queries.jolt > JOLT_RATIO * queries.own_jolt + JOLT_MARGIN
     missed += [f"query pelvis acceleration of {e}" for e in queries.entry[jolts]]
     bad = retargets[~(retargets.jolt_ok & retargets.yaw_ok) | (retargets.knee_min_deg < 0)
@@ -204,10 +218,11 @@ def main() -> int:
         print("Before: the blend as synthesised (the fitted ankle centre sits higher above the "
               "floor than the skeleton's ankle height); after: planted, as written.\n")
         print("The report's viewer poses each entry from its planted cycle fitted again as a "
-              "Fourier series (`planted_series`): at worst slide "
-              f"{_mm(queries.viewer_slide.max())} mm, below the floor "
+              "Fourier series (`planted_series`), each leg then moved to its foot's lock: at "
+              f"worst slide {_mm(queries.viewer_slide.max())} mm, below the floor "
               f"{_mm(queries.viewer_below.max())} mm, hover {_mm(queries.viewer_hover.max())} "
-              "mm.\n")
+              f"mm (the series alone: {_mm(queries.series_slide.max())}, "
+              f"{_mm(queries.series_below.max())}, {_mm(queries.series_hover.max())} mm).\n")
         print("### `mocaplib retarget` outputs, by body height\n")
         print("\n".join(retarget_table(retargets, "height")) + "\n")
         print("### `mocaplib retarget` outputs, by locomotion type (every height)\n")

@@ -113,8 +113,9 @@ def planted_series_of(library, solve, monkeypatch) -> list[tuple[np.ndarray, np.
     out = []
     for e in library.entries:
         drift = RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
-        out.append(planting.planted_series(library.skeleton, e.fourier.a, e.fourier.b,
-                                           float(e.T), drift))
+        planted = planting.planted_series(library.skeleton, e.fourier.a, e.fourier.b,
+                                          float(e.T), drift)
+        out.append((planted.a, planted.b))
     monkeypatch.undo()
     return out
 

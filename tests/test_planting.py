@@ -16,6 +16,7 @@ the requested rate, loops without a repeated frame.
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from functools import lru_cache
 from pathlib import Path
@@ -268,40 +269,62 @@ def test_a_foot_that_hovers_and_slides_is_planted():
     assert planted.after.penetration_m < 1e-4
 
 
-def _viewer_feet(library):
-    """The worst ContactMeasures fields (slide, penetration, hover), m, of every entry's cycle
-    as the report's viewer poses it (planted_series), measured at 100 Hz."""
-    from mocaplib.gait.fourier import RootDrift
-    from mocaplib.library.planting import cycle_contact, planted_series
+def _viewer_feet(library) -> np.ndarray:
+    """The worst slide, penetration and hover (m) over every entry's cycle as the report's
+    viewer poses it in JavaScript (tests/viewer_poses.py: node on templates/motion.js),
+    measured at 100 Hz."""
+    from viewer_poses import viewer_contact
 
-    worst = np.zeros(3)
-    for e in library.entries:
-        period, drift = float(e.T), RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
-        a, b = planted_series(library.skeleton, e.fourier.a, e.fourier.b, period, drift)
-        m = cycle_contact(library.skeleton, lambda t, a=a, b=b, p=period: synthesize(a, b, p, t),
-                          drift, period, 100.0, round(period * 100))
-        worst = np.maximum(worst, [m.slide_m, m.penetration_m, m.hover_m])
-    return worst
+    return np.max([[m.slide_m, m.penetration_m, m.hover_m]
+                   for _, m in viewer_contact(library)], axis=0)
 
 
-def test_the_report_viewers_feet_are_no_worse_than_measured():
-    from walking_library import synthetic_walks
-
-    # measured on the 21 synthetic walks: slide 3.44 mm, 1.25 mm below the floor, hover 1.00 mm
-    # (the planted frames are 30 Hz apart: joined by lines they slide 2.6 mm, by a periodic
-    # cubic 3.3 mm; the targets' strict xfail below)
-    slide, below, hover = _viewer_feet(synthetic_walks()[0])
-    assert slide <= 0.0035 and below <= 0.0013 and hover <= 0.0018, (slide, below, hover)
-
-
-@pytest.mark.xfail(strict=True, reason="measured on the 21 synthetic walks: the report viewer's "
-                   "refitted series slide 3.44 mm and go 1.25 mm below the floor (targets 2 mm, "
-                   "0.5 mm)")
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
 def test_the_report_viewers_feet_meet_the_targets():
     from walking_library import synthetic_walks
 
+    # measured on the 21 synthetic walks: slide 1.35 mm, 0.00 mm below the floor, hover
+    # 1.24 mm (the series alone, the viewer's legs not moved to the locks: 3.44, 1.25, 1.00 mm)
     slide, below, hover = _viewer_feet(synthetic_walks()[0])
-    assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER
+    assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER, (slide, below, hover)
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
+@pytest.mark.usefixtures("sample_dir")
+def test_the_report_viewers_feet_meet_the_targets_on_every_locomotion_type():
+    # the samples' 68 entries: walks, curves, side-steps, diagonals, spot turns and runs;
+    # measured: slide 1.38 mm (a diagonal), nothing below the floor, hover 1.24 mm
+    slide, below, hover = _viewer_feet(sample_library()[0])
+    assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER, (slide, below, hover)
+
+
+def test_the_viewers_locks_are_where_the_planted_cycle_stands():
+    from walking_library import synthetic_walks
+
+    from mocaplib.gait.fourier import RootDrift
+    from mocaplib.library.planting import _padded, planted_series
+
+    # each lock's heel where the cycle planted at 100 Hz (as `mocaplib query` writes it) has
+    # its heel on the floor at the lock's times (both feet, every stance within the fade of
+    # the cycle)
+    library = synthetic_walks()[0]
+    e = library.entry("walk_straight_normal_c1")
+    period, drift = float(e.T), RootDrift(0.0, 0.0, 0.0, *e.root_drift.velocities)
+    locks = planted_series(library.skeleton, e.fourier.a, e.fourier.b, period, drift).locks
+    assert (locks[:, 0] == 0).sum() >= 2 and (locks[:, 0] == 1).sum() >= 2
+    assert np.all(locks[:, 2] - locks[:, 1] > 0.3 * period)          # stances of a walk
+    q, window = _padded(lambda t: synthesize(e.fourier.a, e.fourier.b, period, t), drift,
+                        period, 100.0, round(period * 100))
+    planted = plant_feet(library.skeleton, q, 100.0, window=window)
+    worst = 0.0
+    for side, t0, t1, x, y, _ in locks:
+        frames = np.arange(np.ceil(t0 * 100), np.floor(t1 * 100) + 1).astype(int)
+        heel = sole_points(library.skeleton, planted.planted)[planted.window[0] + frames,
+                                                             int(side), 0]
+        flat = heel[:, 2] < 0.001
+        assert flat.any()
+        worst = max(worst, np.linalg.norm(heel[flat, :2] - [x, y], axis=1).max())
+    assert worst < SLIDE, worst                                   # measured 1.6 mm
 
 
 def test_a_foot_rolling_over_its_ball_keeps_the_knee():

@@ -37,7 +37,7 @@ def mask_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2], edges[1::2]))
 
 
-def _foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pitch (toes up > 0) and heading (rad) of feet with orientations ``R`` (..., 3, 3)."""
     x = R[..., :, 0]
     return np.arctan2(x[..., 2], np.hypot(x[..., 0], x[..., 1])), np.arctan2(x[..., 1], x[..., 0])
@@ -53,7 +53,7 @@ def foot_targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: fl
     runs = [(side, start, stop) for side in (0, 1) for start, stop in mask_runs(stance[:, side])]
     if not runs:
         return targets
-    pitch, heading = _foot_axes(orientation)
+    pitch, heading = foot_axes(orientation)
     length = local[2, 0] - local[1, 0]
     frame, side, heel, psi = [], [], [], []
     for s, start, stop in runs:                # each run locked at its flattest frame

@@ -106,7 +106,7 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
 from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..skeleton import ROOT_Z, Skeleton
-from .foot_targets import foot_targets, mask_runs
+from .foot_targets import BLEND_S, foot_axes, foot_targets, mask_runs
 from .legs import LEG_DOFS, LEGS, SOLVED, LegChains, solve_feet
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
@@ -290,19 +290,33 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     return plant_feet(skeleton, q, rate, window=window, period=steps if whole else None)
 
 
+@dataclass(frozen=True)
+class PlantedSeries:
+    """A cycle with its feet planted, for animations that pose the skeleton from a series
+    (:func:`planted_series`): Fourier ``a``, ``b`` (D, N+1) in the path frame, and ``locks``
+    (L, 6), each stance of the planted cycle within :data:`~.foot_targets.BLEND_S` of [0, T):
+    the foot (0 left, 1 right), the times (s from the cycle's start) of its first and last
+    stance samples, its heel's x and y (m) and its heading (rad) where it lies flattest, in the
+    path frame at t = 0."""
+
+    a: np.ndarray
+    b: np.ndarray
+    locks: np.ndarray
+
+
 def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: float,
                    drift: RootDrift, /, *, order: int = SERIES_ORDER,
-                   rate: float = SERIES_RATE) -> tuple[np.ndarray, np.ndarray]:
+                   rate: float = SERIES_RATE) -> PlantedSeries:
     """A cycle's Fourier coefficients ``a``, ``b`` (D, N+1) (path frame, period ``period`` s,
     moving along ``drift``) with its feet planted on ``skeleton``: the cycle sampled at about
     ``rate`` Hz, planted (:func:`plant_cycles`) and the DOFs planting solves (:data:`SOLVED`)
     fitted again with ``order`` harmonics; (D, max(N, order)+1) each, the other DOFs' rows
-    ``a``'s and ``b``'s own padded with zeros. For animations that pose the skeleton from a
-    series (the report's viewer); on the sample entries at the defaults the refitted feet slide
-    up to 3.7 mm, go up to 2.0 mm below the floor and hover up to 3.2 mm
-    (docs/results/character.md). The sampling rate sets it more than the harmonics: on the
-    synthetic walks the planted 30 Hz frames joined by lines slide 2.6 mm, by a periodic cubic
-    3.3 mm (the series 3.3 mm); 100 Hz with 30 harmonics slides 2.0 mm."""
+    ``a``'s and ``b``'s own padded with zeros; and the stances' locks (:class:`PlantedSeries`).
+    The series alone rounds the stance off: on the sample entries at the defaults its feet
+    slide up to 3.8 mm and go up to 2.0 mm below the floor (docs/results/character.md; the
+    sampling rate sets it more than the harmonics: 100 Hz with 40 harmonics slides 1.7 mm at
+    1.85 times the cost). The report's viewer poses each frame from the series and then moves
+    each leg to its foot's lock (templates/motion.js, ``plantedPose``): nothing slides."""
     steps = max(round(period * rate), 2 * order + 1)
     planted = plant_cycles(skeleton, lambda t: synthesize(a, b, period, t), drift, period,
                            steps / period, steps)
@@ -314,7 +328,24 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
     rows = list(SOLVED)
     out_a[rows], out_b[rows] = 0.0, 0.0
     out_a[rows, :order + 1], out_b[rows, :order + 1] = series.a[rows], series.b[rows]
-    return out_a, out_b
+    return PlantedSeries(out_a, out_b, _locks(planted, period / steps))
+
+
+def _locks(planted: Planted, step: float) -> np.ndarray:
+    """The :class:`PlantedSeries` locks (L, 6) of ``planted``, a cycle planted with one period
+    more on each side, sampled every ``step`` s from its window's start."""
+    points, orientation, _ = LegChains(planted.skeleton, planted.planted).frames(
+        planted.planted[:, LEG_DOFS], planted.planted[:, ROOT_Z])
+    _, heading = foot_axes(orientation)
+    start, stop = planted.window
+    locks = []
+    for side in (0, 1):
+        for first, last in mask_runs(planted.stances[:, side]):
+            flat = first + int(np.argmin(points[first:last, side, 1:, 2].max(axis=1)))
+            t0, t1 = (first - start) * step, (last - 1 - start) * step
+            if t1 >= -BLEND_S and t0 <= (stop - start) * step + BLEND_S:
+                locks.append([side, t0, t1, *points[flat, side, 1, :2], heading[flat, side]])
+    return np.array(locks, dtype=np.float64).reshape(-1, 6)
 
 
 def cycle_contact(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],

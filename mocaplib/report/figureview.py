@@ -4,10 +4,12 @@ The viewer (``templates/figure.js`` on ``templates/motion.js``) animates an entr
 stick figure, posed by forward kinematics in JavaScript from :func:`skeleton_data` (the
 description of docs/library-format.md, "Posing the skeleton") and from the entry's series with
 its feet planted as ``mocaplib query`` writes them
-(:func:`mocaplib.library.planting.planted_series`), and plays the blend of a
-control-space point picked with the mouse, located in the tetrahedra of the control space's
-gait cells with side-steps put on the cone, as ``mocaplib query`` locates a command
-(:func:`viewer_data`'s ``space``): nothing is triangulated in the browser.
+(:func:`mocaplib.library.planting.planted_series`), each leg then moved in JavaScript to its
+foot's lock (``plantedPose``: on the samples nothing slides more than 1.4 mm or goes below the
+floor, tests/test_planting.py), and plays the blend of a control-space point picked with the
+mouse (from its series alone), located in the tetrahedra of the control space's gait cells with
+side-steps put on the cone, as ``mocaplib query`` locates a command (:func:`viewer_data`'s
+``space``): nothing is triangulated in the browser.
 """
 
 from __future__ import annotations
@@ -21,11 +23,15 @@ from ..build.workers import run_tasks
 from ..export.bvh import end_sites
 from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra, frontal_tetrahedra
+from ..library.foot_targets import APPROACH_SPEED, BLEND_S
+from ..library.legs import KNEES, LEG_DOFS, LEG_SEGMENTS
 from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: Decimals of the Fourier coefficients in the page: 1e-6 rad (and m), far below a pixel.
 COEFFICIENT_DECIMALS = 6
+#: Decimals of the feet's locks in the page: 0.1 mm, 0.1 ms, 1e-4 rad.
+LOCK_DECIMALS = 4
 #: The entry shown first: the one nearest this (v̂, ω̂, v̂_l) (m/s, rad/s, m/s), normal walking.
 FIRST_SHOWN = (1.2, 0.0, 0.0)
 #: Entries one worker task plants when the viewer's cycles are planted by several jobs.
@@ -38,7 +44,9 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     """The skeleton for the page's forward kinematics: ``segments`` (name, parent index or -1,
     joint centre ``offset`` in the parent's frame (m), ``dofs`` as [DOF index, axis, is a
     translation], parents before children), ``ends`` (segment index -> points drawn in its
-    frame, m: head top, finger tip, heel and toe) and ``lines`` (pairs of segment indices)."""
+    frame, m: head top, finger tip, heel and toe), ``lines`` (pairs of segment indices),
+    ``feet`` (left, right: the foot's segment index, its leg's DOF indices hip to ankle and the
+    knee's) and ``fade_s``, the time over which a lock's correction fades in and out (s)."""
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -51,7 +59,10 @@ def skeleton_data(skeleton: Skeleton) -> dict:
         points = skeleton.sole().tolist() if name.startswith("foot") else [list(map(float, tip))]
         ends[SEGMENT_NAMES.index(name)] = points
     return {"segments": segments, "ends": ends,
-            "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES]}
+            "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES],
+            "feet": [{"segment": int(segment), "dofs": dofs.tolist(), "knee": int(knee)}
+                     for segment, dofs, knee in zip(LEG_SEGMENTS[:, 2], LEG_DOFS, KNEES)],
+            "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED}
 
 
 def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1,
@@ -61,26 +72,30 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     ``entries``: per library entry (``library.entries`` order) its id, class, colour,
     ``mirror_of`` (null unless a mirror image), period ``T`` (s), Fourier ``a``/``b`` of its
     cycle with the feet planted on the library's skeleton (an entry without a finite drift:
-    its own, up to its order), and root ``drift`` (u_f, u_l, omega); ``space`` (null without a
+    its own, up to its order), the ``locks`` of its feet
+    (:class:`~mocaplib.library.planting.PlantedSeries`, the foot an integer; none without a
+    finite drift), and root ``drift`` (u_f, u_l, omega); ``space`` (null without a
     gait cell):
     the chosen entries (``entries``: indices into the list above) at their normalised
     ``points`` in the cells (side-steps on the cone), the ``simplices`` of the gait cells
     (rows of 4 indices into them, :func:`~mocaplib.library.cells.cell_tetrahedra`) with
     their ``gaits``, the ``axes`` and ``scale``, and ``frontal``: the cells' frontal
     tetrahedra where a picked point's weights are computed (``points`` on the frontal axes,
-    normalised, ``simplices`` and ``gaits``, :func:`~mocaplib.library.cells.frontal_tetrahedra`); ``skeleton``: :func:`skeleton_data` of the library's segment
-    lengths; ``first``: the entry shown first (:data:`FIRST_SHOWN`). ``classes``: each
-    entry's class label; ``colours``: class -> CSS colour. ``jobs``: worker processes planting
+    normalised, ``simplices`` and ``gaits``, :func:`~mocaplib.library.cells.frontal_tetrahedra`);
+    ``skeleton``: :func:`skeleton_data` of the library's segment lengths; ``first``: the entry
+    shown first (:data:`FIRST_SHOWN`). ``classes``: each entry's class label; ``colours``:
+    class -> CSS colour. ``jobs``: worker processes planting
     the cycles (:func:`planted_cycles`); ``planted``: what :func:`start_planting` returned for
     the library, if it was called (the cycles are planted here otherwise).
     """
     entries = []
     planted = start_planting(library, jobs=jobs) if planted is None else planted
-    for e, cls, (a, b) in zip(library.entries, classes, planted()):
+    for e, cls, (a, b, locks) in zip(library.entries, classes, planted()):
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
             "mirror_of": e.mirror_of, "T": float(e.T),
             **_rounded(a, b),
+            "locks": [[int(row[0]), *np.round(row[1:], LOCK_DECIMALS).tolist()] for row in locks],
             "drift": [float(x) for x in e.root_drift.velocities],
             "velocity": [float(x) for x in e.velocity]})
     space = None
@@ -133,9 +148,9 @@ def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
 
 def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) -> list[tuple]:
     """Each cycle ``(a, b, T, drift)`` (coefficients (D, N+1), period s, drift velocities (3,))
-    as :func:`~mocaplib.library.planting.planted_series` plants it on ``skeleton``: ``(a, b)``
-    planted, or the cycle's own where its coefficients or drift are not finite. ``jobs`` > 1:
-    :data:`PLANTED_PER_TASK` cycles a task in worker processes
+    as :func:`~mocaplib.library.planting.planted_series` plants it on ``skeleton``: ``(a, b,
+    locks)`` planted, or the cycle's own (no locks) where its coefficients or drift are not
+    finite. ``jobs`` > 1: :data:`PLANTED_PER_TASK` cycles a task in worker processes
     (:func:`mocaplib.build.workers.run_tasks`); a task whose worker failed is planted here
     again, so that a real error shows as itself."""
     chunks = [cycles[k:k + PLANTED_PER_TASK] for k in range(0, len(cycles), PLANTED_PER_TASK)]
@@ -151,8 +166,10 @@ def _planted_chunk(skeleton: Skeleton, cycles: list[tuple]) -> list[tuple]:
     out = []
     for a, b, period, drift in cycles:
         if np.isfinite(drift).all() and np.isfinite([a, b]).all():
-            a, b = planted_series(skeleton, a, b, period, RootDrift(0.0, 0.0, 0.0, *drift))
-        out.append((a, b))
+            planted = planted_series(skeleton, a, b, period, RootDrift(0.0, 0.0, 0.0, *drift))
+            out.append((planted.a, planted.b, planted.locks))
+        else:
+            out.append((a, b, np.zeros((0, 6))))
     return out
 
 

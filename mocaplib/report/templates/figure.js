@@ -38,8 +38,9 @@
 
   function play(motion, label) {
     var root = M.forward(skeleton, M.synthesize(motion.a, motion.b, motion.T, 0))[0];
-    viewer.playing = { a: motion.a, b: motion.b, T: motion.T, drift: motion.drift, label: label,
-                       started: performance.now(), height: root[11] };
+    viewer.playing = { a: motion.a, b: motion.b, T: motion.T, drift: motion.drift,
+                       locks: motion.locks, label: label, started: performance.now(),
+                       height: root[11] };
   }
 
   function playEntry(index) {
@@ -50,7 +51,10 @@
 
   function currentFrame(now) {
     var p = viewer.playing, t = (now - p.started) / 1000;
-    var local = t % p.T, q = M.synthesize(p.a, p.b, p.T, local), world = M.forward(skeleton, q);
+    var local = t % p.T, world;
+    // an entry's feet planted on their locks; a blend of entries posed from its series alone
+    var q = p.locks ? M.plantedPose(skeleton, p, local) : M.synthesize(p.a, p.b, p.T, local);
+    world = M.forward(skeleton, q);
     return { t: t, phase: local / p.T, q: q, world: world, playing: p,
              origins: world.map(function (W) { return [W[3], W[7], W[11]]; }) };
   }

@@ -176,6 +176,7 @@ var MocapMotion = (function () {
 
   function scaled(s, u) { return [s * u[0], s * u[1], s * u[2]]; }
   function sub(u, v) { return [u[0] - v[0], u[1] - v[1], u[2] - v[2]]; }
+  function add(u, v) { return [u[0] + v[0], u[1] + v[1], u[2] + v[2]]; }
   function dot(u, v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
   function cross(u, v) { return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]; }
 
@@ -197,7 +198,142 @@ var MocapMotion = (function () {
     return out;
   }
 
+
+  // ---------------------------------------------------------------- planted feet
+  // An entry's series rounds its stances off (mocaplib.library.planting.PlantedSeries); each
+  // frame is posed from the series and then, as mocaplib.library.planting plants a motion,
+  // each leg moved so that its foot meets its lock: from entry.locks, rows [foot (0 left, 1
+  // right), t0, t1 (s from the cycle's start), heel x, y (m), heading (rad)] in the path frame
+  // at t = 0, the foot locked between t0 and t1, its heel (or, when its toes point down, its
+  // toe, a sole's length ahead) on the floor there with the foot's pitch of the series; within
+  // skeleton.fade_s of a lock the leg takes the lock's correction at its end, weighted by a
+  // smoothstep, and its foot stays above the floor by skeleton.approach_speed times the time
+  // to the lock (times the share of skeleton.fade_s still ahead); a foot below the floor (or
+  // that height) is raised onto it.
+  var REACH_STEPS = 8, REACH_TOLERANCE = 1e-7, REACH_DAMPING = 1e-8, DIFFERENCE = 1e-6;
+
+  // The ankle, heel and toe (m) of foot {segment, dofs, knee} in pose q: 9 numbers.
+  function footPoints(skeleton, q, foot) {
+    var W = forward(skeleton, q)[foot.segment], sole = skeleton.ends[foot.segment];
+    var heel = apply(W, sole[0]), toe = apply(W, sole[1]);
+    return [W[3], W[7], W[11], heel[0], heel[1], heel[2], toe[0], toe[1], toe[2]];
+  }
+
+  // x of A x = b (n x n, Gaussian elimination with partial pivoting).
+  function solveLinear(A, b) {
+    var n = b.length, M = A.map(function (row, i) { return row.concat([b[i]]); });
+    for (var c = 0; c < n; c++) {
+      var p = c;
+      for (var r = c + 1; r < n; r++) { if (Math.abs(M[r][c]) > Math.abs(M[p][c])) { p = r; } }
+      var swap = M[c]; M[c] = M[p]; M[p] = swap;
+      for (var r2 = c + 1; r2 < n; r2++) {
+        var f = M[r2][c] / M[c][c];
+        for (var k = c; k <= n; k++) { M[r2][k] -= f * M[c][k]; }
+      }
+    }
+    var x = new Array(n);
+    for (var i = n - 1; i >= 0; i--) {
+      var s = M[i][n];
+      for (var j = i + 1; j < n; j++) { s -= M[i][j] * x[j]; }
+      x[i] = s / M[i][i];
+    }
+    return x;
+  }
+
+  // Pose q with its leg's DOFs (foot.dofs) moved so that the foot's ankle, heel and toe reach
+  // targets (9 numbers, m): damped Gauss-Newton steps on a forward-difference Jacobian, the
+  // knee kept at 0 or more, until no DOF moves by REACH_TOLERANCE rad.
+  function reach(skeleton, q, foot, targets) {
+    q = q.slice();
+    for (var step = 0; step < REACH_STEPS; step++) {
+      var p = footPoints(skeleton, q, foot);
+      var columns = foot.dofs.map(function (d) {
+        var moved = q.slice();
+        moved[d] += DIFFERENCE;
+        return footPoints(skeleton, moved, foot).map(function (x, i) { return (x - p[i]) / DIFFERENCE; });
+      });
+      var gap = targets.map(function (x, i) { return x - p[i]; });
+      var normal = columns.map(function (u, i) {
+        return columns.map(function (v, j) { return dot9(u, v) + (i === j ? REACH_DAMPING : 0); });
+      });
+      var change = solveLinear(normal, columns.map(function (u) { return dot9(u, gap); }));
+      var largest = 0;
+      foot.dofs.forEach(function (d, k) {
+        var before = q[d];
+        q[d] = d === foot.knee ? Math.max(q[d] + change[k], 0) : q[d] + change[k];
+        largest = Math.max(largest, Math.abs(q[d] - before));
+      });
+      if (largest < REACH_TOLERANCE) { break; }
+    }
+    return q;
+  }
+
+  function dot9(u, v) { var s = 0; for (var i = 0; i < 9; i++) { s += u[i] * v[i]; } return s; }
+
+  // Where the ankle, heel and toe of a foot locked by `lock` go at time t (s) of a motion
+  // moving along drift, the foot pitched `pitch` (rad): 9 numbers in the path frame at t.
+  function lockedFoot(skeleton, foot, lock, drift, t, pitch) {
+    var f = frame(drift, t), c = Math.cos(f[2]), s = Math.sin(f[2]);
+    var dx = lock[3] - f[0], dy = lock[4] - f[1], psi = lock[5] - f[2];
+    var sole = skeleton.ends[foot.segment], length = sole[1][0] - sole[0][0];
+    var heel = [c * dx + s * dy, -s * dx + c * dy, 0];
+    var toe = [heel[0] + length * Math.cos(psi), heel[1] + length * Math.sin(psi), 0];
+    var x = [Math.cos(pitch) * Math.cos(psi), Math.cos(pitch) * Math.sin(psi), Math.sin(pitch)];
+    var y = [-Math.sin(psi), Math.cos(psi), 0], z = cross(x, y);
+    var placed = [[0, 0, 0], sole[0], sole[1]].map(function (p) {
+      return [0, 1, 2].map(function (i) { return x[i] * p[0] + y[i] * p[1] + z[i] * p[2]; });
+    });
+    var pivot = pitch >= 0 ? sub(heel, placed[1]) : sub(toe, placed[2]);
+    return [].concat.apply([], placed.map(function (p) { return add(p, pivot); }));
+  }
+
+  // The pitch (rad, toes up > 0) of foot's segment in pose q.
+  function footPitch(skeleton, q, foot) {
+    var W = forward(skeleton, q)[foot.segment];
+    return Math.atan2(W[8], Math.hypot(W[0], W[4]));
+  }
+
+  // Pose q (the series at time t within the cycle) moved so that the foot of `side` meets
+  // lock at time t.
+  function locked(skeleton, q, side, lock, drift, t) {
+    var foot = skeleton.feet[side];
+    return reach(skeleton, q, foot, lockedFoot(skeleton, foot, lock, drift, t, footPitch(skeleton, q, foot)));
+  }
+
+  // The pose of an entry {a, b, T, drift, locks} at time t (s) of its cycle (path frame),
+  // its feet planted (above).
+  function plantedPose(skeleton, entry, t) {
+    var q = synthesize(entry.a, entry.b, entry.T, t), out = q.slice();
+    var fade = skeleton.fade_s, clearance = [0, 0];
+    skeleton.feet.forEach(function (foot, side) {
+      var near = null, weight = 0, edge = 0;
+      (entry.locks || []).forEach(function (lock) {
+        if (lock[0] !== side) { return; }
+        if (t >= lock[1] && t <= lock[2]) { near = lock; weight = 1; edge = t; return; }
+        var d = t < lock[1] ? lock[1] - t : t - lock[2];
+        var w = d < fade ? 1 - d / fade : 0;
+        w = w * w * (3 - 2 * w);
+        if (w > weight) {
+          near = lock; weight = w; edge = t < lock[1] ? lock[1] : lock[2];
+          clearance[side] = skeleton.approach_speed * d * (1 - d / fade);
+        }
+      });
+      if (!near) { return; }
+      var base = edge === t ? q : synthesize(entry.a, entry.b, entry.T, edge);
+      var moved = locked(skeleton, base, side, near, entry.drift, edge);
+      foot.dofs.forEach(function (d) { out[d] += weight * (moved[d] - base[d]); });
+    });
+    skeleton.feet.forEach(function (foot, side) {
+      var p = footPoints(skeleton, out, foot), short = clearance[side] - Math.min(p[5], p[8]);
+      if (short > 0) {
+        out = reach(skeleton, out, foot, p.map(function (x, i) { return i % 3 === 2 ? x + short : x; }));
+      }
+    });
+    return out;
+  }
+
   return { synthesize: synthesize, forward: forward, apply: apply, frame: frame,
-           ontoCone: ontoCone, locate: locate, weigh: weigh, blend: blend };
+           ontoCone: ontoCone, locate: locate, weigh: weigh, blend: blend,
+           plantedPose: plantedPose };
 })();
 if (typeof module !== "undefined") { module.exports = MocapMotion; }
