@@ -225,9 +225,10 @@ def test_the_right_turns_of_a_real_session_gain_left_turns(real_c3d):
 @pytest.mark.slow
 def test_the_report_of_the_mirrored_samples_stays_small(mirrored_samples, tmp_path):
     """Target: the report with the motion viewer <= 5 MB for the samples' library; measured
-    on its 130-entry mirrored version (a superset of the 68-entry one): 4.92 MB, of which
-    3.89 MB the captures' quality plots and the rest mostly the viewer's data (planted cycles,
-    the control space's tetrahedra and frontal tetrahedra, JSON without spaces). The viewer's
+    on its 130-entry mirrored version (a superset of the 68-entry one): 4.95 MB, of which
+    3.89 MB the captures' quality plots and the rest mostly the viewer's data (planted cycles
+    and their feet's locks, the control space's tetrahedra and frontal tetrahedra, JSON
+    without spaces). The viewer's
     data are in it and mark the images."""
     from mocaplib.report import write_report
 
