@@ -334,17 +334,23 @@ def planted_series(skeleton: Skeleton, a: np.ndarray, b: np.ndarray, period: flo
 def _locks(planted: Planted, step: float) -> np.ndarray:
     """The :class:`PlantedSeries` locks (L, 6) of ``planted``, a cycle planted with one period
     more on each side, sampled every ``step`` s from its window's start."""
-    points, orientation, _ = LegChains(planted.skeleton, planted.planted).frames(
-        planted.planted[:, LEG_DOFS], planted.planted[:, ROOT_Z])
-    _, heading = foot_axes(orientation)
     start, stop = planted.window
+    runs = [(side, first, last) for side in (0, 1)
+            for first, last in mask_runs(planted.stances[:, side])
+            if (last - 1 - start) * step >= -BLEND_S
+            and (first - start) * step <= (stop - start) * step + BLEND_S]
+    if not runs:
+        return np.zeros((0, 6))
+    rows = np.unique(np.concatenate([np.arange(first, last) for _, first, last in runs]))
+    q = planted.planted[rows]
+    points, orientation, _ = LegChains(planted.skeleton, q).frames(q[:, LEG_DOFS], q[:, ROOT_Z])
+    _, heading = foot_axes(orientation)
     locks = []
-    for side in (0, 1):
-        for first, last in mask_runs(planted.stances[:, side]):
-            flat = first + int(np.argmin(points[first:last, side, 1:, 2].max(axis=1)))
-            t0, t1 = (first - start) * step, (last - 1 - start) * step
-            if t1 >= -BLEND_S and t0 <= (stop - start) * step + BLEND_S:
-                locks.append([side, t0, t1, *points[flat, side, 1, :2], heading[flat, side]])
+    for side, first, last in runs:
+        at = np.searchsorted(rows, np.arange(first, last))
+        flat = at[np.argmin(points[at, side, 1:, 2].max(axis=1))]
+        locks.append([side, (first - start) * step, (last - 1 - start) * step,
+                      *points[flat, side, 1, :2], heading[flat, side]])
     return np.array(locks, dtype=np.float64).reshape(-1, 6)
 
 
