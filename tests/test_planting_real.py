@@ -130,3 +130,58 @@ def test_no_body_is_lowered_by_more_than_its_feet_hover(planted_entries):
         assert lowered <= max(level, 0.0) + 0.005, (name, lowered, level)
     assert any(level == 0.0 and np.abs(p - q).max() < 1e-4 for _, _, q, level, p in planted_entries)
 
+
+
+@pytest.fixture(scope="module")
+def real_feet():
+    """Per moving real entry of the shared files (each on its own skeleton): its id and the
+    ContactMeasures of its cycle planted at 100 Hz as `mocaplib query` plants it."""
+    from walking_library import real_walks
+
+    from mocaplib.library.planting import plant_cycles
+
+    if not SHARED_C3D.is_dir():
+        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
+    library = real_walks()[0]
+    out = {}
+    for entry in library.entries:
+        velocities = np.array(entry.root_drift.velocities, float)
+        if entry.poulaine is None or not np.isfinite(velocities).all():
+            continue
+        period = float(entry.T)
+        out[entry.id] = plant_cycles(
+            library.entry_skeleton(entry.id),
+            lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
+            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE)).after
+    assert len(out) >= 10
+    return out
+
+
+def _worst_feet(real_feet) -> dict:
+    """The worst slide, penetration and hover (m) over the real entries, and where."""
+    return {name: max((getattr(m, name), entry) for entry, m in real_feet.items())
+            for name in ("slide_m", "penetration_m", "hover_m")}
+
+
+def test_planted_real_walks_feet_are_no_worse_than_measured(real_feet):
+    # measured: slide 13.8 mm and 4.4 mm below the floor (07_01_c0, its knee hyperextended
+    # by 12 deg: held at 0, the solved leg ends up to 14 mm from the stance's target), hover
+    # 46.5 mm (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm up,
+    # 0.16 s after that foot's stance, found as a stance of its own whose foot never lies
+    # flat); BTS_c0, Gait_c0 and Walking1_c0 meet every target
+    worst = _worst_feet(real_feet)
+    assert worst["slide_m"][0] <= 0.0145 and worst["penetration_m"][0] <= 0.0047, worst
+    assert worst["hover_m"][0] <= 0.047, worst
+    assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
+               for m in real_feet.values()) >= 3, real_feet
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: slide up to 13.8 "
+                   "mm and 4.4 mm below the floor (07_01_c0, a hyperextended knee held at 0: the "
+                   "solved leg ends up to 14 mm from the stance's target), flat-foot hover up to "
+                   "46.5 mm (PiG_Motion-FlatFoot-Full_c1: a short stance on the toe, the heel "
+                   "47-50 mm up); targets 2, 0.5 and 3 mm")
+def test_planted_real_walks_feet_meet_the_targets(real_feet):
+    worst = _worst_feet(real_feet)
+    assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
+    assert worst["hover_m"][0] <= 0.003, worst
