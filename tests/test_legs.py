@@ -34,7 +34,8 @@ def reference_solve(skeleton, q, targets, dofs, *, initial=None):
     prior = np.where(solved == ROOT_Z, legs.PELVIS_PRIOR, legs.PRIOR)
     start = q[:, solved].copy()
     out = q.copy()
-    out[:, solved] = np.clip(start if initial is None else initial[:, solved], lower, upper)
+    out[:, solved] = np.clip(start if initial is None else initial[:, solved],
+                             np.where(knees, legs.KNEE_START, lower), upper)
     wanted = targets.reshape(len(q), -1)
     for _ in range(legs.IK_ITERATIONS):
         points, jacobian = skeleton.marker_jacobian(out, segments, offsets)

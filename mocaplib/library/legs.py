@@ -70,6 +70,11 @@ IK_ITERATIONS, DAMPING, PRIOR, PELVIS_PRIOR = 12, 1e-5, 1e-6, 3e-2
 #: A solve stops when no DOF (the first solve: no pelvis height) moves by more than this in a
 #: step (rad, m).
 STEP_TOLERANCE = 1e-6
+#: A knee a solve would start straight or hyperextended starts flexed this much (rad): at a
+#: straight knee the Jacobian cannot tell bending from straightening, and a solve started there
+#: stays straight where the foot's target needs the knee bent (on 07_01_c0, whose knee the
+#: motion hyperextends by 12 deg, 14 mm from it; started at 0.02 rad, on it).
+KNEE_START = 0.02
 #: The DOFs solved: both legs, then the pelvis height.
 LEGS = tuple(segment_dofs("femur_l", "tibia_l", "foot_l") + segment_dofs("femur_r", "tibia_r",
                                                                          "foot_r"))
@@ -158,8 +163,8 @@ def solve_feet(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tup
                initial: np.ndarray | None = None) -> np.ndarray:
     """Poses (F, D) whose foot points meet ``targets`` (F, 2, 3, 3), solving the DOFs ``dofs``
     (:data:`LEGS`, or :data:`SOLVED`: with the pelvis height) near those of ``q`` (F, D), from
-    those of ``initial`` (default ``q``) on, until no DOF (with the pelvis height: no
-    pelvis height) moves by :data:`STEP_TOLERANCE`
+    those of ``initial`` (default ``q``; the knees flexed :data:`KNEE_START` at least) on, until
+    no DOF (with the pelvis height: no pelvis height) moves by :data:`STEP_TOLERANCE`
     (:func:`mocaplib.library.planting.plant_feet`, step 4). Each frame's normal equations are
     solved with the pelvis height eliminated (Schur complement): the two legs' blocks do not
     couple."""
@@ -172,7 +177,8 @@ def solve_feet(skeleton: Skeleton, q: np.ndarray, targets: np.ndarray, dofs: tup
     start, height = q[:, LEG_DOFS], q[:, ROOT_Z]
     out = q.copy() if initial is None else np.where(np.isin(np.arange(q.shape[1]), dofs),
                                                     initial, q)
-    angles = np.clip(out[:, LEG_DOFS], lower, upper)                         # (F, 2, K)
+    angles = np.clip(out[:, LEG_DOFS], np.where(np.isin(LEG_DOFS, KNEES), KNEE_START, lower),
+                     upper)                                                    # (F, 2, K)
     z = np.clip(out[:, ROOT_Z], lowest, highest) if pelvis else out[:, ROOT_Z]
     chains = LegChains(skeleton, out)
     wanted = targets.reshape(len(q), 2, 9)
