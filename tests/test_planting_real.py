@@ -29,11 +29,11 @@ HIPS = [DOF_NAMES.index(n) for n in ("hip_flexion_l", "hip_flexion_r")]
 #: Entries moving faster than this (m/s) are walks (the rest stand or turn on the spot).
 WALKING = 0.3
 #: The largest knee and hip flexion change (deg) planting makes on a real walk, measured 25.9
-#: and 13.0 (07_01_c0, whose left knee the motion hyperextends by 10.9 deg at the frame: held
-#: at 0, then bent 14.9 deg with the hip 13.0 deg less flexed so that the foot meets its lock).
+#: and 13.2 (07_01_c0, whose left knee the motion hyperextends by 10.9 deg at the frame: held
+#: at 0, then bent 14.9 deg with the hip 13.2 deg less flexed so that the foot meets its lock).
 KNEE_BOUND_DEG, HIP_BOUND_DEG = 26.5, 13.5
 #: The largest knee and hip flexion change (deg) planting chooses on a real walk: measured 14.9
-#: and 13.0, as above (from the knee held at 0).
+#: and 13.2, as above (from the knee held at 0).
 CHOSEN_KNEE_BOUND_DEG, CHOSEN_HIP_BOUND_DEG = 15.5, 13.5
 #: The knee and hip flexion change aimed at (deg): the leg moves only as much as holding the
 #: foot needs.
@@ -105,7 +105,7 @@ def test_planting_holds_hyperextended_knees_at_zero(planted_entries):
 
 @pytest.mark.xfail(strict=True, reason="measured on the 9 moving real entries of the shared files: "
                    "planting chooses to change a knee by up to 14.9 deg and a hip's flexion by up "
-                   "to 13.0 deg (the target 5 deg): 07_01_c0's left leg, whose knee the motion "
+                   "to 13.2 deg (the target 5 deg): 07_01_c0's left leg, whose knee the motion "
                    "hyperextends by up to 12 deg, its stance's target keeping the motion's leg "
                    "length (the knee bent as far as the motion hyperextends it, the hip extended; "
                    "held straight, the foot ends 14 mm from its lock); HC030A22_c3's right leg "
@@ -165,24 +165,27 @@ def _worst_feet(real_feet) -> dict:
 
 
 def test_planted_real_walks_feet_are_no_worse_than_measured(real_feet):
-    # measured: slide 5.2 mm and 1.0 mm below the floor (HC030A22_c0), hover 45.8 mm
-    # (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm up, 0.16 s
-    # after that foot's stance, found as a stance of its own whose foot never lies flat);
-    # BTS_c0, Gait_c0, HC030A22_c1, HC030A22_c2 and Walking1_c0 meet every target.
-    # 07_01_c0 (its knee hyperextended): 3.6 mm and 0.5 mm; held at the straight knee
-    # (legs.KNEE_START 0) it slid 13.8 mm and went 4.4 mm below the floor
+    # measured: slide 5.0 mm (PiG_Motion-FlatFoot-Full_c0), 0.5 mm below the floor (07_01_c0),
+    # hover 49.9 mm (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm
+    # up, 0.16 s after that foot's stance, found as a stance of its own whose foot never lies
+    # flat); BTS_c0, Gait_c0, HC030A22_c1, HC030A22_c2, HC030A22_c0 and Walking1_c0 meet every
+    # target. 07_01_c0 (its knee hyperextended) slides 3.6 mm: started at the straight knee
+    # (no legs.KNEE_START) it slid 13.8 mm and went 4.4 mm below the floor; HC030A22_c0 1.4
+    # mm: with a target beyond the leg's reach counted as no change of the knee (no
+    # continuation of the law of cosines past the straight knee) 5.2 mm
     worst = _worst_feet(real_feet)
-    assert worst["slide_m"][0] <= 0.0055 and worst["penetration_m"][0] <= 0.0011, worst
-    assert worst["hover_m"][0] <= 0.047, worst
+    assert worst["slide_m"][0] <= 0.0055 and worst["penetration_m"][0] <= 0.0006, worst
+    assert worst["hover_m"][0] <= 0.051, worst
     assert real_feet["07_01_c0"].slide_m <= 0.004, real_feet["07_01_c0"]
+    assert real_feet["HC030A22_c0"].slide_m <= 0.002, real_feet["HC030A22_c0"]
     assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
-               for m in real_feet.values()) >= 5, real_feet
+               for m in real_feet.values()) >= 6, real_feet
 
 
-@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: slide up to 5.2 "
-                   "mm and 1.0 mm below the floor (HC030A22_c0), flat-foot hover up to 45.8 mm "
-                   "(PiG_Motion-FlatFoot-Full_c1: a short stance on the toe, the heel 47-50 mm "
-                   "up); targets 2, 0.5 and 3 mm")
+@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: slide up to 5.0 "
+                   "mm (PiG_Motion-FlatFoot-Full_c0), 0.5 mm below the floor (07_01_c0), "
+                   "flat-foot hover up to 49.9 mm (PiG_Motion-FlatFoot-Full_c1: a short stance on "
+                   "the toe, the heel 47-50 mm up); targets 2, 0.5 and 3 mm")
 def test_planted_real_walks_feet_meet_the_targets(real_feet):
     worst = _worst_feet(real_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst

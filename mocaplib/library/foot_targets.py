@@ -96,7 +96,8 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     moves it that far (:func:`_rate_limited`). The knee's ``flexion`` (n,) rad in the motion;
     ``local``: ankle, heel, toe in the foot frame (3, 3) m; ``leg``: thigh and shank lengths, m
     (the knee's flexion follows the law of cosines, its constant term fitted to the motion's
-    flexion, which takes the joints' shifts in)."""
+    flexion, which takes the joints' shifts in; an ankle beyond the straight leg's reach counts
+    as a knee bent less than straight, as far as the law continued past 0 puts it)."""
     wanted = np.sum((ankle - hip) ** 2, axis=1)                 # the leg's length², m²
     pivots = {1.0: (heel, local[1]), -1.0: (toe, local[2])}
 
@@ -113,8 +114,12 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     constant = wanted - twice * np.cos(flexion)
 
     def knee(length2: np.ndarray) -> np.ndarray:
-        """Knee flexion (rad, 0 or more) of a leg whose ankle is length2 (m²) from its hip."""
-        return np.arccos(np.clip((length2 - constant) / twice, -1.0, 1.0))
+        """Knee flexion (rad) of a leg whose ankle is length2 (m²) from its hip; beyond the
+        straight leg's reach negative, as far as the law's continuation past 0 puts it (so that
+        a foot out of reach counts as a change of the knee)."""
+        x = (length2 - constant) / twice
+        beyond = np.sqrt(2.0 * np.maximum(x - 1.0, 0.0))       # arccos(x) ~ sqrt(2 (1 - x))
+        return np.where(x <= 1.0, np.arccos(np.clip(x, -1.0, 1.0)), -beyond)
 
     def length2(theta: np.ndarray) -> np.ndarray:
         """|ankle - hip|² (n,) m² at pitch ``theta`` (n,) rad, about the pivot its sign picks."""
@@ -151,7 +156,7 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     limited = _rate_limited(own + kept, lengths, ruled, own) - own
     moved = np.abs(limited - kept) > 1e-9
     out = ruled.copy()
-    out[moved] = nearest(constant + twice * np.cos(own + limited))[moved]
+    out[moved] = nearest(constant + twice * np.cos(np.maximum(own + limited, 0.0)))[moved]
     return out
 
 

@@ -81,11 +81,12 @@ the knee's largest change in a frame is the motion's own, to the solve's toleran
 
 **On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
 own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
-floor at push-off and the feet hover up to 47 mm; planted, 5 of 14 meet every target, the
-others slide up to 5.2 mm and go 1.0 mm below the floor (HC030A22_c0), and one foot stands
-0.13 s on its toe, its heel 46 mm up (PiG_Motion-FlatFoot-Full_c1). Planting changes a knee by
-up to 25.9 deg and a hip's flexion by up to 13.0 deg; the joint limits force up to 12.3 deg of
-it, planting chooses up to 14.9 and 13.0 deg (target 5 deg, not met): 07_01_c0's left leg,
+floor at push-off and the feet hover up to 47 mm; planted, 6 of 14 meet every target, the
+others slide up to 5.0 mm (PiG_Motion-FlatFoot-Full_c0) and go 0.5 mm below the floor
+(07_01_c0), and one foot stands 0.13 s on its toe, its heel 50 mm up
+(PiG_Motion-FlatFoot-Full_c1). Planting changes a knee by up to 25.9 deg and a hip's flexion by
+up to 13.2 deg; the joint limits force up to 12.3 deg of
+it, planting chooses up to 14.9 and 13.2 deg (target 5 deg, not met): 07_01_c0's left leg,
 whose knee the motion hyperextends, the stance's target keeping the motion's leg length (the
 knee bent as far as the motion hyperextends it: held straight, the foot ends 14 mm from its
 target); HC030A22_c3's right leg in the swing between a stance and a short stance on its toe

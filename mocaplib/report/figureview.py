@@ -5,7 +5,7 @@ stick figure, posed by forward kinematics in JavaScript from :func:`skeleton_dat
 description of docs/library-format.md, "Posing the skeleton") and from the entry's series with
 its feet planted as ``mocaplib query`` writes them
 (:func:`mocaplib.library.planting.planted_series`), each leg then moved in JavaScript to its
-foot's lock (``plantedPose``: on the samples nothing slides more than 1.4 mm or goes below the
+foot's lock (``plantedPose``: on the samples nothing slides more than 1.8 mm or goes below the
 floor, tests/test_planting.py), and plays the blend of a control-space point picked with the
 mouse (from its series alone), located in the tetrahedra of the control space's gait cells with
 side-steps put on the cone, as ``mocaplib query`` locates a command (:func:`viewer_data`'s
@@ -24,7 +24,7 @@ from ..export.bvh import end_sites
 from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra, frontal_tetrahedra
 from ..library.foot_targets import APPROACH_SPEED, BLEND_S
-from ..library.legs import KNEES, LEG_DOFS, LEG_SEGMENTS
+from ..library.legs import KNEE_START, KNEES, LEG_DOFS, LEG_SEGMENTS
 from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
@@ -46,7 +46,9 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     translation], parents before children), ``ends`` (segment index -> points drawn in its
     frame, m: head top, finger tip, heel and toe), ``lines`` (pairs of segment indices),
     ``feet`` (left, right: the foot's segment index, its leg's DOF indices hip to ankle and the
-    knee's) and ``fade_s``, the time over which a lock's correction fades in and out (s)."""
+    knee's), ``fade_s``, the time over which a lock's correction fades in and out (s),
+    ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`) and
+    ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`)."""
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -62,7 +64,7 @@ def skeleton_data(skeleton: Skeleton) -> dict:
             "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES],
             "feet": [{"segment": int(segment), "dofs": dofs.tolist(), "knee": int(knee)}
                      for segment, dofs, knee in zip(LEG_SEGMENTS[:, 2], LEG_DOFS, KNEES)],
-            "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED}
+            "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED, "knee_start": KNEE_START}
 
 
 def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1,

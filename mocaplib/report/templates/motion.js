@@ -241,10 +241,13 @@ var MocapMotion = (function () {
   }
 
   // Pose q with its leg's DOFs (foot.dofs) moved so that the foot's ankle, heel and toe reach
-  // targets (9 numbers, m): damped Gauss-Newton steps on a forward-difference Jacobian, the
-  // knee kept at 0 or more, until no DOF moves by REACH_TOLERANCE rad.
+  // targets (9 numbers, m): damped Gauss-Newton steps on a forward-difference Jacobian from
+  // the knee bent skeleton.knee_start at least (at a straight knee the Jacobian cannot tell
+  // bending from straightening), the knee kept at 0 or more, until no DOF moves by
+  // REACH_TOLERANCE rad.
   function reach(skeleton, q, foot, targets) {
     q = q.slice();
+    q[foot.knee] = Math.max(q[foot.knee], skeleton.knee_start);
     for (var step = 0; step < REACH_STEPS; step++) {
       var p = footPoints(skeleton, q, foot);
       var columns = foot.dofs.map(function (d) {
