@@ -170,9 +170,9 @@ def test_planted_real_walks_feet_are_no_worse_than_measured(real_feet):
     # up, 0.16 s after that foot's stance, found as a stance of its own whose foot never lies
     # flat); BTS_c0, Gait_c0, HC030A22_c1, HC030A22_c2, HC030A22_c0 and Walking1_c0 meet every
     # target. 07_01_c0 (its knee hyperextended) slides 3.6 mm: started at the straight knee
-    # (no legs.KNEE_START) it slid 13.8 mm and went 4.4 mm below the floor; HC030A22_c0 1.4
-    # mm: with a target beyond the leg's reach counted as no change of the knee (no
-    # continuation of the law of cosines past the straight knee) 5.2 mm
+    # (legs.KNEE_START 0) it slides 13.8 mm and goes 4.4 mm below the floor; HC030A22_c0 1.4
+    # mm: with a target beyond the leg's reach counted as no change of the knee (the law of
+    # cosines not continued past the straight knee) 5.2 mm
     worst = _worst_feet(real_feet)
     assert worst["slide_m"][0] <= 0.0055 and worst["penetration_m"][0] <= 0.0006, worst
     assert worst["hover_m"][0] <= 0.051, worst
