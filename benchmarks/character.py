@@ -54,7 +54,7 @@ from mocaplib.gait.fourier import RootDrift, synthesize  # noqa: E402
 from mocaplib.library.controlspace import ControlSpace  # noqa: E402
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.library.legs import KNEES  # noqa: E402
-from mocaplib.library.planting import cycle_contact, plant_blend, planted_series  # noqa: E402
+from mocaplib.library.planting import cycle_contact, plant_blend  # noqa: E402
 from mocaplib.library.retarget import retarget  # noqa: E402
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
@@ -74,7 +74,7 @@ def moving_entries(library) -> list:
 def query_rows(library) -> pd.DataFrame:
     """One row per entry: its type and the planted blend's feet before and after."""
     cs = ControlSpace.from_library(library)
-    shown = dict(viewer_contact(library, RATE))
+    shown = {entry: (feet, series) for entry, feet, series in viewer_contact(library, RATE)}
     rows = []
     for entry in moving_entries(library):
         answer = cs.query([[entry.v, entry.omega, entry.v_l]])
@@ -84,12 +84,10 @@ def query_rows(library) -> pd.DataFrame:
         before, after = planted.before, planted.after
         period = float(entry.T)
         drift = RootDrift(0.0, 0.0, 0.0, *entry.root_drift.velocities)
-        series = planted_series(library.skeleton, entry.fourier.a, entry.fourier.b, period,
-                                drift)
+        viewer, series = shown[entry.id]
         alone = cycle_contact(library.skeleton,
                               lambda t: synthesize(series.a, series.b, period, t), drift,
                               period, RATE, round(period * RATE))
-        viewer = shown[entry.id]
         rows.append({"entry": entry.id, "type": locomotion_type(entry.id.rsplit("_c", 1)[0], sided=False),
                      "slide_before": before.slide_m, "below_before": before.penetration_m,
                      "hover_before": before.hover_m, "slide": after.slide_m,

@@ -276,7 +276,7 @@ def _viewer_feet(library) -> np.ndarray:
     from viewer_poses import viewer_contact
 
     return np.max([[m.slide_m, m.penetration_m, m.hover_m]
-                   for _, m in viewer_contact(library)], axis=0)
+                   for _, m, _ in viewer_contact(library)], axis=0)
 
 
 @pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")

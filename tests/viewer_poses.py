@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from mocaplib.gait.fourier import RootDrift
-from mocaplib.library.planting import ContactMeasures, contact_measures, planted_series, \
-    stance_frames
+from mocaplib.library.planting import (ContactMeasures, PlantedSeries, contact_measures,
+                                       planted_series, stance_frames)
 from mocaplib.report.figureview import skeleton_data
 
 NODE = shutil.which("node")
@@ -33,10 +33,11 @@ def viewer_poses(skeleton, entries: list[dict]) -> list[np.ndarray]:
     return [np.array(q) for q in json.loads(done.stdout)]
 
 
-def viewer_contact(library, rate: float = 100.0) -> list[tuple[str, ContactMeasures]]:
+def viewer_contact(library, rate: float = 100.0
+                   ) -> list[tuple[str, ContactMeasures, PlantedSeries]]:
     """Each entry with a finite drift and its feet as the viewer poses its planted series
     (:func:`~mocaplib.library.planting.planted_series`) at ``rate`` Hz, over one cycle, its
-    stances whole (one cycle more on each side): ``(id, ContactMeasures)``."""
+    stances whole (one cycle more on each side): ``(id, ContactMeasures, the series)``."""
     jobs, padded = [], []
     for e in library.entries:
         velocities = np.array(e.root_drift.velocities, dtype=np.float64)
@@ -49,11 +50,12 @@ def viewer_contact(library, rate: float = 100.0) -> list[tuple[str, ContactMeasu
         jobs.append({"a": series.a.tolist(), "b": series.b.tolist(), "T": period,
                      "drift": velocities.tolist(), "locks": series.locks.tolist(),
                      "times": np.mod(t, period).tolist()})
-        padded.append((e.id, drift, t, (frames, 2 * frames)))
+        padded.append((e.id, drift, t, (frames, 2 * frames), series))
     out = []
-    for (entry, drift, t, window), q in zip(padded, viewer_poses(library.skeleton, jobs)):
+    for (entry, drift, t, window, series), q in zip(padded,
+                                                    viewer_poses(library.skeleton, jobs)):
         world = drift.restore(q, t)
         stance = stance_frames(library.skeleton, world, rate)
         out.append((entry, contact_measures(library.skeleton, world, rate, stance,
-                                            window=window)))
+                                            window=window), series))
     return out

@@ -37,6 +37,12 @@ def mask_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2], edges[1::2]))
 
 
+def flattest(heights: np.ndarray) -> int:
+    """The frame where a foot lies flattest: where the higher of its heel and toe, ``heights``
+    (n, 2) m over a stance's n frames, is lowest."""
+    return int(np.argmin(heights.max(axis=1)))
+
+
 def foot_axes(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pitch (toes up > 0) and heading (rad) of feet with orientations ``R`` (..., 3, 3)."""
     x = R[..., :, 0]
@@ -57,7 +63,7 @@ def foot_targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: fl
     length = local[2, 0] - local[1, 0]
     frame, side, heel, psi = [], [], [], []
     for s, start, stop in runs:                # each run locked at its flattest frame
-        flat = start + int(np.argmin(points[start:stop, s, 1:, 2].max(axis=1)))
+        flat = start + flattest(points[start:stop, s, 1:, 2])
         frame.append(np.arange(start, stop))
         side.append(np.full(stop - start, s))
         heel.append(np.tile([*points[flat, s, 1, :2], 0.0], (stop - start, 1)))
@@ -160,7 +166,7 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     return out
 
 
-def _flattest(pitch: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def _nearest_level(pitch: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     """The index (runs,) of the frame of least absolute ``pitch`` (n,) in each of the
     consecutive runs of ``lengths`` frames."""
     return np.lexsort((np.abs(pitch), np.repeat(np.arange(len(lengths)), lengths)))[
@@ -172,7 +178,7 @@ def _laid_flat(pitch: np.ndarray, lengths: np.ndarray, sole: float) -> np.ndarra
     sole ``sole`` m long) comes within :data:`FLAT_RISE` of lying flat laid flat where it lies
     flattest: its pitch there taken off, less by a smoothstep towards the run's ends."""
     first = np.cumsum(lengths) - lengths
-    anchor = _flattest(pitch, lengths)
+    anchor = _nearest_level(pitch, lengths)
     offset = pitch[anchor] * (np.abs(np.sin(pitch[anchor])) * sole <= FLAT_RISE)
     run = np.repeat(np.arange(len(lengths)), lengths)
     away = np.arange(len(pitch)) - anchor[run]
@@ -188,7 +194,7 @@ def _rate_limited(values: np.ndarray, lengths: np.ndarray, tilt: np.ndarray,
     is nearest 0 in the run, each frame away from there clipped to that step from the one before
     it on the way out."""
     first = np.cumsum(lengths) - lengths
-    anchor = _flattest(tilt, lengths)
+    anchor = _nearest_level(tilt, lengths)
     steps = np.abs(np.diff(reference, prepend=reference[:1]))
     steps[first] = 0.0
     step = np.maximum.reduceat(steps, first)                        # (runs,)

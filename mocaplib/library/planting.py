@@ -110,7 +110,7 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
 from ..gait.fourier import RootDrift, fit_series, synthesize
 from ..skeleton import ROOT_Z, Skeleton
-from .foot_targets import BLEND_S, foot_axes, foot_targets, mask_runs
+from .foot_targets import BLEND_S, flattest, foot_axes, foot_targets, mask_runs
 from .legs import LEG_DOFS, LEGS, SOLVED, LegChains, solve_feet
 
 #: Stance: the slower sole point moves at most CONTACT_SPEED horizontally (m/s), the lower is
@@ -238,7 +238,7 @@ def standing_level(sole: np.ndarray, stance: np.ndarray, /) -> float:
     heel and toe is lowest); ``sole`` (F, 2, 2, 3) m as :func:`sole_points` gives it."""
     heights = [sole[start:stop, side, :, 2] for side in (0, 1)
                for start, stop in mask_runs(stance[:, side])]
-    return float(np.median([run[np.argmin(run.max(axis=1))].mean() for run in heights]))
+    return float(np.median([run[flattest(run)].mean() for run in heights]))
 
 
 def plant_feet(skeleton: Skeleton, q: np.ndarray, rate: float, /, *,
@@ -352,7 +352,7 @@ def _locks(planted: Planted, step: float) -> np.ndarray:
     locks = []
     for side, first, last in runs:
         at = np.searchsorted(rows, np.arange(first, last))
-        flat = at[np.argmin(points[at, side, 1:, 2].max(axis=1))]
+        flat = at[flattest(points[at, side, 1:, 2])]
         locks.append([side, (first - start) * step, (last - 1 - start) * step,
                       *points[flat, side, 1, :2], heading[flat, side]])
     return np.array(locks, dtype=np.float64).reshape(-1, 6)

@@ -303,6 +303,26 @@ var MocapMotion = (function () {
     return reach(skeleton, q, foot, lockedFoot(skeleton, foot, lock, drift, t, footPitch(skeleton, q, foot)));
   }
 
+  // How far (rad) the leg DOFs of the foot of `side` move, in pose q of entry at time t, to
+  // meet lock at t.
+  function correction(skeleton, entry, side, lock, t, q) {
+    var moved = locked(skeleton, q, side, lock, entry.drift, t);
+    return skeleton.feet[side].dofs.map(function (d) { return moved[d] - q[d]; });
+  }
+
+  // The correction at a lock's end (time edge, s), computed once for each lock and end (a
+  // page's lock belongs to one entry on one skeleton).
+  var edgeCorrections = new WeakMap();
+  function edgeCorrection(skeleton, entry, side, lock, edge) {
+    var ends = edgeCorrections.get(lock) || {};
+    if (!(edge in ends)) {
+      ends[edge] = correction(skeleton, entry, side, lock, edge,
+                              synthesize(entry.a, entry.b, entry.T, edge));
+      edgeCorrections.set(lock, ends);
+    }
+    return ends[edge];
+  }
+
   // The pose of an entry {a, b, T, drift, locks} at time t (s) of its cycle (path frame),
   // its feet planted (above).
   function plantedPose(skeleton, entry, t) {
@@ -322,9 +342,9 @@ var MocapMotion = (function () {
         }
       });
       if (!near) { return; }
-      var base = edge === t ? q : synthesize(entry.a, entry.b, entry.T, edge);
-      var moved = locked(skeleton, base, side, near, entry.drift, edge);
-      foot.dofs.forEach(function (d) { out[d] += weight * (moved[d] - base[d]); });
+      var change = edge === t ? correction(skeleton, entry, side, near, t, q)
+                              : edgeCorrection(skeleton, entry, side, near, edge);
+      foot.dofs.forEach(function (d, k) { out[d] += weight * change[k]; });
     });
     skeleton.feet.forEach(function (foot, side) {
       var p = footPoints(skeleton, out, foot), short = clearance[side] - Math.min(p[5], p[8]);
