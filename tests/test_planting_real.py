@@ -11,6 +11,8 @@ motion hyperextends by 12 deg and planting holds at 0 changes by 12 deg, forced,
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 from conftest import SHARED_C3D
@@ -114,7 +116,8 @@ def test_planting_holds_hyperextended_knees_at_zero(planted_entries):
                    "PiG_Motion-FlatFoot-Full_c1's left foot, whose fitted sole stands pitched 6.8 "
                    "deg toes up, laid flat about its heel (11.4 deg); BTS_c0's left toe 55 mm "
                    "below the floor after toe-off turns the 30 deg it may and rises (9.2 deg); "
-                   "HC030A05_c0's right foot, pitched 2.5 deg toes up, laid flat (9.2 deg)")
+                   "HC030A05_c0's stance knee kept bent 2 deg where its ankle lies beyond the "
+                   "straight leg (7.4 deg)")
 def test_planting_chooses_to_move_real_knees_and_hips_by_at_most_the_target(planted_entries):
     assert _largest_change(planted_entries, KNEES, chosen=True) <= TARGET_DEG
     assert _largest_change(planted_entries, HIPS, chosen=True) <= TARGET_DEG
@@ -165,28 +168,61 @@ def _worst_feet(real_feet) -> dict:
 
 
 def test_planted_real_walks_feet_are_no_worse_than_measured(real_feet):
-    # measured: slide 5.0 mm (PiG_Motion-FlatFoot-Full_c0), 0.5 mm below the floor (07_01_c0),
-    # hover 49.9 mm (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm
-    # up, 0.16 s after that foot's stance, found as a stance of its own whose foot never lies
-    # flat); BTS_c0, Gait_c0, HC030A22_c1, HC030A22_c2, HC030A22_c0 and Walking1_c0 meet every
-    # target. 07_01_c0 (its knee hyperextended) slides 3.6 mm: started at the straight knee
-    # (legs.KNEE_START 0) it slides 13.8 mm and goes 4.4 mm below the floor; HC030A22_c0 1.4
-    # mm: with a target beyond the leg's reach counted as no change of the knee (the law of
-    # cosines not continued past the straight knee) 5.2 mm
+    # measured: no slide (0.00 mm), 0.01 mm below the floor, hover 49.9 mm
+    # (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm up, 0.16 s after
+    # that foot's stance, found as a stance of its own whose foot never lies flat; Walking3_c0
+    # 40.5, HC030A22_c3 11.7 and Qualisys_c0 6.3 mm likewise on a toe); the other 10 meet every
+    # target. A stance target the leg reaches only with its knee straighter than STANCE_KNEE
+    # slides: at 1.1 deg PiG_Motion-FlatFoot-Full_c0's toe 5.0 mm, with the ankle left beyond
+    # the straight leg 07_01_c0 and 07_12_c0 3.6 mm, HC030A05_c0 2.1, HC030A22_c0 1.4 mm
     worst = _worst_feet(real_feet)
-    assert worst["slide_m"][0] <= 0.0055 and worst["penetration_m"][0] <= 0.0006, worst
+    assert worst["slide_m"][0] <= 0.0005 and worst["penetration_m"][0] <= 0.0002, worst
     assert worst["hover_m"][0] <= 0.051, worst
-    assert real_feet["07_01_c0"].slide_m <= 0.004, real_feet["07_01_c0"]
-    assert real_feet["HC030A22_c0"].slide_m <= 0.002, real_feet["HC030A22_c0"]
     assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
-               for m in real_feet.values()) >= 6, real_feet
+               for m in real_feet.values()) >= 10, real_feet
 
 
-@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: slide up to 5.0 "
-                   "mm (PiG_Motion-FlatFoot-Full_c0), 0.5 mm below the floor (07_01_c0), "
-                   "flat-foot hover up to 49.9 mm (PiG_Motion-FlatFoot-Full_c1: a short stance on "
-                   "the toe, the heel 47-50 mm up); targets 2, 0.5 and 3 mm")
+@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: flat-foot hover up "
+                   "to 49.9 mm (PiG_Motion-FlatFoot-Full_c1: a short stance on the toe, the heel "
+                   "47-50 mm up; Walking3_c0 40.5 mm); slide 0.00 mm, 0.01 mm below the floor; "
+                   "targets 2, 0.5 and 3 mm")
 def test_planted_real_walks_feet_meet_the_targets(real_feet):
     worst = _worst_feet(real_feet)
+    assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
+    assert worst["hover_m"][0] <= 0.003, worst
+
+
+@pytest.fixture(scope="module")
+def real_viewer_feet():
+    """{entry id: ContactMeasures} of each moving real entry's cycle as the report's viewer
+    poses it in JavaScript (tests/viewer_poses.py), measured at 100 Hz."""
+    from viewer_poses import viewer_contact
+    from walking_library import real_walks
+
+    if not SHARED_C3D.is_dir():
+        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
+    if shutil.which("node") is None:
+        pytest.skip("node is not installed")
+    return {entry: m for entry, m, _ in viewer_contact(real_walks()[0])
+            if not entry.startswith("running")}
+
+
+def test_the_report_viewers_real_walks_are_no_worse_than_measured(real_viewer_feet):
+    # measured: slide 17.9 mm (07_12_c0), HC030A22_c3 8.8, PiG_Motion-FlatFoot-Full_c0 6.9;
+    # hover 25.9 mm (PiG_Motion-FlatFoot-Full_c1, its stance on the toe); 10 of 14 meet every
+    # target. Posed with the series' pitch where the leg cannot reach it, the viewer slid up
+    # to 265 mm (HC030A05_c0) and 9 of 14 missed
+    worst = _worst_feet(real_viewer_feet)
+    assert worst["slide_m"][0] <= 0.0185 and worst["penetration_m"][0] <= 0.0002, worst
+    assert worst["hover_m"][0] <= 0.0265, worst
+    assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
+               for m in real_viewer_feet.values()) >= 10, real_viewer_feet
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries in the report's "
+                   "viewer: slide up to 17.9 mm (07_12_c0), hover 25.9 mm "
+                   "(PiG_Motion-FlatFoot-Full_c1); targets 2, 0.5 and 3 mm")
+def test_the_report_viewers_real_walks_meet_the_targets(real_viewer_feet):
+    worst = _worst_feet(real_viewer_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
     assert worst["hover_m"][0] <= 0.003, worst

@@ -20,6 +20,11 @@ BLEND_S, APPROACH_SPEED = 0.1, 0.2
 #: (rad), and beyond twice that takes the pitch that keeps the knee's flexion (within the 5 deg
 #: a knee may change: a foot tilted to save less hovers, on the samples' runs by 3.9 mm at 1 deg).
 KNEE_GAP = np.deg2rad(4.0)
+#: A stance foot's pitch keeps its knee bent this much (rad) at least: where the ankle would lie
+#: further from the hip, the pitch nearest the motion's that puts it there (near the straight
+#: knee the solve's Jacobian vanishes and it falls short: real walks' toes slid 5 mm, their knee
+#: targets at 1.1 deg).
+STANCE_KNEE = np.deg2rad(2.0)
 #: A fade spends this many times the knee change it makes (the smoothstep's steepest slope is
 #: 1.5 times its mean; the knee follows the foot's correction only nearly in proportion).
 FADE_MARGIN = 2.0
@@ -99,8 +104,10 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     nearest the motion's pitch, or the one that comes nearest where none keeps it), a linear
     blend between; then, outwards from the run's flattest frame, wherever that would move the
     knee further in a frame than the motion's knee moves at most in the run, the pitch that
-    moves it that far (:func:`_rate_limited`). The knee's ``flexion`` (n,) rad in the motion;
-    ``local``: ankle, heel, toe in the foot frame (3, 3) m; ``leg``: thigh and shank lengths, m
+    moves it that far (:func:`_rate_limited`); last, where the ankle would lie further from the
+    hip than the knee bent :data:`STANCE_KNEE` reaches, the pitch that puts it there. The
+    knee's ``flexion`` (n,) rad in the motion; ``local``: ankle, heel, toe in the foot frame
+    (3, 3) m; ``leg``: thigh and shank lengths, m
     (the knee's flexion follows the law of cosines, its constant term fitted to the motion's
     flexion, which takes the joints' shifts in; an ankle beyond the straight leg's reach counts
     as a knee bent less than straight, as far as the law continued past 0 puts it)."""
@@ -163,6 +170,8 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     moved = np.abs(limited - kept) > 1e-9
     out = ruled.copy()
     out[moved] = nearest(constant + twice * np.cos(np.maximum(own + limited, 0.0)))[moved]
+    beyond = knee(length2(out)) < STANCE_KNEE
+    out[beyond] = nearest(constant + twice * np.cos(STANCE_KNEE))[beyond]
     return out
 
 

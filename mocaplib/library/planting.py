@@ -81,10 +81,9 @@ the knee's largest change in a frame is the motion's own, to the solve's toleran
 
 **On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
 own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
-floor at push-off and the feet hover up to 47 mm; planted, 6 of 14 meet every target, the
-others slide up to 5.0 mm (PiG_Motion-FlatFoot-Full_c0) and go 0.5 mm below the floor
-(07_01_c0), and one foot stands 0.13 s on its toe, its heel 50 mm up
-(PiG_Motion-FlatFoot-Full_c1). Planting changes a knee by up to 25.9 deg and a hip's flexion by
+floor at push-off and the feet hover up to 47 mm; planted, 10 of 14 meet every target, no
+foot slides or goes more than 0.01 mm below the floor, and four stand a short stance on a toe,
+the heel up to 50 mm up (PiG_Motion-FlatFoot-Full_c1). Planting changes a knee by up to 25.9 deg and a hip's flexion by
 up to 13.2 deg; the joint limits force up to 12.3 deg of
 it, planting chooses up to 14.9 and 13.2 deg (target 5 deg, not met): 07_01_c0's left leg,
 whose knee the motion hyperextends, the stance's target keeping the motion's leg length (the
@@ -93,8 +92,9 @@ target); HC030A22_c3's right leg in the swing between a stance and a short stanc
 (the heel 20 mm up), found apart and locked at its own first frame (13.4 deg); a left foot whose
 fitted sole stands pitched 6.8 deg toes up, laid flat about its heel
 (PiG_Motion-FlatFoot-Full_c1, 11.4 deg); BTS_c0's left toe, 55 mm below the floor after toe-off,
-turned the :data:`~.foot_targets.MAX_TOE_TURN` it may and raised (9.2 deg); HC030A05_c0's right
-foot, pitched 2.5 deg toes up, laid flat (9.2 deg). It lowers no body by more than its feet's
+turned the :data:`~.foot_targets.MAX_TOE_TURN` it may and raised (9.2 deg); HC030A05_c0's
+stance knee kept bent :data:`~.foot_targets.STANCE_KNEE` where its ankle lies beyond the
+straight leg (7.4 deg). It lowers no body by more than its feet's
 hover in stance (at most 30 mm). There the knee's largest change in a frame is up to 1.8 times
 the motion's own (BTS_c0).
 """

@@ -23,7 +23,7 @@ from ..build.workers import run_tasks
 from ..export.bvh import end_sites
 from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra, frontal_tetrahedra
-from ..library.foot_targets import APPROACH_SPEED, BLEND_S
+from ..library.foot_targets import APPROACH_SPEED, BLEND_S, STANCE_KNEE
 from ..library.legs import KNEE_START, KNEES, LEG_DOFS, LEG_SEGMENTS
 from ..library.planting import planted_series
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
@@ -45,10 +45,12 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     joint centre ``offset`` in the parent's frame (m), ``dofs`` as [DOF index, axis, is a
     translation], parents before children), ``ends`` (segment index -> points drawn in its
     frame, m: head top, finger tip, heel and toe), ``lines`` (pairs of segment indices),
-    ``feet`` (left, right: the foot's segment index, its leg's DOF indices hip to ankle and the
-    knee's), ``fade_s``, the time over which a lock's correction fades in and out (s),
-    ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`) and
-    ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`)."""
+    ``feet`` (left, right: the foot's segment index, its thigh's, its leg's DOF indices hip to
+    ankle and the knee's), ``fade_s``, the time over which a lock's correction fades in and
+    out (s),
+    ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`),
+    ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`) and ``stance_knee`` (rad,
+    :data:`~mocaplib.library.foot_targets.STANCE_KNEE`)."""
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -62,9 +64,12 @@ def skeleton_data(skeleton: Skeleton) -> dict:
         ends[SEGMENT_NAMES.index(name)] = points
     return {"segments": segments, "ends": ends,
             "lines": [[SEGMENT_NAMES.index(a), SEGMENT_NAMES.index(b)] for a, b in EXTRA_LINES],
-            "feet": [{"segment": int(segment), "dofs": dofs.tolist(), "knee": int(knee)}
-                     for segment, dofs, knee in zip(LEG_SEGMENTS[:, 2], LEG_DOFS, KNEES)],
-            "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED, "knee_start": KNEE_START}
+            "feet": [{"segment": int(foot), "hip": int(thigh), "dofs": dofs.tolist(),
+                      "knee": int(knee)}
+                     for thigh, foot, dofs, knee in zip(LEG_SEGMENTS[:, 0], LEG_SEGMENTS[:, 2],
+                                                        LEG_DOFS, KNEES)],
+            "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED, "knee_start": KNEE_START,
+            "stance_knee": STANCE_KNEE}
 
 
 def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1,

@@ -205,7 +205,8 @@ var MocapMotion = (function () {
   // each leg moved so that its foot meets its lock: from entry.locks, rows [foot (0 left, 1
   // right), t0, t1 (s from the cycle's start), heel x, y (m), heading (rad)] in the path frame
   // at t = 0, the foot locked between t0 and t1, its heel (or, when its toes point down, its
-  // toe, a sole's length ahead) on the floor there with the foot's pitch of the series; within
+  // toe, a sole's length ahead) on the floor there with the foot's pitch of the series (or,
+  // where the leg cannot reach that, the pitch nearest it that it reaches); within
   // skeleton.fade_s of a lock the leg takes the lock's correction at its end, weighted by a
   // smoothstep, and its foot stays above the floor by skeleton.approach_speed times the time
   // to the lock (times the share of skeleton.fade_s still ahead); a foot below the floor (or
@@ -296,11 +297,43 @@ var MocapMotion = (function () {
     return Math.atan2(W[8], Math.hypot(W[0], W[4]));
   }
 
+  // The pitch (rad) of a foot locked by `lock` at time t, from its pitch in pose q: kept
+  // where the leg reaches the ankle with its knee bent skeleton.stance_knee at least, else the
+  // pitch nearest it, rolling on the heel (>= 0) or the toe (< 0), that puts the ankle at that
+  // reach from the hip (as the planting's stance pitch does).
+  function reachablePitch(skeleton, q, foot, lock, drift, t) {
+    var pitch = footPitch(skeleton, q, foot), bent = q.slice();
+    bent[foot.knee] = skeleton.stance_knee;
+    var B = forward(skeleton, bent), thigh = B[foot.hip], sole = B[foot.segment];
+    var hip = [thigh[3], thigh[7], thigh[11]], straight = sub([sole[3], sole[7], sole[11]], hip);
+    var reach2 = dot(straight, straight);
+    var at = lockedFoot(skeleton, foot, lock, drift, t, pitch), ankle = sub(at.slice(0, 3), hip);
+    if (dot(ankle, ankle) <= reach2) { return pitch; }
+    var ends = skeleton.ends[foot.segment], heading = lock[5] - frame(drift, t)[2];
+    var along = [Math.cos(heading), Math.sin(heading), 0];
+    var level = lockedFoot(skeleton, foot, lock, drift, t, 0);
+    var best = pitch, miss = Infinity;
+    [[1, level.slice(3, 6), ends[0]], [-1, level.slice(6, 9), ends[1]]].forEach(function (pivot) {
+      var sign = pivot[0], d = sub(pivot[1], hip), point = pivot[2];
+      var rest = Math.atan2(-point[2], -point[0]), arm = Math.hypot(point[0], point[2]);
+      var df = dot(d, along), span = Math.max(2 * arm * Math.hypot(df, d[2]), 1e-12);
+      var cosine = Math.min(1, Math.max(-1, (reach2 - dot(d, d) - arm * arm) / span));
+      [Math.acos(cosine), -Math.acos(cosine)].forEach(function (root) {
+        var theta = Math.atan2(d[2], df) + root - rest;
+        theta = Math.atan2(Math.sin(theta), Math.cos(theta));
+        theta = sign * Math.max(sign * theta, 0);
+        if (Math.abs(theta - pitch) < miss) { best = theta; miss = Math.abs(theta - pitch); }
+      });
+    });
+    return best;
+  }
+
   // Pose q (the series at time t within the cycle) moved so that the foot of `side` meets
   // lock at time t.
   function locked(skeleton, q, side, lock, drift, t) {
     var foot = skeleton.feet[side];
-    return reach(skeleton, q, foot, lockedFoot(skeleton, foot, lock, drift, t, footPitch(skeleton, q, foot)));
+    return reach(skeleton, q, foot, lockedFoot(skeleton, foot, lock, drift, t,
+                                               reachablePitch(skeleton, q, foot, lock, drift, t)));
   }
 
   // How far (rad) the leg DOFs of the foot of `side` move, in pose q of entry at time t, to
