@@ -208,9 +208,10 @@ def real_viewer_feet():
 
 
 def test_the_report_viewers_real_walks_are_no_worse_than_measured(real_viewer_feet):
-    # measured: slide 17.9 mm (07_12_c0), HC030A22_c3 8.8, PiG_Motion-FlatFoot-Full_c0 6.9;
-    # hover 25.9 mm (PiG_Motion-FlatFoot-Full_c1, its stance on the toe); 10 of 14 meet every
-    # target. Posed with the series' pitch where the leg cannot reach it, the viewer slid up
+    # measured: slide 17.9 mm (07_12_c0: its left toe, fitted again in the series, touches the
+    # floor 0.16 s before that foot's lock starts), HC030A22_c3 8.8, PiG_Motion-FlatFoot-Full_c0
+    # 6.9; hover 25.9 mm (PiG_Motion-FlatFoot-Full_c1, its stance on the toe); 10 of 14 meet
+    # every target. Posed with the series' pitch where the leg cannot reach it, the viewer slid up
     # to 265 mm (HC030A05_c0) and 9 of 14 missed
     worst = _worst_feet(real_viewer_feet)
     assert worst["slide_m"][0] <= 0.0185 and worst["penetration_m"][0] <= 0.0002, worst
