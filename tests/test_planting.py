@@ -234,6 +234,44 @@ def test_stances_end_at_the_entries_toe_offs():
             assert len(ends) >= 2 and np.abs(phase).max() <= 0.1, (entry_id, side, phase)
 
 
+def _sole_track(heights, shifts, rate=100.0):
+    """Sole points (F, 2, 2, 3) m for the stance rule: the left foot's heel and toe at
+    ``heights`` (F, 2) m, moved ``shifts`` (F,) m forward; the right foot standing still."""
+    frames = len(heights)
+    sole = np.zeros((frames, 2, 2, 3))
+    sole[:, :, 1, 0] = 0.2                                   # the toe 20 cm ahead of the heel
+    sole[:, 1, :, 1] = 0.3
+    sole[:, 0, :, 0] += shifts[:, None]
+    sole[:, 0, :, 2] = heights
+    return sole
+
+
+def test_a_foot_rolling_on_the_floor_is_one_stance_and_a_low_step_two():
+    from mocaplib.library.planting import ROLL_SHIFT, _stance
+
+    # 0.4 s flat; 0.06 s both ends 15 mm up as a pitched sole rolls from heel to toe (beyond
+    # CONTACT_RISE, within ROLL_RISE), the foot in place; 0.1 s on its toe, then away
+    still, roll, toe, away = 40, 6, 10, 30
+    heights = np.zeros((still + roll + toe + away, 2))
+    heights[still:still + roll] = 0.015
+    heights[still + roll:, 0] = 0.05
+    heights[still + roll + toe:] = 0.1
+    shifts = np.r_[np.zeros(still + roll + toe), 0.02 * np.arange(1, away + 1)]
+    stance = _stance(_sole_track(heights, shifts), 100.0)
+    lifted = still + roll + toe - 1                          # its speed sees the foot leave
+    assert stance[:lifted, 0].all() and not stance[lifted:, 0].any(), stance[:, 0]
+    assert stance[:, 1].all()
+    # the same foot stepping low (15 mm up) and slowly (0.2 m/s) to a place 8 cm on: two stances
+    step = 40
+    heights = np.zeros((still + step + still, 2))
+    heights[still:still + step] = 0.015
+    shifts = np.r_[np.zeros(still), np.linspace(0.0, 0.08, step), np.full(still, 0.08)]
+    assert 0.08 > 2 * ROLL_SHIFT
+    stance = _stance(_sole_track(heights, shifts), 100.0)
+    edges = np.flatnonzero(np.diff(stance[:, 0].astype(int)))
+    assert len(edges) == 2 and stance[0, 0] and stance[-1, 0], edges
+
+
 def test_a_retargeted_walk_is_planted_and_loops(tmp_path):
     from walking_library import synthetic_walks
 

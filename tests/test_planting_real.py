@@ -110,11 +110,10 @@ def test_planting_holds_hyperextended_knees_at_zero(planted_entries):
                    "to 13.2 deg (the target 5 deg): 07_01_c0's left leg, whose knee the motion "
                    "hyperextends by up to 12 deg, its stance's target keeping the motion's leg "
                    "length (the knee bent as far as the motion hyperextends it, the hip extended; "
-                   "held straight, the foot ends 14 mm from its lock); HC030A22_c3's right leg "
-                   "in the swing between a stance and a short stance on its toe (the heel 20 mm "
-                   "up), found apart and locked at its own first frame (13.4 deg); "
+                   "held straight, the foot ends 14 mm from its lock); "
                    "PiG_Motion-FlatFoot-Full_c1's left foot, whose fitted sole stands pitched 6.8 "
-                   "deg toes up, laid flat about its heel (11.4 deg); BTS_c0's left toe 55 mm "
+                   "deg toes up, laid flat about its heel (11.4 deg), HC030A22_c3's right foot "
+                   "likewise (its toe 17-20 mm above its heel, 9.5 deg); BTS_c0's left toe 55 mm "
                    "below the floor after toe-off turns the 30 deg it may and rises (9.2 deg); "
                    "HC030A05_c0's stance knee kept bent 2 deg where its ankle lies beyond the "
                    "straight leg (7.4 deg)")
@@ -139,10 +138,12 @@ def test_no_body_is_lowered_by_more_than_its_feet_hover(planted_entries):
 @pytest.fixture(scope="module")
 def real_feet():
     """Per moving real entry of the shared files (each on its own skeleton): its id and the
-    ContactMeasures of its cycle planted at 100 Hz as `mocaplib query` plants it."""
+    ContactMeasures of its cycle planted at 100 Hz as `mocaplib query` plants it, over the
+    stances planting found and over those found again on the planted motion (what a reader of
+    the output sees: a foot touching the floor outside its locks counts there)."""
     from walking_library import real_walks
 
-    from mocaplib.library.planting import plant_cycles
+    from mocaplib.library.planting import contact_measures, plant_cycles
 
     if not SHARED_C3D.is_dir():
         pytest.skip(f"real C3D files not found at {SHARED_C3D}")
@@ -152,12 +153,15 @@ def real_feet():
         velocities = np.array(entry.root_drift.velocities, float)
         if entry.poulaine is None or not np.isfinite(velocities).all():
             continue
-        period = float(entry.T)
-        out[entry.id] = plant_cycles(
-            library.entry_skeleton(entry.id),
-            lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
-            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE)).after
-    assert len(out) >= 10
+        period, skeleton = float(entry.T), library.entry_skeleton(entry.id)
+        planted = plant_cycles(
+            skeleton, lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
+            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE))
+        out[entry.id] = planted.after
+        out[entry.id + " (output's stances)"] = contact_measures(
+            skeleton, planted.planted, RATE, stance_frames(skeleton, planted.planted, RATE),
+            window=planted.window)
+    assert len(out) >= 20
     return out
 
 
@@ -167,26 +171,15 @@ def _worst_feet(real_feet) -> dict:
             for name in ("slide_m", "penetration_m", "hover_m")}
 
 
-def test_planted_real_walks_feet_are_no_worse_than_measured(real_feet):
-    # measured: no slide (0.00 mm), 0.01 mm below the floor, hover 49.9 mm
-    # (PiG_Motion-FlatFoot-Full_c1: 0.13 s on the left toe, the heel 47-50 mm up, 0.16 s after
-    # that foot's stance, found as a stance of its own whose foot never lies flat; Walking3_c0
-    # 40.5, HC030A22_c3 11.7 and Qualisys_c0 6.3 mm likewise on a toe); the other 10 meet every
-    # target. A stance target the leg reaches only with its knee straighter than STANCE_KNEE
-    # slides: at 1.1 deg PiG_Motion-FlatFoot-Full_c0's toe 5.0 mm, with the ankle left beyond
-    # the straight leg 07_01_c0 and 07_12_c0 3.6 mm, HC030A05_c0 2.1, HC030A22_c0 1.4 mm
-    worst = _worst_feet(real_feet)
-    assert worst["slide_m"][0] <= 0.0005 and worst["penetration_m"][0] <= 0.0002, worst
-    assert worst["hover_m"][0] <= 0.051, worst
-    assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
-               for m in real_feet.values()) >= 10, real_feet
-
-
-@pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries: flat-foot hover up "
-                   "to 49.9 mm (PiG_Motion-FlatFoot-Full_c1: a short stance on the toe, the heel "
-                   "47-50 mm up; Walking3_c0 40.5 mm); slide 0.00 mm, 0.01 mm below the floor; "
-                   "targets 2, 0.5 and 3 mm")
 def test_planted_real_walks_feet_meet_the_targets(real_feet):
+    # measured on the 14 moving real entries: no slide (0.00 mm), 0.01 mm below the floor,
+    # hover 1.24 mm (HC030A22_c3). Two causes of misses, each asserted away here: a stance
+    # target the leg reaches only with its knee straighter than STANCE_KNEE (at 1.1 deg
+    # PiG_Motion-FlatFoot-Full_c0's toe slid 5.0 mm; with the ankle left beyond the straight
+    # leg 07_01_c0 and 07_12_c0 3.6 mm); a stance found as two, the lower sole point of a
+    # fitted sole pitched off the foot's rising more than CONTACT_RISE as it rolls, or the toe
+    # alone holding the floor after push-off (without ROLL_RISE, Walking3_c0's toe stance
+    # hovered 40.5 mm and, over the output's stances, its foot slid 51.9 mm; four entries)
     worst = _worst_feet(real_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
     assert worst["hover_m"][0] <= 0.003, worst
@@ -208,21 +201,21 @@ def real_viewer_feet():
 
 
 def test_the_report_viewers_real_walks_are_no_worse_than_measured(real_viewer_feet):
-    # measured: slide 17.9 mm (07_12_c0: its left toe, fitted again in the series, touches the
-    # floor 0.16 s before that foot's lock starts), HC030A22_c3 8.8, PiG_Motion-FlatFoot-Full_c0
-    # 6.9; hover 25.9 mm (PiG_Motion-FlatFoot-Full_c1, its stance on the toe); 10 of 14 meet
-    # every target. Posed with the series' pitch where the leg cannot reach it, the viewer slid up
-    # to 265 mm (HC030A05_c0) and 9 of 14 missed
+    # measured: slide 18.1 mm (07_12_c0: its left toe, fitted again in the series, touches the
+    # floor 0.16 s before that foot's lock starts), PiG_Motion-FlatFoot-Full_c0 6.9; nothing
+    # below the floor; hover 1.9 mm; 12 of 14 meet every target. Posed with the series' pitch
+    # where the leg cannot reach it, the viewer slid up to 265 mm (HC030A05_c0) and 9 of 14
+    # missed
     worst = _worst_feet(real_viewer_feet)
     assert worst["slide_m"][0] <= 0.0185 and worst["penetration_m"][0] <= 0.0002, worst
-    assert worst["hover_m"][0] <= 0.0265, worst
+    assert worst["hover_m"][0] <= 0.0025, worst
     assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
-               for m in real_viewer_feet.values()) >= 10, real_viewer_feet
+               for m in real_viewer_feet.values()) >= 12, real_viewer_feet
 
 
 @pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries in the report's "
-                   "viewer: slide up to 17.9 mm (07_12_c0), hover 25.9 mm "
-                   "(PiG_Motion-FlatFoot-Full_c1); targets 2, 0.5 and 3 mm")
+                   "viewer: slide up to 18.1 mm (07_12_c0; PiG_Motion-FlatFoot-Full_c0 6.9 mm); "
+                   "targets 2, 0.5 and 3 mm")
 def test_the_report_viewers_real_walks_meet_the_targets(real_viewer_feet):
     worst = _worst_feet(real_viewer_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst

@@ -11,7 +11,12 @@ foot is read from the motion itself: the frames where the slower of its heel and
 horizontally at most :data:`CONTACT_SPEED` and the lower of them is within
 :data:`CONTACT_RISE` of the foot's standing level (the median height of that lower point over
 the frames where the foot is still, below :data:`STILL_SPEED`), gaps of up to
-:data:`STANCE_GAP_S` bridged, in runs of at least :data:`MIN_STANCE_S`. A foot whose standing
+:data:`STANCE_GAP_S` bridged, in runs of at least :data:`MIN_STANCE_S`. Two such runs are one
+stance where the foot stays as slow between them, its lower point within :data:`ROLL_RISE` of
+the level, and one of its heel and toe ends within :data:`ROLL_SHIFT` of where it was: a rigid
+sole pitched off the real foot's lifts its lower point off the floor while rolling from heel to
+toe, and the toe alone holds the floor after push-off (on the real entries without it, four
+stances split in two: a toe stance apart, the foot sliding between them). A foot whose standing
 level is above :data:`MAX_LEVEL` has no stance (on the shared files' ``running_c5`` the feet
 stay 142 mm or more above the floor: it is not planted, its body not lowered). On the samples
 these stances end -0.011 to 0.079 s after the entries' toe-offs (events from foot-marker
@@ -81,22 +86,20 @@ the knee's largest change in a frame is the motion's own, to the solve's toleran
 
 **On real entries** (tests/test_planting_real.py, the shared files' library, each entry on its
 own skeleton): before planting the feet slide 20-30 mm, the rigid toe goes 33-67 mm below the
-floor at push-off and the feet hover up to 47 mm; planted, 10 of 14 meet every target, no
-foot slides or goes more than 0.01 mm below the floor, and four stand a short stance on a toe,
-the heel up to 50 mm up (PiG_Motion-FlatFoot-Full_c1). Planting changes a knee by up to 25.9 deg and a hip's flexion by
-up to 13.2 deg; the joint limits force up to 12.3 deg of
-it, planting chooses up to 14.9 and 13.2 deg (target 5 deg, not met): 07_01_c0's left leg,
-whose knee the motion hyperextends, the stance's target keeping the motion's leg length (the
-knee bent as far as the motion hyperextends it: held straight, the foot ends 14 mm from its
-target); HC030A22_c3's right leg in the swing between a stance and a short stance on its toe
-(the heel 20 mm up), found apart and locked at its own first frame (13.4 deg); a left foot whose
+floor at push-off and the feet hover up to 47 mm; planted, all 14 meet every target: no foot
+slides (0.00 mm, also over the stances found again on the planted motion), goes more than 0.01
+mm below the floor or hovers more than 1.3 mm. Planting changes a knee by up to 25.9 deg and a
+hip's flexion by up to 13.2 deg; the joint limits force up to 12.3 deg of it, planting chooses
+up to 14.9 and 13.2 deg (target 5 deg, not met): 07_01_c0's left leg, whose knee the motion
+hyperextends, the stance's target keeping the motion's leg length (the knee bent as far as the
+motion hyperextends it: held straight, the foot ends 14 mm from its target); a left foot whose
 fitted sole stands pitched 6.8 deg toes up, laid flat about its heel
-(PiG_Motion-FlatFoot-Full_c1, 11.4 deg); BTS_c0's left toe, 55 mm below the floor after toe-off,
-turned the :data:`~.foot_targets.MAX_TOE_TURN` it may and raised (9.2 deg); HC030A05_c0's
-stance knee kept bent :data:`~.foot_targets.STANCE_KNEE` where its ankle lies beyond the
-straight leg (7.4 deg). It lowers no body by more than its feet's
-hover in stance (at most 30 mm). There the knee's largest change in a frame is up to 1.8 times
-the motion's own (BTS_c0).
+(PiG_Motion-FlatFoot-Full_c1, 11.4 deg; HC030A22_c3's right foot likewise, 9.5 deg); BTS_c0's
+left toe, 55 mm below the floor after toe-off, turned the :data:`~.foot_targets.MAX_TOE_TURN` it
+may and raised (9.2 deg); HC030A05_c0's stance knee kept bent :data:`~.foot_targets.STANCE_KNEE`
+where its ankle lies beyond the straight leg (7.4 deg). It lowers no body by more than its
+feet's hover in stance (at most 30 mm). There the knee's largest change in a frame is up to 1.8
+times the motion's own (BTS_c0).
 """
 
 from __future__ import annotations
@@ -118,6 +121,12 @@ from .legs import LEG_DOFS, LEGS, SOLVED, LegChains, solve_feet
 #: is still below STILL_SPEED (m/s). Gaps of at most STANCE_GAP_S (s) within a stance are
 #: bridged (a foot rolling from heel to toe may move faster than CONTACT_SPEED for a frame).
 CONTACT_SPEED, CONTACT_RISE, MIN_STANCE_S, STILL_SPEED, STANCE_GAP_S = 0.3, 0.008, 0.1, 0.1, 0.03
+#: Contact runs of a foot that stays slow, its lower sole point within ROLL_RISE (m) of its
+#: standing level, between them, and one of its sole points within ROLL_SHIFT (m) of where it
+#: was, are one stance: a rigid sole pitched off the real foot's lifts its lower point off the
+#: floor while it rolls from heel to toe (by up to 24 mm for a 20 cm sole pitched 7 deg, as
+#: real entries' fitted soles stand) and as the toe alone holds the floor after push-off.
+ROLL_RISE, ROLL_SHIFT = 0.025, 0.02
 #: A foot whose standing level is higher than this above the floor (m) has no stance: it never
 #: comes near the floor (a run in flight, a floor not at z = 0), and the body is not lowered.
 MAX_LEVEL = 0.05
@@ -223,12 +232,23 @@ def _stance(sole: np.ndarray, rate: float) -> np.ndarray:
         level = np.median(low[still, side])
         if level > MAX_LEVEL:
             continue
-        contact = (speed[:, side] <= CONTACT_SPEED) & (low[:, side] <= level + CONTACT_RISE)
-        for start, stop in mask_runs(~contact):
-            if 0 < start and stop < len(contact) and stop - start <= bridge:
-                contact[start:stop] = True
-        for start, stop in mask_runs(contact):
-            out[start:stop, side] = stop - start >= shortest
+        slow = speed[:, side] <= CONTACT_SPEED
+        contact = slow & (low[:, side] <= level + CONTACT_RISE)
+        near = slow & (low[:, side] <= level + ROLL_RISE)
+        for mask in (contact, near):
+            for start, stop in mask_runs(~mask):
+                if 0 < start and stop < len(mask) and stop - start <= bridge:
+                    mask[start:stop] = True
+        for start, stop in mask_runs(near):
+            runs: list[list[int]] = []
+            for a, b in mask_runs(contact[start:stop]):
+                feet = sole[[runs[-1][1] - 1, start + a], side, :, :2] if runs else None
+                if runs and np.linalg.norm(feet[1] - feet[0], axis=-1).min() <= ROLL_SHIFT:
+                    runs[-1][1] = start + b
+                else:
+                    runs.append([start + a, start + b])
+            for a, b in runs:
+                out[a:b, side] = b - a >= shortest
     return out
 
 
