@@ -8,20 +8,20 @@ world frame.
 **Stance** (:func:`stance_frames`). A library entry stores its toe-offs (the left one at phase
 0, ``right_toe_off_s``), not its foot strikes, and a blend stores neither; the stance of each
 foot is read from the motion itself: the frames where the slower of its heel and toe moves
-horizontally at most :data:`CONTACT_SPEED` and the lower of them is within
-:data:`CONTACT_RISE` of the foot's standing level (the median height of that lower point over
-the frames where the foot is still, below :data:`STILL_SPEED`), gaps of up to
-:data:`STANCE_GAP_S` bridged, in runs of at least :data:`MIN_STANCE_S`. Two such runs are one
-stance where the foot stays as slow between them, its lower point within :data:`ROLL_RISE` of
-the level, and one of its heel and toe ends within :data:`ROLL_SHIFT` of where it was: a rigid
-sole pitched off the real foot's lifts its lower point off the floor while rolling from heel to
-toe, and the toe alone holds the floor after push-off (on the real entries without it, four
-stances split in two: a toe stance apart, the foot sliding between them). A foot whose standing
-level is above :data:`MAX_LEVEL` has no stance (on the shared files' ``running_c5`` the feet
-stay 142 mm or more above the floor: it is not planted, its body not lowered). On the samples
-these stances end -0.011 to 0.079 s after the entries' toe-offs (events from foot-marker
-kinematics), the latest where a side-stepping or turning foot pivots on its toe
-(tests/test_planting.py).
+horizontally at most :data:`CONTACT_SPEED` and the lower of them is within :data:`CONTACT_RISE`
+of the foot's standing level (the median height of that lower point over the frames where the
+foot is still, below :data:`STILL_SPEED`), gaps of up to :data:`STANCE_GAP_S` bridged, in runs
+of at least :data:`MIN_STANCE_S`. Two such runs are one stance where the foot stays as slow
+between them, its lower point within :data:`ROLL_RISE` of the level, and one of its heel and toe
+ends within :data:`ROLL_SHIFT` of where it was: a rigid sole pitched off the real foot's lifts
+its lower point off the floor while rolling from heel to toe, and the toe alone holds the floor
+after push-off (on the real entries without it, four stances split in two: a toe stance apart,
+the foot sliding between them). A motion planted at less than :data:`STANCE_RATE` has its
+stances read at that rate (:func:`plant_cycles`). A foot whose standing level is above
+:data:`MAX_LEVEL` has no stance (on the shared files' ``running_c5`` the feet stay 142 mm or
+more above the floor: it is not planted, its body not lowered). On the samples these stances end
+-0.011 to 0.079 s after the entries' toe-offs (events from foot-marker kinematics), the latest
+where a side-stepping or turning foot pivots on its toe (tests/test_planting.py).
 
 **Planting** (:func:`plant_feet`):
 
@@ -136,6 +136,10 @@ MAX_LEVEL = 0.05
 #: the samples its largest is 0.045 mm at the median entry; the planted series change by at
 #: most 0.0024 rad for it, the feet's measures not at all: benchmarks/character.py).
 PELVIS_SMOOTHING_S, PELVIS_TARGETS_TOLERANCE = 0.12, 1e-4
+#: :func:`plant_cycles` reads the stances from the motion sampled at this rate (Hz) at least:
+#: the contact rule's speeds and standing level need it (sampled at 30 Hz, a real entry's
+#: landing was found 0.15 s late).
+STANCE_RATE = 100.0
 #: Harmonics and sampling rate (Hz) of :func:`planted_series`.
 SERIES_ORDER, SERIES_RATE = 15, 30.0
 #: A sole point within this (m) of the floor touches it (:func:`contact_measures`).
@@ -242,14 +246,20 @@ def _stance(sole: np.ndarray, rate: float) -> np.ndarray:
         for start, stop in mask_runs(near):
             runs: list[list[int]] = []
             for a, b in mask_runs(contact[start:stop]):
-                feet = sole[[runs[-1][1] - 1, start + a], side, :, :2] if runs else None
-                if runs and np.linalg.norm(feet[1] - feet[0], axis=-1).min() <= ROLL_SHIFT:
-                    runs[-1][1] = start + b
-                else:
-                    runs.append([start + a, start + b])
+                a, b = start + a, start + b
+                if runs and _stays(sole[[runs[-1][1] - 1, a], side]):
+                    runs[-1][1] = b
+                    continue
+                runs.append([a, b])
             for a, b in runs:
                 out[a:b, side] = b - a >= shortest
     return out
+
+
+def _stays(ends: np.ndarray) -> bool:
+    """Whether a foot whose heel and toe are at ``ends`` (2, 2, 3) m in two frames kept one of
+    them within :data:`ROLL_SHIFT` of its place (horizontally)."""
+    return bool(np.linalg.norm(ends[1, :, :2] - ends[0, :, :2], axis=-1).min() <= ROLL_SHIFT)
 
 
 def standing_level(sole: np.ndarray, stance: np.ndarray, /) -> float:
@@ -307,11 +317,20 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     ``drift`` moves along, periodic in ``period`` s. The motion is planted with one period more
     on each side, so that a stance across the clip's ends is locked as a whole and a clip of
     whole cycles loops; a clip of whole cycles of a whole number of frames each is solved on
-    one cycle (``plant_feet``'s ``period``)."""
+    one cycle (``plant_feet``'s ``period``). Below :data:`STANCE_RATE` the stances are read
+    from the motion sampled at that rate."""
     q, window = _padded(angles, drift, period, rate, frames)
     steps = round(period * rate)
     whole = abs(period * rate - steps) < 1e-9 * steps and frames % steps == 0
-    return plant_feet(skeleton, q, rate, window=window, period=steps if whole else None)
+    stance = None
+    if rate < STANCE_RATE:          # read over the same span at STANCE_RATE: each frame's nearest
+        fine = (np.arange(int(np.ceil(len(q) / rate * STANCE_RATE))) / STANCE_RATE
+                - window[0] / rate)
+        found = stance_frames(skeleton, drift.restore(angles(fine), fine), STANCE_RATE)
+        nearest = np.round(np.arange(len(q)) / rate * STANCE_RATE).astype(int)
+        stance = found[np.minimum(nearest, len(found) - 1)]
+    return plant_feet(skeleton, q, rate, stance=stance, window=window,
+                      period=steps if whole else None)
 
 
 @dataclass(frozen=True)
