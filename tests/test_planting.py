@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bvh_reader import Character
-from conftest import SAMPLES
+from conftest import SAMPLES, SHARED_C3D
 
 from mocaplib.cli import main
 from mocaplib.export.formats import write
@@ -334,6 +334,34 @@ def test_the_report_viewers_feet_meet_the_targets_on_every_locomotion_type():
     # measured: slide 1.79 mm (diag_left_120_slow_c0), nothing below the floor, hover 1.24 mm
     slide, below, hover = _viewer_feet(sample_library()[0])
     assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER, (slide, below, hover)
+
+
+def test_stances_are_read_at_100_hz_when_planting_at_less():
+    from walking_library import real_walks
+
+    from mocaplib.gait.fourier import RootDrift
+    from mocaplib.library.planting import STANCE_RATE, _fine_stance, plant_cycles
+
+    library = real_walks()[0] if SHARED_C3D.is_dir() else sample_library()[0]
+    for entry in library.entries[:6]:
+        period = float(entry.T)
+        drift = RootDrift(0.0, 0.0, 0.0, *np.array(entry.root_drift.velocities, float))
+        if not np.isfinite(drift.u_f + drift.u_l + drift.omega):
+            continue
+        angles = lambda t, e=entry: synthesize(e.fourier.a, e.fourier.b, period, t)
+        # the soles posed over one cycle and moved along the drift: the stances of the world
+        # poses sampled at the same times
+        rate = np.ceil(period * STANCE_RATE) / period
+        t = np.arange(-round(period * rate), 2 * round(period * rate)) / rate
+        world = drift.restore(angles(t), t)
+        np.testing.assert_array_equal(_fine_stance(library.skeleton, angles, drift, period, t),
+                                      stance_frames(library.skeleton, world, rate))
+        # planted at 30 Hz (the report viewer's series), each frame stands where its time does
+        # in that 100 Hz reading
+        planted = plant_cycles(library.skeleton, angles, drift, period, 30.0, round(period * 30))
+        coarse = (np.arange(len(planted.planted)) - planted.window[0]) / 30.0
+        np.testing.assert_array_equal(
+            planted.stances, _fine_stance(library.skeleton, angles, drift, period, coarse))
 
 
 def test_the_viewers_locks_are_where_the_planted_cycle_stands():

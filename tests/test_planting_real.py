@@ -201,21 +201,21 @@ def real_viewer_feet():
 
 
 def test_the_report_viewers_real_walks_are_no_worse_than_measured(real_viewer_feet):
-    # measured: slide 16.2 mm (PiG_Motion-FlatFoot-Full_c0: its left foot, fitted again in the
+    # measured: slide 11.5 mm (PiG_Motion-FlatFoot-Full_c0: its left foot, fitted again in the
     # series, 0-0.8 mm above the floor 0.1-0.15 s before its lock, moves 6 mm there and then
-    # to the lock), the others at most 1.2 mm; nothing below the floor; hover 1.1 mm; 13 of 14
+    # to the lock), the others at most 1.2 mm; nothing below the floor; hover 0.9 mm; 13 of 14
     # meet every target. Posed with the series' pitch where the leg cannot reach it, the
     # viewer slid up to 265 mm (HC030A05_c0); with the stances read at the series' 30 Hz
     # (STANCE_RATE), 07_12_c0's lock began 0.15 s late (18.1 mm)
     worst = _worst_feet(real_viewer_feet)
-    assert worst["slide_m"][0] <= 0.0165 and worst["penetration_m"][0] <= 0.0002, worst
+    assert worst["slide_m"][0] <= 0.012 and worst["penetration_m"][0] <= 0.0002, worst
     assert worst["hover_m"][0] <= 0.0015, worst
     assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
                for m in real_viewer_feet.values()) >= 13, real_viewer_feet
 
 
 @pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries in the report's "
-                   "viewer: slide up to 16.2 mm (PiG_Motion-FlatFoot-Full_c0: the series' foot "
+                   "viewer: slide up to 11.5 mm (PiG_Motion-FlatFoot-Full_c0: the series' foot "
                    "near the floor before its lock); targets 2, 0.5 and 3 mm")
 def test_the_report_viewers_real_walks_meet_the_targets(real_viewer_feet):
     worst = _worst_feet(real_viewer_feet)

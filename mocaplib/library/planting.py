@@ -322,15 +322,29 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     q, window = _padded(angles, drift, period, rate, frames)
     steps = round(period * rate)
     whole = abs(period * rate - steps) < 1e-9 * steps and frames % steps == 0
-    stance = None
-    if rate < STANCE_RATE:          # read over the same span at STANCE_RATE: each frame's nearest
-        fine = (np.arange(int(np.ceil(len(q) / rate * STANCE_RATE))) / STANCE_RATE
-                - window[0] / rate)
-        found = stance_frames(skeleton, drift.restore(angles(fine), fine), STANCE_RATE)
-        nearest = np.round(np.arange(len(q)) / rate * STANCE_RATE).astype(int)
-        stance = found[np.minimum(nearest, len(found) - 1)]
+    stance = None if rate >= STANCE_RATE else _fine_stance(skeleton, angles, drift, period,
+                                                           (np.arange(len(q)) - window[0]) / rate)
     return plant_feet(skeleton, q, rate, stance=stance, window=window,
                       period=steps if whole else None)
+
+
+def _fine_stance(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
+                 drift: RootDrift, period: float, times: np.ndarray) -> np.ndarray:
+    """:func:`stance_frames` (F, 2) bool at ``times`` (F,) s of the periodic motion of
+    :func:`plant_cycles`, read at :data:`STANCE_RATE` or a little more (a whole number of
+    samples a cycle: the soles posed over one cycle in the path frame, then moved along
+    ``drift``), each time taking its nearest sample's."""
+    count = int(np.ceil(period * STANCE_RATE))
+    rate = count / period
+    first = int(np.floor(times[0] * rate))
+    k = np.arange(first, int(np.ceil(times[-1] * rate)) + 1)
+    local = sole_points(skeleton, angles(np.arange(count) / rate))[k % count]  # (K, 2, 2, 3)
+    x, y, psi = drift.frame(k / rate)
+    c, s = np.cos(psi)[:, None, None], np.sin(psi)[:, None, None]
+    world = local.copy()
+    world[..., 0] = x[:, None, None] + c * local[..., 0] - s * local[..., 1]
+    world[..., 1] = y[:, None, None] + s * local[..., 0] + c * local[..., 1]
+    return _stance(world, rate)[np.round(times * rate).astype(int) - first]
 
 
 @dataclass(frozen=True)
