@@ -2,12 +2,16 @@
 Blender itself.
 
     python benchmarks/blender_feet.py [LIBRARY.json] [--samples sample_c3d] [--blender blender]
-                                      [--heights 1.5 1.9] [--markdown PATH]
+                                      [--heights 1.5 1.9] [--real DIR] [--markdown PATH]
 
 Without a library, builds the quick start's one from ``--samples``. Writes, with the CLI a user
 runs: for one entry of every locomotion type, ``mocaplib query LIBRARY V OMEGA VL --clamp --bvh
 --cycles 3`` at the entry's own command; ``mocaplib retarget`` of the straight normal walk to
-each of ``--heights``; ``mocaplib animate`` along a path turning left. Each file is imported
+each of ``--heights``; ``mocaplib animate`` along a path turning left. Where ``--real`` (default
+``$MOCAPLIB_SHARED_C3D``, else ``../shared/data/c3d``) holds the lab walks of
+tests/walking_library.py, also ``mocaplib build`` of them with ``--all-cycles`` and the same
+query at every moving entry of that library (each a walk of a real person, on the library's
+skeleton). Each file is imported
 into Blender (``blender -b``, :mod:`blender_pose`: Blender's default import with the scene's
 frame rate updated) and measured there:
 
@@ -30,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -49,6 +54,7 @@ from control_space import quick_start_library  # noqa: E402
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
+from walking_library import REAL_WALKS  # noqa: E402
 
 BELOW, JOINTS = 0.0005, 1e-4
 HEIGHTS = (1.5, 1.9)
@@ -157,6 +163,26 @@ def outputs(library: Path, folder: Path, heights) -> list[tuple[str, Path, bool]
     return written
 
 
+def real_outputs(real: Path, folder: Path) -> list[tuple[str, Path, bool]]:
+    """Build the library of the lab walks under ``real`` (every complete cycle) and write the
+    query at every moving entry's own command, as :func:`outputs` does for the samples."""
+    library = folder / "real.json"
+    subprocess.run([sys.executable, "-m", "mocaplib", "build",
+                    *(str(real / name) for name in REAL_WALKS), "--all-cycles", "-o",
+                    str(library)], check=True, capture_output=True, cwd=ROOT)
+    written = []
+    for entry in load_library(library).entries:
+        if entry.poulaine is None or not np.isfinite(entry.root_drift.velocities).all():
+            continue
+        out = folder / f"real_{entry.id}.bvh"
+        command = [f"{x:.9f}" for x in (entry.v, entry.omega, entry.v_l)]   # no exponent
+        subprocess.run([sys.executable, "-m", "mocaplib", "query", str(library), *command,
+                        "--clamp", "--bvh", str(out), "--cycles", "3"],
+                       check=True, capture_output=True, cwd=ROOT)
+        written.append((f"query, real walk {entry.id}", out, False))
+    return written
+
+
 def missed(df: pd.DataFrame) -> list[str]:
     """The targets the rows miss, in words."""
     out = []
@@ -175,6 +201,9 @@ def main() -> int:
     parser.add_argument("--samples", type=Path, default=ROOT / "sample_c3d")
     parser.add_argument("--blender", default="blender", help="the Blender executable")
     parser.add_argument("--heights", type=float, nargs="+", default=HEIGHTS, metavar="M")
+    parser.add_argument("--real", type=Path, default=Path(os.environ.get(
+        "MOCAPLIB_SHARED_C3D", ROOT.parent / "shared" / "data" / "c3d")),
+                        help="folder of the lab walks (skipped when absent)")
     add_markdown_option(parser)
     args = parser.parse_args()
     blender = shutil.which(args.blender)
@@ -185,8 +214,10 @@ def main() -> int:
     with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         library = args.library or quick_start_library(args.samples, folder / "lib.json")
-        df = pd.DataFrame([measure(*output, blender)
-                           for output in outputs(library, folder, args.heights)])
+        written = outputs(library, folder, args.heights)
+        if all((args.real / name).is_file() for name in REAL_WALKS):
+            written += real_outputs(args.real, folder)
+        df = pd.DataFrame([measure(*output, blender) for output in written])
         print(f"Blender {df.blender.iloc[0]}, each file imported with its default options and "
               "the scene's frame rate updated.\n")
         print("| output | frames (file / keyed / scene) | rate (file Hz / scene fps) | bones | "

@@ -180,9 +180,83 @@ def test_planted_real_walks_feet_meet_the_targets(real_feet):
     # fitted sole pitched off the foot's rising more than CONTACT_RISE as it rolls, or the toe
     # alone holding the floor after push-off (without ROLL_RISE, Walking3_c0's toe stance
     # hovered 40.5 mm and, over the output's stances, its foot slid 51.9 mm; four entries)
+    assert all(m.stances >= 2 for m in real_feet.values()), real_feet
     worst = _worst_feet(real_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
     assert worst["hover_m"][0] <= 0.003, worst
+
+
+def test_no_real_swing_foot_touches_the_floor():
+    from walking_library import real_walks
+
+    from mocaplib.library.foot_targets import SWING_CLEARANCE
+    from mocaplib.library.planting import TOUCH, plant_cycles
+
+    # the rigid toe dips into the floor after push-off (BTS_c0's by 55 mm); raised only onto
+    # it, it scraped along the floor in swing: an independent BVH reader found "stances" that
+    # slid 127-727 mm on 8 of 14 real walks. Measured: every swing foot 4.0 mm up at least
+    # past the frame next to its stance (SWING_CLEARANCE, reached at APPROACH_SPEED)
+    if not SHARED_C3D.is_dir():
+        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
+    library = real_walks()[0]
+    lowest = np.inf
+    for entry in library.entries:
+        velocities = np.array(entry.root_drift.velocities, float)
+        if entry.poulaine is None or not np.isfinite(velocities).all():
+            continue
+        period, skeleton = float(entry.T), library.entry_skeleton(entry.id)
+        planted = plant_cycles(
+            skeleton, lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
+            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE))
+        low = sole_points(skeleton, planted.planted)[..., 2].min(axis=2)        # (F, 2)
+        near = planted.stances | np.roll(planted.stances, 1, 0) | np.roll(planted.stances, -1, 0)
+        swing = ~near
+        swing[:planted.window[0]] = swing[planted.window[1]:] = False
+        lowest = min(lowest, float(low[swing].min()))
+    assert TOUCH < lowest <= SWING_CLEARANCE, lowest
+
+
+@pytest.fixture(scope="module")
+def real_queries():
+    """``mocaplib query`` at each chosen real entry's own command, planted on the library's
+    skeleton: {entry id: ContactMeasures}, and the library's body scales."""
+    from walking_library import real_walks
+
+    from mocaplib.library.controlspace import ControlSpace
+    from mocaplib.library.planting import plant_blend
+
+    if not SHARED_C3D.is_dir():
+        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
+    library = real_walks()[0]
+    space = ControlSpace.from_library(library)
+    out = {}
+    for entry, point in zip(space.ids, space.points):
+        answer = space.query([point])
+        if not answer.inside[0]:
+            answer = space.query(answer.nearest)
+        out[entry] = plant_blend(space.blend(answer), library.skeleton, rate=RATE,
+                                 cycles=2).after
+    return out, library.body_scales()
+
+
+def test_queries_of_the_real_walks_stand_on_the_librarys_body(real_queries):
+    # each subject's root translations scaled to the library's body by its legs
+    # (Library.on_header_body): unscaled, Walking1_c0 and Walking3_c0 (legs 92 mm longer)
+    # floated 64-102 mm above the floor with no stance found. Measured: every query planted
+    # with 5 stances, slide 0.00 mm, 0.01 mm below the floor, hover 5.5 mm (HC030A05_c0, a
+    # child's walk on the adult body; 0.00 on its own)
+    feet, scales = real_queries
+    assert scales.min() < 0.95 and scales.max() > 1.02          # subjects of several sizes
+    assert len(feet) == 10 and all(m.stances >= 2 for m in feet.values()), feet
+    worst = _worst_feet(feet)
+    assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst
+    assert worst["hover_m"][0] <= 0.006, worst
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the 10 chosen real entries' queries on the "
+                   "library's body: hover 5.5 mm (HC030A05_c0); target 3 mm")
+def test_queries_of_the_real_walks_meet_the_targets(real_queries):
+    assert _worst_feet(real_queries[0])["hover_m"][0] <= 0.003
 
 
 @pytest.fixture(scope="module")
@@ -201,22 +275,24 @@ def real_viewer_feet():
 
 
 def test_the_report_viewers_real_walks_are_no_worse_than_measured(real_viewer_feet):
-    # measured: slide 11.5 mm (PiG_Motion-FlatFoot-Full_c0: its left foot, fitted again in the
-    # series, 0-0.8 mm above the floor 0.1-0.15 s before its lock, moves 6 mm there and then
-    # to the lock), the others at most 1.2 mm; nothing below the floor; hover 0.9 mm; 13 of 14
-    # meet every target. Posed with the series' pitch where the leg cannot reach it, the
-    # viewer slid up to 265 mm (HC030A05_c0); with the stances read at the series' 30 Hz
+    # measured, each entry drawn on the library's body (root translations scaled by its legs:
+    # Library.on_header_body), every one with its stances: slide 1.3 mm (HC030A22_c0), nothing
+    # below the floor, hover 4.7 mm (PiG_Motion-FlatFoot-Full_c0); 13 of 14 meet every target.
+    # Unscaled, Walking1_c0 and Walking3_c0 floated 64-102 mm above the floor, no stance found
+    # (vacuously "met"); posed with the series' pitch where the leg cannot reach it, the viewer
+    # slid up to 265 mm (HC030A05_c0); with the stances read at the series' 30 Hz
     # (STANCE_RATE), 07_12_c0's lock began 0.15 s late (18.1 mm)
+    assert all(m.stances >= 2 for m in real_viewer_feet.values()), real_viewer_feet
     worst = _worst_feet(real_viewer_feet)
-    assert worst["slide_m"][0] <= 0.012 and worst["penetration_m"][0] <= 0.0002, worst
-    assert worst["hover_m"][0] <= 0.0015, worst
+    assert worst["slide_m"][0] <= 0.0015 and worst["penetration_m"][0] <= 0.0002, worst
+    assert worst["hover_m"][0] <= 0.005, worst
     assert sum(m.slide_m <= 0.002 and m.penetration_m <= 0.0005 and m.hover_m <= 0.003
                for m in real_viewer_feet.values()) >= 13, real_viewer_feet
 
 
 @pytest.mark.xfail(strict=True, reason="measured on the 14 moving real entries in the report's "
-                   "viewer: slide up to 11.5 mm (PiG_Motion-FlatFoot-Full_c0: the series' foot "
-                   "near the floor before its lock); targets 2, 0.5 and 3 mm")
+                   "viewer: hover up to 4.7 mm (PiG_Motion-FlatFoot-Full_c0); slide 1.3 mm; "
+                   "targets 2, 0.5 and 3 mm")
 def test_the_report_viewers_real_walks_meet_the_targets(real_viewer_feet):
     worst = _worst_feet(real_viewer_feet)
     assert worst["slide_m"][0] <= 0.002 and worst["penetration_m"][0] <= 0.0005, worst

@@ -14,7 +14,7 @@ import numpy as np
 from mocaplib.gait.fourier import RootDrift
 from mocaplib.library.planting import (ContactMeasures, PlantedSeries, contact_measures,
                                        planted_series, stance_frames)
-from mocaplib.report.figureview import skeleton_data
+from mocaplib.report.figureview import skeleton_data, viewer_cycles
 
 NODE = shutil.which("node")
 MOTION_JS = Path(__file__).parents[1] / "mocaplib" / "report" / "templates" / "motion.js"
@@ -35,16 +35,16 @@ def viewer_poses(skeleton, entries: list[dict]) -> list[np.ndarray]:
 
 def viewer_contact(library, rate: float = 100.0
                    ) -> list[tuple[str, ContactMeasures, PlantedSeries]]:
-    """Each entry with a finite drift and its feet as the viewer poses its planted series
-    (:func:`~mocaplib.library.planting.planted_series`) at ``rate`` Hz, over one cycle, its
+    """Each entry with a finite drift and its feet as the viewer poses its planted series (its
+    cycle on the library's body, :func:`~mocaplib.report.figureview.viewer_cycles`, planted:
+    :func:`~mocaplib.library.planting.planted_series`) at ``rate`` Hz, over one cycle, its
     stances whole (one cycle more on each side): ``(id, ContactMeasures, the series)``."""
     jobs, padded = [], []
-    for e in library.entries:
-        velocities = np.array(e.root_drift.velocities, dtype=np.float64)
+    for e, (a, b, period, velocities) in zip(library.entries, viewer_cycles(library)):
         if not np.isfinite(velocities).all():
             continue
-        period, drift = float(e.T), RootDrift(0.0, 0.0, 0.0, *velocities)
-        series = planted_series(library.skeleton, e.fourier.a, e.fourier.b, period, drift)
+        drift = RootDrift(0.0, 0.0, 0.0, *velocities)
+        series = planted_series(library.skeleton, a, b, period, drift)
         frames = round(period * rate)
         t = np.arange(-frames, 2 * frames) / rate
         jobs.append({"a": series.a.tolist(), "b": series.b.tolist(), "T": period,

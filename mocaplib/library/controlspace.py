@@ -230,8 +230,10 @@ class ControlSpace:
 
         Uses the entries with finite velocities and period (only those marked ``chosen`` when
         ``chosen_only``; without the mirror images unless ``mirrored``), their Fourier
-        coefficients and root drift, and the library's stored ``control_space.scale`` (for
-        the frontal variant the same scales, v̂_f taking v̂'s). Blending takes phase 0 as the
+        coefficients (root translations on the header's body:
+        :meth:`~mocaplib.library.format.Library.on_header_body`) and root drift, and the
+        library's stored ``control_space.scale`` (for the frontal variant the same scales, v̂_f
+        taking v̂'s). Blending takes phase 0 as the
         left toe-off: an entry whose cycle starts at another event (``cycle_start``) is
         expressed from its left toe-off (:func:`mocaplib.library.phase.from_left_toe_off`).
 
@@ -270,6 +272,7 @@ class ControlSpace:
         for i, (entry, stored) in enumerate(zip(entries, library.entries)):
             if entry is not stored:
                 a[i], b[i] = entry.fourier.a, entry.fourier.b
+        a, b = library.on_header_body(a, b)
         kept = [e for e, use in zip(entries, usable) if use]
         ids = [e.id for e in kept]
         drift = np.array([e.root_drift.velocities for e in kept],

@@ -32,6 +32,10 @@ FADE_MARGIN = 2.0
 #: where they come nearest (twice the 3 mm flat-foot hover target: a runner's foot that lands
 #: nearly flat, 2.8 mm on the samples' runs; a foot that stays on its toes stays so).
 FLAT_RISE = 0.006
+#: A swing foot's sole stays this high (m) above the floor at least, reached at APPROACH_SPEED
+#: from its stances' edges: the rigid toe that dips into the floor after push-off, raised onto
+#: it, would scrape along it (a walk's minimum toe clearance is about 13 mm, Winter 1992).
+SWING_CLEARANCE = 0.005
 #: The largest turn (rad) about the ankle that lifts a swing foot's toe or heel off the floor.
 MAX_TOE_TURN = np.deg2rad(30.0)
 
@@ -88,8 +92,25 @@ def foot_targets(skeleton: Skeleton, q: np.ndarray, stance: np.ndarray, rate: fl
                       _knee_flexion(targets[..., 0, :], hips, leg)
                       - _knee_flexion(points[..., 0, :], hips, leg), q[:, list(KNEES)])
     swing = ~stance
+    clearance = np.maximum(clearance, np.minimum(
+        SWING_CLEARANCE, APPROACH_SPEED * _frames_from(stance) / rate))
     targets[swing] = _cleared(targets[swing], clearance[swing])
     return targets
+
+
+def _frames_from(stance: np.ndarray) -> np.ndarray:
+    """How many frames (F, 2) each frame lies from its foot's nearest stance frame in
+    ``stance`` (F, 2) bool (0 in stance; infinite for a foot with none)."""
+    out = np.full(stance.shape, np.inf)
+    frames = np.arange(len(stance))
+    for side in (0, 1):
+        standing = np.flatnonzero(stance[:, side])
+        if standing.size:
+            at = np.clip(np.searchsorted(standing, frames), 1, standing.size - 1) \
+                if standing.size > 1 else np.zeros(len(frames), int)
+            out[:, side] = np.minimum(np.abs(frames - standing[at]),
+                                      np.abs(frames - standing[np.maximum(at - 1, 0)]))
+    return out
 
 
 def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch: np.ndarray,

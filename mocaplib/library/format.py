@@ -42,7 +42,7 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import float_or_nan, json_values
-from ..skeleton import DOFS, Skeleton
+from ..skeleton import DOFS, TRANSLATION, Skeleton
 from .controlspace import DEFAULT_SCALE, stored_tetrahedra
 from .document import (CHECKSUM_KEY, CONTROL_AXES, CONTROL_UNITS, FORMAT, FORMAT_VERSION,
                        content_sha256, read_document)
@@ -185,6 +185,28 @@ class Library:
         entry, header = self.entry(entry_id), self.document["skeleton"]
         return Skeleton(entry.segment_lengths_m or header["segment_lengths_m"],
                         entry.joint_shifts_m or header.get("joint_shifts_m", {}))
+
+    def body_scales(self) -> np.ndarray:
+        """Per entry (E,), in :attr:`entries` order, the factor that puts its root translations
+        on the header's body (:attr:`skeleton`): the header's leg (thigh, shank and ankle
+        height: the hip's height over the floor, the leg straight) over the entry's own (1
+        where it records no lengths). An entry of another subject shown on that body, or
+        blended with others, stands on its feet so: its pelvis as high above the floor, and
+        swaying as far, in proportion to its legs (on the shared lab walks' library a subject
+        with legs 92 mm longer than the header's floated 64-102 mm above the floor, never
+        planted)."""
+        def leg(lengths: dict) -> float:
+            return lengths["thigh"] + lengths["shank"] + lengths["ankle_height"]
+
+        header = leg(self.document["skeleton"]["segment_lengths_m"])
+        return np.array([header / leg(e.segment_lengths_m) if e.segment_lengths_m else 1.0
+                         for e in self.entries])
+
+    def on_header_body(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every entry's Fourier coefficients ``a``, ``b`` (E, D, N+1), in :attr:`entries`
+        order, with the root translations' rows scaled by :meth:`body_scales` (new arrays)."""
+        scale = np.where(TRANSLATION[None, :, None], self.body_scales()[:, None, None], 1.0)
+        return a * scale, b * scale
 
     @property
     def dof_names(self) -> list[str]:

@@ -57,9 +57,10 @@ where a side-stepping or turning foot pivots on its toe (tests/test_planting.py)
    them in proportion to how much slower the motion's knee moves there than at its fastest, and
    over enough of them to spend :data:`~.foot_targets.FADE_MARGIN` times the change. The foot
    comes down to (rises from) the floor at :data:`~.foot_targets.APPROACH_SPEED` at least near
-   it; a swing foot whose toe (heel) would be lower turns about its ankle to lift it (the rigid
-   toe that dips into the floor at push-off), no further than to lay its sole level, and rises
-   as a whole by what is still missing.
+   it, and a swing foot stays :data:`~.foot_targets.SWING_CLEARANCE` above it (reached at that
+   speed from the stance's edge); a swing foot whose toe (heel) would be lower turns about its
+   ankle to lift it (the rigid toe that dips into the floor at push-off), no further than to
+   lay its sole level, and rises as a whole by what is still missing.
 4. Both legs (hip, knee, ankle DOFs) and the pelvis height are solved for the three foot points of
    each foot per frame, all frames at once, by damped Gauss-Newton steps
    (:data:`~.legs.IK_ITERATIONS` at most, until no pelvis height moves by

@@ -123,14 +123,25 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
             "skeleton": skeleton_data(library.skeleton)}
 
 
+def viewer_cycles(library) -> list[tuple]:
+    """Each entry's cycle as the viewer plants it, ``(a, b, T, drift)``: its coefficients (D,
+    N+1) on the header's body (root translations scaled:
+    :meth:`~mocaplib.library.format.Library.on_header_body`), period (s) and drift velocities
+    (3,)."""
+    a, b = library.on_header_body(*library.coefficient_arrays())
+    return [(a[i, :, :e.fourier.n + 1], b[i, :, :e.fourier.n + 1], float(e.T),
+             np.array(e.root_drift.velocities, dtype=np.float64))
+            for i, e in enumerate(library.entries)]
+
+
 def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
-    """Start planting the viewer's cycle of every entry of ``library`` (:func:`planted_cycles`,
+    """Start planting the viewer's cycle of every entry of ``library`` (:func:`viewer_cycles`,
+    :func:`planted_cycles`,
     ``jobs`` worker processes) and return the function that waits for them and returns them
     (or raises what planting raised). With ``jobs`` > 1 a thread of this process drives the
     workers meanwhile, so that the report's other sections are made while they plant; with one
     job the cycles are planted when the function is called."""
-    cycles = [(e.fourier.a[:, :e.fourier.n + 1], e.fourier.b[:, :e.fourier.n + 1], float(e.T),
-               np.array(e.root_drift.velocities, dtype=np.float64)) for e in library.entries]
+    cycles = viewer_cycles(library)
     skeleton = library.skeleton
     if jobs <= 1:
         return lambda: planted_cycles(skeleton, cycles)
