@@ -108,7 +108,7 @@ def _run(args) -> int:
     answer = {"inside": bool(res.inside[0]), "point": res.points[0].tolist(),
               "axes": list(cs.axes), "gait": res.gait[0], "clamped": clamped,
               "entries": [], "weights": []}
-    blend = cs.blend(blended) if blended.inside[0] else None
+    blend = cs.on_body(cs.blend(blended), blended) if blended.inside[0] else None
     if blend is not None:
         answer["entries"] = [cs.ids[k] for k in blended.entries[0]]
         answer["weights"] = blended.weights[0].tolist()

@@ -70,7 +70,7 @@ from scipy.spatial import cKDTree
 from ..errors import LibraryError, MocapError
 from ..gait.fourier import RootDrift, synthesize
 from ..gait.gaits import class_gait
-from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, TRANSLATION
+from ..skeleton import DOF_NAMES, JOINT_ANGLES, ROOT_HEADING, ROOT_Z, TRANSLATION
 from .entry import DRIFT_VELOCITIES
 from .cells import (HULL_TOLERANCE, build_cells, cell_tetrahedra, frontal_tetrahedra, onto_cone,
                     serve, to_frontal, weigh_on_frontal_axes)
@@ -222,6 +222,9 @@ class ControlSpace:
         self.b = None if b is None else stack_padded(b)
         self.T = None if T is None else np.asarray(T, dtype=float)
         self.drift = None if drift is None else np.asarray(drift, dtype=float)
+        #: Per entry (E,), the factor that puts its pelvis height on the body the blends are
+        #: posed on (:meth:`on_body`; ``Library.body_scales``); None: all 1.
+        self.body_scales: np.ndarray | None = None
 
     @classmethod
     def from_library(cls, library, *, axes: str = "tangential", chosen_only: bool = True,
@@ -230,10 +233,9 @@ class ControlSpace:
 
         Uses the entries with finite velocities and period (only those marked ``chosen`` when
         ``chosen_only``; without the mirror images unless ``mirrored``), their Fourier
-        coefficients (root translations on the header's body:
-        :meth:`~mocaplib.library.format.Library.on_header_body`) and root drift, and the
-        library's stored ``control_space.scale`` (for the frontal variant the same scales, v̂_f
-        taking v̂'s). Blending takes phase 0 as the
+        coefficients and root drift, the library's stored ``control_space.scale`` (for the
+        frontal variant the same scales, v̂_f taking v̂'s) and their :attr:`body_scales`
+        (:meth:`on_body`). Blending takes phase 0 as the
         left toe-off: an entry whose cycle starts at another event (``cycle_start``) is
         expressed from its left toe-off (:func:`mocaplib.library.phase.from_left_toe_off`).
 
@@ -272,7 +274,6 @@ class ControlSpace:
         for i, (entry, stored) in enumerate(zip(entries, library.entries)):
             if entry is not stored:
                 a[i], b[i] = entry.fourier.a, entry.fourier.b
-        a, b = library.on_header_body(a, b)
         kept = [e for e, use in zip(entries, usable) if use]
         ids = [e.id for e in kept]
         drift = np.array([e.root_drift.velocities for e in kept],
@@ -284,10 +285,12 @@ class ControlSpace:
                                + (" …" if len(lacking) > 5 else ""), path=source,
                                hint="build the library again with mocaplib build (run "
                                     "`mocaplib validate` on it for every problem)")
-        return cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
-                   drift=drift, ids=ids, classes=[e.locomotion_class for e in kept],
-                   v_f=np.array([e.v_f for e in kept], dtype=np.float64), axes=axes,
-                   scale=library.control_scale, source=source)
+        space = cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
+                    drift=drift, ids=ids, classes=[e.locomotion_class for e in kept],
+                    v_f=np.array([e.v_f for e in kept], dtype=np.float64), axes=axes,
+                    scale=library.control_scale, source=source)
+        space.body_scales = library.body_scales()[usable]
+        return space
 
     def normalise(self, x) -> np.ndarray:
         """SI points (…, 3) to normalised coordinates."""
@@ -436,6 +439,19 @@ class ControlSpace:
                      np.einsum("qk,qkdn->qdn", w, self.b[e]),
                      np.einsum("qk,qk->q", w, self.T[e]),
                      None if self.drift is None else np.einsum("qk,qkj->qj", w, self.drift[e]))
+
+    def on_body(self, blend: Blend, result: QueryResult) -> Blend:
+        """``blend`` of ``result`` (:meth:`blend`) posed on the library's body: its pelvis height
+        (``pelvis_tz``'s coefficients) scaled by its entries' :attr:`body_scales`, weighted as
+        they are (a blend of subjects of other sizes stands on that body's feet; unchanged
+        without scales)."""
+        if self.body_scales is None:
+            return blend
+        factor = np.einsum("qk,qk->q", result.weights, self.body_scales[result.entries])
+        a, b = blend.a.copy(), blend.b.copy()
+        a[:, ROOT_Z] *= factor[:, None]
+        b[:, ROOT_Z] *= factor[:, None]
+        return Blend(a, b, blend.T, blend.drift)
 
     def tetra_quality(self) -> np.ndarray:
         """Radius ratio of every tetrahedron in normalised coordinates, shape (nsimplex,)."""

@@ -204,7 +204,7 @@ def _blend(cs, command, gait):
         raise MocapError("the path asks for a command outside the control space: "
                          + cs.outside_text(result), path=cs.source,
                          hint="follow it more slowly, or with gentler turns")
-    return result, cs.blend(result)
+    return result, cs.on_body(cs.blend(result), result)
 
 
 def _polyline_command(cs, line: _Polyline, pose, speed, gait):

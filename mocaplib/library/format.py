@@ -42,7 +42,7 @@ from ..gait.fourier import RootDrift, synthesize
 from ..gait.qc import DEFAULT_QC_THRESHOLDS, QC_NAMES
 from ..io.atomic import atomic_write_text
 from ..io.jsonvalues import float_or_nan, json_values
-from ..skeleton import DOFS, TRANSLATION, Skeleton
+from ..skeleton import DOFS, ROOT_Z, Skeleton
 from .controlspace import DEFAULT_SCALE, stored_tetrahedra
 from .document import (CHECKSUM_KEY, CONTROL_AXES, CONTROL_UNITS, FORMAT, FORMAT_VERSION,
                        content_sha256, read_document)
@@ -187,14 +187,12 @@ class Library:
                         entry.joint_shifts_m or header.get("joint_shifts_m", {}))
 
     def body_scales(self) -> np.ndarray:
-        """Per entry (E,), in :attr:`entries` order, the factor that puts its root translations
-        on the header's body (:attr:`skeleton`): the header's leg (thigh, shank and ankle
-        height: the hip's height over the floor, the leg straight) over the entry's own (1
-        where it records no lengths). An entry of another subject shown on that body, or
-        blended with others, stands on its feet so: its pelvis as high above the floor, and
-        swaying as far, in proportion to its legs (on the shared lab walks' library a subject
-        with legs 92 mm longer than the header's floated 64-102 mm above the floor, never
-        planted)."""
+        """Per entry (E,), in :attr:`entries` order, the factor that puts its pelvis height on
+        the header's body (:attr:`skeleton`): the header's leg (thigh, shank and ankle height:
+        the hip's height over the floor, the leg straight) over the entry's own (1 where it
+        records no lengths). An entry of another subject posed on that body, alone or blended,
+        stands on its feet so (on the shared lab walks' library a subject with legs 92 mm
+        longer than the header's floated 64-102 mm above the floor, never planted)."""
         def leg(lengths: dict) -> float:
             return lengths["thigh"] + lengths["shank"] + lengths["ankle_height"]
 
@@ -204,9 +202,11 @@ class Library:
 
     def on_header_body(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every entry's Fourier coefficients ``a``, ``b`` (E, D, N+1), in :attr:`entries`
-        order, with the root translations' rows scaled by :meth:`body_scales` (new arrays)."""
-        scale = np.where(TRANSLATION[None, :, None], self.body_scales()[:, None, None], 1.0)
-        return a * scale, b * scale
+        order, with its pelvis height (``pelvis_tz``) scaled by :meth:`body_scales` (new
+        arrays)."""
+        scale = np.ones(a.shape[:2])
+        scale[:, ROOT_Z] = self.body_scales()
+        return a * scale[..., None], b * scale[..., None]
 
     @property
     def dof_names(self) -> list[str]:

@@ -125,7 +125,7 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
 
 def viewer_cycles(library) -> list[tuple]:
     """Each entry's cycle as the viewer plants it, ``(a, b, T, drift)``: its coefficients (D,
-    N+1) on the header's body (root translations scaled:
+    N+1) on the header's body (its pelvis height scaled:
     :meth:`~mocaplib.library.format.Library.on_header_body`), period (s) and drift velocities
     (3,)."""
     a, b = library.on_header_body(*library.coefficient_arrays())
