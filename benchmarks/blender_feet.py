@@ -48,7 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from bvh_reader import Character, parse_bvh, to_z_up  # noqa: E402
+from bvh_reader import Character, parse_bvh  # noqa: E402
 from character import HOVER, SLIDE, moving_entries  # noqa: E402
 from control_space import quick_start_library  # noqa: E402
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402

@@ -6,7 +6,7 @@ Without a library, builds the quick start's one from ``--samples`` (``mocaplib b
 --static SAMPLES/rest.c3d --static-pose neutral --forward-reference
 SAMPLES/walk_straight_normal.c3d --jobs 2``). Then, on its tangential and frontal control
 spaces (:class:`mocaplib.library.controlspace.ControlSpace`): each entry inside the hull of the others
-rebuilt from them (:func:`mocaplib.library.controlspace.leave_one_out`), the medians over the entries
+rebuilt from them (:func:`mocaplib.library.blending_error.leave_one_out`), the medians over the entries
 in motion of the joint-angle RMS and max, heading, root, stride, turn and period errors, the
 rows rebuilt mostly (> 50 %) from another gait mode (walking from running or back), and the
 worst stride error; and the share of the default envelope the library covers
@@ -29,7 +29,8 @@ sys.path.insert(0, str(ROOT))
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.gaits import class_gait  # noqa: E402
-from mocaplib.library.controlspace import ControlSpace, leave_one_out  # noqa: E402
+from mocaplib.library.blending_error import leave_one_out  # noqa: E402
+from mocaplib.library.controlspace import ControlSpace  # noqa: E402
 from mocaplib.library.coverage import coverage
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.report.plan import default_envelope  # noqa: E402

@@ -9,7 +9,8 @@ import pytest
 
 from scipy.spatial import ConvexHull, Delaunay
 
-from mocaplib.library.controlspace import DEFAULT_SCALE, Blend, ControlSpace, leave_one_out
+from mocaplib.library.blending_error import leave_one_out
+from mocaplib.library.controlspace import DEFAULT_SCALE, Blend, ControlSpace
 from mocaplib.library.coverage import Envelope, coverage
 from mocaplib.library.triangulation import delaunay_tetrahedra, tetra_quality
 from mocaplib.errors import LibraryError, MocapError
@@ -483,7 +484,7 @@ def test_a_gait_cell_of_every_point_is_the_whole_triangulation():
 def test_a_star_is_taken_among_the_triangulated_points_only():
     """The tetrahedra of some of the points (a gait's cell, its frontal tetrahedra): a point
     outside them has no star there, and no star holds it."""
-    from mocaplib.library.controlspace import star_neighbours
+    from mocaplib.library.blending_error import star_neighbours
 
     x = np.random.default_rng(7).uniform(size=(30, 3))
     tri = delaunay_tetrahedra(x[:20])

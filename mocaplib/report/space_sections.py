@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import MocapError
-from ..library.controlspace import (CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, close_entries,
-                                    leave_one_out)
+from ..library.blending_error import leave_one_out
+from ..library.controlspace import CLOSE_DISTANCE, SLIVER_QUALITY, ControlSpace, close_entries
 from ..library.coverage import Envelope, coverage
 from . import figures
 from .files import data_uri
@@ -242,7 +242,7 @@ def _cross_mode(mode: str | None, neighbours, weights, mode_of: dict) -> dict | 
     return {"mode": other, "share": shares[other]}
 
 
-#: Numeric columns of :func:`mocaplib.library.controlspace.leave_one_out` shown in the report.
+#: Numeric columns of :func:`mocaplib.library.blending_error.leave_one_out` shown in the report.
 LOO_COLUMNS = ("rms_deg", "max_deg", "heading_rms_deg", "root_rms_mm", "stride_error_mm",
                "turn_error_deg", "T_error_s")
 
