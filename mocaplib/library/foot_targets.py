@@ -190,9 +190,11 @@ def _stance_pitch(ankle: np.ndarray, hip: np.ndarray, flexion: np.ndarray, pitch
     limited = _rate_limited(own + kept, lengths, ruled, own) - own
     moved = np.abs(limited - kept) > 1e-9
     out = ruled.copy()
-    out[moved] = nearest(constant + twice * np.cos(np.maximum(own + limited, 0.0)))[moved]
+    if moved.any():
+        out[moved] = nearest(constant + twice * np.cos(np.maximum(own + limited, 0.0)))[moved]
     beyond = knee(length2(out)) < STANCE_KNEE
-    out[beyond] = nearest(constant + twice * np.cos(STANCE_KNEE))[beyond]
+    if beyond.any():
+        out[beyond] = nearest(constant + twice * np.cos(STANCE_KNEE))[beyond]
     return out
 
 
