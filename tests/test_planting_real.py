@@ -136,14 +136,12 @@ def test_no_body_is_lowered_by_more_than_its_feet_hover(planted_entries):
 
 
 @pytest.fixture(scope="module")
-def real_feet():
-    """Per moving real entry of the shared files (each on its own skeleton): its id and the
-    ContactMeasures of its cycle planted at 100 Hz as `mocaplib query` plants it, over the
-    stances planting found and over those found again on the planted motion (what a reader of
-    the output sees: a foot touching the floor outside its locks counts there)."""
+def real_planted():
+    """Per moving real entry of the shared files: its id, its own skeleton and its cycle
+    planted at 100 Hz on it as `mocaplib query` plants it (a Planted)."""
     from walking_library import real_walks
 
-    from mocaplib.library.planting import contact_measures, plant_cycles
+    from mocaplib.library.planting import plant_cycles
 
     if not SHARED_C3D.is_dir():
         pytest.skip(f"real C3D files not found at {SHARED_C3D}")
@@ -154,14 +152,26 @@ def real_feet():
         if entry.poulaine is None or not np.isfinite(velocities).all():
             continue
         period, skeleton = float(entry.T), library.entry_skeleton(entry.id)
-        planted = plant_cycles(
+        out[entry.id] = skeleton, plant_cycles(
             skeleton, lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
             RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE))
-        out[entry.id] = planted.after
-        out[entry.id + " (output's stances)"] = contact_measures(
+    assert len(out) >= 10
+    return out
+
+
+@pytest.fixture(scope="module")
+def real_feet(real_planted):
+    """The ContactMeasures of each of :func:`real_planted`, over the stances planting found
+    and over those found again on the planted motion (what a reader of the output sees: a foot
+    touching the floor outside its locks counts there)."""
+    from mocaplib.library.planting import contact_measures
+
+    out = {}
+    for entry, (skeleton, planted) in real_planted.items():
+        out[entry] = planted.after
+        out[entry + " (output's stances)"] = contact_measures(
             skeleton, planted.planted, RATE, stance_frames(skeleton, planted.planted, RATE),
             window=planted.window)
-    assert len(out) >= 20
     return out
 
 
@@ -186,28 +196,16 @@ def test_planted_real_walks_feet_meet_the_targets(real_feet):
     assert worst["hover_m"][0] <= 0.003, worst
 
 
-def test_no_real_swing_foot_touches_the_floor():
-    from walking_library import real_walks
-
+def test_no_real_swing_foot_touches_the_floor(real_planted):
     from mocaplib.library.foot_targets import SWING_CLEARANCE
-    from mocaplib.library.planting import TOUCH, plant_cycles
+    from mocaplib.library.planting import TOUCH
 
     # the rigid toe dips into the floor after push-off (BTS_c0's by 55 mm); raised only onto
     # it, it scraped along the floor in swing: an independent BVH reader found "stances" that
     # slid 127-727 mm on 8 of 14 real walks. Measured: every swing foot 4.0 mm up at least
     # past the frame next to its stance (SWING_CLEARANCE, reached at APPROACH_SPEED)
-    if not SHARED_C3D.is_dir():
-        pytest.skip(f"real C3D files not found at {SHARED_C3D}")
-    library = real_walks()[0]
     lowest = np.inf
-    for entry in library.entries:
-        velocities = np.array(entry.root_drift.velocities, float)
-        if entry.poulaine is None or not np.isfinite(velocities).all():
-            continue
-        period, skeleton = float(entry.T), library.entry_skeleton(entry.id)
-        planted = plant_cycles(
-            skeleton, lambda t, e=entry, p=period: synthesize(e.fourier.a, e.fourier.b, p, t),
-            RootDrift(0.0, 0.0, 0.0, *velocities), period, RATE, round(period * RATE))
+    for skeleton, planted in real_planted.values():
         low = sole_points(skeleton, planted.planted)[..., 2].min(axis=2)        # (F, 2)
         near = planted.stances | np.roll(planted.stances, 1, 0) | np.roll(planted.stances, -1, 0)
         swing = ~near
