@@ -439,6 +439,16 @@ def test_query_command_json_inside_and_outside(cube_library, capsys):
     np.testing.assert_allclose(outside["distance"], 1.5 / 1.5, atol=1e-12)  # v scale 1.5 m/s
 
 
+def test_an_outside_command_is_told_in_plain_numbers(cube_library):
+    from mocaplib.library.format import load_library
+
+    cs = ControlSpace.from_library(load_library(cube_library))
+    text = cs.outside_text(cs.query([[3.0, 0.5, 0.25]]))
+    # what a person reads: the command and the nearest point as numbers, no numpy reprs
+    assert text.startswith("(3, 0.5, 0.25) is outside the control space by 1 (normalised)"), text
+    assert "(1.5, 0.5, 0.25)" in text and "np." not in text, text
+
+
 def test_query_command_bvh(cube_library, tmp_path, capsys):
     out = tmp_path / "blend.bvh"
     import json

@@ -377,9 +377,12 @@ class ControlSpace:
         """What a person needs about query ``i`` of ``result`` that no cell serves: how far it
         is (normalised), the nearest point and gait, the nearest entries and, when there is
         one, :meth:`impossible_text`."""
-        text = (f"{tuple(np.round(result.points[i], 4))} is outside the control space by "
+        def point(x) -> str:
+            return "(" + ", ".join(f"{float(v):.4g}" for v in x) + ")"
+
+        text = (f"{point(result.points[i])} is outside the control space by "
                 f"{result.distance[i]:.3g} (normalised); the nearest point of the "
-                f"{result.gait[i]} cell is {tuple(np.round(result.nearest[i], 4))}, the "
+                f"{result.gait[i]} cell is {point(result.nearest[i])}, the "
                 f"nearest entries {', '.join(self.nearest_ids(result.points[i]))}")
         why = self.impossible_text(result.points[i])
         return text + (f"; {why}" if why else "")
