@@ -186,6 +186,8 @@ class ControlSpace:
         stay out of the cells (:mod:`mocaplib.library.cells`).
     axes : "tangential" (v, ω, v_l) or "frontal" (v_f, ω, v_l).
     scale : (3,) normalisation scales, default :data:`DEFAULT_SCALE` for those axes.
+    body_scales : (E,) factors that put each entry's pelvis height on the body blends are
+        posed on (:meth:`on_body`; ``Library.body_scales``), or None: all 1.
     source : the library file, for error messages.
 
     Raises
@@ -195,7 +197,7 @@ class ControlSpace:
     """
 
     def __init__(self, points, *, a=None, b=None, T=None, drift=None, ids=None, classes=None,
-                 v_f=None, axes: str = "tangential", scale=None, source=None):
+                 v_f=None, axes: str = "tangential", scale=None, body_scales=None, source=None):
         if axes not in AXES:
             raise MocapError(f"unknown control-space axes {axes!r}; use one of {', '.join(AXES)}")
         self.variant = axes
@@ -219,9 +221,7 @@ class ControlSpace:
         self.b = None if b is None else stack_padded(b)
         self.T = None if T is None else np.asarray(T, dtype=float)
         self.drift = None if drift is None else np.asarray(drift, dtype=float)
-        #: Per entry (E,), the factor that puts its pelvis height on the body the blends are
-        #: posed on (:meth:`on_body`; ``Library.body_scales``); None: all 1.
-        self.body_scales: np.ndarray | None = None
+        self.body_scales = None if body_scales is None else np.asarray(body_scales, float)
 
     @classmethod
     def from_library(cls, library, *, axes: str = "tangential", chosen_only: bool = True,
@@ -282,12 +282,11 @@ class ControlSpace:
                                + (" …" if len(lacking) > 5 else ""), path=source,
                                hint="build the library again with mocaplib build (run "
                                     "`mocaplib validate` on it for every problem)")
-        space = cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
-                    drift=drift, ids=ids, classes=[e.locomotion_class for e in kept],
-                    v_f=np.array([e.v_f for e in kept], dtype=np.float64), axes=axes,
-                    scale=library.control_scale, source=source)
-        space.body_scales = library.body_scales()[usable]
-        return space
+        return cls(values[usable, :3], a=a[usable], b=b[usable], T=values[usable, 3],
+                   drift=drift, ids=ids, classes=[e.locomotion_class for e in kept],
+                   v_f=np.array([e.v_f for e in kept], dtype=np.float64), axes=axes,
+                   scale=library.control_scale, body_scales=library.body_scales()[usable],
+                   source=source)
 
     def normalise(self, x) -> np.ndarray:
         """SI points (…, 3) to normalised coordinates."""

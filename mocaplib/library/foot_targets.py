@@ -7,6 +7,7 @@ floor is the plane z = 0."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 from scipy.spatial.transform import Rotation
 
 from ..skeleton import ROOT_Z, Skeleton
@@ -102,14 +103,9 @@ def _frames_from(stance: np.ndarray) -> np.ndarray:
     """How many frames (F, 2) each frame lies from its foot's nearest stance frame in
     ``stance`` (F, 2) bool (0 in stance; infinite for a foot with none)."""
     out = np.full(stance.shape, np.inf)
-    frames = np.arange(len(stance))
     for side in (0, 1):
-        standing = np.flatnonzero(stance[:, side])
-        if standing.size:
-            at = np.clip(np.searchsorted(standing, frames), 1, standing.size - 1) \
-                if standing.size > 1 else np.zeros(len(frames), int)
-            out[:, side] = np.minimum(np.abs(frames - standing[at]),
-                                      np.abs(frames - standing[np.maximum(at - 1, 0)]))
+        if stance[:, side].any():
+            out[:, side] = distance_transform_edt(~stance[:, side])
     return out
 
 

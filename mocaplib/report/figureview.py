@@ -47,8 +47,7 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     frame, m: head top, finger tip, heel and toe), ``lines`` (pairs of segment indices),
     ``feet`` (left, right: the foot's segment index, its thigh's, its leg's DOF indices hip to
     ankle and the knee's), ``fade_s``, the time over which a lock's correction fades in and
-    out (s),
-    ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`),
+    out (s), ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`),
     ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`) and ``stance_knee`` (rad,
     :data:`~mocaplib.library.foot_targets.STANCE_KNEE`)."""
     offsets = skeleton.joint_offsets()
