@@ -128,12 +128,12 @@ def gait_cells(x, gaits, usable, /, *, source=None, whole: Triangulation | None 
         rows = np.flatnonzero((gaits == gait) & usable)
         if not len(rows):
             continue
-        reason = degeneracy(x[rows])
+        every = whole is not None and len(rows) == len(x)     # triangulated already
+        reason = None if every else degeneracy(x[rows])
         if reason:
             missing[gait] = reason
             continue
-        tri = (whole if whole is not None and len(rows) == len(x)
-               else _rows_triangulation(x, rows, source))
+        tri = whole if every else _rows_triangulation(x, rows, source)
         blend = (None if frontal is None or degeneracy(frontal[rows])
                  else _rows_triangulation(np.asarray(frontal, dtype=float), rows, source))
         cells[gait] = Cell(gait, rows, tri, blend)

@@ -80,6 +80,8 @@ def cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def stack_padded(arrays) -> np.ndarray:
     """Coefficient arrays of shapes (D, N_i+1) stacked into (E, D, max N_i + 1), zero-padded
     (a missing harmonic is a zero harmonic, so padding changes nothing)."""
+    if isinstance(arrays, np.ndarray) and arrays.ndim == 3:        # stacked already
+        return arrays.astype(float)
     arrays = [np.asarray(x, dtype=float) for x in arrays]
     out = np.zeros((len(arrays), arrays[0].shape[0], max(x.shape[1] for x in arrays)))
     for i, x in enumerate(arrays):

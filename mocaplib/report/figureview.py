@@ -96,12 +96,10 @@ def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1
     """
     entries = []
     planted = start_planting(library, jobs=jobs) if planted is None else planted
-    for e, cls, (a, b, locks) in zip(library.entries, classes, planted()):
+    for e, cls, fields in zip(library.entries, classes, planted()):
         entries.append({
             "id": e.id, "class": cls, "colour": colours.get(cls, "#808080"),
-            "mirror_of": e.mirror_of, "T": float(e.T),
-            **_rounded(a, b),
-            "locks": [[int(row[0]), *np.round(row[1:], LOCK_DECIMALS).tolist()] for row in locks],
+            "mirror_of": e.mirror_of, "T": float(e.T), **fields,
             "drift": [float(x) for x in e.root_drift.velocities],
             "velocity": [float(x) for x in e.velocity]})
     space = None
@@ -133,7 +131,7 @@ def viewer_cycles(library) -> list[tuple]:
             for i, e in enumerate(library.entries)]
 
 
-def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
+def start_planting(library, *, jobs: int = 1) -> Callable[[], list[dict]]:
     """Start planting the viewer's cycle of every entry of ``library`` (:func:`viewer_cycles`,
     :func:`planted_cycles`,
     ``jobs`` worker processes) and return the function that waits for them and returns them
@@ -155,7 +153,7 @@ def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
     thread = threading.Thread(target=plant, name="mocaplib-planting", daemon=True)
     thread.start()
 
-    def result() -> list[tuple]:
+    def result() -> list[dict]:
         thread.join()
         if "error" in outcome:
             raise outcome["error"]
@@ -163,11 +161,13 @@ def start_planting(library, *, jobs: int = 1) -> Callable[[], list[tuple]]:
     return result
 
 
-def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) -> list[tuple]:
+def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) -> list[dict]:
     """Each cycle ``(a, b, T, drift)`` (coefficients (D, N+1), period s, drift velocities (3,))
-    as :func:`~mocaplib.library.planting.planted_series` plants it on ``skeleton``: ``(a, b,
-    locks)`` planted, or the cycle's own (no locks) where its coefficients or drift are not
-    finite. ``jobs`` > 1: :data:`PLANTED_PER_TASK` cycles a task in worker processes
+    as :func:`~mocaplib.library.planting.planted_series` plants it on ``skeleton``, as the
+    page holds it: ``a``, ``b`` (:func:`_rounded`) and ``locks`` (rows of the foot, an integer,
+    and the lock's numbers to :data:`LOCK_DECIMALS` decimals), or the cycle's own (no locks)
+    where its coefficients or drift are not finite. ``jobs`` > 1: :data:`PLANTED_PER_TASK`
+    cycles a task in worker processes
     (:func:`mocaplib.build.workers.run_tasks`); a task whose worker failed is planted here
     again, so that a real error shows as itself."""
     chunks = [cycles[k:k + PLANTED_PER_TASK] for k in range(0, len(cycles), PLANTED_PER_TASK)]
@@ -178,15 +178,16 @@ def planted_cycles(skeleton: Skeleton, cycles: list[tuple], *, jobs: int = 1) ->
     return [pair for chunk in planted for pair in chunk]
 
 
-def _planted_chunk(skeleton: Skeleton, cycles: list[tuple]) -> list[tuple]:
+def _planted_chunk(skeleton: Skeleton, cycles: list[tuple]) -> list[dict]:
     """:func:`planted_cycles` of one task."""
     out = []
     for a, b, period, drift in cycles:
+        locks = np.zeros((0, 6))
         if np.isfinite(drift).all() and np.isfinite([a, b]).all():
             planted = planted_series(skeleton, a, b, period, RootDrift(0.0, 0.0, 0.0, *drift))
-            out.append((planted.a, planted.b, planted.locks))
-        else:
-            out.append((a, b, np.zeros((0, 6))))
+            a, b, locks = planted.a, planted.b, planted.locks
+        out.append({**_rounded(a, b), "locks": [[int(row[0]), *row[1:]] for row in
+                                                np.round(locks, LOCK_DECIMALS).tolist()]})
     return out
 
 
