@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from mocaplib.gait.fourier import RootDrift
+from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.planting import (ContactMeasures, PlantedSeries, contact_measures,
                                        planted_series, stance_frames)
-from mocaplib.report.figureview import skeleton_data, viewer_cycles
+from mocaplib.report.figureview import skeleton_data, viewer_cycles, viewer_data
 
 NODE = shutil.which("node")
 MOTION_JS = Path(__file__).parents[1] / "mocaplib" / "report" / "templates" / "motion.js"
@@ -31,6 +32,56 @@ def viewer_poses(skeleton, entries: list[dict]) -> list[np.ndarray]:
     done = subprocess.run([NODE, "-e", _SCRIPT, str(MOTION_JS)], input=json.dumps(job),
                           capture_output=True, text=True, timeout=600, check=True)
     return [np.array(q) for q in json.loads(done.stdout)]
+
+
+#: node: the page's blend at each command (figure.js ``pick``: ``weigh``, ``blend``, its locks
+#: by ``findLocks``) and its poses (``plantedPose``) at ``rate`` Hz over three cycles.
+_BLEND_SCRIPT = (
+    "const M = require(process.argv[1]);"
+    "const job = JSON.parse(require('fs').readFileSync(0, 'utf8'));"
+    "process.stdout.write(JSON.stringify(job.commands.map((c) => {"
+    "  const found = M.weigh(job.space, c); if (found.simplex < 0) { return null; }"
+    "  const b = M.blend(found.corners.map((i) => job.entries[job.space.entries[i]]),"
+    "                    found.weights);"
+    "  b.locks = M.findLocks(job.skeleton, b);"
+    "  const frames = Math.round(b.T * job.rate), times = [];"
+    "  for (let k = -frames; k < 2 * frames; k++) { times.push(k / job.rate); }"
+    "  b.poses = times.map((t) => M.plantedPose(job.skeleton, b,"
+    "                                           ((t % b.T) + b.T) % b.T));"
+    "  return b; })));")
+
+
+def viewer_blends(library, commands, rate: float = 100.0) -> list[dict | None]:
+    """The report viewer's blend at each SI command (v̂, ω̂, v̂_l) of the library's control
+    space, as the page picks it, computed by node: ``a``, ``b`` (D, N+1), ``T`` (s), ``drift``,
+    ``locks`` (L, 6) found on it in JavaScript, ``times`` (3F,) s from one cycle before to
+    one after and ``world`` (3F, D) its poses there in the world, and ``contact``
+    (:class:`ContactMeasures` over its middle cycle, its stances whole; None where no gait
+    cell holds the command)."""
+    cs = ControlSpace.from_library(library)
+    classes = [e.locomotion_class or "unknown" for e in library.entries]
+    page = viewer_data(library, cs, classes, {})
+    job = {"skeleton": page["skeleton"], "entries": page["entries"], "space": page["space"],
+           "commands": np.asarray(commands, dtype=float).tolist(), "rate": rate}
+    done = subprocess.run([NODE, "-e", _BLEND_SCRIPT, str(MOTION_JS)], input=json.dumps(job),
+                          capture_output=True, text=True, timeout=600, check=True)
+    out = []
+    for blend in json.loads(done.stdout):
+        if blend is None:
+            out.append(None)
+            continue
+        frames = round(blend["T"] * rate)
+        times = np.arange(-frames, 2 * frames) / rate
+        world = RootDrift(0.0, 0.0, 0.0, *blend["drift"]).restore(np.array(blend["poses"]),
+                                                                  times)
+        stance = stance_frames(library.skeleton, world, rate)
+        out.append({"a": np.array(blend["a"]), "b": np.array(blend["b"]), "T": blend["T"],
+                    "drift": np.array(blend["drift"]),
+                    "locks": np.array(blend["locks"], dtype=float).reshape(-1, 6),
+                    "times": times, "world": world,
+                    "contact": contact_measures(library.skeleton, world, rate, stance,
+                                                window=(frames, 2 * frames))})
+    return out
 
 
 def viewer_contact(library, rate: float = 100.0

@@ -153,9 +153,9 @@ def build_cells(points, scale, /, *, classes=None, v_f=None, tangential: bool = 
     normalised by ``scale`` (3,), of locomotion ``classes`` (E,) (None: all walks) and frontal
     speeds ``v_f`` (E,) m/s (None or NaN: not backwards); on the tangential axes side-steps
     are put on the cone, backward entries left out and each cell given its frontal
-    tetrahedra (module docstring). Returns the cells by gait and, per gait without one, why (:func:`gait_cells`). ``whole``: the Delaunay
-    triangulation of all the points normalised, if made already (used where no point is put on
-    the cone)."""
+    tetrahedra (module docstring). Returns the cells by gait and, per gait without one, why
+    (:func:`gait_cells`). ``whole``: the Delaunay triangulation of all the points normalised,
+    if made already (used where no point is put on the cone)."""
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     scale = np.asarray(scale, dtype=float)
     gaits = [class_gait(c) for c in (classes if classes is not None else [None] * len(p))]

@@ -7,9 +7,10 @@ its feet planted as ``mocaplib query`` writes them
 (:func:`mocaplib.library.planting.planted_series`), each leg then moved in JavaScript to its
 foot's lock (``plantedPose``: on the samples nothing slides more than 1.8 mm or goes below the
 floor, tests/test_planting.py), and plays the blend of a control-space point picked with the
-mouse (from its series alone), located in the tetrahedra of the control space's gait cells with
-side-steps put on the cone, as ``mocaplib query`` locates a command (:func:`viewer_data`'s
-``space``): nothing is triangulated in the browser.
+mouse, located in the tetrahedra of the control space's gait cells with side-steps put on the
+cone, as ``mocaplib query`` locates a command (:func:`viewer_data`'s ``space``): nothing is
+triangulated in the browser. A blend's feet are planted the same way on locks found in
+JavaScript (``findLocks``: its stances by planting's rule, tests/test_viewer_blends.py).
 """
 
 from __future__ import annotations
@@ -25,7 +26,9 @@ from ..gait.fourier import RootDrift
 from ..library.cells import cell_tetrahedra, frontal_tetrahedra
 from ..library.foot_targets import APPROACH_SPEED, BLEND_S, STANCE_KNEE
 from ..library.legs import KNEE_START, KNEES, LEG_DOFS, LEG_SEGMENTS
-from ..library.planting import planted_series
+from ..library.planting import (CONTACT_RISE, CONTACT_SPEED, MAX_LEVEL, MIN_STANCE_S,
+                                 ROLL_RISE, ROLL_SHIFT, STANCE_GAP_S, STANCE_RATE, STILL_SPEED,
+                                 planted_series)
 from ..skeleton import DOF_NAMES, DOFS, SEGMENT_NAMES, SEGMENTS, Skeleton
 
 #: Decimals of the Fourier coefficients in the page: 1e-6 rad (and m), far below a pixel.
@@ -48,8 +51,10 @@ def skeleton_data(skeleton: Skeleton) -> dict:
     ``feet`` (left, right: the foot's segment index, its thigh's, its leg's DOF indices hip to
     ankle and the knee's), ``fade_s``, the time over which a lock's correction fades in and
     out (s), ``approach_speed`` (m/s, :data:`~mocaplib.library.foot_targets.APPROACH_SPEED`),
-    ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`) and ``stance_knee`` (rad,
-    :data:`~mocaplib.library.foot_targets.STANCE_KNEE`)."""
+    ``knee_start`` (rad, :data:`~mocaplib.library.legs.KNEE_START`), ``stance_knee`` (rad,
+    :data:`~mocaplib.library.foot_targets.STANCE_KNEE`) and ``stance``, the constants by which
+    a blend's stances are found (:mod:`mocaplib.library.planting`: ``rate`` its
+    ``STANCE_RATE``, the others its constants of the same names in lower case)."""
     offsets = skeleton.joint_offsets()
     segments = [{"name": seg.name,
                  "parent": -1 if seg.parent is None else SEGMENT_NAMES.index(seg.parent),
@@ -68,7 +73,11 @@ def skeleton_data(skeleton: Skeleton) -> dict:
                      for thigh, foot, dofs, knee in zip(LEG_SEGMENTS[:, 0], LEG_SEGMENTS[:, 2],
                                                         LEG_DOFS, KNEES)],
             "fade_s": BLEND_S, "approach_speed": APPROACH_SPEED, "knee_start": KNEE_START,
-            "stance_knee": STANCE_KNEE}
+            "stance_knee": STANCE_KNEE,
+            "stance": {"rate": STANCE_RATE, "contact_speed": CONTACT_SPEED,
+                       "contact_rise": CONTACT_RISE, "min_stance_s": MIN_STANCE_S,
+                       "still_speed": STILL_SPEED, "stance_gap_s": STANCE_GAP_S,
+                       "roll_rise": ROLL_RISE, "roll_shift": ROLL_SHIFT, "max_level": MAX_LEVEL}}
 
 
 def viewer_data(library, cs, classes: list[str], colours: dict, *, jobs: int = 1,

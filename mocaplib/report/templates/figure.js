@@ -52,8 +52,8 @@
   function currentFrame(now) {
     var p = viewer.playing, t = (now - p.started) / 1000;
     var local = t % p.T, world;
-    // an entry's feet planted on their locks; a blend of entries posed from its series alone
-    var q = p.locks ? M.plantedPose(skeleton, p, local) : M.synthesize(p.a, p.b, p.T, local);
+    // the feet planted on their locks (an entry's, or those found on a blend)
+    var q = M.plantedPose(skeleton, p, local);
     world = M.forward(skeleton, q);
     return { t: t, phase: local / p.T, q: q, world: world, playing: p,
              origins: world.map(function (W) { return [W[3], W[7], W[11]]; }) };
@@ -186,7 +186,9 @@
       return null;
     }
     var corners = found.corners.map(function (i) { return data.entries[space.entries[i]]; });
-    play(M.blend(corners, found.weights), "blend at " + where);
+    var blended = M.blend(corners, found.weights);
+    blended.locks = M.findLocks(skeleton, blended);
+    play(blended, "blend at " + where);
     var shares = {};
     corners.forEach(function (e, k) { shares[e.id] = found.weights[k]; });
     weightsText.textContent = where + ": " + space.gaits[found.simplex] + " blend of " + corners.map(function (e, k) {

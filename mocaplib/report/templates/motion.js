@@ -388,8 +388,124 @@ var MocapMotion = (function () {
     return out;
   }
 
+  // ---------------------------------------------------------------- locks of a blend
+  // The locks (as entry.locks) of a motion {a, b, T, drift} that has none, a blend of
+  // entries: its stances found as mocaplib.library.planting.stance_frames finds them
+  // (skeleton.stance holds its constants), on the heel and toe sampled at skeleton.stance.rate
+  // Hz or a little more (a whole number of samples a cycle) over three cycles, one before and
+  // one after, so that a stance across the cycle's ends is seen whole; each stance within
+  // skeleton.fade_s of the cycle locked where its foot lies flattest (the higher of heel and
+  // toe lowest), with its heel's place and its foot's heading there.
+  function findLocks(skeleton, motion) {
+    var rule = skeleton.stance, count = Math.ceil(motion.T * rule.rate), rate = count / motion.T;
+    var cycle = [];                       // per sample of one cycle, per foot: heel, toe, heading
+    for (var k = 0; k < count; k++) {
+      var W = forward(skeleton, synthesize(motion.a, motion.b, motion.T, k / rate));
+      cycle.push(skeleton.feet.map(function (foot) {
+        var F = W[foot.segment], sole = skeleton.ends[foot.segment];
+        return [apply(F, sole[0]), apply(F, sole[1]), Math.atan2(F[4], F[0])];
+      }));
+    }
+    var soles = [];                       // (3 count) x 2 feet x [heel, toe, heading], world
+    for (var i = 0; i < 3 * count; i++) {
+      var f = frame(motion.drift, (i - count) / rate), c = Math.cos(f[2]), s = Math.sin(f[2]);
+      soles.push(cycle[i % count].map(function (foot) {
+        return [0, 1].map(function (p) {
+          var x = foot[p];
+          return [f[0] + c * x[0] - s * x[1], f[1] + s * x[0] + c * x[1], x[2]];
+        }).concat([foot[2] + f[2]]);
+      }));
+    }
+    var locks = [];
+    [0, 1].forEach(function (side) {
+      stanceRuns(soles.map(function (feet) { return feet[side]; }), rate, rule)
+        .forEach(function (run) {
+          var t0 = (run[0] - count) / rate, t1 = (run[1] - 1 - count) / rate;
+          if (t1 < -skeleton.fade_s || t0 > motion.T + skeleton.fade_s) { return; }
+          var flat = run[0];
+          for (var j = run[0]; j < run[1]; j++) {
+            if (higher(soles[j][side]) < higher(soles[flat][side])) { flat = j; }
+          }
+          var foot = soles[flat][side];
+          locks.push([side, t0, t1, foot[0][0], foot[0][1], foot[2]]);
+        });
+    });
+    return locks;
+  }
+
+  function higher(foot) { return Math.max(foot[0][2], foot[1][2]); }
+
+  // The stance runs [start, stop) of one foot's samples [heel, toe, ...] (m) at rate Hz, by
+  // the rule of mocaplib.library.planting._stance: contact where the slower sole point moves
+  // at most contact_speed and the lower lies within contact_rise of the foot's standing level
+  // (the median height of its lower point where it is still), gaps of stance_gap_s bridged;
+  // contact runs joined where the foot stays slow and within roll_rise of the level between
+  // them and one sole point stays within roll_shift; runs of min_stance_s at least.
+  function stanceRuns(samples, rate, rule) {
+    var n = samples.length, low = [], speed = [];
+    samples.forEach(function (foot, i) {
+      low.push(Math.min(foot[0][2], foot[1][2]));
+      var a = samples[Math.max(i - 1, 0)], b = samples[Math.min(i + 1, n - 1)];
+      var span = (Math.min(i + 1, n - 1) - Math.max(i - 1, 0)) / rate;
+      speed.push(Math.min.apply(null, [0, 1].map(function (p) {
+        return Math.hypot(b[p][0] - a[p][0], b[p][1] - a[p][1]) / span;
+      })));
+    });
+    var still = low.filter(function (_, i) { return speed[i] < rule.still_speed; });
+    if (!still.length) { return []; }
+    var level = median(still);
+    if (level > rule.max_level) { return []; }
+    var slow = speed.map(function (v) { return v <= rule.contact_speed; });
+    var contact = slow.map(function (v, i) { return v && low[i] <= level + rule.contact_rise; });
+    var near = slow.map(function (v, i) { return v && low[i] <= level + rule.roll_rise; });
+    var bridge = Math.max(1, Math.round(rule.stance_gap_s * rate));
+    var shortest = Math.max(1, Math.round(rule.min_stance_s * rate));
+    [contact, near].forEach(function (mask) {
+      runsOf(mask.map(function (v) { return !v; })).forEach(function (gap) {
+        if (gap[0] > 0 && gap[1] < n && gap[1] - gap[0] <= bridge) {
+          for (var i = gap[0]; i < gap[1]; i++) { mask[i] = true; }
+        }
+      });
+    });
+    var out = [];
+    runsOf(near).forEach(function (span) {
+      var joined = [];
+      runsOf(contact.slice(span[0], span[1])).forEach(function (run) {
+        var a = span[0] + run[0], b = span[0] + run[1], last = joined[joined.length - 1];
+        if (last && stays(samples[last[1] - 1], samples[a], rule.roll_shift)) {
+          last[1] = b;
+        } else {
+          joined.push([a, b]);
+        }
+      });
+      joined.forEach(function (run) { if (run[1] - run[0] >= shortest) { out.push(run); } });
+    });
+    return out;
+  }
+
+  // The [start, stop) ranges where mask is true.
+  function runsOf(mask) {
+    var out = [];
+    mask.forEach(function (v, i) {
+      if (v && (i === 0 || !mask[i - 1])) { out.push([i, i + 1]); }
+      if (v && i > 0 && mask[i - 1]) { out[out.length - 1][1] = i + 1; }
+    });
+    return out;
+  }
+
+  // Whether heel or toe lies within shift (m) of its place, horizontally, from sample a to b.
+  function stays(a, b, shift) {
+    return Math.min(Math.hypot(b[0][0] - a[0][0], b[0][1] - a[0][1]),
+                    Math.hypot(b[1][0] - a[1][0], b[1][1] - a[1][1])) <= shift;
+  }
+
+  function median(values) {
+    var v = values.slice().sort(function (x, y) { return x - y; }), m = v.length >> 1;
+    return v.length % 2 ? v[m] : (v[m - 1] + v[m]) / 2;
+  }
+
   return { synthesize: synthesize, forward: forward, apply: apply, frame: frame,
            ontoCone: ontoCone, locate: locate, weigh: weigh, blend: blend,
-           plantedPose: plantedPose };
+           plantedPose: plantedPose, findLocks: findLocks };
 })();
 if (typeof module !== "undefined") { module.exports = MocapMotion; }
