@@ -3,6 +3,7 @@ a console that is not UTF-8, and the usage checks of ``inspect`` and ``query``."
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -74,6 +75,16 @@ def test_query_usage_errors(args, message, cube_library, tmp_path, capsys):
     assert main(["query", *(a.format(**names) for a in args)]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "a.bvh").exists()
+
+
+@pytest.mark.parametrize("omega", ["-5e-05", "-5E-5", "-.00005", "-0.00005e0"])
+def test_a_negative_number_in_exponent_form_is_a_value(omega, cube_library, capsys):
+    # as Python prints small numbers; argparse alone reads "-5e-05" as an unknown option
+    assert main(["query", str(cube_library), "0.7", omega, "0.2", "--json"]) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["point"][1] == -5e-05, answer["point"]
+    assert main(["query", str(cube_library), "0.7", "-5x", "0.2"]) == 2
+    assert "the following arguments are required: VL" in capsys.readouterr().err  # not a number
 
 
 def test_c3d_errors_say_what_to_give_instead(tmp_path, capsys):

@@ -2,7 +2,9 @@
 
 No algorithm lives here. Each sub-command is a module in this package with a
 ``register(subparsers)`` function; errors a user can cause (:class:`MocapError`) are printed
-as one line (line feeds in it escaped) without a traceback. Exit codes: 0 success, 1 failure (some input bad), 2 usage.
+as one line (line feeds in it escaped) without a traceback. Exit codes: 0 success, 1 failure
+(some input bad), 2 usage. A negative number in exponent form (``-5e-05``) is a value, as
+``-5`` is.
 Output that the console's encoding cannot show (ω, ° on an ASCII or cp1252 stdout) is
 written with ``?`` in its place rather than stopping the command, and control characters in
 what is printed (file names, labels) are escaped.
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 
 from .. import __version__
@@ -33,8 +36,23 @@ COMMANDS = ("inspect", "protocol", "fit", "events", "cycles", "build", "mirror",
 INPUT_ARGUMENTS = ("input", "file", "library", "plan")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, taking a negative number in exponent form (``-5e-05``, ``-1.2E3``:
+    how Python and most tools print small numbers) for a value, as it takes ``-5`` and
+    ``-0.5``, not for an unknown option. Its sub-commands' parsers are of this class too."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse's own test of a negative number (no exponent), widened
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+
+#: A negative number, with or without a fraction and an exponent.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mocaplib",
         description="Turn C3D captures of walking people into a validated motion library.")
     parser.add_argument("--version", action="version", version=f"mocaplib {__version__}")
