@@ -12,7 +12,7 @@ from mocaplib.markersets.draft import (AXIS_WEIGHTS, LOW_CONFIDENCE, Draft, Draf
                                        draft_protocol, label_stem, name_landmarks)
 from mocaplib.markersets.draft_checks import catalogue_places, check_draft, draft_agreement
 from mocaplib.io.c3d import read_c3d
-from mocaplib.markersets.protocols import load_protocol
+from mocaplib.markersets.protocols import load_landmarks, load_protocol
 from mocaplib.markersets.matching import detect_protocol, match_protocol
 from mocaplib.synth.capture import synthesize_capture
 from mocaplib.library.command import Command
@@ -123,6 +123,35 @@ def test_a_label_on_the_other_side_is_kept_flagged_and_warned():
     assert swapped.landmark == "R_ACROMION"
     warned = Draft("lab", ["x.c3d"], [swapped]).warnings()
     assert len(warned) == 1 and "the label says R but the marker sits" in warned[0]
+
+
+def test_two_labels_of_one_place_are_one_landmark_and_a_tracking_marker():
+    # two marker sets' names exported for the same markers (Plug-in Gait's LANK, LASI, LTOE
+    # beside a CAST set's LLM, LASIS, LMT2), 4 mm apart: one label takes the landmark, the
+    # other tracks its segment; none is dropped or given a landmark elsewhere
+    from dataclasses import replace
+
+    walk = synthesize_capture(Command.from_kind("straight", speed=1.2), duration=2.7, seed=1,
+                              protocol="plugin_gait", session_seed=4).trial
+    seconds = {"LLM": "LANK", "RLM": "RANK", "LASIS": "LASI", "RASIS": "RASI", "LMT2": "LTOE",
+               "RMT2": "RTOE"}
+    extra = np.stack([walk.markers[:, walk.labels.index(label)] + [0.003, 0.002, 0.0]
+                      for label in seconds.values()], axis=1)
+    trial = replace(walk, markers=np.concatenate([walk.markers, extra], axis=1),
+                    labels=[*walk.labels, *seconds])
+    by_label = {e.label: e for e in draft_protocol(trial).entries}
+    catalogue = load_landmarks()
+    for second, first in seconds.items():
+        pair = sorted((by_label[second], by_label[first]), key=lambda e: e.landmark is None)
+        held, tracking = pair
+        assert held.landmark and held.landmark[2:] in ("ANKLE_LAT", "ASIS", "TOE"), pair
+        assert tracking.landmark is None, pair
+        assert tracking.segment == catalogue[held.landmark].segment, pair
+        assert "a second marker on " + held.landmark in " ".join(tracking.evidence)
+    alone = {e.label: (e.landmark, e.segment) for e in draft_protocol(walk).entries}
+    for label, (landmark, segment) in alone.items():      # the other labels as without them
+        if label not in seconds.values():
+            assert (by_label[label].landmark, by_label[label].segment) == (landmark, segment)
 
 
 def _shared_names():

@@ -66,6 +66,12 @@ NONE_COST = 0.12
 NAMED_CAP = 0.30
 #: ...and a named label stays unmatched only beyond NONE_COST + NAME_BONUS + this (m).
 NAMED_SLACK = 0.10
+#: A label whose name points to a landmark another label takes, placed within this (m) of that
+#: label, is a second label of the marker or a second marker on the landmark (two marker sets'
+#: names exported at once, e.g. Plug-in Gait's LANK beside a CAST set's LLM on one marker): a
+#: tracking marker on the landmark's segment, of this confidence. Two markers of one set are
+#: farther apart (BTS's knee markers on the epicondyle and the fibula's head: 3 cm and more).
+SECOND_MARKER_GAP, SECOND_MARKER_CONFIDENCE = 0.02, 0.6
 #: A rigid group of at least this many unmatched markers is a cluster.
 CLUSTER_SIZE = 3
 #: Weights of the forward, lateral and vertical distances in the cost: the side is the surest
@@ -333,6 +339,11 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
     trials = [_assign(raw, np.nanmax(raw[:, 2]) / top, lm_places, named, mismatch,
                       penalty + extra, none) for top in tops]
     chosen, place, delta, used, _ = min(trials, key=lambda t: t[-1])
+    n_landmarks = len(lm_names)
+    # a label given no landmark its name points to, beside the label that takes one
+    seconds = _second_markers([k for k, j in chosen.items()
+                               if not (j < n_landmarks and named[k, j])],
+                              {j: k for k, j in chosen.items() if j < n_landmarks}, named, place)
     in_group = {k: g for g in clusters for k in g}
     entries = []
     for k, label in enumerate(every):
@@ -353,6 +364,10 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
             e.by_name = bool(named[k, j])
             closeness = float(np.clip(1.0 - distance / 0.15, 0.05, 1.0))
             e.confidence = 0.6 + 0.4 * closeness if named[k, j] else 0.7 * closeness
+        if k in seconds:
+            first, j = seconds[k]
+            _make_second(e, every[first], lm_names[j], lm_segments[j],
+                         float(np.linalg.norm(place[k] - place[first])))
         group = in_group.get(k)
         if group is not None:
             mates = [every[i] for i in group if i != k]
@@ -361,6 +376,15 @@ def draft_protocol(trial: Trial, /, *, static: Trial | None = None, name: str = 
         entries.append(e)
     _clusters(entries, clusters, told, place, lm_places, lm_segments)
     check_draft(entries, [label_stem(x) for x in every], AXIS_WEIGHTS)
+    # a label the checks left without a guess (its mirror took another guess) and its landmark
+    # to a label beside it
+    column = {name: j for j, name in enumerate(lm_names)}
+    for k, (first, j) in _second_markers(
+            [k for k, e in enumerate(entries) if not (e.landmark or e.segment)],
+            {column[e.landmark]: k for k, e in enumerate(entries) if e.landmark},
+            named, place).items():
+        _make_second(entries[k], every[first], lm_names[j], lm_segments[j],
+                     float(np.linalg.norm(place[k] - place[first])))
     for e in entries:
         bare = e.landmark[2:] if e.landmark and e.landmark[:2] in ("L_", "R_") else e.landmark
         e.required = bool(bare in REQUIRED and not e.static_only)
@@ -399,6 +423,33 @@ def _assign(raw: np.ndarray, height: float, lm_places: np.ndarray, named: np.nda
     return chosen, place, delta, used, float(padded[rows, cols].sum())
 
 
+def _second_markers(candidates, holders: dict[int, int], named: np.ndarray, place: np.ndarray
+                    ) -> dict[int, tuple[int, int]]:
+    """Of the labels ``candidates``, those whose name points to a landmark (``named`` (M, L)
+    bool) that another label placed within :data:`SECOND_MARKER_GAP` of them (``place``
+    (M, 3) m) holds (``holders``: landmark column -> label): ``{label: (that label, the
+    column)}``."""
+    out = {}
+    for k in candidates:
+        for column in np.flatnonzero(named[k]):
+            first = holders.get(int(column))
+            if first is not None and first != k and \
+                    np.linalg.norm(place[k] - place[first]) <= SECOND_MARKER_GAP:
+                out[k] = (first, int(column))
+                break
+    return out
+
+
+def _make_second(entry: DraftEntry, first: str, landmark: str, segment: str, gap: float
+                 ) -> None:
+    """Make ``entry`` a second marker on ``landmark``, which the label ``first`` takes ``gap``
+    (m) from it: a tracking marker on ``segment``, by its name."""
+    entry.evidence.append(f"a second marker on {landmark}, which {first} takes {gap * 100:.0f} "
+                          f"cm from it: a tracking marker on {segment}")
+    entry.landmark, entry.segment, entry.by_name, entry.distance = None, segment, True, None
+    entry.confidence = SECOND_MARKER_CONFIDENCE
+
+
 def _names_it(side: str | None, keys: tuple[str, ...], landmark: str) -> bool:
     """True when a label of ``side`` whose name points to ``keys`` names ``landmark``."""
     sided = landmark[:2] in ("L_", "R_")
@@ -433,7 +484,8 @@ def _clusters(entries: list[DraftEntry], groups: list[list[int]], told, place: n
             stems.append((side, stem.rstrip("0123456789")) if numbered else None)
         family = {k for k, stem in zip(group, stems) if stem and stems.count(stem) > 1}
         votes = [_named_segment(told[k], catalogue) for k in family] or \
-            [catalogue[entries[k].landmark].segment for k in group if entries[k].by_name] or \
+            [entries[k].segment or catalogue[entries[k].landmark].segment for k in group
+             if entries[k].by_name] or \
             [catalogue[entries[k].landmark].segment for k in group
              if entries[k].landmark and entries[k].confidence >= LOW_CONFIDENCE]
         votes = [v for v in votes if v]
@@ -447,8 +499,8 @@ def _clusters(entries: list[DraftEntry], groups: list[list[int]], told, place: n
             if votes else lm_segments[int(np.argmin(gap))]
         for k in group:
             e = entries[k]
-            if k not in family and e.landmark and (e.by_name or (
-                    e.confidence >= LOW_CONFIDENCE and catalogue[e.landmark].segment == segment)):
+            if k not in family and (e.by_name and e.segment or e.landmark and (e.by_name or (
+                    e.confidence >= LOW_CONFIDENCE and catalogue[e.landmark].segment == segment))):
                 continue
             if e.landmark:
                 e.evidence.append(f"not {e.landmark}: " + (
