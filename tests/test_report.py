@@ -770,6 +770,9 @@ def test_the_motion_viewer_animates_and_blends_in_headless_chromium(report, tmp_
         shown = browser.evaluate("document.getElementById('mv-weights').textContent")
         assert "blend of" in shown, shown
         assert browser.evaluate("window.mocapViewer.playing.label").startswith("blend at")
+        # posed on the locks the page looked for on it (this hand-made library's feet never
+        # stand still: none; tests/test_viewer_blends.py measures real blends' feet)
+        assert browser.evaluate("Array.isArray(window.mocapViewer.playing.locks)")
         after = np.array(browser.evaluate(pose))
         assert np.abs(after - before).max() > 0.01        # metres: another motion
         browser.evaluate("new Promise(r => setTimeout(r, 300))")
