@@ -74,6 +74,11 @@ SLOW_WALKS = tuple((kind, speed, radius, seed) for speed in (0.3, 0.4, 0.5, 0.6)
 #: of the plates here (SD 2-7.5 N); least peak (N) of a plate someone stood on; shortest
 #: stance (s) on it.
 PLATE_THRESHOLD_N, PLATE_MIN_PEAK_N, PLATE_MIN_STANCE_S = 20.0, 100.0, 0.1
+#: Largest spread (SD, N) of a plate's readings under a tenth of its peak for its unloadings to
+#: be read: the overground plates here spread 1.6-7.5 N; an instrumented treadmill's belts,
+#: under both feet at once and shaken by the belt, 16-56 N (gaitalytics' treadmill test
+#: capture): the 20 N threshold cannot tell a foot leaving from their noise.
+PLATE_MAX_EMPTY_SD_N = 10.0
 #: The lower threshold (N) whose unloadings the plate table also shows, to tell how much of a
 #: difference the threshold's choice makes (Tirosh & Sparrow advise 10 N or less for toe-off).
 LOW_THRESHOLD_N = 10.0
@@ -243,12 +248,21 @@ def plate_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> l
 
 def cut_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> list[Unloading]:
     """Every force plate's :func:`unloadings` in the C3D at ``path`` (:func:`vertical_forces`),
-    in time order. A plate that never bears :data:`PLATE_MIN_PEAK_N` (nobody stood on it, or
-    its channel is not in newtons) gives none."""
+    in time order, of the plates :func:`readable` says can give them."""
     rate, forces = vertical_forces(path)
-    return sorted((u for force in forces if force.max() >= PLATE_MIN_PEAK_N
+    return sorted((u for force in forces if readable(force)
                    for u in unloadings(force, rate, threshold_n=threshold_n)),
                   key=lambda u: u.time_s)
+
+
+def readable(force: np.ndarray) -> bool:
+    """Whether a plate's vertical force (A,) N gives unloadings: someone stood on it (it bears
+    :data:`PLATE_MIN_PEAK_N`; else nobody did, or its channel is not in newtons) and it reads
+    only its noise empty (the SD of its readings under a tenth of its peak is at most
+    :data:`PLATE_MAX_EMPTY_SD_N`)."""
+    empty = force < 0.1 * force.max()
+    return bool(force.max() >= PLATE_MIN_PEAK_N and empty.any()
+                and np.std(force[empty]) <= PLATE_MAX_EMPTY_SD_N)
 
 
 def plate_files(real: Path, unloaded=cut_unloadings):
@@ -348,6 +362,9 @@ def plate_table(real: Path) -> None:
                            for x in (off, lab, later)]
             print(f"| {path.stem} | {plate.time_s:.3f} | " + " | ".join(cells) + " |")
     detected = 1000 * np.abs(np.array(detected)[np.isfinite(detected)])
+    if not len(detected):
+        print("\nNo force plate read with a toe-off placed near its unloading.")
+        return
     print(f"\nDetected toe-off against the plates: median |Δ| {np.median(detected):.1f} ms, "
           f"worst {detected.max():.1f} ms over {len(detected)} unloadings.")
 

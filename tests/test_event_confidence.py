@@ -159,7 +159,7 @@ def test_toe_offs_stay_within_30_ms_of_the_plates(real_c3d, name):
 
 @pytest.mark.parametrize("name", LAB_TOE_OFFS)
 def test_plate_forces_are_newtons_about_zero_when_empty(real_c3d, name):
-    from event_accuracy import PLATE_MIN_PEAK_N, vertical_forces
+    from event_accuracy import PLATE_MIN_PEAK_N, readable, vertical_forces
 
     _, forces = vertical_forces(real_c3d(name))
     stood_on = [force for force in forces if force.max() >= PLATE_MIN_PEAK_N]
@@ -170,6 +170,21 @@ def test_plate_forces_are_newtons_about_zero_when_empty(real_c3d, name):
         assert 300.0 < force.max() < 1500.0, force.max()
         # empty, it reads only its noise (SD 2-7.5 N here): well under the 20 N threshold
         assert np.std(force[force < 0.1 * force.max()]) < 10.0
+        assert readable(force)
+
+
+def test_a_plate_that_reads_more_than_noise_empty_gives_no_unloadings():
+    # a belt of an instrumented treadmill: both feet on it at times, the belt's shaking on top
+    from event_accuracy import readable, unloadings
+
+    rate = 1000.0
+    t = np.arange(0, 3.0, 1 / rate)
+    stance = 600.0 * np.clip(np.sin(2 * np.pi * t / 1.1), 0.0, None)      # N, one foot
+    quiet = stance + np.random.default_rng(0).normal(0.0, 3.0, t.size)
+    shaken = stance + np.random.default_rng(0).normal(0.0, 40.0, t.size)
+    assert readable(quiet) and len(unloadings(quiet, rate)) == 3        # 0.55, 1.65, 2.75 s
+    assert not readable(shaken)
+    assert not readable(np.zeros_like(t) + np.random.default_rng(1).normal(0, 2, t.size))
 
 
 @pytest.mark.parametrize("name", LAB_TOE_OFFS)
