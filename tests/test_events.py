@@ -538,6 +538,25 @@ def test_cli_events_json(capsys):
     np.testing.assert_allclose(offs, true, atol=0.02)
 
 
+@pytest.mark.usefixtures("sample_dir")
+def test_cli_events_of_a_capture_cut_from_a_longer_recording(tmp_path, capsys):
+    # the same capture written from C3D frame 45: the same times from its first frame, and
+    # the header says where that frame lies on the lab's clock
+    from mocaplib.cli import main
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+
+    path = sample_file("walk_straight_normal")
+    trial = read_c3d(path)
+    cut = write_c3d(tmp_path / "cut.c3d", trial.markers, trial.labels, trial.rate,
+                    first_frame=45)
+    assert main(["events", str(path)]) == main(["events", str(cut)]) == 0
+    whole, late = (text.splitlines() for text in capsys.readouterr().out.split(str(cut)))
+    assert "times from the file's first frame, C3D frame 45 (lab clock 0.440 s)" in late[0]
+    assert "C3D frame" not in whole[0]
+    assert whole[1:] == late[1:]
+
+
 def test_cli_events_errors(tmp_path, capsys):
     from mocaplib.cli import main
 

@@ -56,6 +56,21 @@ def test_summary_of_a_written_capture(capture):
     np.testing.assert_allclose([e["time_s"] for e in summary["events"]], [0.10, 0.25], atol=1e-6)
 
 
+def test_a_capture_cut_from_a_longer_recording_says_where_its_clock_starts(capsys, tmp_path):
+    # the file's frames start at C3D frame 45, its events on the recording's clock (as Vicon
+    # writes them): inspect says where the file starts on that clock
+    trial = walker_trial(load_protocol("plugin_gait"), n_frames=60)
+    path = write_c3d(tmp_path / "cut.c3d", trial.markers, trial.labels, 100.0, first_frame=45,
+                     events=[Event("Left", "Foot Off", 0.65)])
+    code, out, _ = _cli(capsys, "inspect", str(path))
+    assert code == 0 and "60 frames at 100 Hz (0.59 s) from C3D frame 45, units mm" in out
+    assert "events (lab clock: the file starts at 0.440 s): Left Foot Off 0.650 s" in out
+    plain = write_c3d(tmp_path / "plain.c3d", trial.markers, trial.labels, 100.0,
+                      events=[Event("Left", "Foot Off", 0.2)])
+    code, out, _ = _cli(capsys, "inspect", str(plain))
+    assert "(0.59 s), units mm" in out and "  events: Left Foot Off 0.200 s" in out
+
+
 def test_a_frame_rate_no_gait_capture_has_is_shown_with_a_warning(tmp_path):
     # inspect still shows the file (it is how one finds the wrong POINT:RATE), and says that
     # the processing commands refuse it

@@ -65,7 +65,9 @@ def _run(args) -> int:
                                 "window_s": None if e.placed else list(e.window)}
                                for e in events]})
         return 0
-    print(f"{args.file}: {len(events)} events ({match.protocol.name}, {trial.rate:g} Hz)"
+    start = (f"; times from the file's first frame, C3D frame {trial.first_frame} (lab "
+             f"clock {trial.start_time:.3f} s)" if trial.first_frame != 1 and events else "")
+    print(f"{args.file}: {len(events)} events ({match.protocol.name}, {trial.rate:g} Hz{start})"
           + ("; none: standing still (rest)" if not events else ""))
     for e in events:
         print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"

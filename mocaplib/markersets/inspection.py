@@ -128,9 +128,12 @@ def format_summary(summary: dict) -> str:
         return "\n".join(printable(line, keep="")
                          for line in lines + [f"  FAILED: {summary['error']}"])
     rotated = "" if summary["vertical_axis"] == "Z" else " (rotated to Z up)"
+    first = summary["first_frame"]
     lines.append(f"  {summary['frames']} frames at {summary['rate_hz']:g} Hz "
-                 f"({summary['duration_s']:.2f} s), units {summary['units']}, vertical axis "
-                 f"{summary['vertical_axis']}{rotated}")
+                 f"({summary['duration_s']:.2f} s)"
+                 + (f" from C3D frame {first}" if first != 1 else "")
+                 + f", units {summary['units']}, vertical axis {summary['vertical_axis']}"
+                 f"{rotated}")
     closest = summary.get("closest_protocol")
     if summary["protocol"] is None and closest:
         lines.append(f"  protocol: none has its required landmarks; closest {closest['name']} "
@@ -146,7 +149,9 @@ def format_summary(summary: dict) -> str:
         if summary["missing_labels"]:
             lines.append(f"  not found: {', '.join(summary['missing_labels'])}")
     events = summary["events"]
-    lines.append("  events: " + (", ".join(
+    clock = (f" (lab clock: the file starts at {(first - 1) / summary['rate_hz']:.3f} s)"
+             if first != 1 and events else "")
+    lines.append(f"  events{clock}: " + (", ".join(
         f"{e['context']} {e['label']} {e['time_s']:.3f} s".strip() for e in events) or "none"))
     rows = [(m["label"], m["landmark"] or "(not in protocol)", f"{m['gap_pct']:.1f}",
              f"{m['longest_gap_s']:.2f} s ({m['longest_gap_frames']} frames)"
