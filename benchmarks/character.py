@@ -14,7 +14,9 @@ SAMPLES/walk_straight_normal.c3d --jobs 2``). Then, for every chosen entry that 
 * **the report's viewer**: the entry's cycle planted and fitted again as a series
   (:func:`mocaplib.library.planting.planted_series`), posed at 100 Hz by the viewer's own
   JavaScript (node on templates/motion.js, tests/viewer_poses.py: each leg moved to its
-  foot's lock), its feet; and the series alone (the legs not moved), for comparison;
+  foot's lock), its feet; and the series alone (the legs not moved), for comparison; and
+  the blends the viewer plays at the centroid of every second tetrahedron of the gait cells,
+  their feet on the locks the page finds (``findLocks``) and from their series alone;
 * **retarget** to each height: :func:`mocaplib.library.retarget.retarget` at 100 Hz, its feet,
   its pelvis's vertical acceleration against the entry's (its closed cycle on its own body)
   times the body's size ratio (requested stance over the entry's), its pelvis yaw range (about
@@ -58,7 +60,7 @@ from mocaplib.library.planting import cycle_contact, plant_blend  # noqa: E402
 from mocaplib.library.retarget import retarget  # noqa: E402
 from mocaplib.skeleton import JOINT_ANGLES, ROOT_HEADING, Skeleton  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
-from viewer_poses import viewer_contact  # noqa: E402
+from viewer_poses import cell_centroids, viewer_blends, viewer_contact  # noqa: E402
 
 SLIDE, BELOW, HOVER = 0.002, 0.0005, 0.003
 JOLT_RATIO, JOLT_MARGIN, YAW_RATIO, YAW_MARGIN = 1.3, 0.5, 1.5, np.radians(0.5)
@@ -169,7 +171,22 @@ def retarget_table(df: pd.DataFrame, by: str) -> list[str]:
     return lines
 
 
-def missed_targets(queries: pd.DataFrame, retargets: pd.DataFrame) -> list[str]:
+def blend_rows(library) -> pd.DataFrame:
+    """One row per blend the report's viewer plays at the centroid of every second
+    tetrahedron of the gait cells (tests/viewer_poses.py): its feet posed on the locks its
+    JavaScript finds, and posed from its series alone."""
+    rows = []
+    for blend in viewer_blends(library, cell_centroids(library), RATE):
+        if blend is not None:
+            shown, alone = blend["contact"], blend["alone"]
+            rows.append({"slide": shown.slide_m, "below": shown.penetration_m,
+                         "hover": shown.hover_m, "alone_slide": alone.slide_m,
+                         "alone_below": alone.penetration_m, "alone_hover": alone.hover_m})
+    return pd.DataFrame(rows)
+
+
+def missed_targets(queries: pd.DataFrame, retargets: pd.DataFrame,
+                   blends: pd.DataFrame) -> list[str]:
     missed = []
     for name, df in (("query", queries), ("retarget", retargets)):
         for column, limit in (("slide", SLIDE), ("below", BELOW), ("hover", HOVER)):
@@ -180,6 +197,9 @@ def missed_targets(queries: pd.DataFrame, retargets: pd.DataFrame) -> list[str]:
                           ("viewer_hover", HOVER)):
         if queries[column].max() > limit:
             missed.append(f"the report's viewer: {column[7:]} {_mm(queries[column].max())} mm")
+    for column, limit in (("slide", SLIDE), ("below", BELOW), ("hover", HOVER)):
+        if blends[column].max() > limit:
+            missed.append(f"the report viewer's blends: {column} {_mm(blends[column].max())} mm")
     jolts = queries.jolt > JOLT_RATIO * queries.own_jolt + JOLT_MARGIN
     missed += [f"query pelvis acceleration of {e}" for e in queries.entry[jolts]]
     bad = retargets[~(retargets.jolt_ok & retargets.yaw_ok) | (retargets.knee_min_deg < 0)
@@ -208,7 +228,8 @@ def main() -> int:
         started = time.perf_counter()
         queries = query_rows(lib)
         retargets = retarget_rows(lib, args.heights)
-        missed = missed_targets(queries, retargets)
+        blends = blend_rows(lib)
+        missed = missed_targets(queries, retargets, blends)
         print(f"{len(queries)} entries that move, {len(retargets)} retargeted cycles, measured "
               f"in {time.perf_counter() - started:.0f} s.\n")
         print("### `mocaplib query` outputs, by locomotion type\n")
@@ -221,6 +242,12 @@ def main() -> int:
               f"{_mm(queries.viewer_below.max())} mm, hover {_mm(queries.viewer_hover.max())} "
               f"mm (the series alone: {_mm(queries.series_slide.max())}, "
               f"{_mm(queries.series_below.max())}, {_mm(queries.series_hover.max())} mm).\n")
+        print(f"A blend picked in the viewer ({len(blends)} blends at the centroids of every "
+              "second tetrahedron of the gait cells) is posed on the locks the page finds on "
+              f"it (`findLocks`): at worst slide {_mm(blends.slide.max())} mm, below the floor "
+              f"{_mm(blends.below.max())} mm, hover {_mm(blends.hover.max())} mm (its series "
+              f"alone: {_mm(blends.alone_slide.max())}, {_mm(blends.alone_below.max())}, "
+              f"{_mm(blends.alone_hover.max())} mm).\n")
         print("### `mocaplib retarget` outputs, by body height\n")
         print("\n".join(retarget_table(retargets, "height")) + "\n")
         print("### `mocaplib retarget` outputs, by locomotion type (every height)\n")

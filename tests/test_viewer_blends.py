@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from mocaplib.gait.fourier import RootDrift, synthesize
-from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.foot_targets import BLEND_S, flattest, foot_axes, mask_runs
 from mocaplib.library.legs import LEG_DOFS, LegChains
 from mocaplib.library.planting import STANCE_RATE, stance_frames
@@ -30,13 +29,11 @@ def picked():
     """The samples' library and the viewer's blends at the centroids of every
     :data:`EVERY`-th tetrahedron of its gait cells (those a cell holds)."""
     from test_planting import sample_library
-    from viewer_poses import viewer_blends
+    from viewer_poses import cell_centroids, viewer_blends
 
     library = sample_library()[0]
-    cs = ControlSpace.from_library(library)
-    centroids = [cs.points[simplex].mean(axis=0) for cell in cs.cells.values()
-                 for simplex in cell.tri.simplices[::EVERY]]
-    return library, [b for b in viewer_blends(library, centroids) if b is not None]
+    return library, [b for b in viewer_blends(library, cell_centroids(library, EVERY))
+                     if b is not None]
 
 
 def python_locks(skeleton, blend) -> np.ndarray:
@@ -82,3 +79,5 @@ def test_a_picked_blends_feet_meet_the_targets():
                            for name in ("slide_m", "penetration_m", "hover_m"))
     assert slide <= SLIDE and below <= PENETRATION and hover <= HOVER, (slide, below, hover)
     assert min(b["contact"].stances for b in blends) >= 2
+    # the locks are what holds them: without, the same poses slide and sink
+    assert max(b["alone"].slide_m for b in blends) > 10 * SLIDE

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mocaplib.gait.fourier import RootDrift
+from mocaplib.gait.fourier import RootDrift, synthesize
 from mocaplib.library.controlspace import ControlSpace
 from mocaplib.library.planting import (ContactMeasures, PlantedSeries, contact_measures,
                                        planted_series, stance_frames)
@@ -51,13 +51,21 @@ _BLEND_SCRIPT = (
     "  return b; })));")
 
 
+def cell_centroids(library, every: int = 2) -> np.ndarray:
+    """The centroids (C, 3), SI, of every ``every``-th tetrahedron of each gait cell of the
+    library's control space: commands spread over where the viewer blends."""
+    cs = ControlSpace.from_library(library)
+    return np.array([cs.points[simplex].mean(axis=0) for cell in cs.cells.values()
+                     for simplex in cell.tri.simplices[::every]])
+
+
 def viewer_blends(library, commands, rate: float = 100.0) -> list[dict | None]:
     """The report viewer's blend at each SI command (v̂, ω̂, v̂_l) of the library's control
     space, as the page picks it, computed by node: ``a``, ``b`` (D, N+1), ``T`` (s), ``drift``,
     ``locks`` (L, 6) found on it in JavaScript, ``times`` (3F,) s from one cycle before to
-    one after and ``world`` (3F, D) its poses there in the world, and ``contact``
-    (:class:`ContactMeasures` over its middle cycle, its stances whole; None where no gait
-    cell holds the command)."""
+    one after and ``world`` (3F, D) its poses there in the world, ``contact``
+    (:class:`ContactMeasures` over its middle cycle, its stances whole) and ``alone`` (the
+    same of its series posed without locks); None where no gait cell holds the command."""
     cs = ControlSpace.from_library(library)
     classes = [e.locomotion_class or "unknown" for e in library.entries]
     page = viewer_data(library, cs, classes, {})
@@ -74,13 +82,17 @@ def viewer_blends(library, commands, rate: float = 100.0) -> list[dict | None]:
         times = np.arange(-frames, 2 * frames) / rate
         world = RootDrift(0.0, 0.0, 0.0, *blend["drift"]).restore(np.array(blend["poses"]),
                                                                   times)
-        stance = stance_frames(library.skeleton, world, rate)
+        drift = RootDrift(0.0, 0.0, 0.0, *blend["drift"])
+        alone = drift.restore(synthesize(np.array(blend["a"]), np.array(blend["b"]),
+                                         blend["T"], np.mod(times, blend["T"])), times)
+        measured = [contact_measures(library.skeleton, q, rate,
+                                     stance_frames(library.skeleton, q, rate),
+                                     window=(frames, 2 * frames)) for q in (world, alone)]
         out.append({"a": np.array(blend["a"]), "b": np.array(blend["b"]), "T": blend["T"],
                     "drift": np.array(blend["drift"]),
                     "locks": np.array(blend["locks"], dtype=float).reshape(-1, 6),
-                    "times": times, "world": world,
-                    "contact": contact_measures(library.skeleton, world, rate, stance,
-                                                window=(frames, 2 * frames))})
+                    "times": times, "world": world, "contact": measured[0],
+                    "alone": measured[1]})
     return out
 
 
