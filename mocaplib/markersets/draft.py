@@ -26,7 +26,11 @@ The labels and landmarks are paired by one assignment (Hungarian, ``scipy``) of 
 cost: the distance between the marker and the landmark, less :data:`NAME_BONUS` when the name
 points to that landmark, plus :data:`SIDE_PENALTY` when the label's side is the other one; a
 label farther than :data:`NONE_COST` from every landmark stays unmatched (a tracking marker if
-it belongs to a cluster, else listed as unknown). Required landmarks are marked as the pipeline
+it belongs to a cluster, else listed as unknown). A label whose name points to a landmark that
+another label within :data:`SECOND_MARKER_GAP` of it takes is a second label of that marker
+(two marker sets' names exported at once): a tracking marker on the landmark's segment, before
+the checks of :mod:`~mocaplib.markersets.draft_checks` and after them for a label they left
+without a guess. Required landmarks are marked as the pipeline
 needs them: both acromions, both ASIS, a back pelvis marker (PSIS or sacrum, ``[any_of]``),
 each heel and a toe or forefoot marker (``[any_of]``). A marker seen on the static only is
 ``static_only``.
