@@ -5,10 +5,13 @@ the animation equal Skeleton.forward's at every keyframe."""
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
 
+from conftest import REPO
 from fk_data import neutral_q
 from mocaplib.cli import main
 from mocaplib.errors import MocapError
@@ -201,6 +204,41 @@ def test_a_blended_query_as_gltf(walks, tmp_path, capsys, name):
     assert times[-1] < 2 * answer["played_T_s"]
     np.testing.assert_allclose(_joints(positions, names),
                                library.skeleton.forward(q)[:, :, :3, 3], atol=TOLERANCE_M)
+
+
+#: The Khronos Group's glTF-Validator (npm ``gltf-validator``, a devDependency of js/).
+KHRONOS_VALIDATOR = REPO / "js" / "node_modules" / "gltf-validator"
+_VALIDATE = ("const v = require(process.argv[1]); const fs = require('fs');"
+             "Promise.all(process.argv.slice(2).map((f) => v.validateBytes("
+             "new Uint8Array(fs.readFileSync(f)), {maxIssues: 100}))).then((r) => "
+             "process.stdout.write(JSON.stringify(r.map((x) => x.issues))));")
+
+
+@pytest.mark.skipif(shutil.which("node") is None or not KHRONOS_VALIDATOR.is_dir(),
+                    reason="node or js/node_modules/gltf-validator (cd js && npm ci) missing")
+def test_the_khronos_validator_finds_no_error_nor_warning(walks, tmp_path, capsys):
+    # the validator game engines' and DCC tools' glTF pipelines check files with: random poses,
+    # a blended query and a retargeted cycle, as .gltf and .glb
+    library, path = walks
+    sk = Skeleton.from_height(1.75)
+    q = np.random.default_rng(5).uniform(-1.0, 1.0, size=(9, len(DOF_NAMES)))
+    files = [writer(Motion(q, sk, 30.0), tmp_path / name)
+             for writer, name in ((write_gltf, "poses.gltf"), (write_glb, "poses.glb"))]
+    command = library.table[["v", "omega", "v_l"]].mean().to_numpy()
+    for name in ("blend.gltf", "blend.glb"):
+        assert main(["query", str(path), *map(str, command), "--gltf",
+                     str(tmp_path / name)]) == 0
+        files.append(tmp_path / name)
+    entry = next(e for e in library.table.index if e.startswith("walk_straight_normal_"))
+    files.append(retarget(library, entry, skeleton=Skeleton.from_height(1.9), rate=50.0)
+                 .write(tmp_path / "tall.glb"))
+    done = subprocess.run(["node", "-e", _VALIDATE, str(KHRONOS_VALIDATOR), *map(str, files)],
+                          capture_output=True, text=True, timeout=120, check=True)
+    for file, issues in zip(files, json.loads(done.stdout)):
+        assert issues["numErrors"] == issues["numWarnings"] == 0, (file.name, issues)
+        # its one note: the skin no mesh binds (the skeleton and its animation, no body)
+        assert [(m["code"], m["pointer"]) for m in issues["messages"]] == [
+            ("UNUSED_OBJECT", "/skins/0")], (file.name, issues["messages"])
 
 
 def test_a_retargeted_cycle_as_gltf_loops_without_its_closing_frame(walks, tmp_path):
