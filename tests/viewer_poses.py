@@ -35,7 +35,7 @@ def viewer_poses(skeleton, entries: list[dict]) -> list[np.ndarray]:
 
 
 #: node: the page's blend at each command (figure.js ``pick``: ``weigh``, ``blend``, its locks
-#: by ``findLocks``) and its poses (``plantedPose``) at ``rate`` Hz over three cycles.
+#: by ``findLocks``), null where no gait cell holds it.
 _BLEND_SCRIPT = (
     "const M = require(process.argv[1]);"
     "const job = JSON.parse(require('fs').readFileSync(0, 'utf8'));"
@@ -44,10 +44,6 @@ _BLEND_SCRIPT = (
     "  const b = M.blend(found.corners.map((i) => job.entries[job.space.entries[i]]),"
     "                    found.weights);"
     "  b.locks = M.findLocks(job.skeleton, b);"
-    "  const frames = Math.round(b.T * job.rate), times = [];"
-    "  for (let k = -frames; k < 2 * frames; k++) { times.push(k / job.rate); }"
-    "  b.poses = times.map((t) => M.plantedPose(job.skeleton, b,"
-    "                                           ((t % b.T) + b.T) % b.T));"
     "  return b; })));")
 
 
@@ -63,37 +59,55 @@ def viewer_blends(library, commands, rate: float = 100.0) -> list[dict | None]:
     """The report viewer's blend at each SI command (v̂, ω̂, v̂_l) of the library's control
     space, as the page picks it, computed by node: ``a``, ``b`` (D, N+1), ``T`` (s), ``drift``,
     ``locks`` (L, 6) found on it in JavaScript, ``times`` (3F,) s from one cycle before to
-    one after and ``world`` (3F, D) its poses there in the world, ``contact``
-    (:class:`ContactMeasures` over its middle cycle, its stances whole) and ``alone`` (the
-    same of its series posed without locks); None where no gait cell holds the command."""
+    one after and ``world`` (3F, D) its poses there in the world (:func:`viewer_poses`),
+    ``contact`` (:class:`ContactMeasures` over its middle cycle, its stances whole) and
+    ``alone`` (the same of its series posed without locks); None where no gait cell holds the
+    command."""
     cs = ControlSpace.from_library(library)
     classes = [e.locomotion_class or "unknown" for e in library.entries]
     page = viewer_data(library, cs, classes, {})
     job = {"skeleton": page["skeleton"], "entries": page["entries"], "space": page["space"],
-           "commands": np.asarray(commands, dtype=float).tolist(), "rate": rate}
+           "commands": np.asarray(commands, dtype=float).tolist()}
     done = subprocess.run([NODE, "-e", _BLEND_SCRIPT, str(MOTION_JS)], input=json.dumps(job),
                           capture_output=True, text=True, timeout=600, check=True)
+    blends = json.loads(done.stdout)
+    found = [b for b in blends if b is not None]
+    for b in found:
+        b["times"] = _three_cycles(b["T"], rate)
+    posed = iter(viewer_poses(library.skeleton, [
+        {**b, "times": np.mod(b["times"], b["T"]).tolist()} for b in found]))
     out = []
-    for blend in json.loads(done.stdout):
-        if blend is None:
+    for b in blends:
+        if b is None:
             out.append(None)
             continue
-        frames = round(blend["T"] * rate)
-        times = np.arange(-frames, 2 * frames) / rate
-        world = RootDrift(0.0, 0.0, 0.0, *blend["drift"]).restore(np.array(blend["poses"]),
-                                                                  times)
-        drift = RootDrift(0.0, 0.0, 0.0, *blend["drift"])
-        alone = drift.restore(synthesize(np.array(blend["a"]), np.array(blend["b"]),
-                                         blend["T"], np.mod(times, blend["T"])), times)
-        measured = [contact_measures(library.skeleton, q, rate,
-                                     stance_frames(library.skeleton, q, rate),
-                                     window=(frames, 2 * frames)) for q in (world, alone)]
-        out.append({"a": np.array(blend["a"]), "b": np.array(blend["b"]), "T": blend["T"],
-                    "drift": np.array(blend["drift"]),
-                    "locks": np.array(blend["locks"], dtype=float).reshape(-1, 6),
-                    "times": times, "world": world, "contact": measured[0],
-                    "alone": measured[1]})
+        blend = {"a": np.array(b["a"]), "b": np.array(b["b"]), "T": b["T"],
+                 "drift": np.array(b["drift"]), "times": b["times"],
+                 "locks": np.array(b["locks"], dtype=float).reshape(-1, 6)}
+        drift, t = RootDrift(0.0, 0.0, 0.0, *blend["drift"]), blend["times"]
+        blend["world"], blend["contact"] = _contact(library.skeleton, drift, next(posed), t, rate)
+        series = synthesize(blend["a"], blend["b"], blend["T"], np.mod(t, blend["T"]))
+        blend["alone"] = _contact(library.skeleton, drift, series, t, rate)[1]
+        out.append(blend)
     return out
+
+
+def _three_cycles(period: float, rate: float) -> np.ndarray:
+    """Times (3F,) s at ``rate`` Hz from one cycle of ``period`` s before the cycle (F whole
+    samples) to one after it."""
+    frames = round(period * rate)
+    return np.arange(-frames, 2 * frames) / rate
+
+
+def _contact(skeleton, drift: RootDrift, q: np.ndarray, t: np.ndarray, rate: float
+             ) -> tuple[np.ndarray, ContactMeasures]:
+    """Poses ``q`` (3F, D) in the path frame at times ``t`` (3F,) s, from one cycle before to
+    one after, moved along ``drift`` into the world, and their :class:`ContactMeasures` over
+    the middle cycle at ``rate`` Hz (its stances whole)."""
+    world = drift.restore(q, t)
+    frames = len(t) // 3
+    return world, contact_measures(skeleton, world, rate, stance_frames(skeleton, world, rate),
+                                   window=(frames, 2 * frames))
 
 
 def viewer_contact(library, rate: float = 100.0
@@ -108,17 +122,10 @@ def viewer_contact(library, rate: float = 100.0
             continue
         drift = RootDrift(0.0, 0.0, 0.0, *velocities)
         series = planted_series(library.skeleton, a, b, period, drift)
-        frames = round(period * rate)
-        t = np.arange(-frames, 2 * frames) / rate
+        t = _three_cycles(period, rate)
         jobs.append({"a": series.a.tolist(), "b": series.b.tolist(), "T": period,
                      "drift": velocities.tolist(), "locks": series.locks.tolist(),
                      "times": np.mod(t, period).tolist()})
-        padded.append((e.id, drift, t, (frames, 2 * frames), series))
-    out = []
-    for (entry, drift, t, window, series), q in zip(padded,
-                                                    viewer_poses(library.skeleton, jobs)):
-        world = drift.restore(q, t)
-        stance = stance_frames(library.skeleton, world, rate)
-        out.append((entry, contact_measures(library.skeleton, world, rate, stance,
-                                            window=window), series))
-    return out
+        padded.append((e.id, drift, t, series))
+    return [(entry, _contact(library.skeleton, drift, q, t, rate)[1], series)
+            for (entry, drift, t, series), q in zip(padded, viewer_poses(library.skeleton, jobs))]

@@ -487,8 +487,8 @@ var MocapMotion = (function () {
   function runsOf(mask) {
     var out = [];
     mask.forEach(function (v, i) {
-      if (v && (i === 0 || !mask[i - 1])) { out.push([i, i + 1]); }
-      if (v && i > 0 && mask[i - 1]) { out[out.length - 1][1] = i + 1; }
+      if (!v) { return; }
+      if (i > 0 && mask[i - 1]) { out[out.length - 1][1] = i + 1; } else { out.push([i, i + 1]); }
     });
     return out;
   }
