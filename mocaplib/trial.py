@@ -94,7 +94,12 @@ class Trial:
         Subject measurements the file stores (metres, kilograms), keys of
         :data:`mocaplib.model.anatomy.MEASUREMENTS` (``knee_width_l``, ``marker_diameter``...).
     analog_channels : int
-        Analog channels the file stores beside the markers (force plates, EMG; not read).
+        Analog channels the file stores beside the markers (force plates, EMG): only the
+        force plates' channels are read, into ``force_plates``.
+    force_plates : list[ForcePlate]
+        The force plates read from the file (:class:`~mocaplib.io.c3d_analog.ForcePlate`:
+        vertical force in newtons at the analog rate, corners in metres in this frame); empty
+        for files without plates and for synthetic captures.
 
     A trial may hold no markers (M = 0: a file of analog channels only); every stage after
     import refuses it (:func:`require_markers`).
@@ -111,6 +116,7 @@ class Trial:
     warnings: list[str] = field(default_factory=list)
     measurements: dict[str, float] = field(default_factory=dict)
     analog_channels: int = 0
+    force_plates: list = field(default_factory=list)
 
     def __post_init__(self):
         where = self.source

@@ -1,5 +1,5 @@
-"""Read the markers of a C3D file into a :class:`~mocaplib.trial.Trial` (metres, Z up,
-NaN = missing).
+"""Read the markers and force plates of a C3D file into a :class:`~mocaplib.trial.Trial`
+(metres, Z up, NaN = missing).
 
 What :func:`read_c3d` does
     * Header and parameters: :mod:`mocaplib.io.c3d_params` (any processor format; real-world
@@ -20,6 +20,10 @@ What :func:`read_c3d` does
       proper rotation, so the Trial is Z up and right-handed.
     * Events from the EVENT group (CONTEXTS, LABELS, TIMES as minutes/seconds) in seconds on the
       lab clock (frame ``first_frame`` is at ``(first_frame - 1) / rate``).
+    * Force plates from the FORCE_PLATFORM group and the analog samples of their channels
+      (:mod:`mocaplib.io.c3d_analog`): each plate's vertical force in newtons at the analog
+      rate and its corners in metres, rotated as the markers. A plate that cannot be read is
+      skipped with a warning naming it; the markers are read whatever the plates hold.
 
 Bad input (not a C3D, empty, truncated, sizes or counts that cannot be right) raises
 :class:`~mocaplib.errors.C3DError` naming the file: every size is checked against the file size
@@ -38,6 +42,7 @@ import numpy as np
 from ..errors import C3DError
 from ..trial import Event, Trial, subject_prefixes
 from . import open_regular
+from .c3d_analog import read_force_plates
 from .c3d_axis import detect_vertical_axis, screen_up_axis, y_up_to_z_up
 from .c3d_layout import frames_past_16_bits, point_layout
 from .c3d_params import label_keys, number, parse_parameters, read_metadata, strings
@@ -53,11 +58,13 @@ MODEL_OUTPUT_PARAMETERS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "SCALARS", "
 
 
 def read_c3d(path: str | os.PathLike, /) -> Trial:
-    """Read the markers of the C3D file ``path``: a :class:`Trial` in metres, Z up, NaN = missing.
+    """Read the markers and force plates of the C3D file ``path``: a :class:`Trial` in metres,
+    Z up, NaN = missing.
 
-    Only the header, the parameter section and the POINT words are read; the frames are read
-    :data:`CHUNK_BYTES` at a time (their analog samples skipped), so memory holds little more
-    than the marker array, whatever the file's size.
+    Only the header, the parameter section, the POINT words and the analog samples of the
+    force plates' channels are read; the frames are read :data:`CHUNK_BYTES` at a time, so
+    memory holds little more than the marker array and the plates' channels, whatever the
+    file's size.
 
     Parameters
     ----------
@@ -67,8 +74,9 @@ def read_c3d(path: str | os.PathLike, /) -> Trial:
     Returns
     -------
     Trial
-        Markers (F, M, 3) in metres, Z up, NaN where missing; labels, rate (Hz), events and
-        the reader's notes (``warnings``).
+        Markers (F, M, 3) in metres, Z up, NaN where missing; labels, rate (Hz), events, the
+        force plates (:class:`~mocaplib.io.c3d_analog.ForcePlate`) and the reader's notes
+        (``warnings``).
 
     Raises
     ------
@@ -124,9 +132,10 @@ def _read_trial(handle, path: Path) -> Trial:
         labels = [labels[i] for i in keep]
     if keep:
         units, to_metres = _point_units(reader, path, notes)
-    else:                          # no marker points: the units convert nothing, unchecked
+    else:          # no marker points: the units convert the plates' corners only, unchecked
         found = strings(reader.get("POINT:UNITS"), path, "POINT:UNITS")
-        units, to_metres = (found[0] if found and found[0] else "mm"), 1.0
+        units = found[0] if found and found[0] else "mm"
+        to_metres = UNITS_TO_METRES[unit_of(units) or "mm"]
     markers = read_points(handle, layout, keep, to_metres, path)
 
     duplicates = sorted(label for label, n in Counter(labels).items() if n > 1)
@@ -146,13 +155,14 @@ def _read_trial(handle, path: Path) -> Trial:
         for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
             chunk[:] = y_up_to_z_up(chunk)          # in place, a chunk at a time
         notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
+    plates = read_force_plates(handle, reader, layout, to_metres, axis, path, notes)
 
     analog = layout.words - 4 * layout.count
     channels = (number(reader, "ANALOG:USED", "uint16") or analog) if analog else 0
     return Trial(markers, labels, layout.rate, first_frame=layout.first_frame, units=units,
                  vertical_axis=axis, events=_events(reader, path, notes), source=str(path),
                  warnings=notes, measurements=subject_measurements(reader),
-                 analog_channels=channels)
+                 analog_channels=channels, force_plates=plates)
 
 
 # ----------------------------------------------------------------------------- labels, units
