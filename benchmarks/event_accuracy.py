@@ -28,7 +28,10 @@ when absent), for each toe-off definition, and prints:
   plates), the toe-offs against its lab Foot Offs and against its plates' unloadings: paired
   (nearest placed toe-off of the side within 0.1 s; a plate with none), median and worst
   |difference| (targets: median <= 10 ms, worst <= 30 ms on every file), and the lab events
-  and unloadings that fall in the window of a toe-off the detector reported as not placed.
+  and unloadings that fall in the window of a toe-off the detector reported as not placed;
+* the events the force plates time by default (:mod:`mocaplib.gait.plate_events`; every other
+  table measures the markers' events, ``force_plates=False``) against the lab's events and
+  the markers' own.
 
 ``--noise-sd SD`` regenerates the sample plan (``protocols/paper_plan.toml``) into a temporary
 folder with marker noise ``SD`` metres instead of reading ``--samples`` (the plan's 0.0007):
@@ -46,7 +49,6 @@ import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
@@ -56,9 +58,10 @@ sys.path.insert(0, str(ROOT))
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.events import TOE_OFF_DEFINITIONS, EventSettings, capture_events
 from mocaplib.gait.feet import LAB_EVENT_KINDS, event_differences
+from mocaplib.gait.plate_events import (PLATE_MIN_PEAK_N, PLATE_THRESHOLD_N,  # noqa: F401
+                                        Unloading, readable, unloadings)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.markersets.matching import detect_protocol
-from mocaplib.runs import valid_runs
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
 
 #: The real files whose EVENT group holds lab (force-plate or operator) Foot Off events.
@@ -69,22 +72,9 @@ SYNTHETIC_TARGET, REAL_TARGET_S, REAL_WORST_S = 0.95, 0.010, 0.030
 SLOW_WALKS = tuple((kind, speed, radius, seed) for speed in (0.3, 0.4, 0.5, 0.6)
                    for kind, radius, seed in (("straight", None, 101), ("straight", None, 102),
                                               ("curve", 2.0, 103)))
-#: Vertical force (N) under which a force plate counts as unloaded: the common 20 N of the
-#: field's 10-50 N thresholds (Tirosh & Sparrow 2003 compare them), 3 to 10 times the noise
-#: of the plates here (SD 2-7.5 N); least peak (N) of a plate someone stood on; shortest
-#: stance (s) on it.
-PLATE_THRESHOLD_N, PLATE_MIN_PEAK_N, PLATE_MIN_STANCE_S = 20.0, 100.0, 0.1
-#: Largest spread (SD, N) of a plate's readings under a tenth of its peak for its unloadings to
-#: be read: the overground plates here spread 1.6-7.5 N; an instrumented treadmill's belts,
-#: under both feet at once and shaken by the belt, 16-56 N (gaitalytics' treadmill test
-#: capture): the 20 N threshold cannot tell a foot leaving from their noise.
-PLATE_MAX_EMPTY_SD_N = 10.0
 #: The lower threshold (N) whose unloadings the plate table also shows, to tell how much of a
 #: difference the threshold's choice makes (Tirosh & Sparrow advise 10 N or less for toe-off).
 LOW_THRESHOLD_N = 10.0
-#: How much of a plate's falling force (s, before the recording cut it to zero) gives the
-#: tangent its unloading is extrapolated along (:func:`unloadings`).
-CLIP_TANGENT_S = 0.01
 #: The rows of the real table: (row name, event kind, lab event sides or None for both).
 REAL_ROWS = (("toe_off", "toe_off", None), ("heel_strike", "heel_strike", None),
              ("left toe_off", "toe_off", "L"))
@@ -96,7 +86,8 @@ def differences(paths, toe_off: str) -> dict[str, tuple[dict[str, np.ndarray], f
     out = {}
     for path in paths:
         trial = read_c3d(path)
-        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off)
+        events, _ = capture_events(trial, detect_protocol(trial), toe_off=toe_off,
+                                   force_plates=False)
         out[path.stem] = ({row: event_differences(events, _of_side(trial.events, side),
                                                   kind=kind, start_time=trial.start_time)
                            for row, kind, side in REAL_ROWS}, trial.rate)
@@ -230,16 +221,6 @@ def vertical_forces(path: Path) -> tuple[float, list[np.ndarray]]:
     return rate, out
 
 
-class Unloading(NamedTuple):
-    """One force plate's unloading (:func:`unloadings`): when (s), and where the recording cut
-    the force to zero from above the threshold, the force (N) and time (s) of the cut (None,
-    None where it did not)."""
-
-    time_s: float
-    cut_n: float | None = None
-    cut_s: float | None = None
-
-
 def plate_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> list[float]:
     """Seconds from the first frame at which a force plate of the C3D at ``path`` is unloaded
     (:func:`cut_unloadings`' times)."""
@@ -255,16 +236,6 @@ def cut_unloadings(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N) -> lis
                   key=lambda u: u.time_s)
 
 
-def readable(force: np.ndarray) -> bool:
-    """Whether a plate's vertical force (A,) N gives unloadings: someone stood on it (it bears
-    :data:`PLATE_MIN_PEAK_N`; else nobody did, or its channel is not in newtons) and it reads
-    only its noise empty (the SD of its readings under a tenth of its peak is at most
-    :data:`PLATE_MAX_EMPTY_SD_N`)."""
-    empty = force < 0.1 * force.max()
-    return bool(force.max() >= PLATE_MIN_PEAK_N and empty.any()
-                and np.std(force[empty]) <= PLATE_MAX_EMPTY_SD_N)
-
-
 def plate_files(real: Path, unloaded=cut_unloadings):
     """(path, ``unloaded(path)``) of every C3D file under ``real`` whose force plates can be
     read (:func:`cut_unloadings` by default), in path order."""
@@ -276,34 +247,6 @@ def plate_files(real: Path, unloaded=cut_unloadings):
         yield path, found
 
 
-def unloadings(force: np.ndarray, rate: float, /, *, threshold_n: float = PLATE_THRESHOLD_N
-               ) -> list[Unloading]:
-    """When the vertical force (A,) N of one plate sampled at ``rate`` Hz falls below
-    ``threshold_n`` after each run of at least :data:`PLATE_MIN_STANCE_S` above it that ends
-    inside the recording (analog sample ``k`` at ``k / rate`` s).
-
-    The unloading is the first sample below the threshold, unless the recording cut the force
-    to zero from above it (the last loaded sample exceeds the next by more than the threshold
-    itself: a foot leaving a plate unloads it at 1-5 N/ms, such a drop is the recording's own
-    threshold); the crossing is then extrapolated along the falling force's tangent, a line
-    fitted to its last :data:`CLIP_TANGENT_S` before the cut. The force decelerates as it
-    falls (the toes' last push), so the tangent crosses the threshold no later than the force
-    would have: an unloading so found is an early bound."""
-    out = []
-    window = max(2, round(CLIP_TANGENT_S * rate))
-    for start, end in valid_runs(force > threshold_n).tolist():
-        if end - start < PLATE_MIN_STANCE_S * rate or end >= len(force):
-            continue
-        if force[end - 1] - force[end] <= threshold_n:
-            out.append(Unloading(end / rate))
-            continue
-        frames = np.arange(max(start, end - window), end)
-        slope, intercept = np.polyfit(frames, force[frames], 1)
-        crossing = (threshold_n - intercept) / slope if slope < 0 else end
-        out.append(Unloading(max(crossing, end) / rate, float(force[end - 1]), end / rate))
-    return out
-
-
 def toe_off_differences(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N
                         ) -> tuple[np.ndarray, np.ndarray, int]:
     """Default toe-offs of the C3D at ``path`` minus its recorded toe-offs (s): against the
@@ -313,7 +256,7 @@ def toe_off_differences(path: Path, *, threshold_n: float = PLATE_THRESHOLD_N
     NaN where no placed toe-off lies within 0.1 s; and how many lab Foot Offs and unloadings
     fall in the window of a toe-off the detector reported as not placed."""
     trial = read_c3d(path)
-    events, _ = capture_events(trial, detect_protocol(trial))
+    events, _ = capture_events(trial, detect_protocol(trial), force_plates=False)
     lab = event_differences(events, trial.events, kind="toe_off", start_time=trial.start_time)
     try:
         unloadings = plate_unloadings(path, threshold_n=threshold_n)
@@ -405,6 +348,45 @@ def per_file_table(real: Path) -> bool:
     return met
 
 
+def plate_timed_table(real: Path) -> None:
+    """Print each event the force plates time by default (:mod:`mocaplib.gait.plate_events`)
+    in the real files under ``real``, against the lab's event of its side and kind within
+    0.1 s, beside the markers' own event there (``force_plates=False``)."""
+    print("\nEvents the force plates time (default; `--markers-only` leaves them to the "
+          "markers), minus the lab's event of the side and kind (ms; – : none within 0.1 s):\n")
+    print("| file | side | kind | plate | time (s) | plate − lab | markers − lab | "
+          "markers − plate |\n|---|---|---|---|---|---|---|---|")
+    rows = {"plate": [], "markers": []}
+    for path in sorted(real.rglob("*.c3d")):
+        trial = read_c3d(path)
+        if not trial.force_plates:
+            continue
+        match = detect_protocol(trial)
+        timed = [e for e in capture_events(trial, match)[0] if e.plate is not None]
+        markers, _ = capture_events(trial, match, force_plates=False)
+        for event in timed:
+            own = min((e for e in markers if (e.side, e.kind) == (event.side, event.kind)),
+                      key=lambda e: abs(e.time_s - event.time_s))
+            side = _of_side(trial.events, event.side[0].upper())
+            lab = [e.time_s - trial.start_time for e in side
+                   if LAB_EVENT_KINDS.get(e.label) == event.kind
+                   and abs(e.time_s - trial.start_time - event.time_s) <= 0.1]
+            cells = ["–", "–"]
+            if lab:
+                for i, (key, t) in enumerate((("plate", event.time_s), ("markers", own.time_s))):
+                    rows[key].append(1000 * (t - lab[0]))
+                    cells[i] = f"{1000 * (t - lab[0]):+.1f}"
+            print(f"| {path.stem} | {event.side} | {event.kind} | {event.plate} | "
+                  f"{event.time_s:.3f} | {cells[0]} | {cells[1]} | "
+                  f"{1000 * (own.time_s - event.time_s):+.1f} |")
+    if rows["plate"]:
+        print(f"\nAgainst the lab's {len(rows['plate'])} events there: the plates' median "
+              f"|Δ| {np.median(np.abs(rows['plate'])):.1f} ms, worst "
+              f"{np.max(np.abs(rows['plate'])):.1f}; the markers' "
+              f"{np.median(np.abs(rows['markers'])):.1f} ms, worst "
+              f"{np.max(np.abs(rows['markers'])):.1f}.")
+
+
 def regenerate(folder: Path, noise_sd: float) -> None:
     """Write the sample plan's captures into ``folder`` with marker noise ``noise_sd`` (m)."""
     plan = load_plan(ROOT / "protocols" / "paper_plan.toml")
@@ -445,6 +427,7 @@ def tables(args) -> dict[str, tuple[bool, bool]]:
     if args.real.is_dir():
         plate_table(args.real)
         per_file_table(args.real)
+        plate_timed_table(args.real)
     print()
     for toe_off, (synthetic, real) in verdict.items():
         print(f"- `{toe_off}`: synthetic target {'met' if synthetic else 'MISSED'}, "

@@ -99,7 +99,7 @@ def paired_marks(path: Path, references: list[tuple[float, str | None]]
     reference (s)}, the pitch rate at the reference as a share of its push-off peak)."""
     trial = read_c3d(path)
     match = detect_protocol(trial)
-    events, _ = capture_events(trial, match)
+    events, _ = capture_events(trial, match, force_plates=False)
     feet = {foot.side: foot for foot in capture_feet(trial, match)[0]}
     offs = [e for e in events if e.kind == "toe_off" and e.placed]
     out = []

@@ -13,7 +13,9 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "events", help="detect toe-offs and heel-strikes from the foot markers",
         description="Detect left/right toe-off and heel-strike from the heel and toe markers "
-                    "(any direction of travel, running, treadmills). Times are seconds from "
+                    "(any direction of travel, running, treadmills); where one foot stands "
+                    "alone on a force plate, its heel-strike and toe-off are timed by the "
+                    "plate. Times are seconds from "
                     "the file's first frame. Exit 0 on success, 1 when the file cannot be "
                     "read, has no foot markers, or shows no event in less than a second (too "
                     "short to be rest), 2 on usage errors.")
@@ -21,8 +23,11 @@ def register(subparsers) -> None:
     parser.add_argument("--fit", action="store_true",
                         help="fill missing foot-marker samples from the fitted skeleton "
                              "(calibrates and fits the capture first: slower)")
+    parser.add_argument("--markers-only", action="store_true",
+                        help="time every event from the foot markers, the force plates aside")
     parser.add_argument("--json", action="store_true",
-                        help='print {"file", "events": [{"side", "kind", "time_s", "frame"}]}')
+                        help='print {"file", "events": [{"side", "kind", "time_s", "frame", '
+                             '"placed", "window_s", "plate"}]}')
     parser.set_defaults(run=_run)
 
 
@@ -53,7 +58,8 @@ def _run(args) -> int:
     check_inputs([args.file])
     trial, match, missing = load(args)
     motion = fit_capture(trial, protocol=match).motion if args.fit else None
-    events, _ = capture_events(trial, match, motion=motion, toe_off=args.toe_off)
+    events, _ = capture_events(trial, match, motion=motion, toe_off=args.toe_off,
+                               force_plates=not args.markers_only)
     if missing is not None:  # events need only the foot markers, which capture_events checked
         warn(str(missing))
     if not events:
@@ -62,7 +68,8 @@ def _run(args) -> int:
         print_json({"file": args.file,
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
                                 "frame": e.frame, "placed": e.placed,
-                                "window_s": None if e.placed else list(e.window)}
+                                "window_s": None if e.placed else list(e.window),
+                                "plate": e.plate}
                                for e in events]})
         return 0
     start = (f"; times from the file's first frame, C3D frame {trial.first_frame} (lab "
@@ -71,7 +78,8 @@ def _run(args) -> int:
           + ("; none: standing still (rest)" if not events else ""))
     for e in events:
         print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"
-              f"  quality {e.quality:.2f}" + ("" if e.placed else "  (not placed)"))
+              f"  quality {e.quality:.2f}" + ("" if e.placed else "  (not placed)")
+              + ("" if e.plate is None else f"  force plate {e.plate}"))
     for e in events:
         if not e.placed:
             warn(f"{args.file}: {e.warning}")

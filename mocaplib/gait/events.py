@@ -88,6 +88,7 @@ from .feet import feet_of
 from .foot_events import (FootTrack, GaitEvent, arrival_time, gait_event, lift_time, median_kink,
                           peak_time, swing_spans, toe_off_signals, toe_off_time,
                           unplaced_event)
+from .plate_events import plate_timed
 
 SIDES = ("left", "right")
 #: Toe-off definitions, see the module docstring.
@@ -110,6 +111,9 @@ class EventSettings:
     min_swing_s : shortest swing (s).
     refine_s : half-width of the window the heel-strike kinks are fitted on (s).
     max_gap_s : longest gap filled linearly (s).
+    force_plates : whether :func:`capture_events` times the heel strikes and toe-offs of a foot
+        standing alone on a force plate by the plate (:mod:`mocaplib.gait.plate_events`);
+        False: every event from the foot markers.
     """
 
     toe_off: str = "foot_velocity"
@@ -119,6 +123,7 @@ class EventSettings:
     min_swing_s: float = 0.08
     refine_s: float = 0.08
     max_gap_s: float = 0.25
+    force_plates: bool = True
 
     def __post_init__(self):
         if self.toe_off not in TOE_OFF_DEFINITIONS:
@@ -190,14 +195,21 @@ def capture_events(trial, match, /, *, motion=None, **settings
     under it (:func:`ground_velocity`), each foot prepared once; what ``mocaplib events``,
     ``mocaplib cycles`` and ``mocaplib build`` run.
 
-    The feet are the markers ``match`` (:class:`mocaplib.markersets.matching.ProtocolMatch`) names, gaps
-    filled from the fitted ``motion`` when given (:func:`feet_of`); the events' ``quality``
-    counts only the samples the capture measured. ``settings`` as for :func:`detect_events`.
+    The feet are the markers ``match``
+    (:class:`mocaplib.markersets.matching.ProtocolMatch`) names, gaps filled from the fitted
+    ``motion`` when given (:func:`feet_of`); the events' ``quality`` counts only the samples
+    the capture measured. Where one foot alone stands on one of the
+    trial's force plates, the plate times its heel strike and toe-off
+    (:func:`~mocaplib.gait.plate_events.plate_timed`; ``force_plates=False``: never).
+    ``settings`` as for :func:`detect_events`.
     """
     config = EventSettings(**settings)
     prepared, measured = capture_feet(trial, match, motion=motion, **settings)
-    return (_events(prepared, measured, trial.rate, config, trial.source),
-            _ground(prepared, MIN_BELT_SPEED))
+    events = _events(prepared, measured, trial.rate, config, trial.source)
+    if config.force_plates and trial.force_plates:
+        contact = {foot.side: _contact(foot, config) for foot in prepared}
+        events = plate_timed(events, trial.force_plates, prepared, contact, trial.rate)
+    return events, _ground(prepared, MIN_BELT_SPEED)
 
 
 def capture_feet(trial, match, /, *, motion=None, **settings

@@ -239,7 +239,7 @@ class GaitEvent:
     quality : float
         Fraction (0..1) of the frames within 50 ms of the event where the capture measured both
         the heel and the toe (not filled in, linearly or from a fitted model); 0 for an event
-        not placed.
+        not placed, 1 for one a force plate timed.
     window : (float, float) or None
         None for an event placed at ``time_s``. Else the event is known to have happened
         within these seconds (the foot left the floor, or came down, between them) but could
@@ -247,6 +247,10 @@ class GaitEvent:
         the cycle it bounds is still cut there, and carries the quality 0.
     reason : str
         Why an event was not placed ("" for a placed one).
+    plate : int or None
+        The force plate (1-based) whose loading or unloading timed the event
+        (:mod:`mocaplib.gait.plate_events`; its ``quality`` is then 1), None for an event
+        timed by the foot markers.
     """
 
     side: str
@@ -256,6 +260,7 @@ class GaitEvent:
     quality: float
     window: tuple[float, float] | None = None
     reason: str = ""
+    plate: int | None = None
 
     @property
     def placed(self) -> bool:

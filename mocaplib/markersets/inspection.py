@@ -19,13 +19,13 @@ from .protocols import Protocol, overrides
 
 #: Keys of every summary, in order (failed files have None or empty values).
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
-                "units", "vertical_axis", "analog_channels", "labels", "protocol",
+                "units", "vertical_axis", "analog_channels", "force_plates", "labels", "protocol",
                 "markers_found", "protocol_markers", "missing_landmarks", "missing_labels",
                 "closest_protocol", "markers", "ignored_points", "unknown_labels", "duplicates",
                 "swaps", "events", "warnings")
 
-_EMPTY_LISTS = ("labels", "missing_landmarks", "missing_labels", "markers", "ignored_points",
-                "unknown_labels", "duplicates", "swaps", "events", "warnings")
+_EMPTY_LISTS = ("force_plates", "labels", "missing_landmarks", "missing_labels", "markers",
+                "ignored_points", "unknown_labels", "duplicates", "swaps", "events", "warnings")
 
 
 def inspect_c3d(path: str | os.PathLike, /, *, protocol: Protocol | str = "auto") -> dict:
@@ -74,6 +74,9 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     out.update(ok=True, error=None, frames=trial.n_frames, rate_hz=trial.rate,
                duration_s=trial.duration, first_frame=trial.first_frame, units=trial.units,
                vertical_axis=trial.vertical_axis, analog_channels=trial.analog_channels,
+               force_plates=[{"number": p.number, "type": p.kind,
+                              "peak_n": float(p.force.max()), "rate_hz": p.rate}
+                             for p in trial.force_plates],
                labels=list(trial.labels),
                events=[{"context": e.context, "label": e.label, "time_s": e.time_s}
                        for e in trial.events])
@@ -148,6 +151,10 @@ def format_summary(summary: dict) -> str:
                      f"{missing}")
         if summary["missing_labels"]:
             lines.append(f"  not found: {', '.join(summary['missing_labels'])}")
+    plates = summary.get("force_plates") or []
+    if plates:
+        lines.append("  force plates: " + ", ".join(
+            f"{p['number']} (type {p['type']}, peak {p['peak_n']:.0f} N)" for p in plates))
     events = summary["events"]
     clock = (f" (lab clock: the file starts at {(first - 1) / summary['rate_hz']:.3f} s)"
              if first != 1 and events else "")
