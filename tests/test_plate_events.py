@@ -201,3 +201,16 @@ def test_the_events_command_names_the_plate_that_timed_an_event(real_c3d, capsys
     assert capsys.readouterr().out.count("force plate") == 4
     assert main(["events", path, "--markers-only"]) == 0
     assert "force plate" not in capsys.readouterr().out
+
+
+def test_a_cycle_says_which_plates_timed_its_bounds(real_c3d, capsys):
+    from mocaplib.cli import main
+
+    path = str(real_c3d("motonms_unipd/Walking1.c3d"))
+    assert main(["cycles", path, "--json"]) == 0
+    cycles = json.loads(capsys.readouterr().out)["cycles"]
+    # its left toe-off at 3.727 s: the unloading of plate 2
+    assert [c["bound_plates"] for c in cycles] == [[None, 2]]
+    assert cycles[0]["end_s"] == pytest.approx(3.727, abs=0.001)
+    assert main(["cycles", path]) == 0
+    assert "cycle 0: its end (left toe off) timed by force plate 2" in capsys.readouterr().out

@@ -70,5 +70,9 @@ def _run(args) -> int:
             print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
         for sentence in r["unplaced_events"]:
             print(f"  cycle {r['index']}: {sentence}")
+        for bound, plate in zip(("start", "end"), r["bound_plates"]):
+            if plate is not None:
+                print(f"  cycle {r['index']}: its {bound} ({r['start_event'].replace('_', ' ')}) "
+                      f"timed by force plate {plate}")
     print("  (* = chosen for the library: the steadiest cycle that passes QC, if any does)")
     return 0
