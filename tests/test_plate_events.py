@@ -97,6 +97,17 @@ def test_a_plate_under_one_foot_times_its_heel_strike_and_toe_off(sample_dir, si
     _untouched(with_plates, alone)
 
 
+def test_the_corners_may_come_in_any_order(sample_dir):
+    trial, match, truth = _walk(sample_dir)
+    strike, off = _stance(truth, "left")
+    plate = _plate(trial, match, "left", strike, off)
+    timed = []
+    for order in ([0, 1, 2, 3], [3, 2, 1, 0], [2, 0, 3, 1]):
+        shuffled = dataclasses.replace(plate, corners=plate.corners[order])
+        timed.append(_by_plate(_timed(trial, match, [shuffled])[0]))
+    assert len(timed[0]) == 2 and timed[1] == timed[0] and timed[2] == timed[0]
+
+
 def test_a_plate_under_the_forefoot_only_times_the_toe_off(sample_dir):
     # the heel marker off the plate: the foot loads it once its forefoot is down
     trial, match, truth = _walk(sample_dir)
