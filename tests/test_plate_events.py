@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -225,3 +226,14 @@ def test_a_cycle_says_which_plates_timed_its_bounds(real_c3d, capsys):
     assert cycles[0]["end_s"] == pytest.approx(3.727, abs=0.001)
     assert main(["cycles", path]) == 0
     assert "cycle 0: its end (left toe off) timed by force plate 2" in capsys.readouterr().out
+
+
+def test_the_report_says_which_plates_timed_a_cycles_bounds(real_c3d, tmp_path, capsys):
+    from mocaplib.cli import main
+
+    library = tmp_path / "lib.json"
+    assert main(["build", str(real_c3d("btkdata/Gait.c3d")), "-o", str(library)]) == 0
+    assert main(["report", str(library), "-o", str(tmp_path / "report")]) == 0
+    page = (tmp_path / "report" / "lib-report.html").read_text()
+    # the cycle ends at the left toe-off plate 1's unloading times (3.146 s)
+    assert re.search(r"<td class=\"num\">3\.15 \(force plate 1\)</td>", page)

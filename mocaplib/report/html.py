@@ -352,6 +352,7 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
                    "end": c.get("end_s"), "chosen": bool(c.get("chosen")),
                    "start_event": None if c.get("start_event", "left_toe_off") == "left_toe_off"
                    else str(c["start_event"]).replace("_", " "),
+                   "plates": list(c.get("bound_plates") or (None, None))[:2],
                    "entry": c.get("entry_id"), "pattern": (c.get("pattern") or {}).get("type")}
                   for n, c in enumerate(record.get("cycles") or [])]
         item = {"source": str(record.get("source", f"capture {k}")),
