@@ -106,7 +106,7 @@ times the motion's own (BTS_c0).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -179,7 +179,10 @@ class Planted:
     at ``rate`` Hz before planting, ``planted`` (P, D) after, ``stances`` (P, 2) bool the frames
     where each foot (left, right) stands, and the frames [start, stop) ``window`` of them that
     count: :attr:`q`, :attr:`stance`, and the :class:`ContactMeasures` :attr:`before` and
-    :attr:`after` (over the window, its stances whole; computed when first read)."""
+    :attr:`after` (over the window, its stances whole; computed when first read).
+    ``fine_stances``: where the stances were read at :data:`STANCE_RATE`, above ``rate``
+    (:func:`plant_cycles`), the times (K,) s from the window's start and the stance (K, 2)
+    bool at them; else None."""
 
     skeleton: Skeleton
     motion: np.ndarray
@@ -187,6 +190,7 @@ class Planted:
     stances: np.ndarray
     rate: float
     window: tuple[int, int]
+    fine_stances: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def q(self) -> np.ndarray:
@@ -323,18 +327,23 @@ def plant_cycles(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     q, window = _padded(angles, drift, period, rate, frames)
     steps = round(period * rate)
     whole = abs(period * rate - steps) < 1e-9 * steps and frames % steps == 0
-    stance = None if rate >= STANCE_RATE else _fine_stance(skeleton, angles, drift, period,
-                                                           (np.arange(len(q)) - window[0]) / rate)
-    return plant_feet(skeleton, q, rate, stance=stance, window=window,
-                      period=steps if whole else None)
+    if rate >= STANCE_RATE:
+        return plant_feet(skeleton, q, rate, window=window, period=steps if whole else None)
+    stance, fine = _fine_stance(skeleton, angles, drift, period,
+                                (np.arange(len(q)) - window[0]) / rate)
+    planted = plant_feet(skeleton, q, rate, stance=stance, window=window,
+                         period=steps if whole else None)
+    return replace(planted, fine_stances=fine)
 
 
 def _fine_stance(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
-                 drift: RootDrift, period: float, times: np.ndarray) -> np.ndarray:
+                 drift: RootDrift, period: float, times: np.ndarray
+                 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """:func:`stance_frames` (F, 2) bool at ``times`` (F,) s of the periodic motion of
     :func:`plant_cycles`, read at :data:`STANCE_RATE` or a little more (a whole number of
     samples a cycle: the soles posed over one cycle in the path frame, then moved along
-    ``drift``), each time taking its nearest sample's."""
+    ``drift``), each time taking its nearest sample's; and the samples' own times (K,) s and
+    stance (K, 2) bool (:attr:`Planted.fine_stances`)."""
     count = int(np.ceil(period * STANCE_RATE))
     rate = count / period
     first = int(np.floor(times[0] * rate))
@@ -345,7 +354,8 @@ def _fine_stance(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
     world = local.copy()
     world[..., 0] = x[:, None, None] + c * local[..., 0] - s * local[..., 1]
     world[..., 1] = y[:, None, None] + s * local[..., 0] + c * local[..., 1]
-    return _stance(world, rate)[np.round(times * rate).astype(int) - first]
+    fine = _stance(world, rate)
+    return fine[np.round(times * rate).astype(int) - first], (k / rate, fine)
 
 
 @dataclass(frozen=True)
@@ -407,9 +417,32 @@ def _locks(planted: Planted, step: float) -> np.ndarray:
     for side, first, last in runs:
         at = np.searchsorted(rows, np.arange(first, last))
         flat = at[flattest(points[at, side, 1:, 2])]
-        locks.append([side, (first - start) * step, (last - 1 - start) * step,
-                      *points[flat, side, 1, :2], heading[flat, side]])
+        end = (last - 1 - start) * step
+        begin = _stance_start(planted, side, (first - start) * step, end)
+        locks.append([side, begin, end, *points[flat, side, 1, :2], heading[flat, side]])
     return np.array(locks, dtype=np.float64).reshape(-1, 6)
+
+
+def _stance_start(planted: Planted, side: int, begin: float, end: float) -> float:
+    """When (s from the window's start) the stance of the foot ``side`` whose frames run from
+    ``begin`` to ``end`` (s) starts: at the first sample of the stance read at
+    :data:`STANCE_RATE` that holds them (:attr:`Planted.fine_stances`; a frame takes its
+    nearest fine sample's stance, so the frames' run may start up to a frame after the foot
+    comes down, the foot then posed from the series alone, above the floor), else ``begin``.
+    Its end stays the last frame's: the frames after it are not planted, and a lock held
+    past them holds the heel where the foot rolls over its toe."""
+    if planted.fine_stances is None:
+        return begin
+    times, stance = planted.fine_stances
+    for lo, hi in mask_runs(stance[:, side]):
+        if times[lo] <= end and times[hi - 1] >= begin:
+            return min(begin, float(times[lo]))
+    return begin
+    times, stance = planted.fine_stances
+    for lo, hi in mask_runs(stance[:, side]):
+        if times[lo] <= end and times[hi - 1] >= begin:
+            return min(begin, float(times[lo])), max(end, float(times[hi - 1]))
+    return begin, end
 
 
 def cycle_contact(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
