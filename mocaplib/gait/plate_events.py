@@ -110,17 +110,8 @@ def unloadings(force: np.ndarray, rate: float, /, *, threshold_n: float = PLATE_
     falls (the toes' last push), so the tangent crosses the threshold no later than the force
     would have: an unloading so found is an early bound."""
     force = np.asarray(force, dtype=float)
-    out = []
-    for start, end in _stances(force, rate, threshold_n):
-        if end >= len(force):
-            continue
-        if force[end - 1] - force[end] <= threshold_n:
-            out.append(Unloading(end / rate))
-            continue
-        crossing = _tangent_crossing(force, range(max(start, end - _window(rate)), end),
-                                     threshold_n, end)
-        out.append(Unloading(crossing / rate, float(force[end - 1]), end / rate))
-    return out
+    return [_unloading(force, rate, end, threshold_n)
+            for _, end in _stances(force, rate, threshold_n) if end < len(force)]
 
 
 def load_spans(force: np.ndarray, rate: float, /, *, threshold_n: float = PLATE_THRESHOLD_N
@@ -130,18 +121,30 @@ def load_spans(force: np.ndarray, rate: float, /, *, threshold_n: float = PLATE_
     loaded. A loading the recording cut is extrapolated back along the rising force's tangent
     over its first :data:`CLIP_TANGENT_S`, as :func:`unloadings` does forwards."""
     force = np.asarray(force, dtype=float)
-    offs = {round(u.time_s * rate) if u.cut_s is None else round(u.cut_s * rate): u.time_s
-            for u in unloadings(force, rate, threshold_n=threshold_n)}
-    spans = []
-    for start, end in _stances(force, rate, threshold_n):
-        strike = None
-        if start > 0:
-            strike = start / rate
-            if force[start] - force[start - 1] > threshold_n:          # cut: extrapolate
-                strike = _tangent_crossing(force, range(start, min(end, start + _window(rate))),
-                                           threshold_n, start - 1) / rate
-        spans.append((strike, offs.get(end)))
-    return spans
+    return [(_loading(force, rate, start, end, threshold_n) if start > 0 else None,
+             _unloading(force, rate, end, threshold_n).time_s if end < len(force) else None)
+            for start, end in _stances(force, rate, threshold_n)]
+
+
+def _unloading(force: np.ndarray, rate: float, end: int, threshold_n: float) -> Unloading:
+    """The :func:`unloadings` entry of a stance whose force (A,) N stays above
+    ``threshold_n`` up to the sample before ``end``."""
+    if force[end - 1] - force[end] <= threshold_n:
+        return Unloading(end / rate)
+    crossing = _tangent_crossing(force, range(max(0, end - _window(rate)), end), threshold_n,
+                                 end)
+    return Unloading(crossing / rate, float(force[end - 1]), end / rate)
+
+
+def _loading(force: np.ndarray, rate: float, start: int, end: int, threshold_n: float
+             ) -> float:
+    """When (s) a stance whose force (A,) N is above ``threshold_n`` from sample ``start`` to
+    ``end`` (exclusive) starts: its first sample, or, where the recording cut the force to
+    zero before it, where the rising force's tangent crosses the threshold."""
+    if force[start] - force[start - 1] <= threshold_n:
+        return start / rate
+    return _tangent_crossing(force, range(start, min(end, start + _window(rate))), threshold_n,
+                             start - 1) / rate
 
 
 def _stances(force: np.ndarray, rate: float, threshold_n: float) -> list[tuple[int, int]]:
