@@ -184,11 +184,11 @@ def test_the_type_4_plates_calibration_matrix_gives_newtons(real_c3d):
 
 
 def test_plates_read_in_small_chunks_are_those_read_whole(real_c3d, monkeypatch):
-    import mocaplib.io.c3d_analog as analog
+    import mocaplib.io.c3d_points as chunks
 
     path = real_c3d("motonms_unipd/Walking1.c3d")
     whole = read_c3d(path)
-    monkeypatch.setattr(analog, "CHUNK_BYTES", 12000)   # 5 frames of 2316 bytes, then 3
+    monkeypatch.setattr(chunks, "CHUNK_BYTES", 12000)   # 5 frames of 2316 bytes, then 3
     chunked = read_c3d(path)
     assert len(chunked.force_plates) == len(whole.force_plates) == 2
     for a, b in zip(chunked.force_plates, whole.force_plates):

@@ -180,7 +180,7 @@ def plate_contacts(plates, feet: list[FootTrack], contact: dict[str, np.ndarray]
     """Each stance on a readable plate of ``plates`` (:class:`mocaplib.io.c3d_analog.ForcePlate`:
     ``number``, ``corners`` (4, 3) m, vertical ``force`` (A,) N, analog ``rate`` Hz) that one
     foot of ``feet`` (sampled at ``rate`` Hz; ``contact``: {side: (F,) bool} where each is
-    down) alone makes (steps 1-3 of the module docstring), in time order; its loading is
+    down) alone makes (steps 1-3 of the module docstring), plate by plate; its loading is
     None unless the foot's heel lies over the plate, its unloading unless its toe does."""
     contacts = []
     for plate in plates:
@@ -195,8 +195,7 @@ def plate_contacts(plates, feet: list[FootTrack], contact: dict[str, np.ndarray]
                 side, heel, toe = found
                 contacts.append(PlateContact(plate.number, side, strike if heel else None,
                                              off if toe else None))
-    return sorted(contacts, key=lambda c: min(t for t in (c.strike_s, c.off_s, np.inf)
-                                              if t is not None))
+    return contacts
 
 
 def _outline(corners: np.ndarray) -> np.ndarray:

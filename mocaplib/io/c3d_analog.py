@@ -26,7 +26,7 @@ from ..numeric import median
 from .c3d_axis import y_up_to_z_up
 from .c3d_layout import PointLayout
 from .c3d_params import dec_to_ieee, number, strings
-from .c3d_points import CHUNK_BYTES
+from .c3d_points import frame_chunks
 
 #: The rows of a plate's FORCE_PLATFORM:CHANNEL column (0-based) its vertical force is made
 #: of, per TYPE.
@@ -94,7 +94,8 @@ def _read_plates(handle, reader, layout: PointLayout, to_metres: float, vertical
     channels = sorted({channel for plate in plates for channel in plate.channels})
     if not channels:
         return []
-    values = _channel_words(handle, layout, samples, channels_used, channels, unsigned)
+    values = _channel_words(handle, layout, samples, channels_used, channels, unsigned,
+                            path)
     values -= 0.0 if offsets is None else offsets[channels]
     values *= 1.0 if scales is None else scales[channels]
     values *= number(reader, "ANALOG:GEN_SCALE", "float", 1.0)
@@ -217,29 +218,22 @@ def _plate(reader, index: int, used: int, scales: np.ndarray | None,
 
 # ----------------------------------------------------------------------------- samples
 def _channel_words(handle, layout: PointLayout, samples: int, used: int,
-                   channels: list[int], unsigned: bool) -> np.ndarray:
+                   channels: list[int], unsigned: bool, path: Path) -> np.ndarray:
     """The words of analog ``channels`` (0-based) as stored, DEC floats converted: (frames x
-    ``samples``, len(channels)) float64, read :data:`CHUNK_BYTES` of frames at a time."""
+    ``samples``, len(channels)) float64, read a chunk of frames at a time
+    (:func:`~mocaplib.io.c3d_points.frame_chunks`)."""
     is_float = layout.scale < 0
     kind = ("u4" if layout.processor == "DEC" else "f4") if is_float else \
         "u2" if unsigned else "i2"
     dtype = np.dtype((">" if layout.processor == "MIPS" else "<") + kind)
     out = np.empty((layout.frames * samples, len(channels)))
-    frame_bytes = layout.frame_bytes
-    step = max(1, CHUNK_BYTES // frame_bytes)
-    buffer = bytearray(min(step, layout.frames) * frame_bytes)
-    handle.seek(layout.start)
-    for first in range(0, layout.frames, step):
-        frames = min(step, layout.frames - first)
-        view = memoryview(buffer)[:frames * frame_bytes]
-        if handle.readinto(view) != len(view):
-            raise C3DError("the file is shorter than when it was opened")
-        words = np.frombuffer(view, dtype=dtype, count=frames * layout.words)
-        block = words.reshape(frames, layout.words)[:, 4 * layout.count:]
-        block = block.reshape(frames, samples, used)[:, :, channels]
+    for first, chunk, view in frame_chunks(handle, layout, path):
+        words = np.frombuffer(view, dtype=dtype, count=chunk.frames * layout.words)
+        block = words.reshape(chunk.frames, layout.words)[:, 4 * layout.count:]
+        block = block.reshape(chunk.frames, samples, used)[:, :, channels]
         if is_float and layout.processor == "DEC":
             block = dec_to_ieee(block)
-        out[first * samples:(first + frames) * samples] = block.reshape(-1, len(channels))
+        out[first * samples:(first + chunk.frames) * samples] = block.reshape(-1, len(channels))
     return out
 
 

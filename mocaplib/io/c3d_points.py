@@ -78,10 +78,22 @@ def read_points(handle, layout: PointLayout, points: list[int], factor: float,
                  path: Path) -> np.ndarray:
     """Markers (F, len(points), 3) of the file open in ``handle`` (:func:`decode_points`),
     ``factor`` its units to metres, coordinates beyond :data:`MAX_COORDINATE_M` missing; read
-    :data:`CHUNK_BYTES` of frames at a time; nothing is read when ``points`` is empty."""
+    :data:`CHUNK_BYTES` at a time (:func:`frame_chunks`); nothing is read when ``points`` is
+    empty."""
     out = np.empty((layout.frames, len(points), 3))
     if not points:
         return out
+    for first, chunk, view in frame_chunks(handle, layout, path):
+        _decoded(_point_words(view, chunk, points), chunk, factor,
+                 out=out[first:first + chunk.frames], bound=MAX_COORDINATE_M)
+    return out
+
+
+def frame_chunks(handle, layout: PointLayout, path: Path):
+    """The frames of the file open in ``handle``, :data:`CHUNK_BYTES` of them at a time:
+    ``(first frame, the chunk's layout (start 0), its bytes)`` each, the bytes a view of one
+    buffer that the next chunk overwrites. Raises :class:`C3DError` if the file is shorter
+    than ``layout`` says."""
     frame_bytes = layout.frame_bytes
     step = max(1, CHUNK_BYTES // frame_bytes)
     buffer = bytearray(min(step, layout.frames) * frame_bytes)
@@ -92,6 +104,4 @@ def read_points(handle, layout: PointLayout, points: list[int], factor: float,
         if handle.readinto(view) != len(view):
             raise C3DError("the file is shorter than when it was opened (written to while "
                            "read?)", path=path, hint="read it again once it is complete")
-        _decoded(_point_words(view, chunk, points), chunk, factor,
-                 out=out[first:first + chunk.frames], bound=MAX_COORDINATE_M)
-    return out
+        yield first, chunk, view
