@@ -21,7 +21,9 @@ import argparse
 import importlib
 import os
 import re
+import signal
 import sys
+from contextlib import contextmanager
 
 from .. import __version__
 from ..build.threads import one_thread_by_default
@@ -67,18 +69,51 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (also used by the console script). Ctrl-C
     at any moment, loading included, ends it with one line and exit code 130."""
     try:
-        one_thread_by_default()          # before the sub-commands load numpy
-        _tolerate_unencodable_output()
-        streams = sys.stdout, sys.stderr
-        sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
-        try:
-            return _main(argv)
-        finally:
-            sys.stdout, sys.stderr = streams
+        with _interrupts_never_lost():
+            one_thread_by_default()          # before the sub-commands load numpy
+            _tolerate_unencodable_output()
+            streams = sys.stdout, sys.stderr
+            sys.stdout, sys.stderr = _Printable(sys.stdout), _Printable(sys.stderr)
+            try:
+                return _main(argv)
+            finally:
+                sys.stdout, sys.stderr = streams
     except KeyboardInterrupt:
         return interrupted()
     except ImportError as exc:   # a broken install, or Ctrl-C while an extension module loads
         return unloadable(exc)
+
+
+@contextmanager
+def _interrupts_never_lost():
+    """Within it, a Ctrl-C that lands in a finalizer or a callback (an object's ``__del__``,
+    a module lock's weakref callback while a module loads), where Python cannot raise it and
+    prints it as an "Exception ignored" traceback instead, is raised 10 ms later (SIGALRM),
+    once out of it: every Ctrl-C ends the command with one line. Without interval timers
+    (Windows) nothing changes. The hook and handler before it are put back after it."""
+    if not hasattr(signal, "setitimer"):
+        yield
+        return
+    hook, handler = sys.unraisablehook, signal.signal(signal.SIGALRM, _interrupt_again)
+
+    def put_off(unraisable):
+        if issubclass(unraisable.exc_type, KeyboardInterrupt):
+            signal.setitimer(signal.ITIMER_REAL, 0.01)
+        else:
+            hook(unraisable)
+
+    sys.unraisablehook = put_off
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        sys.unraisablehook = hook
+        signal.signal(signal.SIGALRM, handler)
+
+
+def _interrupt_again(signum, frame) -> None:
+    """The SIGALRM of :func:`_interrupts_never_lost`: the Ctrl-C put off."""
+    raise KeyboardInterrupt
 
 
 def interrupted() -> int:
