@@ -11,8 +11,9 @@ the default toe-off's two marks (:func:`mocaplib.gait.foot_events.toe_off_marks`
 features the literature times toe-offs on (O'Connor et al. 2007: the foot centre's upward
 velocity peak; Hreljac & Marshall 2000: the toe's horizontal acceleration peak; Bruening &
 Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 2010: the toe's
-vertical velocity, acceleration and position), and the foot's pitch rate at the reference as a
-share of its push-off peak. Each mark is sought from 0.15 s before to 0.1 s after the default
+vertical velocity, acceleration and position; the toe's horizontal speed rising to a share of its
+swing's peak, a threshold relative to the stride's own swing), and the foot's pitch rate at
+the reference as a share of its push-off peak. Each mark is sought from 0.15 s before to 0.1 s after the default
 toe-off, on the detector's low-passed points (:func:`mocaplib.gait.events.capture_feet`).
 Then every mean of two marks (weights ¼, ½, ¾) and median of three against the per-file
 targets (median |Δ| <= 10 ms and worst <= 30 ms against each real file's plates and lab Foot
@@ -54,9 +55,14 @@ MARKS = (("default", "the default toe-off (mean of (a) and (b))"),
          ("toe +10 mm", "toe marker 10 mm above its stance height"),
          ("pitch 0.7", "the pitch rate down to 0.7 of its push-off peak"),
          ("toe 1 m/s", "toe marker's horizontal speed over 1 m/s"),
-         ("toe ah", "toe marker's horizontal-acceleration peak (Hreljac 2000)"))
+         ("toe ah", "toe marker's horizontal-acceleration peak (Hreljac 2000)"),
+         ("toe 25 %", "toe marker's horizontal speed up to a quarter of its swing's peak"))
 #: Search window around the default toe-off (s before, s after).
 BEFORE_S, AFTER_S = 0.15, 0.10
+#: The toe marker's swing peak of horizontal speed is sought until this long after the
+#: default toe-off (s), and its share that marks the toe-off: the median share of the real
+#: feet at the plates' unloading (0.15-0.34 over the 15).
+SWING_PEAK_S, TOE_SPEED_SHARE = 0.35, 0.25
 
 
 def _crossing(signal: np.ndarray, lo: int, hi: int, level: float, *, rising: bool) -> float:
@@ -89,6 +95,9 @@ def marks_of(foot, rate: float, detected: float) -> tuple[dict[str, float], np.n
              "pitch 0.7": _crossing(pitch_rate, peak, hi, 0.7 * pitch_rate[peak], rising=False),
              "toe 1 m/s": _crossing(horizontal, lo, hi, 1.0, rising=True),
              "toe ah": peak_time(np.gradient(horizontal), lo, hi)}
+    swing = lo + int(np.nanargmax(horizontal[lo:round(detected + SWING_PEAK_S * rate)]))
+    found["toe 25 %"] = _crossing(horizontal, lo, swing, TOE_SPEED_SHARE * horizontal[swing],
+                                  rising=True)
     return {k: np.nan if v is None else float(v) for k, v in found.items()}, pitch_rate
 
 
