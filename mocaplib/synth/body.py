@@ -305,7 +305,7 @@ def _leg_ik(body: Body, side: str, pelvis_R, pelvis_t, foot_t, foot_R, *,
         if np.abs(r).max() < LEG_TOLERANCE and np.abs(along).max() < SPLIT_TOLERANCE:
             return x
         # far from the solution a full step may overshoot: at most MAX_STEP rad per angle
-        x += move * np.minimum(1.0, MAX_STEP / np.abs(move).max(axis=1, keepdims=True))
+        x += move * (MAX_STEP / np.maximum(np.abs(move).max(axis=1, keepdims=True), MAX_STEP))
     if np.abs(residual(x)).max() < LEG_REACHED:       # a knee near straight converges slowly
         return x
     raise SynthError(f"the {side} leg cannot reach its planned foot pose "
