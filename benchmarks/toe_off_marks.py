@@ -11,13 +11,14 @@ the default toe-off's two marks (:func:`mocaplib.gait.foot_events.toe_off_marks`
 features the literature times toe-offs on (O'Connor et al. 2007: the foot centre's upward
 velocity peak; Hreljac & Marshall 2000: the toe's horizontal acceleration peak; Bruening &
 Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 2010: the toe's
-vertical velocity, acceleration and position; the toe's horizontal speed rising to a share of its
-swing's peak, a threshold relative to the stride's own swing), and the foot's pitch rate at
-the reference as a share of its push-off peak. Each mark is sought from 0.15 s before to 0.1 s after the default
-toe-off, on the detector's low-passed points (:func:`mocaplib.gait.events.capture_feet`).
-Then every mean of two marks (weights ¼, ½, ¾) and median of three against the per-file
-targets (median |Δ| <= 10 ms and worst <= 30 ms against each real file's plates and lab Foot
-Offs) and the samples' (within 1 frame in every locomotion type).
+vertical velocity, acceleration and position; the toe's horizontal speed rising to a share
+of its swing's peak, a threshold relative to the stride's own swing), and the foot's pitch
+rate at the reference as a share of its push-off peak. Each mark is sought from 0.15 s
+before to 0.1 s after the default toe-off, on the detector's low-passed points
+(:func:`mocaplib.gait.events.capture_feet`). Then every mean of two marks (weights ¼, ½,
+¾) and median of three against the per-file targets (median |Δ| <= 10 ms and worst <= 30 ms
+against each real file's plates and lab Foot Offs) and the samples' (within 1 frame in every
+locomotion type).
 """
 
 from __future__ import annotations
@@ -199,7 +200,8 @@ def synthetic_table(samples: Path) -> dict[str, list[dict[str, float]]]:
           "worst locomotion type:\n")
     print("| mark | median (frames) | within 1 frame | worst type |\n|---|---|---|---|")
     for column, _ in MARKS:
-        within = {kind: np.mean([abs(m[column]) <= 1.0 for m in ms]) for kind, ms in by_type.items()}
+        within = {kind: np.mean([abs(m[column]) <= 1.0 for m in ms])
+                  for kind, ms in by_type.items()}
         worst = min(within, key=within.get)
         print(f"| {column} | {np.nanmedian([m[column] for m in every]):+.2f} | "
               f"{100 * np.mean([abs(m[column]) <= 1.0 for m in every]):.0f} % | "
