@@ -162,7 +162,8 @@ def detect_events(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float
         Every toe-off and heel strike found, sorted by time (seconds from the first frame).
     """
     config = EventSettings(**settings)
-    return _events(_prepared_feet(feet, rate, config, source), measured, rate, config, source)
+    return _events(_prepared_feet(feet, rate, config, source), measured, rate, config,
+                   source)[0]
 
 
 def foot_events(heel: np.ndarray, toe: np.ndarray, rate: float, /, *, side: str,
@@ -205,9 +206,8 @@ def capture_events(trial, match, /, *, motion=None, **settings
     """
     config = EventSettings(**settings)
     prepared, measured = capture_feet(trial, match, motion=motion, **settings)
-    events = _events(prepared, measured, trial.rate, config, trial.source)
+    events, contact = _events(prepared, measured, trial.rate, config, trial.source)
     if config.force_plates and trial.force_plates:
-        contact = {foot.side: _contact(foot, config) for foot in prepared}
         events = plate_timed(events, trial.force_plates, prepared, contact, trial.rate)
     return events, _ground(prepared, MIN_BELT_SPEED)
 
@@ -247,11 +247,13 @@ def _ground(feet: list[FootTrack], min_speed: float) -> np.ndarray:
 
 
 def _events(feet: list[FootTrack], measured, rate: float, config: EventSettings,
-            source=None) -> list[GaitEvent]:
-    """Every foot's events, sorted by time; ``measured`` as for :func:`detect_events`."""
+            source=None) -> tuple[list[GaitEvent], dict[str, np.ndarray]]:
+    """Every foot's events, sorted by time, and the frames (F,) bool each side is in contact
+    (:func:`_contact`); ``measured`` as for :func:`detect_events`."""
     events: list[GaitEvent] = []
     runs = _running(feet, rate, config)
     airborne = {}
+    contact = {foot.side: _contact(foot, config) for foot in feet}
     for foot in feet:
         seen = foot.given
         if measured is not None:
@@ -261,10 +263,11 @@ def _events(feet: list[FootTrack], measured, rate: float, config: EventSettings,
                                  f"{seen.shape}", path=source)
             seen = seen & mask
         found, airborne[foot.side] = _foot_events(foot, seen, rate, config,
+                                                  contact[foot.side],
                                                   lift=runs or config.toe_off == "lift")
         events += found
     events += _lost_stances(airborne, rate, len(feet[0].given) if feet else 0)
-    return sorted(events, key=lambda e: (e.time_s, e.side))
+    return sorted(events, key=lambda e: (e.time_s, e.side)), contact
 
 
 def _lost_stances(airborne: dict[str, list[tuple[int, int]]], rate: float, n_frames: int
@@ -334,11 +337,13 @@ def running(feet: Mapping[str, tuple[np.ndarray, np.ndarray]], rate: float, /, *
     return _running(_prepared_feet(feet, rate, config, source), rate, config)
 
 
-def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: EventSettings, *,
-                 lift: bool) -> tuple[list[GaitEvent], list[tuple[int, int]]]:
+def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: EventSettings,
+                 contact: np.ndarray, *, lift: bool
+                 ) -> tuple[list[GaitEvent], list[tuple[int, int]]]:
     """Steps 3-5 of the module docstring on one prepared foot, and when it is in the air
     ([start, end) frames: its swings, those a gap in its markers separates joined);
-    ``measured`` (F,) bool; ``lift``: toe-offs by the lift definition, else the
+    ``measured`` (F,) bool; ``contact`` (F,) bool its :func:`_contact`; ``lift``: toe-offs by
+    the lift definition, else the
     default's (module docstring). An event a swing shows but that cannot be placed (no clear
     mark, the markers missing where it lies, or hidden in a gap longer than ``max_gap_s``
     between a contact and the swing) is returned not placed (:attr:`GaitEvent.window`)."""
@@ -346,7 +351,6 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
     speeds = np.linalg.norm(velocity - foot.ground, axis=2)                     # (2, F)
-    contact = _contact(foot, config)
 
     supported = np.isfinite(raw).all(axis=(0, 2))
     events: list[GaitEvent] = []

@@ -254,17 +254,17 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
     plate's time, placed, quality 1 and :attr:`GaitEvent.plate` set; sorted by time.
     ``contact`` as for :func:`plate_contacts`."""
     out = list(events)
-    for contact in plate_contacts(plates, feet, contact, rate):
-        for kind, time_s in (("heel_strike", contact.strike_s), ("toe_off", contact.off_s)):
+    for stance in plate_contacts(plates, feet, contact, rate):
+        for kind, time_s in (("heel_strike", stance.strike_s), ("toe_off", stance.off_s)):
             if time_s is None:
                 continue
-            near = [i for i, e in enumerate(out) if e.side == contact.side and e.kind == kind
+            near = [i for i, e in enumerate(out) if e.side == stance.side and e.kind == kind
                     and e.plate is None and _matches(e, time_s)]
             if near:
                 i = min(near, key=lambda i: abs(out[i].time_s - time_s))
                 frame = int(np.clip(round(time_s * rate), 0, len(feet[0].given) - 1))
                 out[i] = replace(out[i], time_s=float(time_s), frame=frame, quality=1.0,
-                                 window=None, reason="", plate=contact.plate)
+                                 window=None, reason="", plate=stance.plate)
     return sorted(out, key=lambda e: (e.time_s, e.side))
 
 

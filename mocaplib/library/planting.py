@@ -438,11 +438,6 @@ def _stance_start(planted: Planted, side: int, begin: float, end: float) -> floa
         if times[lo] <= end and times[hi - 1] >= begin:
             return min(begin, float(times[lo]))
     return begin
-    times, stance = planted.fine_stances
-    for lo, hi in mask_runs(stance[:, side]):
-        if times[lo] <= end and times[hi - 1] >= begin:
-            return min(begin, float(times[lo])), max(end, float(times[hi - 1]))
-    return begin, end
 
 
 def cycle_contact(skeleton: Skeleton, angles: Callable[[np.ndarray], np.ndarray],
