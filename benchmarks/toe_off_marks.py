@@ -12,8 +12,9 @@ features the literature times toe-offs on (O'Connor et al. 2007: the foot centre
 velocity peak; Hreljac & Marshall 2000: the toe's horizontal acceleration peak; Bruening &
 Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 2010: the toe's
 vertical velocity, acceleration and position; the toe's horizontal speed rising to a share
-of its swing's peak, a threshold relative to the stride's own swing), and the foot's pitch
-rate at the reference as a share of its push-off peak. Each mark is sought from 0.15 s
+of its swing's peak, a threshold relative to the stride's own swing), and, at the reference,
+the foot's pitch rate as a share of its push-off peak and the toe's horizontal speed as a
+share of its swing's peak (per locomotion type on the samples). Each mark is sought from 0.15 s
 before to 0.1 s after the default toe-off, on the detector's low-passed points
 (:func:`mocaplib.gait.events.capture_feet`). Then every mean of two marks (weights ¼, ½,
 ¾) and median of three against the per-file targets (median |Δ| <= 10 ms and worst <= 30 ms
@@ -75,9 +76,11 @@ def _crossing(signal: np.ndarray, lo: int, hi: int, level: float, *, rising: boo
     return np.nan
 
 
-def marks_of(foot, rate: float, detected: float) -> tuple[dict[str, float], np.ndarray]:
+def marks_of(foot, rate: float, detected: float
+             ) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
     """{column of :data:`MARKS`: time (frames, NaN where not found)} around the default
-    toe-off ``detected`` (frames) of the prepared ``foot``, and the foot's pitch rate (F,)."""
+    toe-off ``detected`` (frames) of the prepared ``foot``, the foot's pitch rate (F,) and the
+    toe marker's horizontal speed as a share of its swing's peak (F,)."""
     lo = max(0, round(detected - BEFORE_S * rate))
     hi = min(len(foot.given), round(detected + AFTER_S * rate))
     last = int(np.argmin(foot.heights[:, min(hi - 1, round(detected + 0.05 * rate))]))
@@ -99,14 +102,16 @@ def marks_of(foot, rate: float, detected: float) -> tuple[dict[str, float], np.n
     swing = lo + int(np.nanargmax(horizontal[lo:round(detected + SWING_PEAK_S * rate)]))
     found["toe 25 %"] = _crossing(horizontal, lo, swing, TOE_SPEED_SHARE * horizontal[swing],
                                   rising=True)
-    return {k: np.nan if v is None else float(v) for k, v in found.items()}, pitch_rate
+    return ({k: np.nan if v is None else float(v) for k, v in found.items()}, pitch_rate,
+            horizontal / horizontal[swing])
 
 
 def paired_marks(path: Path, references: list[tuple[float, str | None]]
-                 ) -> list[tuple[float, dict[str, float], float]]:
+                 ) -> list[tuple[float, dict[str, float], tuple[float, float]]]:
     """For each reference toe-off (s from the first frame, side or None for either) of the C3D
     at ``path`` with a placed default toe-off within 0.1 s: (the reference, {column: mark −
-    reference (s)}, the pitch rate at the reference as a share of its push-off peak)."""
+    reference (s)}, (the foot's pitch rate at the reference as a share of its push-off peak,
+    the toe's horizontal speed there as a share of its swing's peak))."""
     trial = read_c3d(path)
     match = detect_protocol(trial)
     events, _ = capture_events(trial, match, force_plates=False)
@@ -118,13 +123,15 @@ def paired_marks(path: Path, references: list[tuple[float, str | None]]
         event = min(near, key=lambda e: abs(e.time_s - reference), default=None)
         if event is None or abs(event.time_s - reference) > 0.1:
             continue
-        marks, pitch_rate = marks_of(feet[event.side], trial.rate, event.time_s * trial.rate)
+        marks, pitch_rate, toe_speed = marks_of(feet[event.side], trial.rate,
+                                                event.time_s * trial.rate)
         at = reference * trial.rate
         lo = max(0, round(at - BEFORE_S * trial.rate))
-        share = np.interp(at, np.arange(len(pitch_rate)), pitch_rate) / np.nanmax(
+        frames = np.arange(len(pitch_rate))
+        pitch = np.interp(at, frames, pitch_rate) / np.nanmax(
             pitch_rate[lo:round(at + AFTER_S * trial.rate)])
         out.append((reference, {k: v / trial.rate - reference for k, v in marks.items()},
-                    float(share)))
+                    (float(pitch), float(np.interp(at, frames, toe_speed)))))
     return out
 
 
@@ -143,7 +150,8 @@ def plate_table(real: Path) -> dict[str, list[dict[str, float]]]:
             by_file[path.stem].append(marks)
             shares.append(share)
             print(f"| {path.stem} | {unloading:.3f} | "
-                  + " | ".join(f"{1000 * marks[c]:+.1f}" for c in columns) + f" | {share:.2f} |")
+                  + " | ".join(f"{1000 * marks[c]:+.1f}" for c in columns)
+                  + f" | {share[0]:.2f} |")
     print("\n| mark | median (ms) | median \\|Δ\\| (ms) | worst \\|Δ\\| (ms) | files over 10 ms "
           "(median \\|Δ\\|) |\n|---|---|---|---|---|")
     for column, meaning in MARKS:
@@ -153,8 +161,7 @@ def plate_table(real: Path) -> dict[str, list[dict[str, float]]]:
         print(f"| {column}: {meaning} | {np.nanmedian(every):+.1f} | "
               f"{np.nanmedian(np.abs(every)):.1f} | {np.nanmax(np.abs(every)):.1f} | "
               f"{len(over)} of {len(by_file)}{': ' + ', '.join(over) if over else ''} |")
-    print(f"\nPitch rate at the plates' unloading: {min(shares):.2f}–{max(shares):.2f} of its "
-          f"push-off peak (median {np.median(shares):.2f}).")
+    _print_shares(shares, "the plates' unloading")
     return by_file
 
 
@@ -183,7 +190,7 @@ def synthetic_table(samples: Path) -> dict[str, list[dict[str, float]]]:
     """Print each mark against the walking samples' true toe-offs (frames) per locomotion type;
     {locomotion type: [{column: mark − truth (frames)} per toe-off]}."""
     by_type: dict[str, list[dict[str, float]]] = defaultdict(list)
-    shares = []
+    shares: dict[str, list[tuple[float, float]]] = defaultdict(list)
     for path in sorted(samples.glob("*.c3d")):
         truth_file = path.with_suffix(".truth.json")
         if not truth_file.is_file() or locomotion_type(path.stem) == "run":
@@ -193,7 +200,7 @@ def synthetic_table(samples: Path) -> dict[str, list[dict[str, float]]]:
         references = [(e["time_s"], e["side"]) for e in truth["events"] if e["kind"] == "toe_off"]
         for _, marks, share in paired_marks(path, references):
             by_type[locomotion_type(path.stem)].append({k: v * rate for k, v in marks.items()})
-            shares.append(share)
+            shares[locomotion_type(path.stem)].append(share)
     every = [m for ms in by_type.values() for m in ms]
     print(f"\nEach mark minus the true toe-off on the walking samples ({samples.name}, "
           f"{len(every)} toe-offs; frames): median, and within 1 frame overall and in the "
@@ -206,9 +213,22 @@ def synthetic_table(samples: Path) -> dict[str, list[dict[str, float]]]:
         print(f"| {column} | {np.nanmedian([m[column] for m in every]):+.2f} | "
               f"{100 * np.mean([abs(m[column]) <= 1.0 for m in every]):.0f} % | "
               f"{worst} {100 * within[worst]:.0f} % |")
-    print(f"\nPitch rate at the samples' true toe-offs: {min(shares):.2f}–{max(shares):.2f} of its "
-          f"push-off peak (median {np.median(shares):.2f}).")
+    _print_shares([s for kind in shares.values() for s in kind], "the samples' true toe-offs")
+    print("\nThe toe's horizontal speed at the true toe-offs, share of its swing's peak, median "
+          "(range) per locomotion type: " + "; ".join(
+              f"{kind} {np.median(toe):.2f} ({min(toe):.2f}–{max(toe):.2f})"
+              for kind, toe in ((kind, [s[1] for s in kind_shares])
+                                for kind, kind_shares in sorted(shares.items()))) + ".")
     return by_type
+
+
+def _print_shares(shares: list[tuple[float, float]], where: str) -> None:
+    """Print the ranges and medians of ``shares`` ((pitch rate share, toe speed share) per
+    toe-off, :func:`paired_marks`) at ``where``."""
+    pitch, toe = np.array(shares).T
+    print(f"\nAt {where}: the foot's pitch rate {pitch.min():.2f}–{pitch.max():.2f} of its "
+          f"push-off peak (median {np.median(pitch):.2f}); the toe's horizontal speed "
+          f"{toe.min():.2f}–{toe.max():.2f} of its swing's peak (median {np.median(toe):.2f}).")
 
 
 def combinations_table(real: dict[str, dict[str, list[dict[str, float]]]],
