@@ -29,6 +29,9 @@ when absent), for each toe-off definition, and prints:
   (nearest placed toe-off of the side within 0.1 s; a plate with none), median and worst
   |difference| (targets: median <= 10 ms, worst <= 30 ms on every file), and the lab events
   and unloadings that fall in the window of a toe-off the detector reported as not placed;
+* every toe-off of the real files whose two marks lie over 30 ms apart (uncertain: placed
+  midway, with a warning) against its plate or lab Foot Off, and on the samples how far apart
+  the two marks lie at most;
 * the events the force plates time by default (:mod:`mocaplib.gait.plate_events`; every other
   table measures the markers' events, ``force_plates=False``) against the lab's events and
   the markers' own.
@@ -58,6 +61,7 @@ sys.path.insert(0, str(ROOT))
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.gait.events import TOE_OFF_DEFINITIONS, EventSettings, capture_events
 from mocaplib.gait.feet import LAB_EVENT_KINDS, event_differences
+from mocaplib.gait.foot_events import MARKS_APART_S
 from mocaplib.gait.plate_events import (PLATE_MIN_PEAK_N, PLATE_THRESHOLD_N,  # noqa: F401
                                         Unloading, readable, unloadings)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
@@ -80,9 +84,11 @@ REAL_ROWS = (("toe_off", "toe_off", None), ("heel_strike", "heel_strike", None),
              ("left toe_off", "toe_off", "L"))
 
 
-def differences(paths, toe_off: str) -> dict[str, tuple[dict[str, np.ndarray], float]]:
+def differences(paths, toe_off: str
+                ) -> dict[str, tuple[dict[str, np.ndarray], float, list[float]]]:
     """{file stem: ({event kind: detected - recorded times (s, NaN = none within 0.1 s)},
-    frame rate)}, each file read and its events detected once."""
+    frame rate, how far apart (s) each placed toe-off's two marks lie)}, each file read and its
+    events detected once."""
     out = {}
     for path in paths:
         trial = read_c3d(path)
@@ -90,7 +96,8 @@ def differences(paths, toe_off: str) -> dict[str, tuple[dict[str, np.ndarray], f
                                    force_plates=False)
         out[path.stem] = ({row: event_differences(events, _of_side(trial.events, side),
                                                   kind=kind, start_time=trial.start_time)
-                           for row, kind, side in REAL_ROWS}, trial.rate)
+                           for row, kind, side in REAL_ROWS}, trial.rate,
+                          [e.spread_s for e in events if e.kind == "toe_off" and e.placed])
     return out
 
 
@@ -105,7 +112,9 @@ def synthetic_table(samples: Path, toe_off: str) -> bool:
     """Print the per-type table; True when every type meets the target."""
     paths = [p for p in sorted(samples.glob("*.c3d")) if p.with_suffix(".truth.json").is_file()]
     by_type: dict[str, list[float]] = {}
-    for name, (by_kind, rate) in differences(paths, toe_off).items():
+    spreads = []
+    for name, (by_kind, rate, spread) in differences(paths, toe_off).items():
+        spreads += spread
         diff = by_kind["toe_off"]
         frames = np.where(np.isnan(diff), np.inf, np.abs(diff) * rate)
         if frames.size:  # the standing capture has none
@@ -120,6 +129,10 @@ def synthetic_table(samples: Path, toe_off: str) -> bool:
         met &= kind == "ALL" or within >= SYNTHETIC_TARGET
         print(f"| {kind} | {len(errors)} | {100 * within:.1f} % | "
               f"{100 * np.mean(errors <= 2.0):.1f} % | {errors.max():.1f} |")
+    if max(spreads) > 0:                  # the default's two marks (the lift has one)
+        print(f"\nThe two marks of a toe-off lie at most {1000 * max(spreads):.1f} ms apart; "
+              f"{sum(x > MARKS_APART_S for x in spreads)} of {len(spreads)} toe-offs over "
+              f"{1000 * MARKS_APART_S:.0f} ms (uncertain).")
     return met
 
 
@@ -136,7 +149,7 @@ def real_table(real: Path, toe_off: str) -> bool:
     met = True
     found = differences(paths, toe_off)
     for kind, _, _ in REAL_ROWS:
-        diff = np.concatenate([by_kind[kind] for by_kind, _ in found.values()])
+        diff = np.concatenate([by_kind[kind] for by_kind, _, _ in found.values()])
         diff = diff[np.isfinite(diff)] * 1000.0
         median_abs = np.median(np.abs(diff))
         if kind == "toe_off":
@@ -348,6 +361,37 @@ def per_file_table(real: Path) -> bool:
     return met
 
 
+def uncertain_table(real: Path) -> None:
+    """Print every default toe-off of the real files under ``real`` whose two marks lie over
+    :data:`MARKS_APART_S` apart (:attr:`GaitEvent.uncertain`), against the plate's unloading or
+    the lab's Foot Off of its side nearest it within 0.1 s."""
+    print(f"\nToe-offs whose two marks lie over {1000 * MARKS_APART_S:.0f} ms apart (markers "
+          "alone; each is placed midway and warns):\n")
+    print("| file | side | toe-off (s) | marks apart (ms) | reference | toe-off − reference (ms) "
+          "|\n|---|---|---|---|---|---|")
+    placed = uncertain = 0
+    for path in sorted(real.rglob("*.c3d")):
+        trial = read_c3d(path)
+        events, _ = capture_events(trial, detect_protocol(trial), force_plates=False)
+        offs = [e for e in events if e.kind == "toe_off" and e.placed]
+        placed += len(offs)
+        try:
+            plates = [(t, None, "plate") for t in plate_unloadings(path)]
+        except (KeyError, IndexError, ValueError):                      # no usable plate
+            plates = []
+        labs = [(e.time_s - trial.start_time, e.context.lower(), "lab Foot Off")
+                for e in trial.events if LAB_EVENT_KINDS.get(e.label) == "toe_off"]
+        for event in (e for e in offs if e.uncertain):
+            uncertain += 1
+            near = [(time, kind) for time, side, kind in plates + labs
+                    if side in (None, event.side) and abs(event.time_s - time) <= 0.1]
+            time, kind = min(near, key=lambda r: abs(event.time_s - r[0]), default=(None, "–"))
+            print(f"| {path.stem} | {event.side} | {event.time_s:.3f} | "
+                  f"{1000 * event.spread_s:.1f} | {kind} | "
+                  + ("– |" if time is None else f"{1000 * (event.time_s - time):+.1f} |"))
+    print(f"\n{uncertain} of the {placed} placed toe-offs.")
+
+
 def plate_timed_table(real: Path) -> None:
     """Print each event the force plates time by default (:mod:`mocaplib.gait.plate_events`)
     in the real files under ``real``, against the lab's event of its side and kind within
@@ -427,6 +471,7 @@ def tables(args) -> dict[str, tuple[bool, bool]]:
     if args.real.is_dir():
         plate_table(args.real)
         per_file_table(args.real)
+        uncertain_table(args.real)
         plate_timed_table(args.real)
     print()
     for toe_off, (synthetic, real) in verdict.items():

@@ -101,6 +101,42 @@ def test_a_cycle_bounded_by_an_event_not_placed_says_so(walking1):
     assert not bounded[0].chosen or len(cycles) == 1
 
 
+#: Real toe-offs whose two marks lie over 30 ms apart, with what measured each: the plate's
+#: unloading (20 N) or the lab's Foot Off; the markers' time is 12 ms (Walking1), 24 ms
+#: (Walking3) after it and 8.6 ms before it (PiG_Motion-FlatFoot-Full).
+DISAGREEING = {"motonms_unipd/Walking1.c3d": "plate", "motonms_unipd/Walking3.c3d": "plate",
+               "btkdata/PiG_Motion-FlatFoot-Full.c3d": "lab"}
+
+
+@pytest.mark.parametrize("name", sorted(DISAGREEING))
+def test_a_toe_off_whose_marks_disagree_is_reported_with_the_reference_between_them(
+        real_c3d, name):
+    from event_accuracy import plate_unloadings
+
+    from mocaplib.gait.foot_events import MARKS_APART_S
+
+    path = real_c3d(name)
+    trial = read_c3d(path)
+    events, _ = capture_events(trial, match_trial(trial, "auto"), force_plates=False)
+    references = ([(t, None) for t in plate_unloadings(path)] if DISAGREEING[name] == "plate"
+                  else [(e.time_s - trial.start_time, e.context.lower()) for e in trial.events
+                        if e.label == "Foot Off"])
+    uncertain = [e for e in events if e.uncertain]
+    paired = [(e, time) for e in uncertain for time, side in references
+              if abs(e.time_s - time) < 0.1 and side in (None, e.side)]
+    assert paired, [(e.time_s, e.spread_s) for e in uncertain]
+    for event, reference in paired:
+        assert event.placed and event.kind == "toe_off" and event.spread_s > MARKS_APART_S
+        assert abs(event.time_s - reference) <= event.spread_s / 2, (event, reference)
+        assert event.warning.startswith(f"{event.side} toe-off at {event.time_s:.2f} s "
+                                        f"uncertain by ±{500 * event.spread_s:.0f} ms")
+    # a plate that times it makes it certain
+    timed, _ = capture_events(trial, match_trial(trial, "auto"))
+    if DISAGREEING[name] == "plate":
+        on_plate = [e for e in timed if e.plate is not None and e.kind == "toe_off"]
+        assert on_plate and not any(e.uncertain or e.warning for e in on_plate)
+
+
 #: The real files whose toe-offs a lab recorded (Foot Off) or force plates measured.
 LAB_TOE_OFFS = ("biomechzoo/HC030A05.c3d", "biomechzoo/HC030A22.c3d", "btkdata/Gait.c3d",
                 "btkdata/PiG_Motion-FlatFoot-Full.c3d", "ezc3d_testfiles/BTS.c3d",
@@ -261,3 +297,12 @@ def test_plates_whose_recording_cut_the_force_to_zero_are_told(real_c3d, name, c
             assert 0.003 < unloading.time_s - unloading.cut_s < 0.009, unloading
         else:
             assert unloading.cut_n is None, unloading
+
+
+def test_a_build_warns_of_an_uncertain_toe_off(real_c3d):
+    from mocaplib.build.settings import BuildSettings
+    from mocaplib.build.workflow import process_capture
+
+    result = process_capture(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"), BuildSettings())
+    uncertain = [w for w in result.warnings if "uncertain by" in w]
+    assert len(uncertain) == 1 and uncertain[0].startswith("left toe-off at 1.17 s"), uncertain

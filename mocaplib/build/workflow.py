@@ -303,7 +303,7 @@ def cut_capture(path: Path, settings: BuildSettings, result: CaptureResult, cloc
                                  static=result.static, static_pose=settings.static_pose)
         result.diagnostics["static_window_s"] = list(fitted.model.static_window_s)
     result.warnings.extend(fitted.warnings)
-    result.warnings.extend(e.warning for e in processed.events if not e.placed)
+    result.warnings.extend(e.warning for e in processed.events if e.warning)
     result.diagnostics.update(_series(trial, processed.motion, processed.shoulders,
                                       processed.events, fitted.cutoff))
     return cut_cycles(processed, max_gap_s=settings.max_gap_s,

@@ -69,7 +69,7 @@ def _run(args) -> int:
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
                                 "frame": e.frame, "placed": e.placed,
                                 "window_s": None if e.placed else list(e.window),
-                                "plate": e.plate}
+                                "plate": e.plate, "spread_s": e.spread_s}
                                for e in events]})
         return 0
     start = (f"; times from the file's first frame, C3D frame {trial.first_frame} (lab "
@@ -79,8 +79,9 @@ def _run(args) -> int:
     for e in events:
         print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"
               f"  quality {e.quality:.2f}" + ("" if e.placed else "  (not placed)")
+              + ("  (uncertain)" if e.uncertain else "")
               + ("" if e.plate is None else f"  force plate {e.plate}"))
     for e in events:
-        if not e.placed:
+        if e.warning:
             warn(f"{args.file}: {e.warning}")
     return 0

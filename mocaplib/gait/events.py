@@ -52,10 +52,14 @@ point, the later its peak.
   heads and falls as the toes leave; the release is where it has fallen to
   :data:`TOE_OFF_PITCH_FRACTION` (half) of that stride's peak, a level relative to the
   stride's own push-off, so it follows slow and fast walking alike; alone it comes ~9 ms after
-  the lab's Foot Off. In running (a capture whose feet are both off the floor at once, a
-  flight phase: :func:`running`), where the swing foot keeps accelerating upwards after the
-  toes leave, the toe-off is the ``"lift"`` below, the forefoot's fastest upswing at the
-  release (Handsaker et al. 2016 time running toe-offs on forefoot accelerations too).
+  the lab's Foot Off. When the two marks lie more than
+  :data:`~mocaplib.gait.foot_events.MARKS_APART_S` (30 ms) apart, one of them has missed the
+  release and nothing tells which: the toe-off is placed midway and is
+  :attr:`~mocaplib.gait.foot_events.GaitEvent.uncertain` (it warns). In running (a capture
+  whose feet are both off the floor at once, a flight phase: :func:`running`), where the
+  swing foot keeps accelerating upwards after the toes leave, the toe-off is the ``"lift"``
+  below, the forefoot's fastest upswing at the release (Handsaker et al. 2016 time running
+  toe-offs on forefoot accelerations too).
   Measured (docs/results/event_accuracy.md): against the lab's Foot Off, the force plates'
   unloading (20 N) and the synthetic toe-offs (the toes' tips leaving the floor). Real feet
   leave the plate at any point of their roll (pitch rate 0.24-0.99 of its push-off peak, the
@@ -374,13 +378,15 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
             if last not in marks:
                 marks[last] = (np.gradient(velocity[last, :, 2]) if lift
                                else toe_off_signals(foot, last, rate))
+            spread = 0.0
             if lift:
                 t = peak_time(centre_velocity[:, 2], lo, hi)
                 t = None if t is None else lift_time(marks[last], t, rate)
             else:
-                t = toe_off_time(marks[last], lo, hi)
+                t, spread = toe_off_time(marks[last], lo, hi)
             if t is not None and _supported(supported, t):
-                events.append(gait_event(foot.side, "toe_off", t / rate, measured, rate))
+                events.append(gait_event(foot.side, "toe_off", t / rate, measured, rate,
+                                         spread_s=spread / rate))
             else:
                 not_placed("toe_off", lo, hi, "the foot's release shows no clear mark" if t is None
                            else "the foot markers are missing where it lies")

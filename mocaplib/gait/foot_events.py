@@ -46,15 +46,18 @@ def toe_off_signals(foot: FootTrack, last: int, rate: float) -> tuple[np.ndarray
     return push, _pitch_rate(foot.points, last, rate)
 
 
-def toe_off_time(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int) -> float | None:
+def toe_off_time(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int
+                 ) -> tuple[float | None, float]:
     """The default toe-off (frames) of a walking foot in ``[lo, hi)`` (frames), from its
-    :func:`toe_off_signals`: the mean of the push point's upward-velocity peak, sought while
-    the foot still rolls (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's
-    tread, may rise faster), and the time the foot's pitch rate falls to
-    :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (:mod:`mocaplib.gait.events`); None
-    when either is not found."""
+    :func:`toe_off_signals`, and how far apart (frames) the two marks it is the mean of lie:
+    the push point's upward-velocity peak, sought while the foot still rolls
+    (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's tread, may rise
+    faster), and the time the foot's pitch rate falls to :data:`TOE_OFF_PITCH_FRACTION` of its
+    push-off peak (:mod:`mocaplib.gait.events`); (None, 0) when either is not found."""
     peak, release = toe_off_marks(signals, lo, hi)
-    return None if peak is None or release is None else 0.5 * (peak + release)
+    if peak is None or release is None:
+        return None, 0.0
+    return 0.5 * (peak + release), abs(release - peak)
 
 
 def toe_off_marks(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int
@@ -197,11 +200,12 @@ def median_kink(raw: np.ndarray, point: int, coarse: float, half: int) -> float:
                             (raw[point], raw[point, :, 2], raw.transpose(1, 0, 2))]))
 
 
-def gait_event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float) -> GaitEvent:
+def gait_event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float, *,
+               spread_s: float = 0.0) -> GaitEvent:
     frame = int(np.clip(round(time_s * rate), 0, len(measured) - 1))
     half = max(1, round(0.05 * rate))
     quality = float(measured[max(0, frame - half):frame + half + 1].mean())
-    return GaitEvent(side, kind, float(time_s), frame, quality)
+    return GaitEvent(side, kind, float(time_s), frame, quality, spread_s=spread_s)
 
 
 def unplaced_event(side: str, kind: str, window: tuple[float, float], rate: float, n_frames: int,
@@ -222,6 +226,10 @@ TOE_OFF_WEIGHT = 0.6
 #: Share of its push-off peak the foot's pitch rate has fallen to at the default toe-off's
 #: end-of-roll mark (half: the peak's half-maximum on its falling side).
 TOE_OFF_PITCH_FRACTION = 0.5
+#: A default toe-off whose two marks lie farther apart (s) is :attr:`GaitEvent.uncertain`: one
+#: of them has missed the release, and nothing tells which. The samples' lie at most 24 ms
+#: apart (docs/guide/events-cycles.md).
+MARKS_APART_S = 0.030
 
 
 @dataclass(frozen=True)
@@ -251,6 +259,10 @@ class GaitEvent:
         The force plate (1-based) whose loading or unloading timed the event
         (:mod:`mocaplib.gait.plate_events`; its ``quality`` is then 1), None for an event
         timed by the foot markers.
+    spread_s : float
+        For a default toe-off the foot markers placed, how far apart (s) the two marks it is
+        the mean of lie (:func:`toe_off_marks`); over :data:`MARKS_APART_S` it is uncertain by
+        half of it and says so (:attr:`warning`). 0 for the other events.
     """
 
     side: str
@@ -261,6 +273,7 @@ class GaitEvent:
     window: tuple[float, float] | None = None
     reason: str = ""
     plate: int | None = None
+    spread_s: float = 0.0
 
     @property
     def placed(self) -> bool:
@@ -268,8 +281,20 @@ class GaitEvent:
         return self.window is None
 
     @property
+    def uncertain(self) -> bool:
+        """Whether the event is placed but its two marks lie over :data:`MARKS_APART_S`
+        apart."""
+        return self.placed and self.spread_s > MARKS_APART_S
+
+    @property
     def warning(self) -> str:
-        """One sentence for the user about an event not placed ("" for a placed one)."""
+        """One sentence for the user about an event not placed or :attr:`uncertain` ("" for
+        the others)."""
+        if self.uncertain:
+            return (f"{self.side} {self.kind.replace('_', '-')} at {self.time_s:.2f} s uncertain "
+                    f"by ±{500 * self.spread_s:.0f} ms: its two marks (the push's "
+                    f"upward-velocity peak, the end of the foot's roll) lie "
+                    f"{1000 * self.spread_s:.0f} ms apart; placed midway")
         if self.placed:
             return ""
         return (f"{self.side} {self.kind.replace('_', '-')} not placed: it happened between "

@@ -264,7 +264,7 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
                 i = min(near, key=lambda i: abs(out[i].time_s - time_s))
                 frame = int(np.clip(round(time_s * rate), 0, len(feet[0].given) - 1))
                 out[i] = replace(out[i], time_s=float(time_s), frame=frame, quality=1.0,
-                                 window=None, reason="", plate=stance.plate)
+                                 window=None, reason="", plate=stance.plate, spread_s=0.0)
     return sorted(out, key=lambda e: (e.time_s, e.side))
 
 
