@@ -68,7 +68,7 @@ def _run(args) -> int:
                   f"protocol's fallback); its left toe-off is {r['left_toe_off_s']:.3f} s in")
         if r["qc_failures"]:
             print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
-        for sentence in r["unplaced_events"]:
+        for sentence in r["unplaced_events"] + r["uncertain_events"]:
             print(f"  cycle {r['index']}: {sentence}")
         for bound, plate in zip(("start", "end"), r["bound_plates"]):
             if plate is not None:

@@ -132,6 +132,9 @@ class Cycle:
     unplaced : tuple[str, ...]
         One sentence per event the detector could not place (:attr:`GaitEvent.warning`) among
         its bounds or inside it: a bound not placed gives the cycle ``event_quality`` 0.
+    uncertain : tuple[str, ...]
+        One sentence per toe-off among its bounds or inside it placed midway between two marks
+        that disagree (:attr:`GaitEvent.uncertain`); the cycle keeps its ``event_quality``.
     bound_plates : (int or None, int or None)
         The force plates (1-based) that timed the events the cycle starts and ends at
         (:mod:`mocaplib.gait.plate_events`), None for an event the markers timed.
@@ -159,6 +162,7 @@ class Cycle:
     start_event: str = LEFT_TOE_OFF
     left_toe_off: float | None = None
     unplaced: tuple[str, ...] = ()
+    uncertain: tuple[str, ...] = ()
     bound_plates: tuple[int | None, int | None] = (None, None)
     rise_per_step: float | None = None
     activity: str = ""
@@ -179,7 +183,8 @@ class Cycle:
                "unsteadiness": self.unsteadiness, "event_quality": self.event_quality,
                "rest": self.rest, "chosen": self.chosen, "right_toe_off_s": self.right_toe_off,
                "start_event": self.start_event, "left_toe_off_s": self.left_toe_off,
-               "unplaced_events": list(self.unplaced), "bound_plates": list(self.bound_plates),
+               "unplaced_events": list(self.unplaced), "uncertain_events": list(self.uncertain),
+               "bound_plates": list(self.bound_plates),
                "rise_per_step_m": self.rise_per_step,
                "activity": self.activity, "left_out": self.left_out}
         if self.encoding is not None:
@@ -342,6 +347,7 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                             left_toe_off=None if start_event == LEFT_TOE_OFF
                             else _first_inside(near, "left", start, end),
                             unplaced=tuple(e.warning for e in near if not e.placed),
+                            uncertain=tuple(e.warning for e in near if e.uncertain),
                             bound_plates=(first.plate, last.plate), rise_per_step=rise))
     return cycles
 
