@@ -155,6 +155,45 @@ def test_labels_match_across_prefixes_spaces_and_case():
     assert match.found == len(protocol.markers) and match.complete
 
 
+def _side_styled(label: str, style: str) -> str:
+    """``label`` (``L`` or ``R`` then its stem) with its side written as ``style`` writes it."""
+    if label[:1] not in ("L", "R") or len(label) < 3 or label in ("L5",):
+        return label
+    side, stem, word = label[0], label[1:], {"L": "Left", "R": "Right"}[label[0]]
+    return {"suffix": f"{stem}_{side}", "dotted suffix": f"{stem.lower()}.{side.lower()}",
+            "word": f"{word} {stem}", "joined word": f"{word}{stem}",
+            "word suffix": f"{stem}-{word.upper()}"}[style]
+
+
+@pytest.mark.parametrize("style", ["suffix", "dotted suffix", "word", "joined word",
+                                   "word suffix"])
+def test_labels_match_whichever_end_and_word_gives_their_side(style):
+    # labs write the side after the name (ASI_L), as a word (Left ASI) or joined (LeftASI):
+    # each matches the protocol's LASI, no marker taken for another
+    from mocaplib.trial import normalise_label
+
+    protocol = load_protocol("plugin_gait")
+    labels = [_side_styled(label, style) for label in protocol.labels]
+    assert [normalise_label(x) for x in labels] == [normalise_label(x) for x in protocol.labels]
+    trial = walker_trial(protocol, labels=labels)
+    match = detect_protocol(trial)
+    assert match.protocol.name == "plugin_gait" and match.found == len(protocol.markers)
+    assert match.indices == match_protocol(walker_trial(protocol), protocol).indices
+
+
+def test_a_real_capture_with_its_sides_after_the_names_matches_as_itself(real_c3d):
+    # PiG_Motion-FlatFoot-Full relabelled LASI -> ASI_L, LFOA -> FOA_L ...: the same markers
+    # in the same columns, and Plug-in Gait's virtual points still known as model outputs
+    trial = _read(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    before = detect_protocol(trial)
+    trial.labels = [_side_styled(label, "suffix") for label in trial.labels]
+    after = detect_protocol(trial)
+    assert after.protocol.name == before.protocol.name == "plugin_gait"
+    assert after.indices == before.indices
+    assert len(after.ignored) == len(before.ignored) and "FOA_L" in after.ignored
+    assert after.unknown == before.unknown == ()
+
+
 @pytest.mark.parametrize("heading", [0.0, 2.5, -1.2, np.pi])
 def test_swap_found_whichever_way_the_subject_faces(heading):
     protocol = load_protocol("plugin_gait")
