@@ -10,11 +10,6 @@ with the labels' names as evidence, and by place and motion alone (``use_names=F
 Then builds the folder twice, with the shipped protocols and with them hidden from detection
 (the build drafts a protocol per marker set, :mod:`mocaplib.build.drafting`), and compares the
 entries: per capture, whether each build gives one, and the largest velocity difference.
-Last, the same folder with its labels written as other labs write their sides (after the name,
-as a word, joined) and with a subject prefix or in lower case (every file rewritten by
-``write_c3d``, markers and events only, and once as it is labelled, the reference): per
-convention, the entries, the captures a shipped protocol matched, and the largest velocity
-difference from the reference.
 Prints Markdown (``--markdown PATH`` writes it into a results page, :mod:`markdown_results`).
 
     python benchmarks/draft_yield.py [--markdown docs/results/draft_yield.md]
@@ -37,7 +32,6 @@ from mocaplib.build.drafting import DRAFTS_FOLDER  # noqa: E402
 from mocaplib.build.pipeline import build_library  # noqa: E402
 from mocaplib.build.settings import BuildSettings  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
-from mocaplib.io.c3d_write import write_c3d  # noqa: E402
 from mocaplib.markersets.draft import draft_protocol  # noqa: E402
 from mocaplib.markersets.draft_checks import draft_agreement  # noqa: E402
 from mocaplib.markersets.protocols import FOLDERS_VARIABLE, list_protocols, load_protocol  # noqa: E402
@@ -99,66 +93,6 @@ def build_table() -> None:
     print(f"| all | {len(shipped.library)} | {len(drafted.library)} | |")
 
 
-#: How each convention writes a sided label, from its side (``L`` or ``R``) and stem.
-SIDE_CONVENTIONS = {
-    "side after the name (ASI_L)": lambda side, stem: f"{stem}_{side}",
-    "side after, dotted (asi.l)": lambda side, stem: f"{stem}.{side}".lower(),
-    "side as a word (Left ASI)": lambda side, stem: f"{_WORDS[side]} {stem}",
-    "side as a joined word (LeftASI)": lambda side, stem: f"{_WORDS[side]}{stem}",
-    "side as a word after (ASI-RIGHT)": lambda side, stem: f"{stem}-{_WORDS[side]}".upper()}
-_WORDS = {"L": "Left", "R": "Right"}
-#: Each convention: the file's labels (M,) written its way.
-CONVENTIONS = {"as labelled": lambda labels: labels,
-               "another subject prefix (Subj01:LASI)": lambda labels: [
-                   "Subj01:" + label.rpartition(":")[2] for label in labels],
-               "lower case (lasi)": lambda labels: [label.lower() for label in labels],
-               **{name: (lambda labels, write=write: _relabelled(labels, write))
-                  for name, write in SIDE_CONVENTIONS.items()}}
-
-
-def _relabelled(labels: list[str], write) -> list[str]:
-    """``labels`` with each one whose mirror is among them (``LASI`` and ``RASI``, after a
-    subject prefix ``liu:``, kept) written by ``write(side, stem)``; the others as they are."""
-    bare = [label.rpartition(":")[2] for label in labels]
-    have = set(bare)
-    out = []
-    for label, name in zip(labels, bare):
-        prefix = label[:len(label) - len(name)]
-        mirror = {"L": "R", "R": "L"}.get(name[:1], "") + name[1:]
-        sided = len(name) > 2 and name[:1] in "LR" and mirror in have
-        out.append(prefix + write(name[0], name[1:]) if sided else label)
-    return out
-
-
-def conventions_table(files: list[Path]) -> None:
-    print("\nThe same files with their labels written as other labs write them (rewritten with "
-          "markers and events only; velocities against the files as labelled):\n")
-    print("| labels written | entries | captures a shipped protocol matched | largest velocity "
-          "difference |\n|---|---:|---:|---:|")
-    reference = None
-    with tempfile.TemporaryDirectory() as folder:
-        for name, write in CONVENTIONS.items():
-            where = Path(folder) / str(len(list(Path(folder).iterdir())))
-            for path in files:
-                trial = read_c3d(path)
-                labels = write(trial.labels)
-                target = where / path.relative_to(REAL_FILES)
-                target.parent.mkdir(parents=True, exist_ok=True)
-                write_c3d(target, trial.markers, labels, trial.rate, events=trial.events,
-                          first_frame=trial.first_frame)
-            built = build_library([where], BuildSettings(), progress=False,
-                                  drafts_dir=where / DRAFTS_FOLDER)
-            entries = {Path(c.file).name: c.entries for c in built.captures}
-            reference = reference or entries
-            diff = max((abs(getattr(a, k) - getattr(b, k)) for file, ours in entries.items()
-                        for a, b in zip(ours, reference[file]) for k in ("v", "omega", "v_l")),
-                       default=0.0)
-            shipped = sum(c.provenance.get("protocol_origin") == "shipped"
-                          for c in built.captures)
-            print(f"| {name} | {len(built.library)} | {shipped} of {len(built.captures)} | "
-                  f"{diff:.4f} |")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_markdown_option(parser)
@@ -170,7 +104,6 @@ def main() -> None:
     with markdown_page(args.markdown, __file__):
         agreement_table(files)
         build_table()
-        conventions_table(files)
 
 
 if __name__ == "__main__":

@@ -630,6 +630,24 @@ def test_overground_captures_are_not_treadmills():
         assert np.all(ground_velocity(feet_of(trial, match)[0], trial.rate) == 0), name
 
 
+@pytest.mark.parametrize("degrees", [37.0, 137.0, 250.0])
+def test_the_belt_velocity_turns_with_the_lab_axes(degrees):
+    # the lab's horizontal axes may point anywhere: the belt's speed is the same, its
+    # direction turned with them (a median of x and of y alone moved it by up to 6 mm/s)
+    from mocaplib.gait.events import ground_velocity
+
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    speed = 1.3 / 1.1
+    lh, lt, _, _ = foot(TIME, noise=0.0007)
+    rh, rt, *_ = foot(TIME, noise=0.0007, offset=0.55, seed=1)
+    belt = {side: tuple(on_treadmill(p, speed) for p in pts)
+            for side, pts in {"left": (lh, lt), "right": (rh, rt)}.items()}
+    turned = {side: tuple(p @ turn.T for p in pts) for side, pts in belt.items()}
+    np.testing.assert_allclose(ground_velocity(turned, RATE),
+                               turn @ ground_velocity(belt, RATE), atol=1e-9)
+
+
 def test_real_treadmill_jogging_is_recognised(real_c3d):
     from mocaplib.gait.events import ground_velocity
     from mocaplib.io.c3d import read_c3d

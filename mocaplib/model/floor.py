@@ -146,7 +146,8 @@ def foot_flat_frames(heel: np.ndarray, toe: np.ndarray, rate: float) -> np.ndarr
 def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
     """The horizontal velocity (2,) m/s most of ``velocity`` (N, 2) share: of 256 evenly
     spaced samples, the one with the most of 4096 evenly spaced samples within ``radius``/2;
-    then, twice, the median of the samples within ``radius`` of it.
+    then, twice, the median of the samples within ``radius`` of it, along that velocity and
+    across it (:func:`_median_along`).
 
     A foot near the floor is flat on it (moving with the ground) for most of its stance, and
     arriving or leaving for the rest, each at its own speed: the median of all lies between
@@ -158,8 +159,19 @@ def _shared_velocity(velocity: np.ndarray, radius: float, /) -> np.ndarray:
     close = np.linalg.norm(sample[None] - picks[:, None], axis=2) < radius / 2     # (256, 4096)
     shared = picks[np.argmax(close.sum(axis=1))]
     for _ in range(2):
-        shared = median(velocity[np.linalg.norm(velocity - shared, axis=1) < radius], axis=0)
+        shared = _median_along(velocity[np.linalg.norm(velocity - shared, axis=1) < radius],
+                               shared)
     return shared
+
+
+def _median_along(velocity: np.ndarray, direction: np.ndarray, /) -> np.ndarray:
+    """The median (2,) of ``velocity`` (N, 2) taken along ``direction`` (2,) and across it:
+    the same whichever way the lab's horizontal axes point, as a median of x and of y is not
+    (along x when ``direction`` is zero)."""
+    length = np.hypot(*direction)
+    along = direction / length if length > 1e-9 else np.array([1.0, 0.0])
+    frame = np.array([along, [-along[1], along[0]]])                   # rows: along, across
+    return frame.T @ median(velocity @ frame.T, axis=0)
 
 
 def _is_belt(centre_velocity: np.ndarray, low: np.ndarray, ground: np.ndarray,

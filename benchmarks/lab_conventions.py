@@ -1,0 +1,136 @@
+"""Whether a build depends on how a lab writes its captures: the shared real files rewritten
+in other labs' conventions, each folder built without configuration, against the files as
+they are.
+
+    python benchmarks/lab_conventions.py [--markdown docs/results/lab_conventions.md]
+
+Every real file (``shared/data/c3d`` beside the repository, or ``$MOCAPLIB_SHARED_C3D``) is
+rewritten by :func:`mocaplib.io.c3d_write.write_c3d` (markers and events only), once as it is
+(the reference) and once per convention of :data:`CONVENTIONS`: its labels written with
+another subject prefix, in lower case, with the side after the name or as a word; its
+coordinates in metres or centimetres, Y up, turned about the vertical or far from the origin.
+Each folder is built as ``mocaplib build FOLDER`` builds it with nothing configured (a
+protocol drafted for a marker set no shipped one matches), and the script prints per
+convention: the entries, the captures a shipped protocol matched, and the largest difference of
+v̂ (m/s), ω̂ (rad/s) and v̂_l (m/s) from the reference's entries. Prints Markdown
+(``--markdown PATH`` writes it into a results page, :mod:`markdown_results`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from mocaplib.build.drafting import DRAFTS_FOLDER  # noqa: E402
+from mocaplib.build.pipeline import build_library  # noqa: E402
+from mocaplib.build.settings import BuildSettings  # noqa: E402
+from mocaplib.io.c3d import read_c3d  # noqa: E402
+from mocaplib.io.c3d_write import write_c3d  # noqa: E402
+
+REAL_FILES = Path(os.environ.get("MOCAPLIB_SHARED_C3D",
+                                 Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"))
+_WORDS = {"L": "Left", "R": "Right"}
+#: How each side convention writes a sided label, from its side (``L`` or ``R``) and stem.
+SIDES = {"side after the name (ASI_L)": lambda side, stem: f"{stem}_{side}",
+         "side after, dotted (asi.l)": lambda side, stem: f"{stem}.{side}".lower(),
+         "side as a word (Left ASI)": lambda side, stem: f"{_WORDS[side]} {stem}",
+         "side as a joined word (LeftASI)": lambda side, stem: f"{_WORDS[side]}{stem}",
+         "side as a word after (ASI-RIGHT)": lambda side, stem: f"{stem}-{_WORDS[side]}".upper()}
+
+
+def _relabelled(labels: list[str], write) -> list[str]:
+    """``labels`` with each one whose mirror is among them (``LASI`` and ``RASI``, after a
+    subject prefix ``liu:``, kept) written by ``write(side, stem)``; the others as they are."""
+    bare = [label.rpartition(":")[2] for label in labels]
+    have = set(bare)
+    out = []
+    for label, name in zip(labels, bare):
+        mirror = {"L": "R", "R": "L"}.get(name[:1], "") + name[1:]
+        sided = len(name) > 2 and name[:1] in "LR" and mirror in have
+        out.append(label[:len(label) - len(name)] + write(name[0], name[1:]) if sided else label)
+    return out
+
+
+def _turned(markers: np.ndarray, degrees: float) -> np.ndarray:
+    """``markers`` (F, M, 3) turned about the vertical by ``degrees``."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return markers @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _y_up(markers: np.ndarray) -> np.ndarray:
+    """``markers`` (F, M, 3) in a right-handed Y-up frame: (x, z, −y)."""
+    return markers[..., [0, 2, 1]] * np.array([1.0, 1.0, -1.0])
+
+
+def _same(values):
+    """``values`` as they are: a convention that leaves the labels or the markers alone."""
+    return values
+
+
+#: Each convention: (its labels (M,) from the file's, its markers (F, M, 3) m from the file's,
+#: the units it stores).
+CONVENTIONS = {
+    "as the files are": (_same, _same, "mm"),
+    "another subject prefix (Subj01:LASI)": (
+        lambda labels: ["Subj01:" + label.rpartition(":")[2] for label in labels], _same, "mm"),
+    "lower case (lasi)": (lambda labels: [label.lower() for label in labels], _same, "mm"),
+    **{name: (lambda labels, write=write: _relabelled(labels, write), _same, "mm")
+       for name, write in SIDES.items()},
+    "in metres": (_same, _same, "m"),
+    "in centimetres": (_same, _same, "cm"),
+    "Y up": (_same, _y_up, "mm"),
+    "turned 137° about the vertical": (_same, lambda markers: _turned(markers, 137.0), "mm"),
+    "12 m from the origin": (_same, lambda markers: markers + np.array([12.0, -7.5, 0.0]), "mm"),
+}
+
+
+def conventions_table(files: list[Path]) -> None:
+    print("| captures written | entries | captures a shipped protocol matched | largest "
+          "velocity difference |\n|---|---:|---:|---:|")
+    reference = None
+    with tempfile.TemporaryDirectory() as folder:
+        for n, (name, (labels_of, markers_of, units)) in enumerate(CONVENTIONS.items()):
+            where = Path(folder) / str(n)
+            for path in files:
+                trial = read_c3d(path)
+                target = where / path.relative_to(REAL_FILES)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                write_c3d(target, markers_of(trial.markers), labels_of(trial.labels),
+                          trial.rate, events=trial.events, units=units,
+                          first_frame=trial.first_frame)
+            built = build_library([where], BuildSettings(), jobs=2, progress=False,
+                                  drafts_dir=where / DRAFTS_FOLDER)
+            entries = {Path(c.file).name: c.entries for c in built.captures}
+            reference = reference or entries
+            diff = max((abs(getattr(a, k) - getattr(b, k)) for file, ours in entries.items()
+                        for a, b in zip(ours, reference[file]) for k in ("v", "omega", "v_l")),
+                       default=0.0)
+            shipped = sum(c.provenance.get("protocol_origin") == "shipped"
+                          for c in built.captures)
+            print(f"| {name} | {len(built.library)} | {shipped} of {len(built.captures)} | "
+                  f"{diff:.1e} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_markdown_option(parser)
+    args = parser.parse_args()
+    files = sorted(REAL_FILES.rglob("*.c3d"))
+    if not files:
+        sys.exit(f"no real files at {REAL_FILES}")
+    warnings.simplefilter("ignore")
+    with markdown_page(args.markdown, __file__):
+        conventions_table(files)
+
+
+if __name__ == "__main__":
+    main()
