@@ -8,7 +8,9 @@ Every real file (``shared/data/c3d`` beside the repository, or ``$MOCAPLIB_SHARE
 rewritten by :func:`mocaplib.io.c3d_write.write_c3d` (markers and events only), once as it is
 (the reference) and once per convention of :data:`CONVENTIONS`: its labels written with
 another subject prefix, in lower case, with the side after the name or as a word; its
-coordinates in metres or centimetres, Y up, turned about the vertical or far from the origin.
+coordinates in metres or centimetres, Y up, turned about the vertical or far from the origin;
+stored as integers; cut from a longer take (its first frame 1,000 frames on, the events on the
+same lab clock).
 Each folder is built as ``mocaplib build FOLDER`` builds it with nothing configured (a
 protocol drafted for a marker set no shipped one matches), and the script prints per
 convention: the entries, the captures a shipped protocol matched, and the largest difference of
@@ -23,6 +25,7 @@ import os
 import sys
 import tempfile
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -76,8 +79,9 @@ def _same(values):
     return values
 
 
-#: Each convention: (its labels (M,) from the file's, its markers (F, M, 3) m from the file's,
-#: the units it stores).
+#: Each convention: its labels (M,) from the file's, its markers (F, M, 3) m from the file's,
+#: and how it stores them (:func:`write_c3d`'s ``units``, ``integer`` and ``first_frame``
+#: beside the file's own first frame: 0 keeps it).
 CONVENTIONS = {
     "as the files are": (_same, _same, "mm"),
     "another subject prefix (Subj01:LASI)": (
@@ -90,6 +94,8 @@ CONVENTIONS = {
     "Y up": (_same, _y_up, "mm"),
     "turned 137° about the vertical": (_same, lambda markers: _turned(markers, 137.0), "mm"),
     "12 m from the origin": (_same, lambda markers: markers + np.array([12.0, -7.5, 0.0]), "mm"),
+    "stored as integers": (_same, _same, "mm", {"integer": True}),
+    "cut from a longer take (first frame 1001)": (_same, _same, "mm", {"first_frame": 1000}),
 }
 
 
@@ -98,15 +104,21 @@ def conventions_table(files: list[Path]) -> None:
           "velocity difference |\n|---|---:|---:|---:|")
     reference = None
     with tempfile.TemporaryDirectory() as folder:
-        for n, (name, (labels_of, markers_of, units)) in enumerate(CONVENTIONS.items()):
+        for n, (name, (labels_of, markers_of, units, *storage)) in enumerate(
+                CONVENTIONS.items()):
+            storage = storage[0] if storage else {}
             where = Path(folder) / str(n)
             for path in files:
                 trial = read_c3d(path)
                 target = where / path.relative_to(REAL_FILES)
                 target.parent.mkdir(parents=True, exist_ok=True)
+                shift = storage.get("first_frame", 0)
+                events = [replace(e, time_s=e.time_s + shift / trial.rate)
+                          for e in trial.events]
                 write_c3d(target, markers_of(trial.markers), labels_of(trial.labels),
-                          trial.rate, events=trial.events, units=units,
-                          first_frame=trial.first_frame)
+                          trial.rate, events=events, units=units,
+                          integer=storage.get("integer", False),
+                          first_frame=trial.first_frame + shift)
             built = build_library([where], BuildSettings(), jobs=2, progress=False,
                                   drafts_dir=where / DRAFTS_FOLDER)
             entries = {Path(c.file).name: c.entries for c in built.captures}

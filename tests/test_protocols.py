@@ -429,19 +429,20 @@ def test_extends_lets_a_child_relabel_a_parents_landmark(tmp_path):
 
 def _computed_by_definition(trial):
     """computed_points' definition, point by point against every other point, all frames."""
-    from mocaplib.markersets.matching import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD
+    from mocaplib.markersets.matching import MOVING_EXTENT, RIGID_FRAMES, RIGID_SD, storage_step
 
     X = trial.markers
     expected = set()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)          # points never seen: NaN
+        extent = np.linalg.norm(np.nanmax(X, axis=0) - np.nanmin(X, axis=0), axis=1)  # (N,)
+        bound = max(RIGID_SD, storage_step(X[:, extent > MOVING_EXTENT]))
         for i in range(len(trial.labels)):
-            extent = np.linalg.norm(np.nanmax(X[:, i], axis=0) - np.nanmin(X[:, i], axis=0))
             d = np.linalg.norm(X - X[:, i:i + 1], axis=2)                       # (F, N)
-            rigid = ((np.nanstd(d, axis=0) < RIGID_SD)
+            rigid = ((np.nanstd(d, axis=0) < bound)
                      & (np.isfinite(d).sum(axis=0) >= RIGID_FRAMES))
             rigid[i] = False
-            if not extent > MOVING_EXTENT or rigid.any():
+            if not extent[i] > MOVING_EXTENT or rigid.any():
                 expected.add(i)
     return expected
 
@@ -456,6 +457,42 @@ def test_computed_points_are_those_of_their_definition_pair_by_pair(real_c3d, na
     expected = _computed_by_definition(trial)
     assert 0 < len(expected) < len(trial.labels)
     assert computed_points(trial, range(len(trial.labels))) == expected
+
+
+def test_computed_points_stay_computed_in_a_file_that_stores_integers():
+    # a C3D storing its coordinates as integers (here 1/4 mm steps, as BTS.c3d's rewritten
+    # with write_c3d) rounds every point: two virtual points rigid with each other vary by
+    # 0.1 mm (SD) once rounded, over RIGID_SD; a marker's partner on its segment varies by
+    # 0.24 mm or more on the real walks, over the storage step
+    from mocaplib.markersets.matching import RIGID_SD, computed_points, storage_step
+
+    frames, step = 400, 0.00025
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 1.0, frames)[:, None, None]
+    X = rng.uniform(-0.1, 0.1, (1, 6, 3)) + t * np.array([1.2, 0.3, 0.05])
+    turn = np.linspace(0.0, 2.0, frames)                                  # rad, a turning body
+    X[:, 1] = X[:, 0] + 0.04 * np.stack([np.cos(turn), np.sin(turn), 0.3 + 0 * turn], axis=1)
+    X[:, 2:] += rng.normal(0.0, 0.0003, (frames, 4, 3))                  # four markers, loose
+    X = np.round(X / step) * step
+    assert storage_step(X) == pytest.approx(step)
+    d = np.linalg.norm(X[:, 1] - X[:, 0], axis=1)
+    assert np.std(d) > RIGID_SD                     # rounded, the virtual pair looks loose
+    trial = Trial(markers=X, labels=[f"PT{i}" for i in range(6)], rate=100.0)
+    assert computed_points(trial, range(6)) == {0, 1}
+
+
+def test_a_real_capture_stored_as_integers_tells_its_virtual_points_as_it_does(real_c3d,
+                                                                               tmp_path):
+    from mocaplib.io.c3d_write import write_c3d
+
+    trial = _read(real_c3d("biomechzoo/HC030A22.c3d"))
+    path = write_c3d(tmp_path / "integers.c3d", trial.markers, trial.labels, trial.rate,
+                     integer=True)
+    rounded = read_c3d(path)
+    assert np.nanmax(np.abs(rounded.markers - trial.markers)) > 1e-5        # rounded indeed
+    before, after = detect_protocol(trial), detect_protocol(rounded)
+    assert after.protocol.name == before.protocol.name
+    assert (after.ignored, after.unknown) == (before.ignored, before.unknown)
 
 
 def test_a_point_rigid_over_the_trial_stays_computed_when_it_jumps_on_the_screened_frames():

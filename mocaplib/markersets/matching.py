@@ -58,8 +58,12 @@ def is_numbered_point(label: str) -> bool:
 #: Two points whose distance varies less than this (m, standard deviation over the frames)
 #: while the body moves are rigid to a file's precision: one was computed from a model
 #: (measured: 0-0.03 mm between CMU's and the Oxford Foot Model's virtual points in walks;
-#: 0.24-4.8 mm between two markers of one segment in the real walks at hand).
+#: 0.24-4.8 mm between two markers of one segment in the real walks at hand). A file that
+#: stores its coordinates as integers adds their rounding: the bound is then at least the
+#: storage step (:func:`storage_step`; rounding to it varies a distance by 0.41 of it, SD).
 RIGID_SD = 5e-5
+#: At most this many coordinates are looked at to find their :func:`storage_step`.
+STEP_SAMPLES = 1_000_000
 
 
 #: A point moves with the body when it travels more than this (m, the diagonal of the box its
@@ -83,9 +87,20 @@ def numbered_candidates(trial: Trial) -> list[int]:
             if not is_model_output(label) and is_numbered_point(label)]
 
 
+def storage_step(points: np.ndarray, /) -> float:
+    """The step (m) the coordinates of ``points`` (F, N, 3) are stored at: the smallest gap
+    between two of their distinct values, of at most :data:`STEP_SAMPLES` (an integer C3D's
+    POINT:SCALE, in metres; a float file's is far below a micrometre)."""
+    values = points[np.isfinite(points)]
+    if values.size > STEP_SAMPLES:
+        values = values[np.linspace(0, values.size - 1, STEP_SAMPLES).astype(int)]
+    gaps = np.diff(np.unique(values))
+    return float(gaps.min()) if gaps.size else 0.0
+
+
 def computed_points(trial: Trial, candidates, /) -> set[int]:
     """The ``candidates`` (trial marker indices) that a model computed: each stays rigid, to
-    :data:`RIGID_SD`, with some other point of the trial seen with it in
+    :data:`RIGID_SD` or the coordinates' :func:`storage_step`, with some other point of the trial seen with it in
     :data:`RIGID_FRAMES` frames or more while it moves (:data:`MOVING_EXTENT`); a point
     that does not move is taken to be what its name says. A point that moves with the body
     otherwise is a marker.
@@ -106,6 +121,7 @@ def computed_points(trial: Trial, candidates, /) -> set[int]:
     moving = np.array([i for i in candidates if i not in out], dtype=int)
     if not moving.size:
         return out
+    rigid_sd = max(RIGID_SD, storage_step(X[:, moving]))
     seen = np.isfinite(X).all(axis=2).astype(float)                           # (F, N)
     together = seen[:, moving].T @ seen                                       # (c, N) frames
     screen = distinct(np.linspace(0, len(X) - 1, min(len(X), SCREEN_FRAMES)).round()
@@ -113,7 +129,7 @@ def computed_points(trial: Trial, candidates, /) -> set[int]:
     Z = np.ascontiguousarray(X[screen].transpose(0, 2, 1))                    # (k, 3, N)
     spread = np.concatenate([_squared_deviations(Z[:, :, chunk, None] - Z[:, :, None])
                              for chunk in np.array_split(moving, -(-moving.size // 64))])
-    possible = (spread < RIGID_SD ** 2 * together) & (together >= RIGID_FRAMES)
+    possible = (spread < rigid_sd ** 2 * together) & (together >= RIGID_FRAMES)
     possible[np.arange(moving.size), moving] = False
     rows, partners = np.nonzero(possible)
     rigid = np.zeros(moving.size, dtype=bool)
@@ -124,7 +140,7 @@ def computed_points(trial: Trial, candidates, /) -> set[int]:
         total, count = _squared_deviations(Z[:, :, partner] - Z[:, :, moving[row]],
                                            counts=True)
         with np.errstate(invalid="ignore", divide="ignore"):
-            rigid[row[(total / count < RIGID_SD ** 2) & (count >= RIGID_FRAMES)]] = True
+            rigid[row[(total / count < rigid_sd ** 2) & (count >= RIGID_FRAMES)]] = True
         rows, partners = rows[~first & ~rigid[rows]], partners[~first & ~rigid[rows]]
     return out | {int(i) for i in moving[rigid]}
 
