@@ -100,8 +100,9 @@ def storage_step(points: np.ndarray, /) -> float:
 
 def computed_points(trial: Trial, candidates, /) -> set[int]:
     """The ``candidates`` (trial marker indices) that a model computed: each stays rigid, to
-    :data:`RIGID_SD` or the coordinates' :func:`storage_step`, with some other point of the trial seen with it in
-    :data:`RIGID_FRAMES` frames or more while it moves (:data:`MOVING_EXTENT`); a point
+    :data:`RIGID_SD` or the coordinates' :func:`storage_step`, with some other point of the
+    trial seen with it in :data:`RIGID_FRAMES` frames or more while it moves
+    (:data:`MOVING_EXTENT`); a point
     that does not move is taken to be what its name says. A point that moves with the body
     otherwise is a marker.
 
