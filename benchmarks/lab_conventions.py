@@ -10,7 +10,7 @@ rewritten by :func:`mocaplib.io.c3d_write.write_c3d` (markers and events only), 
 another subject prefix, in lower case, with the side after the name or as a word; its
 coordinates in metres or centimetres, Y up, turned about the vertical or far from the origin;
 stored as integers; cut from a longer take (its first frame 1,000 frames on, the events on the
-same lab clock).
+same lab clock); at half its frame rate (every second frame).
 Each folder is built as ``mocaplib build FOLDER`` builds it with nothing configured (a
 protocol drafted for a marker set no shipped one matches), and the script prints per
 convention: the entries, the captures a shipped protocol matched, and the largest difference of
@@ -81,7 +81,8 @@ def _same(values):
 
 #: Each convention: its labels (M,) from the file's, its markers (F, M, 3) m from the file's,
 #: and how it stores them (:func:`write_c3d`'s ``units``, ``integer`` and ``first_frame``
-#: beside the file's own first frame: 0 keeps it).
+#: beside the file's own first frame: 0 keeps it; ``every``: one frame in so many kept, at the
+#: rate divided by it).
 CONVENTIONS = {
     "as the files are": (_same, _same, "mm"),
     "another subject prefix (Subj01:LASI)": (
@@ -96,6 +97,7 @@ CONVENTIONS = {
     "12 m from the origin": (_same, lambda markers: markers + np.array([12.0, -7.5, 0.0]), "mm"),
     "stored as integers": (_same, _same, "mm", {"integer": True}),
     "cut from a longer take (first frame 1001)": (_same, _same, "mm", {"first_frame": 1000}),
+    "half the frame rate (every second frame)": (_same, _same, "mm", {"every": 2}),
 }
 
 
@@ -112,13 +114,14 @@ def conventions_table(files: list[Path]) -> None:
                 trial = read_c3d(path)
                 target = where / path.relative_to(REAL_FILES)
                 target.parent.mkdir(parents=True, exist_ok=True)
-                shift = storage.get("first_frame", 0)
-                events = [replace(e, time_s=e.time_s + shift / trial.rate)
+                shift, every = storage.get("first_frame", 0), storage.get("every", 1)
+                first = trial.first_frame + shift if every == 1 else 1   # the same lab clock
+                events = [replace(e, time_s=e.time_s + shift / trial.rate
+                                  - (0.0 if every == 1 else trial.start_time))
                           for e in trial.events]
-                write_c3d(target, markers_of(trial.markers), labels_of(trial.labels),
-                          trial.rate, events=events, units=units,
-                          integer=storage.get("integer", False),
-                          first_frame=trial.first_frame + shift)
+                write_c3d(target, markers_of(trial.markers)[::every], labels_of(trial.labels),
+                          trial.rate / every, events=events, units=units,
+                          integer=storage.get("integer", False), first_frame=first)
             built = build_library([where], BuildSettings(), jobs=2, progress=False,
                                   drafts_dir=where / DRAFTS_FOLDER)
             entries = {Path(c.file).name: c.entries for c in built.captures}
