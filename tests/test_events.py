@@ -720,3 +720,39 @@ def test_cli_toe_off_choices_are_the_detector_definitions():
     from mocaplib.gait.events import TOE_OFF_DEFINITIONS
 
     assert TOE_OFF_CHOICES == TOE_OFF_DEFINITIONS
+
+
+def test_two_near_equal_peaks_share_the_crest_rather_than_take_turns():
+    # two bumps 50 ms apart at 120 Hz, equal to 1e-4: the maximum jumps from one to the other
+    # with the noise, their crest moves by a fraction of a frame
+    from mocaplib.gait.foot_events import crest_time, peak_time
+
+    t = np.arange(40, dtype=float)
+    bumps = np.exp(-0.5 * ((t - 14) / 2.5) ** 2) + np.exp(-0.5 * ((t - 20) / 2.5) ** 2)
+    early, late = bumps.copy(), bumps.copy()
+    early[:17] += 1e-4
+    late[17:] += 1e-4
+    assert abs(peak_time(early, 0, 40) - peak_time(late, 0, 40)) > 3.0      # frames
+    assert abs(crest_time(early, 0, 40) - crest_time(late, 0, 40)) < 0.1
+    one = np.exp(-0.5 * ((t - 14.3) / 2.5) ** 2)          # a single peak: its own time
+    assert crest_time(one, 0, 40) == pytest.approx(14.3, abs=0.05)
+
+
+@pytest.mark.parametrize("how", ["integers", "half the rate"])
+def test_a_real_toe_off_stays_put_when_the_capture_is_stored_otherwise(real_c3d, tmp_path, how):
+    # CMU 07_01's closing left toe-off: two equal bumps of the push 50 ms apart
+    from mocaplib.io.c3d import read_c3d
+    from mocaplib.io.c3d_write import write_c3d
+    from mocaplib.markersets.matching import detect_protocol
+
+    def left_toe_offs(trial):
+        events, _ = capture_events(trial, detect_protocol(trial), force_plates=False)
+        return np.array([e.time_s for e in events if e.kind == "toe_off" and e.side == "left"])
+
+    trial = read_c3d(real_c3d("cmu/07_01.c3d"))
+    every = 2 if how == "half the rate" else 1
+    path = write_c3d(tmp_path / "other.c3d", trial.markers[::every], trial.labels,
+                     trial.rate / every, integer=how == "integers")
+    ours, theirs = left_toe_offs(trial), left_toe_offs(read_c3d(path))
+    assert ours.shape == theirs.shape == (2,)
+    np.testing.assert_allclose(theirs, ours, atol=0.003)       # s; a frame at 120 Hz: 8.3 ms
