@@ -735,7 +735,15 @@ def test_two_near_equal_peaks_share_the_crest_rather_than_take_turns():
     assert abs(peak_time(early, 0, 40) - peak_time(late, 0, 40)) > 3.0      # frames
     assert abs(crest_time(early, 0, 40) - crest_time(late, 0, 40)) < 0.1
     one = np.exp(-0.5 * ((t - 14.3) / 2.5) ** 2)          # a single peak: its own time
-    assert crest_time(one, 0, 40) == pytest.approx(14.3, abs=0.05)
+    assert crest_time(one, 0, 40) == peak_time(one, 0, 40)
+    # a second peak 12 frames on, rising to the level (5 % below the first) and past it,
+    # moves the crest continuously from the first peak's own time: by 0.24 frames at most a
+    # 0.1 % step of its height, where the higher peak alone jumps 12 frames
+    gauss = [np.exp(-0.5 * ((t - c) / 2.0) ** 2) for c in (12.0, 24.0)]
+    crests = np.array([crest_time(gauss[0] + h * gauss[1], 0, 40)
+                       for h in np.linspace(0.90, 1.0, 101)])
+    assert crests[0] == peak_time(gauss[0] + 0.9 * gauss[1], 0, 40)
+    assert np.abs(np.diff(crests)).max() < 0.3 and crests[-1] > 17.0
 
 
 @pytest.mark.parametrize("how", ["integers", "half the rate"])

@@ -41,9 +41,9 @@ quickens, so the upward velocity of a point on the foot peaks then; the further 
 point, the later its peak.
 
 * ``"foot_velocity"`` (default): in walking, the mean of two kinematic marks of the release
-  that bracket it. (a) The upward-velocity peak (its crest, sub-frame: the centroid of the
-  samples within 5 % of the maximum, :func:`~mocaplib.gait.foot_events.crest_time`, so that
-  two near-equal peaks share the time rather than take turns with the noise) of the point
+  that bracket it. (a) The upward-velocity peak (sub-frame by a parabola; peaks within 5 %
+  of the highest share it, :func:`~mocaplib.gait.foot_events.crest_time`, rather than take
+  turns with the noise) of the point
   :data:`TOE_OFF_WEIGHT` of the way from the other marker to the one that left the floor last
   (the toe marker, or the heel walking backwards); O'Connor et al.'s foot velocity algorithm
   takes the midpoint. It is sought only while the foot still rolls over its forefoot (until

@@ -36,25 +36,32 @@ def peak_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
     return float(i)
 
 
-#: A maximum that other samples come within this share of has no one time: its crest is
-#: taken (:func:`crest_time`). Two bumps of a push's upward velocity 50 ms apart, equal to
-#: 1e-3 (CMU 07_01's left foot at 2.2 s), took turns as the maximum when the capture was
-#: stored as integers or sampled at half its rate, moving the toe-off by 25 ms.
+#: Peaks within this share of the highest are near-equal: they share the crest
+#: (:func:`crest_time`). Two bumps of a push's upward velocity 50 ms apart, equal to 1e-3
+#: (CMU 07_01's left foot at 2.2 s), took turns as the maximum when the capture was stored as
+#: integers or sampled at half its rate, moving the toe-off by 25 ms.
 CREST_SHARE = 0.05
 
 
 def crest_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
-    """Sub-frame time (frames) of the crest of ``signal[lo:hi]``: the centroid of its samples
-    within :data:`CREST_SHARE` of its maximum, each weighted by how far it rises above that
-    level, so that near-equal peaks share the time rather than take turns; None if none."""
+    """Sub-frame time (frames) of the crest of ``signal[lo:hi]``: the mean of the times
+    (:func:`peak_time`) of its peaks within :data:`CREST_SHARE` of the highest, each weighted
+    by how far it rises above that level; the highest peak's own time when it alone is there,
+    so that near-equal peaks share the time rather than take turns with the noise, and a peak
+    rising towards the level moves it continuously; None if none."""
     window = signal[lo:hi]
     if window.size == 0 or not np.isfinite(window).any():
         return None
-    top = np.nanmax(window)
-    weight = np.nan_to_num(np.clip(window - (top - CREST_SHARE * abs(top)), 0.0, None))
-    if not weight.sum() > 0:
+    level = np.nanmax(window) * (1.0 - CREST_SHARE)
+    rises = np.r_[True, window[1:] >= window[:-1]]       # the window's ends count as peaks
+    falls = np.r_[window[:-1] > window[1:], True]
+    peaks = sorted(set(np.flatnonzero(rises & falls).tolist()) | {int(np.nanargmax(window))})
+    weights = np.array([window[i] - level for i in peaks])
+    above = weights > 0
+    if not above.any():                  # a maximum of zero or less: no share of it to take
         return peak_time(signal, lo, hi)
-    return lo + float(weight @ np.arange(window.size) / weight.sum())
+    times = [peak_time(signal, lo + i, lo + i + 1) for i in np.array(peaks)[above]]
+    return float(np.dot(weights[above], times) / weights[above].sum())
 
 
 def toe_off_signals(foot: FootTrack, last: int, rate: float) -> tuple[np.ndarray, np.ndarray]:
@@ -73,8 +80,9 @@ def toe_off_time(signals: tuple[np.ndarray, np.ndarray], lo: int, hi: int
     :func:`toe_off_signals`, and how far apart (frames) the two marks it is the mean of lie:
     the push point's upward-velocity peak (its :func:`crest_time`), sought while the foot
     still rolls (:func:`_roll_end`: a foot lifted later in the swing, onto a stair's tread,
-    may rise faster), and the time the foot's pitch rate falls to :data:`TOE_OFF_PITCH_FRACTION` of its
-    push-off peak (:mod:`mocaplib.gait.events`); (None, 0) when either is not found."""
+    may rise faster), and the time the foot's pitch rate falls to
+    :data:`TOE_OFF_PITCH_FRACTION` of its push-off peak (:mod:`mocaplib.gait.events`); (None,
+    0) when either is not found."""
     peak, release = toe_off_marks(signals, lo, hi)
     if peak is None or release is None:
         return None, 0.0
@@ -248,7 +256,7 @@ TOE_OFF_WEIGHT = 0.6
 #: end-of-roll mark (half: the peak's half-maximum on its falling side).
 TOE_OFF_PITCH_FRACTION = 0.5
 #: A default toe-off whose two marks lie farther apart (s) is :attr:`GaitEvent.uncertain`: one
-#: of them has missed the release, and nothing tells which. The samples' lie at most 24 ms
+#: of them has missed the release, and nothing tells which. The samples' lie at most 25 ms
 #: apart (docs/guide/events-cycles.md).
 MARKS_APART_S = 0.030
 
