@@ -93,17 +93,23 @@ def build_table() -> None:
     print(f"| all | {len(shipped.library)} | {len(drafted.library)} | |")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def real_files_page(script: str, description: str, tables) -> None:
+    """A script's ``main``: parse ``--markdown``, find the real files (:data:`REAL_FILES`; exit
+    when there are none) and print ``tables(files)`` (also into the page of ``script``)."""
+    parser = argparse.ArgumentParser(description=description)
     add_markdown_option(parser)
     args = parser.parse_args()
     files = sorted(REAL_FILES.rglob("*.c3d"))
     if not files:
         sys.exit(f"no real files at {REAL_FILES}")
     warnings.simplefilter("ignore")
-    with markdown_page(args.markdown, __file__):
-        agreement_table(files)
-        build_table()
+    with markdown_page(args.markdown, script):
+        tables(files)
+
+
+def main() -> None:
+    real_files_page(__file__, __doc__.splitlines()[0],
+                    lambda files: (agreement_table(files), build_table()))
 
 
 if __name__ == "__main__":

@@ -20,11 +20,8 @@ v̂ (m/s), ω̂ (rad/s) and v̂_l (m/s) from the reference's entries. Prints Mar
 
 from __future__ import annotations
 
-import argparse
-import os
 import sys
 import tempfile
-import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -32,15 +29,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from markdown_results import add_markdown_option, markdown_page  # noqa: E402
+from draft_yield import REAL_FILES, real_files_page  # noqa: E402
 from mocaplib.build.drafting import DRAFTS_FOLDER  # noqa: E402
 from mocaplib.build.pipeline import build_library  # noqa: E402
 from mocaplib.build.settings import BuildSettings  # noqa: E402
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.io.c3d_write import write_c3d  # noqa: E402
 
-REAL_FILES = Path(os.environ.get("MOCAPLIB_SHARED_C3D",
-                                 Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"))
 _WORDS = {"L": "Left", "R": "Right"}
 #: How each side convention writes a sided label, from its side (``L`` or ``R``) and stem.
 SIDES = {"side after the name (ASI_L)": lambda side, stem: f"{stem}_{side}",
@@ -138,15 +133,7 @@ def conventions_table(files: list[Path]) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_markdown_option(parser)
-    args = parser.parse_args()
-    files = sorted(REAL_FILES.rglob("*.c3d"))
-    if not files:
-        sys.exit(f"no real files at {REAL_FILES}")
-    warnings.simplefilter("ignore")
-    with markdown_page(args.markdown, __file__):
-        conventions_table(files)
+    real_files_page(__file__, __doc__.splitlines()[0], conventions_table)
 
 
 if __name__ == "__main__":
