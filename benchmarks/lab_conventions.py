@@ -8,9 +8,10 @@ Every real file (``shared/data/c3d`` beside the repository, or ``$MOCAPLIB_SHARE
 rewritten by :func:`mocaplib.io.c3d_write.write_c3d` (markers and events only), once as it is
 (the reference) and once per convention of :data:`CONVENTIONS`: its labels written with
 another subject prefix, in lower case, with the side after the name or as a word; its
-coordinates in metres or centimetres, Y up, turned about the vertical, far from the origin or
-the floor above it; stored as integers; cut from a longer take (its first frame 1,000 frames
-on, the events on the same lab clock); at half its frame rate (every second frame).
+coordinates in metres or centimetres, Y or X up, turned about the vertical, far from the
+origin or the floor above it; stored as integers; cut from a longer take (its first frame
+1,000 frames on, the events on the same lab clock); at half its frame rate (every second
+frame).
 Each folder is built as ``mocaplib build FOLDER`` builds it with nothing configured (a
 protocol drafted for a marker set no shipped one matches), and the script prints per
 convention: the entries, the captures a shipped protocol matched, and the largest difference of
@@ -88,6 +89,7 @@ CONVENTIONS = {
     "in metres": (_same, _same, "m"),
     "in centimetres": (_same, _same, "cm"),
     "Y up": (_same, _y_up, "mm"),
+    "X up": (_same, lambda markers: markers[..., [2, 0, 1]], "mm"),
     "turned 137° about the vertical": (_same, lambda markers: _turned(markers, 137.0), "mm"),
     "12 m from the origin": (_same, lambda markers: markers + np.array([12.0, -7.5, 0.0]), "mm"),
     "the floor 0.8 m above the origin": (_same, lambda markers: markers + np.array([0, 0, 0.8]),

@@ -104,7 +104,8 @@ class Trial:
     units : str
         POINT:UNITS as found in the file (``"mm"``, ``"m"``...), before conversion.
     vertical_axis : str
-        The file's vertical axis as detected: ``"Z"`` or ``"Y"`` (``markers`` is always Z up).
+        The file's vertical axis as detected: ``"Z"``, ``"Y"`` or ``"X"`` (``markers`` is
+        always Z up).
     events : list[Event]
         Events from the file's EVENT group, sorted by time.
     source : str or None
@@ -150,8 +151,9 @@ class Trial:
                 f"{len(self.labels)} labels for {markers.shape[1]} markers", path=where)
         if not np.isfinite(self.rate) or self.rate <= 0:
             raise MocapError(f"frame rate must be > 0 Hz, got {self.rate}", path=where)
-        if self.vertical_axis not in ("Z", "Y"):
-            raise MocapError(f"vertical_axis must be 'Z' or 'Y', got {self.vertical_axis!r}",
+        if self.vertical_axis not in ("Z", "Y", "X"):
+            raise MocapError("vertical_axis must be 'Z', 'Y' or 'X', got "
+                             f"{self.vertical_axis!r}",
                              path=where)
         if np.isinf(markers).any():
             raise MocapError("markers contain infinite values; missing samples must be NaN",

@@ -7,18 +7,37 @@ import numpy as np
 import pytest
 
 from mocaplib.io.c3d import read_c3d
-from mocaplib.io.c3d_axis import detect_vertical_axis, far_from_body, y_up_to_z_up
+from mocaplib.io.c3d_axis import detect_vertical_axis, far_from_body, to_z_up
 from mocaplib.io.c3d_write import write_c3d
 
 from c3d_files import capture_bytes, standing_person
 
 
-def test_detect_vertical_axis_both_ways():
+def test_detect_vertical_axis_every_way():
     person = standing_person()
     assert detect_vertical_axis(person) == ("Z", [])
     as_y_up = np.stack([person[..., 0], person[..., 2], -person[..., 1]], axis=-1)
     assert detect_vertical_axis(as_y_up) == ("Y", [])
-    np.testing.assert_allclose(y_up_to_z_up(as_y_up), person, atol=0)  # exact permutation
+    np.testing.assert_allclose(to_z_up(as_y_up, "Y"), person, atol=0)  # exact permutation
+    as_x_up = person[..., [2, 0, 1]]                        # (z, x, y): a proper rotation
+    assert detect_vertical_axis(as_x_up) == ("X", [])
+    np.testing.assert_allclose(to_z_up(as_x_up, "X"), person, atol=0)
+    for axis in ("X", "Y"):                                  # proper rotations: det +1
+        turn = to_z_up(np.eye(3), axis)
+        assert np.linalg.det(turn) == pytest.approx(1.0)
+
+
+def test_an_x_up_file_is_read_z_up_the_same_body(real_c3d, tmp_path):
+    # some systems write X up: the file is turned as a Y-up one is, left staying left
+    from mocaplib.markersets.matching import detect_protocol
+
+    original = read_c3d(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"))
+    trial = read_c3d(write_c3d(tmp_path / "x_up.c3d", original.markers[..., [2, 0, 1]],
+                               original.labels, original.rate))
+    assert trial.vertical_axis == "X"
+    assert any(note.startswith("X-up file rotated to Z up") for note in trial.warnings)
+    np.testing.assert_allclose(trial.markers, original.markers, atol=1e-6, equal_nan=True)
+    assert detect_protocol(trial).swaps == ()
 
 
 def test_vertical_axis_unclear_falls_back_to_screen_axis():

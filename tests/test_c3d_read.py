@@ -11,7 +11,7 @@ import pytest
 
 from mocaplib.errors import C3DError
 from mocaplib.io.c3d import MODEL_OUTPUT_PARAMETERS, read_c3d, unit_of
-from mocaplib.io.c3d_axis import y_up_to_z_up
+from mocaplib.io.c3d_axis import to_z_up
 from mocaplib.io.c3d_layout import PointLayout
 from mocaplib.io.c3d_params import dec_to_ieee
 from mocaplib.io.c3d_points import decode_points
@@ -56,7 +56,7 @@ def test_real_file_equals_ezc3d(relative, real_c3d):
     assert trial.first_frame == c3d["header"]["points"]["first_frame"] + 1  # ezc3d counts from 0
     assert trial.vertical_axis == ("Y" if relative in Y_UP else "Z")
     if trial.vertical_axis == "Y":
-        reference = y_up_to_z_up(reference)
+        reference = to_z_up(reference, "Y")
     # ezc3d's valid mask is "residual >= 0"; mocaplib also drops samples stored as exactly
     # (0, 0, 0) (CMU files store missing markers that way; see test_all_zero_samples_are_missing).
     reference = np.where((reference == 0).all(axis=2, keepdims=True), np.nan, reference)

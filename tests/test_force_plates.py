@@ -15,7 +15,7 @@ import pytest
 
 import mocaplib.io.c3d as c3d_reader
 from mocaplib.io.c3d import read_c3d
-from mocaplib.io.c3d_axis import y_up_to_z_up
+from mocaplib.io.c3d_axis import to_z_up
 
 from c3d_files import data_start, standing_person, with_parameter, without
 from conftest import SHARED_C3D, real_files
@@ -150,7 +150,7 @@ def test_real_plates_equal_ezc3d(relative, real_c3d):
         np.testing.assert_allclose(plate.force, force, rtol=1e-9, atol=1e-9)
         expected = corners[:, :, plate.number - 1].T
         if trial.vertical_axis == "Y":
-            expected = y_up_to_z_up(expected)
+            expected = to_z_up(expected, "Y")
         np.testing.assert_allclose(plate.corners, expected, rtol=1e-12, atol=1e-12)
     read = {plate.number for plate in trial.force_plates}
     for number in range(1, used + 1):    # a plate is read, or named in one note at most

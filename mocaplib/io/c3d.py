@@ -43,7 +43,7 @@ from ..errors import C3DError
 from ..trial import Event, Trial, subject_prefixes
 from . import open_regular
 from .c3d_analog import read_force_plates
-from .c3d_axis import detect_vertical_axis, screen_up_axis, y_up_to_z_up
+from .c3d_axis import Z_UP, detect_vertical_axis, screen_up_axis, to_z_up
 from .c3d_layout import frames_past_16_bits, point_layout
 from .c3d_params import label_keys, number, parse_parameters, read_metadata, strings
 from .c3d_points import CHUNK_BYTES, read_points
@@ -151,10 +151,10 @@ def _read_trial(handle, path: Path) -> Trial:
     axis, axis_notes = detect_vertical_axis(markers, screen_axis=screen_up_axis(reader),
                                             subjects=subjects)
     notes.extend(axis_notes)
-    if axis == "Y" and markers.size:
+    if axis != "Z" and markers.size:
         for chunk in np.array_split(markers, max(1, markers.nbytes // CHUNK_BYTES)):
-            chunk[:] = y_up_to_z_up(chunk)          # in place, a chunk at a time
-        notes.append("Y-up file rotated to Z up: (x, y, z) -> (x, -z, y)")
+            chunk[:] = to_z_up(chunk, axis)          # in place, a chunk at a time
+        notes.append(f"{axis}-up file rotated to Z up: {Z_UP[axis][2]}")
     plates = read_force_plates(handle, reader, layout, to_metres, axis, path, notes)
 
     analog = layout.words - 4 * layout.count

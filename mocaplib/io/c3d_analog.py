@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import C3DError
 from ..numeric import median
-from .c3d_axis import y_up_to_z_up
+from .c3d_axis import to_z_up
 from .c3d_layout import PointLayout
 from .c3d_params import dec_to_ieee, number, strings
 from .c3d_points import frame_chunks
@@ -61,7 +61,7 @@ def read_force_plates(handle, reader, layout: PointLayout, to_metres: float,
                       vertical_axis: str, path: Path, notes: list[str]) -> list[ForcePlate]:
     """The force plates of the C3D file open in ``handle``, whose parameters ``reader``
     holds and whose frames sit as ``layout`` says; ``to_metres`` converts POINT:UNITS to
-    metres; ``vertical_axis`` ``"Y"`` rotates the corners to Z up as the markers. A plate
+    metres; a ``vertical_axis`` other than ``"Z"`` turns the corners to Z up as the markers. A plate
     that cannot be read is skipped with a note in ``notes``; no FORCE_PLATFORM group or
     FORCE_PLATFORM:USED 0 gives none, without a note. Never raises."""
     try:
@@ -213,7 +213,7 @@ def _plate(reader, index: int, used: int, scales: np.ndarray | None,
     if not (np.isfinite(corners).all() and (weights is None or np.isfinite(weights).all())):
         raise C3DError("FORCE_PLATFORM:CORNERS or CAL_MATRIX hold values that are not finite")
     return _Plate(index + 1, kind, tuple(int(c) - 1 for c in chosen),
-                  y_up_to_z_up(corners) if vertical_axis == "Y" else corners, weights)
+                  to_z_up(corners, vertical_axis), weights)
 
 
 # ----------------------------------------------------------------------------- samples

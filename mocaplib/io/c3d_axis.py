@@ -1,6 +1,6 @@
 """The vertical axis of a C3D file's markers (:func:`detect_vertical_axis`), the one its
-screen axes name (:func:`screen_up_axis`), and the rotation of a Y-up file to Z up
-(:func:`y_up_to_z_up`)."""
+screen axes name (:func:`screen_up_axis`), and the rotation of a Y-up or X-up file to Z up
+(:func:`to_z_up`)."""
 
 from __future__ import annotations
 
@@ -65,8 +65,8 @@ def far_from_body(points: np.ndarray, /) -> np.ndarray:
 
 def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = None,
                          subjects: list[str] | None = None) -> tuple[str, list[str]]:
-    """The file's vertical axis, ``"Z"`` or ``"Y"``, from markers ``(F, M, 3)`` (metres); and
-    notes.
+    """The file's vertical axis, ``"Z"``, ``"Y"`` or ``"X"``, from markers ``(F, M, 3)``
+    (metres); and notes.
 
     Rule: a standing or walking person is longer than wide. In up to 60 evenly spaced frames,
     each subject's markers apart (``subjects``, length M, :func:`subject_prefixes`: the people
@@ -78,11 +78,10 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     the body's long axis, i.e. vertical. It must beat the next axis by 25 %; otherwise (too few markers, a
     lying subject) ``screen_axis`` (:func:`screen_up_axis`) decides, and Z without it. When
     the screen axes name another axis than the markers, the markers win and a note says so.
-    Only Y and Z are supported as vertical axes; without markers (M = 0) ``screen_axis``
-    (else Z) is returned without a note.
+    Without markers (M = 0) ``screen_axis`` (else Z) is returned without a note.
     """
     notes: list[str] = []
-    fallback = screen_axis if screen_axis in ("Y", "Z") else "Z"
+    fallback = screen_axis if screen_axis in ("X", "Y", "Z") else "Z"
     frames = markers.shape[0]
     if markers.shape[1] == 0 or frames == 0:
         return fallback, notes
@@ -112,23 +111,27 @@ def detect_vertical_axis(markers: np.ndarray, /, *, screen_axis: str | None = No
     order = np.argsort(spread)[::-1]
     if spread[order[0]] <= 0 or spread[order[0]] < _AXIS_MIN_RATIO * spread[order[1]]:
         notes.append(f"vertical axis unclear from the markers; {fallback} assumed"
-                     + (" (the file's screen axes)" if screen_axis in ("Y", "Z") else ""))
+                     + (" (the file's screen axes)" if screen_axis in ("X", "Y", "Z")
+                        else ""))
         return fallback, notes
     axis = "XYZ"[order[0]]
-    if axis == "X":
-        notes.append(f"the markers look vertical along X, which is not supported; "
-                     f"{fallback} assumed")
-        return fallback, notes
     if screen_axis in ("X", "Y", "Z") and screen_axis != axis:
         notes.append(f"the file's screen axes (POINT:X_SCREEN, Y_SCREEN) show {screen_axis} "
                      f"up but the markers are vertical along {axis}; {axis} used")
     return axis, notes
 
 
-def y_up_to_z_up(markers: np.ndarray, /) -> np.ndarray:
-    """Rotate Y-up points ``(..., 3)`` by +90 degrees about X: (x, y, z) -> (x, -z, y)."""
-    out = np.empty_like(markers)
-    out[..., 0] = markers[..., 0]
-    out[..., 1] = -markers[..., 2]
-    out[..., 2] = markers[..., 1]
-    return out
+#: How :func:`to_z_up` turns points whose vertical axis is the key: the source axis of each
+#: new one (x, y, z) and its sign, and the turn in words.
+Z_UP = {"Y": ((0, 2, 1), (1.0, -1.0, 1.0), "(x, y, z) -> (x, -z, y)"),
+        "X": ((1, 2, 0), (1.0, 1.0, 1.0), "(x, y, z) -> (y, z, x)")}
+
+
+def to_z_up(points: np.ndarray, axis: str, /) -> np.ndarray:
+    """Points ``(..., 3)`` whose vertical axis is ``axis`` turned to Z up by a proper rotation
+    (:data:`Z_UP`: Y up +90 degrees about X, X up by a cyclic exchange of the axes), so that
+    left stays left; Z-up points unchanged (a copy)."""
+    if axis == "Z":
+        return points.copy()
+    order, signs, _ = Z_UP[axis]
+    return points[..., list(order)] * np.array(signs)
