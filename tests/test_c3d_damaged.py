@@ -216,9 +216,11 @@ def test_control_characters_in_labels_are_escaped(tmp_path):
 
 
 def _long_capture(frames: int) -> np.ndarray:
-    """(F, 3, 3) metres: three markers wandering about 1 m up, one sample missing."""
+    """(F, 3, 3) metres: three markers one above the other, 0.5 to 1.5 m up (a body is taller
+    than wide: the reader keeps Z up), wandering by a random walk; one sample missing."""
     rng = np.random.default_rng(11)
-    markers = np.cumsum(rng.normal(0, 1e-3, (frames, 3, 3)), axis=0) + [0.0, 0.0, 1.0]
+    markers = (np.cumsum(rng.normal(0, 1e-3, (frames, 3, 3)), axis=0)
+               + [[0.0, 0.0, 0.5], [0.0, 0.0, 1.0], [0.0, 0.0, 1.5]])
     markers[frames - 2, 1] = np.nan
     return markers
 
