@@ -104,16 +104,16 @@ def conventions_table(files: list[Path]) -> None:
     print("| captures written | entries | captures a shipped protocol matched | largest "
           "velocity difference |\n|---|---:|---:|---:|")
     reference = None
+    trials = {path: read_c3d(path) for path in files}
     with tempfile.TemporaryDirectory() as folder:
         for n, (name, (labels_of, markers_of, units, *storage)) in enumerate(
                 CONVENTIONS.items()):
             storage = storage[0] if storage else {}
             where = Path(folder) / str(n)
-            for path in files:
-                trial = read_c3d(path)
+            shift, every = storage.get("first_frame", 0), storage.get("every", 1)
+            for path, trial in trials.items():
                 target = where / path.relative_to(REAL_FILES)
                 target.parent.mkdir(parents=True, exist_ok=True)
-                shift, every = storage.get("first_frame", 0), storage.get("every", 1)
                 first = trial.first_frame + shift if every == 1 else 1   # the same lab clock
                 events = [replace(e, time_s=e.time_s + shift / trial.rate
                                   - (0.0 if every == 1 else trial.start_time))

@@ -40,36 +40,43 @@ def subject_prefixes(labels: list[str], /) -> list[str]:
     return [label.rpartition(":")[0] for label in labels]
 
 
-#: Words that give a label's side when they begin or end it (:func:`normalise_label`).
+#: Words that give a label's side when they begin or end it (:func:`written_side`).
 _SIDES = {"L": "L", "LEFT": "L", "R": "R", "RIGHT": "R"}
+
+
+def written_side(label: str) -> tuple[str | None, str]:
+    """The side (``"L"`` or ``"R"``) ``label`` writes as a word of its own at either end
+    (``ASI_L``, ``Left Knee``, ``knee.right``) or as ``Left``/``Right`` joined to its start or
+    end (``LeftASIS``, ``KneeRight``), and the rest of it; (None, all of it) when it writes
+    none so. Both without subject prefix, NULs, spaces or ``_ - .``, in upper case."""
+    text = _PREFIX.sub("", label.replace("\x00", "").strip())
+    words = [w.upper() for w in _SEPARATORS.split(text) if w]
+    if len(words) > 1 and words[0] in _SIDES:
+        return _SIDES[words[0]], "".join(words[1:])
+    if len(words) > 1 and words[-1] in _SIDES:
+        return _SIDES[words[-1]], "".join(words[:-1])
+    joined = "".join(words)
+    for word in ("LEFT", "RIGHT"):
+        if len(joined) > len(word) and joined.startswith(word):
+            return _SIDES[word], joined[len(word):]
+        if len(joined) > len(word) and joined.endswith(word):
+            return _SIDES[word], joined[:-len(word)]
+    return None, joined
 
 
 def normalise_label(label: str) -> str:
     """Label as compared by protocols: subject prefix, NULs, spaces, ``_ - .`` removed, upper
-    case, and the side in front as ``L`` or ``R`` where the label writes it as a word of its
-    own at either end (``ASI_L``, ``Left Knee``, ``knee.right``) or as ``Left``/``Right``
-    joined to its start or end (``LeftASIS``, ``KneeRight``): the same name as ``LASI``,
-    ``LKNEE``, ``RKNEE``, ``LASIS``, ``RKNEE``, so that labs' side conventions match one
-    protocol.
+    case, and the side in front as ``L`` or ``R`` where the label writes it as a word or as
+    Left/Right (:func:`written_side`): ``ASI_L``, ``Left ASI`` and ``LeftASI`` are ``LASI``,
+    so that labs' side conventions match one protocol.
 
     >>> normalise_label("Bastian:L_Sho ")
     'LSHO'
     >>> normalise_label("ASI_R"), normalise_label("LeftKnee")
     ('RASI', 'LKNEE')
     """
-    text = _PREFIX.sub("", label.replace("\x00", "").strip())
-    words = [w.upper() for w in _SEPARATORS.split(text) if w]
-    if len(words) > 1 and words[-1] in _SIDES and words[0] not in _SIDES:
-        words = [_SIDES[words[-1]], *words[:-1]]
-    elif len(words) > 1 and words[0] in _SIDES:
-        words[0] = _SIDES[words[0]]
-    joined = "".join(words)
-    for word in ("LEFT", "RIGHT"):
-        if len(joined) > len(word) and joined.startswith(word):
-            return _SIDES[word] + joined[len(word):]
-        if len(joined) > len(word) and joined.endswith(word):
-            return _SIDES[word] + joined[:-len(word)]
-    return joined
+    side, rest = written_side(label)
+    return (side or "") + rest
 
 
 @dataclass(frozen=True)

@@ -55,12 +55,12 @@ def crest_time(signal: np.ndarray, lo: int, hi: int) -> float | None:
     level = np.nanmax(window) * (1.0 - CREST_SHARE)
     rises = np.r_[True, window[1:] >= window[:-1]]       # the window's ends count as peaks
     falls = np.r_[window[:-1] > window[1:], True]
-    peaks = sorted(set(np.flatnonzero(rises & falls).tolist()) | {int(np.nanargmax(window))})
-    weights = np.array([window[i] - level for i in peaks])
+    peaks = np.union1d(np.flatnonzero(rises & falls), np.nanargmax(window))
+    weights = window[peaks] - level
     above = weights > 0
     if not above.any():                  # a maximum of zero or less: no share of it to take
         return peak_time(signal, lo, hi)
-    times = [peak_time(signal, lo + i, lo + i + 1) for i in np.array(peaks)[above]]
+    times = [peak_time(signal, lo + i, lo + i + 1) for i in peaks[above]]
     return float(np.dot(weights[above], times) / weights[above].sum())
 
 

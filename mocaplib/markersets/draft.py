@@ -49,7 +49,7 @@ import numpy as np
 from ..errors import ProtocolError
 from ..numeric import nanmedian
 from ..statics import STANDING_EXTENT
-from ..trial import Trial, normalise_label, require_markers
+from ..trial import Trial, normalise_label, require_markers, written_side
 from .draft_checks import catalogue_places, check_draft
 from .draft_motion import head_cluster, motion_cost, rigid_clusters
 from .matching import computed_points, is_model_output, numbered_candidates
@@ -229,15 +229,9 @@ def label_stem(label: str) -> tuple[str | None, str]:
     catalogue = load_landmarks()
     if any(key in catalogue for key in table.get(text, ())):      # a central landmark
         return None, text
-    words = [w.upper() for w in re.split(r"[\s_\-.]+", label.split(":")[-1].strip()) if w]
-    sides = {"L": "L", "LEFT": "L", "R": "R", "RIGHT": "R"}
-    if len(words) > 1 and (words[0] in sides or words[-1] in sides):
-        side = sides.get(words[0]) or sides[words[-1]]
-        rest = words[1:] if words[0] in sides else words[:-1]
-        return side, "".join(rest)
-    for word, side in (("LEFT", "L"), ("RIGHT", "R")):
-        if text.startswith(word) or text.endswith(word):
-            return side, text.removeprefix(word).removesuffix(word)
+    side, stem = written_side(label)
+    if side:
+        return side, stem
 
     def known(stem):
         return stem in table or stem.rstrip("0123456789") in table
