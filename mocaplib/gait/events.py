@@ -349,9 +349,10 @@ def _foot_events(foot: FootTrack, measured: np.ndarray, rate: float, config: Eve
     """Steps 3-5 of the module docstring on one prepared foot, and when it is in the air
     ([start, end) frames: its swings, those a gap in its markers separates joined);
     ``measured`` (F,) bool; ``contact`` (F,) bool its :func:`_contact`; ``lift``: toe-offs by
-    the lift definition, else the default's (module docstring). An event a swing shows but that cannot be placed (no clear
-    mark, the markers missing where it lies, or hidden in a gap longer than ``max_gap_s``
-    between a contact and the swing) is returned not placed (:attr:`GaitEvent.window`)."""
+    the lift definition, else the default's (module docstring). An event a swing shows but
+    that cannot be placed (no clear mark, the markers missing where it lies, or hidden in a
+    gap longer than ``max_gap_s`` between a contact and the swing) is returned not placed
+    (:attr:`GaitEvent.window`)."""
     raw, velocity, heights = foot.raw, foot.velocity, foot.heights
     clearance = heights.min(axis=0)
     centre_velocity = velocity.mean(axis=0)
