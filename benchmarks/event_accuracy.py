@@ -34,7 +34,10 @@ when absent), for each toe-off definition, and prints:
   the two marks lie at most;
 * the events the force plates time by default (:mod:`mocaplib.gait.plate_events`; every other
   table measures the markers' events, ``force_plates=False``) against the lab's events and
-  the markers' own.
+  the markers' own;
+* each toe-off a plate times, left out in turn: the markers' toe-off there alone and moved
+  by what the capture's other plates measured (step 5 of :mod:`mocaplib.gait.plate_events`),
+  against that plate's unloading.
 
 ``--noise-sd SD`` regenerates the sample plan (``protocols/paper_plan.toml``) into a temporary
 folder with marker noise ``SD`` metres instead of reading ``--samples`` (the plan's 0.0007):
@@ -431,6 +434,55 @@ def plate_timed_table(real: Path) -> None:
               f"{np.max(np.abs(rows['markers'])):.1f}.")
 
 
+def left_out_plates(path: Path) -> list[tuple[str, int, float, float]]:
+    """For each toe-off a force plate times in the C3D at ``path`` (default events): its side,
+    the plate, and the markers' toe-off of that side nearest it minus the plate's time (s),
+    alone (``force_plates=False``) and moved as the capture's other plates measured the
+    markers' toe-offs (that plate left out of the trial: step 5 of
+    :mod:`mocaplib.gait.plate_events`); NaN for the moved one when the others move nothing."""
+    trial = read_c3d(path)
+    if not trial.force_plates:
+        return []
+    match = detect_protocol(trial)
+    markers, _ = capture_events(trial, match, force_plates=False)
+    out = []
+    for event in (e for e in capture_events(trial, match)[0]
+                  if e.plate is not None and e.kind == "toe_off"):
+        others = [p for p in trial.force_plates if p.number != event.plate]
+        moved, _ = capture_events(dataclasses.replace(trial, force_plates=others), match)
+        own, shifted = (min((e for e in found if e.side == event.side and e.kind == "toe_off"
+                             and e.placed), key=lambda e: abs(e.time_s - event.time_s))
+                        for found in (markers, moved))
+        out.append((event.side, event.plate, own.time_s - event.time_s,
+                    shifted.time_s - event.time_s if shifted.plate_shift_s else np.nan))
+    return out
+
+
+def left_out_table(real: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Print, per toe-off a force plate times in the real files under ``real``, the markers'
+    toe-off there alone and moved by the capture's other plates (:func:`left_out_plates`),
+    and a summary over those the other plates move; (alone, moved) |Δ| (ms) of those."""
+    print("\nThe markers' toe-offs off the plates, moved by what the capture's other plates "
+          "measured (each plate left out in turn; – : the others move nothing), minus the "
+          "left-out plate's unloading (ms):\n")
+    print("| file | side | plate | markers alone | moved by the other plates |\n"
+          "|---|---|---|---|---|")
+    alone, moved = [], []
+    for path in sorted(real.rglob("*.c3d")):
+        for side, plate, own, shifted in left_out_plates(path):
+            print(f"| {path.stem} | {side} | {plate} | {1000 * own:+.1f} | "
+                  + ("– |" if np.isnan(shifted) else f"{1000 * shifted:+.1f} |"))
+            if np.isfinite(shifted):
+                alone.append(abs(1000 * own))
+                moved.append(abs(1000 * shifted))
+    alone, moved = np.array(alone), np.array(moved)
+    if moved.size:
+        print(f"\nOver the {moved.size} the other plates move: median |Δ| {np.median(moved):.1f} "
+              f"ms, worst {moved.max():.1f} (markers alone: {np.median(alone):.1f} ms, worst "
+              f"{alone.max():.1f}).")
+    return alone, moved
+
+
 def regenerate(folder: Path, noise_sd: float) -> None:
     """Write the sample plan's captures into ``folder`` with marker noise ``noise_sd`` (m)."""
     plan = load_plan(ROOT / "protocols" / "paper_plan.toml")
@@ -473,6 +525,7 @@ def tables(args) -> dict[str, tuple[bool, bool]]:
         per_file_table(args.real)
         uncertain_table(args.real)
         plate_timed_table(args.real)
+        left_out_table(args.real)
     print()
     for toe_off, (synthetic, real) in verdict.items():
         print(f"- `{toe_off}`: synthetic target {'met' if synthetic else 'MISSED'}, "

@@ -307,7 +307,9 @@ def test_a_build_warns_of_an_uncertain_toe_off(real_c3d):
 
     result = process_capture(real_c3d("btkdata/PiG_Motion-FlatFoot-Full.c3d"), BuildSettings())
     uncertain = [w for w in result.warnings if "uncertain by" in w]
-    assert len(uncertain) == 1 and uncertain[0].startswith("left toe-off at 1.17 s"), uncertain
+    # the markers' 1.171 s, moved 5.1 ms later as the capture's two plates found the markers'
+    # toe-offs 5.8 and 4.4 ms early
+    assert len(uncertain) == 1 and uncertain[0].startswith("left toe-off at 1.18 s"), uncertain
     # the cycle it bounds says so, and is kept: its entry is built
     bounded = [c for c in result.diagnostics["cycles"] if c["uncertain_events"]]
     assert [c["uncertain_events"] for c in bounded] == [uncertain] * len(bounded) and bounded

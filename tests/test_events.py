@@ -538,11 +538,11 @@ def test_cli_events_json(capsys):
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {"file", "events"}
     assert all(set(e) == {"side", "kind", "time_s", "frame", "placed", "window_s", "plate",
-                          "spread_s"} for e in out["events"])
+                          "spread_s", "plate_shift_s"} for e in out["events"])
     offs_spread = [e["spread_s"] for e in out["events"] if e["kind"] == "toe_off"]
     assert offs_spread and all(0.0 < x < 0.030 for x in offs_spread), offs_spread
     assert all(e["placed"] and e["window_s"] is None and e["plate"] is None
-               for e in out["events"])
+               and e["plate_shift_s"] == 0 for e in out["events"])
     truth = json.loads(path.with_suffix(".truth.json").read_text())
     offs = [e["time_s"] for e in out["events"] if e["side"] == "left" and e["kind"] == "toe_off"]
     true = [e["time_s"] for e in truth["events"] if e["side"] == "left" and e["kind"] == "toe_off"]

@@ -15,7 +15,8 @@ def register(subparsers) -> None:
         description="Detect left/right toe-off and heel-strike from the heel and toe markers "
                     "(any direction of travel, running, treadmills); where one foot stands "
                     "alone on a force plate, its heel-strike and toe-off are timed by the "
-                    "plate. Times are seconds from "
+                    "plate, and the markers' other toe-offs move by how far the plates found "
+                    "them off. Times are seconds from "
                     "the file's first frame. Exit 0 on success, 1 when the file cannot be "
                     "read, has no foot markers, or shows no event in less than a second (too "
                     "short to be rest), 2 on usage errors.")
@@ -24,10 +25,11 @@ def register(subparsers) -> None:
                         help="fill missing foot-marker samples from the fitted skeleton "
                              "(calibrates and fits the capture first: slower)")
     parser.add_argument("--markers-only", action="store_true",
-                        help="time every event from the foot markers, the force plates aside")
+                        help="time every event from the foot markers, the force plates aside "
+                             "(nor moved by them)")
     parser.add_argument("--json", action="store_true",
                         help='print {"file", "events": [{"side", "kind", "time_s", "frame", '
-                             '"placed", "window_s", "plate"}]}')
+                             '"placed", "window_s", "plate", "spread_s", "plate_shift_s"}]}')
     parser.set_defaults(run=_run)
 
 
@@ -69,7 +71,8 @@ def _run(args) -> int:
                     "events": [{"side": e.side, "kind": e.kind, "time_s": e.time_s,
                                 "frame": e.frame, "placed": e.placed,
                                 "window_s": None if e.placed else list(e.window),
-                                "plate": e.plate, "spread_s": e.spread_s}
+                                "plate": e.plate, "spread_s": e.spread_s,
+                                "plate_shift_s": e.plate_shift_s}
                                for e in events]})
         return 0
     start = (f"; times from the file's first frame, C3D frame {trial.first_frame} (lab "
@@ -80,7 +83,9 @@ def _run(args) -> int:
         print(f"  {e.time_s:8.3f} s  frame {e.frame:5d}  {e.side:5s}  {e.kind:11s}"
               f"  quality {e.quality:.2f}" + ("" if e.placed else "  (not placed)")
               + ("  (uncertain)" if e.uncertain else "")
-              + ("" if e.plate is None else f"  force plate {e.plate}"))
+              + ("" if e.plate is None else f"  force plate {e.plate}")
+              + (f"  moved {1000 * e.plate_shift_s:+.1f} ms by the plates"
+                 if e.plate_shift_s else ""))
     for e in events:
         if e.warning:
             warn(f"{args.file}: {e.warning}")

@@ -292,6 +292,10 @@ class GaitEvent:
         For a default toe-off the foot markers placed, how far apart (s) the two marks it is
         the mean of lie (:func:`toe_off_marks`); over :data:`MARKS_APART_S` it is uncertain by
         half of it and says so (:attr:`warning`). 0 for the other events.
+    plate_shift_s : float
+        For a toe-off the foot markers placed in a capture whose force plates timed others:
+        how far (s) it was moved, as the plates measured the markers' toe-offs
+        (:mod:`mocaplib.gait.plate_events`, step 5); 0 for the other events.
     """
 
     side: str
@@ -303,6 +307,7 @@ class GaitEvent:
     reason: str = ""
     plate: int | None = None
     spread_s: float = 0.0
+    plate_shift_s: float = 0.0
 
     @property
     def placed(self) -> bool:

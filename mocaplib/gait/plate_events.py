@@ -1,5 +1,6 @@
 """Gait events timed by force plates: where one foot alone loads a plate, the heel strike and
-toe-off the markers place there are moved to the plate's loading and unloading.
+toe-off the markers place there are moved to the plate's loading and unloading, and the
+markers' other toe-offs by how far the plates found them off.
 
 A plate measures the instant a foot starts and stops bearing on it; the markers only show the
 foot's motion about it (a toe-off from foot markers lies 5-20 ms from the plate's on the lab
@@ -27,6 +28,13 @@ a foot lands cleanly on one, and so does :func:`plate_timed`:
 4. **Which events.** The plate's loading replaces that foot's heel strike, its unloading that
    foot's toe-off, when the markers placed the event (or saw it happen, not placed) within
    :data:`PLATE_MATCH_S`; an event the markers did not find is not added from a plate alone.
+5. **The other toe-offs.** How late or early the markers place a toe-off depends on the foot
+   and where its markers sit (on the shared files -6 to +20 ms from the plates, within
+   1.4-6.8 ms of each other in five of the six captures with two or more): the toe-offs the
+   markers place off the plates are moved by the median of the plates' unloadings minus the
+   markers' toe-offs they replaced (those whose two marks agree, :attr:`GaitEvent.uncertain`),
+   unless that median exceeds :data:`MAX_PLATE_SHIFT_S` (:func:`_shifted`); heel strikes are
+   left to the markers.
 
 Forces in newtons, positions in metres (Z up), times in seconds from the capture's first frame
 (analog sample ``k`` of a plate at ``k / rate``).
@@ -61,6 +69,10 @@ CLIP_TANGENT_S = 0.01
 ON_PLATE_MARGIN_M = 0.01
 #: Largest difference (s) between a plate's event and the markers' event it replaces.
 PLATE_MATCH_S = 0.1
+#: Largest shift (s) of the markers' toe-offs off the plates (step 5 of the module
+#: docstring): on the shared files the markers' toe-offs lie -6 to +20 ms from the plates'
+#: unloadings; a median farther away says a plate contact was misread, not a foot.
+MAX_PLATE_SHIFT_S = 0.03
 
 
 class Unloading(NamedTuple):
@@ -251,9 +263,11 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
     """``events`` with each heel strike and toe-off a plate times instead (step 4 of the
     module docstring): the markers' event of the plate contact's side and kind nearest the
     plate's, within :data:`PLATE_MATCH_S` (or whose not-placed window holds it), moved to the
-    plate's time, placed, quality 1 and :attr:`GaitEvent.plate` set; sorted by time.
+    plate's time, placed, quality 1 and :attr:`GaitEvent.plate` set; the markers' other
+    toe-offs shifted as the plates measured them (step 5, :func:`_shifted`); sorted by time.
     ``contact`` as for :func:`plate_contacts`."""
     out = list(events)
+    measured = []                           # (plate - markers) of each toe-off a plate timed
     for stance in plate_contacts(plates, feet, contact, rate):
         for kind, time_s in (("heel_strike", stance.strike_s), ("toe_off", stance.off_s)):
             if time_s is None:
@@ -262,10 +276,30 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
                     and e.plate is None and _matches(e, time_s)]
             if near:
                 i = min(near, key=lambda i: abs(out[i].time_s - time_s))
-                frame = int(np.clip(round(time_s * rate), 0, len(feet[0].given) - 1))
-                out[i] = replace(out[i], time_s=float(time_s), frame=frame, quality=1.0,
-                                 window=None, reason="", plate=stance.plate, spread_s=0.0)
-    return sorted(out, key=lambda e: (e.time_s, e.side))
+                if kind == "toe_off" and out[i].placed and not out[i].uncertain:
+                    measured.append(time_s - out[i].time_s)
+                out[i] = replace(out[i], time_s=float(time_s), frame=_frame(time_s, rate, feet),
+                                 quality=1.0, window=None, reason="", plate=stance.plate,
+                                 spread_s=0.0)
+    return sorted(_shifted(out, measured, rate, feet), key=lambda e: (e.time_s, e.side))
+
+
+def _shifted(events: list[GaitEvent], measured: list[float], rate: float,
+             feet: list[FootTrack]) -> list[GaitEvent]:
+    """``events`` with the toe-offs the markers placed moved by the median of ``measured``
+    (s: each plate's unloading minus the markers' toe-off it replaced), their
+    :attr:`GaitEvent.plate_shift_s` set; unchanged without one or beyond
+    :data:`MAX_PLATE_SHIFT_S` (step 5 of the module docstring)."""
+    if not measured or abs(shift := float(np.median(measured))) > MAX_PLATE_SHIFT_S:
+        return events
+    return [replace(e, time_s=e.time_s + shift, frame=_frame(e.time_s + shift, rate, feet),
+                    plate_shift_s=shift)
+            if e.kind == "toe_off" and e.placed and e.plate is None else e for e in events]
+
+
+def _frame(time_s: float, rate: float, feet: list[FootTrack]) -> int:
+    """The frame nearest ``time_s`` (s), within the capture."""
+    return int(np.clip(round(time_s * rate), 0, len(feet[0].given) - 1))
 
 
 def _matches(event: GaitEvent, time_s: float) -> bool:
