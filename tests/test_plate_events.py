@@ -333,3 +333,25 @@ def test_the_events_command_says_how_far_the_plates_moved_a_toe_off(real_c3d, ca
     assert capsys.readouterr().out.count("moved -18.7 ms by the plates") == 2
     assert main(["events", path, "--markers-only"]) == 0
     assert "moved" not in capsys.readouterr().out
+
+
+def test_a_cycle_and_the_report_say_how_far_the_plates_moved_its_bounds(real_c3d, tmp_path,
+                                                                        capsys):
+    from mocaplib.cli import main
+
+    path = str(real_c3d("biomechzoo/HC030A05.c3d"))
+    assert main(["cycles", path, "--json"]) == 0
+    cycle, = json.loads(capsys.readouterr().out)["cycles"]
+    # it starts at a toe-off the markers placed, moved as the plates found them 18.7 ms
+    # late, and ends at plate 1's unloading
+    assert cycle["bound_plates"] == [None, 1]
+    assert cycle["bound_plate_shifts_s"] == [pytest.approx(-0.0187, abs=5e-4), 0.0]
+    assert main(["cycles", path]) == 0
+    assert ("cycle 0: its start (left toe off) moved -18.7 ms by the force plates"
+            in capsys.readouterr().out)
+    library = tmp_path / "lib.json"
+    assert main(["build", path, "-o", str(library)]) == 0
+    assert main(["report", str(library), "-o", str(tmp_path / "report")]) == 0
+    page = (tmp_path / "report" / "lib-report.html").read_text()
+    assert re.search(r"<td class=\"num\">0\.28 \(moved -18\.7 ms by the plates\)</td>"
+                     r"<td class=\"num\">1\.32 \(force plate 1\)</td>", page)

@@ -70,9 +70,12 @@ def _run(args) -> int:
             print(f"  cycle {r['index']} fails QC: {'; '.join(r['qc_failures'])}")
         for sentence in r["unplaced_events"] + r["uncertain_events"]:
             print(f"  cycle {r['index']}: {sentence}")
-        for bound, plate in zip(("start", "end"), r["bound_plates"]):
+        for bound, plate, shift in zip(("start", "end"), r["bound_plates"],
+                                       r["bound_plate_shifts_s"]):
+            event = f"  cycle {r['index']}: its {bound} ({r['start_event'].replace('_', ' ')})"
             if plate is not None:
-                print(f"  cycle {r['index']}: its {bound} ({r['start_event'].replace('_', ' ')}) "
-                      f"timed by force plate {plate}")
+                print(f"{event} timed by force plate {plate}")
+            elif shift:
+                print(f"{event} moved {1000 * shift:+.1f} ms by the force plates")
     print("  (* = chosen for the library: the steadiest cycle that passes QC, if any does)")
     return 0

@@ -138,6 +138,9 @@ class Cycle:
     bound_plates : (int or None, int or None)
         The force plates (1-based) that timed the events the cycle starts and ends at
         (:mod:`mocaplib.gait.plate_events`), None for an event the markers timed.
+    bound_shifts : (float, float)
+        How far (s) the force plates moved those two events from the markers' times
+        (:attr:`GaitEvent.plate_shift_s`), 0 where they did not.
     rise_per_step : float or None
         How far the pelvis rises (> 0) or drops per step over the cycle, m: half its height
         change from start to end (a cycle is two steps); 0 for rest, None without the joint
@@ -164,6 +167,7 @@ class Cycle:
     unplaced: tuple[str, ...] = ()
     uncertain: tuple[str, ...] = ()
     bound_plates: tuple[int | None, int | None] = (None, None)
+    bound_shifts: tuple[float, float] = (0.0, 0.0)
     rise_per_step: float | None = None
     activity: str = ""
     left_out: str | None = None
@@ -185,6 +189,7 @@ class Cycle:
                "start_event": self.start_event, "left_toe_off_s": self.left_toe_off,
                "unplaced_events": list(self.unplaced), "uncertain_events": list(self.uncertain),
                "bound_plates": list(self.bound_plates),
+               "bound_plate_shifts_s": list(self.bound_shifts),
                "rise_per_step_m": self.rise_per_step,
                "activity": self.activity, "left_out": self.left_out}
         if self.encoding is not None:
@@ -348,7 +353,9 @@ def analyse_cycles(events: list[GaitEvent], left_shoulder: np.ndarray,
                             else _first_inside(near, "left", start, end),
                             unplaced=tuple(e.warning for e in near if not e.placed),
                             uncertain=tuple(e.warning for e in near if e.uncertain),
-                            bound_plates=(first.plate, last.plate), rise_per_step=rise))
+                            bound_plates=(first.plate, last.plate),
+                            bound_shifts=(first.plate_shift_s, last.plate_shift_s),
+                            rise_per_step=rise))
     return cycles
 
 

@@ -353,6 +353,8 @@ def _captures(diagnostics: dict | None, library, *, jobs: int = 1) -> list[dict]
                    "start_event": None if c.get("start_event", "left_toe_off") == "left_toe_off"
                    else str(c["start_event"]).replace("_", " "),
                    "plates": list(c.get("bound_plates") or (None, None))[:2],
+                   "shifts_ms": [1000 * (x or 0.0) for x in
+                                 (c.get("bound_plate_shifts_s") or (0.0, 0.0))[:2]],
                    "entry": c.get("entry_id"), "pattern": (c.get("pattern") or {}).get("type")}
                   for n, c in enumerate(record.get("cycles") or [])]
         item = {"source": str(record.get("source", f"capture {k}")),
