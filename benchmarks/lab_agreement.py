@@ -16,6 +16,8 @@ against its thorax frame (:func:`mocaplib.model.anatomy.segment_frames` builds m
 the same way). Pelvis tilt and obliquity are taken from Plug-in Gait's pelvis frame in
 mocaplib's order (heading, then obliquity, then tilt): its stored pelvis angles are relative to
 the lab's axes, which is not the subject's heading once the subject turns (HC030A22 turns 88°).
+The trunk's flexion, bending and rotation are compared with Plug-in Gait's spine angles (its
+thorax on its pelvis; the left side's, whose signs are mocaplib's).
 Also printed: the share of frames each of mocaplib's DOFs spends at a joint limit, the DOFs held
 because the markers cannot see them, the pelvis obliquity's range against that of the line
 through the two ASIS markers, how far mocaplib's fitted shoulder centres lie from Plug-in
@@ -71,17 +73,20 @@ RUNS = tuple((motion, static, Path(motion).stem) for motion, static in CAPTURES)
 FLEXIONS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 #: The arms' flexions (Plug-in Gait point, component, mocaplib DOF), compared per side.
 ARMS = (("ElbowAngles", 0, "elbow_flexion"), ("ShoulderAngles", 0, "shoulder_flexion"))
+#: The trunk on the pelvis (Plug-in Gait's spine angles: its thorax on its pelvis, the left
+#: side's signs; component, mocaplib DOF).
+TRUNK = ((0, "trunk_flexion"), (1, "trunk_bending"), (2, "trunk_rotation"))
 #: The targets: flexions (median |offset| over captures and sides, worst |offset|,
 #: r, RMS after offset), frontal angles (r, |offset|), limits, pelvis range, the arms' flexions
 #: (|offset| on every capture and side, r, RMS after offset, range within this factor of
 #: Plug-in Gait's either way), degrees; the shoulder centres' mean distance from Plug-in
 #: Gait's, mm; the knee's cross-talk (|slope of hip rotation on knee flexion| on every
-#: capture and side, degrees per degree).
+#: capture and side, degrees per degree); the trunk's |offset| on every capture, degrees.
 TARGETS = {"flexion_median_offset": 3.0, "flexion_worst_offset": 5.0, "flexion_r": 0.97,
            "flexion_rms": 3.0, "frontal_r": 0.8, "frontal_offset": 5.0,
            "at_limit_share": 0.02, "obliquity_range_ratio": 1.3,
            "arm_offset": 5.0, "arm_r": 0.9, "arm_rms": 3.0, "arm_range_ratio": 1.5,
-           "shoulder_centre_mm": 20.0, "crosstalk_slope": 0.1}
+           "shoulder_centre_mm": 20.0, "crosstalk_slope": 0.1, "trunk_offset": 5.0}
 
 
 @dataclass
@@ -203,6 +208,9 @@ def agreement(motion_path: Path, static_path: Path | None, name: str) -> Capture
     tilt, obliquity = pelvis_angles(points)
     out.append(compare(name, "pelvis_tilt", q[:, DOF_NAMES.index("pelvis_tilt")], tilt))
     out.append(compare(name, "pelvis_list", q[:, DOF_NAMES.index("pelvis_list")], obliquity))
+    for component, dof in TRUNK:
+        out.append(compare(name, dof, q[:, DOF_NAMES.index(dof)],
+                           points["LSpineAngles"][:, component]))
     lower, upper = Skeleton.bounds()
     at_limit = ((motion.q <= lower + 1e-3) | (motion.q >= upper - 1e-3)).mean(axis=0)
     anatomical = fit_capture(trial, static=statics, knee_turns={})
@@ -277,6 +285,10 @@ def target_checks(results: list[CaptureResult]) -> list[tuple[str, str, bool]]:
                    (f"{dof}: range within {TARGETS['arm_range_ratio']:g}× Plug-in Gait's",
                     f"{ratio:.2f}× ({wide.capture} {wide.angle}, {wide.rom_ours:.1f}° / "
                     f"{wide.rom_lab:.1f}°)", ratio <= TARGETS["arm_range_ratio"])]
+    trunk = max((c for c in rows if c.angle.startswith("trunk_")), key=lambda c: abs(c.offset))
+    checks.append((f"trunk: every abs. offset ≤ {TARGETS['trunk_offset']:g}°",
+                   f"{trunk.offset:+.1f}° ({trunk.capture} {trunk.angle})",
+                   abs(trunk.offset) <= TARGETS["trunk_offset"]))
     gap, capture, side = max((g, r.capture, s) for r in results
                              for s, g in r.shoulder_gap_mm.items())
     checks.append((f"shoulder centres within {TARGETS['shoulder_centre_mm']:g} mm of Plug-in "
