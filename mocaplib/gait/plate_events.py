@@ -289,12 +289,15 @@ def _shifted(events: list[GaitEvent], measured: list[float], rate: float,
     """``events`` with the toe-offs the markers placed moved by the median of ``measured``
     (s: each plate's unloading minus the markers' toe-off it replaced), their
     :attr:`GaitEvent.plate_shift_s` set; unchanged without one or beyond
-    :data:`MAX_PLATE_SHIFT_S` (step 5 of the module docstring)."""
+    :data:`MAX_PLATE_SHIFT_S` (step 5 of the module docstring), and a toe-off the move would
+    take out of the capture stays."""
     if not measured or abs(shift := float(np.median(measured))) > MAX_PLATE_SHIFT_S:
         return events
+    last = (len(feet[0].given) - 1) / rate
     return [replace(e, time_s=e.time_s + shift, frame=_frame(e.time_s + shift, rate, feet),
                     plate_shift_s=shift)
-            if e.kind == "toe_off" and e.placed and e.plate is None else e for e in events]
+            if e.kind == "toe_off" and e.placed and e.plate is None
+            and 0.0 <= e.time_s + shift <= last else e for e in events]
 
 
 def _frame(time_s: float, rate: float, feet: list[FootTrack]) -> int:
