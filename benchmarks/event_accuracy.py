@@ -37,7 +37,7 @@ when absent), for each toe-off definition, and prints:
   the markers' own;
 * each toe-off a plate times, left out in turn: the markers' toe-off there alone and moved
   by what the capture's other plates measured (step 5 of :mod:`mocaplib.gait.plate_events`),
-  against that plate's unloading.
+  against that plate's unloading; and what moving the heel strikes the same way would give.
 
 ``--noise-sd SD`` regenerates the sample plan (``protocols/paper_plan.toml``) into a temporary
 folder with marker noise ``SD`` metres instead of reading ``--samples`` (the plan's 0.0007):
@@ -66,7 +66,7 @@ from mocaplib.gait.events import TOE_OFF_DEFINITIONS, EventSettings, capture_eve
 from mocaplib.gait.feet import LAB_EVENT_KINDS, event_differences
 from mocaplib.gait.foot_events import MARKS_APART_S
 from mocaplib.gait.plate_events import (PLATE_MIN_PEAK_N, PLATE_THRESHOLD_N,  # noqa: F401
-                                        Unloading, readable, unloadings)
+                                        PLATE_MATCH_S, Unloading, readable, unloadings)
 from mocaplib.io.c3d import read_c3d  # noqa: E402
 from mocaplib.markersets.matching import detect_protocol
 from mocaplib.synth.plan import generate_plan, load_plan, locomotion_type  # noqa: E402
@@ -412,8 +412,7 @@ def plate_timed_table(real: Path) -> None:
         timed = [e for e in capture_events(trial, match)[0] if e.plate is not None]
         markers, _ = capture_events(trial, match, force_plates=False)
         for event in timed:
-            own = min((e for e in markers if (e.side, e.kind) == (event.side, event.kind)),
-                      key=lambda e: abs(e.time_s - event.time_s))
+            own = nearest_event(markers, event)
             side = _of_side(trial.events, event.side[0].upper())
             lab = [e.time_s - trial.start_time for e in side
                    if LAB_EVENT_KINDS.get(e.label) == event.kind
@@ -434,42 +433,56 @@ def plate_timed_table(real: Path) -> None:
               f"{np.max(np.abs(rows['markers'])):.1f}.")
 
 
-def left_out_plates(path: Path) -> list[tuple[str, int, float, float]]:
-    """For each toe-off a force plate times in the C3D at ``path`` (default events): its side,
-    the plate, and the markers' toe-off of that side nearest it minus the plate's time (s),
-    alone (``force_plates=False``) and moved as the capture's other plates measured the
-    markers' toe-offs (that plate left out of the trial: step 5 of
-    :mod:`mocaplib.gait.plate_events`); NaN for the moved one when the others move nothing."""
+def nearest_event(events, event, *, placed_only: bool = False):
+    """The event of ``events`` of ``event``'s side and kind nearest it in time (placed ones
+    only with ``placed_only``)."""
+    return min((e for e in events if (e.side, e.kind) == (event.side, event.kind)
+                and (e.placed or not placed_only)), key=lambda e: abs(e.time_s - event.time_s))
+
+
+def left_out_plates(path: Path) -> list[tuple[str, str, int, float, float]]:
+    """For each heel strike and toe-off a force plate times in the C3D at ``path`` (default
+    events): its kind, side and plate, and the markers' event of that side and kind nearest it
+    minus the plate's time (s), alone (``force_plates=False``) and, for a toe-off, moved as the
+    capture's other plates measured the markers' toe-offs (that plate left out of the trial:
+    step 5 of :mod:`mocaplib.gait.plate_events`); NaN for the moved one when the others move
+    nothing, and for a heel strike (the plates move none)."""
     trial = read_c3d(path)
     if not trial.force_plates:
         return []
     match = detect_protocol(trial)
     markers, _ = capture_events(trial, match, force_plates=False)
     out = []
-    for event in (e for e in capture_events(trial, match)[0]
-                  if e.plate is not None and e.kind == "toe_off"):
-        others = [p for p in trial.force_plates if p.number != event.plate]
-        moved, _ = capture_events(dataclasses.replace(trial, force_plates=others), match)
-        own, shifted = (min((e for e in found if e.side == event.side and e.kind == "toe_off"
-                             and e.placed), key=lambda e: abs(e.time_s - event.time_s))
-                        for found in (markers, moved))
-        out.append((event.side, event.plate, own.time_s - event.time_s,
-                    shifted.time_s - event.time_s if shifted.plate_shift_s else np.nan))
+    for event in (e for e in capture_events(trial, match)[0] if e.plate is not None):
+        own = nearest_event(markers, event, placed_only=True)
+        shifted = np.nan
+        if event.kind == "toe_off":
+            others = [p for p in trial.force_plates if p.number != event.plate]
+            moved, _ = capture_events(dataclasses.replace(trial, force_plates=others), match)
+            found = nearest_event(moved, event, placed_only=True)
+            shifted = found.time_s - event.time_s if found.plate_shift_s else np.nan
+        out.append((event.kind, event.side, event.plate, own.time_s - event.time_s, shifted))
     return out
 
 
 def left_out_table(real: Path) -> tuple[np.ndarray, np.ndarray]:
     """Print, per toe-off a force plate times in the real files under ``real``, the markers'
     toe-off there alone and moved by the capture's other plates (:func:`left_out_plates`),
-    and a summary over those the other plates move; (alone, moved) |Δ| (ms) of those."""
+    and a summary over those the other plates move, with what moving the heel strikes the same
+    way would give; (alone, moved) |Δ| (ms) of those toe-offs."""
     print("\nThe markers' toe-offs off the plates, moved by what the capture's other plates "
           "measured (each plate left out in turn; – : the others move nothing), minus the "
           "left-out plate's unloading (ms):\n")
     print("| file | side | plate | markers alone | moved by the other plates |\n"
           "|---|---|---|---|---|")
-    alone, moved = [], []
+    alone, moved, strikes = [], [], []
     for path in sorted(real.rglob("*.c3d")):
-        for side, plate, own, shifted in left_out_plates(path):
+        found = left_out_plates(path)
+        offsets = [own for kind, _, _, own, _ in found
+                   if kind == "heel_strike" and abs(own) <= PLATE_MATCH_S]   # markers saw it
+        strikes += [(abs(own), abs(own - np.median(offsets[:k] + offsets[k + 1:])))
+                    for k, own in enumerate(offsets) if len(offsets) > 1]
+        for _, side, plate, own, shifted in (f for f in found if f[0] == "toe_off"):
             print(f"| {path.stem} | {side} | {plate} | {1000 * own:+.1f} | "
                   + ("– |" if np.isnan(shifted) else f"{1000 * shifted:+.1f} |"))
             if np.isfinite(shifted):
@@ -480,6 +493,13 @@ def left_out_table(real: Path) -> tuple[np.ndarray, np.ndarray]:
         print(f"\nOver the {moved.size} the other plates move: median |Δ| {np.median(moved):.1f} "
               f"ms, worst {moved.max():.1f} (markers alone: {np.median(alone):.1f} ms, worst "
               f"{alone.max():.1f}).")
+    if strikes:
+        own, shifted = 1000 * np.array(strikes).T
+        print(f"\nThe heel strikes are not moved: moved the same way, the {len(strikes)} the "
+              f"plates time in captures with two or more would lie a median "
+              f"{np.median(shifted):.1f} ms from the left-out plate's loading, worst "
+              f"{shifted.max():.1f} (markers alone: {np.median(own):.1f} ms, worst "
+              f"{own.max():.1f}).")
     return alone, moved
 
 

@@ -33,8 +33,9 @@ a foot lands cleanly on one, and so does :func:`plate_timed`:
    1.4-6.8 ms of each other in five of the six captures with two or more): the toe-offs the
    markers place off the plates are moved by the median of the plates' unloadings minus the
    markers' toe-offs they replaced (those whose two marks agree, :attr:`GaitEvent.uncertain`),
-   unless that median exceeds :data:`MAX_PLATE_SHIFT_S` (:func:`_shifted`); heel strikes are
-   left to the markers.
+   unless that median exceeds :data:`MAX_PLATE_SHIFT_S` (:func:`_shifted`). Heel strikes are
+   left to the markers (moved the same way, theirs would lie farther from a left-out plate:
+   docs/results/event_accuracy.md).
 
 Forces in newtons, positions in metres (Z up), times in seconds from the capture's first frame
 (analog sample ``k`` of a plate at ``k / rate``).
