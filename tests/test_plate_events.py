@@ -24,10 +24,11 @@ SAMPLE = "walk_straight_normal"
 ANALOG_RATE = 1000.0
 
 
-def _walk(sample_dir):
-    """The sample walk, its protocol match and its true events [(side, kind, time_s)]."""
-    trial = read_c3d(sample_dir / f"{SAMPLE}.c3d")
-    truth = json.loads((sample_dir / f"{SAMPLE}.truth.json").read_text())
+def _walk(sample_dir, name=SAMPLE):
+    """The sample walk (or sample ``name``), its protocol match and its true events [(side,
+    kind, time_s)]."""
+    trial = read_c3d(sample_dir / f"{name}.c3d")
+    truth = json.loads((sample_dir / f"{name}.truth.json").read_text())
     return trial, detect_protocol(trial), [(e["side"], e["kind"], e["time_s"])
                                            for e in truth["events"]]
 
@@ -115,11 +116,14 @@ def test_a_plate_under_one_foot_times_its_heel_strike_and_toe_off(sample_dir, si
     assert 0 < abs(shift) <= 1.0 / trial.rate
 
 
-@pytest.mark.parametrize("late_s", [0.015, -0.01])
-def test_the_markers_other_toe_offs_move_as_the_plates_found_them_off(sample_dir, late_s):
+@pytest.mark.parametrize("name, late_s", [(SAMPLE, 0.015), (SAMPLE, -0.01),
+                                          ("run_3p5", 0.015)])
+def test_the_markers_other_toe_offs_move_as_the_plates_found_them_off(sample_dir, name,
+                                                                      late_s):
     # a plate that unloads later or earlier than the toes' tips leave (another threshold, a
-    # foot whose markers sit elsewhere): the markers' toe-offs off it move by as much
-    trial, match, truth = _walk(sample_dir)
+    # foot whose markers sit elsewhere): the markers' toe-offs off it move by as much; a
+    # run's too (its toe-off the forefoot's lift)
+    trial, match, truth = _walk(sample_dir, name)
     strike, off = _stance(truth, "left")
     plate = _plate(trial, match, "left", strike, off, shift_s=late_s)
     with_plates, alone = _timed(trial, match, [plate])
