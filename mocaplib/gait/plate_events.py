@@ -32,7 +32,8 @@ a foot lands cleanly on one, and so does :func:`plate_timed`:
    and where its markers sit (on the shared files -6 to +20 ms from the plates, within
    1.4-6.8 ms of each other in five of the six captures with two or more): the toe-offs the
    markers place off the plates are moved by the median of the plates' unloadings minus the
-   markers' toe-offs they replaced (those whose two marks agree, :attr:`GaitEvent.uncertain`),
+   markers' toe-offs they replaced (those whose two marks agree, :attr:`GaitEvent.uncertain`,
+   around which the foot's markers were measured),
    unless that median exceeds :data:`MAX_PLATE_SHIFT_S` (:func:`_shifted`). Heel strikes are
    left to the markers (moved the same way, theirs would lie farther from a left-out plate:
    docs/results/event_accuracy.md).
@@ -50,6 +51,7 @@ import numpy as np
 
 from ..runs import valid_runs
 from .foot_events import FootTrack, GaitEvent
+from .qc import QC_LIMITS
 
 #: Vertical force (N) above which a plate is loaded: the common 20 N of the field's 10-50 N
 #: thresholds (Tirosh & Sparrow 2003 compare them), 3 to 10 times the noise of the plates at
@@ -74,6 +76,8 @@ PLATE_MATCH_S = 0.1
 #: docstring): on the shared files the markers' toe-offs lie -6 to +20 ms from the plates'
 #: unloadings; a median farther away says a plate contact was misread, not a foot.
 MAX_PLATE_SHIFT_S = 0.03
+#: The least ``quality`` of a markers' toe-off that tells the others' shift (:func:`_calibrates`).
+MIN_EVENT_QUALITY = QC_LIMITS["event_quality"][0]
 
 
 class Unloading(NamedTuple):
@@ -277,7 +281,7 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
                     and e.plate is None and _matches(e, time_s)]
             if near:
                 i = min(near, key=lambda i: abs(out[i].time_s - time_s))
-                if kind == "toe_off" and out[i].placed and not out[i].uncertain:
+                if kind == "toe_off" and _calibrates(out[i]):
                     measured.append(time_s - out[i].time_s)
                 out[i] = replace(out[i], time_s=float(time_s), frame=_frame(time_s, rate, feet),
                                  quality=1.0, window=None, reason="", plate=stance.plate,
@@ -299,6 +303,14 @@ def _shifted(events: list[GaitEvent], measured: list[float], rate: float,
                     plate_shift_s=shift)
             if e.kind == "toe_off" and e.placed and e.plate is None
             and 0.0 <= e.time_s + shift <= last else e for e in events]
+
+
+def _calibrates(event: GaitEvent) -> bool:
+    """Whether the markers' toe-off a plate replaced tells how late or early the markers place
+    the others (step 5 of the module docstring): placed, its two marks agreeing (not
+    :attr:`GaitEvent.uncertain`) and its foot's markers measured around it (``quality`` at
+    least the library QC's least event quality; not a foot the fitted model filled in)."""
+    return event.placed and not event.uncertain and event.quality >= MIN_EVENT_QUALITY
 
 
 def _frame(time_s: float, rate: float, feet: list[FootTrack]) -> int:

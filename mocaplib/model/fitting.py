@@ -9,17 +9,21 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from ..errors import CalibrationError
 from ..io.c3d import read_c3d
-from ..markersets.matching import ProtocolMatch, match_trial
-from ..skeleton import SEGMENTS
+from ..markersets.matching import ProtocolMatch, label_match, match_trial
+from ..skeleton import SEGMENT_NAMES, SEGMENTS
 from ..statics import static_names
 from ..trial import Trial, require_markers
 from .calibration import calibrate
-from .calibration_checks import check_static, choose_static
+from .calibration_checks import MIN_PRESENCE, check_static, choose_static
 from .filtering import filter_trial
 from .ik import fit_filtered, fit_quality, model_markers
+from .joint_centres import register_offsets
 from .motion import Motion, apply_repairs
+from .solver import solve_poses
 from .subject import SubjectModel
 
 
@@ -189,6 +193,12 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
             warnings.append(f"static {name}: calibrated on its stretch {window[0]:.2f}-"
                             f"{window[1]:.2f} s (of {statics[chosen].duration:.2f} s)")
         warnings.extend(model.swap_warnings)     # without a static the fit reports the swaps
+        model, added = with_motion_markers(model, filtered)
+        if added:
+            warnings.append(f"static {name} does not show {', '.join(added)} (seen in under "
+                            f"{MIN_PRESENCE:.0%} of its frames): placed on "
+                            f"{'their segments' if len(added) > 1 else 'its segment'} from "
+                            "the capture's own frames")
     else:
         warnings.append(_foot_zero_warning(model))
         if _is_cluster_set(model):
@@ -197,6 +207,39 @@ def fit_capture(trial: Trial, /, *, protocol="auto", static=None,
         motion, _ = fit_filtered(trial, model, cutoff=used)
     warnings.extend(_fit_warnings(model, motion))
     return FittedCapture(match, used, model, motion, chosen, warnings)
+
+
+#: Frames of the capture :func:`with_motion_markers` places a marker the static lacks on.
+MOTION_MARKER_FRAMES = 60
+
+
+def with_motion_markers(model: SubjectModel, trial: Trial) -> tuple[SubjectModel, list[str]]:
+    """``model`` (calibrated on a static) with the protocol's markers it lacks that ``trial``
+    shows in at least :data:`MIN_PRESENCE` of its frames (a marker the static hid, or put on
+    after it), and their labels. Each is placed on its segment where the model's poses, fitted
+    to the model's markers in up to :data:`MOTION_MARKER_FRAMES` frames that show it, put it
+    on average; the model's own markers, frames and DOFs are unchanged."""
+    proto = model.protocol
+    X = label_match(trial, proto).markers(trial)                              # (F, P, 3)
+    seen = np.isfinite(X[..., 0])
+    extra = [j for j, label in enumerate(proto.labels)
+             if label not in model.labels and seen[:, j].mean() >= MIN_PRESENCE]
+    if not extra:
+        return model, []
+    showing = np.flatnonzero(seen[:, extra].any(axis=1))
+    frames = showing[np.linspace(0, len(showing) - 1, min(len(showing), MOTION_MARKER_FRAMES)
+                                 ).round().astype(int)]
+    own = [proto.labels.index(label) for label in model.labels]
+    poses = solve_poses(model.skeleton, X[frames][:, own], model.marker_segments,
+                        model.marker_offsets, free=model.free).q
+    segments = np.array([SEGMENT_NAMES.index(proto.markers[j].landmark.segment) for j in extra])
+    offsets = register_offsets(model.skeleton, poses, X[frames][:, extra], segments,
+                               nominal=np.full((len(extra), 3), np.nan), align=())
+    placed = np.isfinite(offsets).all(axis=1)
+    labels = [proto.labels[j] for j, ok in zip(extra, placed) if ok]
+    return replace(model, labels=model.labels + labels,
+                   marker_segments=np.concatenate([model.marker_segments, segments[placed]]),
+                   marker_offsets=np.vstack([model.marker_offsets, offsets[placed]])), labels
 
 
 def _foot_zero_warning(model: SubjectModel) -> str:
