@@ -12,7 +12,8 @@ features the literature times toe-offs on (O'Connor et al. 2007: the foot centre
 velocity peak; Hreljac & Marshall 2000: the toe's horizontal acceleration peak; Bruening &
 Ridge 2014: the toe's speed crossing a threshold; De Witt 2010, Fellin et al. 2010: the toe's
 vertical velocity, acceleration and position; the toe's horizontal speed rising to a share
-of its swing's peak, a threshold relative to the stride's own swing), and, at the reference,
+of its swing's peak, a threshold relative to the stride's own swing; the foot's instantaneous
+centre of rotation running ahead of the toe marker as the toes leave), and, at the reference,
 the foot's pitch rate as a share of its push-off peak and the toe's horizontal speed as a
 share of its swing's peak (per locomotion type on the samples). Each mark is sought from 0.15 s
 before to 0.1 s after the default toe-off, on the detector's low-passed points
@@ -58,13 +59,37 @@ MARKS = (("default", "the default toe-off (mean of (a) and (b))"),
          ("pitch 0.7", "the pitch rate down to 0.7 of its push-off peak"),
          ("toe 1 m/s", "toe marker's horizontal speed over 1 m/s"),
          ("toe ah", "toe marker's horizontal-acceleration peak (Hreljac 2000)"),
-         ("toe 25 %", "toe marker's horizontal speed up to a quarter of its swing's peak"))
+         ("toe 25 %", "toe marker's horizontal speed up to a quarter of its swing's peak"),
+         ("pivot 8 cm", "the foot's instantaneous centre of rotation 8 cm ahead of the toe marker"))
 #: Search window around the default toe-off (s before, s after).
 BEFORE_S, AFTER_S = 0.15, 0.10
 #: The toe marker's swing peak of horizontal speed is sought until this long after the
 #: default toe-off (s), and its share that marks the toe-off: the median share of the real
 #: feet at the plates' unloading (0.15-0.34 over the 15).
 SWING_PEAK_S, TOE_SPEED_SHARE = 0.35, 0.25
+#: How far ahead of the toe marker (m, along the foot) the foot's instantaneous centre of
+#: rotation marks the toe-off: it sits near the toe marker while the foot rolls over its
+#: forefoot and runs forwards as the foot leaves; 8 cm, about the toes' length past the
+#: metatarsal heads.
+PIVOT_AHEAD_M = 0.08
+
+
+def pivot_ahead(foot, last: int) -> tuple[np.ndarray, np.ndarray]:
+    """How far (m) the instantaneous centre of rotation of the heel-toe line (the line in the
+    vertical plane through it, velocities relative to the ground) lies ahead of the marker of
+    index ``last`` along the foot, and the line's angular velocity (rad/s), each (F,)."""
+    velocity = foot.velocity - foot.ground
+    line = foot.points[last] - foot.points[1 - last]
+    along = line[:, :2] / np.linalg.norm(line[:, :2], axis=1, keepdims=True)
+
+    def planar(v):
+        return np.stack([np.sum(v[:, :2] * along, axis=1), v[:, 2]], axis=1)
+
+    r, dv, heel = planar(line), planar(velocity[last] - velocity[1 - last]), planar(
+        velocity[1 - last])
+    omega = (r[:, 0] * dv[:, 1] - r[:, 1] * dv[:, 0]) / np.sum(r ** 2, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return -heel[:, 1] / omega - r[:, 0], omega
 
 
 def _crossing(signal: np.ndarray, lo: int, hi: int, level: float, *, rising: bool) -> float:
@@ -102,6 +127,9 @@ def marks_of(foot, rate: float, detected: float
     swing = lo + int(np.nanargmax(horizontal[lo:round(detected + SWING_PEAK_S * rate)]))
     found["toe 25 %"] = _crossing(horizontal, lo, swing, TOE_SPEED_SHARE * horizontal[swing],
                                   rising=True)
+    ahead, omega = pivot_ahead(foot, last)
+    rolling = np.where(omega * omega[peak] > 0, ahead, np.nan)           # turning as it rolls
+    found["pivot 8 cm"] = _crossing(rolling, peak, hi, PIVOT_AHEAD_M, rising=True)
     return ({k: np.nan if v is None else float(v) for k, v in found.items()}, pitch_rate,
             horizontal / horizontal[swing])
 
