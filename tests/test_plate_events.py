@@ -133,7 +133,7 @@ def test_the_markers_other_toe_offs_move_as_the_plates_found_them_off(sample_dir
     assert {e.kind for e in moved} == {"toe_off"} and len(moved) >= 4
     assert with_plates == sorted(with_plates, key=lambda e: (e.time_s, e.side))
     true_offs = [t for side, kind, t in truth if kind == "toe_off"]
-    for event in moved:                 # now as far from the truth as the plate is
+    for event in moved:                 # as far from the truth as the plate is
         nearest = min(true_offs, key=lambda t: abs(t - event.time_s))
         assert event.time_s - nearest == pytest.approx(late_s, abs=1.0 / trial.rate)
 

@@ -72,9 +72,9 @@ def test_a_static_that_shows_every_marker_changes_nothing():
 
 def test_the_motonms_walks_keep_their_right_toe_and_its_plate(real_c3d):
     # Static1 shows RIMH (the right foot's toe) in 1 of its 107 frames, the walk in 16 % of
-    # its own: the right foot, which stands on plate 1 with its toe marker hidden, had no
-    # stance and its toe-off was not placed; now the fitted toe shows the stance and the
-    # plate times its toe-off
+    # its own: a model without it would leave the right foot, which stands on plate 1 with its
+    # toe marker hidden, without a stance and its toe-off not placed; placed from the walk,
+    # the fitted toe shows the stance and the plate times its toe-off
     motion = read_c3d(real_c3d("motonms_unipd/Walking1.c3d"))
     static = read_c3d(real_c3d("motonms_unipd/Static1.c3d"))
     fit = fit_capture(motion, static=[static])
