@@ -362,20 +362,18 @@ def test_a_cycle_and_the_report_say_how_far_the_plates_moved_its_bounds(real_c3d
 
 
 def test_a_toe_off_the_plates_would_move_out_of_the_capture_stays():
-    from types import SimpleNamespace
-
     from mocaplib.gait.foot_events import GaitEvent
     from mocaplib.gait.plate_events import _shifted
 
-    feet = [SimpleNamespace(given=np.ones(201, dtype=bool))]           # 2 s at 100 Hz
+    frames = 201                                                        # 2 s at 100 Hz
     events = [GaitEvent("left", "toe_off", 0.005, 0, 1.0),
               GaitEvent("right", "heel_strike", 0.5, 50, 1.0),
               GaitEvent("left", "toe_off", 1.0, 100, 1.0),
               GaitEvent("left", "toe_off", 1.995, 200, 1.0)]
-    early, _, middle, late = _shifted(events, [-0.012, -0.008], 100.0, feet)
+    early, _, middle, late = _shifted(events, [-0.012, -0.008], 100.0, frames)
     assert early == events[0]                          # -5 ms: before the first frame
     assert middle.time_s == pytest.approx(0.99) and middle.frame == 99
     assert middle.plate_shift_s == pytest.approx(-0.01)
     assert late.time_s == pytest.approx(1.985)
-    assert _shifted(events, [0.015], 100.0, feet)[3] == events[3]   # past the last frame
-    assert _shifted(events, [MAX_PLATE_SHIFT_S + 0.001], 100.0, feet) == events
+    assert _shifted(events, [0.015], 100.0, frames)[3] == events[3]   # past the last frame
+    assert _shifted(events, [MAX_PLATE_SHIFT_S + 0.001], 100.0, frames) == events

@@ -229,9 +229,14 @@ def median_kink(raw: np.ndarray, point: int, coarse: float, half: int) -> float:
                             (raw[point], raw[point, :, 2], raw.transpose(1, 0, 2))]))
 
 
+def nearest_frame(time_s: float, rate: float, n_frames: int) -> int:
+    """The frame (0-based) nearest ``time_s`` (s) at ``rate`` Hz, within ``n_frames``."""
+    return int(np.clip(round(time_s * rate), 0, n_frames - 1))
+
+
 def gait_event(side: str, kind: str, time_s: float, measured: np.ndarray, rate: float, *,
                spread_s: float = 0.0) -> GaitEvent:
-    frame = int(np.clip(round(time_s * rate), 0, len(measured) - 1))
+    frame = nearest_frame(time_s, rate, len(measured))
     half = max(1, round(0.05 * rate))
     quality = float(measured[max(0, frame - half):frame + half + 1].mean())
     return GaitEvent(side, kind, float(time_s), frame, quality, spread_s=spread_s)
@@ -243,7 +248,7 @@ def unplaced_event(side: str, kind: str, window: tuple[float, float], rate: floa
     be placed there with confidence, for ``reason``: at the window's middle, quality 0."""
     start, end = (float(np.clip(w, 0, n_frames - 1)) / rate for w in window)
     middle = 0.5 * (start + end)
-    return GaitEvent(side, kind, middle, int(np.clip(round(middle * rate), 0, n_frames - 1)),
+    return GaitEvent(side, kind, middle, nearest_frame(middle, rate, n_frames),
                      0.0, window=(start, end), reason=reason)
 
 

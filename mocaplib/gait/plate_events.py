@@ -50,7 +50,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..runs import valid_runs
-from .foot_events import FootTrack, GaitEvent
+from .foot_events import FootTrack, GaitEvent, nearest_frame
 from .qc import QC_LIMITS
 
 #: Vertical force (N) above which a plate is loaded: the common 20 N of the field's 10-50 N
@@ -272,6 +272,7 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
     toe-offs shifted as the plates measured them (step 5, :func:`_shifted`); sorted by time.
     ``contact`` as for :func:`plate_contacts`."""
     out = list(events)
+    n_frames = len(feet[0].given)
     measured = []                           # (plate - markers) of each toe-off a plate timed
     for stance in plate_contacts(plates, feet, contact, rate):
         for kind, time_s in (("heel_strike", stance.strike_s), ("toe_off", stance.off_s)):
@@ -283,24 +284,24 @@ def plate_timed(events: list[GaitEvent], plates, feet: list[FootTrack],
                 i = min(near, key=lambda i: abs(out[i].time_s - time_s))
                 if kind == "toe_off" and _calibrates(out[i]):
                     measured.append(time_s - out[i].time_s)
-                out[i] = replace(out[i], time_s=float(time_s), frame=_frame(time_s, rate, feet),
-                                 quality=1.0, window=None, reason="", plate=stance.plate,
-                                 spread_s=0.0)
-    return sorted(_shifted(out, measured, rate, feet), key=lambda e: (e.time_s, e.side))
+                out[i] = replace(out[i], time_s=float(time_s),
+                                 frame=nearest_frame(time_s, rate, n_frames), quality=1.0,
+                                 window=None, reason="", plate=stance.plate, spread_s=0.0)
+    return sorted(_shifted(out, measured, rate, n_frames), key=lambda e: (e.time_s, e.side))
 
 
-def _shifted(events: list[GaitEvent], measured: list[float], rate: float,
-             feet: list[FootTrack]) -> list[GaitEvent]:
-    """``events`` with the toe-offs the markers placed moved by the median of ``measured``
-    (s: each plate's unloading minus the markers' toe-off it replaced), their
-    :attr:`GaitEvent.plate_shift_s` set; unchanged without one or beyond
-    :data:`MAX_PLATE_SHIFT_S` (step 5 of the module docstring), and a toe-off the move would
-    take out of the capture stays."""
+def _shifted(events: list[GaitEvent], measured: list[float], rate: float, n_frames: int
+             ) -> list[GaitEvent]:
+    """``events`` (of a capture of ``n_frames`` frames at ``rate`` Hz) with the toe-offs the
+    markers placed moved by the median of ``measured`` (s: each plate's unloading minus the
+    markers' toe-off it replaced), their :attr:`GaitEvent.plate_shift_s` set; unchanged
+    without one or beyond :data:`MAX_PLATE_SHIFT_S` (step 5 of the module docstring), and a
+    toe-off the move would take out of the capture stays."""
     if not measured or abs(shift := float(np.median(measured))) > MAX_PLATE_SHIFT_S:
         return events
-    last = (len(feet[0].given) - 1) / rate
-    return [replace(e, time_s=e.time_s + shift, frame=_frame(e.time_s + shift, rate, feet),
-                    plate_shift_s=shift)
+    last = (n_frames - 1) / rate
+    return [replace(e, time_s=e.time_s + shift,
+                    frame=nearest_frame(e.time_s + shift, rate, n_frames), plate_shift_s=shift)
             if e.kind == "toe_off" and e.placed and e.plate is None
             and 0.0 <= e.time_s + shift <= last else e for e in events]
 
@@ -311,11 +312,6 @@ def _calibrates(event: GaitEvent) -> bool:
     :attr:`GaitEvent.uncertain`) and its foot's markers measured around it (``quality`` at
     least the library QC's least event quality; not a foot the fitted model filled in)."""
     return event.placed and not event.uncertain and event.quality >= MIN_EVENT_QUALITY
-
-
-def _frame(time_s: float, rate: float, feet: list[FootTrack]) -> int:
-    """The frame nearest ``time_s`` (s), within the capture."""
-    return int(np.clip(round(time_s * rate), 0, len(feet[0].given) - 1))
 
 
 def _matches(event: GaitEvent, time_s: float) -> bool:

@@ -229,9 +229,8 @@ def with_motion_markers(model: SubjectModel, trial: Trial) -> tuple[SubjectModel
     showing = np.flatnonzero(seen[:, extra].any(axis=1))
     frames = showing[np.linspace(0, len(showing) - 1, min(len(showing), MOTION_MARKER_FRAMES)
                                  ).round().astype(int)]
-    own = [proto.labels.index(label) for label in model.labels]
-    poses = solve_poses(model.skeleton, X[frames][:, own], model.marker_segments,
-                        model.marker_offsets, free=model.free).q
+    poses = solve_poses(model.skeleton, model_markers(trial, model)[frames],
+                        model.marker_segments, model.marker_offsets, free=model.free).q
     segments = np.array([SEGMENT_NAMES.index(proto.markers[j].landmark.segment) for j in extra])
     offsets = register_offsets(model.skeleton, poses, X[frames][:, extra], segments,
                                nominal=np.full((len(extra), 3), np.nan), align=())
