@@ -10,6 +10,8 @@ with the labels' names as evidence, and by place and motion alone (``use_names=F
 Then builds the folder twice, with the shipped protocols and with them hidden from detection
 (the build drafts a protocol per marker set, :mod:`mocaplib.build.drafting`), and compares the
 entries: per capture, whether each build gives one, and the largest velocity difference.
+Last, the same two measures on a synthetic session labelled with the descriptive names of
+animation marker sets (``tests/animation_names.py``), against the protocol written for it.
 Prints Markdown (``--markdown PATH`` writes it into a results page, :mod:`markdown_results`).
 
     python benchmarks/draft_yield.py [--markdown docs/results/draft_yield.md]
@@ -25,6 +27,7 @@ import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the animation set
 
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 import mocaplib.markersets.matching as matching  # noqa: E402
@@ -93,6 +96,47 @@ def build_table() -> None:
     print(f"| all | {len(shipped.library)} | {len(drafted.library)} | |")
 
 
+def animation_table() -> None:
+    """The draft and the build on a synthetic session labelled as animation marker sets label
+    theirs (``tests/animation_names.py``: ``WaistLFront``, ``LKneeOut``...), which no shipped
+    protocol knows: the labels against the protocol written for them, and the entries of a
+    build with that protocol against those of a build that drafts one."""
+    from animation_names import PROTOCOL_NAME, write_protocol, write_session
+
+    with tempfile.TemporaryDirectory() as folder:
+        protocols, captures = Path(folder) / "protocols", Path(folder) / "captures"
+        protocols.mkdir()
+        captures.mkdir()
+        write_protocol(protocols)
+        os.environ[FOLDERS_VARIABLE] = str(protocols)
+        walk, _, rest = write_session(captures)
+        trial, static = read_c3d(walk), read_c3d(rest)
+        match = matching.match_protocol(trial, load_protocol(PROTOCOL_NAME))
+        written = build_library([captures], BuildSettings(), progress=False)
+        os.environ[FOLDERS_VARIABLE] = ""
+        cells = []
+        for use_names in (True, False):
+            a = draft_agreement(draft_protocol(trial, static=static,
+                                               use_names=use_names).entries, trial, match)
+            cells.append(f"{a.landmark} / {a.segment} / {a.wrong} ({a.other_side}) / "
+                         f"{a.unassigned}")
+        drafted = build_library([captures], BuildSettings(), progress=False,
+                                drafts_dir=Path(folder) / DRAFTS_FOLDER)
+    print("\nA synthetic session (a straight walk, a 2 m curve, the static) labelled as "
+          "animation marker sets label theirs (`tests/animation_names.py`: `WaistLFront`, "
+          "`LKneeOut`, `RToeIn`...), which no shipped protocol knows, against the protocol "
+          "written for it:\n")
+    print("| labels | by name and place: landmark / segment / wrong (other side) / none | "
+          "by place and motion alone | entries: protocol written / drafted | largest "
+          "velocity difference |\n|---:|---|---|---|---:|")
+    pairs = [(a, b) for c, d in zip(written.captures, drafted.captures)
+             for a, b in zip(c.entries, d.entries)]
+    diff = max(abs(getattr(a, k) - getattr(b, k)) for a, b in pairs
+               for k in ("v", "omega", "v_l"))
+    print(f"| {a.total} | {cells[0]} | {cells[1]} | {len(written.library)} / "
+          f"{len(drafted.library)} | {diff:.4f} |")
+
+
 def real_files_page(script: str, description: str, tables) -> None:
     """A script's ``main``: parse ``--markdown``, find the real files (:data:`REAL_FILES`; exit
     when there are none) and print ``tables(files)`` (also into the page of ``script``)."""
@@ -109,7 +153,7 @@ def real_files_page(script: str, description: str, tables) -> None:
 
 def main() -> None:
     real_files_page(__file__, __doc__.splitlines()[0],
-                    lambda files: (agreement_table(files), build_table()))
+                    lambda files: (agreement_table(files), build_table(), animation_table()))
 
 
 if __name__ == "__main__":

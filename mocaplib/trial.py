@@ -42,13 +42,18 @@ def subject_prefixes(labels: list[str], /) -> list[str]:
 
 #: Words that give a label's side when they begin or end it (:func:`written_side`).
 _SIDES = {"L": "L", "LEFT": "L", "R": "R", "RIGHT": "R"}
+#: The words of a label written in camel case (``Waist``, ``L``, ``Front`` of ``WaistLFront``;
+#: capitals before a capitalised word are a word of their own), its digits one word.
+_CAMEL_WORDS = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|[0-9]+")
 
 
 def written_side(label: str) -> tuple[str | None, str]:
     """The side (``"L"`` or ``"R"``) ``label`` writes as a word of its own at either end
-    (``ASI_L``, ``Left Knee``, ``knee.right``) or as ``Left``/``Right`` joined to its start or
-    end (``LeftASIS``, ``KneeRight``), and the rest of it; (None, all of it) when it writes
-    none so. Both without subject prefix, NULs, spaces or ``_ - .``, in upper case."""
+    (``ASI_L``, ``Left Knee``, ``knee.right``), as ``Left``/``Right`` joined to its start or
+    end (``LeftASIS``, ``KneeRight``) or as the one side word inside it (``WaistLFront``,
+    ``Waist_L_Front``: the animation marker sets' names), and the rest of it; (None, all of
+    it) when it writes none so. Both without subject prefix, NULs, spaces or ``_ - .``, in
+    upper case."""
     text = _PREFIX.sub("", label.replace("\x00", "").strip())
     words = [w.upper() for w in _SEPARATORS.split(text) if w]
     if len(words) > 1 and words[0] in _SIDES:
@@ -61,6 +66,10 @@ def written_side(label: str) -> tuple[str | None, str]:
             return _SIDES[word], joined[len(word):]
         if len(joined) > len(word) and joined.endswith(word):
             return _SIDES[word], joined[:-len(word)]
+    camel = [w.upper() for w in _CAMEL_WORDS.findall(text)]
+    inner = [i for i, w in enumerate(camel[1:-1], 1) if w in _SIDES]
+    if len(inner) == 1:
+        return _SIDES[camel[inner[0]]], "".join(camel[:inner[0]] + camel[inner[0] + 1:])
     return None, joined
 
 

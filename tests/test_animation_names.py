@@ -1,0 +1,97 @@
+"""Marker sets labelled with descriptive camel-case names (``WaistLFront``, ``LKneeOut``), as
+animation studios' systems write them: read by name, side included, by the draft and by a build
+that has no protocol for them."""
+
+from __future__ import annotations
+
+import pytest
+from animation_names import PROTOCOL_NAME, protocol_labels, write_protocol, write_session
+from test_zero_config import VELOCITY_TOLERANCE
+
+from mocaplib.build.drafting import DRAFTS_FOLDER
+from mocaplib.build.pipeline import build_library
+from mocaplib.build.settings import BuildSettings
+from mocaplib.io.c3d import read_c3d
+from mocaplib.markersets.draft import draft_protocol, name_landmarks
+from mocaplib.markersets.draft_checks import draft_agreement
+from mocaplib.markersets.matching import match_protocol
+from mocaplib.markersets.protocols import FOLDERS_VARIABLE, load_protocol
+from mocaplib.trial import normalise_label, written_side
+
+
+@pytest.mark.parametrize("label, side, rest", [
+    ("WaistLFront", "L", "WAISTFRONT"), ("Actor:WaistRBack", "R", "WAISTBACK"),
+    ("Waist_L_Front", "L", "WAISTFRONT"), ("WaistLeftFront", "L", "WAISTFRONT"),
+    # a side in front or nowhere is read as before
+    ("LKneeOut", None, "LKNEEOUT"), ("SpineThoracic10", None, "SPINETHORACIC10"),
+    ("LFArm", None, "LFARM"), ("CentreOfMass", None, "CENTREOFMASS"), ("RTHIa", None, "RTHIA"),
+])
+def test_a_side_inside_a_camel_case_label(label, side, rest):
+    assert written_side(label) == (side, rest)
+
+
+def test_the_normalised_label_puts_the_side_in_front():
+    assert normalise_label("Actor:WaistLFront") == normalise_label("LWaistFront") == "LWAISTFRONT"
+
+
+@pytest.mark.parametrize("label, side, landmarks", [
+    ("WaistLFront", "L", {"ASIS"}), ("WaistRBack", "R", {"PSIS", "SACRUM"}),
+    ("LKneeOut", "L", {"KNEE_LAT"}), ("RKneeIn", "R", {"KNEE_MED"}),
+    ("LAnkleOut", "L", {"ANKLE_LAT"}), ("LShoulderTop", "L", {"ACROMION"}),
+    ("RShoulderBack", "R", {"SCAPULA"}), ("LElbowOut", "L", {"ELBOW_LAT"}),
+    ("LToeIn", "L", {"MT1"}), ("RToeOut", "R", {"MT5"}), ("LToeTip", "L", {"TOE2"}),
+    ("LHeelBack", "L", {"HEEL"}), ("RForefoot5", "R", {"MT5"}), ("LUArmHigh", "L", {"UPPER_ARM"}),
+    ("LShinFrontHigh", "L", {"SHIN"}), ("RThighFrontLow", "R", {"THIGH"}),
+    ("SpineThoracic12", None, {"T12"}),
+    # where a name is used both ways, the marker's place decides
+    ("LWristOut", "L", {"WRIST_RAD", "WRIST_ULN"}), ("RHandIn", "R", {"FINGER", "HAND_MC5"}),
+])
+def test_descriptive_names_point_to_their_landmarks(label, side, landmarks):
+    assert name_landmarks(label)[0] == side
+    assert set(name_landmarks(label)[1]) == landmarks
+
+
+@pytest.fixture
+def session(tmp_path, monkeypatch):
+    """The animation-named session's protocol in a user folder and its captures on disk."""
+    protocols = tmp_path / "protocols"
+    protocols.mkdir()
+    write_protocol(protocols)
+    monkeypatch.setenv(FOLDERS_VARIABLE, str(protocols))
+    captures = tmp_path / "captures"
+    captures.mkdir()
+    return captures, write_session(captures)
+
+
+def test_every_label_is_drafted_on_its_landmark(session):
+    _, (walk, _, rest) = session
+    trial, static = read_c3d(walk), read_c3d(rest)
+    draft = draft_protocol(trial, static=static, name="anim")
+    got = {entry.label.split(":")[-1]: entry for entry in draft.entries}
+    wrong = {label: got[label].landmark for label, landmark in protocol_labels().items()
+             if got[label].landmark != landmark}
+    assert not wrong                                    # 46 of 46
+    assert not draft.warnings()                         # no guess of low confidence
+    # the names carry it: by place and motion alone 4 of the 46 land on their landmark
+    match = match_protocol(trial, load_protocol(PROTOCOL_NAME))
+    alone = draft_agreement(draft_protocol(trial, static=static, use_names=False).entries,
+                            trial, match)
+    assert alone.total == 46 and alone.landmark <= 10
+
+
+def test_a_build_without_their_protocol_gives_its_entries(session, tmp_path, monkeypatch):
+    captures, _ = session
+    written = build_library([captures], BuildSettings(), progress=False)
+    monkeypatch.setenv(FOLDERS_VARIABLE, "")           # only the shipped protocols: drafted
+    drafted = build_library([captures], BuildSettings(), progress=False,
+                            drafts_dir=tmp_path / DRAFTS_FOLDER)
+    drafts = list((tmp_path / DRAFTS_FOLDER).glob("*.toml"))
+    assert len(drafts) == 1 and "low (" not in drafts[0].read_text()
+    expected = {c.file: c.entries for c in written.captures}
+    assert sum(map(len, expected.values())) >= 2        # the walk's and the curve's cycles
+    for capture in drafted.captures:
+        assert len(capture.entries) == len(expected[capture.file]), capture.file
+        for got, want in zip(capture.entries, expected[capture.file]):
+            for name in ("v", "omega", "v_l"):
+                assert getattr(got, name) == pytest.approx(getattr(want, name),
+                                                           abs=VELOCITY_TOLERANCE), name
