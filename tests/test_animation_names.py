@@ -40,7 +40,8 @@ def test_the_normalised_label_puts_the_side_in_front():
     ("LAnkleOut", "L", {"ANKLE_LAT"}), ("LShoulderTop", "L", {"ACROMION"}),
     ("RShoulderBack", "R", {"SCAPULA"}), ("LElbowOut", "L", {"ELBOW_LAT"}),
     ("LToeIn", "L", {"MT1"}), ("RToeOut", "R", {"MT5"}), ("LToeTip", "L", {"TOE2"}),
-    ("LHeelBack", "L", {"HEEL"}), ("RForefoot5", "R", {"MT5"}), ("LUArmHigh", "L", {"UPPER_ARM"}),
+    ("LHeelBack", "L", {"HEEL"}), ("RForefoot5", "R", {"MT5"}), ("LForefootIn", "L", {"MT1"}),
+    ("LUArmHigh", "L", {"UPPER_ARM"}),
     ("LShinFrontHigh", "L", {"SHIN"}), ("RThighFrontLow", "R", {"THIGH"}),
     ("SpineThoracic12", None, {"T12"}),
     # where a name is used both ways, the marker's place decides
