@@ -14,6 +14,7 @@ from mocaplib.build.settings import BuildSettings
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.draft import draft_protocol, name_landmarks
 from mocaplib.markersets.draft_checks import draft_agreement
+from mocaplib.markersets.inspection import inspect_c3d
 from mocaplib.markersets.matching import match_protocol
 from mocaplib.markersets.protocols import FOLDERS_VARIABLE, load_protocol
 from mocaplib.trial import normalise_label, written_side
@@ -96,3 +97,14 @@ def test_a_build_without_their_protocol_gives_its_entries(session, tmp_path, mon
             for name in ("v", "omega", "v_l"):
                 assert getattr(got, name) == pytest.approx(getattr(want, name),
                                                            abs=VELOCITY_TOLERANCE), name
+
+
+def test_inspect_says_a_build_drafts_their_protocol(session, monkeypatch):
+    _, (walk, _, _) = session
+    served = inspect_c3d(walk)                          # their protocol in a user folder
+    assert served["protocol"] == PROTOCOL_NAME
+    assert not any("no protocol serves" in w for w in served["warnings"])
+    monkeypatch.setenv(FOLDERS_VARIABLE, "")           # only the shipped protocols
+    unknown = inspect_c3d(walk)
+    hint = [w for w in unknown["warnings"] if "no protocol serves this marker set" in w]
+    assert len(hint) == 1 and f"mocaplib protocol draft {walk} -o" in hint[0]

@@ -11,7 +11,8 @@ from conftest import SHARED_C3D, real_files
 from test_clusters import CLUSTER_PLAN
 
 import mocaplib.markersets.matching as matching
-from mocaplib.build.drafting import DRAFTS_FOLDER, draft_missing_protocols, needs_draft
+from mocaplib.build.drafting import DRAFTS_FOLDER, draft_missing_protocols
+from mocaplib.markersets.matching import needs_draft
 from mocaplib.build.pipeline import build_library
 from mocaplib.build.settings import BuildSettings
 from mocaplib.cli import main

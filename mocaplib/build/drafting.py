@@ -3,7 +3,8 @@ no shipped or user protocol matches.
 
 A capture built with ``protocol = "auto"`` is matched against every protocol
 (:func:`mocaplib.markersets.matching.detect_protocol`). When the best match misses a required
-landmark, or leaves more of the capture's labels unknown than it finds (:func:`needs_draft`),
+landmark, or leaves more of the capture's labels unknown than it finds
+(:func:`~mocaplib.markersets.matching.needs_draft`),
 a protocol is drafted from the first such capture of each label set (and the first static of
 its settings that holds the same markers) by :func:`mocaplib.markersets.draft.draft_protocol`, written atomically as
 ``<folder>/drafted_<label-set hash>.toml`` and used for every capture of that label set. The
@@ -27,7 +28,7 @@ from ..io import fs_text
 from ..io.atomic import atomic_write_text
 from ..io.c3d import read_c3d
 from ..markersets.draft import draft_protocol, marker_labels
-from ..markersets.matching import ProtocolMatch, detect_protocol, match_protocol
+from ..markersets.matching import detect_protocol, match_protocol, needs_draft
 from ..markersets.protocols import load_protocol, toml_files, use_protocol_folders
 from ..trial import normalise_label
 from .settings import BuildSettings
@@ -36,18 +37,12 @@ from .settings import BuildSettings
 DRAFTS_FOLDER = "drafted_protocols"
 
 
-def needs_draft(match: ProtocolMatch | None) -> bool:
-    """True when ``match`` (the best protocol's, None when no protocol matches a label) cannot
-    serve its capture: a required landmark is missing, or more of the capture's labels are
-    unknown to the protocol than it finds."""
-    return match is None or not match.complete or len(match.unknown) > match.found
-
-
 def draft_missing_protocols(paths: list[Path], planned: list[BuildSettings],
                             folder: str | os.PathLike) -> tuple[list[BuildSettings], list[str],
                                                                  dict[str, str]]:
     """Draft a protocol for every label set of ``paths`` (captures) whose ``planned``
-    settings say ``protocol = "auto"`` and that no protocol serves (:func:`needs_draft`), as
+    settings say ``protocol = "auto"`` and that no protocol serves
+    (:func:`~mocaplib.markersets.matching.needs_draft`), as
     the module describes.
 
     Returns the settings with each such capture's protocol set to its drafted file, one note

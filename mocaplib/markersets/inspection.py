@@ -14,7 +14,7 @@ from ..errors import MocapError, ProtocolError
 from ..io import printable
 from ..io.c3d import read_c3d
 from ..trial import Trial, check_gait_rate, require_markers
-from .matching import match_trial
+from .matching import match_trial, needs_draft
 from .protocols import Protocol, overrides
 
 #: Keys of every summary, in order (failed files have None or empty values).
@@ -64,7 +64,8 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     With ``protocol="auto"``, ``protocol`` is None when no protocol finds its required
     landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
     ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
-    column is that candidate's. A protocol or landmark that a user folder redefines is noted in
+    column is that candidate's. Where no protocol serves the trial (:func:`needs_draft`: a
+    build drafts one), ``warnings`` says so and how to draft it. A protocol or landmark that a user folder redefines is noted in
     ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
     analog-only file) fails: ``ok`` is False, ``error`` says it holds no marker points (and
     how many analog channels), and the summary keeps what it does hold (frames, rate,
@@ -95,6 +96,12 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     except ProtocolError as exc:
         match = None
         warnings.append(str(exc))
+    if protocol == "auto" and needs_draft(match):
+        warnings.append(
+            "no protocol serves this marker set: `mocaplib build` drafts one from the labels' "
+            "names and where the markers sit; `mocaplib protocol draft "
+            f"{os.fspath(trial.source or 'FILE')} -o mylab.toml` writes it for you "
+            "to check")
     landmark_of: dict[int, str] = {}
     ignored: set[str] = set()
     if match is not None:

@@ -237,6 +237,14 @@ class ProtocolMatch:
         return trial.markers[:, i] if i >= 0 else np.full((trial.n_frames, 3), np.nan)
 
 
+def needs_draft(match: ProtocolMatch | None) -> bool:
+    """True when ``match`` (the best protocol's, None when no protocol matches a label) cannot
+    serve its capture: a required landmark is missing, or more of the capture's labels are
+    unknown to the protocol than it finds; a build then drafts a protocol for the capture's
+    marker set (:mod:`mocaplib.build.drafting`)."""
+    return match is None or not match.complete or len(match.unknown) > match.found
+
+
 def match_protocol(trial: Trial, protocol: Protocol, *, check_swaps: bool = True,
                    computed: set[int] | None = None, classify: bool = True) -> ProtocolMatch:
     """Map ``protocol``'s markers to ``trial``'s by normalised label: of a label found more
