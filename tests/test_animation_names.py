@@ -1,6 +1,6 @@
 """Marker sets labelled with descriptive camel-case names (``WaistLFront``, ``LKneeOut``), as
-animation studios' systems write them: read by name, side included, by the draft and by a build
-that has no protocol for them."""
+animation studios' systems write them (and OpenSim's example models' dotted ones): read by name,
+side included, by the draft and by a build that has no protocol for them."""
 
 from __future__ import annotations
 
@@ -45,6 +45,10 @@ def test_the_normalised_label_puts_the_side_in_front():
     ("LUArmHigh", "L", {"UPPER_ARM"}),
     ("LShinFrontHigh", "L", {"SHIN"}), ("RThighFrontLow", "R", {"THIGH"}),
     ("SpineThoracic12", None, {"T12"}),
+    # the dotted names of OpenSim's example models
+    ("R.Knee.Lat", "R", {"KNEE_LAT"}), ("L.Ankle.Med", "L", {"ANKLE_MED"}),
+    ("R.Acromium", "R", {"ACROMION"}), ("V.Sacral", None, {"SACRUM"}),
+    ("L.Shank.Front", "L", {"SHANK"}), ("R.Thigh.Upper", "R", {"THIGH"}),
     # where a name is used both ways, the marker's place decides
     ("LWristOut", "L", {"WRIST_RAD", "WRIST_ULN"}), ("RHandIn", "R", {"FINGER", "HAND_MC5"}),
 ])
