@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import SAMPLES
 
+from mocaplib.cli import main
 from mocaplib.gait.events import capture_events
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.matching import detect_protocol
@@ -87,3 +88,16 @@ def test_the_motonms_walks_keep_their_right_toe_and_its_plate(real_c3d):
     # the markers' toe-off the plate replaced lay on the fitted toe, not a measured one
     # (quality 0): it tells nothing of how late the markers place the others
     assert not any(e.plate_shift_s for e in events)
+
+
+def test_the_events_command_says_fit_places_what_a_gap_hides(real_c3d, capsys):
+    # without --fit the right stance hidden by RIMH's gap leaves its toe-off not placed, and
+    # the command says --fit can place it; with --fit it is placed and timed by plate 1
+    path = str(real_c3d("motonms_unipd/Walking1.c3d"))
+    assert main(["events", path]) == 0
+    err = capsys.readouterr().err
+    assert "1 event(s) not placed where foot markers are missing: `mocaplib events --fit`" in err
+    assert main(["events", path, "--fit"]) == 0
+    out, err = capsys.readouterr()
+    assert "not placed" not in out + err
+    assert "right  toe_off      quality 1.00  force plate 1" in out

@@ -89,4 +89,9 @@ def _run(args) -> int:
     for e in events:
         if e.warning:
             warn(f"{args.file}: {e.warning}")
+    gaps = [e for e in events if not e.placed and "missing" in e.reason]
+    if gaps and not args.fit:
+        warn(f"{args.file}: {len(gaps)} event(s) not placed where foot markers are missing: "
+             "`mocaplib events --fit` fills their gaps from the fitted skeleton, which can "
+             "place them")
     return 0
