@@ -65,8 +65,9 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
     ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
     column is that candidate's. Where no protocol serves the trial (:func:`needs_draft`: a
-    build drafts one), ``warnings`` says so and how to draft it. A protocol or landmark that a user folder redefines is noted in
-    ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
+    build drafts one), ``warnings`` says so and how to draft it. A protocol or landmark that a
+    user folder redefines is noted in ``warnings``
+    (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
     analog-only file) fails: ``ok`` is False, ``error`` says it holds no marker points (and
     how many analog channels), and the summary keeps what it does hold (frames, rate,
     ``analog_channels``, events, warnings).
