@@ -4,6 +4,8 @@ side included, by the draft and by a build that has no protocol for them."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from animation_names import PROTOCOL_NAME, protocol_labels, write_protocol, write_session
 from test_zero_config import VELOCITY_TOLERANCE
@@ -15,7 +17,7 @@ from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.draft import draft_protocol, name_landmarks
 from mocaplib.markersets.draft_checks import draft_agreement
 from mocaplib.markersets.inspection import inspect_c3d
-from mocaplib.markersets.matching import match_protocol
+from mocaplib.markersets.matching import detect_protocol, match_protocol
 from mocaplib.markersets.protocols import FOLDERS_VARIABLE, load_protocol
 from mocaplib.trial import normalise_label, written_side
 
@@ -45,6 +47,10 @@ def test_the_normalised_label_puts_the_side_in_front():
     ("LUArmHigh", "L", {"UPPER_ARM"}),
     ("LShinFrontHigh", "L", {"SHIN"}), ("RThighFrontLow", "R", {"THIGH"}),
     ("SpineThoracic12", None, {"T12"}),
+    # full words for Plug-in Gait's markers
+    ("LeftWristA", "L", {"WRIST_RAD"}), ("RightWristB", "R", {"WRIST_ULN"}),
+    ("RightFrontWaist", "R", {"ASIS"}), ("LeftBackWaist", "L", {"PSIS"}),
+    ("LeftFinger", "L", {"FINGER"}), ("Clavicle", None, {"CLAV"}),
     # the dotted names of OpenSim's example models
     ("R.Knee.Lat", "R", {"KNEE_LAT"}), ("L.Ankle.Med", "L", {"ANKLE_MED"}),
     ("R.Acromium", "R", {"ACROMION"}), ("V.Sacral", None, {"SACRUM"}),
@@ -112,3 +118,34 @@ def test_inspect_says_a_build_drafts_their_protocol(session, monkeypatch):
     unknown = inspect_c3d(walk)
     hint = [w for w in unknown["warnings"] if "no protocol serves this marker set" in w]
     assert len(hint) == 1 and f"mocaplib protocol draft {walk} -o" in hint[0]
+
+
+#: Plug-in Gait's label stems written as words (``LKNE`` as ``LeftKnee``).
+PIG_WORDS = {"FHD": "FrontHead", "BHD": "BackHead", "SHO": "Shoulder", "UPA": "UpperArm",
+             "ELB": "Elbow", "FRM": "Forearm", "WRA": "WristA", "WRB": "WristB",
+             "FIN": "Finger", "FWT": "FrontWaist", "BWT": "BackWaist", "THI": "Thigh",
+             "KNE": "Knee", "SHN": "Shin", "ANK": "Ankle", "HEE": "Heel", "TOE": "Toe",
+             "MT5": "MT5", "BAK": "Back", "CLAV": "Clavicle", "STRN": "Sternum"}
+
+
+def _in_words(name: str) -> str:
+    """A Plug-in Gait label (``LKNE``) in :data:`PIG_WORDS` (``LeftKnee``); others as they are."""
+    side = {"L": "Left", "R": "Right"}.get(name[:1])
+    if name in PIG_WORDS:
+        return PIG_WORDS[name]
+    return side + PIG_WORDS[name[1:]] if side and name[1:] in PIG_WORDS else name
+
+
+def test_a_real_capture_in_full_words_is_drafted_as_in_its_own_names(real_c3d):
+    # CMU 07_12 (Plug-in Gait's 41 labels) relabelled LeftKnee, RightWristA, Clavicle...:
+    # drafted by its words as by its own labels (41 on their landmark), but for the shank
+    # markers, whose word Shin names the tibia's crest (the same segment)
+    trial = read_c3d(real_c3d("cmu/07_12.c3d"))
+    words = [_in_words(name) for name in trial.names]
+    assert sum(w != n for w, n in zip(words, trial.names)) == 38   # not C7, T10, RBAC, RWRB1
+    renamed = dataclasses.replace(trial, labels=words)
+    back = dict(zip(words, trial.labels))
+    entries = [dataclasses.replace(e, label=back[e.label])
+               for e in draft_protocol(renamed).entries]
+    agreement = draft_agreement(entries, trial, detect_protocol(trial))
+    assert (agreement.landmark, agreement.segment, agreement.wrong) == (39, 2, 0)
