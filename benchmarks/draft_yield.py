@@ -26,6 +26,8 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the animation set
 
@@ -43,26 +45,42 @@ REAL_FILES = Path(os.environ.get("MOCAPLIB_SHARED_C3D",
                                  Path(__file__).resolve().parents[2] / "shared" / "data" / "c3d"))
 
 
+def _counts(trial, match, *, static=None, use_names: bool) -> tuple[int, ...]:
+    """(labels, landmark, segment, wrong, of those on the other side, none) of the protocol
+    drafted from ``trial`` against ``match``'s (:func:`draft_agreement`)."""
+    a = draft_agreement(draft_protocol(trial, static=static, use_names=use_names).entries,
+                        trial, match)
+    return a.total, a.landmark, a.segment, a.wrong, a.other_side, a.unassigned
+
+
+def _cell(counts) -> str:
+    """``landmark / segment / wrong (other side) / none`` of :func:`_counts`."""
+    return "{1} / {2} / {3} ({4}) / {5}".format(*counts)
+
+
+def _largest_velocity_difference(ours, theirs) -> float | None:
+    """The largest difference of v̂, ω̂ or v̂_l between the entries of two builds' captures,
+    paired in order (None without an entry in both)."""
+    return max((abs(getattr(a, k) - getattr(b, k)) for c, d in zip(ours, theirs)
+                for a, b in zip(c.entries, d.entries) for k in ("v", "omega", "v_l")),
+               default=None)
+
+
 def agreement_table(files: list[Path]) -> None:
     print("| file | protocol | labels | by name and place: landmark / segment / wrong "
           "(other side) / none | by place and motion alone |")
     print("|---|---|---:|---|---|")
-    totals = {True: [0] * 5, False: [0] * 5}
+    totals = {True: np.zeros(6, dtype=int), False: np.zeros(6, dtype=int)}
     for path in files:
         trial = read_c3d(path)
         match = matching.detect_protocol(trial)
-        cells = []
-        for use_names in (True, False):
-            a = draft_agreement(draft_protocol(trial, use_names=use_names).entries, trial, match)
-            row = (a.landmark, a.segment, a.wrong, a.other_side, a.unassigned)
-            totals[use_names] = [t + x for t, x in zip(totals[use_names], row)]
-            cells.append(f"{a.landmark} / {a.segment} / {a.wrong} ({a.other_side}) / "
-                         f"{a.unassigned}")
+        rows = {use_names: _counts(trial, match, use_names=use_names)
+                for use_names in (True, False)}
+        for use_names, row in rows.items():
+            totals[use_names] += row
         print(f"| {path.relative_to(REAL_FILES).as_posix()} | {match.protocol.name} | "
-              f"{a.total} | {cells[0]} | {cells[1]} |")
-    cells = [f"{t[0]} / {t[1]} / {t[2]} ({t[3]}) / {t[4]}" for t in (totals[True],
-                                                                       totals[False])]
-    print(f"| all | | {sum(totals[True]) - totals[True][3]} | {cells[0]} | {cells[1]} |")
+              f"{rows[True][0]} | {_cell(rows[True])} | {_cell(rows[False])} |")
+    print(f"| all | | {totals[True][0]} | {_cell(totals[True])} | {_cell(totals[False])} |")
 
 
 def _user_protocols():
@@ -89,8 +107,7 @@ def build_table() -> None:
     print("|---|---:|---:|---:|")
     for c in shipped.captures:
         d = ours[c.file]
-        diff = max((abs(getattr(a, k) - getattr(b, k)) for a, b in zip(c.entries, d.entries)
-                    for k in ("v", "omega", "v_l")), default=None)
+        diff = _largest_velocity_difference([c], [d])
         print(f"| {Path(c.file).name} | {len(c.entries)} | {len(d.entries)} | "
               f"{'' if diff is None else f'{diff:.4f}'} |")
     print(f"| all | {len(shipped.library)} | {len(drafted.library)} | |")
@@ -114,12 +131,8 @@ def animation_table() -> None:
         match = matching.match_protocol(trial, load_protocol(PROTOCOL_NAME))
         written = build_library([captures], BuildSettings(), progress=False)
         os.environ[FOLDERS_VARIABLE] = ""
-        cells = []
-        for use_names in (True, False):
-            a = draft_agreement(draft_protocol(trial, static=static,
-                                               use_names=use_names).entries, trial, match)
-            cells.append(f"{a.landmark} / {a.segment} / {a.wrong} ({a.other_side}) / "
-                         f"{a.unassigned}")
+        named, placed = (_counts(trial, match, static=static, use_names=use_names)
+                         for use_names in (True, False))
         drafted = build_library([captures], BuildSettings(), progress=False,
                                 drafts_dir=Path(folder) / DRAFTS_FOLDER)
     print("\nA synthetic session (a straight walk, a 2 m curve, the static) labelled as "
@@ -129,11 +142,8 @@ def animation_table() -> None:
     print("| labels | by name and place: landmark / segment / wrong (other side) / none | "
           "by place and motion alone | entries: protocol written / drafted | largest "
           "velocity difference |\n|---:|---|---|---|---:|")
-    pairs = [(a, b) for c, d in zip(written.captures, drafted.captures)
-             for a, b in zip(c.entries, d.entries)]
-    diff = max(abs(getattr(a, k) - getattr(b, k)) for a, b in pairs
-               for k in ("v", "omega", "v_l"))
-    print(f"| {a.total} | {cells[0]} | {cells[1]} | {len(written.library)} / "
+    diff = _largest_velocity_difference(written.captures, drafted.captures)
+    print(f"| {named[0]} | {_cell(named)} | {_cell(placed)} | {len(written.library)} / "
           f"{len(drafted.library)} | {diff:.4f} |")
 
 
