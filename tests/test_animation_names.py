@@ -5,6 +5,7 @@ side included, by the draft and by a build that has no protocol for them."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import pytest
 from animation_names import PROTOCOL_NAME, protocol_labels, write_protocol, write_session
@@ -16,7 +17,7 @@ from mocaplib.build.settings import BuildSettings
 from mocaplib.io.c3d import read_c3d
 from mocaplib.markersets.draft import draft_protocol, name_landmarks
 from mocaplib.markersets.draft_checks import draft_agreement
-from mocaplib.markersets.inspection import inspect_c3d
+from mocaplib.markersets.inspection import format_summary, inspect_c3d
 from mocaplib.markersets.matching import detect_protocol, match_protocol
 from mocaplib.markersets.protocols import FOLDERS_VARIABLE, load_protocol
 from mocaplib.trial import normalise_label, written_side
@@ -118,6 +119,20 @@ def test_inspect_says_a_build_drafts_their_protocol(session, monkeypatch):
     unknown = inspect_c3d(walk)
     hint = [w for w in unknown["warnings"] if "no protocol serves this marker set" in w]
     assert len(hint) == 1 and f"mocaplib protocol draft {walk} -o" in hint[0]
+    assert served["draft"] is None and all(m["drafted"] is None for m in served["markers"])
+    # what a draft from the walk alone makes of each label, in place of the closest protocol's
+    assert unknown["draft"] == {"landmarks": 46, "cluster_markers": 0, "without_guess": 0,
+                                "low_confidence": 0}
+    truth = {label: served_marker["landmark"] for label, served_marker in
+             zip(served["labels"], served["markers"])}
+    guessed = {m["label"]: m["drafted"]["landmark"] for m in unknown["markers"]}
+    wrong = {label for label in truth if guessed[label] != truth[label]}
+    # the hand's outer marker is put on the 2nd metacarpal (both ride on the forearm): the
+    # walk's swinging hands do not show which side of the hand it sits on; the static does
+    assert wrong == {"Actor:LHandOut", "Actor:RHandOut"}
+    table = format_summary(unknown)
+    assert "46 labels on a landmark, 0 in a segment's cluster, 0 without a guess" in table
+    assert re.search(r"Actor:WaistRBack +R_PSIS \(drafted, \d+%\)", table)
 
 
 #: Plug-in Gait's label stems written as words (``LKNE`` as ``LeftKnee``).

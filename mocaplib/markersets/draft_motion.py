@@ -26,8 +26,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.cluster.hierarchy import fcluster, linkage
-from scipy.spatial.distance import squareform
 
 #: Frames a pair must be seen together in for its distance's spread to count.
 MIN_FRAMES = 10
@@ -82,6 +80,9 @@ def rigid_clusters(X: np.ndarray) -> tuple[list[list[int]], np.ndarray]:
     0-1 as evidence of its cluster's segment: 1 minus the median spread of its cluster's pairs
     over the threshold; 0 for a marker in no cluster, or rigid also with a marker outside its
     cluster (near a joint's axis, on either bone)."""
+    from scipy.cluster.hierarchy import fcluster, linkage  # heavy: loaded when a draft runs
+    from scipy.spatial.distance import squareform
+
     spread = distance_spread(X)
     weights = np.zeros(len(spread))
     if len(spread) < 2:

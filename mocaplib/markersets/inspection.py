@@ -13,7 +13,8 @@ import os
 from ..errors import MocapError, ProtocolError
 from ..io import printable
 from ..io.c3d import read_c3d
-from ..trial import Trial, check_gait_rate, require_markers
+from ..trial import Trial, check_gait_rate, normalise_label, require_markers
+from .draft import LOW_CONFIDENCE, Draft, draft_protocol
 from .matching import match_trial, needs_draft
 from .protocols import Protocol, overrides
 
@@ -21,8 +22,8 @@ from .protocols import Protocol, overrides
 SUMMARY_KEYS = ("file", "ok", "error", "frames", "rate_hz", "duration_s", "first_frame",
                 "units", "vertical_axis", "analog_channels", "force_plates", "labels", "protocol",
                 "markers_found", "protocol_markers", "missing_landmarks", "missing_labels",
-                "closest_protocol", "markers", "ignored_points", "unknown_labels", "duplicates",
-                "swaps", "events", "warnings")
+                "closest_protocol", "draft", "markers", "ignored_points", "unknown_labels",
+                "duplicates", "swaps", "events", "warnings")
 
 _EMPTY_LISTS = ("force_plates", "labels", "missing_landmarks", "missing_labels", "markers",
                 "ignored_points", "unknown_labels", "duplicates", "swaps", "events", "warnings")
@@ -65,7 +66,10 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     landmarks in the trial; ``closest_protocol`` then holds the best candidate (``name``,
     ``markers_found``, ``protocol_markers``, ``missing_landmarks``), and the markers' landmark
     column is that candidate's. Where no protocol serves the trial (:func:`needs_draft`: a
-    build drafts one), ``warnings`` says so and how to draft it. A protocol or landmark that a
+    build drafts one), ``warnings`` says so and how to draft it, ``draft`` counts what a
+    draft from this trial alone (:func:`~mocaplib.markersets.draft.draft_protocol`) places,
+    and each marker's ``drafted`` holds its guess (``landmark``, ``segment``,
+    ``confidence``). A protocol or landmark that a
     user folder redefines is noted in ``warnings``
     (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
     analog-only file) fails: ``ok`` is False, ``error`` says it holds no marker points (and
@@ -103,6 +107,9 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
             "names and where the markers sit; `mocaplib protocol draft "
             f"{os.fspath(trial.source or 'FILE')} -o mylab.toml` writes it for you "
             "to check")
+        guesses = _draft_preview(trial, out, warnings)
+    else:
+        guesses = {}
     landmark_of: dict[int, str] = {}
     ignored: set[str] = set()
     if match is not None:
@@ -124,11 +131,50 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
                            "missing_labels": list(match.missing)})
     gaps, longest = trial.gap_fraction(), trial.longest_gap()
     out["markers"] = [
-        {"label": label, "landmark": landmark_of.get(i), "gap_pct": 100.0 * float(gaps[i]),
-         "longest_gap_frames": int(longest[i]), "longest_gap_s": int(longest[i]) / trial.rate}
+        {"label": label, "landmark": landmark_of.get(i), "drafted": guesses.get(trial.names[i]),
+         "gap_pct": 100.0 * float(gaps[i]), "longest_gap_frames": int(longest[i]),
+         "longest_gap_s": int(longest[i]) / trial.rate}
         for i, label in enumerate(trial.labels) if label not in ignored]
     out["warnings"] = warnings
     return out
+
+
+def _draft_preview(trial: Trial, out: dict, warnings: list[str]) -> dict[str, dict]:
+    """Draft a protocol from ``trial`` alone, as a build does from a session's first capture
+    of the marker set: put the counts in ``out["draft"]``, a warning per guess of low
+    confidence in ``warnings``, and return ``{normalised label: {"landmark", "segment",
+    "confidence"}}`` (labels without a guess left out)."""
+    try:
+        draft = draft_protocol(trial)
+    except ProtocolError as exc:
+        warnings.append(f"no draft: {exc}")
+        return {}
+    out["draft"] = _draft_counts(draft)
+    warnings.extend(f"draft: {w}" for w in draft.warnings())
+    return {normalise_label(e.label): {"landmark": e.landmark, "segment": e.segment,
+                      "confidence": round(e.confidence, 2)}
+            for e in draft.entries if e.landmark or e.segment}
+
+
+def _draft_counts(draft: Draft) -> dict[str, int]:
+    """How many labels ``draft`` puts on a landmark, in a segment's cluster, nowhere, and how
+    many of its guesses are of low confidence."""
+    entries = draft.entries
+    return {"landmarks": sum(e.landmark is not None for e in entries),
+            "cluster_markers": sum(e.landmark is None and e.segment is not None
+                                   for e in entries),
+            "without_guess": sum(e.landmark is None and e.segment is None for e in entries),
+            "low_confidence": sum(bool(e.landmark or e.segment)
+                                  and e.confidence < LOW_CONFIDENCE for e in entries)}
+
+
+def _landmark_cell(marker: dict) -> str:
+    """The table's landmark column: the protocol's landmark, else the draft's guess."""
+    guess = marker.get("drafted")
+    if guess:
+        where = guess["landmark"] or f"{guess['segment']} cluster"
+        return f"{where} (drafted, {guess['confidence']:.0%})"
+    return marker["landmark"] or "(not in protocol)"
 
 
 def format_summary(summary: dict) -> str:
@@ -159,6 +205,13 @@ def format_summary(summary: dict) -> str:
                      f"{missing}")
         if summary["missing_labels"]:
             lines.append(f"  not found: {', '.join(summary['missing_labels'])}")
+    draft = summary.get("draft")
+    if draft:
+        lines.append(f"  drafted from this file alone (as a build drafts from a session's first "
+                     f"capture of this marker set): {draft['landmarks']} labels on a landmark, "
+                     f"{draft['cluster_markers']} in a segment's cluster, "
+                     f"{draft['without_guess']} without a guess; "
+                     f"{draft['low_confidence']} of low confidence")
     plates = summary.get("force_plates") or []
     if plates:
         lines.append("  force plates: " + ", ".join(
@@ -168,7 +221,7 @@ def format_summary(summary: dict) -> str:
              if first != 1 and events else "")
     lines.append(f"  events{clock}: " + (", ".join(
         f"{e['context']} {e['label']} {e['time_s']:.3f} s".strip() for e in events) or "none"))
-    rows = [(m["label"], m["landmark"] or "(not in protocol)", f"{m['gap_pct']:.1f}",
+    rows = [(m["label"], _landmark_cell(m), f"{m['gap_pct']:.1f}",
              f"{m['longest_gap_s']:.2f} s ({m['longest_gap_frames']} frames)"
              if m["longest_gap_frames"] else "-") for m in summary["markers"]]
     widths = [max(len(r[k]) for r in rows + [("marker", "landmark", "gap %", "")])
