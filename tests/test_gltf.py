@@ -206,6 +206,33 @@ def test_a_blended_query_as_gltf(walks, tmp_path, capsys, name):
                                library.skeleton.forward(q)[:, :, :3, 3], atol=TOLERANCE_M)
 
 
+def _animate(path, folder, *outputs: str) -> None:
+    """``mocaplib animate`` of the library at ``path`` along a walk and a turn, into
+    ``outputs`` (``--bvh NAME``, ``--gltf NAME``... in ``folder``)."""
+    route = folder / "route.csv"
+    route.write_text("x,y\n0,0\n3,0\n5,1.5\n", encoding="utf-8")
+    options = [x if x.startswith("--") else str(folder / x) for x in outputs]
+    assert main(["animate", str(path), "--path", str(route), "--speed", "1.2", "--rate", "50",
+                 *options]) == 0
+
+
+@pytest.mark.usefixtures("sample_dir")
+@pytest.mark.parametrize("name", ["path.gltf", "path.glb"])
+def test_a_followed_path_as_gltf_poses_what_its_bvh_poses(tmp_path, name):
+    from bvh_reader import Character
+    from test_planting import sample_library
+
+    _animate(sample_library()[1], tmp_path, "--bvh", "path.bvh", "--gltf", name)
+    check_structure(tmp_path / name)
+    times, positions, names = animated_positions(tmp_path / name)
+    bvh = Character((tmp_path / "path.bvh").read_text())     # an independent BVH reader
+    assert len(times) == bvh.frames > 200
+    np.testing.assert_array_equal(times, (np.arange(bvh.frames) / 50.0).astype(np.float32))
+    for segment in SEGMENT_NAMES:
+        np.testing.assert_allclose(positions[:, names.index(segment)], bvh.position(segment),
+                                   atol=TOLERANCE_M, err_msg=segment)
+
+
 #: The Khronos Group's glTF-Validator (npm ``gltf-validator``, a devDependency of js/).
 KHRONOS_VALIDATOR = REPO / "js" / "node_modules" / "gltf-validator"
 _VALIDATE = ("const v = require(process.argv[1]); const fs = require('fs');"
@@ -232,6 +259,7 @@ def test_the_khronos_validator_finds_no_error_nor_warning(walks, tmp_path, capsy
     entry = next(e for e in library.table.index if e.startswith("walk_straight_normal_"))
     files.append(retarget(library, entry, skeleton=Skeleton.from_height(1.9), rate=50.0)
                  .write(tmp_path / "tall.glb"))
+
     done = subprocess.run(["node", "-e", _VALIDATE, str(KHRONOS_VALIDATOR), *map(str, files)],
                           capture_output=True, text=True, timeout=120, check=True)
     for file, issues in zip(files, json.loads(done.stdout)):

@@ -8,15 +8,15 @@ import math
 from ..gait.gaits import BLEND_GAITS
 from ._common import (LIBRARY_HINT, UsageError, add_force_option, check_inputs, check_outputs,
                       positive)
-from .query import ANIMATION_RATE, _animation_rate
+from .query import ANIMATION_RATE, _animation_rate, output_suffix
 
-#: The outputs: option -> the format written.
-OUTPUTS = {"--bvh": ".bvh", "--csv": ".csv", "--mot": ".mot"}
+#: The outputs: option -> the format written (glTF binary for a --gltf name ending in .glb).
+OUTPUTS = {"--bvh": ".bvh", "--gltf": ".gltf", "--csv": ".csv", "--mot": ".mot"}
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "animate", help="continuous motion following a path, as BVH, CSV or .mot",
+        "animate", help="continuous motion following a path, as BVH, glTF, CSV or .mot",
         description="Follow PATH.csv — a polyline (columns x,y in metres, optionally t in "
                     "seconds) or a timeline of commands (columns t,v,omega,v_l: s, m/s, rad/s, "
                     "m/s) — cycle after cycle, each cycle blended from the control space at "
@@ -33,7 +33,9 @@ def register(subparsers) -> None:
                         help=f"frame rate, Hz (default {ANIMATION_RATE:g}); frames are at "
                              "exactly k/rate s")
     for option, suffix in OUTPUTS.items():
-        parser.add_argument(option, metavar=f"OUT{suffix}", help=f"write the motion as {suffix}")
+        parser.add_argument(option, metavar=f"OUT{suffix}", help=f"write the motion as {suffix}"
+                            + (" (glTF 2.0 for game engines; .glb for the binary file)"
+                               if option == "--gltf" else ""))
     add_force_option(parser)
     parser.set_defaults(run=_run)
 
@@ -49,7 +51,8 @@ def _run(args) -> int:
     outputs = {option: getattr(args, option[2:]) for option in OUTPUTS
                if getattr(args, option[2:])}
     if not outputs:
-        raise UsageError("nothing to write: add --bvh OUT.bvh, --csv OUT.csv or --mot OUT.mot")
+        raise UsageError("nothing to write: add --bvh OUT.bvh, --gltf OUT.gltf, --csv OUT.csv "
+                         "or --mot OUT.mot")
     check_inputs([args.library, args.path], hint=LIBRARY_HINT)
     check_outputs(outputs, [args.library, args.path], force=args.force)
     path = read_path(args.path)
@@ -60,7 +63,8 @@ def _run(args) -> int:
     planted = plant_feet(library.skeleton, followed.q, rate)
     motion = Motion(planted.q, library.skeleton, rate, source="animate")
     for option, out in outputs.items():
-        print(f"{option[2:].upper()}: {write(motion, out, suffix=OUTPUTS[option])}")
+        print(f"{option[2:].upper()}: "
+              f"{write(motion, out, suffix=output_suffix(option, out, OUTPUTS))}")
     for k, c in enumerate(followed.cycles):
         print(f"  cycle {k}: t = {c.start_s:.3f} s, T = {c.T:.3f} s, command "
               f"({c.command[0]:.3f} m/s, {c.command[1]:.3f} rad/s, {c.command[2]:.3f} m/s), "

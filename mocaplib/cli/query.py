@@ -24,6 +24,14 @@ ANIMATION_CYCLES, ANIMATION_RATE = 1, 100.0
 ANIMATIONS = {"--bvh": ".bvh", "--gltf": ".gltf"}
 
 
+def output_suffix(option: str, path: str, formats: dict[str, str]) -> str:
+    """The format an output ``option`` writes ``path`` in: ``formats[option]``, or the glTF
+    binary (``.glb``) for a ``--gltf`` name ending in .glb."""
+    if option == "--gltf" and path.lower().endswith(".glb"):
+        return ".glb"
+    return formats[option]
+
+
 def _animation_rate(text: str) -> float:
     """argparse ``type=`` of --rate: Hz in [MIN_RATE, MAX_RATE]; else exit 2."""
     rate = positive(float, unit=" Hz", most=MAX_RATE)(text)
@@ -131,9 +139,8 @@ def _run(args) -> int:
         answer["feet"] = planted.after.as_dict()
         motion = Motion(planted.q, library.skeleton, rate, source="blend")
         for option, path in outputs.items():
-            binary = option == "--gltf" and path.lower().endswith(".glb")
             answer[option[2:]] = str(write(motion, path,
-                                           suffix=".glb" if binary else ANIMATIONS[option]))
+                                           suffix=output_suffix(option, path, ANIMATIONS)))
     if args.json:
         print_json(answer)
         return 0
