@@ -1,28 +1,30 @@
-"""mocaplib's BVH outputs as Blender shows them: joints, frame rate and planted feet, measured in
-Blender itself.
+"""mocaplib's BVH and glTF outputs as Blender shows them: joints, frame rate and planted feet,
+measured in Blender itself.
 
     python benchmarks/blender_feet.py [LIBRARY.json] [--samples sample_c3d] [--blender blender]
                                       [--heights 1.5 1.9] [--real DIR] [--markdown PATH]
 
 Without a library, builds the quick start's one from ``--samples``. Writes, with the CLI a user
-runs: for one entry of every locomotion type, ``mocaplib query LIBRARY V OMEGA VL --clamp --bvh
---cycles 3`` at the entry's own command; ``mocaplib retarget`` of the straight normal walk to
-each of ``--heights``; ``mocaplib animate`` along a path turning left. Where ``--real`` (default
+runs, each motion as BVH and as glTF binary (.glb) by the same command: for one entry of every
+locomotion type, ``mocaplib query LIBRARY V OMEGA VL --clamp --bvh --gltf --cycles 3`` at the
+entry's own command; ``mocaplib retarget`` of the straight normal walk to each of
+``--heights``; ``mocaplib animate`` along a path turning left. Where ``--real`` (default
 ``$MOCAPLIB_SHARED_C3D``, else ``../shared/data/c3d``) holds the lab walks of
 tests/walking_library.py, also ``mocaplib build`` of them with ``--all-cycles`` and the same
 query at every moving entry of that library (each a walk of a real person, on the library's
-skeleton). Each file is imported
-into Blender (``blender -b``, :mod:`blender_pose`: Blender's default import with the scene's
-frame rate updated) and measured there:
+skeleton). Each file is imported into Blender (``blender -b``, :mod:`blender_pose`: Blender's
+default BVH import with the scene's frame rate updated; its default glTF import after the
+scene's frame rate is set to the file's) and measured there:
 
 * **joints**: the largest distance over every bone head and frame between Blender's pose and
-  an independent reader's forward kinematics of the same file (tests/bvh_reader.py, no
-  mocaplib code); the frame counts and the scene's frame rate against the file's;
+  an independent reader's forward kinematics of the same file (tests/bvh_reader.py;
+  tests/gltf_reader.py, pygltflib, for the glTF; no mocaplib code); the frame counts and the
+  scene's frame rate against the file's;
 * **feet** as Blender poses them: each foot's toe is its bone's end site, its heel on the sole
-  (tests/bvh_reader.py's :class:`Character`, its points moved with Blender's foot matrices):
-  ``slide``, the largest horizontal travel of a heel or toe touching the floor (within 1 mm) in
-  one stance; ``below``, the deepest a heel or toe goes under Blender's floor (z = 0);
-  ``hover``, how far a flat foot stays above it.
+  (tests/bvh_reader.py's :class:`Character` of the BVH, its points at the first frame moved
+  with Blender's foot matrices): ``slide``, the largest horizontal travel of a heel or toe
+  touching the floor (within 1 mm) in one stance; ``below``, the deepest a heel or toe goes
+  under Blender's floor (z = 0); ``hover``, how far a flat foot stays above it.
 
 Targets (as benchmarks/character.py): slide ≤ 2 mm, below ≤ 0.5 mm, hover ≤ 3 mm, joints
 within 0.1 mm of the reader, the scene's frame rate the file's. Prints Markdown
@@ -51,6 +53,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 from bvh_reader import Character, parse_bvh  # noqa: E402
 from character import HOVER, SLIDE, moving_entries  # noqa: E402
 from control_space import quick_start_library  # noqa: E402
+from gltf_reader import animated_positions  # noqa: E402
 from markdown_results import add_markdown_option, markdown_page  # noqa: E402
 from mocaplib.library.format import load_library  # noqa: E402
 from mocaplib.synth.plan import locomotion_type  # noqa: E402
@@ -61,6 +64,9 @@ HEIGHTS = (1.5, 1.9)
 #: Blender's import (Y up, -Z forward): Blender's world (x, y, z) = (x, -z, y) of the file,
 #: as the reader's Z-up frame.
 POSE_SCRIPT = Path(__file__).resolve().parent / "blender_pose.py"
+#: Blender's glTF import turns the file's Y up into Z and its +Z (the subject's front) into -Y:
+#: the reader's axes (x forward, y left, z up) from Blender's world after a glTF import.
+OURS_FROM_GLTF_IMPORT = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 #: The path ``animate`` follows: 4 m straight, then a quarter circle of radius 2 m to the left.
 PATH_CSV = "x,y\n" + "\n".join(f"{x:.3f},{y:.3f}" for x, y in (
     [(0.5 * k, 0.0) for k in range(9)]
@@ -69,60 +75,63 @@ PATH_CSV = "x,y\n" + "\n".join(f"{x:.3f},{y:.3f}" for x, y in (
 
 class BlenderCharacter(Character):
     """A BVH file's character with its feet as Blender poses them: the reader's heel and toe
-    points of each foot, in the foot's rest frame, moved by Blender's foot matrices."""
+    points of each foot at the first frame, fixed to Blender's foot bone there and moved with
+    Blender's foot matrices (so any rest pose and bone orientation the importer chose)."""
 
     def __init__(self, text: str, pose: dict, *, loop: bool = False):
         super().__init__(text, loop=loop)
         self.pose = pose
 
     def feet(self) -> np.ndarray:
-        joints, _, _ = parse_bvh(self.text)
-        rest_feet = Character(self.text)
-        rest = np.array(self.pose["feet_rest"])                               # (2, 4, 4)
-        moved = np.array(self.pose["feet"])                                   # (F, 2, 4, 4)
+        first = Character(self.text).feet()[0]                               # (2, 2, 3) Z up
+        moved = np.asarray(self.pose["feet"])                                # (F, 2, 4, 4)
         out = []
-        for side, name in enumerate(("foot_l", "foot_r")):
-            # the sole's points at rest: the reader's heel and toe in the zero pose
-            points = _rest_points(joints, rest_feet, name)                    # (2, 3) Z up
-            local = np.linalg.solve(rest[side], np.c_[points, np.ones(2)].T)  # (4, 2)
+        for side in range(2):
+            local = np.linalg.solve(moved[0, side], np.c_[first[side], np.ones(2)].T)  # (4, 2)
             out.append(np.einsum("fij,jp->fpi", moved[:, side], local)[..., :3])
         return np.stack(out, axis=1)
 
 
-def _rest_points(joints, character: Character, name: str) -> np.ndarray:
-    """Heel and toe (2, 3) m, Z up, of foot ``name`` in the file's zero pose (every channel 0)."""
-    zero = "\n".join(character.text.split("MOTION")[0].splitlines()) + (
-        "\nMOTION\nFrames: 1\nFrame Time: 0.01\n"
-        + " ".join("0" for j in joints for _ in j.get("channels", [])) + "\n")
-    at_rest = Character(zero, heel_ahead=character.heel_ahead)
-    return at_rest.feet()[0, ("foot_l", "foot_r").index(name)]
-
-
-def blender_pose(blender: str, bvh: Path) -> dict:
-    """What Blender shows of ``bvh`` (:mod:`blender_pose`)."""
-    out = bvh.with_suffix(".json")
+def blender_pose(blender: str, path: Path, rate: float | None = None) -> dict:
+    """What Blender shows of the BVH or glTF file ``path`` (:mod:`blender_pose`; ``rate``: the
+    scene's frame rate for a glTF, Hz)."""
+    out = path.with_name(path.name + ".json")
     subprocess.run([blender, "-b", "--factory-startup", "--python", str(POSE_SCRIPT), "--",
-                    str(bvh), str(out)], check=True, capture_output=True, timeout=600)
+                    str(path), str(out), *([repr(rate)] if rate else [])],
+                   check=True, capture_output=True, timeout=600)
     return json.loads(out.read_text())
 
 
-def measure(name: str, bvh: Path, loop: bool, blender: str) -> dict:
-    """One file's row: joints against the reader, frame rate, feet in Blender (``loop``: the
-    file is one cycle that a player repeats, its stances across its ends whole)."""
-    text = bvh.read_text()
-    pose = blender_pose(blender, bvh)
+def _in_our_axes(pose: dict) -> dict:
+    """A glTF import's pose turned into the reader's axes (:data:`OURS_FROM_GLTF_IMPORT`)."""
+    turn = np.eye(4)
+    turn[:3, :3] = OURS_FROM_GLTF_IMPORT
+    return {**pose, "head": np.asarray(pose["head"]) @ OURS_FROM_GLTF_IMPORT.T,
+            "feet": turn @ np.asarray(pose["feet"])}
+
+
+def measure(name: str, path: Path, loop: bool, blender: str) -> dict:
+    """One file's row: joints against an independent reader, frame rate, feet in Blender
+    (``loop``: the file is one cycle that a player repeats, its stances across its ends whole).
+    A glTF file (.gltf, .glb) has its BVH twin beside it (the same motion, written by the same
+    command), whose reader gives the feet's sole; its joints are read with pygltflib."""
+    text = path.with_suffix(".bvh").read_text()
     reader = Character(text)
-    joints, _, _ = parse_bvh(text)
-    named = [j["name"] for j in joints if j["name"] is not None]
+    if path.suffix in (".gltf", ".glb"):
+        pose = _in_our_axes(blender_pose(blender, path, 1.0 / reader.frame_time))
+        times, positions, named = animated_positions(path)
+        frames = len(times)
+        theirs = positions[:, [named.index(bone) for bone in pose["bones"]]]
+    else:
+        pose = blender_pose(blender, path)
+        frames = reader.frames
+        theirs = np.stack([reader.position(bone) for bone in pose["bones"]], axis=1)
+        named = [j["name"] for j in parse_bvh(text)[0] if j["name"] is not None]
     keyed = round(pose["keyed"][1] - pose["keyed"][0]) + 1
     scene = pose["frame_end"] - pose["frame_start"] + 1
-    # the scene's frames from its first, as many as the file has (the importer's duration
-    # update ends the scene one frame after the last keyed one)
-    pose = {**pose, "head": pose["head"][:reader.frames], "feet": pose["feet"][:reader.frames]}
-    heads = np.array(pose["head"])                                           # (F, B, 3)
-    theirs = np.stack([reader.position(bone) for bone in pose["bones"]], axis=1)
+    heads = np.asarray(pose["head"])                                          # (F, B, 3)
     seen = BlenderCharacter(text, pose, loop=loop)
-    return {"output": name, "frames": reader.frames, "blender_frames": keyed,
+    return {"output": name, "frames": frames, "blender_frames": keyed,
             "scene_frames": scene,
             "file_hz": 1.0 / reader.frame_time, "blender_fps": pose["fps"],
             "bones": f"{len(pose['bones'])}/{len(named)}",
@@ -132,9 +141,14 @@ def measure(name: str, bvh: Path, loop: bool, blender: str) -> dict:
             "blender": pose["blender"]}
 
 
+def _twins(label: str, bvh: Path, loop: bool) -> list[tuple[str, Path, bool]]:
+    """The rows of one output written as BVH and as glTF binary beside it."""
+    return [(label, bvh, loop), (f"{label}, glTF", bvh.with_suffix(".glb"), loop)]
+
+
 def outputs(library: Path, folder: Path, heights) -> list[tuple[str, Path, bool]]:
-    """Write the BVH files measured (module docstring) with the CLI; (label, path, whether it
-    is one looping cycle) each."""
+    """Write the files measured (module docstring) with the CLI, each as BVH and as glTF;
+    (label, path, whether it is one looping cycle) each."""
     lib = load_library(library)
     cli = [sys.executable, "-m", "mocaplib"]
     written, seen = [], set()
@@ -145,21 +159,24 @@ def outputs(library: Path, folder: Path, heights) -> list[tuple[str, Path, bool]
         seen.add(kind)
         out = folder / f"query_{kind}.bvh"
         subprocess.run([*cli, "query", str(library), repr(entry.v), repr(entry.omega),
-                        repr(entry.v_l), "--clamp", "--bvh", str(out), "--cycles", "3"],
+                        repr(entry.v_l), "--clamp", "--bvh", str(out), "--gltf",
+                        str(out.with_suffix(".glb")), "--cycles", "3"],
                        check=True, capture_output=True, cwd=ROOT)
-        written.append((f"query, {kind} ({entry.id})", out, False))
+        written += _twins(f"query, {kind} ({entry.id})", out, False)
     walk = next(e.id for e in moving_entries(lib) if e.id.startswith("walk_straight_normal"))
     for height in heights:
         out = folder / f"retarget_{height}.bvh"
         subprocess.run([*cli, "retarget", str(library), walk, "--height", str(height), "-o",
-                        str(out)], check=True, capture_output=True, cwd=ROOT)
-        written.append((f"retarget, {walk} to {height} m (one cycle, looped)", out, True))
+                        str(out), "-o", str(out.with_suffix(".glb"))],
+                       check=True, capture_output=True, cwd=ROOT)
+        written += _twins(f"retarget, {walk} to {height} m (one cycle, looped)", out, True)
     path = folder / "path.csv"
     path.write_text(PATH_CSV)
     out = folder / "animate.bvh"
     subprocess.run([*cli, "animate", str(library), "--path", str(path), "--speed", "1.1",
-                    "--bvh", str(out)], check=True, capture_output=True, cwd=ROOT)
-    written.append(("animate, 4 m then a left quarter circle of 2 m at 1.1 m/s", out, False))
+                    "--bvh", str(out), "--gltf", str(out.with_suffix(".glb"))],
+                   check=True, capture_output=True, cwd=ROOT)
+    written += _twins("animate, 4 m then a left quarter circle of 2 m at 1.1 m/s", out, False)
     return written
 
 
@@ -177,9 +194,9 @@ def real_outputs(real: Path, folder: Path) -> list[tuple[str, Path, bool]]:
         out = folder / f"real_{entry.id}.bvh"
         command = [f"{x:.9f}" for x in (entry.v, entry.omega, entry.v_l)]   # no exponent
         subprocess.run([sys.executable, "-m", "mocaplib", "query", str(library), *command,
-                        "--clamp", "--bvh", str(out), "--cycles", "3"],
-                       check=True, capture_output=True, cwd=ROOT)
-        written.append((f"query, real walk {entry.id}", out, False))
+                        "--clamp", "--bvh", str(out), "--gltf", str(out.with_suffix(".glb")),
+                        "--cycles", "3"], check=True, capture_output=True, cwd=ROOT)
+        written += _twins(f"query, real walk {entry.id}", out, False)
     return written
 
 
@@ -218,8 +235,9 @@ def main() -> int:
         if all((args.real / name).is_file() for name in REAL_WALKS):
             written += real_outputs(args.real, folder)
         df = pd.DataFrame([measure(*output, blender) for output in written])
-        print(f"Blender {df.blender.iloc[0]}, each file imported with its default options and "
-              "the scene's frame rate updated.\n")
+        print(f"Blender {df.blender.iloc[0]}, each file imported with its default options: a "
+              "BVH with the scene's frame rate updated, a glTF (the same motion, written by the "
+              "same command, `.glb`) after the scene's frame rate was set to the file's.\n")
         print("| output | frames (file / keyed / scene) | rate (file Hz / scene fps) | bones | "
               "joints vs reader (mm) | stances | slide (mm) | below (mm) | hover (mm) |")
         print("|---|---|---|---|---|---|---|---|---|")
@@ -228,11 +246,15 @@ def main() -> int:
                   f"{r.file_hz:g} / "
                   f"{r.blender_fps:g} | {r.bones} | {r.joints_mm:.4f} | {r.stances} | "
                   f"{r.slide_mm:.2f} | {r.below_mm:.2f} | {r.hover_mm:.2f} |")
-        print("\nThe importer keys one frame per file frame from the scene's first; updating the "
-              "scene's duration, it moves the scene's end to one frame after the last keyed one "
-              "where the scene was shorter (never shortening it: 250 frames by default), hence "
-              "the guide's note to set the end frame to the file's frame count for a loop. "
-              "Measured on the keyed frames.")
+        print("\nThe BVH importer keys one frame per file frame from the scene's first; "
+              "updating the scene's duration, it moves the scene's end to one frame after the "
+              "last keyed one where the scene was shorter (never shortening it: 250 frames by "
+              "default), hence the guide's note to set the end frame to the file's frame count "
+              "for a loop. The glTF importer keys the file's key at t s on frame t · fps from "
+              "frame 0 and leaves the scene's range as it was; its armature has a bone per "
+              "node, the end points (`head_end`, `foot_l_end`...) included. Joints are measured "
+              "against an independent reader of each file (tests/bvh_reader.py; pygltflib for "
+              "the glTF), the feet on the keyed frames.")
         misses = missed(df)
         print(f"\nTargets: slide ≤ {1000 * SLIDE:g} mm, below ≤ {1000 * BELOW:g} mm, hover ≤ "
               f"{1000 * HOVER:g} mm, joints within {1000 * JOINTS:g} mm of the reader, the "

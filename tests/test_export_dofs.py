@@ -38,7 +38,7 @@ def test_tables_and_the_osim_list_the_dofs_in_order(tmp_path):
 
 
 def test_each_dof_drives_one_bvh_channel_and_its_segment_in_the_gltf(tmp_path):
-    from test_gltf import animated_positions
+    from gltf_reader import animated_positions
 
     sk = Skeleton.from_height(1.75)
     rest = np.zeros((1, len(DOF_NAMES)))
@@ -99,7 +99,7 @@ from xml.etree import ElementTree as ET
 from mocaplib.export.formats import write
 from mocaplib.model.motion import Motion
 from mocaplib.skeleton import DOF_NAMES, SEGMENT_NAMES, Skeleton
-from test_gltf import animated_positions
+from gltf_reader import animated_positions
 from bvh_reader import parse_bvh
 
 out = Path(sys.argv[1])
