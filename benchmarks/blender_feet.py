@@ -29,7 +29,8 @@ scene's frame rate is set to the file's) and measured there:
 Targets (as benchmarks/character.py): slide ≤ 2 mm, below ≤ 0.5 mm, hover ≤ 3 mm, joints
 within 0.1 mm of the reader, the scene's frame rate the file's. Prints Markdown
 (``--markdown PATH`` also writes it into a results page); exit code 1 when a target is missed,
-2 when Blender is not found.
+2 when Blender is not found or its glTF importer cannot run (it needs numpy in Blender's
+Python: Debian's ``python3-numpy``).
 """
 
 from __future__ import annotations
@@ -94,12 +95,28 @@ class BlenderCharacter(Character):
 
 def blender_pose(blender: str, path: Path, rate: float | None = None) -> dict:
     """What Blender shows of the BVH or glTF file ``path`` (:mod:`blender_pose`; ``rate``: the
-    scene's frame rate for a glTF, Hz)."""
+    scene's frame rate for a glTF, Hz). Blender's output is in the error when it fails."""
     out = path.with_name(path.name + ".json")
-    subprocess.run([blender, "-b", "--factory-startup", "--python", str(POSE_SCRIPT), "--",
-                    str(path), str(out), *([repr(rate)] if rate else [])],
-                   check=True, capture_output=True, timeout=600)
+    done = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
+                           "--python", str(POSE_SCRIPT), "--", str(path), str(out),
+                           *([repr(rate)] if rate else [])],
+                          capture_output=True, text=True, timeout=600)
+    if done.returncode:
+        raise RuntimeError(f"Blender could not pose {path.name}:\n{done.stdout[-2000:]}"
+                           f"{done.stderr[-2000:]}")
     return json.loads(out.read_text())
+
+
+def gltf_importer_missing(blender: str) -> str | None:
+    """Why Blender's glTF importer cannot run here, or None: it needs numpy in Blender's own
+    Python (blender.org's builds bundle it; Debian's Blender takes the system's:
+    ``apt-get install python3-numpy``)."""
+    done = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
+                           "--python-expr", "import numpy"], capture_output=True, timeout=120)
+    if done.returncode == 0:
+        return None
+    return ("Blender's glTF importer needs numpy in Blender's Python (Debian: apt-get install "
+            "python3-numpy)")
 
 
 def _in_our_axes(pose: dict) -> dict:
@@ -227,6 +244,10 @@ def main() -> int:
     if blender is None:
         print(f"Blender not found ({args.blender}): install it (Debian: apt-get install "
               "blender) or give --blender PATH", file=sys.stderr)
+        return 2
+    missing = gltf_importer_missing(blender)
+    if missing:
+        print(missing, file=sys.stderr)
         return 2
     with markdown_page(args.markdown, __file__), tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
