@@ -84,7 +84,7 @@ class BlenderCharacter(Character):
         self.pose = pose
 
     def feet(self) -> np.ndarray:
-        first = Character(self.text).feet()[0]                               # (2, 2, 3) Z up
+        first = super().feet()[0]                                            # (2, 2, 3) Z up
         moved = np.asarray(self.pose["feet"])                                # (F, 2, 4, 4)
         out = []
         for side in range(2):

@@ -14,7 +14,7 @@ from ..errors import MocapError, ProtocolError
 from ..io import printable
 from ..io.c3d import read_c3d
 from ..trial import Trial, check_gait_rate, normalise_label, require_markers
-from .draft import LOW_CONFIDENCE, Draft, draft_protocol
+from .draft import Draft, draft_protocol
 from .matching import match_trial, needs_draft
 from .protocols import Protocol, overrides
 
@@ -69,9 +69,8 @@ def inspect_trial(trial: Trial, /, *, protocol: Protocol | str = "auto") -> dict
     build drafts one), ``warnings`` says so and how to draft it, ``draft`` counts what a
     draft from this trial alone (:func:`~mocaplib.markersets.draft.draft_protocol`) places,
     and each marker's ``drafted`` holds its guess (``landmark``, ``segment``,
-    ``confidence``). A protocol or landmark that a
-    user folder redefines is noted in ``warnings``
-    (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
+    ``confidence``). A protocol or landmark that a user folder redefines is noted in
+    ``warnings`` (:func:`mocaplib.markersets.protocols.overrides`). A trial without markers (an
     analog-only file) fails: ``ok`` is False, ``error`` says it holds no marker points (and
     how many analog channels), and the summary keeps what it does hold (frames, rate,
     ``analog_channels``, events, warnings).
@@ -152,20 +151,19 @@ def _draft_preview(trial: Trial, out: dict, warnings: list[str]) -> dict[str, di
     out["draft"] = _draft_counts(draft)
     warnings.extend(f"draft: {w}" for w in draft.warnings())
     return {normalise_label(e.label): {"landmark": e.landmark, "segment": e.segment,
-                      "confidence": round(e.confidence, 2)}
+                                       "confidence": round(e.confidence, 2)}
             for e in draft.entries if e.landmark or e.segment}
 
 
 def _draft_counts(draft: Draft) -> dict[str, int]:
     """How many labels ``draft`` puts on a landmark, in a segment's cluster, nowhere, and how
-    many of its guesses are of low confidence."""
+    many of its guesses are of low confidence (:meth:`Draft.warnings`, one each)."""
     entries = draft.entries
     return {"landmarks": sum(e.landmark is not None for e in entries),
             "cluster_markers": sum(e.landmark is None and e.segment is not None
                                    for e in entries),
             "without_guess": sum(e.landmark is None and e.segment is None for e in entries),
-            "low_confidence": sum(bool(e.landmark or e.segment)
-                                  and e.confidence < LOW_CONFIDENCE for e in entries)}
+            "low_confidence": len(draft.warnings())}
 
 
 def _landmark_cell(marker: dict) -> str:
